@@ -1,0 +1,41 @@
+/*
+ * sooc3d frames: the one RGB-D frame type that crosses every seam
+ * (readers -> node -> mapper -> eval), see architecture.md §4.
+ *
+ * A frame owns its pixel buffers (allocated with sooc_malloc by
+ * sooc_frame_alloc and released by sooc_frame_free).
+ */
+#ifndef SOOC3D_FRAME_H
+#define SOOC3D_FRAME_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/geom.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sooc_frame {
+    int width, height;
+    uint8_t *rgb;          /* H*W*3, RGB8, row-major                                   */
+    float *depth;          /* H*W metres along the optical axis (planar z); 0 = invalid */
+    uint8_t *valid;        /* H*W, 1 where depth is valid (depth > 0 and finite)        */
+    uint16_t *instance;    /* H*W instance ids (0 = floor/background), or NULL          */
+    int64_t t_ns;          /* sensor clock, nanoseconds                                 */
+    int has_pose;          /* 1 when T_wc holds a pose                                  */
+    double T_wc[16];       /* camera-to-world, row-major, OpenCV camera axes            */
+    sooc_intrinsics K;     /* intrinsics at this frame's resolution                     */
+    int64_t index;         /* frame number within its sequence                          */
+    int is_query;          /* synthetic data: 1 for a held-out query view               */
+} sooc_frame;
+
+/* Allocate buffers for a w x h frame (instance buffer only if with_instance).
+ * Zeroes everything. On failure, the frame is left empty. */
+sooc_status sooc_frame_alloc(sooc_frame *f, int w, int h, int with_instance);
+void sooc_frame_free(sooc_frame *f);     /* NULL-safe; leaves *f zeroed */
+sooc_status sooc_frame_copy(sooc_frame *dst, const sooc_frame *src); /* dst is (re)allocated */
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_FRAME_H */

@@ -1,0 +1,84 @@
+/*
+ * sooc3d online mapper: the amortised variational update, once per keyframe
+ * (architecture.md §2). This is the API the node calls.
+ *
+ *   sooc3d_mapper *m;
+ *   sooc3d_mapper_create(&m, &params);          // loads the model checkpoint
+ *   for each keyframe: sooc3d_mapper_update(m, &frame, &stats);
+ *   sooc3d_mapper_entries(m, ...)               // read the map
+ *   sooc3d_mapper_destroy(m);
+ *
+ * Thread-safety: one thread may call update/entries at a time (the mapping
+ * thread owns the mapper). The cost of an update depends on K, L and the ray
+ * count, never on the map size.
+ */
+#ifndef SOOC3D_MAPPER_H
+#define SOOC3D_MAPPER_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SOOC_MAP_LATENT_MAX 32
+
+/* One cognitive-map entry in the world frame (+y up, floor y = 0). */
+typedef struct sooc_map_entry {
+    uint64_t id;               /* stable, never reused; starts at 1 */
+    double x, z, yaw;          /* posterior mean of z^where in the world frame (m, m, rad) */
+    double sigma_t, sigma_yaw; /* posterior std of position (shared by x and z) and yaw */
+    float presence;            /* sigmoid of the presence logit */
+    float presence_logit;
+    int latent_dim;            /* <= SOOC_MAP_LATENT_MAX */
+    float what_mu[SOOC_MAP_LATENT_MAX];
+    float what_logvar[SOOC_MAP_LATENT_MAX];
+    float extent[3];           /* box size (x, y, z) in m, from the model's locality box */
+    int64_t first_seen_ns, last_seen_ns;
+    uint32_t obs_count;
+} sooc_map_entry;
+
+typedef struct sooc3d_mapper sooc3d_mapper;
+
+typedef struct sooc3d_mapper_params {
+    const char *model_path;    /* checkpoint file (models/<name>/model.bin)           */
+    int iterations;            /* L refinement updates per keyframe; 0 = model default */
+    uint64_t seed;             /* posterior sampling seed (results are deterministic)  */
+    int threads;               /* 0 = OpenMP default                                   */
+} sooc3d_mapper_params;
+
+void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
+
+/* Load the model and create an empty map. */
+sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params *p);
+void sooc3d_mapper_destroy(sooc3d_mapper *m);   /* NULL-safe */
+
+/* Model input resolution (frames passed to update must have this size). */
+void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *width, int *height);
+
+typedef struct sooc3d_update_stats {
+    int n_retrieved;           /* in-view entries retrieved from the map  */
+    int n_registered;          /* slots written back (present)            */
+    int n_new;                 /* of which new entries                    */
+    int n_removed;             /* retrieved entries whose presence fell   */
+    double elapsed_ms;
+} sooc3d_update_stats;
+
+/* One keyframe: query in-view entries, pad to K with the slot priors, refine
+ * L times, register the present slots. `f` must have a pose and the model's
+ * resolution; depth is planar metres with 0 = invalid. */
+sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st);
+
+/* Copy out up to `cap` entries (all entries if out == NULL: returns the count
+ * in *n). Entries are ordered by id. */
+sooc_status sooc3d_mapper_entries(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n);
+
+/* Replace the map's contents (resume from a stored map). Ids are kept and new
+ * ids continue after the largest one. */
+sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e, size_t n);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_MAPPER_H */

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Install the Debian 12 packages sooc3d builds and tests against.
+# Only packages that are missing are installed; the script is safe to re-run.
+set -euo pipefail
+
+PKGS=(
+  build-essential cmake pkg-config git
+  libopenblas-dev liblapacke-dev
+  libpng-dev libyaml-dev libsqlite3-dev sqlite3
+  libopenni2-dev libopenni2-0
+  libfreenect-dev libfreenect-bin
+  libv4l-dev
+  libcamera-dev
+  libopenmpi-dev openmpi-bin
+  python3 python3-numpy python3-torch
+)
+
+missing=()
+for p in "${PKGS[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PKGS[@]} packages present"
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,26 @@
+/* Shared helpers for the sooc3d subcommands (CLI only: these may print). */
+#ifndef SOOC3D_CLI_H
+#define SOOC3D_CLI_H
+
+#include "sooc3d/core.h"
+
+/* Every subcommand: int sooc_cmd_<name>(int argc, char **argv), argv[0] is
+ * the subcommand name. Returns the process exit code. */
+typedef int (*sooc_cmd_fn)(int argc, char **argv);
+
+int sooc_cmd_gen(int argc, char **argv);
+int sooc_cmd_train(int argc, char **argv);
+int sooc_cmd_infer(int argc, char **argv);
+int sooc_cmd_eval(int argc, char **argv);
+int sooc_cmd_render(int argc, char **argv);
+int sooc_cmd_finetune(int argc, char **argv);
+int sooc_cmd_mesh(int argc, char **argv);
+int sooc_cmd_map(int argc, char **argv);
+int sooc_cmd_node(int argc, char **argv);
+
+/* Print "sooc3d <cmd>: <status>: <errmsg>" to stderr and return 1. */
+int sooc_cli_fail(const char *cmd, sooc_status s);
+/* True if argv has -h or --help. */
+int sooc_cli_wants_help(int argc, char **argv);
+
+#endif

@@ -1,0 +1,71 @@
+/* sooc3d: git-style command dispatcher. */
+#include "cli.h"
+
+#include <stdio.h>
+#include <string.h>
+
+static const struct {
+    const char *name;
+    sooc_cmd_fn fn;
+    const char *help;
+} g_cmds[] = {
+    {"gen", sooc_cmd_gen, "render synthetic RGB-D datasets (unity/blender presets, s/m/l/xl scales)"},
+    {"train", sooc_cmd_train, "train a SOOC3D model"},
+    {"infer", sooc_cmd_infer, "run online inference over a sequence and write the map"},
+    {"eval", sooc_cmd_eval, "compute the paper's metrics and tables"},
+    {"render", sooc_cmd_render, "draw views, segmentations, uncertainty and map pictures"},
+    {"finetune", sooc_cmd_finetune, "per-object NeRF finetuning (EM)"},
+    {"mesh", sooc_cmd_mesh, "extract object meshes"},
+    {"map", sooc_cmd_map, "list, query or export a stored map"},
+    {"node", sooc_cmd_node, "run the live mapping node from a launch file"},
+};
+#define NCMDS (sizeof g_cmds / sizeof g_cmds[0])
+
+static void cli_log(void *user, sooc_log_level level, const char *msg) {
+    (void)user;
+    static const char *tag[] = {"debug", "info", "warn", "error", "fatal"};
+    fprintf(stderr, "[%s] %s\n", tag[level], msg);
+}
+
+static void usage(FILE *f) {
+    fprintf(f, "usage: sooc3d <command> [options]\n\ncommands:\n");
+    for (size_t i = 0; i < NCMDS; i++) fprintf(f, "  %-9s %s\n", g_cmds[i].name, g_cmds[i].help);
+    fprintf(f, "  %-9s %s\n", "help", "list commands, or `sooc3d help <command>`");
+    fprintf(f, "\nRun `sooc3d <command> --help` for a command's options.\n");
+}
+
+int sooc_cli_fail(const char *cmd, sooc_status s) {
+    fprintf(stderr, "sooc3d %s: error (%s): %s\n", cmd, sooc_status_str(s), sooc_errmsg());
+    return 1;
+}
+
+int sooc_cli_wants_help(int argc, char **argv) {
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) return 1;
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    sooc_log_set_callback(cli_log, NULL);
+    if (argc < 2) { usage(stderr); return 2; }
+    const char *name = argv[1];
+    if (!strcmp(name, "help") || !strcmp(name, "--help") || !strcmp(name, "-h")) {
+        if (argc >= 3) {
+            for (size_t i = 0; i < NCMDS; i++)
+                if (!strcmp(argv[2], g_cmds[i].name)) {
+                    char *hargv[] = {argv[2], "--help", NULL};
+                    return g_cmds[i].fn(2, hargv);
+                }
+            fprintf(stderr, "sooc3d: unknown command '%s'\n", argv[2]);
+            return 2;
+        }
+        usage(stdout);
+        return 0;
+    }
+    if (!strcmp(name, "--version")) { printf("sooc3d 0.1.0\n"); return 0; }
+    for (size_t i = 0; i < NCMDS; i++)
+        if (!strcmp(name, g_cmds[i].name)) return g_cmds[i].fn(argc - 1, argv + 1);
+    fprintf(stderr, "sooc3d: unknown command '%s'\n\n", name);
+    usage(stderr);
+    return 2;
+}
