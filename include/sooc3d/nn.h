@@ -1,0 +1,506 @@
+/*
+ * sooc3d nn: the float32 numerics engine (tensors, layers, autodiff, Adam,
+ * parameter slabs, checkpoints). See docs/engine.md for the design, the
+ * measurements behind it and the test strategy.
+ *
+ * Three layers, use whichever fits:
+ *
+ *  1. Kernel pairs (llm.c style), on raw row-major float arrays:
+ *       sooc_nn_<op>_forward (out, saved..., in, weights, sizes)
+ *       sooc_nn_<op>_backward(din, dweights, dout, saved, in, weights, sizes)
+ *     Backward ACCUMULATES (+=) into every gradient pointer; any gradient
+ *     pointer may be NULL to skip that gradient. Shapes are in comments,
+ *     dimension letters: N points/rows, K slots, C channels, B batch (slots
+ *     for images), H/W height/width, I/O/G LSTM input/hidden sizes.
+ *     No allocation: callers pass scratch buffers whose size is given by a
+ *     *_floats() helper.
+ *
+ *  2. A tape (sooc_nn_tape) over arena tensors (sooc_nn_tensor): eager
+ *     forward ops `sooc_nn_<op>(tape, ...)` compute immediately and record a
+ *     node; sooc_nn_tape_backward() replays the nodes in reverse. Errors are
+ *     sticky: once an op fails (arena full, shape mismatch), every later op
+ *     returns NULL and sooc_nn_tape_status() reports the first error.
+ *     sooc_nn_tape_grad() takes the gradient of an intermediate loss over a
+ *     tape segment into separate buffers without disturbing the final
+ *     backward (model.md 2.8 auxiliary inputs).
+ *
+ *  3. A fused, chunked, multi-threaded MLP (sooc_nn_mlp) for the NeRF
+ *     decoder hot path: tree of dense layers, optional per-slot bias on
+ *     layer 0, deterministic per-lane weight-gradient reduction.
+ *
+ * Memory: parameters, gradients and Adam moments live in one sooc_nn_params
+ * slab each (named views); activations live in a sooc_nn_arena (bump
+ * allocator, reset per step). Nothing here calls malloc during a step.
+ *
+ * Threads: OpenMP loops only over outputs each iteration owns; the MLP's
+ * weight gradients use a fixed number of lanes (SOOC_NN_MLP_LANES) reduced
+ * in a fixed order, so results are bitwise identical with OpenMP on or off
+ * and for any thread count. sgemm inside parallel regions is forced to one
+ * OpenBLAS thread. Large single sgemm calls (conv, big linear) use OpenBLAS
+ * threads, whose M/N partitioning does not change any output element's
+ * summation order.
+ *
+ * Thread safety: kernels are reentrant. A tape/arena/params object must be
+ * used by one thread at a time.
+ */
+#ifndef SOOC3D_NN_H
+#define SOOC3D_NN_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "sooc3d/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SOOC_NN_MAX_DIMS 4
+
+/* ============================================================ activations */
+
+/* Elementwise functions; also the fused activation of linear/conv/MLP.
+ * Formulas (x input, y output):
+ *   RELU     y = max(x, 0)             dy/dx = [x > 0]   (0 at the kink)
+ *   ELU      y = x>0 ? x : exp(x)-1    dy/dx = x>0 ? 1 : y+1   (alpha = 1)
+ *   SIGMOID  y = 1/(1+exp(-x))         dy/dx = y(1-y)
+ *   SOFTPLUS y = log(1+exp(x))         dy/dx = sigmoid(x)  (beta 1; x>20: y=x, like torch)
+ *   EXP, LOG, SQUARE (y = x^2), TANH.
+ * Fused activations (linear/conv/MLP) must be computable from y alone:
+ * NONE, RELU, ELU, SIGMOID, TANH. */
+typedef enum sooc_nn_act {
+    SOOC_NN_ACT_NONE = 0,
+    SOOC_NN_ACT_RELU,
+    SOOC_NN_ACT_ELU,
+    SOOC_NN_ACT_SIGMOID,
+    SOOC_NN_ACT_SOFTPLUS,
+    SOOC_NN_ACT_EXP,
+    SOOC_NN_ACT_LOG,
+    SOOC_NN_ACT_SQUARE,
+    SOOC_NN_ACT_TANH
+} sooc_nn_act;
+
+/* Binary elementwise ops with numpy broadcasting. */
+typedef enum sooc_nn_binop {
+    SOOC_NN_ADD = 0, SOOC_NN_SUB, SOOC_NN_MUL, SOOC_NN_DIV
+} sooc_nn_binop;
+
+/* ============================================================ kernel pairs */
+
+/* y[N] = f(x[N]).  backward: dx[N] += dy * f'(x) (uses x and/or y). */
+void sooc_nn_unary_forward(sooc_nn_act f, float *y, const float *x, int64_t n);
+void sooc_nn_unary_backward(sooc_nn_act f, float *dx, const float *dy, const float *x,
+                            const float *y, int64_t n);
+
+/* out = a (op) b with numpy broadcasting. Shapes are given padded to the same
+ * `ndim` (<= 4); each dim of a and b is either equal to the output dim or 1.
+ * out_shape[d] = max(ashape[d], bshape[d]). backward reduces over broadcast
+ * dims: da[ashape] += ..., db[bshape] += ... (either may be NULL). */
+void sooc_nn_binary_forward(sooc_nn_binop op, float *out, const float *a, const int64_t *ashape,
+                            const float *b, const int64_t *bshape, int ndim);
+void sooc_nn_binary_backward(sooc_nn_binop op, float *da, float *db, const float *dout,
+                             const float *a, const int64_t *ashape, const float *b,
+                             const int64_t *bshape, int ndim);
+
+/* Dense layer, torch layout: y[N,O] = act(x[N,I] w[O,I]^T + b[O]) (b may be NULL).
+ * backward: dy[N,O] is OVERWRITTEN with the pre-activation gradient when
+ * act != NONE; then dx[N,I] += dz w, dw[O,I] += dz^T x, db[O] += sum_n dz.
+ * y is the forward output (needed for act' ). Uses sgemm (OpenBLAS threads). */
+void sooc_nn_linear_forward(float *y, const float *x, const float *w, const float *b,
+                            int64_t N, int I, int O, sooc_nn_act act);
+void sooc_nn_linear_backward(float *dx, float *dw, float *db, float *dy, const float *x,
+                             const float *y, const float *w, int64_t N, int I, int O,
+                             sooc_nn_act act);
+
+/* dz = dy * act'(y) in place (act in NONE/RELU/ELU/SIGMOID/TANH). */
+void sooc_nn_act_backward_inplace(sooc_nn_act act, float *dy, const float *y, int64_t n);
+
+/* Per-slot bias broadcast over points: y[K,N,C] = x[K,N,C] + b[K,C].
+ * backward: dx += dy, db[k,c] += sum_n dy[k,n,c]. y may alias x. */
+void sooc_nn_slot_bias_forward(float *y, const float *x, const float *b, int K, int64_t N, int C);
+void sooc_nn_slot_bias_backward(float *dx, float *db, const float *dy, int K, int64_t N, int C);
+
+/* Concatenate n_in tensors viewed as [outer, c[i], inner] along the middle
+ * axis: out[outer, sum c, inner]. backward: din[i] += matching block of dout
+ * (din[i] may be NULL). */
+void sooc_nn_concat_forward(float *out, const float *const *in, const int64_t *c, int n_in,
+                            int64_t outer, int64_t inner);
+void sooc_nn_concat_backward(float *const *din, const float *dout, const int64_t *c, int n_in,
+                             int64_t outer, int64_t inner);
+
+/* out[outer, len, inner] = in[outer, start:start+len, inner] of in[outer, C, inner]. */
+void sooc_nn_slice_forward(float *out, const float *in, int64_t outer, int64_t C, int64_t inner,
+                           int64_t start, int64_t len);
+void sooc_nn_slice_backward(float *din, const float *dout, int64_t outer, int64_t C,
+                            int64_t inner, int64_t start, int64_t len);
+
+/* Row gather: out[N,C] = in[idx[n], :] of in[M,C]. idx values must be in
+ * [0, M) (checked with SOOC_ASSERT). backward: din[idx[n]] += dout[n]
+ * (serial over n: deterministic). */
+void sooc_nn_gather_forward(float *out, const float *in, const int32_t *idx, int64_t N,
+                            int64_t M, int64_t C);
+void sooc_nn_gather_backward(float *din, const float *dout, const int32_t *idx, int64_t N,
+                             int64_t M, int64_t C);
+
+/* Row scatter-add: out[M,C] = 0; out[idx[n]] += src[n] for n in order.
+ * backward: dsrc[n] += dout[idx[n]]. */
+void sooc_nn_scatter_add_forward(float *out, const float *src, const int32_t *idx, int64_t N,
+                                 int64_t M, int64_t C);
+void sooc_nn_scatter_add_backward(float *dsrc, const float *dout, const int32_t *idx, int64_t N,
+                                  int64_t M, int64_t C);
+
+/* Sum (mean if `mean`) over the middle axis: out[outer, inner] from
+ * in[outer, C, inner]. Accumulates in double, in index order. */
+void sooc_nn_sum_forward(float *out, const float *in, int64_t outer, int64_t C, int64_t inner,
+                         int mean);
+void sooc_nn_sum_backward(float *din, const float *dout, int64_t outer, int64_t C,
+                          int64_t inner, int mean);
+
+/* Layer norm over the last axis of x[N,C]:
+ *   y = (x - mean) * rstd * w + b, rstd = 1/sqrt(var + eps) (biased var).
+ * w, b may be NULL (non-learnable; MulMON "LN"). mean[N], rstd[N] are saved. */
+void sooc_nn_layernorm_forward(float *y, float *mean, float *rstd, const float *x,
+                               const float *w, const float *b, int64_t N, int64_t C, float eps);
+void sooc_nn_layernorm_backward(float *dx, float *dw, float *db, const float *dy,
+                                const float *x, const float *mean, const float *rstd,
+                                const float *w, int64_t N, int64_t C);
+
+/* Sinusoidal positional encoding (model.md 3.3, no pi):
+ *   y[n] = [x, sin(2^0 x), cos(2^0 x), sin(2^1 x), cos(2^1 x), ...,
+ *           sin(2^(F-1) x), cos(2^(F-1) x)]
+ * where each entry is a D-vector: y[N, D*(1+2F)] from x[N,D].
+ * D=3, F=5 gives the decoder's 33 inputs. backward: dx[N,D] += ... (uses y). */
+static inline int64_t sooc_nn_posenc_dim(int64_t D, int F) { return D * (1 + 2 * (int64_t)F); }
+void sooc_nn_posenc_forward(float *y, const float *x, int64_t N, int D, int F);
+void sooc_nn_posenc_backward(float *dx, const float *dy, const float *y, int64_t N, int D, int F);
+
+/* conv2d 3x3, stride 1 or 2, TF "SAME" padding (out = ceil(in/stride);
+ * pad_total = max((out-1)*stride + 3 - in, 0), pad_before = pad_total/2,
+ * the extra pixel after: stride 2 on even sizes pads only bottom/right),
+ * NCHW, torch weight layout, batched over B images (slots):
+ *   x[B,Ci,H,W], w[Co,Ci,3,3], b[Co] (may be NULL), y[B,Co,Ho,Wo] = act(conv + b).
+ * col[Ci*9, B*Ho*Wo] is saved for backward; scratch for both directions has
+ * sooc_nn_conv2d_scratch_floats() floats. backward: dy is OVERWRITTEN with
+ * the pre-activation gradient; dx, dw, db accumulate. im2col + one sgemm. */
+static inline int sooc_nn_conv2d_out(int in, int stride) { return (in + stride - 1) / stride; }
+size_t sooc_nn_conv2d_col_floats(int B, int Ci, int H, int W, int stride);
+size_t sooc_nn_conv2d_scratch_floats(int B, int Ci, int H, int W, int Co, int stride);
+void sooc_nn_conv2d_forward(float *y, float *col, float *scratch, const float *x, const float *w,
+                            const float *b, int B, int Ci, int H, int W, int Co, int stride,
+                            sooc_nn_act act);
+void sooc_nn_conv2d_backward(float *dx, float *dw, float *db, float *dy, const float *col,
+                             float *scratch, const float *y, const float *w, int B, int Ci, int H,
+                             int W, int Co, int stride, sooc_nn_act act);
+
+/* LSTM cell, torch.nn.LSTMCell semantics and layout (gate order i, f, g, o):
+ *   z[B,4G] = x[B,I] w_ih[4G,I]^T + b_ih + h0[B,G] w_hh[4G,G]^T + b_hh
+ *   i,f,o = sigmoid, g = tanh;  c1 = f*c0 + i*g;  h1 = o*tanh(c1)
+ * h0/c0 may be NULL (zero state); b_ih/b_hh may be NULL.
+ * gates[B,4G] (post-activation) and c1 are saved for backward.
+ * backward: dh1 and/or dc1 may be NULL (zero); scratch has 4*B*G floats. */
+void sooc_nn_lstm_forward(float *h1, float *c1, float *gates, const float *x, const float *h0,
+                          const float *c0, const float *w_ih, const float *w_hh,
+                          const float *b_ih, const float *b_hh, int B, int I, int G);
+void sooc_nn_lstm_backward(float *dx, float *dh0, float *dc0, float *dw_ih, float *dw_hh,
+                           float *db_ih, float *db_hh, const float *dh1, const float *dc1,
+                           float *scratch, const float *gates, const float *c1, const float *x,
+                           const float *h0, const float *c0, const float *w_ih,
+                           const float *w_hh, int B, int I, int G);
+
+/* ================================================================== arena */
+
+/* One big 64-byte aligned buffer with bump allocation. reset() rewinds it;
+ * pointers handed out before are invalid afterwards. Not thread-safe. */
+typedef struct sooc_nn_arena {
+    unsigned char *base;
+    size_t cap, used, peak;
+} sooc_nn_arena;
+
+sooc_status sooc_nn_arena_init(sooc_nn_arena *a, size_t cap_bytes);
+void sooc_nn_arena_deinit(sooc_nn_arena *a);                 /* NULL-safe */
+void sooc_nn_arena_reset(sooc_nn_arena *a);
+static inline size_t sooc_nn_arena_mark(const sooc_nn_arena *a) { return a->used; }
+void sooc_nn_arena_rewind(sooc_nn_arena *a, size_t mark);
+/* n bytes rounded up to 64; NULL + SOOC_ENOMEM message when full. */
+void *sooc_nn_arena_alloc(sooc_nn_arena *a, size_t nbytes);
+float *sooc_nn_arena_floats(sooc_nn_arena *a, size_t n);     /* uninitialised */
+float *sooc_nn_arena_zeros(sooc_nn_arena *a, size_t n);
+
+/* ================================================================= tensor */
+
+/* A contiguous row-major float32 tensor. `data` and `grad` point into an
+ * arena, a params slab or caller memory; the struct never owns them.
+ * grad is NULL until a backward pass needs it (params: the slab's view). */
+typedef struct sooc_nn_tensor {
+    float *data;
+    float *grad;
+    int64_t shape[SOOC_NN_MAX_DIMS];
+    int ndim;
+    int64_t n;            /* number of elements */
+    int requires_grad;    /* gradient flows into this tensor             */
+    int is_param;         /* a view of a sooc_nn_params slab             */
+    /* internal (tape bookkeeping) */
+    float *grad_main;
+    uint32_t epoch;
+    const char *name;
+} sooc_nn_tensor;
+
+/* ================================================================ params */
+
+/* Parameters, gradients and Adam moments as four flat slabs with the same
+ * layout. Register views (name, shape) first, then sooc_nn_params_alloc();
+ * each view starts on a 64-byte boundary. View tensors are stable for the
+ * lifetime of the object (use sooc_nn_params_tensor()). */
+typedef struct sooc_nn_param_view {
+    char name[64];
+    int ndim;
+    int64_t shape[SOOC_NN_MAX_DIMS];
+    size_t offset, n;         /* in floats */
+    float lr_mult, wd_mult;   /* per-view optimizer multipliers (default 1) */
+    sooc_nn_tensor t;         /* data/grad point into w/g after alloc */
+} sooc_nn_param_view;
+
+typedef struct sooc_nn_params {
+    sooc_nn_param_view *views;
+    int n_views, cap_views;
+    size_t n_total;           /* floats per slab, including alignment padding */
+    float *w, *g, *m, *v;     /* slabs (NULL before alloc) */
+    int64_t adam_t;           /* Adam steps taken */
+} sooc_nn_params;
+
+void sooc_nn_params_init(sooc_nn_params *p);
+void sooc_nn_params_deinit(sooc_nn_params *p);              /* NULL-safe */
+/* Register a view; returns its index (>= 0) or a negative status. Names must
+ * be unique and < 64 chars. Not allowed after alloc. */
+int sooc_nn_params_add(sooc_nn_params *p, const char *name, int ndim, const int64_t *shape);
+/* Allocate the 4 slabs, zeroed. */
+sooc_status sooc_nn_params_alloc(sooc_nn_params *p);
+sooc_nn_tensor *sooc_nn_params_tensor(sooc_nn_params *p, int index);
+/* Index of a view by name, or -1. */
+int sooc_nn_params_find(const sooc_nn_params *p, const char *name);
+void sooc_nn_params_zero_grad(sooc_nn_params *p);
+/* torch default Linear/Conv init: U(-1/sqrt(fan_in), 1/sqrt(fan_in)). */
+void sooc_nn_init_uniform(float *w, size_t n, float bound, sooc_rng *rng);
+
+/* ============================================================= optimizer */
+
+typedef struct sooc_nn_adam_cfg {
+    float beta1, beta2, eps;
+    float weight_decay;   /* Adam: L2 added to the gradient; AdamW: decoupled */
+    int adamw;            /* 0 = Adam (torch.optim.Adam), 1 = AdamW */
+} sooc_nn_adam_cfg;
+
+/* beta (0.9, 0.999), eps 1e-8, no weight decay, Adam. */
+sooc_nn_adam_cfg sooc_nn_adam_default(void);
+/* One step over all views with learning rate lr (times each view's
+ * lr_mult; weight decay times wd_mult). Increments p->adam_t first; bias
+ * correction as torch. Gradients are not zeroed. Non-finite gradient ->
+ * SOOC_ENUMERIC, nothing updated. */
+sooc_status sooc_nn_adam_step(sooc_nn_params *p, const sooc_nn_adam_cfg *cfg, float lr);
+/* Global L2 norm of the gradient slab (double accumulation, fixed order). */
+double sooc_nn_grad_norm(const sooc_nn_params *p);
+/* torch.nn.utils.clip_grad_norm_: if norm > max_norm scale grads by
+ * max_norm/(norm+1e-6). Returns the norm before clipping. */
+double sooc_nn_clip_grad_norm(sooc_nn_params *p, double max_norm);
+
+typedef enum sooc_nn_decay { SOOC_NN_DECAY_CONST = 0, SOOC_NN_DECAY_LINEAR, SOOC_NN_DECAY_COSINE } sooc_nn_decay;
+typedef struct sooc_nn_schedule {
+    float lr;              /* peak learning rate */
+    int64_t warmup;        /* steps of linear warm-up from lr/warmup to lr */
+    int64_t total;         /* total steps (decay ends here) */
+    float final_frac;      /* lr at step `total` = lr * final_frac */
+    sooc_nn_decay decay;
+} sooc_nn_schedule;
+/* lr for 0-based step: warm-up lr*(step+1)/warmup for step < warmup, then
+ * decay from lr to lr*final_frac over [warmup, total]; clamped after total. */
+float sooc_nn_schedule_lr(const sooc_nn_schedule *s, int64_t step);
+
+/* ============================================================ checkpoint */
+
+/* File layout (little-endian), version SOOC_NN_CKPT_VERSION:
+ *   header: magic "SOOCNNCK", u32 version, u32 flags (bit0: optimizer state),
+ *           u32 n_views, u32 reserved, u64 n_total, u64 config_bytes,
+ *           u64 trainer_bytes, i64 adam_t, u64 file_bytes
+ *   view table: per view u32 name_len, name, u32 ndim, i64 shape[ndim], u64 offset
+ *   config blob, trainer blob, w slab, [m slab, v slab]
+ *   u32 CRC32 of all preceding bytes.
+ * Saved atomically (sooc_afile_*). */
+#define SOOC_NN_CKPT_VERSION 1u
+#define SOOC_NN_CKPT_MAX_BLOB ((size_t)1 << 30)
+
+sooc_status sooc_nn_ckpt_save(const char *path, const sooc_nn_params *p, const void *config,
+                              size_t config_bytes, const void *trainer, size_t trainer_bytes,
+                              int with_optimizer);
+/* Read only the config blob (so the caller can build the model): *config is
+ * sooc_malloc'd (caller frees), size bounded by max_bytes and the file size.
+ * Checks magic, version and CRC. */
+sooc_status sooc_nn_ckpt_read_config(const char *path, size_t max_bytes, void **config,
+                                     size_t *config_bytes);
+/* Load into an allocated `p` whose view names/shapes/offsets must match the
+ * file exactly. If expect_config != NULL the stored config must be
+ * byte-identical. The trainer blob goes to trainer (cap bytes; *trainer_bytes
+ * receives its size; trainer may be NULL to skip). Optimizer state is loaded
+ * if present (else m, v, adam_t are zeroed). The file is fully validated
+ * (size, CRC, layout) before `p` is modified. */
+sooc_status sooc_nn_ckpt_load(const char *path, sooc_nn_params *p, const void *expect_config,
+                              size_t expect_config_bytes, void *trainer, size_t trainer_cap,
+                              size_t *trainer_bytes);
+
+/* =================================================================== tape */
+
+typedef struct sooc_nn_tape sooc_nn_tape;
+
+/* A tape records up to max_nodes ops; tensors, saved activations and
+ * gradients come from `arena` (not owned). */
+sooc_status sooc_nn_tape_create(sooc_nn_tape **out, sooc_nn_arena *arena, int max_nodes);
+void sooc_nn_tape_destroy(sooc_nn_tape *t);                  /* NULL-safe */
+/* Forget all nodes and clear the sticky error. Does NOT reset the arena
+ * (do that yourself, usually right after). */
+void sooc_nn_tape_reset(sooc_nn_tape *t);
+/* First error since reset (SOOC_OK if none); message via sooc_errmsg() at
+ * the time of failure, also kept in the tape: */
+sooc_status sooc_nn_tape_status(const sooc_nn_tape *t);
+const char *sooc_nn_tape_errmsg(const sooc_nn_tape *t);
+sooc_nn_arena *sooc_nn_tape_arena(sooc_nn_tape *t);
+int sooc_nn_tape_n_nodes(const sooc_nn_tape *t);
+
+/* Leaf tensors. `data` NULL allocates (uninitialised / zeroed) in the arena,
+ * otherwise wraps caller memory (not copied; must outlive the tape use). */
+sooc_nn_tensor *sooc_nn_tensor_new(sooc_nn_tape *t, float *data, int ndim, const int64_t *shape,
+                                   int requires_grad);
+sooc_nn_tensor *sooc_nn_tensor_zeros(sooc_nn_tape *t, int ndim, const int64_t *shape,
+                                     int requires_grad);
+
+/* Recorded ops (all return NULL on error, see sticky status). Output
+ * requires grad iff an input does. Shapes: */
+/* x[N,I], w[O,I], b[O] or NULL -> [N,O] (x may have more leading dims, flattened) */
+sooc_nn_tensor *sooc_nn_linear(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *w,
+                               sooc_nn_tensor *b, sooc_nn_act act);
+/* x[K,N,C] + b[K,C] */
+sooc_nn_tensor *sooc_nn_slot_bias(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *b);
+sooc_nn_tensor *sooc_nn_unary(sooc_nn_tape *t, sooc_nn_act f, sooc_nn_tensor *x);
+/* numpy broadcasting, ndim right-aligned */
+sooc_nn_tensor *sooc_nn_binary(sooc_nn_tape *t, sooc_nn_binop op, sooc_nn_tensor *a,
+                               sooc_nn_tensor *b);
+/* y = x * s + c (scalars) */
+sooc_nn_tensor *sooc_nn_affine(sooc_nn_tape *t, sooc_nn_tensor *x, float s, float c);
+/* along `axis` (negative counts from the end) */
+sooc_nn_tensor *sooc_nn_concat(sooc_nn_tape *t, sooc_nn_tensor *const *xs, int n, int axis);
+sooc_nn_tensor *sooc_nn_slice(sooc_nn_tape *t, sooc_nn_tensor *x, int axis, int64_t start,
+                              int64_t len);
+/* x[M,C...] rows gathered: [N, C...]; idx copied into the arena */
+sooc_nn_tensor *sooc_nn_gather(sooc_nn_tape *t, sooc_nn_tensor *x, const int32_t *idx,
+                               int64_t N);
+/* src[N,C...] scatter-added into M rows: [M, C...] */
+sooc_nn_tensor *sooc_nn_scatter_add(sooc_nn_tape *t, sooc_nn_tensor *src, const int32_t *idx,
+                                    int64_t M);
+/* Reduce over `axis`, removing it; axis = SOOC_NN_ALL reduces everything to shape [1]. */
+#define SOOC_NN_ALL 99
+sooc_nn_tensor *sooc_nn_sum(sooc_nn_tape *t, sooc_nn_tensor *x, int axis);
+sooc_nn_tensor *sooc_nn_mean(sooc_nn_tape *t, sooc_nn_tensor *x, int axis);
+/* layer norm over the last axis; w, b: [C] or NULL */
+sooc_nn_tensor *sooc_nn_layernorm(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *w,
+                                  sooc_nn_tensor *b, float eps);
+/* x[N,D] -> [N, D(1+2F)] */
+sooc_nn_tensor *sooc_nn_posenc(sooc_nn_tape *t, sooc_nn_tensor *x, int F);
+/* x[B,Ci,H,W], w[Co,Ci,3,3], b[Co] or NULL -> [B,Co,Ho,Wo] */
+sooc_nn_tensor *sooc_nn_conv2d(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *w,
+                               sooc_nn_tensor *b, int stride, sooc_nn_act act);
+/* LSTM cell: x[B,I], h0/c0 [B,G] or NULL, w_ih[4G,I], w_hh[4G,G], b_* [4G] or NULL.
+ * Returns 0/-status; *h1, *c1 receive the new state. */
+sooc_status sooc_nn_lstm(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *h0,
+                         sooc_nn_tensor *c0, sooc_nn_tensor *w_ih, sooc_nn_tensor *w_hh,
+                         sooc_nn_tensor *b_ih, sooc_nn_tensor *b_hh, sooc_nn_tensor **h1,
+                         sooc_nn_tensor **c1);
+/* same data, new shape (copy-free forward; backward adds the gradient) */
+sooc_nn_tensor *sooc_nn_reshape(sooc_nn_tape *t, sooc_nn_tensor *x, int ndim,
+                                const int64_t *shape);
+/* identity forward (shares data), no gradient flows back */
+sooc_nn_tensor *sooc_nn_stop_grad(sooc_nn_tape *t, sooc_nn_tensor *x);
+
+/* ---------------------------------------------------------- backward */
+
+/* Add `scale * g` (g NULL: ones) into x's gradient (allocating it). Use it to
+ * seed the final backward, possibly at several tensors. */
+sooc_status sooc_nn_tape_seed(sooc_nn_tape *t, sooc_nn_tensor *x, const float *g, float scale);
+/* Run all recorded nodes in reverse, accumulating (+=) into the grad of every
+ * tensor that requires grad (params: into the params g slab). */
+sooc_status sooc_nn_tape_backward(sooc_nn_tape *t);
+
+/* Node index to delimit a segment for sooc_nn_tape_grad / _cut. */
+int sooc_nn_tape_mark(const sooc_nn_tape *t);
+
+/* Local gradient of an intermediate scalar-or-seeded `loss` over the nodes
+ * recorded since `mark`, into separate buffers, leaving every tensor's main
+ * gradient untouched:
+ *   - dwrt[i][wrt[i]->n] = d loss / d wrt[i]  (OVERWRITTEN; loss seeded with
+ *     `loss_grad` if non-NULL (loss->n floats), else ones);
+ *   - if param_scale != 0, every parameter gradient reached in the segment
+ *     is accumulated into the params g slab as param_scale * d loss/d param
+ *     (exactly: computed in a temporary buffer, then scaled and added).
+ * Temporaries come from the arena. The results are plain arrays: wrap them
+ * with sooc_nn_tensor_new(..., requires_grad = 0) to feed them back as
+ * stop-gradient inputs. The later sooc_nn_tape_backward still traverses the
+ * segment (correct, since its main grads are untouched); call
+ * sooc_nn_tape_cut(t, mark) first if the segment should not be revisited. */
+sooc_status sooc_nn_tape_grad(sooc_nn_tape *t, int mark, sooc_nn_tensor *loss,
+                              const float *loss_grad, sooc_nn_tensor *const *wrt,
+                              float *const *dwrt, int n_wrt, float param_scale);
+/* Drop the nodes recorded since `mark` (their outputs stay valid as data
+ * but no longer propagate gradient). */
+void sooc_nn_tape_cut(sooc_nn_tape *t, int mark);
+
+/* ================================================================ fused MLP */
+
+/* A tree of dense layers run in chunks of points, forward and backward fused
+ * per chunk, chunks spread over OpenMP threads. Layer l reads the network
+ * input (src = -1) or the post-activation output of an earlier layer src < l.
+ * The decoder of model.md 3.3 is:
+ *   0: src -1, 33->64 RELU, + per-slot bias      3: src 2, 64->1 SIGMOID (density)
+ *   1: src 0,  64->64 RELU                       4: src 2, 64->32 RELU
+ *   2: src 1,  64->64 RELU                       5: src 4, 32->3 SIGMOID (colour) */
+#define SOOC_NN_MLP_MAX_LAYERS 12
+#define SOOC_NN_MLP_LANES 8     /* fixed gradient lanes: result independent of threads */
+#define SOOC_NN_MLP_CHUNK 256   /* points per chunk */
+
+typedef struct sooc_nn_mlp_layer {
+    int src;             /* -1 = input, else earlier layer index */
+    int c_in, c_out;
+    sooc_nn_act act;     /* NONE, RELU, ELU, SIGMOID, TANH */
+    const float *w;      /* [c_out, c_in] */
+    const float *b;      /* [c_out] or NULL */
+    float *dw, *db;      /* gradient accumulators (+=) or NULL */
+} sooc_nn_mlp_layer;
+
+typedef struct sooc_nn_mlp {
+    int n_layers;
+    int c_in;
+    sooc_nn_mlp_layer layer[SOOC_NN_MLP_MAX_LAYERS];
+} sooc_nn_mlp;
+
+/* Saved activations of N points: one [N, c_out] block per layer, in layer order. */
+size_t sooc_nn_mlp_act_floats(const sooc_nn_mlp *m, int64_t N);
+/* Pointer to layer l's [N, c_out] output block inside `acts`. */
+float *sooc_nn_mlp_output(const sooc_nn_mlp *m, float *acts, int64_t N, int l);
+/* Backward scratch for K slots (K = 1 without slot bias). */
+size_t sooc_nn_mlp_scratch_floats(const sooc_nn_mlp *m, int K);
+/* x[N, c_in]; slot_bias[K, layer0.c_out] or NULL is added to layer 0's
+ * pre-activation, where point n belongs to slot n / pts_per_slot
+ * (N = K * pts_per_slot). */
+sooc_status sooc_nn_mlp_forward(const sooc_nn_mlp *m, float *acts, const float *x, int64_t N,
+                                const float *slot_bias, int64_t pts_per_slot);
+/* dout[l]: dL/d(post-activation output of layer l) [N, c_out] or NULL
+ * (layers whose output is only consumed inside the net usually pass NULL).
+ * Accumulates into each layer's dw/db, dx[N,c_in] (NULL to skip) and
+ * dslot_bias[K, c0] (NULL to skip). */
+sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_bias,
+                                 const float *const *dout, const float *acts, const float *x,
+                                 int64_t N, const float *slot_bias, int64_t pts_per_slot,
+                                 float *scratch);
+
+/* Set BLAS threads (OpenBLAS) and return the previous count (1 if unknown). */
+int sooc_nn_blas_set_threads(int n);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_NN_H */
