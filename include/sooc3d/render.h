@@ -21,9 +21,9 @@
  * Sampling: n_coarse stratified samples (midpoints of n_coarse equal bins, or
  * jittered within each bin when opts.jitter = 1), then, if n_fine > 0, an
  * importance pass: the coarse weights define a piecewise-constant pdf over the
- * gaps between coarse samples, the gap after sample i receiving
- * 0.75 * w_i + 0.25 * w_{i+1} (ObSuRF's 75 % preceding / 25 % following
- * allocation); n_fine samples are drawn by inverse CDF at stratified
+ * gaps between coarse samples (and t_near, d_clip); each weight w_i goes 75 %
+ * to the gap preceding sample i and 25 % to the gap following it (ObSuRF's
+ * allocation: a surface first seen at z_i lies before z_i); n_fine samples are drawn by inverse CDF at stratified
  * quantiles (midpoints, or jittered) and merged with the coarse ones. The
  * field is evaluated at all n_coarse + n_fine samples and the final image is
  * composited from the merged, sorted set.
