@@ -1,0 +1,134 @@
+/*
+ * sooc3d persistent map: the cognitive map in an SQLite database
+ * (issue 6 part 6, architecture.md §3).
+ *
+ *  - WAL journal (readers never block the mapping thread), synchronous=NORMAL.
+ *  - One transaction per keyframe: sooc_mapstore_commit_keyframe() writes the
+ *    entries registered by the view, deletes the removed ones, stores the
+ *    layout block, the id counter and a keyframe row, atomically. Lower-level
+ *    begin/put/remove/commit calls exist for other uses.
+ *  - An R*Tree virtual table `entries_rtree(id, min_x, max_x, min_z, max_z)`
+ *    indexes the floor position; triggers on `entries` keep it in sync.
+ *  - Restart: sooc_mapstore_load_map() puts every entry, layout block and the
+ *    id counter back into a sooc_cogmap; new ids continue after the stored
+ *    counter (ids of removed entries are never handed out again).
+ *
+ * Schema (version 1):
+ *   meta(key TEXT PRIMARY KEY, value TEXT)  app='sooc3d-map', schema_version,
+ *        model_id, dim, layout_dim, block_size, next_id
+ *   entries(id INTEGER PRIMARY KEY, x, z, yaw, rho_t, rho_yaw, pres_logit REAL,
+ *        dim, latent_version INTEGER, what_mu, what_logvar BLOB,
+ *        first_seen_ns, last_seen_ns, obs_count, last_view INTEGER)
+ *   entries_rtree  (R*Tree, see above)
+ *   layout(bi, bj, dim, latent_version, mu BLOB, logvar BLOB, PRIMARY KEY(bi, bj))
+ *   keyframes(seq INTEGER PRIMARY KEY, t_ns, view, tx, ty, tz, qx, qy, qz, qw,
+ *        n_changed, n_removed, n_entries)
+ * Latent blobs, latent_version 1: dim little-endian IEEE float32 values.
+ *
+ * Errors: every failure message starts with the database path; a file that is
+ * not an SQLite database, not a sooc3d map, or corrupt gives SOOC_EFORMAT, a
+ * schema/dimension/model mismatch SOOC_EVERSION, a missing file (create = 0)
+ * SOOC_ENOTFOUND.
+ *
+ * Thread-safety: one sooc_mapstore per thread. Other processes may read the
+ * same file concurrently (WAL).
+ */
+#ifndef SOOC3D_MAPSTORE_H
+#define SOOC3D_MAPSTORE_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/cogmap.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SOOC_MAPSTORE_SCHEMA_VERSION 1
+#define SOOC_MAPSTORE_LATENT_VERSION 1
+
+typedef struct sooc_mapstore sooc_mapstore;
+
+typedef struct sooc_mapstore_params {
+    int create;            /* create the file if missing                          (1) */
+    int readonly;          /* open read-only (the file must exist)                 (0) */
+    const char *model_id;  /* stored on creation; on open a non-empty stored id must
+                              match (NULL = no check)                           (NULL) */
+    int dim, layout_dim;   /* 0 = take from the file; else stored / must match   (0) */
+    double block_size;     /* layout block side stored on creation; 0 = not set  (0) */
+} sooc_mapstore_params;
+
+void sooc_mapstore_params_default(sooc_mapstore_params *p);
+
+/* Open or create the database at `path`. On failure *out = NULL. */
+sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc_mapstore_params *p);
+/* Close (rolls back an open transaction). NULL-safe. */
+void sooc_mapstore_close(sooc_mapstore *s);
+const char *sooc_mapstore_path(const sooc_mapstore *s);
+
+typedef struct sooc_mapstore_info {
+    int schema_version;
+    char model_id[128];
+    int dim, layout_dim;
+    double block_size;
+    uint64_t next_id;
+    uint64_t n_entries, n_layout, n_keyframes;
+    char journal_mode[16];  /* "wal" */
+} sooc_mapstore_info;
+sooc_status sooc_mapstore_info_get(sooc_mapstore *s, sooc_mapstore_info *out);
+
+/* ---------------------------------------------------- keyframe commit */
+
+typedef struct sooc_mapstore_keyframe {
+    int64_t t_ns;
+    int32_t view;
+    double T_wc[16];
+    const uint64_t *changed;   /* ids written by this view (0s are skipped), read from the map */
+    size_t n_changed;
+    const uint64_t *removed;   /* ids removed by this view */
+    size_t n_removed;
+    int has_block;             /* 1: also store layout block (bi, bj) from the map */
+    int32_t bi, bj;
+} sooc_mapstore_keyframe;
+
+/* One transaction: upsert the changed entries (taken from `map`), delete the
+ * removed ids, store the layout block and map->next_id, append a keyframe
+ * row. On failure the database is unchanged. The dims of `map` must match. */
+sooc_status sooc_mapstore_commit_keyframe(sooc_mapstore *s, const sooc_cogmap *map,
+                                          const sooc_mapstore_keyframe *kf);
+
+/* Replace the stored map by a full snapshot of `map` (one transaction). */
+sooc_status sooc_mapstore_save_map(sooc_mapstore *s, const sooc_cogmap *map);
+/* Load every entry, layout block and the id counter into `map` (its entries
+ * are replaced; dims must match). */
+sooc_status sooc_mapstore_load_map(sooc_mapstore *s, sooc_cogmap *map);
+
+/* ----------------------------------------------------- low-level API */
+
+sooc_status sooc_mapstore_begin(sooc_mapstore *s);
+sooc_status sooc_mapstore_commit(sooc_mapstore *s);
+void sooc_mapstore_rollback(sooc_mapstore *s);
+/* Upsert entries (e[i].dim must equal the store's dim). */
+sooc_status sooc_mapstore_put_entries(sooc_mapstore *s, const sooc_cogmap_entry *e, size_t n);
+/* Delete ids (absent ids are ignored). */
+sooc_status sooc_mapstore_remove_entries(sooc_mapstore *s, const uint64_t *ids, size_t n);
+sooc_status sooc_mapstore_put_layout(sooc_mapstore *s, int32_t bi, int32_t bj, const float *mu,
+                                     const float *logvar);
+/* Raise the stored id counter to at least `next_id`. */
+sooc_status sooc_mapstore_set_next_id(sooc_mapstore *s, uint64_t next_id);
+
+/* ---------------------------------------------------------- reading */
+
+/* Visit entries in id order: all of them, or those whose (x, z) lies in the
+ * closed box [x0, x1] x [z0, z1] (R*Tree lookup, exact filter). A non-zero
+ * return from fn stops the walk (the function then returns SOOC_OK).
+ * fn must not use the store. */
+sooc_status sooc_mapstore_foreach(sooc_mapstore *s, sooc_cogmap_visit_fn fn, void *user);
+sooc_status sooc_mapstore_query_box(sooc_mapstore *s, double x0, double z0, double x1, double z1,
+                                    sooc_cogmap_visit_fn fn, void *user);
+/* Fetch one entry by id (SOOC_ENOTFOUND if absent). */
+sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_MAPSTORE_H */

@@ -1,0 +1,662 @@
+/*
+ * The persistent map in SQLite (see include/sooc3d/mapstore.h for the schema
+ * and the contracts). Every error message starts with the database path.
+ */
+#include "sooc3d/mapstore.h"
+
+#include <math.h>
+#include <sqlite3.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum {
+    ST_PUT_ENTRY, ST_DEL_ENTRY, ST_PUT_LAYOUT, ST_PUT_META, ST_ADD_KF, ST_GET_ENTRY, ST_COUNT
+};
+
+struct sooc_mapstore {
+    sqlite3 *db;
+    char *path;
+    int readonly, in_txn;
+    int dim, layout_dim;
+    sqlite3_stmt *st[ST_COUNT];
+};
+
+#define ENTRY_COLS                                                                                         \
+    "id, x, z, yaw, rho_t, rho_yaw, pres_logit, dim, latent_version, what_mu, what_logvar, first_seen_ns, " \
+    "last_seen_ns, obs_count, last_view"
+
+static const char *k_sql[ST_COUNT] = {
+    "INSERT INTO entries(" ENTRY_COLS ") VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15) "
+    "ON CONFLICT(id) DO UPDATE SET x=excluded.x, z=excluded.z, yaw=excluded.yaw, rho_t=excluded.rho_t, "
+    "rho_yaw=excluded.rho_yaw, pres_logit=excluded.pres_logit, dim=excluded.dim, "
+    "latent_version=excluded.latent_version, what_mu=excluded.what_mu, what_logvar=excluded.what_logvar, "
+    "first_seen_ns=excluded.first_seen_ns, last_seen_ns=excluded.last_seen_ns, "
+    "obs_count=excluded.obs_count, last_view=excluded.last_view",
+    "DELETE FROM entries WHERE id = ?1",
+    "INSERT OR REPLACE INTO layout(bi, bj, dim, latent_version, mu, logvar) VALUES(?1,?2,?3,?4,?5,?6)",
+    "INSERT OR REPLACE INTO meta(key, value) VALUES(?1, ?2)",
+    "INSERT INTO keyframes(t_ns, view, tx, ty, tz, qx, qy, qz, qw, n_changed, n_removed, n_entries) "
+    "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,(SELECT count(*) FROM entries))",
+    "SELECT " ENTRY_COLS " FROM entries WHERE id = ?1",
+};
+
+static const char *k_schema =
+    "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);"
+    "CREATE TABLE entries(id INTEGER PRIMARY KEY, x REAL NOT NULL, z REAL NOT NULL, yaw REAL NOT NULL,"
+    " rho_t REAL NOT NULL, rho_yaw REAL NOT NULL, pres_logit REAL NOT NULL, dim INTEGER NOT NULL,"
+    " latent_version INTEGER NOT NULL, what_mu BLOB NOT NULL, what_logvar BLOB NOT NULL,"
+    " first_seen_ns INTEGER NOT NULL, last_seen_ns INTEGER NOT NULL, obs_count INTEGER NOT NULL,"
+    " last_view INTEGER NOT NULL);"
+    "CREATE VIRTUAL TABLE entries_rtree USING rtree(id, min_x, max_x, min_z, max_z);"
+    "CREATE TRIGGER entries_ai AFTER INSERT ON entries BEGIN"
+    " INSERT INTO entries_rtree VALUES(new.id, new.x, new.x, new.z, new.z); END;"
+    "CREATE TRIGGER entries_au AFTER UPDATE OF x, z ON entries BEGIN"
+    " UPDATE entries_rtree SET min_x = new.x, max_x = new.x, min_z = new.z, max_z = new.z"
+    " WHERE id = new.id; END;"
+    "CREATE TRIGGER entries_ad AFTER DELETE ON entries BEGIN"
+    " DELETE FROM entries_rtree WHERE id = old.id; END;"
+    "CREATE TABLE layout(bi INTEGER NOT NULL, bj INTEGER NOT NULL, dim INTEGER NOT NULL,"
+    " latent_version INTEGER NOT NULL, mu BLOB NOT NULL, logvar BLOB NOT NULL, PRIMARY KEY(bi, bj));"
+    "CREATE TABLE keyframes(seq INTEGER PRIMARY KEY, t_ns INTEGER, view INTEGER, tx REAL, ty REAL,"
+    " tz REAL, qx REAL, qy REAL, qz REAL, qw REAL, n_changed INTEGER, n_removed INTEGER,"
+    " n_entries INTEGER);";
+
+/* ------------------------------------------------------------- errors */
+
+static sooc_status map_rc(int rc) {
+    switch (rc & 0xff) {
+    case SQLITE_NOMEM: return SOOC_ENOMEM;
+    case SQLITE_NOTADB:
+    case SQLITE_CORRUPT:
+    case SQLITE_FORMAT: return SOOC_EFORMAT;
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED: return SOOC_EBUSY;
+    case SQLITE_CANTOPEN: return SOOC_EIO;
+    case SQLITE_READONLY: return SOOC_EIO;
+    default: return SOOC_EIO;
+    }
+}
+
+static sooc_status dberr(const sooc_mapstore *s, int rc, const char *what) {
+    const char *msg = s->db ? sqlite3_errmsg(s->db) : sqlite3_errstr(rc);
+    sooc_status st = map_rc(rc);
+    if (st == SOOC_EFORMAT)
+        return sooc_seterr(st, "%s: not a valid sooc3d map database (%s: %s)", s->path, what, msg);
+    return sooc_seterr(st, "%s: %s: %s", s->path, what, msg);
+}
+
+static sooc_status exec(sooc_mapstore *s, const char *sql, const char *what) {
+    int rc = sqlite3_exec(s->db, sql, NULL, NULL, NULL);
+    return rc == SQLITE_OK ? SOOC_OK : dberr(s, rc, what);
+}
+
+/* Run a statement that returns no rows (or ignore its rows). */
+static sooc_status step_done(sooc_mapstore *s, sqlite3_stmt *st, const char *what) {
+    int rc;
+    while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
+    }
+    sqlite3_reset(st);
+    sqlite3_clear_bindings(st);
+    return rc == SQLITE_DONE ? SOOC_OK : dberr(s, rc, what);
+}
+
+/* ------------------------------------------------------------- meta */
+
+/* Read meta[key] into buf; returns 1 if present, 0 if absent, <0 status on error. */
+static int meta_get(sooc_mapstore *s, const char *key, char *buf, size_t cap, sooc_status *err) {
+    sqlite3_stmt *st = NULL;
+    int rc = sqlite3_prepare_v2(s->db, "SELECT value FROM meta WHERE key = ?1", -1, &st, NULL);
+    if (rc != SQLITE_OK) {
+        *err = dberr(s, rc, "reading meta");
+        return -1;
+    }
+    sqlite3_bind_text(st, 1, key, -1, SQLITE_STATIC);
+    rc = sqlite3_step(st);
+    int found = 0;
+    if (rc == SQLITE_ROW) {
+        const unsigned char *v = sqlite3_column_text(st, 0);
+        snprintf(buf, cap, "%s", v ? (const char *)v : "");
+        found = 1;
+    } else if (rc != SQLITE_DONE) {
+        *err = dberr(s, rc, "reading meta");
+        sqlite3_finalize(st);
+        return -1;
+    }
+    sqlite3_finalize(st);
+    return found;
+}
+
+static sooc_status meta_put(sooc_mapstore *s, const char *key, const char *value) {
+    sqlite3_stmt *st = s->st[ST_PUT_META];
+    sqlite3_bind_text(st, 1, key, -1, SQLITE_TRANSIENT);
+    sqlite3_bind_text(st, 2, value, -1, SQLITE_TRANSIENT);
+    return step_done(s, st, "writing meta");
+}
+
+static sooc_status meta_put_u64(sooc_mapstore *s, const char *key, uint64_t v) {
+    char b[32];
+    snprintf(b, sizeof b, "%llu", (unsigned long long)v);
+    return meta_put(s, key, b);
+}
+
+static sooc_status meta_get_u64(sooc_mapstore *s, const char *key, uint64_t *v) {
+    char b[64];
+    sooc_status err = SOOC_OK;
+    int r = meta_get(s, key, b, sizeof b, &err);
+    if (r < 0) return err;
+    if (!r) {
+        *v = 0;
+        return SOOC_OK;
+    }
+    char *end;
+    *v = strtoull(b, &end, 10);
+    if (end == b || *end) return sooc_seterr(SOOC_EFORMAT, "%s: meta '%s' = '%s' is not a number", s->path, key, b);
+    return SOOC_OK;
+}
+
+/* -------------------------------------------------------------- open */
+
+void sooc_mapstore_params_default(sooc_mapstore_params *p) {
+    memset(p, 0, sizeof *p);
+    p->create = 1;
+}
+
+const char *sooc_mapstore_path(const sooc_mapstore *s) { return s->path; }
+
+void sooc_mapstore_close(sooc_mapstore *s) {
+    if (!s) return;
+    if (s->in_txn && s->db) sqlite3_exec(s->db, "ROLLBACK", NULL, NULL, NULL);
+    for (int i = 0; i < ST_COUNT; i++) sqlite3_finalize(s->st[i]);
+    if (s->db) sqlite3_close(s->db);
+    sooc_free(s->path);
+    sooc_free(s);
+}
+
+static sooc_status create_schema(sooc_mapstore *s, const sooc_mapstore_params *p) {
+    sooc_status st;
+    if ((st = exec(s, "BEGIN IMMEDIATE", "begin"))) return st;
+    if ((st = exec(s, k_schema, "creating the schema"))) goto fail;
+    for (int i = 0; i < ST_COUNT; i++)
+        if (!s->st[i]) {
+            int rc = sqlite3_prepare_v2(s->db, k_sql[i], -1, &s->st[i], NULL);
+            if (rc != SQLITE_OK) { st = dberr(s, rc, "preparing statements"); goto fail; }
+        }
+    char b[64];
+    if ((st = meta_put(s, "app", "sooc3d-map"))) goto fail;
+    snprintf(b, sizeof b, "%d", SOOC_MAPSTORE_SCHEMA_VERSION);
+    if ((st = meta_put(s, "schema_version", b))) goto fail;
+    if ((st = meta_put(s, "model_id", p->model_id ? p->model_id : ""))) goto fail;
+    if ((st = meta_put_u64(s, "dim", (uint64_t)p->dim))) goto fail;
+    if ((st = meta_put_u64(s, "layout_dim", (uint64_t)p->layout_dim))) goto fail;
+    snprintf(b, sizeof b, "%.17g", p->block_size);
+    if ((st = meta_put(s, "block_size", b))) goto fail;
+    if ((st = meta_put_u64(s, "next_id", 1))) goto fail;
+    if ((st = exec(s, "COMMIT", "commit"))) goto fail;
+    return SOOC_OK;
+fail:
+    sqlite3_exec(s->db, "ROLLBACK", NULL, NULL, NULL);
+    return st;
+}
+
+sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc_mapstore_params *pp) {
+    *out = NULL;
+    sooc_mapstore_params p;
+    if (pp) p = *pp;
+    else sooc_mapstore_params_default(&p);
+    if (!path || !*path) return sooc_seterr(SOOC_EINVAL, "mapstore: empty database path");
+    if (p.dim < 0 || p.dim > SOOC_COGMAP_DIM_MAX || p.layout_dim < 0 || p.layout_dim > SOOC_COGMAP_DIM_MAX)
+        return sooc_seterr(SOOC_EINVAL, "%s: bad dims %d / %d", path, p.dim, p.layout_dim);
+    int exists = sooc_file_exists(path);
+    if (!exists && (p.readonly || !p.create))
+        return sooc_seterr(SOOC_ENOTFOUND, "%s: map database not found", path);
+
+    sooc_mapstore *s = sooc_calloc(1, sizeof *s);
+    if (!s) return SOOC_ENOMEM;
+    s->path = sooc_strdup(path);
+    if (!s->path) { sooc_free(s); return SOOC_ENOMEM; }
+    s->readonly = p.readonly;
+    sooc_status st = SOOC_OK;
+    int flags = p.readonly ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | (p.create ? SQLITE_OPEN_CREATE : 0));
+    int rc = sqlite3_open_v2(path, &s->db, flags | SQLITE_OPEN_NOMUTEX, NULL);
+    if (rc != SQLITE_OK) { st = dberr(s, rc, "cannot open"); goto fail; }
+    sqlite3_extended_result_codes(s->db, 1);
+    sqlite3_busy_timeout(s->db, 5000);
+
+    /* touches the file header: a non-database fails here with SQLITE_NOTADB */
+    int n_tables = 0, has_meta = 0;
+    {
+        sqlite3_stmt *q = NULL;
+        rc = sqlite3_prepare_v2(s->db, "SELECT name FROM sqlite_master WHERE type = 'table'", -1, &q, NULL);
+        if (rc != SQLITE_OK) { st = dberr(s, rc, "reading the schema"); goto fail; }
+        while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+            n_tables++;
+            const char *nm = (const char *)sqlite3_column_text(q, 0);
+            if (nm && !strcmp(nm, "meta")) has_meta = 1;
+        }
+        sqlite3_finalize(q);
+        if (rc != SQLITE_DONE) { st = dberr(s, rc, "reading the schema"); goto fail; }
+    }
+    if (!p.readonly) {
+        sqlite3_stmt *q = NULL;
+        rc = sqlite3_prepare_v2(s->db, "PRAGMA journal_mode = WAL", -1, &q, NULL);
+        if (rc == SQLITE_OK) rc = sqlite3_step(q);
+        int wal = rc == SQLITE_ROW && !strcmp((const char *)sqlite3_column_text(q, 0), "wal");
+        sqlite3_finalize(q);
+        if (rc != SQLITE_ROW) { st = dberr(s, rc, "setting WAL mode"); goto fail; }
+        if (!wal) { st = sooc_seterr(SOOC_EIO, "%s: the database refused WAL journal mode", path); goto fail; }
+        if ((st = exec(s, "PRAGMA synchronous = NORMAL", "pragma"))) goto fail;
+    }
+    if (n_tables == 0) {
+        if (p.readonly) { st = sooc_seterr(SOOC_EFORMAT, "%s: empty database, not a sooc3d map", path); goto fail; }
+        if (p.dim < 1) { st = sooc_seterr(SOOC_EINVAL, "%s: creating a map needs its latent dim", path); goto fail; }
+        if ((st = create_schema(s, &p))) goto fail;
+    } else if (!has_meta) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: not a sooc3d map (SQLite database without a meta table)", path);
+        goto fail;
+    }
+
+    /* check identity and versions */
+    char b[160];
+    int r = meta_get(s, "app", b, sizeof b, &st);
+    if (r < 0) goto fail;
+    if (!r || strcmp(b, "sooc3d-map")) { st = sooc_seterr(SOOC_EFORMAT, "%s: not a sooc3d map (meta app)", path); goto fail; }
+    uint64_t v = 0;
+    if ((st = meta_get_u64(s, "schema_version", &v))) goto fail;
+    if (v != SOOC_MAPSTORE_SCHEMA_VERSION) {
+        st = sooc_seterr(SOOC_EVERSION, "%s: map schema version %llu, this build reads version %d", path,
+                         (unsigned long long)v, SOOC_MAPSTORE_SCHEMA_VERSION);
+        goto fail;
+    }
+    if ((st = meta_get_u64(s, "dim", &v))) goto fail;
+    s->dim = (int)v;
+    if ((st = meta_get_u64(s, "layout_dim", &v))) goto fail;
+    s->layout_dim = (int)v;
+    if (s->dim > SOOC_COGMAP_DIM_MAX || s->layout_dim > SOOC_COGMAP_DIM_MAX) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: stored dims %d / %d out of range", path, s->dim, s->layout_dim);
+        goto fail;
+    }
+    if ((p.dim && p.dim != s->dim) || (p.layout_dim && p.layout_dim != s->layout_dim)) {
+        st = sooc_seterr(SOOC_EVERSION, "%s: map has latent dims %d / %d (object / layout), expected %d / %d", path,
+                         s->dim, s->layout_dim, p.dim, p.layout_dim);
+        goto fail;
+    }
+    if (p.model_id) {
+        r = meta_get(s, "model_id", b, sizeof b, &st);
+        if (r < 0) goto fail;
+        if (r && b[0] && strcmp(b, p.model_id)) {
+            st = sooc_seterr(SOOC_EVERSION, "%s: map was built by model '%s', not '%s'", path, b, p.model_id);
+            goto fail;
+        }
+    }
+    for (int i = 0; i < ST_COUNT; i++)
+        if (!s->st[i]) {
+            rc = sqlite3_prepare_v2(s->db, k_sql[i], -1, &s->st[i], NULL);
+            if (rc != SQLITE_OK) { st = dberr(s, rc, "preparing statements (schema mismatch?)"); goto fail; }
+        }
+    *out = s;
+    return SOOC_OK;
+fail:
+    sooc_mapstore_close(s);
+    return st;
+}
+
+sooc_status sooc_mapstore_info_get(sooc_mapstore *s, sooc_mapstore_info *o) {
+    memset(o, 0, sizeof *o);
+    sooc_status st = SOOC_OK;
+    uint64_t v = 0;
+    o->schema_version = SOOC_MAPSTORE_SCHEMA_VERSION;
+    o->dim = s->dim;
+    o->layout_dim = s->layout_dim;
+    if (meta_get(s, "model_id", o->model_id, sizeof o->model_id, &st) < 0) return st;
+    char b[64];
+    int r = meta_get(s, "block_size", b, sizeof b, &st);
+    if (r < 0) return st;
+    o->block_size = r ? atof(b) : 0;
+    if ((st = meta_get_u64(s, "next_id", &v))) return st;
+    o->next_id = v;
+    static const char *counts[3] = {"SELECT count(*) FROM entries", "SELECT count(*) FROM layout",
+                                    "SELECT count(*) FROM keyframes"};
+    uint64_t *dst[3] = {&o->n_entries, &o->n_layout, &o->n_keyframes};
+    for (int i = 0; i < 3; i++) {
+        sqlite3_stmt *q = NULL;
+        int rc = sqlite3_prepare_v2(s->db, counts[i], -1, &q, NULL);
+        if (rc == SQLITE_OK) rc = sqlite3_step(q);
+        if (rc != SQLITE_ROW) {
+            sqlite3_finalize(q);
+            return dberr(s, rc, "counting rows");
+        }
+        *dst[i] = (uint64_t)sqlite3_column_int64(q, 0);
+        sqlite3_finalize(q);
+    }
+    sqlite3_stmt *q = NULL;
+    int rc = sqlite3_prepare_v2(s->db, "PRAGMA journal_mode", -1, &q, NULL);
+    if (rc == SQLITE_OK) rc = sqlite3_step(q);
+    if (rc == SQLITE_ROW) snprintf(o->journal_mode, sizeof o->journal_mode, "%s", sqlite3_column_text(q, 0));
+    sqlite3_finalize(q);
+    return rc == SQLITE_ROW ? SOOC_OK : dberr(s, rc, "journal mode");
+}
+
+/* ------------------------------------------------------- transactions */
+
+sooc_status sooc_mapstore_begin(sooc_mapstore *s) {
+    if (s->in_txn) return sooc_seterr(SOOC_EINVAL, "%s: transaction already open", s->path);
+    sooc_status st = exec(s, "BEGIN IMMEDIATE", "begin");
+    if (!st) s->in_txn = 1;
+    return st;
+}
+
+sooc_status sooc_mapstore_commit(sooc_mapstore *s) {
+    if (!s->in_txn) return sooc_seterr(SOOC_EINVAL, "%s: no transaction open", s->path);
+    sooc_status st = exec(s, "COMMIT", "commit");
+    if (st) sooc_mapstore_rollback(s);
+    s->in_txn = 0;
+    return st;
+}
+
+void sooc_mapstore_rollback(sooc_mapstore *s) {
+    if (s->in_txn) sqlite3_exec(s->db, "ROLLBACK", NULL, NULL, NULL);
+    s->in_txn = 0;
+}
+
+/* ------------------------------------------------------------- writes */
+
+static sooc_status put_one(sooc_mapstore *s, const sooc_cogmap_entry *e) {
+    if (e->dim != s->dim)
+        return sooc_seterr(SOOC_EINVAL, "%s: entry %llu has dim %d, map has %d", s->path, (unsigned long long)e->id,
+                           e->dim, s->dim);
+    if (!e->id || e->id > (uint64_t)INT64_MAX)
+        return sooc_seterr(SOOC_EINVAL, "%s: bad entry id %llu", s->path, (unsigned long long)e->id);
+    sqlite3_stmt *st = s->st[ST_PUT_ENTRY];
+    sqlite3_bind_int64(st, 1, (sqlite3_int64)e->id);
+    sqlite3_bind_double(st, 2, e->X);
+    sqlite3_bind_double(st, 3, e->Z);
+    sqlite3_bind_double(st, 4, e->Theta);
+    sqlite3_bind_double(st, 5, e->rho_t);
+    sqlite3_bind_double(st, 6, e->rho_theta);
+    sqlite3_bind_double(st, 7, e->pres_logit);
+    sqlite3_bind_int(st, 8, e->dim);
+    sqlite3_bind_int(st, 9, SOOC_MAPSTORE_LATENT_VERSION);
+    /* latent_version 1: little-endian float32 (all supported hosts are little-endian) */
+    sqlite3_bind_blob(st, 10, e->what_mu, e->dim * (int)sizeof(float), SQLITE_STATIC);
+    sqlite3_bind_blob(st, 11, e->what_logvar, e->dim * (int)sizeof(float), SQLITE_STATIC);
+    sqlite3_bind_int64(st, 12, e->first_seen_ns);
+    sqlite3_bind_int64(st, 13, e->last_seen_ns);
+    sqlite3_bind_int64(st, 14, e->obs_count);
+    sqlite3_bind_int(st, 15, e->last_view);
+    return step_done(s, st, "writing an entry");
+}
+
+static sooc_status del_one(sooc_mapstore *s, uint64_t id) {
+    sqlite3_stmt *st = s->st[ST_DEL_ENTRY];
+    sqlite3_bind_int64(st, 1, (sqlite3_int64)id);
+    return step_done(s, st, "deleting an entry");
+}
+
+sooc_status sooc_mapstore_put_entries(sooc_mapstore *s, const sooc_cogmap_entry *e, size_t n) {
+    for (size_t i = 0; i < n; i++) {
+        sooc_status st = put_one(s, &e[i]);
+        if (st) return st;
+    }
+    return SOOC_OK;
+}
+
+sooc_status sooc_mapstore_remove_entries(sooc_mapstore *s, const uint64_t *ids, size_t n) {
+    for (size_t i = 0; i < n; i++) {
+        sooc_status st = del_one(s, ids[i]);
+        if (st) return st;
+    }
+    return SOOC_OK;
+}
+
+sooc_status sooc_mapstore_put_layout(sooc_mapstore *s, int32_t bi, int32_t bj, const float *mu,
+                                     const float *logvar) {
+    if (!s->layout_dim) return sooc_seterr(SOOC_EINVAL, "%s: map has no layout latents", s->path);
+    sqlite3_stmt *st = s->st[ST_PUT_LAYOUT];
+    sqlite3_bind_int(st, 1, bi);
+    sqlite3_bind_int(st, 2, bj);
+    sqlite3_bind_int(st, 3, s->layout_dim);
+    sqlite3_bind_int(st, 4, SOOC_MAPSTORE_LATENT_VERSION);
+    sqlite3_bind_blob(st, 5, mu, s->layout_dim * (int)sizeof(float), SQLITE_STATIC);
+    sqlite3_bind_blob(st, 6, logvar, s->layout_dim * (int)sizeof(float), SQLITE_STATIC);
+    return step_done(s, st, "writing a layout block");
+}
+
+sooc_status sooc_mapstore_set_next_id(sooc_mapstore *s, uint64_t next_id) {
+    uint64_t cur = 0;
+    sooc_status st = meta_get_u64(s, "next_id", &cur);
+    if (st) return st;
+    if (next_id <= cur) return SOOC_OK;
+    return meta_put_u64(s, "next_id", next_id);
+}
+
+static sooc_status check_map(const sooc_mapstore *s, const sooc_cogmap *map) {
+    if (sooc_cogmap_dim(map) != s->dim || sooc_cogmap_layout_dim(map) != s->layout_dim)
+        return sooc_seterr(SOOC_EVERSION, "%s: map dims %d / %d, cogmap dims %d / %d", s->path, s->dim,
+                           s->layout_dim, sooc_cogmap_dim(map), sooc_cogmap_layout_dim(map));
+    return SOOC_OK;
+}
+
+sooc_status sooc_mapstore_commit_keyframe(sooc_mapstore *s, const sooc_cogmap *map, const sooc_mapstore_keyframe *kf) {
+    sooc_status st = check_map(s, map);
+    if (st) return st;
+    if ((st = sooc_mapstore_begin(s))) return st;
+    size_t n_changed = 0;
+    for (size_t i = 0; i < kf->n_changed; i++) {
+        if (!kf->changed[i]) continue;
+        sooc_cogmap_entry e;
+        if ((st = sooc_cogmap_get(map, kf->changed[i], &e))) {
+            sooc_adderr(st, "%s: keyframe commit", s->path);
+            goto fail;
+        }
+        if ((st = put_one(s, &e))) goto fail;
+        n_changed++;
+    }
+    if ((st = sooc_mapstore_remove_entries(s, kf->removed, kf->n_removed))) goto fail;
+    if (kf->has_block && s->layout_dim) {
+        float mu[SOOC_COGMAP_DIM_MAX], lv[SOOC_COGMAP_DIM_MAX];
+        st = sooc_cogmap_layout_get(map, kf->bi, kf->bj, mu, lv);
+        if (st == SOOC_OK) st = sooc_mapstore_put_layout(s, kf->bi, kf->bj, mu, lv);
+        else if (st == SOOC_ENOTFOUND) st = SOOC_OK;
+        if (st) goto fail;
+    }
+    if ((st = sooc_mapstore_set_next_id(s, sooc_cogmap_next_id(map)))) goto fail;
+    {
+        double R[9], t[3], q[4];
+        sooc_se3_to_rt(R, t, kf->T_wc);
+        sooc_m3_to_quat(q, R);
+        sqlite3_stmt *k = s->st[ST_ADD_KF];
+        sqlite3_bind_int64(k, 1, kf->t_ns);
+        sqlite3_bind_int(k, 2, kf->view);
+        for (int i = 0; i < 3; i++) sqlite3_bind_double(k, 3 + i, t[i]);
+        for (int i = 0; i < 4; i++) sqlite3_bind_double(k, 6 + i, q[i]);
+        sqlite3_bind_int64(k, 10, (sqlite3_int64)n_changed);
+        sqlite3_bind_int64(k, 11, (sqlite3_int64)kf->n_removed);
+        if ((st = step_done(s, k, "writing a keyframe"))) goto fail;
+    }
+    return sooc_mapstore_commit(s);
+fail:
+    sooc_mapstore_rollback(s);
+    return st;
+}
+
+typedef struct save_ctx {
+    sooc_mapstore *s;
+    sooc_status st;
+} save_ctx;
+
+static int save_entry_cb(void *u, const sooc_cogmap_entry *e) {
+    save_ctx *c = u;
+    c->st = put_one(c->s, e);
+    return c->st != SOOC_OK;
+}
+static int save_block_cb(void *u, int32_t bi, int32_t bj, const float *mu, const float *lv) {
+    save_ctx *c = u;
+    c->st = sooc_mapstore_put_layout(c->s, bi, bj, mu, lv);
+    return c->st != SOOC_OK;
+}
+
+sooc_status sooc_mapstore_save_map(sooc_mapstore *s, const sooc_cogmap *map) {
+    sooc_status st = check_map(s, map);
+    if (st) return st;
+    if ((st = sooc_mapstore_begin(s))) return st;
+    save_ctx c = {s, SOOC_OK};
+    if ((st = exec(s, "DELETE FROM entries; DELETE FROM layout;", "clearing the map"))) goto fail;
+    sooc_cogmap_foreach(map, save_entry_cb, &c);
+    if ((st = c.st)) goto fail;
+    sooc_cogmap_layout_foreach(map, save_block_cb, &c);
+    if ((st = c.st)) goto fail;
+    if ((st = sooc_mapstore_set_next_id(s, sooc_cogmap_next_id(map)))) goto fail;
+    return sooc_mapstore_commit(s);
+fail:
+    sooc_mapstore_rollback(s);
+    return st;
+}
+
+/* -------------------------------------------------------------- reads */
+
+static sooc_status row_to_entry(sooc_mapstore *s, sqlite3_stmt *q, sooc_cogmap_entry *e) {
+    memset(e, 0, sizeof *e);
+    e->id = (uint64_t)sqlite3_column_int64(q, 0);
+    e->X = sqlite3_column_double(q, 1);
+    e->Z = sqlite3_column_double(q, 2);
+    e->Theta = sqlite3_column_double(q, 3);
+    e->rho_t = (float)sqlite3_column_double(q, 4);
+    e->rho_theta = (float)sqlite3_column_double(q, 5);
+    e->pres_logit = (float)sqlite3_column_double(q, 6);
+    e->dim = sqlite3_column_int(q, 7);
+    int ver = sqlite3_column_int(q, 8);
+    if (e->dim != s->dim)
+        return sooc_seterr(SOOC_EFORMAT, "%s: entry %llu has dim %d, map has %d", s->path, (unsigned long long)e->id,
+                           e->dim, s->dim);
+    if (ver != SOOC_MAPSTORE_LATENT_VERSION)
+        return sooc_seterr(SOOC_EVERSION, "%s: entry %llu latent version %d, this build reads %d", s->path,
+                           (unsigned long long)e->id, ver, SOOC_MAPSTORE_LATENT_VERSION);
+    size_t nb = (size_t)e->dim * sizeof(float);
+    const void *mu = sqlite3_column_blob(q, 9);
+    int nmu = sqlite3_column_bytes(q, 9);
+    const void *lv = sqlite3_column_blob(q, 10);
+    int nlv = sqlite3_column_bytes(q, 10);
+    if ((size_t)nmu != nb || (size_t)nlv != nb || (nb && (!mu || !lv)))
+        return sooc_seterr(SOOC_EFORMAT, "%s: entry %llu latent blobs have %d / %d bytes, expected %zu", s->path,
+                           (unsigned long long)e->id, nmu, nlv, nb);
+    if (nb) {
+        memcpy(e->what_mu, mu, nb);
+        memcpy(e->what_logvar, lv, nb);
+    }
+    e->first_seen_ns = sqlite3_column_int64(q, 11);
+    e->last_seen_ns = sqlite3_column_int64(q, 12);
+    e->obs_count = (uint32_t)sqlite3_column_int64(q, 13);
+    e->last_view = sqlite3_column_int(q, 14);
+    return SOOC_OK;
+}
+
+static sooc_status walk(sooc_mapstore *s, const char *sql, const double *box, sooc_cogmap_visit_fn fn, void *user) {
+    sqlite3_stmt *q = NULL;
+    int rc = sqlite3_prepare_v2(s->db, sql, -1, &q, NULL);
+    if (rc != SQLITE_OK) return dberr(s, rc, "reading entries");
+    if (box)
+        for (int i = 0; i < 4; i++) sqlite3_bind_double(q, i + 1, box[i]);
+    sooc_status st = SOOC_OK;
+    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+        sooc_cogmap_entry e;
+        if ((st = row_to_entry(s, q, &e))) break;
+        if (fn(user, &e)) break;
+    }
+    if (!st && rc != SQLITE_ROW && rc != SQLITE_DONE) st = dberr(s, rc, "reading entries");
+    sqlite3_finalize(q);
+    return st;
+}
+
+sooc_status sooc_mapstore_foreach(sooc_mapstore *s, sooc_cogmap_visit_fn fn, void *user) {
+    return walk(s, "SELECT " ENTRY_COLS " FROM entries ORDER BY id", NULL, fn, user);
+}
+
+sooc_status sooc_mapstore_query_box(sooc_mapstore *s, double x0, double z0, double x1, double z1,
+                                    sooc_cogmap_visit_fn fn, void *user) {
+    if (!(x0 <= x1) || !(z0 <= z1))
+        return sooc_seterr(SOOC_EINVAL, "%s: bad box [%g, %g] x [%g, %g]", s->path, x0, x1, z0, z1);
+    double box[4] = {x0, z0, x1, z1};
+    /* the R*Tree stores float32 bounds rounded outwards: it selects a superset,
+     * the exact test on entries.x / entries.z then filters it */
+    return walk(s,
+                "SELECT e.id, e.x, e.z, e.yaw, e.rho_t, e.rho_yaw, e.pres_logit, e.dim, e.latent_version, "
+                "e.what_mu, e.what_logvar, e.first_seen_ns, e.last_seen_ns, e.obs_count, e.last_view "
+                "FROM entries_rtree r JOIN entries e ON e.id = r.id "
+                "WHERE r.max_x >= ?1 AND r.min_x <= ?3 AND r.max_z >= ?2 AND r.min_z <= ?4 "
+                "AND e.x >= ?1 AND e.x <= ?3 AND e.z >= ?2 AND e.z <= ?4 ORDER BY e.id",
+                box, fn, user);
+}
+
+sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *out) {
+    sqlite3_stmt *q = s->st[ST_GET_ENTRY];
+    sqlite3_bind_int64(q, 1, (sqlite3_int64)id);
+    int rc = sqlite3_step(q);
+    sooc_status st;
+    if (rc == SQLITE_ROW) st = row_to_entry(s, q, out);
+    else if (rc == SQLITE_DONE) st = sooc_seterr(SOOC_ENOTFOUND, "%s: no entry %llu", s->path, (unsigned long long)id);
+    else st = dberr(s, rc, "reading an entry");
+    sqlite3_reset(q);
+    sqlite3_clear_bindings(q);
+    return st;
+}
+
+typedef struct load_ctx {
+    sooc_cogmap_entry *e;
+    size_t n, cap;
+    sooc_status st;
+} load_ctx;
+
+static int load_cb(void *u, const sooc_cogmap_entry *e) {
+    load_ctx *c = u;
+    if (c->n == c->cap) {
+        size_t nc = c->cap ? c->cap * 2 : 256;
+        sooc_cogmap_entry *p = sooc_realloc(c->e, nc * sizeof *p);
+        if (!p) {
+            c->st = SOOC_ENOMEM;
+            return 1;
+        }
+        c->e = p;
+        c->cap = nc;
+    }
+    c->e[c->n++] = *e;
+    return 0;
+}
+
+sooc_status sooc_mapstore_load_map(sooc_mapstore *s, sooc_cogmap *map) {
+    sooc_status st = check_map(s, map);
+    if (st) return st;
+    load_ctx c = {0};
+    if ((st = sooc_mapstore_foreach(s, load_cb, &c)) || (st = c.st)) goto done;
+    if ((st = sooc_cogmap_load(map, c.e, c.n))) {
+        sooc_adderr(st, "%s", s->path);
+        goto done;
+    }
+    if (s->layout_dim) {
+        sqlite3_stmt *q = NULL;
+        int rc = sqlite3_prepare_v2(s->db, "SELECT bi, bj, dim, latent_version, mu, logvar FROM layout", -1, &q, NULL);
+        if (rc != SQLITE_OK) { st = dberr(s, rc, "reading layout"); goto done; }
+        size_t nb = (size_t)s->layout_dim * sizeof(float);
+        while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+            int bi = sqlite3_column_int(q, 0), bj = sqlite3_column_int(q, 1);
+            if (sqlite3_column_int(q, 2) != s->layout_dim || sqlite3_column_int(q, 3) != SOOC_MAPSTORE_LATENT_VERSION ||
+                (size_t)sqlite3_column_bytes(q, 4) != nb || (size_t)sqlite3_column_bytes(q, 5) != nb) {
+                st = sooc_seterr(SOOC_EFORMAT, "%s: layout block (%d, %d) has a bad latent", s->path, bi, bj);
+                break;
+            }
+            float mu[SOOC_COGMAP_DIM_MAX], lv[SOOC_COGMAP_DIM_MAX];
+            memcpy(mu, sqlite3_column_blob(q, 4), nb);
+            memcpy(lv, sqlite3_column_blob(q, 5), nb);
+            if ((st = sooc_cogmap_layout_set(map, bi, bj, mu, lv))) break;
+        }
+        if (!st && rc != SQLITE_DONE) st = dberr(s, rc, "reading layout");
+        sqlite3_finalize(q);
+        if (st) goto done;
+    }
+    uint64_t next = 0;
+    if ((st = meta_get_u64(s, "next_id", &next))) goto done;
+    sooc_cogmap_reserve_ids(map, next);
+done:
+    sooc_free(c.e);
+    return st;
+}
