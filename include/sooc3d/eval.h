@@ -1,0 +1,134 @@
+/*
+ * sooc3d evaluation: the paper's tables and the pictures (issue 5).
+ *
+ * Tables. Per-view metrics (metrics.h) are accumulated per
+ * model x scale x {I, Q} x run. A cell's value for one run is the mean over
+ * that run's views (objects for L2); the table reports mean +- std over the
+ * runs (sample std, n - 1; 0 for one run). Layout = the paper's Table 1: rows
+ * model x {I, Q}, column groups mIoU (best-match), RGB RMSE, depth RMSE, L2,
+ * each with the scales present (s, m, l, xl). L2 is shown for query views
+ * only, as in the paper (opts). A second table gives the Hungarian mIoU, the
+ * matched fraction and recall by distance. Outputs: plain text, Markdown,
+ * JSON (all cells, all statistics).
+ *
+ * Pictures (PNG via image.h):
+ *  - a panel per view: GT | reconstruction | segmentation | GT segmentation |
+ *    depth | GT depth | uncertainty | components;
+ *  - the cognitive map from above (paper Figure 3): camera frustums along the
+ *    path, map entries coloured by id, out-of-view entries grey, ground-truth
+ *    objects overlaid; a PNG per step plus a contact sheet;
+ *  - training curves from a CSV log, one line plot per column.
+ */
+#ifndef SOOC3D_EVAL_H
+#define SOOC3D_EVAL_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/image.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/metrics.h"
+#include "sooc3d/render.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------------ tables */
+
+typedef struct sooc_eval_table sooc_eval_table;
+
+sooc_status sooc_eval_table_create(sooc_eval_table **out);
+void sooc_eval_table_destroy(sooc_eval_table *t);   /* NULL-safe */
+/* Free text stored with the table and printed under it, e.g. "input views
+ * rendered from the final map". */
+sooc_status sooc_eval_table_set_note(sooc_eval_table *t, const char *note);
+/* Show L2 for input views too (default 0: "n/a", as in the paper). */
+void sooc_eval_table_set_l2_input(sooc_eval_table *t, int on);
+
+/* Add one view (v->is_query selects I/Q) to cell (model, scale, run). */
+sooc_status sooc_eval_table_add_view(sooc_eval_table *t, const char *model, int scale, int run,
+                                     const sooc_view_metrics *v);
+/* Merge pre-accumulated sums. */
+sooc_status sooc_eval_table_add_sums(sooc_eval_table *t, const char *model, int scale, int run,
+                                     int is_query, const sooc_metric_sums *s);
+/* Merge a whole per-scale accumulator of one run. */
+sooc_status sooc_eval_table_add_acc(sooc_eval_table *t, const char *model, int run,
+                                    const sooc_metric_acc *a);
+
+typedef struct sooc_eval_stat { double mean, std; int n_runs; } sooc_eval_stat;
+typedef struct sooc_eval_cell {
+    sooc_eval_stat miou_best, miou_hung, rgb_rmse, depth_rmse, l2, matched_frac;
+    sooc_eval_stat recall[SOOC_METRIC_N_DBINS];
+    sooc_eval_stat mesh_acc_cm, mesh_comp_cm;
+    long n_views;                      /* summed over runs */
+} sooc_eval_cell;
+/* Statistics over runs of one cell; SOOC_ENOTFOUND if it has no data. */
+sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, int scale, int is_query,
+                                 sooc_eval_cell *out);
+
+/* Formatted table in a sooc_malloc'd, NUL-terminated string (caller frees). */
+sooc_status sooc_eval_table_text(const sooc_eval_table *t, char **out);
+sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out);
+sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out);
+/* Write JSON and/or Markdown atomically (either path may be NULL). */
+sooc_status sooc_eval_table_write(const sooc_eval_table *t, const char *json_path, const char *md_path);
+
+/* ---------------------------------------------------------------- pictures */
+
+typedef struct sooc_panel_opts {
+    int scale;                 /* magnification of every tile (default 2)            */
+    double d_clip;             /* depth colour range [0, d_clip] (default 8)         */
+    int max_components;        /* component tiles shown (default 8)                  */
+    const uint32_t *comp_ids;  /* colour id per component (map entry id), or NULL:
+                                  component k gets colour id k                        */
+    const char *title;         /* may be NULL                                        */
+} sooc_panel_opts;
+void sooc_panel_opts_default(sooc_panel_opts *o);
+
+/* Panel of one view. gt may be NULL (no GT tiles); r must hold rgb, depth and
+ * label, optionally uncert and comp_rgb/comp_alpha. */
+sooc_status sooc_eval_panel(sooc_image *out, const sooc_frame *gt, const sooc_render_out *r,
+                            const sooc_panel_opts *o);
+
+/* Ground-truth object for the top-down figure: floor centre, yaw and size. */
+typedef struct sooc_fig_gt {
+    uint16_t id;
+    double x, z, yaw, size_x, size_z;
+} sooc_fig_gt;
+
+/* One step of an online run: the camera and the map after its update. */
+typedef struct sooc_topdown_step {
+    double T_wc[16];
+    const sooc_map_entry *entries;
+    size_t n_entries;
+} sooc_topdown_step;
+
+typedef struct sooc_topdown_opts {
+    double px_per_m;           /* default 40                                          */
+    double xmin, xmax, zmin, zmax;  /* world window; all 0 = fit cameras, entries, GT */
+    double d_clip;             /* frustum length and in-view range (default 8)        */
+    const sooc_intrinsics *K;  /* camera field of view (required)                      */
+    float min_presence;        /* entries below are not drawn (default 0.5)           */
+    const char *title;
+} sooc_topdown_opts;
+void sooc_topdown_opts_default(sooc_topdown_opts *o);
+
+/* The map at step `cur` of steps[0..n_steps): frustums of steps <= cur (the
+ * current one highlighted), entries of steps[cur] coloured by id
+ * (sooc_cmap_id) or grey when outside the current frustum, GT as outlines. */
+sooc_status sooc_eval_topdown(sooc_image *out, const sooc_topdown_step *steps, int n_steps, int cur,
+                              const sooc_fig_gt *gt, int n_gt, const sooc_topdown_opts *o);
+/* Write <dir>/cogmap_0000.png ... and <dir>/cogmap_sheet.png (at most 24
+ * evenly spaced steps on the sheet). */
+sooc_status sooc_eval_topdown_sequence(const char *dir, const sooc_topdown_step *steps, int n_steps,
+                                       const sooc_fig_gt *gt, int n_gt, const sooc_topdown_opts *o);
+
+/* Training curves: a CSV with a header row; the column named "step" (else the
+ * row number) is x; every other numeric column becomes one line plot (log
+ * scale when all values are positive and span > 100x). Writes one PNG grid. */
+sooc_status sooc_eval_plot_csv(const char *csv_path, const char *png_path, const char *title);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_EVAL_H */
