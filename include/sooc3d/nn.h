@@ -101,14 +101,15 @@ void sooc_nn_binary_backward(sooc_nn_binop op, float *da, float *db, const float
                              const float *a, const int64_t *ashape, const float *b,
                              const int64_t *bshape, int ndim);
 
-/* Dense layer, torch layout: y[N,O] = act(x[N,I] w[O,I]^T + b[O]) (b may be NULL).
+/* Dense layer, torch layout (I = Ci, O = Co):
+ *   y[N,O] = act(x[N,I] w[O,I]^T + b[O]) (b may be NULL).
  * backward: dy[N,O] is OVERWRITTEN with the pre-activation gradient when
  * act != NONE; then dx[N,I] += dz w, dw[O,I] += dz^T x, db[O] += sum_n dz.
  * y is the forward output (needed for act' ). Uses sgemm (OpenBLAS threads). */
 void sooc_nn_linear_forward(float *y, const float *x, const float *w, const float *b,
-                            int64_t N, int I, int O, sooc_nn_act act);
+                            int64_t N, int Ci, int Co, sooc_nn_act act);
 void sooc_nn_linear_backward(float *dx, float *dw, float *db, float *dy, const float *x,
-                             const float *y, const float *w, int64_t N, int I, int O,
+                             const float *y, const float *w, int64_t N, int Ci, int Co,
                              sooc_nn_act act);
 
 /* dz = dy * act'(y) in place (act in NONE/RELU/ELU/SIGMOID/TANH). */
@@ -192,19 +193,20 @@ void sooc_nn_conv2d_backward(float *dx, float *dw, float *db, float *dy, const f
                              int W, int Co, int stride, sooc_nn_act act);
 
 /* LSTM cell, torch.nn.LSTMCell semantics and layout (gate order i, f, g, o):
- *   z[B,4G] = x[B,I] w_ih[4G,I]^T + b_ih + h0[B,G] w_hh[4G,G]^T + b_hh
+ *   z[B,4G] = x[B,I] w_ih[4G,I]^T   (I = Cx)
+ *            + b_ih + h0[B,G] w_hh[4G,G]^T + b_hh
  *   i,f,o = sigmoid, g = tanh;  c1 = f*c0 + i*g;  h1 = o*tanh(c1)
  * h0/c0 may be NULL (zero state); b_ih/b_hh may be NULL.
  * gates[B,4G] (post-activation) and c1 are saved for backward.
  * backward: dh1 and/or dc1 may be NULL (zero); scratch has 4*B*G floats. */
 void sooc_nn_lstm_forward(float *h1, float *c1, float *gates, const float *x, const float *h0,
                           const float *c0, const float *w_ih, const float *w_hh,
-                          const float *b_ih, const float *b_hh, int B, int I, int G);
+                          const float *b_ih, const float *b_hh, int B, int Cx, int G);
 void sooc_nn_lstm_backward(float *dx, float *dh0, float *dc0, float *dw_ih, float *dw_hh,
                            float *db_ih, float *db_hh, const float *dh1, const float *dc1,
                            float *scratch, const float *gates, const float *c1, const float *x,
                            const float *h0, const float *c0, const float *w_ih,
-                           const float *w_hh, int B, int I, int G);
+                           const float *w_hh, int B, int Cx, int G);
 
 /* ================================================================== arena */
 

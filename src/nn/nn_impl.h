@@ -3,6 +3,7 @@
 #define SOOC3D_NN_IMPL_H
 #include "sooc3d/nn.h"
 #include <cblas.h>
+#undef I /* complex.h (pulled in by OpenBLAS) defines I; we use it as a size */
 #ifdef SOOC_HAVE_OPENMP
 #include <omp.h>
 #endif
