@@ -1,11 +1,194 @@
-/* sooc3d node: placeholder until its module lands; it fails loudly rather than pretending. */
+/* sooc3d node <launch.yaml> [--max-keyframes N] [--print-table] [--log-level L]
+ *
+ * Signals: SIGINT/SIGTERM/SIGHUP/SIGQUIT are blocked before any thread exists
+ * (so every thread inherits the mask) and collected by a dedicated sigwait
+ * thread. The first SIGINT/SIGTERM asks the node to stop: the keyframe in
+ * progress is finished and committed, the table is closed, exit status 0.
+ * A second one exits at once (status 128 + signo). SIGUSR1 cycles the log
+ * level. SIGPIPE is ignored. */
 #include "cli.h"
+#include "sooc3d/node.h"
 
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: sooc3d node <launch.yaml> [options]\n"
+            "\n"
+            "Run the live mapping node: sensor -> frame ring -> pose association -> keyframe\n"
+            "policy -> mapper update -> shared-memory object table + SQLite map.\n"
+            "\n"
+            "options:\n"
+            "  --max-keyframes N   stop (cleanly) after N keyframes\n"
+            "  --print-table       print the object table as it fills (also at log level info)\n"
+            "  --quiet             do not print the table even at log level info\n"
+            "  --log-level L       debug|info|warn|error (overrides log.level)\n"
+            "  --print-config      print the effective configuration and exit\n"
+            "  -h, --help          this help\n"
+            "\n"
+            "Signals: SIGINT/SIGTERM finish the current keyframe, commit and exit 0;\n"
+            "a second one exits at once. SIGUSR1 cycles the log level.\n"
+            "Launch file keys: docs/node.md. Examples: launch/*.yaml.\n");
+}
+
+typedef struct sigctx {
+    sooc_node *node;
+    sigset_t set;
+    atomic_int done;
+    atomic_int got;
+} sigctx;
+
+static void *sig_main(void *arg) {
+    sigctx *c = arg;
+    struct timespec ts = {0, 200 * 1000 * 1000};
+    while (!atomic_load(&c->done)) {
+        int sig = sigtimedwait(&c->set, NULL, &ts);
+        if (sig < 0) continue;   /* EAGAIN (timeout) or EINTR */
+        if (sig == SIGUSR1) {
+            sooc_log_level l = sooc_log_get_level();
+            sooc_log_set_level(l >= SOOC_LOG_ERROR ? SOOC_LOG_DEBUG : (sooc_log_level)(l + 1));
+            continue;
+        }
+        if (sig == SIGHUP) {
+            sooc_log(SOOC_LOG_INFO, "node: SIGHUP ignored (restart to reload the launch file)");
+            continue;
+        }
+        if (atomic_fetch_add(&c->got, 1) > 0) {
+            static const char msg[] = "sooc3d node: second signal, exiting now\n";
+            ssize_t w = write(2, msg, sizeof msg - 1);
+            (void)w;
+            _exit(128 + sig);
+        }
+        sooc_log(SOOC_LOG_INFO, "node: %s received: finishing the current keyframe (again to exit now)",
+                 sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "SIGQUIT");
+        sooc_node_request_stop(c->node);
+    }
+    return NULL;
+}
+
+typedef struct print_ctx {
+    int on;
+} print_ctx;
+
+static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc, const uint64_t *rem,
+                  size_t nr, const sooc_node_stats *st) {
+    print_ctx *p = user;
+    if (!p->on) return;
+    if (!nc && !nr) return;
+    printf("keyframe %llu: %zu changed, %zu removed, %llu objects\n", (unsigned long long)kf, nc, nr,
+           (unsigned long long)st->n_objects);
+    if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x", "z", "yaw", "pres", "obs", "sigma");
+    for (size_t i = 0; i < nc; i++)
+        printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %6.3f\n", (unsigned long long)chg[i].id, chg[i].x, chg[i].z,
+               chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count, chg[i].sigma_t);
+    for (size_t i = 0; i < nr; i++) printf("  %8llu removed\n", (unsigned long long)rem[i]);
+    fflush(stdout);
+}
 
 int sooc_cmd_node(int argc, char **argv) {
-    (void)argc;
-    (void)argv;
-    fprintf(stderr, "sooc3d node: not built yet in this version\n");
-    return 2;
+    if (sooc_cli_wants_help(argc, argv)) {
+        usage(stdout);
+        return 0;
+    }
+    const char *launch = NULL, *level = NULL;
+    uint64_t max_kf = 0;
+    int print_table = 0, quiet = 0, print_config = 0;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--max-keyframes") && i + 1 < argc) {
+            char *end;
+            long long v = strtoll(argv[++i], &end, 10);
+            if (*end || v < 0) {
+                fprintf(stderr, "sooc3d node: --max-keyframes: expected a count, got '%s'\n", argv[i]);
+                return 2;
+            }
+            max_kf = (uint64_t)v;
+        } else if (!strcmp(argv[i], "--print-table")) {
+            print_table = 1;
+        } else if (!strcmp(argv[i], "--quiet")) {
+            quiet = 1;
+        } else if (!strcmp(argv[i], "--print-config")) {
+            print_config = 1;
+        } else if (!strcmp(argv[i], "--log-level") && i + 1 < argc) {
+            level = argv[++i];
+        } else if (argv[i][0] == '-') {
+            fprintf(stderr, "sooc3d node: unknown option '%s'\n", argv[i]);
+            usage(stderr);
+            return 2;
+        } else if (!launch) {
+            launch = argv[i];
+        } else {
+            fprintf(stderr, "sooc3d node: one launch file only ('%s')\n", argv[i]);
+            return 2;
+        }
+    }
+    if (!launch) {
+        usage(stderr);
+        return 2;
+    }
+    sooc_node_config cfg;
+    sooc_status st = sooc_node_config_load(&cfg, launch);
+    if (st) return sooc_cli_fail("node", st);
+    if (level && sooc_log_level_parse(level, &cfg.log_level)) {
+        fprintf(stderr, "sooc3d node: --log-level: expected debug|info|warn|error, got '%s'\n", level);
+        return 2;
+    }
+    sooc_log_set_level(cfg.log_level);
+    char text[4096];
+    sooc_node_config_format(&cfg, text, sizeof text);
+    if (print_config) {
+        fputs(text, stdout);
+        return 0;
+    }
+    sooc_log(SOOC_LOG_INFO, "node: %s, effective config:\n%s", launch, text);
+
+    /* Block the signals before any thread exists: all threads inherit the mask. */
+    sigctx sc;
+    memset(&sc, 0, sizeof sc);
+    sigemptyset(&sc.set);
+    sigaddset(&sc.set, SIGINT);
+    sigaddset(&sc.set, SIGTERM);
+    sigaddset(&sc.set, SIGHUP);
+    sigaddset(&sc.set, SIGQUIT);
+    sigaddset(&sc.set, SIGUSR1);
+    pthread_sigmask(SIG_BLOCK, &sc.set, NULL);
+    signal(SIGPIPE, SIG_IGN);
+
+    print_ctx pc = {print_table || (!quiet && cfg.log_level <= SOOC_LOG_INFO)};
+    sooc_node_options opt;
+    memset(&opt, 0, sizeof opt);
+    opt.max_keyframes = max_kf;
+    opt.on_keyframe = on_kf;
+    opt.user = &pc;
+    sooc_node *node = NULL;
+    st = sooc_node_create(&node, &cfg, &opt);
+    if (st) return sooc_cli_fail("node", st);
+    sooc_node_stats s0;
+    sooc_node_get_stats(node, &s0);
+    if (s0.resumed) sooc_log(SOOC_LOG_INFO, "node: resumed %llu entries from %s", (unsigned long long)s0.resumed,
+                             cfg.map_db);
+
+    sc.node = node;
+    pthread_t sig_thread;
+    int sig_ok = pthread_create(&sig_thread, NULL, sig_main, &sc) == 0;
+    if (!sig_ok) sooc_log(SOOC_LOG_WARN, "node: no signal thread; SIGINT/SIGTERM will not stop cleanly");
+    st = sooc_node_run(node);
+    sooc_node_stats s;
+    sooc_node_get_stats(node, &s);
+    sooc_node_destroy(node);   /* closes the table (unlink only if configured) and the database */
+    atomic_store(&sc.done, 1);
+    if (sig_ok) pthread_join(sig_thread, NULL);
+    if (st) return sooc_cli_fail("node", st);
+    char line[512];
+    sooc_node_stats_format(&s, line, sizeof line);
+    fprintf(stderr, "sooc3d node: done%s: %s\n", atomic_load(&sc.got) ? " (stopped by signal)" : "", line);
+    return 0;
 }

@@ -1,0 +1,312 @@
+/*
+ * sooc3d node: the live mapping pipeline (architecture.md §3, node.md §6).
+ *
+ *   driver thread ─► frame ring (bounded, drop-oldest) ─► pose association
+ *     ─► keyframe policy ─► preprocess ─► sooc3d_mapper_update ─► publisher
+ *        (shm table batch + SQLite transaction per keyframe) ─► stats
+ *
+ * The launch file (YAML) configures all of it; see docs/node.md. The library
+ * never prints and never installs signal handlers: the CLI (`sooc3d node`)
+ * blocks SIGINT/SIGTERM before any thread exists, waits for them on a
+ * dedicated thread and calls sooc_node_request_stop().
+ */
+#ifndef SOOC3D_NODE_H
+#define SOOC3D_NODE_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/geom.h"
+#include "sooc3d/mapper.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------ launch file */
+
+#define SOOC_NODE_PATH_MAX 1024
+#define SOOC_NODE_PARAMS_MAX 32
+
+/* A driver parameter from the launch file's `sensor:` block, passed through
+ * verbatim (after validation against the driver's known keys). */
+typedef struct sooc_node_param {
+    char key[64];
+    char value[256];
+    int line;                      /* 1-based line in the launch file */
+} sooc_node_param;
+
+typedef enum sooc_node_pose_kind {
+    SOOC_NODE_POSE_SENSOR = 0,     /* the sensor's frames carry poses (replay of a posed sequence) */
+    SOOC_NODE_POSE_FILE = 1,       /* a trajectory file (TUM groundtruth format) */
+    SOOC_NODE_POSE_SOCKET = 2      /* live stream: unix:/path or udp:host:port */
+} sooc_node_pose_kind;
+
+typedef enum sooc_node_floor_mode {
+    SOOC_NODE_FLOOR_GIVEN = 0,     /* `floor: <height>` along the up axis */
+    SOOC_NODE_FLOOR_ESTIMATE = 1   /* `floor: estimate`: RANSAC plane fit on depth */
+} sooc_node_floor_mode;
+
+typedef enum sooc_node_depth_resample {
+    SOOC_NODE_DEPTH_MIN = 0,       /* min of the valid samples in the footprint (default) */
+    SOOC_NODE_DEPTH_NEAREST = 1    /* the sample nearest to the footprint centre */
+} sooc_node_depth_resample;
+
+typedef struct sooc_node_config {
+    char path[SOOC_NODE_PATH_MAX];           /* the launch file itself */
+
+    /* sensor: */
+    char driver[32];                         /* replay | openni2 | freenect | v4l2 | libcamera */
+    int n_params;
+    sooc_node_param params[SOOC_NODE_PARAMS_MAX];
+
+    /* pose: */
+    sooc_node_pose_kind pose_kind;
+    char pose_path[SOOC_NODE_PATH_MAX];      /* file path, or socket address "unix:/p" | "udp:h:p" */
+    double pose_tolerance_s;                 /* default 0.02 */
+    int pose_is_effector;                    /* pose.frame: effector -> apply T_effector_camera */
+
+    /* calib: (optional for sources that carry intrinsics) */
+    char calib_path[SOOC_NODE_PATH_MAX];
+
+    /* model: */
+    char model_path[SOOC_NODE_PATH_MAX];
+    int input_width, input_height;           /* 0 = ask the model */
+    int iterations, threads;
+    uint64_t seed;
+    sooc_node_depth_resample depth_resample;
+
+    /* keyframe: */
+    double kf_translation_m;                 /* default 0.10 */
+    double kf_rotation_deg;                  /* default 10 */
+    double kf_time_s;                        /* default 2.0 (0 disables the time rule) */
+
+    /* shm: */
+    char shm_name[64];                       /* "" = no shm table */
+    uint32_t shm_capacity;                   /* default 1024 */
+    int shm_unlink_on_exit;                  /* default 0 */
+
+    /* map: */
+    char map_db[SOOC_NODE_PATH_MAX];         /* "" = no persistent map */
+    int map_resume;                          /* default 1 */
+
+    /* world: */
+    double up[3];                            /* up axis of the pose source's frame (unit) */
+    int up_given;
+    sooc_node_floor_mode floor_mode;
+    double floor_height;                     /* floor coordinate along `up` */
+    double floor_ransac_threshold_m;         /* default 0.02 */
+    int floor_ransac_iterations;             /* default 200 */
+
+    /* pipeline: */
+    int ring_capacity;                       /* default 8 */
+    int block_when_full;                     /* 0 (default): drop-oldest; 1: capture waits
+                                                (deterministic replay as fast as possible) */
+    double stats_period_s;                   /* default 5 */
+    double min_depth_m, max_depth_m;         /* valid depth range, default 0.1 .. 10 */
+
+    /* log: */
+    sooc_log_level log_level;                /* default info */
+} sooc_node_config;
+
+void sooc_node_config_default(sooc_node_config *c);
+/* Parse a launch file. Unknown keys and bad values fail with SOOC_EINVAL and a
+ * message "<file>:<line>: <section>.<key>: ...". */
+sooc_status sooc_node_config_load(sooc_node_config *c, const char *path);
+/* Same from a string (`name` is used in messages). */
+sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t n, const char *name);
+/* Look up a sensor parameter (NULL if absent). */
+const char *sooc_node_param_get(const sooc_node_config *c, const char *key);
+/* Write the effective config as YAML text (for the INFO log); returns length. */
+size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap);
+
+/* ---------------------------------------------------------- preprocessing */
+
+/* Register a depth image (planar metres, 0 = invalid) from the depth camera
+ * into the colour camera: each depth pixel is back-projected with Kd, moved by
+ * T_color_depth and splatted into the colour image (Kc's size) keeping the
+ * nearest surface. Holes stay 0. `out` has Kc->width * Kc->height floats. */
+void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd,
+                              const double T_color_depth[16], const sooc_intrinsics *Kc, float *out);
+
+/* The centred crop of a (w, h) image with the aspect ratio of (tw, th). */
+void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch);
+
+/* Resize a crop (x0, y0, cw, ch) of an RGB8 image (w x h) to tw x th by area
+ * averaging (exact fractional pixel coverage). */
+void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
+                               uint8_t *dst, int tw, int th);
+/* Resize a crop of a depth image without ever averaging across edges: each
+ * target pixel takes the min of the valid samples in its footprint
+ * (SOOC_NODE_DEPTH_MIN) or the sample nearest the footprint centre
+ * (SOOC_NODE_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
+ * invalid (0). */
+void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
+                            float *dst, int tw, int th, sooc_node_depth_resample mode,
+                            double dmin, double dmax);
+
+/* Full preprocessing of one frame to the model's resolution: crop to the
+ * target aspect, resize RGB (area) and depth (min/nearest), set `valid`,
+ * adjust the intrinsics, copy t_ns/index/pose. `dst` is (re)allocated. */
+sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
+                                 sooc_node_depth_resample mode, double dmin, double dmax);
+
+/* The rigid transform T_world_src that rotates the pose source's frame so that
+ * `up` (unit, source coordinates) becomes +y and the floor (up . p = floor_h)
+ * lands on y = 0. The rotation is the smallest one taking up to +y. */
+void sooc_node_world_from_up(const double up[3], double floor_h, double T_world_src[16]);
+
+/* -------------------------------------------------------------- floor fit */
+
+typedef struct sooc_floor_fit_params {
+    double threshold_m;      /* inlier distance, default 0.02 */
+    int iterations;          /* RANSAC hypotheses, default 200 */
+    double min_inlier_frac;  /* of the points, default 0.15 */
+    uint64_t seed;
+} sooc_floor_fit_params;
+
+void sooc_floor_fit_params_default(sooc_floor_fit_params *p);
+
+/* RANSAC plane fit on n points (xyz, row-major), refined by a total least
+ * squares fit on the inliers (LAPACKE SVD of the centred inlier matrix), then
+ * a second inlier pass. Plane: n . p + d = 0, |n| = 1. When `hint_up` is given
+ * the normal is oriented along it and planes more than 30 deg away from it are
+ * rejected; otherwise n points to `viewpoint` (may be NULL). */
+sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_params *p,
+                           const double *hint_up, const double *viewpoint, double plane[4],
+                           size_t *n_inliers, double *rms);
+
+/* Back-project valid depth pixels (stride `step`) into the pose source's frame
+ * with T_src_c. Returns the number of points written (<= cap). */
+size_t sooc_node_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
+                              size_t cap);
+
+/* ------------------------------------------------------------- frame ring */
+
+/* Bounded single-producer/single-consumer frame ring. push never blocks: when
+ * full the oldest frame is dropped (counted). Frames are swapped in and out,
+ * not copied: push takes over *f's buffers and gives back a spare frame's. */
+typedef struct sooc_frame_ring sooc_frame_ring;
+
+sooc_status sooc_frame_ring_create(sooc_frame_ring **out, int capacity);
+void sooc_frame_ring_destroy(sooc_frame_ring *r);
+/* Push a frame (stamped with t_mono_ns, the monotonic arrival time). */
+void sooc_frame_ring_push(sooc_frame_ring *r, sooc_frame *f, int64_t t_mono_ns);
+/* Pop the oldest frame into *f (swapping buffers). Waits up to timeout_ms
+ * (-1 = forever). Returns SOOC_OK, SOOC_ETIMEOUT, or SOOC_EEOF once the ring is
+ * closed and empty. */
+sooc_status sooc_frame_ring_pop(sooc_frame_ring *r, sooc_frame *f, int64_t *t_mono_ns, int timeout_ms);
+/* Blocking mode (replay only): push waits for space instead of dropping. */
+void sooc_frame_ring_set_blocking(sooc_frame_ring *r, int on);
+void sooc_frame_ring_close(sooc_frame_ring *r);   /* wakes the consumer; pop drains then EEOF */
+void sooc_frame_ring_counts(sooc_frame_ring *r, uint64_t *pushed, uint64_t *dropped, int *fill);
+
+/* --------------------------------------------------------- keyframe policy */
+
+typedef struct sooc_kf_policy {
+    double translation_m, rotation_deg, time_s;   /* 0 disables a rule */
+    int have_last;
+    double T_last[16];
+    int64_t t_last_ns;
+} sooc_kf_policy;
+
+void sooc_kf_policy_init(sooc_kf_policy *p, double translation_m, double rotation_deg, double time_s);
+/* 1 if (T_wc, t_ns) should be a keyframe: the first frame, or translation or
+ * rotation angle since the last keyframe at/over a threshold, or time since it
+ * at/over time_s. Does not change state. */
+int sooc_kf_policy_check(const sooc_kf_policy *p, const double T_wc[16], int64_t t_ns);
+void sooc_kf_policy_accept(sooc_kf_policy *p, const double T_wc[16], int64_t t_ns);
+/* Rotation angle (deg) between two poses. */
+double sooc_pose_angle_deg(const double A[16], const double B[16]);
+
+/* ------------------------------------------------------- latency recorder */
+
+#define SOOC_LAT_WINDOW 4096
+typedef struct sooc_latency {
+    double v[SOOC_LAT_WINDOW];       /* last SOOC_LAT_WINDOW samples (ms) */
+    uint64_t n;                      /* total samples recorded */
+} sooc_latency;
+void sooc_latency_add(sooc_latency *l, double ms);
+/* Percentile q in [0, 1] over the window (nearest rank); 0 if empty. */
+double sooc_latency_pct(const sooc_latency *l, double q);
+
+/* ----------------------------------------------------------------- node */
+
+/* Frame source (a sensor driver or a test feeder). read fills *f with a frame
+ * (any size; the node reallocates as needed); returns SOOC_ETIMEOUT when no
+ * frame is ready yet and SOOC_EEOF at the end of a recording. */
+typedef struct sooc_node_source {
+    void *ctx;
+    sooc_status (*start)(void *ctx);
+    sooc_status (*read)(void *ctx, sooc_frame *f, int timeout_ms);
+    void (*stop)(void *ctx);
+    void (*close)(void *ctx);
+} sooc_node_source;
+
+/* Pose source: camera (or effector) pose in the pose source's frame at t_ns,
+ * interpolated; SOOC_ENOTFOUND when none within tol_ns. */
+typedef struct sooc_node_pose_source {
+    void *ctx;
+    sooc_status (*lookup)(void *ctx, int64_t t_ns, int64_t tol_ns, double T[16]);
+    void (*close)(void *ctx);
+} sooc_node_pose_source;
+
+typedef struct sooc_node_stats {
+    uint64_t frames_in;          /* frames read from the sensor */
+    uint64_t frames_dropped;     /* dropped by the ring (drop-oldest) */
+    uint64_t frames_no_pose;     /* skipped: no pose within tolerance */
+    uint64_t frames_not_kf;      /* rejected by the keyframe policy */
+    uint64_t frames_floor_wait;  /* consumed while estimating the floor */
+    uint64_t keyframes;          /* mapper updates done */
+    uint64_t update_errors;      /* failed mapper updates (frame skipped) */
+    uint64_t published, removed; /* table rows upserted / flagged removed */
+    uint64_t n_objects;          /* entries in the map after the last keyframe */
+    uint64_t resumed;            /* entries loaded from the database at start */
+    double update_p50_ms, update_p99_ms;     /* sooc3d_mapper_update */
+    double c2t_p50_ms, c2t_p99_ms;           /* capture (ring push) -> table end_batch */
+    double elapsed_s;
+    int floor_estimated;
+    double T_world_src[16];
+} sooc_node_stats;
+
+/* Called on the mapping thread after each keyframe is published: the changed
+ * entries (upserted) and the ids removed. For the CLI's --print-table. */
+typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_entry *changed,
+                                size_t n_changed, const uint64_t *removed, size_t n_removed,
+                                const sooc_node_stats *st);
+
+typedef struct sooc_node_options {
+    uint64_t max_keyframes;          /* 0 = unlimited */
+    sooc_node_kf_fn on_keyframe;
+    void *user;
+    /* Overrides (tests): when set, used instead of opening the configured
+     * sensor / pose source. The node takes ownership and calls close. */
+    const sooc_node_source *source;
+    const sooc_node_pose_source *pose;
+    /* A ready mapper (tests/bench). When NULL the node creates one from the
+     * config's model block and destroys it at the end. Not owned if given. */
+    sooc3d_mapper *mapper;
+} sooc_node_options;
+
+typedef struct sooc_node sooc_node;
+
+/* Open everything (mapper, sensor, pose source, calib, shm table, map db;
+ * resume from the db when configured). Nothing runs yet. */
+sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const sooc_node_options *o);
+/* Start the capture thread and run the mapping loop on the calling thread
+ * until the recording ends, max_keyframes is reached or a stop is requested.
+ * The keyframe in progress is finished and committed before returning. */
+sooc_status sooc_node_run(sooc_node *n);
+/* Async-safe enough for a signal thread: sets a flag and wakes the loops. */
+void sooc_node_request_stop(sooc_node *n);
+int sooc_node_stop_requested(const sooc_node *n);
+void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out);
+/* Closes the table (unlinking it only if configured) and the database. */
+void sooc_node_destroy(sooc_node *n);
+
+/* One-line stats summary for logs. */
+size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_NODE_H */

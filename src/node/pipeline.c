@@ -1,0 +1,871 @@
+/* The node: capture thread -> frame ring -> (mapping thread = caller of
+ * sooc_node_run) pose association, keyframe policy, preprocessing,
+ * sooc3d_mapper_update, publisher (shm table batch + SQLite transaction per
+ * keyframe) and periodic stats. */
+#include "sooc3d/node.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <string.h>
+
+#if SOOC_NODE_HAVE_DRIVERS
+#include "sooc3d/driver.h"
+#include "sooc3d/pose.h"
+#endif
+#if SOOC_NODE_HAVE_TABLE
+#include "sooc3d/table.h"
+#endif
+#if SOOC_NODE_HAVE_MAPSTORE
+#include "sooc3d/mapstore.h"
+#endif
+#if SOOC_NODE_HAVE_CALIB
+#include "sooc3d/calib.h"
+#endif
+
+struct sooc_node {
+    sooc_node_config cfg;
+    sooc_node_options opt;
+    sooc3d_mapper *mapper;
+    int own_mapper;
+    int tw, th;
+
+    sooc_node_source src;
+    int have_src;
+    sooc_node_pose_source pose;
+    int have_pose;
+#if SOOC_NODE_HAVE_DRIVERS
+    sooc_sensor *sensor;
+    sooc_pose_src *psrc;
+#endif
+#if SOOC_NODE_HAVE_CALIB
+    sooc_calib calib;
+#endif
+    int have_calib;
+    sooc_intrinsics Kc;            /* calib intrinsics (colour) */
+    int calib_registered;          /* -1 unknown, 0 needs registration, 1 registered */
+    int have_T_cd;
+    double T_cd[16], T_eff_cam[16];
+    int have_T_eff;
+    float *reg_buf;
+    size_t reg_cap;
+
+    sooc_frame_ring *ring;
+    pthread_t cap_thread;
+    int cap_started;
+    atomic_int stop;
+    sooc_status cap_status;
+    char cap_err[512];
+
+    sooc_kf_policy kf;
+    double T_world_src[16];
+    int world_ready;
+    uint64_t floor_attempts;
+    double *floor_pts;
+
+#if SOOC_NODE_HAVE_TABLE
+    sooc_table_writer *table;
+#endif
+#if SOOC_NODE_HAVE_MAPSTORE
+    sooc_mapstore *store;
+    int store_dim;
+#endif
+    int db_exists;
+    uint64_t model_id;
+
+    sooc_map_entry *prev, *cur, *changed;
+    size_t n_prev, cap_prev, cap_cur, cap_changed;
+    uint64_t *removed;
+    size_t cap_removed;
+
+    pthread_mutex_t mu;            /* guards st, lat_* */
+    sooc_node_stats st;
+    sooc_latency lat_upd, lat_c2t;
+    double t_start, t_last_stats;
+
+    sooc_frame work, pre;
+};
+
+/* ------------------------------------------------------------- helpers */
+
+static sooc_status grow(void **p, size_t *cap, size_t need, size_t elem) {
+    if (need <= *cap) return SOOC_OK;
+    size_t nc = *cap ? *cap : 64;
+    while (nc < need) nc *= 2;
+    void *q = sooc_realloc(*p, nc * elem);
+    if (!q) return sooc_seterr(SOOC_ENOMEM, "node: out of memory (%zu entries)", nc);
+    *p = q;
+    *cap = nc;
+    return SOOC_OK;
+}
+
+static void stats_refresh(sooc_node *n) {
+    /* caller holds n->mu */
+    n->st.update_p50_ms = sooc_latency_pct(&n->lat_upd, 0.5);
+    n->st.update_p99_ms = sooc_latency_pct(&n->lat_upd, 0.99);
+    n->st.c2t_p50_ms = sooc_latency_pct(&n->lat_c2t, 0.5);
+    n->st.c2t_p99_ms = sooc_latency_pct(&n->lat_c2t, 0.99);
+    if (n->ring) {
+        uint64_t pushed, dropped;
+        sooc_frame_ring_counts(n->ring, &pushed, &dropped, NULL);
+        n->st.frames_dropped = dropped;
+    }
+    n->st.elapsed_s = sooc_seconds() - n->t_start;
+    memcpy(n->st.T_world_src, n->T_world_src, sizeof n->T_world_src);
+}
+
+size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap) {
+    int w = snprintf(buf, cap,
+                     "frames %llu dropped %llu no_pose %llu keyframes %llu (%.2f/s) objects %llu "
+                     "update p50 %.1f ms p99 %.1f ms capture->table p50 %.1f ms p99 %.1f ms",
+                     (unsigned long long)s->frames_in, (unsigned long long)s->frames_dropped,
+                     (unsigned long long)s->frames_no_pose, (unsigned long long)s->keyframes,
+                     s->elapsed_s > 0 ? (double)s->keyframes / s->elapsed_s : 0.0,
+                     (unsigned long long)s->n_objects, s->update_p50_ms, s->update_p99_ms, s->c2t_p50_ms,
+                     s->c2t_p99_ms);
+    return w > 0 ? (size_t)w : 0;
+}
+
+void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out) {
+    pthread_mutex_lock(&n->mu);
+    stats_refresh(n);
+    *out = n->st;
+    pthread_mutex_unlock(&n->mu);
+}
+
+void sooc_node_request_stop(sooc_node *n) {
+    atomic_store(&n->stop, 1);
+#if SOOC_NODE_HAVE_DRIVERS
+    if (n->sensor) sooc_sensor_interrupt(n->sensor);
+#endif
+    if (n->ring) sooc_frame_ring_close(n->ring);
+}
+
+int sooc_node_stop_requested(const sooc_node *n) { return atomic_load((atomic_int *)&n->stop); }
+
+/* ------------------------------------------------ driver / pose adapters */
+
+#if SOOC_NODE_HAVE_DRIVERS
+static sooc_status drv_start(void *ctx) { return sooc_sensor_start(ctx); }
+static sooc_status drv_read(void *ctx, sooc_frame *f, int t) { return sooc_sensor_read(ctx, f, t); }
+static void drv_stop(void *ctx) { sooc_sensor_stop(ctx); }
+static void drv_close(void *ctx) { (void)ctx; /* closed in destroy (after the thread is joined) */ }
+
+static sooc_status pose_lookup_file(void *ctx, int64_t t, int64_t tol, double T[16]) {
+    return sooc_pose_lookup(ctx, t, tol, T);
+}
+static sooc_status pose_lookup_socket(void *ctx, int64_t t, int64_t tol, double T[16]) {
+    int wait_ms = (int)(tol / 1000000) + 50;
+    return sooc_pose_wait_lookup(ctx, t, tol, wait_ms, T);
+}
+static void pose_close(void *ctx) { sooc_pose_close(ctx); }
+
+/* launch key -> driver.h sooc_sensor_params_set key */
+static const char *map_key(const char *driver, const char *key, const char **value) {
+    if (!strcmp(key, "path") || !strcmp(key, "depth_device") || !strcmp(key, "index") ||
+        !strcmp(key, "camera"))
+        return "uri";
+    if (!strcmp(key, "color_device")) return "uri2";
+    if (!strcmp(key, "depth_mode")) return "depth_format";
+    if (!strcmp(key, "speed")) {
+        if (!strcmp(*value, "realtime")) *value = "1";
+        else if (!strcmp(*value, "fast")) *value = "0";
+        return "speed";
+    }
+    if (!strcmp(key, "format") && !strcmp(*value, "auto")) return NULL;   /* leave NULL = auto */
+    (void)driver;
+    return key;
+}
+
+static sooc_status open_sensor(sooc_node *n) {
+    const sooc_node_config *c = &n->cfg;
+    sooc_sensor_params sp;
+    sooc_sensor_params_default(&sp);
+    for (int i = 0; i < c->n_params; i++) {
+        const char *v = c->params[i].value;
+        const char *k = map_key(c->driver, c->params[i].key, &v);
+        if (!k) continue;
+        sooc_status st = sooc_sensor_params_set(&sp, k, v);
+        if (st)
+            return sooc_adderr(st, "%s:%d: sensor.%s", c->path, c->params[i].line, c->params[i].key);
+    }
+    sp.depth_min = (float)c->min_depth_m;
+    sp.depth_max = (float)c->max_depth_m;
+#if SOOC_NODE_HAVE_CALIB
+    if (n->have_calib && n->calib.depth_scale > 0 && !sooc_node_param_get(c, "depth_scale"))
+        sp.depth_scale = n->calib.depth_scale;
+#endif
+    sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
+    if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);
+    n->src.ctx = n->sensor;
+    n->src.start = drv_start;
+    n->src.read = drv_read;
+    n->src.stop = drv_stop;
+    n->src.close = drv_close;
+    n->have_src = 1;
+    return SOOC_OK;
+}
+
+static sooc_status open_pose(sooc_node *n) {
+    const sooc_node_config *c = &n->cfg;
+    if (c->pose_kind == SOOC_NODE_POSE_SENSOR) return SOOC_OK;
+    sooc_pose_params pp;
+    sooc_pose_params_default(&pp);
+    if (n->have_T_eff) {
+        pp.has_hand_eye = 1;
+        memcpy(pp.T_effector_camera, n->T_eff_cam, sizeof pp.T_effector_camera);
+    } else if (c->pose_is_effector) {
+        return sooc_seterr(SOOC_EINVAL, "%s: pose.frame: effector, but calib %s has no T_effector_camera",
+                           c->path, c->calib_path);
+    }
+    pp.text_kind = c->pose_is_effector ? SOOC_POSE_EFFECTOR : SOOC_POSE_CAMERA;
+    sooc_status st;
+    if (c->pose_kind == SOOC_NODE_POSE_FILE) {
+        st = sooc_pose_open_file(&n->psrc, c->pose_path, &pp);
+        n->pose.lookup = pose_lookup_file;
+    } else {
+        st = sooc_pose_open_socket(&n->psrc, c->pose_path, &pp);
+        n->pose.lookup = pose_lookup_socket;
+    }
+    if (st) return sooc_adderr(st, "%s: pose.path", c->path);
+    n->pose.ctx = n->psrc;
+    n->pose.close = pose_close;
+    n->have_pose = 1;
+    return SOOC_OK;
+}
+#endif
+
+/* --------------------------------------------------------- conversions */
+
+static float sigmoidf_(float a) { return 1.0f / (1.0f + expf(-a)); }
+
+#if SOOC_NODE_HAVE_TABLE
+static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
+    memset(r, 0, sizeof *r);
+    r->object_id = e->id;
+    r->flags = SOOC_TABLE_FLAG_VALID | (e->obs_count < 2 ? SOOC_TABLE_FLAG_TENTATIVE : 0u);
+    r->obs_count = e->obs_count;
+    r->presence = e->presence;
+    r->x = (float)e->x;
+    r->z = (float)e->z;
+    r->yaw = (float)e->yaw;
+    float vt = (float)(e->sigma_t * e->sigma_t), vy = (float)(e->sigma_yaw * e->sigma_yaw);
+    r->cov_xzyaw[0] = vt;
+    r->cov_xzyaw[3] = vt;
+    r->cov_xzyaw[5] = vy;
+    r->y = 0.5f * e->extent[1];   /* objects rest on the floor */
+    memcpy(r->extent, e->extent, sizeof r->extent);
+    r->first_seen_ns = e->first_seen_ns;
+    r->last_seen_ns = e->last_seen_ns;
+    int d = e->latent_dim;
+    if (d < 0) d = 0;
+    if (d > (int)SOOC_TABLE_LATENT_MAX) d = SOOC_TABLE_LATENT_MAX;
+    r->latent_dim = (uint32_t)d;
+    memcpy(r->latent, e->what_mu, (size_t)d * sizeof(float));
+}
+#endif
+
+#if SOOC_NODE_HAVE_MAPSTORE
+static void to_cog(const sooc_map_entry *e, sooc_cogmap_entry *c) {
+    memset(c, 0, sizeof *c);
+    c->id = e->id;
+    c->X = e->x;
+    c->Z = e->z;
+    c->Theta = e->yaw;
+    c->rho_t = (float)(2.0 * log(e->sigma_t > 1e-12 ? e->sigma_t : 1e-12));
+    c->rho_theta = (float)(2.0 * log(e->sigma_yaw > 1e-12 ? e->sigma_yaw : 1e-12));
+    c->pres_logit = e->presence_logit;
+    c->dim = e->latent_dim;
+    memcpy(c->what_mu, e->what_mu, (size_t)e->latent_dim * sizeof(float));
+    memcpy(c->what_logvar, e->what_logvar, (size_t)e->latent_dim * sizeof(float));
+    c->first_seen_ns = e->first_seen_ns;
+    c->last_seen_ns = e->last_seen_ns;
+    c->obs_count = e->obs_count;
+}
+
+static void from_cog(const sooc_cogmap_entry *c, sooc_map_entry *e) {
+    memset(e, 0, sizeof *e);
+    e->id = c->id;
+    e->x = c->X;
+    e->z = c->Z;
+    e->yaw = c->Theta;
+    e->sigma_t = exp(0.5 * c->rho_t);
+    e->sigma_yaw = exp(0.5 * c->rho_theta);
+    e->presence_logit = c->pres_logit;
+    e->presence = sigmoidf_(c->pres_logit);
+    e->latent_dim = c->dim > SOOC_MAP_LATENT_MAX ? SOOC_MAP_LATENT_MAX : c->dim;
+    memcpy(e->what_mu, c->what_mu, (size_t)e->latent_dim * sizeof(float));
+    memcpy(e->what_logvar, c->what_logvar, (size_t)e->latent_dim * sizeof(float));
+    e->first_seen_ns = c->first_seen_ns;
+    e->last_seen_ns = c->last_seen_ns;
+    e->obs_count = c->obs_count;
+}
+
+typedef struct load_ctx {
+    sooc_node *n;
+    sooc_status st;
+} load_ctx;
+
+static int load_visit(void *user, const sooc_cogmap_entry *c) {
+    load_ctx *L = user;
+    sooc_node *n = L->n;
+    if ((L->st = grow((void **)&n->prev, &n->cap_prev, n->n_prev + 1, sizeof *n->prev))) return 1;
+    from_cog(c, &n->prev[n->n_prev++]);
+    return 0;
+}
+
+static sooc_status store_open(sooc_node *n, int dim, int create) {
+    sooc_mapstore_params mp;
+    sooc_mapstore_params_default(&mp);
+    mp.create = create;
+    mp.dim = dim;
+    mp.layout_dim = 0;
+    mp.model_id = NULL;
+    sooc_status st = sooc_mapstore_open(&n->store, n->cfg.map_db, &mp);
+    if (st) return sooc_adderr(st, "%s: map.db", n->cfg.path);
+    sooc_mapstore_info info;
+    if (!sooc_mapstore_info_get(n->store, &info)) n->store_dim = info.dim;
+    return SOOC_OK;
+}
+#endif
+
+static int entry_same(const sooc_map_entry *a, const sooc_map_entry *b) {
+    if (a->x != b->x || a->z != b->z || a->yaw != b->yaw || a->sigma_t != b->sigma_t ||
+        a->sigma_yaw != b->sigma_yaw || a->presence_logit != b->presence_logit ||
+        a->presence != b->presence || a->obs_count != b->obs_count || a->last_seen_ns != b->last_seen_ns ||
+        a->first_seen_ns != b->first_seen_ns || a->latent_dim != b->latent_dim)
+        return 0;
+    if (memcmp(a->extent, b->extent, sizeof a->extent)) return 0;
+    size_t d = (size_t)(a->latent_dim > 0 ? a->latent_dim : 0);
+    if (d > SOOC_MAP_LATENT_MAX) d = SOOC_MAP_LATENT_MAX;
+    return !memcmp(a->what_mu, b->what_mu, d * sizeof(float)) &&
+           !memcmp(a->what_logvar, b->what_logvar, d * sizeof(float));
+}
+
+/* ------------------------------------------------------------ publisher */
+
+/* Publish `changed` / `removed`: one table batch and one SQLite transaction. */
+static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
+                           int clear_first, int64_t stamp_ns, const double *T_wc, int64_t t_cap_mono) {
+    sooc_status st = SOOC_OK;
+#if SOOC_NODE_HAVE_TABLE
+    if (n->table) {
+        int rc = sooc_table_begin_batch(n->table);
+        if (clear_first && !rc) rc = sooc_table_clear(n->table);
+        uint32_t ld = nc ? (uint32_t)chg[0].latent_dim : 0;
+        double T_src_map[16];
+        sooc_se3_inverse(T_src_map, n->T_world_src);
+        if (!rc) rc = sooc_table_set_meta(n->table, ld, n->model_id, stamp_ns, T_src_map);
+        for (size_t i = 0; i < nc && !rc; i++) {
+            sooc_table_record r;
+            to_record(&chg[i], &r);
+            rc = sooc_table_upsert(n->table, &r);
+        }
+        for (size_t i = 0; i < nr && !rc; i++) {
+            int r2 = sooc_table_remove(n->table, rem[i]);
+            if (r2 && r2 != SOOC_TABLE_ENOENT) rc = r2;
+        }
+        int rc2 = sooc_table_end_batch(n->table);
+        if (!rc) rc = rc2;
+        if (rc) st = sooc_seterr(SOOC_EIO, "shm table '%s': %s", n->cfg.shm_name, sooc_table_strerror(rc));
+    }
+#else
+    (void)clear_first;
+    (void)stamp_ns;
+#endif
+    if (t_cap_mono > 0) {
+        double ms = (double)(sooc_now_ns() - t_cap_mono) * 1e-6;
+        pthread_mutex_lock(&n->mu);
+        sooc_latency_add(&n->lat_c2t, ms);
+        pthread_mutex_unlock(&n->mu);
+    }
+#if SOOC_NODE_HAVE_MAPSTORE
+    if (!st && n->cfg.map_db[0] && (nc || nr)) {
+        if (!n->store) {
+            int dim = nc ? chg[0].latent_dim : 0;
+            if (dim > 0) st = store_open(n, dim, 1);
+        }
+        if (n->store && !st) {
+            st = sooc_mapstore_begin(n->store);
+            sooc_cogmap_entry ce;
+            for (size_t i = 0; i < nc && !st; i++) {
+                to_cog(&chg[i], &ce);
+                st = sooc_mapstore_put_entries(n->store, &ce, 1);
+            }
+            if (!st && nr) st = sooc_mapstore_remove_entries(n->store, rem, nr);
+            if (!st) {
+                uint64_t next = 1;
+                for (size_t i = 0; i < nc; i++)
+                    if (chg[i].id + 1 > next) next = chg[i].id + 1;
+                for (size_t i = 0; i < nr; i++)
+                    if (rem[i] + 1 > next) next = rem[i] + 1;
+                st = sooc_mapstore_set_next_id(n->store, next);
+            }
+            if (!st) st = sooc_mapstore_commit(n->store);
+            else sooc_mapstore_rollback(n->store);
+        }
+    }
+#endif
+    (void)T_wc;
+    pthread_mutex_lock(&n->mu);
+    n->st.published += nc;
+    n->st.removed += nr;
+    pthread_mutex_unlock(&n->mu);
+    return st;
+}
+
+/* Diff the mapper's entries against the last published ones; publish. */
+static sooc_status publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap) {
+    size_t cnt = 0;
+    sooc_status st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt);
+    if (st) return sooc_adderr(st, "mapper entries");
+    if ((st = grow((void **)&n->cur, &n->cap_cur, cnt + 1, sizeof *n->cur))) return st;
+    size_t got = 0;
+    if ((st = sooc3d_mapper_entries(n->mapper, n->cur, n->cap_cur, &got))) return sooc_adderr(st, "mapper entries");
+    if (got > n->cap_cur) got = n->cap_cur;
+    if ((st = grow((void **)&n->changed, &n->cap_changed, got + 1, sizeof *n->changed))) return st;
+    if ((st = grow((void **)&n->removed, &n->cap_removed, n->n_prev + 1, sizeof *n->removed))) return st;
+    size_t nc = 0, nr = 0, i = 0, j = 0;
+    while (i < n->n_prev || j < got) {
+        if (j >= got || (i < n->n_prev && n->prev[i].id < n->cur[j].id)) {
+            n->removed[nr++] = n->prev[i++].id;
+        } else if (i >= n->n_prev || n->cur[j].id < n->prev[i].id) {
+            n->changed[nc++] = n->cur[j++];
+        } else {
+            if (!entry_same(&n->prev[i], &n->cur[j])) n->changed[nc++] = n->cur[j];
+            i++;
+            j++;
+        }
+    }
+    st = publish(n, n->changed, nc, n->removed, nr, 0, stamp_ns, T_wc, t_cap);
+    /* cur becomes prev */
+    sooc_map_entry *tp = n->prev;
+    size_t tc = n->cap_prev;
+    n->prev = n->cur;
+    n->cap_prev = n->cap_cur;
+    n->n_prev = got;
+    n->cur = tp;
+    n->cap_cur = tc;
+    pthread_mutex_lock(&n->mu);
+    n->st.n_objects = got;
+    stats_refresh(n);
+    sooc_node_stats snap = n->st;
+    pthread_mutex_unlock(&n->mu);
+    if (n->opt.on_keyframe)
+        n->opt.on_keyframe(n->opt.user, snap.keyframes + 1, n->changed, nc, n->removed, nr, &snap);
+    return st;
+}
+
+/* ---------------------------------------------------------------- create */
+
+static sooc_status load_calib(sooc_node *n) {
+    if (!n->cfg.calib_path[0]) return SOOC_OK;
+#if SOOC_NODE_HAVE_CALIB
+    sooc_status st = sooc_calib_load(n->cfg.calib_path, &n->calib);
+    if (st) return sooc_adderr(st, "%s: calib", n->cfg.path);
+    n->have_calib = 1;
+    n->Kc = n->calib.K;
+    n->calib_registered = n->calib.depth_registered;
+    if (n->calib.has_T_color_depth) {
+        n->have_T_cd = 1;
+        memcpy(n->T_cd, n->calib.T_color_depth, sizeof n->T_cd);
+    }
+    if (n->calib.has_T_effector_camera) {
+        n->have_T_eff = 1;
+        memcpy(n->T_eff_cam, n->calib.T_effector_camera, sizeof n->T_eff_cam);
+    }
+    if (n->calib_registered == 0 && !n->have_T_cd)
+        return sooc_seterr(SOOC_EINVAL, "%s: depth_registered is false but T_color_depth is missing",
+                           n->cfg.calib_path);
+    return SOOC_OK;
+#else
+    return sooc_seterr(SOOC_EUNSUPPORTED, "%s: calib: the calibration loader is not built in", n->cfg.path);
+#endif
+}
+
+sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const sooc_node_options *o) {
+    *out = NULL;
+    sooc_node *n = sooc_calloc(1, sizeof *n);
+    if (!n) return SOOC_ENOMEM;
+    n->cfg = *c;
+    if (o) n->opt = *o;
+    pthread_mutex_init(&n->mu, NULL);
+    atomic_init(&n->stop, 0);
+    n->calib_registered = -1;
+    n->t_start = n->t_last_stats = sooc_seconds();
+    sooc_se3_identity(n->T_world_src);
+    sooc_kf_policy_init(&n->kf, c->kf_translation_m, c->kf_rotation_deg, c->kf_time_s);
+    n->model_id = sooc_crc32(0, c->model_path, strlen(c->model_path));
+    sooc_status st = SOOC_OK;
+
+    if (c->floor_mode == SOOC_NODE_FLOOR_GIVEN) {
+        sooc_node_world_from_up(c->up, c->floor_height, n->T_world_src);
+        n->world_ready = 1;
+    }
+    /* model */
+    if (n->opt.mapper) {
+        n->mapper = n->opt.mapper;
+    } else {
+        sooc3d_mapper_params mp;
+        sooc3d_mapper_params_default(&mp);
+        mp.model_path = c->model_path;
+        mp.iterations = c->iterations;
+        mp.seed = c->seed;
+        mp.threads = c->threads;
+        if (!c->model_path[0]) {
+            st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
+            goto fail;
+        }
+        if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+            sooc_adderr(st, "%s: model.path %s", c->path, c->model_path);
+            goto fail;
+        }
+        n->own_mapper = 1;
+    }
+    sooc3d_mapper_input_size(n->mapper, &n->tw, &n->th);
+    if (c->input_width > 0 && (c->input_width != n->tw || c->input_height != n->th)) {
+        st = sooc_seterr(SOOC_EINVAL, "%s: model.width/height: %dx%d, but the model takes %dx%d", c->path,
+                         c->input_width, c->input_height, n->tw, n->th);
+        goto fail;
+    }
+    if (n->tw <= 0 || n->th <= 0) {
+        st = sooc_seterr(SOOC_EINVAL, "%s: model: input size %dx%d is invalid", c->path, n->tw, n->th);
+        goto fail;
+    }
+    if ((st = load_calib(n))) goto fail;
+
+    /* sources */
+    if (n->opt.source) {
+        n->src = *n->opt.source;
+        n->have_src = 1;
+    }
+    if (n->opt.pose) {
+        n->pose = *n->opt.pose;
+        n->have_pose = 1;
+    }
+#if SOOC_NODE_HAVE_DRIVERS
+    if (!n->have_src && (st = open_sensor(n))) goto fail;
+    if (!n->have_pose && (st = open_pose(n))) goto fail;
+#else
+    if (!n->have_src) {
+        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: sensor: the drivers module is not built in", c->path);
+        goto fail;
+    }
+#endif
+    if (c->pose_kind != SOOC_NODE_POSE_SENSOR && !n->have_pose) {
+        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose: no pose source available", c->path);
+        goto fail;
+    }
+    if ((st = sooc_frame_ring_create(&n->ring, c->ring_capacity))) goto fail;
+    sooc_frame_ring_set_blocking(n->ring, c->block_when_full);
+    if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE) {
+        n->floor_pts = sooc_malloc(3 * sizeof(double) * 20000);
+        if (!n->floor_pts) { st = SOOC_ENOMEM; goto fail; }
+    }
+
+    /* persistent map: resume */
+    n->db_exists = c->map_db[0] && sooc_file_exists(c->map_db);
+#if SOOC_NODE_HAVE_MAPSTORE
+    if (n->db_exists) {
+        if ((st = store_open(n, 0, 0))) goto fail;
+        if (!c->map_resume) {
+            sooc_mapstore_info info;
+            if (!sooc_mapstore_info_get(n->store, &info) && info.n_entries > 0) {
+                st = sooc_seterr(SOOC_EINVAL,
+                                 "%s: map.resume: false, but %s already holds %llu entries (remove it or resume)",
+                                 c->path, c->map_db, (unsigned long long)info.n_entries);
+                goto fail;
+            }
+        }
+        load_ctx L = {n, SOOC_OK};
+        if ((st = sooc_mapstore_foreach(n->store, load_visit, &L)) || (st = L.st)) {
+            sooc_adderr(st, "%s: resume from %s", c->path, c->map_db);
+            goto fail;
+        }
+        if (n->n_prev && (st = sooc3d_mapper_load_entries(n->mapper, n->prev, n->n_prev))) {
+            sooc_adderr(st, "%s: resume: mapper refused %zu stored entries", c->path, n->n_prev);
+            goto fail;
+        }
+        /* keep what the mapper now holds as the published state */
+        size_t cnt = 0;
+        if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
+        if ((st = grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
+        if ((st = sooc3d_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
+        n->st.resumed = n->n_prev;
+        n->st.n_objects = n->n_prev;
+    }
+#else
+    if (c->map_db[0])
+        sooc_log(SOOC_LOG_WARN, "%s: map.db set but the SQLite map store is not built in; not persisting",
+                 c->path);
+#endif
+
+    /* shm table */
+    if (c->shm_name[0]) {
+#if SOOC_NODE_HAVE_TABLE
+        int rc = sooc_table_create_writer(c->shm_name, c->shm_capacity, 0, "map", &n->table);
+        if (rc) {
+            st = sooc_seterr(rc == SOOC_TABLE_ELOCKED ? SOOC_EBUSY : SOOC_EIO, "%s:shm.name: table '%s': %s",
+                             c->path, c->shm_name, sooc_table_strerror(rc));
+            goto fail;
+        }
+        sooc_table_start_heartbeat(n->table, 20.0);
+        if ((uint64_t)n->n_prev > c->shm_capacity) {
+            st = sooc_seterr(SOOC_EINVAL, "%s: shm.capacity: %u is below the %zu stored entries", c->path,
+                             c->shm_capacity, n->n_prev);
+            goto fail;
+        }
+#else
+        sooc_log(SOOC_LOG_WARN, "%s: shm.name set but the table module is not built in", c->path);
+#endif
+    }
+    /* republish the resumed map (and clear leftovers of an earlier run) */
+    if ((st = publish(n, n->prev, n->n_prev, NULL, 0, 1, 0, NULL, 0))) goto fail;
+    *out = n;
+    return SOOC_OK;
+fail:
+    sooc_node_destroy(n);
+    return st;
+}
+
+/* ------------------------------------------------------------- capture */
+
+static void *capture_main(void *arg) {
+    sooc_node *n = arg;
+    sooc_frame f;
+    memset(&f, 0, sizeof f);
+    sooc_status st = n->src.start ? n->src.start(n->src.ctx) : SOOC_OK;
+    while (!st && !atomic_load(&n->stop)) {
+        st = n->src.read(n->src.ctx, &f, 100);
+        if (st == SOOC_ETIMEOUT) { st = SOOC_OK; continue; }
+        if (st) break;
+        pthread_mutex_lock(&n->mu);
+        n->st.frames_in++;
+        pthread_mutex_unlock(&n->mu);
+        sooc_frame_ring_push(n->ring, &f, sooc_now_ns());
+    }
+    if (st == SOOC_EEOF || st == SOOC_EINTERRUPTED) st = SOOC_OK;
+    if (st && !atomic_load(&n->stop)) {
+        n->cap_status = st;
+        snprintf(n->cap_err, sizeof n->cap_err, "%s", sooc_errmsg());
+    }
+    if (n->src.stop) n->src.stop(n->src.ctx);
+    sooc_frame_free(&f);
+    sooc_frame_ring_close(n->ring);   /* mapping drains what is left, then sees EEOF */
+    return NULL;
+}
+
+/* ------------------------------------------------------------- mapping */
+
+static int try_floor(sooc_node *n, const sooc_frame *f, const double T_src_c[16]) {
+    size_t npts = sooc_node_depth_points(f, T_src_c, f->width > 160 ? 4 : 1, n->floor_pts, 20000);
+    sooc_floor_fit_params fp;
+    sooc_floor_fit_params_default(&fp);
+    fp.threshold_m = n->cfg.floor_ransac_threshold_m;
+    fp.iterations = n->cfg.floor_ransac_iterations;
+    fp.seed = n->cfg.seed + 1;
+    double plane[4], rms;
+    size_t ninl;
+    double cam[3] = {T_src_c[3], T_src_c[7], T_src_c[11]};
+    n->floor_attempts++;
+    sooc_status st = sooc_floor_fit(n->floor_pts, npts, &fp, n->cfg.up_given ? n->cfg.up : NULL, cam, plane,
+                                    &ninl, &rms);
+    if (st) {
+        if (n->floor_attempts % 30 == 1)
+            sooc_log(SOOC_LOG_WARN, "node: floor estimate failed on frame %lld: %s", (long long)f->index,
+                     sooc_errmsg());
+        return 0;
+    }
+    sooc_node_world_from_up(plane, -plane[3], n->T_world_src);
+    n->world_ready = 1;
+    pthread_mutex_lock(&n->mu);
+    n->st.floor_estimated = 1;
+    pthread_mutex_unlock(&n->mu);
+    sooc_log(SOOC_LOG_INFO, "node: floor estimated: n = (%.4f %.4f %.4f) d = %.4f, %zu/%zu inliers, rms %.4f m",
+             plane[0], plane[1], plane[2], plane[3], ninl, npts, rms);
+    return 1;
+}
+
+static sooc_status fix_intrinsics_and_register(sooc_node *n, sooc_frame *f) {
+    if (!n->have_calib) {
+        if (f->K.fx == 0 || f->K.fy == 0)
+            return sooc_seterr(SOOC_EINVAL, "%s: the sensor gives no intrinsics; set calib: to a calib file",
+                               n->cfg.path);
+        if (f->K.width <= 0) { f->K.width = f->width; f->K.height = f->height; }
+        return SOOC_OK;
+    }
+    sooc_intrinsics Kc = n->Kc;
+    if (Kc.width != f->width || Kc.height != f->height) {
+        /* same aspect ratio: scale the calibration */
+        if ((long)Kc.width * f->height != (long)Kc.height * f->width)
+            return sooc_seterr(SOOC_EINVAL, "%s: calib is for %dx%d but the sensor gives %dx%d",
+                               n->cfg.calib_path, Kc.width, Kc.height, f->width, f->height);
+        sooc_intrinsics s;
+        sooc_cam_crop_resize(&s, &Kc, 0, 0, Kc.width, Kc.height, f->width, f->height);
+        Kc = s;
+    }
+    if (n->calib_registered == 0 && n->have_T_cd) {
+        /* depth is in the depth camera: the frame's K is the depth camera's */
+        sooc_intrinsics Kd = f->K;
+        if (Kd.fx == 0) Kd = Kc;   /* no depth intrinsics reported: assume the colour ones */
+        Kd.width = f->width;
+        Kd.height = f->height;
+        size_t np = (size_t)f->width * f->height;
+        if (n->reg_cap < np) {
+            sooc_free(n->reg_buf);
+            n->reg_buf = sooc_malloc(np * sizeof(float));
+            if (!n->reg_buf) { n->reg_cap = 0; return SOOC_ENOMEM; }
+            n->reg_cap = np;
+        }
+        sooc_node_register_depth(f->depth, &Kd, n->T_cd, &Kc, n->reg_buf);
+        memcpy(f->depth, n->reg_buf, np * sizeof(float));
+        for (size_t i = 0; i < np; i++) f->valid[i] = f->depth[i] > 0.0f;
+    }
+    f->K = Kc;
+    return SOOC_OK;
+}
+
+static void log_stats(sooc_node *n) {
+    sooc_node_stats s;
+    sooc_node_get_stats(n, &s);
+    char line[512];
+    sooc_node_stats_format(&s, line, sizeof line);
+    sooc_log(SOOC_LOG_INFO, "node: %s", line);
+}
+
+sooc_status sooc_node_run(sooc_node *n) {
+    if (!n->have_src) return sooc_seterr(SOOC_EINVAL, "node: no frame source");
+    n->t_start = n->t_last_stats = sooc_seconds();
+    if (pthread_create(&n->cap_thread, NULL, capture_main, n))
+        return sooc_seterr(SOOC_ERR, "node: cannot start the capture thread");
+    n->cap_started = 1;
+    sooc_status result = SOOC_OK;
+    const int64_t tol_ns = (int64_t)llround(n->cfg.pose_tolerance_s * 1e9);
+    while (!atomic_load(&n->stop)) {
+        if (n->cfg.stats_period_s > 0 && sooc_seconds() - n->t_last_stats >= n->cfg.stats_period_s) {
+            n->t_last_stats = sooc_seconds();
+            log_stats(n);
+        }
+        int64_t t_cap = 0;
+        sooc_status st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
+        if (st == SOOC_ETIMEOUT) continue;
+        if (st == SOOC_EEOF) break;
+        if (st) { result = st; break; }
+        sooc_frame *f = &n->work;
+        /* pose association */
+        double T_src_c[16];
+        if (n->cfg.pose_kind == SOOC_NODE_POSE_SENSOR && !n->opt.pose) {
+            if (!f->has_pose) {
+                pthread_mutex_lock(&n->mu);
+                n->st.frames_no_pose++;
+                pthread_mutex_unlock(&n->mu);
+                continue;
+            }
+            memcpy(T_src_c, f->T_wc, sizeof T_src_c);
+        } else if (n->pose.lookup(n->pose.ctx, f->t_ns, tol_ns, T_src_c)) {
+            pthread_mutex_lock(&n->mu);
+            n->st.frames_no_pose++;
+            pthread_mutex_unlock(&n->mu);
+            continue;
+        }
+        if ((st = fix_intrinsics_and_register(n, f))) { result = st; break; }
+        if (!n->world_ready && !try_floor(n, f, T_src_c)) {
+            pthread_mutex_lock(&n->mu);
+            n->st.frames_floor_wait++;
+            pthread_mutex_unlock(&n->mu);
+            continue;
+        }
+        double T_wc[16];
+        sooc_se3_mul(T_wc, n->T_world_src, T_src_c);
+        if (!sooc_kf_policy_check(&n->kf, T_wc, f->t_ns)) {
+            pthread_mutex_lock(&n->mu);
+            n->st.frames_not_kf++;
+            pthread_mutex_unlock(&n->mu);
+            continue;
+        }
+        if ((st = sooc_node_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
+                                       n->cfg.max_depth_m))) {
+            result = st;
+            break;
+        }
+        memcpy(n->pre.T_wc, T_wc, sizeof T_wc);
+        n->pre.has_pose = 1;
+        sooc3d_update_stats us;
+        memset(&us, 0, sizeof us);
+        double t0 = sooc_seconds();
+        st = sooc3d_mapper_update(n->mapper, &n->pre, &us);
+        double ms = (sooc_seconds() - t0) * 1e3;
+        if (st) {
+            pthread_mutex_lock(&n->mu);
+            n->st.update_errors++;
+            pthread_mutex_unlock(&n->mu);
+            sooc_log(SOOC_LOG_WARN, "node: mapper update failed on frame %lld: %s", (long long)f->index,
+                     sooc_errmsg());
+            if (st == SOOC_ENOMEM) { result = st; break; }
+            continue;
+        }
+        sooc_kf_policy_accept(&n->kf, T_wc, f->t_ns);
+        pthread_mutex_lock(&n->mu);
+        sooc_latency_add(&n->lat_upd, ms);
+        pthread_mutex_unlock(&n->mu);
+        if ((st = publish_keyframe(n, f->t_ns, T_wc, t_cap))) { result = st; break; }
+        pthread_mutex_lock(&n->mu);
+        n->st.keyframes++;
+        uint64_t k = n->st.keyframes;
+        pthread_mutex_unlock(&n->mu);
+        sooc_log(SOOC_LOG_DEBUG, "node: keyframe %llu (frame %lld): %d retrieved, %d new, %d removed, %.1f ms",
+                 (unsigned long long)k, (long long)f->index, us.n_retrieved, us.n_new, us.n_removed, ms);
+        if (n->opt.max_keyframes && k >= n->opt.max_keyframes) break;
+    }
+    /* shutdown: stop capture, join */
+    atomic_store(&n->stop, 1);
+#if SOOC_NODE_HAVE_DRIVERS
+    if (n->sensor) sooc_sensor_interrupt(n->sensor);
+#endif
+    sooc_frame_ring_close(n->ring);
+    if (n->cap_started) {
+        pthread_join(n->cap_thread, NULL);
+        n->cap_started = 0;
+    }
+    if (!result && n->cap_status) {
+        result = sooc_seterr(n->cap_status, "node: capture failed: %s", n->cap_err);
+    }
+    log_stats(n);
+    return result;
+}
+
+void sooc_node_destroy(sooc_node *n) {
+    if (!n) return;
+    if (n->cap_started) {
+        atomic_store(&n->stop, 1);
+#if SOOC_NODE_HAVE_DRIVERS
+        if (n->sensor) sooc_sensor_interrupt(n->sensor);
+#endif
+        if (n->ring) sooc_frame_ring_close(n->ring);
+        pthread_join(n->cap_thread, NULL);
+    }
+    if (n->have_src && n->src.close) n->src.close(n->src.ctx);
+#if SOOC_NODE_HAVE_DRIVERS
+    sooc_sensor_close(n->sensor);
+#endif
+    if (n->have_pose && n->pose.close) n->pose.close(n->pose.ctx);
+#if SOOC_NODE_HAVE_TABLE
+    if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
+#endif
+#if SOOC_NODE_HAVE_MAPSTORE
+    sooc_mapstore_close(n->store);
+#endif
+    if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);
+    sooc_frame_ring_destroy(n->ring);
+    sooc_frame_free(&n->work);
+    sooc_frame_free(&n->pre);
+    sooc_free(n->reg_buf);
+    sooc_free(n->floor_pts);
+    sooc_free(n->prev);
+    sooc_free(n->cur);
+    sooc_free(n->changed);
+    sooc_free(n->removed);
+    pthread_mutex_destroy(&n->mu);
+    sooc_free(n);
+}
