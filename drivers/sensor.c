@@ -227,6 +227,13 @@ void sooc_sensor_get_stats(const sooc_sensor *s, sooc_sensor_stats *out) {
 
 /* ------------------------------------------------------------- helpers */
 
+float sooc_freenect_disparity_to_m(uint16_t raw) {
+    if (raw >= 1084) return 0.0f;
+    double den = -0.0030711016 * (double)raw + 3.3309495161;
+    if (den <= 0) return 0.0f;
+    return (float)(1.0 / den);
+}
+
 sooc_status sooc__frame_ensure(sooc_frame *f, int w, int h) {
     if (!(f->width == w && f->height == h && f->rgb && f->depth && f->valid)) {
         sooc_frame_free(f);
