@@ -1,11 +1,259 @@
-/* sooc3d map: placeholder until its module lands; it fails loudly rather than pretending. */
+/* sooc3d map: list, query, export or describe a stored map (SQLite, see
+ * include/sooc3d/mapstore.h). Read-only: never modifies the database. */
 #include "cli.h"
+#include "sooc3d/mapstore.h"
 
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void map_usage(FILE *f) {
+    fprintf(f,
+            "usage: sooc3d map list   --db MAP.sqlite [--limit N]\n"
+            "       sooc3d map query  --db MAP.sqlite --box X0 Z0 X1 Z1\n"
+            "       sooc3d map export --db MAP.sqlite (--csv|--json|--ply) FILE [--box X0 Z0 X1 Z1]\n"
+            "       sooc3d map info   --db MAP.sqlite\n"
+            "\n"
+            "Reads a persistent cognitive map (written by `sooc3d node` / `sooc3d infer`).\n"
+            "World frame: +y up, floor y = 0; an object is (x, z, yaw) on the floor.\n"
+            "\n"
+            "  list     one line per object, ordered by id: id x z yaw sigma_t sigma_yaw presence\n"
+            "           obs_count first_seen_ns last_seen_ns\n"
+            "  query    the same for objects whose (x, z) lies in the closed box [X0,X1] x [Z0,Z1]\n"
+            "           (R*Tree lookup)\n"
+            "  export   --csv FILE   header + one row per object (incl. what_mu / what_logvar)\n"
+            "           --json FILE  {\"info\": {...}, \"objects\": [...]}\n"
+            "           --ply FILE   ASCII PLY point cloud, one vertex per object at (x, 0, z),\n"
+            "                        coloured by a hash of its id, with properties id, yaw,\n"
+            "                        presence (open it in MeshLab / CloudCompare / Open3D)\n"
+            "           FILE may be '-' for standard output.\n"
+            "  info     schema version, model id, dims, counts, journal mode\n"
+            "\n"
+            "  --db FILE     the map database (required; it is never created or modified)\n"
+            "  --box X0 Z0 X1 Z1   floor box in metres (query; optional filter for export)\n"
+            "  --limit N     list at most N objects\n"
+            "  -h, --help    this text\n");
+}
+
+typedef struct out_ctx {
+    FILE *f;
+    int fmt;      /* 0 text, 1 csv, 2 json, 3 ply */
+    size_t n, limit;
+    int first;
+} out_ctx;
+
+static float sigmoidf(float a) { return 1.0f / (1.0f + expf(-a)); }
+
+static void id_colour(uint64_t id, int rgb[3]) {
+    uint64_t x = id * 0x9e3779b97f4a7c15ULL;
+    x ^= x >> 29;
+    x *= 0xbf58476d1ce4e5b9ULL;
+    x ^= x >> 32;
+    for (int i = 0; i < 3; i++) rgb[i] = 64 + (int)((x >> (8 * i)) & 0xff) * 191 / 255;
+}
+
+static int print_cb(void *u, const sooc_cogmap_entry *e) {
+    out_ctx *c = u;
+    if (c->limit && c->n >= c->limit) return 1;
+    c->n++;
+    double st = exp(0.5 * e->rho_t), sy = exp(0.5 * e->rho_theta);
+    float p = sigmoidf(e->pres_logit);
+    switch (c->fmt) {
+    case 0:
+        fprintf(c->f, "%8llu %10.4f %10.4f %8.4f %8.4f %8.4f %7.4f %6u %20lld %20lld\n", (unsigned long long)e->id, e->X,
+                e->Z, e->Theta, st, sy, p, e->obs_count, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
+        break;
+    case 1:
+        fprintf(c->f, "%llu,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u,%d,%lld,%lld,%d,", (unsigned long long)e->id,
+                e->X, e->Z, e->Theta, st, sy, e->rho_t, e->rho_theta, p, e->obs_count, e->last_view,
+                (long long)e->first_seen_ns, (long long)e->last_seen_ns, e->dim);
+        for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? " " : "\"", e->what_mu[i]);
+        fprintf(c->f, "\",");
+        for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? " " : "\"", e->what_logvar[i]);
+        fprintf(c->f, "\"\n");
+        break;
+    case 2:
+        fprintf(c->f,
+                "%s\n    {\"id\": %llu, \"x\": %.9g, \"z\": %.9g, \"yaw\": %.9g, \"sigma_t\": %.9g, "
+                "\"sigma_yaw\": %.9g, \"presence\": %.9g, \"presence_logit\": %.9g, \"obs_count\": %u, "
+                "\"last_view\": %d, \"first_seen_ns\": %lld, \"last_seen_ns\": %lld, \"what_mu\": [",
+                c->first ? "" : ",", (unsigned long long)e->id, e->X, e->Z, e->Theta, st, sy, p, e->pres_logit,
+                e->obs_count, e->last_view, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
+        for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_mu[i]);
+        fprintf(c->f, "], \"what_logvar\": [");
+        for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_logvar[i]);
+        fprintf(c->f, "]}");
+        c->first = 0;
+        break;
+    case 3: {
+        int rgb[3];
+        id_colour(e->id, rgb);
+        fprintf(c->f, "%.6f 0 %.6f %d %d %d %llu %.6f %.6f\n", e->X, e->Z, rgb[0], rgb[1], rgb[2],
+                (unsigned long long)e->id, e->Theta, p);
+        break;
+    }
+    }
+    return 0;
+}
+
+static void json_str(FILE *f, const char *s) {
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char ch = (unsigned char)*s;
+        if (ch == '"' || ch == '\\') fprintf(f, "\\%c", ch);
+        else if (ch < 0x20) fprintf(f, "\\u%04x", ch);
+        else fputc(ch, f);
+    }
+    fputc('"', f);
+}
+
+static int count_cb(void *u, const sooc_cogmap_entry *e) {
+    (void)e;
+    (*(size_t *)u)++;
+    return 0;
+}
+
+static int parse_d(const char *s, double *v) {
+    char *end;
+    *v = strtod(s, &end);
+    return end != s && !*end && isfinite(*v);
+}
 
 int sooc_cmd_map(int argc, char **argv) {
-    (void)argc;
-    (void)argv;
-    fprintf(stderr, "sooc3d map: not built yet in this version\n");
-    return 2;
+    if (sooc_cli_wants_help(argc, argv)) {
+        map_usage(stdout);
+        return 0;
+    }
+    if (argc < 2) {
+        map_usage(stderr);
+        return 2;
+    }
+    const char *sub = argv[1], *db = NULL, *out = NULL;
+    int fmt = -1, has_box = 0;
+    double box[4] = {0};
+    size_t limit = 0;
+    for (int i = 2; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--db") && i + 1 < argc) db = argv[++i];
+        else if ((!strcmp(a, "--csv") || !strcmp(a, "--json") || !strcmp(a, "--ply")) && i + 1 < argc) {
+            if (fmt >= 0) { fprintf(stderr, "sooc3d map: give one of --csv, --json, --ply\n"); return 2; }
+            fmt = a[2] == 'c' ? 1 : a[2] == 'j' ? 2 : 3;
+            out = argv[++i];
+        } else if (!strcmp(a, "--box") && i + 4 < argc) {
+            for (int k = 0; k < 4; k++)
+                if (!parse_d(argv[i + 1 + k], &box[k])) {
+                    fprintf(stderr, "sooc3d map: --box: '%s' is not a number\n", argv[i + 1 + k]);
+                    return 2;
+                }
+            i += 4;
+            has_box = 1;
+            if (box[0] > box[2] || box[1] > box[3]) {
+                fprintf(stderr, "sooc3d map: --box needs X0 <= X1 and Z0 <= Z1\n");
+                return 2;
+            }
+        } else if (!strcmp(a, "--limit") && i + 1 < argc) {
+            char *end;
+            long long v = strtoll(argv[++i], &end, 10);
+            if (*end || v < 0) { fprintf(stderr, "sooc3d map: --limit: bad value '%s'\n", argv[i]); return 2; }
+            limit = (size_t)v;
+        } else {
+            fprintf(stderr, "sooc3d map: unknown or incomplete option '%s' (see --help)\n", a);
+            return 2;
+        }
+    }
+    int is_list = !strcmp(sub, "list"), is_query = !strcmp(sub, "query"), is_export = !strcmp(sub, "export"),
+        is_info = !strcmp(sub, "info");
+    if (!is_list && !is_query && !is_export && !is_info) {
+        fprintf(stderr, "sooc3d map: unknown subcommand '%s' (list, query, export, info)\n", sub);
+        return 2;
+    }
+    if (!db) { fprintf(stderr, "sooc3d map %s: --db FILE is required\n", sub); return 2; }
+    if (is_query && !has_box) { fprintf(stderr, "sooc3d map query: --box X0 Z0 X1 Z1 is required\n"); return 2; }
+    if (is_export && fmt < 0) { fprintf(stderr, "sooc3d map export: give --csv, --json or --ply FILE\n"); return 2; }
+    if (!is_export && fmt >= 0) { fprintf(stderr, "sooc3d map %s: --csv/--json/--ply belong to export\n", sub); return 2; }
+
+    sooc_mapstore_params p;
+    sooc_mapstore_params_default(&p);
+    p.create = 0;
+    p.readonly = 1;
+    sooc_mapstore *s = NULL;
+    sooc_status st = sooc_mapstore_open(&s, db, &p);
+    if (st) return sooc_cli_fail("map", st);
+    sooc_mapstore_info info;
+    if ((st = sooc_mapstore_info_get(s, &info))) {
+        sooc_mapstore_close(s);
+        return sooc_cli_fail("map", st);
+    }
+    int rc = 0;
+    if (is_info) {
+        printf("database       %s\nschema_version %d\nmodel_id       %s\nlatent_dim     %d\nlayout_dim     %d\n"
+               "block_size     %g\nobjects        %llu\nlayout_blocks  %llu\nkeyframes      %llu\nnext_id        %llu\n"
+               "journal_mode   %s\n",
+               db, info.schema_version, info.model_id, info.dim, info.layout_dim, info.block_size,
+               (unsigned long long)info.n_entries, (unsigned long long)info.n_layout,
+               (unsigned long long)info.n_keyframes, (unsigned long long)info.next_id, info.journal_mode);
+        sooc_mapstore_close(s);
+        return 0;
+    }
+    out_ctx c = {stdout, 0, 0, limit, 1};
+    if (is_list || is_query) {
+        printf("# %8s %10s %10s %8s %8s %8s %7s %6s %20s %20s\n", "id", "x", "z", "yaw", "sigma_t", "sigma_yaw",
+               "pres", "obs", "first_seen_ns", "last_seen_ns");
+        st = is_query ? sooc_mapstore_query_box(s, box[0], box[1], box[2], box[3], print_cb, &c)
+                      : sooc_mapstore_foreach(s, print_cb, &c);
+        if (st) rc = sooc_cli_fail("map", st);
+        else fprintf(stderr, "%zu object(s)%s\n", c.n, is_query ? " in the box" : "");
+        sooc_mapstore_close(s);
+        return rc;
+    }
+    /* export */
+    int to_stdout = !strcmp(out, "-");
+    FILE *f = to_stdout ? stdout : fopen(out, "w");
+    if (!f) {
+        fprintf(stderr, "sooc3d map export: cannot write %s\n", out);
+        sooc_mapstore_close(s);
+        return 1;
+    }
+    c.f = f;
+    c.fmt = fmt;
+    if (fmt == 3) {
+        size_t n = 0;
+        st = has_box ? sooc_mapstore_query_box(s, box[0], box[1], box[2], box[3], count_cb, &n)
+                     : sooc_mapstore_foreach(s, count_cb, &n);
+        if (!st)
+            fprintf(f,
+                    "ply\nformat ascii 1.0\ncomment sooc3d map export: one vertex per object at (x, 0, z), "
+                    "world frame +y up\nelement vertex %zu\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uint id\n"
+                    "property float yaw\nproperty float presence\nend_header\n",
+                    n);
+    } else if (fmt == 1) {
+        fprintf(f, "id,x,z,yaw,sigma_t,sigma_yaw,rho_t,rho_yaw,presence,obs_count,last_view,first_seen_ns,"
+                   "last_seen_ns,dim,what_mu,what_logvar\n");
+    } else {
+        fprintf(f, "{\n  \"info\": {\"database\": ");
+        json_str(f, db);
+        fprintf(f, ", \"schema_version\": %d, \"model_id\": ", info.schema_version);
+        json_str(f, info.model_id);
+        fprintf(f,
+                ", \"latent_dim\": %d, "
+                "\"layout_dim\": %d, \"objects\": %llu, \"keyframes\": %llu, \"next_id\": %llu},\n  \"objects\": [",
+                info.dim, info.layout_dim, (unsigned long long)info.n_entries,
+                (unsigned long long)info.n_keyframes, (unsigned long long)info.next_id);
+    }
+    if (!st)
+        st = has_box ? sooc_mapstore_query_box(s, box[0], box[1], box[2], box[3], print_cb, &c)
+                     : sooc_mapstore_foreach(s, print_cb, &c);
+    if (fmt == 2) fprintf(f, "\n  ]\n}\n");
+    int werr = ferror(f);
+    if (!to_stdout && fclose(f)) werr = 1;
+    if (st) rc = sooc_cli_fail("map", st);
+    else if (werr) {
+        fprintf(stderr, "sooc3d map export: write error on %s\n", out);
+        rc = 1;
+    } else if (!to_stdout)
+        fprintf(stderr, "wrote %zu object(s) to %s\n", c.n, out);
+    sooc_mapstore_close(s);
+    return rc;
 }
