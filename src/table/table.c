@@ -529,7 +529,13 @@ static int64_t alloc_slot(sooc_table_writer *w) {
     if (w->n_free) return w->free_slots[--w->n_free];
     int64_t s = rq_take(w, REUSE_EPOCHS);
     if (s >= 0) return s;
-    if (w->hw < w->cap) return (int64_t)w->hw++;
+    if (w->hw < w->cap) {
+        /* publish the new bound at once: per-record readers see the object
+         * before the batch ends, and a restart after a crash finds it */
+        w->hw++;
+        atomic_store_explicit(&w->h->high_water, w->hw, memory_order_release);
+        return (int64_t)(w->hw - 1);
+    }
     return rq_take(w, 1); /* full: reuse anything published as removed for one epoch */
 }
 
