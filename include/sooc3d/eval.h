@@ -73,6 +73,16 @@ sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out);
 /* Write JSON and/or Markdown atomically (either path may be NULL). */
 sooc_status sooc_eval_table_write(const sooc_eval_table *t, const char *json_path, const char *md_path);
 
+/* One evaluation view end to end: render `f` for gt's intrinsics with T_fc
+ * (camera -> field frame), then score against gt with d_clip = ro->d_clip
+ * (sooc_metric_view; n_pred = f->n_comp). pred_xz: world floor position per
+ * component (NaN for the layout), may be NULL. `out` keeps the render (for
+ * panels). This is the call `sooc3d eval` makes per view. */
+sooc_status sooc_eval_view(const sooc_field *f, const double T_fc[16], const sooc_frame *gt,
+                           const sooc_render_opts *ro, const double *pred_xz,
+                           const sooc_gt_object *gt_obj, int n_gt_obj, sooc_render_out *out,
+                           sooc_view_metrics *vm, sooc_iou_match *match);
+
 /* ---------------------------------------------------------------- pictures */
 
 typedef struct sooc_panel_opts {

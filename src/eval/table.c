@@ -1,0 +1,420 @@
+/* The paper's Table 1: accumulation per model x scale x {I,Q} x run, mean +- std over runs. */
+#include "sooc3d/eval.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+typedef struct entry {
+    char *model;
+    int scale, run;
+    sooc_metric_sums s[2];
+} entry;
+
+struct sooc_eval_table {
+    entry *e;
+    int n, cap;
+    char *note;
+    int l2_input;
+};
+
+sooc_status sooc_eval_table_create(sooc_eval_table **out) {
+    *out = sooc_calloc(1, sizeof **out);
+    return *out ? SOOC_OK : sooc_seterr(SOOC_ENOMEM, "eval table: out of memory");
+}
+
+void sooc_eval_table_destroy(sooc_eval_table *t) {
+    if (!t) return;
+    for (int i = 0; i < t->n; i++) sooc_free(t->e[i].model);
+    sooc_free(t->e);
+    sooc_free(t->note);
+    sooc_free(t);
+}
+
+sooc_status sooc_eval_table_set_note(sooc_eval_table *t, const char *note) {
+    sooc_free(t->note);
+    t->note = note ? sooc_strdup(note) : NULL;
+    return note && !t->note ? sooc_seterr(SOOC_ENOMEM, "eval table: out of memory") : SOOC_OK;
+}
+
+void sooc_eval_table_set_l2_input(sooc_eval_table *t, int on) { t->l2_input = on; }
+
+static sooc_status get_entry(sooc_eval_table *t, const char *model, int scale, int run, entry **out) {
+    if (!model || !*model) return sooc_seterr(SOOC_EINVAL, "eval table: empty model name");
+    if (scale < 0 || scale >= SOOC_N_SCALES) return sooc_seterr(SOOC_EINVAL, "eval table: bad scale %d", scale);
+    for (int i = 0; i < t->n; i++)
+        if (t->e[i].scale == scale && t->e[i].run == run && !strcmp(t->e[i].model, model)) {
+            *out = &t->e[i];
+            return SOOC_OK;
+        }
+    if (t->n == t->cap) {
+        int nc = t->cap ? 2 * t->cap : 16;
+        entry *ne = sooc_realloc(t->e, (size_t)nc * sizeof *ne);
+        if (!ne) return sooc_seterr(SOOC_ENOMEM, "eval table: out of memory");
+        t->e = ne;
+        t->cap = nc;
+    }
+    entry *e = &t->e[t->n];
+    memset(e, 0, sizeof *e);
+    e->model = sooc_strdup(model);
+    if (!e->model) return sooc_seterr(SOOC_ENOMEM, "eval table: out of memory");
+    e->scale = scale;
+    e->run = run;
+    t->n++;
+    *out = e;
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_table_add_view(sooc_eval_table *t, const char *model, int scale, int run,
+                                     const sooc_view_metrics *v) {
+    entry *e;
+    sooc_status s = get_entry(t, model, scale, run, &e);
+    if (s) return s;
+    sooc_metric_sums_add_view(&e->s[v->is_query ? 1 : 0], v);
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_table_add_sums(sooc_eval_table *t, const char *model, int scale, int run,
+                                     int is_query, const sooc_metric_sums *sm) {
+    entry *e;
+    sooc_status s = get_entry(t, model, scale, run, &e);
+    if (s) return s;
+    sooc_metric_sums_merge(&e->s[is_query ? 1 : 0], sm);
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_table_add_acc(sooc_eval_table *t, const char *model, int run, const sooc_metric_acc *a) {
+    for (int sc = 0; sc < SOOC_N_SCALES; sc++)
+        for (int q = 0; q < 2; q++) {
+            if (!a->cell[sc][q].n_views) continue;
+            sooc_status s = sooc_eval_table_add_sums(t, model, sc, run, q, &a->cell[sc][q]);
+            if (s) return s;
+        }
+    return SOOC_OK;
+}
+
+/* mean and sample std of the finite values */
+static void stat_of(const double *v, int n, sooc_eval_stat *s) {
+    double m = 0;
+    int k = 0;
+    for (int i = 0; i < n; i++) if (isfinite(v[i])) { m += v[i]; k++; }
+    s->n_runs = k;
+    if (!k) { s->mean = s->std = NAN; return; }
+    m /= k;
+    double q = 0;
+    for (int i = 0; i < n; i++) if (isfinite(v[i])) q += (v[i] - m) * (v[i] - m);
+    s->mean = m;
+    s->std = k > 1 ? sqrt(q / (k - 1)) : 0.0;
+}
+
+#define MAX_RUNS 1024
+sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, int scale, int is_query,
+                                 sooc_eval_cell *out) {
+    memset(out, 0, sizeof *out);
+    enum { NM = 8 + SOOC_METRIC_N_DBINS };
+    static _Thread_local double vals[NM][MAX_RUNS];
+    int n = 0;
+    for (int i = 0; i < t->n; i++) {
+        const entry *e = &t->e[i];
+        if (e->scale != scale || strcmp(e->model, model)) continue;
+        const sooc_metric_sums *s = &e->s[is_query ? 1 : 0];
+        if (!s->n_views) continue;
+        if (n >= MAX_RUNS) return sooc_seterr(SOOC_EINVAL, "eval table: more than %d runs", MAX_RUNS);
+        sooc_metric_means m;
+        sooc_metric_sums_means(s, &m);
+        vals[0][n] = m.miou_best; vals[1][n] = m.miou_hung; vals[2][n] = m.rgb_rmse;
+        vals[3][n] = m.depth_rmse; vals[4][n] = m.l2; vals[5][n] = m.matched_frac;
+        vals[6][n] = m.mesh_acc_cm; vals[7][n] = m.mesh_comp_cm;
+        for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) vals[8 + b][n] = m.recall[b];
+        out->n_views += s->n_views;
+        n++;
+    }
+    if (!n) return SOOC_ENOTFOUND;   /* no message: absence is a normal answer */
+    stat_of(vals[0], n, &out->miou_best); stat_of(vals[1], n, &out->miou_hung);
+    stat_of(vals[2], n, &out->rgb_rmse); stat_of(vals[3], n, &out->depth_rmse);
+    stat_of(vals[4], n, &out->l2); stat_of(vals[5], n, &out->matched_frac);
+    stat_of(vals[6], n, &out->mesh_acc_cm); stat_of(vals[7], n, &out->mesh_comp_cm);
+    for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) stat_of(vals[8 + b], n, &out->recall[b]);
+    return SOOC_OK;
+}
+
+/* ------------------------------------------------------------ string builder */
+
+typedef struct sbuf { char *p; size_t n, cap; int fail; } sbuf;
+
+static void sb_printf(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void sb_printf(sbuf *b, const char *fmt, ...) {
+    if (b->fail) return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int k = vsnprintf(b->p ? b->p + b->n : NULL, b->p ? b->cap - b->n : 0, fmt, ap);
+        va_end(ap);
+        if (k < 0) { b->fail = 1; return; }
+        if (b->p && b->n + (size_t)k < b->cap) { b->n += (size_t)k; return; }
+        size_t nc = b->cap ? b->cap * 2 : 4096;
+        while (nc < b->n + (size_t)k + 1) nc *= 2;
+        char *np = sooc_realloc(b->p, nc);
+        if (!np) { b->fail = 1; return; }
+        b->p = np;
+        b->cap = nc;
+    }
+}
+
+static sooc_status sb_finish(sbuf *b, char **out) {
+    if (b->fail || !b->p) {
+        sooc_free(b->p);
+        return sooc_seterr(SOOC_ENOMEM, "eval table: out of memory formatting the table");
+    }
+    *out = b->p;
+    return SOOC_OK;
+}
+
+/* models in insertion order, scales present */
+static int list_models(const sooc_eval_table *t, const char **models, int cap) {
+    int n = 0;
+    for (int i = 0; i < t->n; i++) {
+        int seen = 0;
+        for (int j = 0; j < n; j++) seen |= !strcmp(models[j], t->e[i].model);
+        if (!seen && n < cap) models[n++] = t->e[i].model;
+    }
+    return n;
+}
+static int scales_present(const sooc_eval_table *t, int *sc) {
+    int n = 0;
+    for (int s = 0; s < SOOC_N_SCALES; s++) {
+        int any = 0;
+        for (int i = 0; i < t->n; i++) any |= t->e[i].scale == s;
+        if (any) sc[n++] = s;
+    }
+    return n;
+}
+
+static void fmt_stat(char *buf, size_t cap, const sooc_eval_stat *s, int dec) {
+    if (!s->n_runs || !isfinite(s->mean)) snprintf(buf, cap, "-");
+    else if (s->n_runs > 1) snprintf(buf, cap, "%.*f±%.*f", dec, s->mean, dec, s->std);
+    else snprintf(buf, cap, "%.*f", dec, s->mean);
+}
+
+#define MAXM 64
+enum { COL_MIOU, COL_RGB, COL_DEPTH, COL_L2, N_MAIN };
+static const char *main_names[N_MAIN] = {"mIoU ↑", "RGB RMSE ↓", "depth RMSE ↓", "L2 (m) ↓"};
+
+static const sooc_eval_stat *main_stat(const sooc_eval_cell *c, int col) {
+    switch (col) {
+    case COL_MIOU: return &c->miou_best;
+    case COL_RGB: return &c->rgb_rmse;
+    case COL_DEPTH: return &c->depth_rmse;
+    default: return &c->l2;
+    }
+}
+
+static void cell_text(const sooc_eval_table *t, const char *model, int sc, int q, int col, char *buf,
+                      size_t cap) {
+    sooc_eval_cell c;
+    if (col == COL_L2 && !q && !t->l2_input) { snprintf(buf, cap, "n/a"); return; }
+    if (sooc_eval_table_cell(t, model, sc, q, &c)) { snprintf(buf, cap, "-"); return; }
+    fmt_stat(buf, cap, main_stat(&c, col), 3);
+}
+
+/* display width of UTF-8 text (count code points) */
+static int dispw(const char *s) {
+    int w = 0;
+    for (; *s; s++) w += ((unsigned char)*s & 0xC0) != 0x80;
+    return w;
+}
+static void sb_pad(sbuf *b, const char *s, int w, int right) {
+    int pad = w - dispw(s);
+    if (pad < 0) pad = 0;
+    if (right) sb_printf(b, "%*s%s", pad, "", s);
+    else sb_printf(b, "%s%*s", s, pad, "");
+}
+
+sooc_status sooc_eval_table_text(const sooc_eval_table *t, char **out) {
+    sbuf b = {0};
+    const char *models[MAXM];
+    int sc[SOOC_N_SCALES];
+    int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
+    int mw = 5;
+    for (int i = 0; i < nm; i++) if ((int)strlen(models[i]) > mw) mw = (int)strlen(models[i]);
+    const int cw = 13;
+    sb_pad(&b, "", mw + 5, 0);
+    for (int c = 0; c < N_MAIN; c++) {
+        sb_printf(&b, "| ");
+        sb_pad(&b, main_names[c], ns * cw, 0);
+    }
+    sb_printf(&b, "\n");
+    sb_pad(&b, "model", mw, 0);
+    sb_printf(&b, "  IQ ");
+    for (int c = 0; c < N_MAIN; c++) {
+        sb_printf(&b, "| ");
+        for (int s = 0; s < ns; s++) sb_pad(&b, sooc_scale_name(sc[s]), cw, 0);
+    }
+    sb_printf(&b, "\n");
+    int total = mw + 5 + N_MAIN * (2 + ns * cw);
+    for (int i = 0; i < total; i++) sb_printf(&b, "-");
+    sb_printf(&b, "\n");
+    for (int m = 0; m < nm; m++) {
+        for (int q = 0; q < 2; q++) {
+            sb_pad(&b, q ? "" : models[m], mw, 0);
+            sb_printf(&b, "  %s  ", q ? "Q" : "I");
+            for (int c = 0; c < N_MAIN; c++) {
+                sb_printf(&b, "| ");
+                for (int s = 0; s < ns; s++) {
+                    char buf[64];
+                    cell_text(t, models[m], sc[s], q, c, buf, sizeof buf);
+                    sb_pad(&b, buf, cw, 0);
+                }
+            }
+            sb_printf(&b, "\n");
+        }
+    }
+    sb_printf(&b, "mIoU: MulMON best-match, background included; RGB RMSE: channel sum (model.md §5); "
+                  "mean±std over runs.\n");
+    if (t->note) sb_printf(&b, "%s\n", t->note);
+    return sb_finish(&b, out);
+}
+
+sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
+    sbuf b = {0};
+    const char *models[MAXM];
+    int sc[SOOC_N_SCALES];
+    int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
+    sb_printf(&b, "| model | view |");
+    for (int c = 0; c < N_MAIN; c++)
+        for (int s = 0; s < ns; s++) sb_printf(&b, " %s %s |", main_names[c], sooc_scale_name(sc[s]));
+    sb_printf(&b, "\n|---|---|");
+    for (int i = 0; i < N_MAIN * ns; i++) sb_printf(&b, "---:|");
+    sb_printf(&b, "\n");
+    for (int m = 0; m < nm; m++)
+        for (int q = 0; q < 2; q++) {
+            sb_printf(&b, "| %s | %s |", q ? "" : models[m], q ? "Q" : "I");
+            for (int c = 0; c < N_MAIN; c++)
+                for (int s = 0; s < ns; s++) {
+                    char buf[64];
+                    cell_text(t, models[m], sc[s], q, c, buf, sizeof buf);
+                    sb_printf(&b, " %s |", buf);
+                }
+            sb_printf(&b, "\n");
+        }
+    sb_printf(&b, "\nSupplementary: one-to-one (Hungarian) mIoU, fraction of visible GT objects matched, "
+                  "recall by camera distance.\n\n| model | view | scale | views | mIoU Hungarian | matched | "
+                  "recall <3 m | recall 3-5 m | recall >5 m |\n|---|---|---|---:|---:|---:|---:|---:|---:|\n");
+    for (int m = 0; m < nm; m++)
+        for (int q = 0; q < 2; q++)
+            for (int s = 0; s < ns; s++) {
+                sooc_eval_cell c;
+                if (sooc_eval_table_cell(t, models[m], sc[s], q, &c)) continue;
+                char h[64], mf[64], r[3][64];
+                fmt_stat(h, sizeof h, &c.miou_hung, 3);
+                fmt_stat(mf, sizeof mf, &c.matched_frac, 3);
+                for (int k = 0; k < 3; k++) fmt_stat(r[k], sizeof r[k], &c.recall[k], 3);
+                sb_printf(&b, "| %s | %s | %s | %ld | %s | %s | %s | %s | %s |\n", models[m], q ? "Q" : "I",
+                          sooc_scale_name(sc[s]), c.n_views, h, mf, r[0], r[1], r[2]);
+            }
+    sb_printf(&b, "\nmIoU: MulMON best-match per GT instance (background included, IoU < 0.05 -> 0); "
+                  "RGB RMSE: sqrt of the per-pixel channel SUM of squared errors (divide by sqrt(3) for "
+                  "the per-channel mean); depth RMSE in m over GT depth <= d_clip; L2: floor-plane error "
+                  "of best-matched objects, query views. Values: mean±std over runs. See docs/metrics.md.\n");
+    if (t->note) sb_printf(&b, "\n%s\n", t->note);
+    return sb_finish(&b, out);
+}
+
+static void json_num(sbuf *b, double v) {
+    if (isfinite(v)) sb_printf(b, "%.6g", v);
+    else sb_printf(b, "null");
+}
+static void json_stat(sbuf *b, const char *k, const sooc_eval_stat *s, int comma) {
+    sb_printf(b, "\"%s\": {\"mean\": ", k);
+    json_num(b, s->mean);
+    sb_printf(b, ", \"std\": ");
+    json_num(b, s->std);
+    sb_printf(b, ", \"runs\": %d}%s", s->n_runs, comma ? ", " : "");
+}
+static void json_str(sbuf *b, const char *s) {
+    sb_printf(b, "\"");
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\') sb_printf(b, "\\%c", c);
+        else if (c < 0x20) sb_printf(b, "\\u%04x", c);
+        else sb_printf(b, "%c", c);
+    }
+    sb_printf(b, "\"");
+}
+
+sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
+    sbuf b = {0};
+    const char *models[MAXM];
+    int sc[SOOC_N_SCALES];
+    int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
+    sb_printf(&b, "{\"conventions\": {\"miou\": \"MulMON best-match, background included, IoU<0.05->0\", "
+                  "\"rgb_rmse\": \"channel sum\", \"depth_rmse\": \"m, GT depth <= d_clip\", "
+                  "\"std\": \"sample std over runs\"}, ");
+    sb_printf(&b, "\"note\": ");
+    if (t->note) json_str(&b, t->note);
+    else sb_printf(&b, "null");
+    sb_printf(&b, ", \"cells\": [");
+    int first = 1;
+    for (int m = 0; m < nm; m++)
+        for (int q = 0; q < 2; q++)
+            for (int s = 0; s < ns; s++) {
+                sooc_eval_cell c;
+                if (sooc_eval_table_cell(t, models[m], sc[s], q, &c)) continue;
+                sb_printf(&b, "%s\n  {\"model\": ", first ? "" : ",");
+                first = 0;
+                json_str(&b, models[m]);
+                sb_printf(&b, ", \"scale\": \"%s\", \"view\": \"%s\", \"n_views\": %ld, ", sooc_scale_name(sc[s]),
+                          q ? "Q" : "I", c.n_views);
+                json_stat(&b, "miou", &c.miou_best, 1);
+                json_stat(&b, "miou_hungarian", &c.miou_hung, 1);
+                json_stat(&b, "rgb_rmse", &c.rgb_rmse, 1);
+                json_stat(&b, "depth_rmse", &c.depth_rmse, 1);
+                json_stat(&b, "l2", &c.l2, 1);
+                json_stat(&b, "matched_frac", &c.matched_frac, 1);
+                json_stat(&b, "recall_lt3m", &c.recall[0], 1);
+                json_stat(&b, "recall_3to5m", &c.recall[1], 1);
+                json_stat(&b, "recall_gt5m", &c.recall[2], 1);
+                json_stat(&b, "mesh_acc_cm", &c.mesh_acc_cm, 1);
+                json_stat(&b, "mesh_comp_cm", &c.mesh_comp_cm, 0);
+                sb_printf(&b, "}");
+            }
+    sb_printf(&b, "\n]}\n");
+    return sb_finish(&b, out);
+}
+
+sooc_status sooc_eval_table_write(const sooc_eval_table *t, const char *json_path, const char *md_path) {
+    char *s = NULL;
+    sooc_status st;
+    if (json_path) {
+        if ((st = sooc_eval_table_json(t, &s))) return st;
+        st = sooc_file_write_atomic(json_path, s, strlen(s));
+        sooc_free(s);
+        if (st) return sooc_adderr(st, "eval table: %s", json_path);
+    }
+    if (md_path) {
+        if ((st = sooc_eval_table_markdown(t, &s))) return st;
+        st = sooc_file_write_atomic(md_path, s, strlen(s));
+        sooc_free(s);
+        if (st) return sooc_adderr(st, "eval table: %s", md_path);
+    }
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_view(const sooc_field *f, const double T_fc[16], const sooc_frame *gt,
+                           const sooc_render_opts *ro, const double *pred_xz,
+                           const sooc_gt_object *gt_obj, int n_gt_obj, sooc_render_out *out,
+                           sooc_view_metrics *vm, sooc_iou_match *match) {
+    if (!f || !gt || !out || !vm) return sooc_seterr(SOOC_EINVAL, "eval_view: missing argument");
+    sooc_render_opts od;
+    if (!ro) { sooc_render_opts_default(&od); ro = &od; }
+    sooc_intrinsics K = gt->K;
+    K.width = gt->width;
+    K.height = gt->height;
+    sooc_status st = sooc_render_view(f, &K, T_fc, ro, out);
+    if (st) return sooc_adderr(st, "eval_view: frame %lld", (long long)gt->index);
+    sooc_view_eval_in in = {gt, out, ro->d_clip, f->n_comp, pred_xz, gt_obj, n_gt_obj, NULL};
+    st = sooc_metric_view(&in, vm, match);
+    if (st) return sooc_adderr(st, "eval_view: frame %lld", (long long)gt->index);
+    return SOOC_OK;
+}
