@@ -1,0 +1,161 @@
+/*
+ * sooc3d model (model.md §2-§3): latents and posteriors, the object-aware NeRF
+ * decoder, the two-sample depth likelihood, KL terms, the refinement networks
+ * and the differentiable retrieve -> refine -> register loop.
+ *
+ * Who calls what:
+ *   - the trainer (src/train): sooc_model_create / _load, sooc_model_params /
+ *     _grads / _tensors (a flat float slab; Adam and clipping are the trainer's),
+ *     sooc_model_zero_grad, sooc_model_train_step once per scene, sooc_model_save.
+ *   - the online mapper (include/sooc3d/mapper.h, implemented in src/model):
+ *     loads a checkpoint and runs the same per-view update without gradients.
+ *   - eval/render: sooc_model_field_* (a render.h field built from a map).
+ *
+ * Frames: every λ handed to the model is in the gravity-aligned camera frame
+ * G_t of its view (geom.h sooc_gframe); the flat λ layout is cogmap.h's:
+ *   [0] mu_x [1] mu_z [2] mu_theta [3] rho_t [4] rho_theta
+ *   [5, 5+d) what mean  [5+d, 5+2d) what log-variance  [5+2d] presence logit a
+ * Layout latent: [0, d_l) mean, [d_l, 2 d_l) log-variance.
+ *
+ * Loss sign: every loss below is a quantity to MINIMISE (negative ELBO).
+ * Gradients are ACCUMULATED (+=) into the gradient slab; call
+ * sooc_model_zero_grad before a step (or between accumulation steps).
+ */
+#ifndef SOOC3D_MODEL_H
+#define SOOC3D_MODEL_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SOOC_MODEL_K_MAX 16
+#define SOOC_MODEL_D_MAX 32
+
+/* All sizes and constants. Stored in the checkpoint; sooc_model_config_default
+ * gives the model.md §3.4 values (with the "Measured findings" priors). */
+typedef struct sooc_model_config {
+    /* latents */
+    int K;                 /* object slots                                   (7)  */
+    int d_what;            /* z^what dimension d                             (32) */
+    int d_layout;          /* layout latent dimension d_l                    (16) */
+    int L;                 /* refinement updates per view                    (3)  */
+    /* images and rays */
+    int img_w, img_h;      /* model input resolution                      (64x64) */
+    int ray_w, ray_h;      /* training ray grid (stratified sub-grid)     (32x32) */
+    /* decoder (both NeRFs) */
+    int dec_width;         /* hidden width                                   (64) */
+    int dec_color_width;   /* colour head hidden                             (32) */
+    int n_freq;            /* object PE frequencies 2^0..2^(n-1)             (5)  */
+    int n_freq_layout;     /* layout PE frequencies                          (6)  */
+    float dens_bias_init;  /* density head bias at init                     (-2)  */
+    /* refinement network */
+    int ref_ch[4];         /* conv widths                          (32,32,64,64)  */
+    int ref_fc;            /* FC after the conv stack                       (128) */
+    int ref_hidden;        /* LSTM hidden                                   (128) */
+    /* likelihood */
+    float sigma_max;       /* density scale per metre                        (30) */
+    float sigma_c;         /* colour std                                    (0.2) */
+    float air_cut;         /* c, air-sample near/far cut-off               (0.98) */
+    float delta_s;         /* surface jitter behind the surface, m         (0.03) */
+    float eps_sigma_rel;   /* eps_sigma = eps_sigma_rel * sigma_max        (1e-4) */
+    float d_clip, t_near;  /* clip depth and near plane, m              (8, 0.1) */
+    /* geometry */
+    float box_rh, box_hb;  /* locality box half-width, height, m        (0.6, 1.2) */
+    float gauss_s;         /* Gaussian-trick width s, m                     (0.3) */
+    float block_size;      /* layout block side B_s, m                      (4.0) */
+    int use_box;           /* 1 = locality box (always 1 except in tests)    (1)  */
+    /* posteriors */
+    float rho_min, rho_max;  /* log-variance clamp                      (-10, 4) */
+    float prior_sigma_t;     /* slot prior position std, m                  (0.5) */
+    float prior_near, prior_far; /* slot prior means spread ahead, m    (1.3, 6.2) */
+    float prior_pres_logit;  /* initial learnable prior presence logit       (0) */
+} sooc_model_config;
+
+void sooc_model_config_default(sooc_model_config *c);
+/* Validate sizes (K <= SOOC_MODEL_K_MAX, d <= SOOC_MODEL_D_MAX, img divisible
+ * by ray grid, ray grid divisible by 16, ...). */
+sooc_status sooc_model_config_check(const sooc_model_config *c);
+
+typedef struct sooc_model sooc_model;
+
+/* Create with freshly initialised weights (deterministic for init_seed). */
+sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint64_t init_seed);
+void sooc_model_destroy(sooc_model *m);   /* NULL-safe */
+const sooc_model_config *sooc_model_get_config(const sooc_model *m);
+/* Threads for the decoder / refinement loops (0 = OpenMP default). */
+void sooc_model_set_threads(sooc_model *m, int n);
+
+/* ---- parameters: one flat float slab, with named tensors ---- */
+size_t sooc_model_param_count(const sooc_model *m);
+float *sooc_model_params(sooc_model *m);
+float *sooc_model_grads(sooc_model *m);
+void sooc_model_zero_grad(sooc_model *m);
+
+typedef struct sooc_model_tensor {
+    const char *name;      /* e.g. "dec.obj.W1x", "ref.obj.lstm.Wx", "prior.slots" */
+    size_t offset, count;  /* into the slab                                        */
+    int rows, cols;        /* 2-D shape (rows x cols, row-major), cols = 1 for 1-D */
+    int no_decay;          /* 1 for biases, priors (no weight decay)               */
+} sooc_model_tensor;
+/* Number of tensors; fills up to cap entries of out (out may be NULL). */
+int sooc_model_tensors(const sooc_model *m, sooc_model_tensor *out, int cap);
+
+/* ---- checkpoint (magic "SOOCMDL1", version, config, params, optional
+ * opaque trainer blob, CRC32; atomic save) ---- */
+sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *trainer_blob,
+                            size_t blob_size);
+/* Load: creates the model. If blob != NULL, *blob receives a sooc_malloc'd copy
+ * of the trainer blob (NULL if none) and *blob_size its size. */
+sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, size_t *blob_size);
+
+/* ---- training step ---- */
+
+typedef enum sooc_pres_mode {
+    SOOC_PRES_RELAXED = 0,      /* relaxed Bernoulli everywhere (default)                  */
+    SOOC_PRES_ST_RETRIEVED = 1, /* hard straight-through z^pres for map-retrieved slots   */
+    SOOC_PRES_ST_ONE = 2        /* burn-in: forward z^pres = 1 for every slot, gradient of
+                                   the relaxed sample (straight-through)                  */
+} sooc_pres_mode;
+
+typedef struct sooc_step_opts {
+    float tau;             /* relaxed-Bernoulli temperature (trainer anneals 1 -> 0.7) (1)  */
+    float beta_kl;         /* KL weight (curriculum warm-up)                          (1)  */
+    sooc_pres_mode pres_mode;                                                    /* RELAXED */
+    int L;                 /* 0 = config L                                            (0)  */
+    int truncate_views;    /* 1 = detach λ between views (fallback, model.md §6.6)    (0)  */
+    float sigma_c;         /* 0 = config sigma_c (for likelihood annealing)           (0)  */
+} sooc_step_opts;
+void sooc_step_opts_default(sooc_step_opts *o);
+
+typedef struct sooc_step_losses {
+    double total;          /* the minimised loss: sum_t sum_l (l/L) L_t^l + query NLL       */
+    double nll_input;      /* sum_t of -ell_t(λ_t^L) (final iterate)                         */
+    double kl;             /* sum_t KL(λ_t^L || λ_t^0) (final iterate, unweighted by beta)   */
+    double nll_query;      /* sum_q -ell_q                                                   */
+    double nll_depth, nll_color;  /* final-iterate input NLL split                           */
+    double present_slots;  /* mean over input views of #slots with p >= 0.5 after refinement */
+    double mean_pres_logit;/* mean final presence logit over slots and views                 */
+    double map_entries;    /* entries in the map after the last input view                   */
+    int n_views, n_queries;
+    int nonfinite;         /* 1 if the loss or a gradient was non-finite (grads zeroed)      */
+} sooc_step_losses;
+
+/* One scene: T input views (in order) then Q query views, all of the model's
+ * resolution, with poses (world +y up, floor y = 0) and planar depth
+ * (0 = invalid). Runs retrieve -> refine -> register over the input views with
+ * a cognitive map, decodes the query views from the final map, and
+ * ACCUMULATES d(total)/d(params) into the gradient slab. `rng` drives every
+ * random choice (ray offsets, samples, noise), so a step is deterministic for
+ * a given rng state and thread count. If the loss is non-finite, nothing is
+ * accumulated and losses->nonfinite = 1 (status OK). */
+sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
+                                  const sooc_frame *queries, int Q, const sooc_step_opts *o,
+                                  sooc_rng *rng, sooc_step_losses *losses);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_MODEL_H */

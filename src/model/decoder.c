@@ -1,0 +1,671 @@
+/* The fused object/layout NeRF decoder, composition, two-sample likelihood and
+ * KL terms, forward and backward (model.md §2.4-§2.7, §3.3).
+ *
+ * Rows: every (point, object slot) pair whose object-local point falls inside
+ * the slot's locality box becomes one row of the object MLP (all slots share
+ * the weights, so one GEMM per layer covers every slot; z^what enters as a
+ * per-slot bias of layer 1). The layout MLP gets one row per used point.
+ * Weight layout: W is [in x out] row-major, Y = X W + b. */
+#include "model/model_internal.h"
+
+#include <cblas.h>
+#include <math.h>
+#include <string.h>
+#ifdef SOOC_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
+static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
+
+static int nthreads(const sooc_model *m) {
+#ifdef SOOC_HAVE_OPENMP
+    return m->threads > 0 ? m->threads : omp_get_max_threads();
+#else
+    (void)m;
+    return 1;
+#endif
+}
+
+/* ---------------------------------------------------------------- Π, trick */
+
+void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]) {
+    float c = cosf(th), s = sinf(th);
+    float vx = x[0] - px, vy = x[1] + h, vz = x[2] - pz;
+    xk[0] = c * vx - s * vz;
+    xk[1] = vy;
+    xk[2] = s * vx + c * vz;
+}
+
+/* gw = (d/dpx, d/dpz, d/dth) given gxk = dL/dxk (accumulates). */
+void mdl_pi_backward(const float xk[3], float th, const float g[3], float gw[3]) {
+    float c = cosf(th), s = sinf(th);
+    gw[0] += -(c * g[0] + s * g[2]);
+    gw[1] += s * g[0] - c * g[2];
+    gw[2] += -xk[2] * g[0] + xk[0] * g[2];
+}
+
+void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]) {
+    float sh = sig * zp, is2 = 1.0f / (s * s);
+    gxk[0] += g * sh * (-xk[0] * is2);
+    gxk[2] += g * sh * (-xk[2] * is2);
+}
+
+/* ---------------------------------------------------------------- noise, rays */
+
+void mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n) {
+    memset(n, 0, sizeof *n);
+    const sooc_model_config *c = &m->cfg;
+    for (int k = 0; k < c->K; k++) {
+        for (int i = 0; i < 3; i++) n->eps_where[k][i] = (float)sooc_rng_normal(r);
+        for (int i = 0; i < c->d_what; i++) n->eps_what[k][i] = (float)sooc_rng_normal(r);
+        n->logistic[k] = (float)sooc_rng_logistic(r);
+    }
+    for (int i = 0; i < c->d_layout; i++) n->eps_lay[i] = (float)sooc_rng_normal(r);
+}
+
+sooc_status mdl_rays_alloc(view_rays *vr, int gw, int gh) {
+    memset(vr, 0, sizeof *vr);
+    int N = gw * gh;
+    vr->N = N;
+    vr->gw = gw;
+    vr->gh = gh;
+    vr->dir = sooc_calloc((size_t)N * 3, sizeof(float));
+    vr->rgb = sooc_calloc((size_t)N * 3, sizeof(float));
+    vr->depth = sooc_calloc(N, sizeof(float));
+    vr->surf = sooc_calloc(N, 1);
+    vr->W = sooc_calloc(N, sizeof(float));
+    vr->pts = sooc_calloc((size_t)N * 6, sizeof(float));
+    if (!vr->dir || !vr->rgb || !vr->depth || !vr->surf || !vr->W || !vr->pts) {
+        mdl_rays_free(vr);
+        return SOOC_ENOMEM;
+    }
+    return SOOC_OK;
+}
+
+void mdl_rays_free(view_rays *vr) {
+    sooc_free(vr->dir);
+    sooc_free(vr->rgb);
+    sooc_free(vr->depth);
+    sooc_free(vr->surf);
+    sooc_free(vr->W);
+    sooc_free(vr->pts);
+    memset(vr, 0, sizeof *vr);
+}
+
+sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r, view_rays *vr,
+                          const double T_wg[16], double h, double pitch, const double blk_local[2]) {
+    const sooc_model_config *c = &m->cfg;
+    if (f->width != c->img_w || f->height != c->img_h)
+        return sooc_seterr(SOOC_EINVAL, "frame %lld: size %dx%d, model expects %dx%d", (long long)f->index, f->width,
+                           f->height, c->img_w, c->img_h);
+    int sx = c->img_w / c->ray_w, sy = c->img_h / c->ray_h;
+    double Rwg[9], Rwc[9], tt[3], Rgc[9], RwgT[9];
+    sooc_se3_to_rt(Rwg, tt, T_wg);
+    sooc_se3_to_rt(Rwc, tt, f->T_wc);
+    sooc_m3_transpose(RwgT, Rwg);
+    sooc_m3_mul(Rgc, RwgT, Rwc);
+    vr->h = (float)h;
+    vr->pitch = (float)pitch;
+    vr->blk[0] = (float)blk_local[0];
+    vr->blk[1] = (float)-h;
+    vr->blk[2] = (float)blk_local[1];
+    float cut = c->air_cut;
+    for (int i = 0; i < c->ray_h; i++)
+        for (int j = 0; j < c->ray_w; j++) {
+            int rr = i * c->ray_w + j, u = j * sx + ox, v = i * sy + oy;
+            double dc[3], dg[3];
+            double uz = sooc_cam_ray(&f->K, u, v, dc);
+            sooc_m3_mulv(dg, Rgc, dc);
+            for (int a = 0; a < 3; a++) vr->dir[rr * 3 + a] = (float)dg[a];
+            size_t pix = (size_t)v * f->width + u;
+            for (int a = 0; a < 3; a++) vr->rgb[rr * 3 + a] = f->rgb[pix * 3 + a] * (1.0f / 255.0f);
+            float z = f->depth ? f->depth[pix] : 0.0f;
+            int valid = (f->valid ? f->valid[pix] != 0 : 1) && z > 0 && isfinite(z);
+            float d = valid ? (float)(z / uz) : 0.0f;
+            int surf = valid && d <= c->d_clip && d > c->t_near;
+            vr->surf[rr] = (uint8_t)surf;
+            vr->depth[rr] = d;
+            float *ps = vr->pts + rr * 6, *pa = ps + 3;
+            float ta;
+            if (surf) {
+                float es = c->delta_s * sooc_rng_uniformf(r);
+                for (int a = 0; a < 3; a++) ps[a] = (d + es) * vr->dir[rr * 3 + a];
+                int near = sooc_rng_uniformf(r) < 0.5f;
+                float U = sooc_rng_uniformf(r);
+                if (near) {
+                    ta = d * (cut + (1 - cut) * U);
+                    vr->W[rr] = 2 * (1 - cut) * d;
+                } else {
+                    ta = d * cut * U;
+                    vr->W[rr] = 2 * cut * d;
+                }
+            } else {
+                for (int a = 0; a < 3; a++) ps[a] = 0;
+                ta = c->d_clip * sooc_rng_uniformf(r);
+                vr->W[rr] = c->d_clip;
+            }
+            for (int a = 0; a < 3; a++) pa[a] = ta * vr->dir[rr * 3 + a];
+        }
+    return SOOC_OK;
+}
+
+/* ---------------------------------------------------------------- KL */
+
+double mdl_kl_gauss(int n, const float *mu, const float *rho, const float *mu0, const float *rho0, float rmin,
+                    float rmax, float beta, float *gmu, float *grho, float *gmu0, float *grho0) {
+    double kl = 0;
+    for (int i = 0; i < n; i++) {
+        float r = clampf(rho[i], rmin, rmax), r0 = clampf(rho0[i], rmin, rmax);
+        float dm = mu[i] - mu0[i];
+        float e = expf(r), ie0 = expf(-r0);
+        kl += 0.5 * (r0 - r) + 0.5 * (e + dm * dm) * ie0 - 0.5;
+        if (gmu) gmu[i] += beta * dm * ie0;
+        if (gmu0) gmu0[i] -= beta * dm * ie0;
+        if (grho && rho[i] >= rmin && rho[i] <= rmax) grho[i] += beta * (-0.5f + 0.5f * e * ie0);
+        if (grho0 && rho0[i] >= rmin && rho0[i] <= rmax) grho0[i] += beta * (0.5f - 0.5f * (e + dm * dm) * ie0);
+    }
+    return beta * kl;
+}
+
+static float log_sigm(float a) { return a >= 0 ? -log1pf(expf(-a)) : a - log1pf(expf(a)); }
+
+double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta, float *g,
+                   float *g0) {
+    int d = cfg->d_what;
+    float rmin = cfg->rho_min, rmax = cfg->rho_max;
+    double kl = 0;
+    /* x and z share rho_t; θ wrapped */
+    float mu[3] = {lam[0], lam[1], lam[2]}, mu0[3] = {lam0[0], lam0[1], lam0[2]};
+    float dth = (float)sooc_wrap_angle((double)lam[2] - lam0[2]);
+    mu[2] = mu0[2] + dth;
+    float rho[3] = {lam[3], lam[3], lam[4]}, rho0[3] = {lam0[3], lam0[3], lam0[4]};
+    float gm[3] = {0}, gr[3] = {0}, gm0[3] = {0}, gr0[3] = {0};
+    kl += mdl_kl_gauss(3, mu, rho, mu0, rho0, rmin, rmax, beta, gm, gr, gm0, gr0);
+    if (g) {
+        g[0] += gm[0], g[1] += gm[1], g[2] += gm[2];
+        g[3] += gr[0] + gr[1], g[4] += gr[2];
+    }
+    if (g0) {
+        g0[0] += gm0[0], g0[1] += gm0[1], g0[2] += gm0[2];
+        g0[3] += gr0[0] + gr0[1], g0[4] += gr0[2];
+    }
+    kl += mdl_kl_gauss(d, lam + 5, lam + 5 + d, lam0 + 5, lam0 + 5 + d, rmin, rmax, beta, g ? g + 5 : NULL,
+                       g ? g + 5 + d : NULL, g0 ? g0 + 5 : NULL, g0 ? g0 + 5 + d : NULL);
+    float a = lam[5 + 2 * d], a0 = lam0[5 + 2 * d];
+    float p = sigm(a), p0 = sigm(a0);
+    float lp = log_sigm(a), lq = log_sigm(-a), lp0 = log_sigm(a0), lq0 = log_sigm(-a0);
+    kl += beta * (p * (lp - lp0) + (1 - p) * (lq - lq0));
+    if (g) g[5 + 2 * d] += beta * p * (1 - p) * (a - a0);
+    if (g0) g0[5 + 2 * d] += beta * (p0 - p);
+    return kl;
+}
+
+/* ---------------------------------------------------------------- MLP */
+
+static void gemm_nn(int M, int N, int K, const float *A, const float *B, float beta, float *C) {
+    if (M <= 0) return;
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, K, B, N, beta, C, N);
+}
+static void gemm_nt(int M, int N, int K, const float *A, const float *B, float *C) {
+    /* C[M x N] = A[M x K] B^T, B is [N x K] */
+    if (M <= 0) return;
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, M, N, K, 1.0f, A, K, B, K, 0.0f, C, N);
+}
+static void gemm_tn_acc(int M, int N, int R, float alpha, const float *A, const float *B, float *C) {
+    /* C[M x N] += alpha A^T B, A is [R x M], B is [R x N] */
+    if (R <= 0) return;
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, M, N, R, alpha, A, M, B, N, 1.0f, C, N);
+}
+
+static void pe_row(const float *x, float inv, int nf, float *out) {
+    float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv};
+    out[0] = v[0], out[1] = v[1], out[2] = v[2];
+    int o = 3;
+    for (int f = 0; f < nf; f++) {
+        float s = (float)(1 << f);
+        for (int a = 0; a < 3; a++) {
+            out[o + a] = sinf(s * v[a]);
+            out[o + 3 + a] = cosf(s * v[a]);
+        }
+        o += 6;
+    }
+}
+
+/* dL/dx from dL/dpe (pe as built by pe_row). */
+static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, float gx[3]) {
+    for (int a = 0; a < 3; a++) gx[a] = gpe[a] * inv;
+    int o = 3;
+    for (int f = 0; f < nf; f++) {
+        float s = (float)(1 << f) * inv;
+        for (int a = 0; a < 3; a++) gx[a] += s * (gpe[o + a] * pe[o + 3 + a] - gpe[o + 3 + a] * pe[o + a]);
+        o += 6;
+    }
+}
+
+/* Layers 2.. of a decoder on R rows whose layer-1 pre-activation is in a1
+ * (ReLU applied here). */
+static void mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+                             float *sig, float *col, int nt) {
+    const float *p = m->p;
+    int H = n->H, Hc = n->Hc;
+    (void)nt;
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (long i = 0; i < (long)R * H; i++) a1[i] = a1[i] > 0 ? a1[i] : 0;
+    gemm_nn(R, H, H, a1, p + n->W2, 0.0f, a2);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < R; r++)
+        for (int j = 0; j < H; j++) {
+            float v = a2[(size_t)r * H + j] + p[n->b2 + j];
+            a2[(size_t)r * H + j] = v > 0 ? v : 0;
+        }
+    gemm_nn(R, H, H, a2, p + n->W3, 0.0f, a3);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < R; r++)
+        for (int j = 0; j < H; j++) {
+            float v = a3[(size_t)r * H + j] + p[n->b3 + j];
+            a3[(size_t)r * H + j] = v > 0 ? v : 0;
+        }
+    gemm_nn(R, 1, H, a3, p + n->Wd, 0.0f, sig);
+    gemm_nn(R, Hc, H, a3, p + n->Wc1, 0.0f, ac);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < R; r++) {
+        sig[r] = sigm(sig[r] + p[n->bd]);
+        float *hc = ac + (size_t)r * Hc;
+        for (int j = 0; j < Hc; j++) {
+            float v = hc[j] + p[n->bc1 + j];
+            hc[j] = v > 0 ? v : 0;
+        }
+        for (int a = 0; a < 3; a++) {
+            float v = p[n->bc2 + a];
+            for (int j = 0; j < Hc; j++) v += hc[j] * p[n->Wc2 + j * 3 + a];
+            col[(size_t)r * 3 + a] = sigm(v);
+        }
+    }
+}
+
+/* Backward through layers 3.. to the layer-1 pre-activation gradient g1 (R x H).
+ * gsig, gcol: dL/d(sigmoid outputs) on entry (overwritten with pre-sigmoid grads).
+ * Weight grads scaled by ws (0 = skip). Scratch gA, gB (R x H each). */
+static void mlp_tail_backward(sooc_model *m, const dec_net *n, int R, const float *a1, const float *a2,
+                              const float *a3, const float *ac, const float *sig, const float *col, float *gsig,
+                              float *gcol, float *gA, float *gB, float *g1, float ws, int nt) {
+    const float *p = m->p;
+    float *g = m->g;
+    int H = n->H, Hc = n->Hc;
+    /* heads: pre-sigmoid grads; colour hidden grad into gB[:, :Hc] */
+    float *gac = gB;
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < R; r++) {
+        gsig[r] *= sig[r] * (1 - sig[r]);
+        float *gc = gcol + (size_t)r * 3;
+        const float *cl = col + (size_t)r * 3;
+        for (int a = 0; a < 3; a++) gc[a] *= cl[a] * (1 - cl[a]);
+        const float *hc = ac + (size_t)r * Hc;
+        float *gh = gac + (size_t)r * Hc;
+        for (int j = 0; j < Hc; j++) {
+            float v = 0;
+            if (hc[j] > 0)
+                for (int a = 0; a < 3; a++) v += gc[a] * p[n->Wc2 + j * 3 + a];
+            gh[j] = v;
+        }
+    }
+    if (ws != 0) {
+        gemm_tn_acc(Hc, 3, R, ws, ac, gcol, g + n->Wc2);
+        gemm_tn_acc(H, Hc, R, ws, a3, gac, g + n->Wc1);
+        gemm_tn_acc(H, 1, R, ws, a3, gsig, g + n->Wd);
+        for (int r = 0; r < R; r++) {
+            g[n->bd] += ws * gsig[r];
+            for (int a = 0; a < 3; a++) g[n->bc2 + a] += ws * gcol[(size_t)r * 3 + a];
+            for (int j = 0; j < Hc; j++) g[n->bc1 + j] += ws * gac[(size_t)r * Hc + j];
+        }
+    }
+    /* g3 = gsig Wd^T + gac Wc1^T, masked by a3 > 0 -> gA */
+    gemm_nt(R, H, Hc, gac, p + n->Wc1, gA);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < R; r++)
+        for (int j = 0; j < H; j++) {
+            size_t i = (size_t)r * H + j;
+            gA[i] = a3[i] > 0 ? gA[i] + gsig[r] * p[n->Wd + j] : 0;
+        }
+    if (ws != 0) {
+        gemm_tn_acc(H, H, R, ws, a2, gA, g + n->W3);
+        for (int r = 0; r < R; r++)
+            for (int j = 0; j < H; j++) g[n->b3 + j] += ws * gA[(size_t)r * H + j];
+    }
+    gemm_nt(R, H, H, gA, p + n->W3, gB);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (long i = 0; i < (long)R * H; i++) gB[i] = a2[i] > 0 ? gB[i] : 0;
+    if (ws != 0) {
+        gemm_tn_acc(H, H, R, ws, a1, gB, g + n->W2);
+        for (int r = 0; r < R; r++)
+            for (int j = 0; j < H; j++) g[n->b2 + j] += ws * gB[(size_t)r * H + j];
+    }
+    gemm_nt(R, H, H, gB, p + n->W2, g1);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (long i = 0; i < (long)R * H; i++) g1[i] = a1[i] > 0 ? g1[i] : 0;
+}
+
+/* ---------------------------------------------------------------- decode */
+
+typedef struct slot_sample {
+    float sig_t, sig_th, sig_what[SOOC_MODEL_D_MAX];
+} slot_sample;
+
+sooc_status mdl_decode(sooc_model *m, dec_call *c) {
+    const sooc_model_config *cfg = &m->cfg;
+    dec_ws *w = &m->ws;
+    const view_rays *vr = c->rays;
+    const float *p = m->p;
+    int N = vr->N, P = 2 * N, K = c->nslot, C = K + 1, d = cfg->d_what, dl = cfg->d_layout, NL = m->NL;
+    int H = cfg->dec_width, nt = nthreads(m);
+    SOOC_ASSERT(P <= w->Pmax && K <= w->Kmax);
+    openblas_set_num_threads(nt);
+    const dec_net *no = &m->dobj, *nl = &m->dlay;
+    float rmin = cfg->rho_min, rmax = cfg->rho_max, tau = c->tau > 0 ? c->tau : 1.0f;
+    float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c;
+    slot_sample ss[SOOC_MODEL_K_MAX];
+    float sig_lay[SOOC_MODEL_D_MAX];
+
+    /* 1. samples */
+    for (int k = 0; k < K; k++) {
+        const float *l = c->lam + (size_t)k * NL;
+        const dec_noise *ns = c->noise;
+        ss[k].sig_t = expf(0.5f * clampf(l[3], rmin, rmax));
+        ss[k].sig_th = expf(0.5f * clampf(l[4], rmin, rmax));
+        c->zw[k][0] = l[0] + ss[k].sig_t * ns->eps_where[k][0];
+        c->zw[k][1] = l[1] + ss[k].sig_t * ns->eps_where[k][1];
+        c->zw[k][2] = l[2] + ss[k].sig_th * ns->eps_where[k][2];
+        for (int i = 0; i < d; i++) {
+            ss[k].sig_what[i] = expf(0.5f * clampf(l[5 + d + i], rmin, rmax));
+            c->zwhat[k][i] = l[5 + i] + ss[k].sig_what[i] * ns->eps_what[k][i];
+        }
+        float zs = sigm((l[5 + 2 * d] + ns->logistic[k]) / tau);
+        c->zp_soft[k] = zs;
+        int hm = c->hard ? c->hard[k] : 0;
+        c->zp[k] = hm == 1 ? (zs >= 0.5f ? 1.0f : 0.0f) : hm == 2 ? 1.0f : zs;
+    }
+    for (int i = 0; i < dl; i++) {
+        sig_lay[i] = expf(0.5f * clampf(c->lay[dl + i], rmin, rmax));
+        c->zlay[i] = c->lay[i] + sig_lay[i] * c->noise->eps_lay[i];
+    }
+    /* slot biases: comp 0 = layout, 1..K objects */
+    for (int k = 0; k <= K; k++) {
+        const dec_net *n = k ? no : nl;
+        const float *z = k ? c->zwhat[k - 1] : c->zlay;
+        float *b = w->slot_bias + (size_t)k * H;
+        for (int j = 0; j < H; j++) b[j] = p[n->b1 + j];
+        for (int i = 0; i < n->dz; i++) {
+            const float *Wr = p + n->W1z + (size_t)i * H;
+            for (int j = 0; j < H; j++) b[j] += z[i] * Wr[j];
+        }
+    }
+
+    /* 2. rows */
+    int nro = 0;
+    for (int pt = 0; pt < P; pt++) {
+        int used = (pt & 1) || vr->surf[pt >> 1];
+        for (int k = 0; k < C; k++) w->rowof[(size_t)pt * C + k] = -1;
+        if (!used) continue;
+        const float *x = vr->pts + (size_t)pt * 3;
+        for (int k = 0; k < K; k++) {
+            float xk[3];
+            mdl_pi(x, c->zw[k][0], c->zw[k][1], c->zw[k][2], vr->h, xk);
+            if (cfg->use_box && (fabsf(xk[0]) > cfg->box_rh || fabsf(xk[2]) > cfg->box_rh || xk[1] < 0 ||
+                                 xk[1] > cfg->box_hb))
+                continue;
+            w->ro_pt[nro] = pt;
+            w->ro_slot[nro] = k;
+            memcpy(w->o_xk + (size_t)nro * 3, xk, sizeof xk);
+            float gf = 1.0f;
+            if (c->zw_sg) {
+                float xs[3];
+                const float *zs = c->zw_sg + 3 * k;
+                mdl_pi(x, zs[0], zs[1], zs[2], vr->h, xs);
+                float is = 1.0f / (2 * cfg->gauss_s * cfg->gauss_s);
+                gf = expf(-(xk[0] * xk[0] + xk[2] * xk[2] - xs[0] * xs[0] - xs[2] * xs[2]) * is);
+            }
+            w->o_gf[nro] = gf;
+            w->rowof[(size_t)pt * C + 1 + k] = nro;
+            nro++;
+        }
+    }
+    w->nro = nro;
+    /* layout rows: compacted used points (reuse ro arrays' tail? keep own list in rowof comp 0) */
+    int nrl = 0;
+    for (int pt = 0; pt < P; pt++)
+        if ((pt & 1) || vr->surf[pt >> 1]) w->rowof[(size_t)pt * C] = nrl++;
+    /* PE */
+    float inv_o = 1.0f / cfg->box_rh, inv_l = 1.0f / cfg->block_size;
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < nro; r++) pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int pt = 0; pt < P; pt++) {
+        int r = w->rowof[(size_t)pt * C];
+        if (r < 0) continue;
+        const float *x = vr->pts + (size_t)pt * 3;
+        float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
+        pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+    }
+
+    /* 3. MLPs */
+    gemm_nn(nro, H, no->din, w->o_pe, p + no->W1x, 0.0f, w->o_a1);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < nro; r++) {
+        const float *b = w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H;
+        float *a = w->o_a1 + (size_t)r * H;
+        for (int j = 0; j < H; j++) a[j] += b[j];
+    }
+    mlp_tail_forward(m, no, nro, w->o_a1, w->o_a2, w->o_a3, w->o_ac, w->o_sig, w->o_col, nt);
+    gemm_nn(nrl, H, nl->din, w->l_pe, p + nl->W1x, 0.0f, w->l_a1);
+#pragma omp parallel for num_threads(nt) schedule(static)
+    for (int r = 0; r < nrl; r++) {
+        float *a = w->l_a1 + (size_t)r * H;
+        for (int j = 0; j < H; j++) a[j] += w->slot_bias[j];
+    }
+    mlp_tail_forward(m, nl, nrl, w->l_a1, w->l_a2, w->l_a3, w->l_ac, w->l_sig, w->l_col, nt);
+
+    /* 4. dense σ̂, c̃, composition, likelihood */
+    float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * cfg->sigma_max;
+    float scale = (float)(cfg->img_w * cfg->img_h) / (float)N;
+    float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)), is2 = 1.0f / (sigc * sigc);
+    double sum_d = 0, sum_c = 0;
+#pragma omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, sum_c)
+    for (int rr = 0; rr < N; rr++) {
+        for (int q = 0; q < 2; q++) {
+            int pt = 2 * rr + q;
+            float *sh = w->sh + (size_t)pt * C, *ct = w->ct + (size_t)pt * C * 3;
+            float *gsh = w->gsh + (size_t)pt * C, *gct = w->gct + (size_t)pt * C * 3;
+            memset(gsh, 0, sizeof(float) * C);
+            memset(gct, 0, sizeof(float) * 3 * C);
+            if (!q && !vr->surf[rr]) {
+                memset(sh, 0, sizeof(float) * C);
+                memset(ct, 0, sizeof(float) * 3 * C);
+                w->S[pt] = w->Sb[pt] = 0;
+                continue;
+            }
+            float S = 1e-8f, Q2 = 0, col[3] = {0, 0, 0};
+            for (int k = 0; k < C; k++) {
+                int r = w->rowof[(size_t)pt * C + k];
+                float s = 0, cl[3] = {0, 0, 0};
+                if (r >= 0) {
+                    if (k == 0) {
+                        s = w->l_sig[r];
+                        memcpy(cl, w->l_col + (size_t)r * 3, sizeof cl);
+                    } else {
+                        s = w->o_sig[r] * c->zp[k - 1] * w->o_gf[r];
+                        memcpy(cl, w->o_col + (size_t)r * 3, sizeof cl);
+                    }
+                }
+                sh[k] = s;
+                memcpy(ct + k * 3, cl, sizeof cl);
+                S += s;
+                Q2 += s * s;
+                for (int a = 0; a < 3; a++) col[a] += s * cl[a];
+            }
+            for (int a = 0; a < 3; a++) col[a] /= S;
+            float Sb = Q2 / S;
+            w->S[pt] = S;
+            w->Sb[pt] = Sb;
+            memcpy(w->cc + (size_t)pt * 3, col, sizeof col);
+            float gSb, gc[3] = {0, 0, 0};
+            if (q == 0) {
+                float v = smax * Sb + eps_s;
+                sum_d += logf(v);
+                gSb = -scale * smax / v;
+                float e = 0;
+                for (int a = 0; a < 3; a++) {
+                    float dd = vr->rgb[rr * 3 + a] - col[a];
+                    e += dd * dd;
+                    gc[a] = scale * (-dd) * is2;
+                }
+                sum_c += -0.5f * e * is2 - lognorm;
+            } else {
+                sum_d += -vr->W[rr] * smax * Sb;
+                gSb = scale * vr->W[rr] * smax;
+            }
+            for (int k = 0; k < C; k++) {
+                float s = sh[k];
+                float g = gSb * (2 * s / S - Q2 / (S * S));
+                for (int a = 0; a < 3; a++) {
+                    g += gc[a] * (ct[k * 3 + a] - col[a]) / S;
+                    gct[k * 3 + a] = gc[a] * s / S;
+                }
+                gsh[k] = g;
+            }
+        }
+        /* per-ray log-likelihood (for aux inputs) */
+        int ps = 2 * rr, pa = ps + 1;
+        float l = -vr->W[rr] * smax * w->Sb[pa];
+        if (vr->surf[rr]) {
+            l += logf(smax * w->Sb[ps] + eps_s);
+            float e = 0;
+            for (int a = 0; a < 3; a++) {
+                float dd = vr->rgb[rr * 3 + a] - w->cc[(size_t)ps * 3 + a];
+                e += dd * dd;
+            }
+            l += -0.5f * e * is2 - lognorm;
+        }
+        w->ll[rr] = l;
+    }
+    c->nll_d = -scale * sum_d;
+    c->nll_c = -scale * sum_c;
+    c->nll = c->nll_d + c->nll_c;
+
+    /* 5. KL */
+    c->kl = 0;
+    float beta = c->beta_kl;
+    if (c->lam0) {
+        for (int k = 0; k < K; k++)
+            c->kl += mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, 1.0f, NULL, NULL);
+    }
+    if (c->lay0)
+        c->kl += mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, rmin, rmax, 1.0f, NULL, NULL, NULL,
+                              NULL);
+    c->loss = c->nll + beta * c->kl;
+    if (!c->backward) return SOOC_OK;
+    if (!isfinite(c->loss)) return sooc_seterr(SOOC_ENUMERIC, "decode: non-finite loss");
+
+    /* 6. KL gradients */
+    if (c->lam0)
+        for (int k = 0; k < K; k++)
+            mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, beta,
+                        c->g_lam ? c->g_lam + (size_t)k * NL : NULL, c->g_lam0 ? c->g_lam0 + (size_t)k * NL : NULL);
+    if (c->lay0)
+        mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, rmin, rmax, beta, c->g_lay,
+                     c->g_lay ? c->g_lay + dl : NULL, c->g_lay0, c->g_lay0 ? c->g_lay0 + dl : NULL);
+
+    /* 7. decoder backward: object rows */
+    float gzw[SOOC_MODEL_K_MAX][3], gzwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX], gzp[SOOC_MODEL_K_MAX];
+    memset(gzw, 0, sizeof gzw);
+    memset(gzwhat, 0, sizeof gzwhat);
+    memset(gzp, 0, sizeof gzp);
+    float ws = c->wgrad;
+    float *gsig = w->gC, *gcol = w->gC + (size_t)(nro > nrl ? nro : nrl);   /* gC has >= R*H >= 4R floats */
+    for (int r = 0; r < nro; r++) {
+        int pt = w->ro_pt[r], k = w->ro_slot[r];
+        float g = w->gsh[(size_t)pt * C + 1 + k];
+        gsig[r] = g * c->zp[k];
+        gzp[k] += g * w->o_sig[r];
+        memcpy(gcol + (size_t)r * 3, w->gct + ((size_t)pt * C + 1 + k) * 3, 3 * sizeof(float));
+    }
+    mlp_tail_backward(m, no, nro, w->o_a1, w->o_a2, w->o_a3, w->o_ac, w->o_sig, w->o_col, gsig, gcol, w->gA, w->gB,
+                      w->gA, ws, nt);
+    /* w->gA now holds the layer-1 pre-activation gradient (R x H) (gemm_nt wrote into gA after gA was consumed) */
+    float *g1 = w->gA;
+    if (ws != 0) gemm_tn_acc(no->din, H, nro, ws, w->o_pe, g1, m->g + no->W1x);
+    gemm_nt(nro, no->din, H, g1, p + no->W1x, w->gpe);
+    memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
+    float s_g = cfg->gauss_s;
+    for (int r = 0; r < nro; r++) {
+        int k = w->ro_slot[r], pt = w->ro_pt[r];
+        float *gb = w->g_bias + (size_t)(1 + k) * H;
+        const float *gr = g1 + (size_t)r * H;
+        for (int j = 0; j < H; j++) gb[j] += gr[j];
+        float gx[3];
+        const float *xk = w->o_xk + (size_t)r * 3;
+        pe_row_back(w->o_pe + (size_t)r * no->din, w->gpe + (size_t)r * no->din, inv_o, no->nfreq, gx);
+        mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, s_g, gx);
+        mdl_pi_backward(xk, c->zw[k][2], gx, gzw[k]);
+    }
+    /* layout rows */
+    for (int pt = 0; pt < P; pt++) {
+        int r = w->rowof[(size_t)pt * C];
+        if (r < 0) continue;
+        gsig[r] = w->gsh[(size_t)pt * C];
+        memcpy(gcol + (size_t)r * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
+    }
+    mlp_tail_backward(m, nl, nrl, w->l_a1, w->l_a2, w->l_a3, w->l_ac, w->l_sig, w->l_col, gsig, gcol, w->gA, w->gB,
+                      w->gA, ws, nt);
+    g1 = w->gA;
+    if (ws != 0) gemm_tn_acc(nl->din, H, nrl, ws, w->l_pe, g1, m->g + nl->W1x);
+    for (int r = 0; r < nrl; r++)
+        for (int j = 0; j < H; j++) w->g_bias[j] += g1[(size_t)r * H + j];
+    /* slot biases -> z, b1, W1z */
+    float gzl[SOOC_MODEL_D_MAX] = {0};
+    for (int k = 0; k <= K; k++) {
+        const dec_net *n = k ? no : nl;
+        const float *gb = w->g_bias + (size_t)k * H;
+        const float *z = k ? c->zwhat[k - 1] : c->zlay;
+        float *gz = k ? gzwhat[k - 1] : gzl;
+        for (int i = 0; i < n->dz; i++) {
+            const float *Wr = p + n->W1z + (size_t)i * H;
+            float v = 0;
+            for (int j = 0; j < H; j++) v += Wr[j] * gb[j];
+            gz[i] = v;
+            if (ws != 0) {
+                float *gW = m->g + n->W1z + (size_t)i * H;
+                for (int j = 0; j < H; j++) gW[j] += ws * z[i] * gb[j];
+            }
+        }
+        if (ws != 0)
+            for (int j = 0; j < H; j++) m->g[n->b1 + j] += ws * gb[j];
+    }
+    /* 8. reparameterisation backward -> λ */
+    if (c->g_lam)
+        for (int k = 0; k < K; k++) {
+            const float *l = c->lam + (size_t)k * NL;
+            float *g = c->g_lam + (size_t)k * NL;
+            const dec_noise *ns = c->noise;
+            g[0] += gzw[k][0];
+            g[1] += gzw[k][1];
+            g[2] += gzw[k][2];
+            if (l[3] >= rmin && l[3] <= rmax)
+                g[3] += 0.5f * ss[k].sig_t * (gzw[k][0] * ns->eps_where[k][0] + gzw[k][1] * ns->eps_where[k][1]);
+            if (l[4] >= rmin && l[4] <= rmax) g[4] += 0.5f * ss[k].sig_th * gzw[k][2] * ns->eps_where[k][2];
+            for (int i = 0; i < d; i++) {
+                g[5 + i] += gzwhat[k][i];
+                if (l[5 + d + i] >= rmin && l[5 + d + i] <= rmax)
+                    g[5 + d + i] += 0.5f * ss[k].sig_what[i] * gzwhat[k][i] * ns->eps_what[k][i];
+            }
+            float zs = c->zp_soft[k];
+            g[5 + 2 * d] += gzp[k] * zs * (1 - zs) / tau;
+        }
+    if (c->g_lay)
+        for (int i = 0; i < dl; i++) {
+            c->g_lay[i] += gzl[i];
+            if (c->lay[dl + i] >= rmin && c->lay[dl + i] <= rmax)
+                c->g_lay[dl + i] += 0.5f * sig_lay[i] * gzl[i] * c->noise->eps_lay[i];
+        }
+    return SOOC_OK;
+}

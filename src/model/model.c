@@ -1,0 +1,446 @@
+/* Model creation, parameter slab, initialisation, checkpoint IO. */
+#include "model/model_internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+void sooc_model_config_default(sooc_model_config *c) {
+    memset(c, 0, sizeof *c);
+    c->K = 7;
+    c->d_what = 32;
+    c->d_layout = 16;
+    c->L = 3;
+    c->img_w = c->img_h = 64;
+    c->ray_w = c->ray_h = 32;
+    c->dec_width = 64;
+    c->dec_color_width = 32;
+    c->n_freq = 5;
+    c->n_freq_layout = 6;
+    c->dens_bias_init = -2.0f;
+    c->ref_ch[0] = 32; c->ref_ch[1] = 32; c->ref_ch[2] = 64; c->ref_ch[3] = 64;
+    c->ref_fc = 128;
+    c->ref_hidden = 128;
+    c->sigma_max = 30.0f;
+    c->sigma_c = 0.2f;
+    c->air_cut = 0.98f;
+    c->delta_s = 0.03f;
+    c->eps_sigma_rel = 1e-4f;
+    c->d_clip = 8.0f;
+    c->t_near = 0.1f;
+    c->box_rh = 0.6f;
+    c->box_hb = 1.2f;
+    c->gauss_s = 0.3f;
+    c->block_size = 4.0f;
+    c->use_box = 1;
+    c->rho_min = -10.0f;
+    c->rho_max = 4.0f;
+    c->prior_sigma_t = 0.5f;
+    c->prior_near = 1.3f;
+    c->prior_far = 6.2f;
+    c->prior_pres_logit = 0.0f;
+}
+
+sooc_status sooc_model_config_check(const sooc_model_config *c) {
+    if (c->K < 1 || c->K > SOOC_MODEL_K_MAX)
+        return sooc_seterr(SOOC_EINVAL, "model config: K = %d outside 1..%d", c->K, SOOC_MODEL_K_MAX);
+    if (c->d_what < 1 || c->d_what > SOOC_MODEL_D_MAX || c->d_layout < 1 || c->d_layout > SOOC_MODEL_D_MAX)
+        return sooc_seterr(SOOC_EINVAL, "model config: d_what/d_layout outside 1..%d", SOOC_MODEL_D_MAX);
+    if (c->L < 0 || c->L > 16) return sooc_seterr(SOOC_EINVAL, "model config: L = %d outside 0..16", c->L);
+    if (c->ray_w < 16 || c->ray_h < 16 || c->ray_w % 16 || c->ray_h % 16)
+        return sooc_seterr(SOOC_EINVAL, "model config: ray grid %dx%d must be multiples of 16", c->ray_w, c->ray_h);
+    if (c->img_w % c->ray_w || c->img_h % c->ray_h)
+        return sooc_seterr(SOOC_EINVAL, "model config: image %dx%d not divisible by ray grid %dx%d", c->img_w,
+                           c->img_h, c->ray_w, c->ray_h);
+    if (c->dec_width < 4 || c->dec_color_width < 1 || c->n_freq < 0 || c->n_freq_layout < 0)
+        return sooc_seterr(SOOC_EINVAL, "model config: bad decoder sizes");
+    for (int i = 0; i < 4; i++)
+        if (c->ref_ch[i] < 1) return sooc_seterr(SOOC_EINVAL, "model config: ref_ch[%d] < 1", i);
+    if (c->ref_fc < 1 || c->ref_hidden < 1) return sooc_seterr(SOOC_EINVAL, "model config: bad refinement sizes");
+    if (!(c->sigma_max > 0) || !(c->sigma_c > 0) || !(c->air_cut > 0 && c->air_cut < 1) || !(c->d_clip > c->t_near) ||
+        !(c->box_rh > 0) || !(c->box_hb > 0) || !(c->gauss_s > 0) || !(c->block_size > 0) ||
+        !(c->rho_max > c->rho_min))
+        return sooc_seterr(SOOC_EINVAL, "model config: bad likelihood/geometry constants");
+    return SOOC_OK;
+}
+
+static size_t add_t(sooc_model *m, size_t *off, const char *name, int rows, int cols, int no_decay) {
+    SOOC_ASSERT(m->nt < MDL_MAXT);
+    sooc_model_tensor *t = &m->t[m->nt++];
+    t->name = name;
+    t->offset = *off;
+    t->rows = rows;
+    t->cols = cols;
+    t->count = (size_t)rows * cols;
+    t->no_decay = no_decay;
+    *off += t->count;
+    return t->offset;
+}
+
+static void layout_dec(sooc_model *m, size_t *off, dec_net *n, int obj) {
+    const sooc_model_config *c = &m->cfg;
+    n->nfreq = obj ? c->n_freq : c->n_freq_layout;
+    n->din = 3 + 6 * n->nfreq;
+    n->dz = obj ? c->d_what : c->d_layout;
+    n->H = c->dec_width;
+    n->Hc = c->dec_color_width;
+#define T(f, nm, r, cc, nd) n->f = add_t(m, off, obj ? "dec.obj." nm : "dec.lay." nm, r, cc, nd)
+    T(W1x, "W1x", n->din, n->H, 0);
+    T(W1z, "W1z", n->dz, n->H, 0);
+    T(b1, "b1", n->H, 1, 1);
+    T(W2, "W2", n->H, n->H, 0);
+    T(b2, "b2", n->H, 1, 1);
+    T(W3, "W3", n->H, n->H, 0);
+    T(b3, "b3", n->H, 1, 1);
+    T(Wd, "Wd", n->H, 1, 0);
+    T(bd, "bd", 1, 1, 1);
+    T(Wc1, "Wc1", n->H, n->Hc, 0);
+    T(bc1, "bc1", n->Hc, 1, 1);
+    T(Wc2, "Wc2", n->Hc, 3, 0);
+    T(bc2, "bc2", 3, 1, 1);
+#undef T
+}
+
+static void layout_ref(sooc_model *m, size_t *off, ref_net *n, int obj) {
+    const sooc_model_config *c = &m->cfg;
+    static const char *cwn[2][4] = {{"ref.lay.conv1.W", "ref.lay.conv2.W", "ref.lay.conv3.W", "ref.lay.conv4.W"},
+                                    {"ref.obj.conv1.W", "ref.obj.conv2.W", "ref.obj.conv3.W", "ref.obj.conv4.W"}};
+    static const char *cbn[2][4] = {{"ref.lay.conv1.b", "ref.lay.conv2.b", "ref.lay.conv3.b", "ref.lay.conv4.b"},
+                                    {"ref.obj.conv1.b", "ref.obj.conv2.b", "ref.obj.conv3.b", "ref.obj.conv4.b"}};
+    n->cin = mdl_aux_channels(!obj);
+    int prev = n->cin;
+    for (int i = 0; i < 4; i++) {
+        n->ch[i] = c->ref_ch[i];
+        n->cw[i] = add_t(m, off, cwn[obj][i], n->ch[i], prev * 9, 0);
+        n->cb[i] = add_t(m, off, cbn[obj][i], n->ch[i], 1, 1);
+        prev = n->ch[i];
+    }
+    n->nflat = prev * (c->ray_w / 16) * (c->ray_h / 16);
+    n->fc = c->ref_fc;
+    n->hid = c->ref_hidden;
+    int NL = MDL_NL(c->d_what);
+    n->nvec = obj ? (2 * NL + 4 + 2) : (4 * c->d_layout + 2);
+    n->nout = obj ? NL : 2 * c->d_layout;
+    n->fcW = add_t(m, off, obj ? "ref.obj.fc.W" : "ref.lay.fc.W", n->nflat, n->fc, 0);
+    n->fcb = add_t(m, off, obj ? "ref.obj.fc.b" : "ref.lay.fc.b", n->fc, 1, 1);
+    n->Wx = add_t(m, off, obj ? "ref.obj.lstm.Wx" : "ref.lay.lstm.Wx", n->fc + n->nvec, 4 * n->hid, 0);
+    n->Wh = add_t(m, off, obj ? "ref.obj.lstm.Wh" : "ref.lay.lstm.Wh", n->hid, 4 * n->hid, 0);
+    n->lb = add_t(m, off, obj ? "ref.obj.lstm.b" : "ref.lay.lstm.b", 4 * n->hid, 1, 1);
+    n->hW = add_t(m, off, obj ? "ref.obj.head.W" : "ref.lay.head.W", n->hid, n->nout, 0);
+    n->hb = add_t(m, off, obj ? "ref.obj.head.b" : "ref.lay.head.b", n->nout, 1, 1);
+}
+
+static void fill_unif(float *p, size_t n, float a, sooc_rng *r) {
+    for (size_t i = 0; i < n; i++) p[i] = (2.0f * sooc_rng_uniformf(r) - 1.0f) * a;
+}
+
+static void init_dec(sooc_model *m, const dec_net *n, sooc_rng *r) {
+    float *p = m->p;
+    fill_unif(p + n->W1x, (size_t)n->din * n->H, sqrtf(6.0f / (n->din + n->dz)), r);
+    fill_unif(p + n->W1z, (size_t)n->dz * n->H, sqrtf(6.0f / (n->din + n->dz)), r);
+    fill_unif(p + n->W2, (size_t)n->H * n->H, sqrtf(6.0f / n->H), r);
+    fill_unif(p + n->W3, (size_t)n->H * n->H, sqrtf(6.0f / n->H), r);
+    fill_unif(p + n->Wd, (size_t)n->H, sqrtf(3.0f / n->H), r);
+    p[n->bd] = m->cfg.dens_bias_init;
+    fill_unif(p + n->Wc1, (size_t)n->H * n->Hc, sqrtf(6.0f / n->H), r);
+    fill_unif(p + n->Wc2, (size_t)n->Hc * 3, sqrtf(3.0f / n->Hc), r);
+}
+
+static void init_ref(sooc_model *m, const ref_net *n, sooc_rng *r) {
+    float *p = m->p;
+    int prev = n->cin;
+    for (int i = 0; i < 4; i++) {
+        fill_unif(p + n->cw[i], (size_t)n->ch[i] * prev * 9, sqrtf(3.0f / (prev * 9)), r);
+        prev = n->ch[i];
+    }
+    fill_unif(p + n->fcW, (size_t)n->nflat * n->fc, sqrtf(3.0f / n->nflat), r);
+    float a = 1.0f / sqrtf((float)n->hid);
+    fill_unif(p + n->Wx, (size_t)(n->fc + n->nvec) * 4 * n->hid, a, r);
+    fill_unif(p + n->Wh, (size_t)n->hid * 4 * n->hid, a, r);
+    for (int j = 0; j < n->hid; j++) p[n->lb + n->hid + j] = 1.0f;   /* forget-gate bias */
+    /* head: zero (training starts from λ = prior) */
+}
+
+/* Per-slot prior means spread over the camera's ground footprint. */
+static void init_priors(sooc_model *m) {
+    const sooc_model_config *c = &m->cfg;
+    int NL = m->NL, d = c->d_what;
+    for (int k = 0; k < c->K; k++) {
+        float *l = m->p + m->prior + (size_t)k * NL;
+        float dist = c->K > 1 ? c->prior_near + (c->prior_far - c->prior_near) * k / (c->K - 1) : 0.5f * (c->prior_near + c->prior_far);
+        static const float side[3] = {-1.0f, 1.0f, 0.0f};
+        l[0] = side[k % 3] * 0.35f * dist;
+        l[1] = dist;
+        l[2] = 0;
+        l[3] = logf(c->prior_sigma_t * c->prior_sigma_t);
+        l[4] = logf((float)(M_PI * M_PI));
+        for (int i = 0; i < d; i++) l[5 + i] = 0, l[5 + d + i] = 0;
+        l[5 + 2 * d] = c->prior_pres_logit;
+    }
+}
+
+sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint64_t init_seed) {
+    *out = NULL;
+    sooc_status st = sooc_model_config_check(c);
+    if (st) return st;
+    sooc_model *m = sooc_calloc(1, sizeof *m);
+    if (!m) return SOOC_ENOMEM;
+    m->cfg = *c;
+    m->NL = MDL_NL(c->d_what);
+    size_t off = 0;
+    layout_dec(m, &off, &m->dobj, 1);
+    layout_dec(m, &off, &m->dlay, 0);
+    layout_ref(m, &off, &m->robj, 1);
+    layout_ref(m, &off, &m->rlay, 0);
+    m->prior = add_t(m, &off, "prior.slots", c->K, m->NL, 1);
+    m->prior_lay = add_t(m, &off, "prior.layout", 2 * c->d_layout, 1, 1);
+    m->np = off;
+    m->p = sooc_calloc(off, sizeof(float));
+    m->g = sooc_calloc(off, sizeof(float));
+    if (!m->p || !m->g) {
+        sooc_model_destroy(m);
+        return SOOC_ENOMEM;
+    }
+    sooc_rng r;
+    sooc_rng_seed(&r, init_seed, 0x4d4f44454cULL);
+    init_dec(m, &m->dobj, &r);
+    init_dec(m, &m->dlay, &r);
+    init_ref(m, &m->robj, &r);
+    init_ref(m, &m->rlay, &r);
+    init_priors(m);
+    if ((st = mdl_alloc_ws(m))) {
+        sooc_model_destroy(m);
+        return st;
+    }
+    *out = m;
+    return SOOC_OK;
+}
+
+void sooc_model_destroy(sooc_model *m) {
+    if (!m) return;
+    mdl_step_free(m);
+    mdl_free_ws(m);
+    sooc_free(m->p);
+    sooc_free(m->g);
+    sooc_free(m);
+}
+
+const sooc_model_config *sooc_model_get_config(const sooc_model *m) { return &m->cfg; }
+void sooc_model_set_threads(sooc_model *m, int n) { m->threads = n < 0 ? 0 : n; }
+size_t sooc_model_param_count(const sooc_model *m) { return m->np; }
+float *sooc_model_params(sooc_model *m) { return m->p; }
+float *sooc_model_grads(sooc_model *m) { return m->g; }
+void sooc_model_zero_grad(sooc_model *m) { memset(m->g, 0, m->np * sizeof(float)); }
+
+int sooc_model_tensors(const sooc_model *m, sooc_model_tensor *out, int cap) {
+    if (out)
+        for (int i = 0; i < m->nt && i < cap; i++) out[i] = m->t[i];
+    return m->nt;
+}
+
+void sooc_step_opts_default(sooc_step_opts *o) {
+    memset(o, 0, sizeof *o);
+    o->tau = 1.0f;
+    o->beta_kl = 1.0f;
+    o->pres_mode = SOOC_PRES_RELAXED;
+}
+
+/* ------------------------------------------------------------ checkpoint */
+
+#define MDL_MAGIC "SOOCMDL1"
+#define MDL_VERSION 1u
+
+sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *blob, size_t blob_size) {
+    sooc_afile f;
+    sooc_status st = sooc_afile_open(&f, path);
+    if (st) return st;
+    uint32_t ver = MDL_VERSION, csz = (uint32_t)sizeof(sooc_model_config);
+    uint64_t np = m->np, bs = blob ? blob_size : 0;
+    st = sooc_afile_write(&f, MDL_MAGIC, 8);
+    if (!st) st = sooc_afile_write(&f, &ver, 4);
+    if (!st) st = sooc_afile_write(&f, &csz, 4);
+    if (!st) st = sooc_afile_write(&f, &m->cfg, csz);
+    if (!st) st = sooc_afile_write(&f, &np, 8);
+    if (!st) st = sooc_afile_write(&f, m->p, np * sizeof(float));
+    if (!st) st = sooc_afile_write(&f, &bs, 8);
+    if (!st && bs) st = sooc_afile_write(&f, blob, bs);
+    if (!st) {
+        uint32_t crc = f.crc;
+        st = sooc_afile_write(&f, &crc, 4);
+    }
+    if (st) {
+        sooc_afile_abort(&f);
+        return sooc_adderr(st, "%s", path);
+    }
+    return sooc_afile_commit(&f);
+}
+
+sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, size_t *blob_size) {
+    *out = NULL;
+    if (blob) *blob = NULL;
+    if (blob_size) *blob_size = 0;
+    void *buf = NULL;
+    size_t n = 0;
+    sooc_status st = sooc_file_read_all(path, (size_t)1 << 32, &buf, &n);
+    if (st) return st;
+    const uint8_t *b = buf;
+    uint32_t ver, csz, crc;
+    uint64_t np, bs;
+    sooc_model_config cfg;
+    sooc_model *m = NULL;
+    if (n < 8 + 4 + 4 + 8 + 8 + 4 || memcmp(b, MDL_MAGIC, 8)) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: not a sooc3d model file (bad magic or too short)", path);
+        goto done;
+    }
+    memcpy(&crc, b + n - 4, 4);
+    if (sooc_crc32(0, b, n - 4) != crc) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: CRC mismatch (file corrupt or truncated)", path);
+        goto done;
+    }
+    memcpy(&ver, b + 8, 4);
+    memcpy(&csz, b + 12, 4);
+    if (ver != MDL_VERSION || csz != sizeof cfg) {
+        st = sooc_seterr(SOOC_EVERSION, "%s: model file version %u / config size %u, expected %u / %zu", path, ver,
+                         csz, MDL_VERSION, sizeof cfg);
+        goto done;
+    }
+    memcpy(&cfg, b + 16, sizeof cfg);
+    size_t o = 16 + sizeof cfg;
+    memcpy(&np, b + o, 8);
+    o += 8;
+    if ((st = sooc_model_create(&m, &cfg, 0))) {
+        sooc_adderr(st, "%s: config", path);
+        goto done;
+    }
+    if (np != m->np || o + np * 4 + 8 + 4 > n) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: %llu parameters stored, config needs %zu", path, (unsigned long long)np,
+                         m->np);
+        goto done;
+    }
+    memcpy(m->p, b + o, np * 4);
+    o += np * 4;
+    memcpy(&bs, b + o, 8);
+    o += 8;
+    if (o + bs + 4 != n) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: trainer blob size %llu inconsistent with file size", path,
+                         (unsigned long long)bs);
+        goto done;
+    }
+    if (blob && bs) {
+        *blob = sooc_malloc(bs);
+        if (!*blob) {
+            st = SOOC_ENOMEM;
+            goto done;
+        }
+        memcpy(*blob, b + o, bs);
+        if (blob_size) *blob_size = bs;
+    }
+    for (size_t i = 0; i < m->np; i++)
+        if (!isfinite(m->p[i])) {
+            st = sooc_seterr(SOOC_ENUMERIC, "%s: non-finite parameter at index %zu", path, i);
+            goto done;
+        }
+    *out = m;
+    m = NULL;
+done:
+    if (st && blob && *blob) {
+        sooc_free(*blob);
+        *blob = NULL;
+    }
+    sooc_model_destroy(m);
+    sooc_free(buf);
+    return st;
+}
+
+/* ------------------------------------------------------------ workspaces */
+
+sooc_status mdl_alloc_ws(sooc_model *m) {
+    const sooc_model_config *c = &m->cfg;
+    dec_ws *w = &m->ws;
+    int P = 2 * c->ray_w * c->ray_h, K = c->K, C = K + 1, H = c->dec_width;
+    size_t R = (size_t)P * K;
+    w->Pmax = P;
+    w->Kmax = K;
+    int dmax = m->dobj.din > m->dlay.din ? m->dobj.din : m->dlay.din;
+    size_t Rall = R > (size_t)P ? R : (size_t)P;
+#define A(p, n, t) if (!(w->p = sooc_calloc((n), sizeof(t)))) return SOOC_ENOMEM
+    A(ro_pt, R, int);
+    A(ro_slot, R, int);
+    A(o_pe, R * m->dobj.din, float);
+    A(o_a1, R * H, float);
+    A(o_a2, R * H, float);
+    A(o_a3, R * H, float);
+    A(o_ac, R * c->dec_color_width, float);
+    A(o_sig, R, float);
+    A(o_col, R * 3, float);
+    A(o_xk, R * 3, float);
+    A(o_gf, R, float);
+    A(l_pe, (size_t)P * m->dlay.din, float);
+    A(l_a1, (size_t)P * H, float);
+    A(l_a2, (size_t)P * H, float);
+    A(l_a3, (size_t)P * H, float);
+    A(l_ac, (size_t)P * c->dec_color_width, float);
+    A(l_sig, P, float);
+    A(l_col, (size_t)P * 3, float);
+    A(gA, Rall * H, float);
+    A(gB, Rall * H, float);
+    A(gC, Rall * H, float);
+    A(gpe, Rall * dmax, float);
+    A(sh, (size_t)P * C, float);
+    A(ct, (size_t)P * C * 3, float);
+    A(gsh, (size_t)P * C, float);
+    A(gct, (size_t)P * C * 3, float);
+    A(rowof, (size_t)P * C, int);
+    A(S, P, float);
+    A(Sb, P, float);
+    A(cc, (size_t)P * 3, float);
+    A(ll, P, float);
+    A(ll_cf, (size_t)P * C, float);
+    A(slot_bias, (size_t)C * H, float);
+    A(g_bias, (size_t)C * H, float);
+#undef A
+    /* refinement scratch */
+    ref_ws *r = &m->rws;
+    int gw = c->ray_w, gh = c->ray_h;
+    int cinmax = m->robj.cin > m->rlay.cin ? m->robj.cin : m->rlay.cin;
+    size_t colmax = (size_t)cinmax * 9 * K * (gw / 2) * (gh / 2);
+    for (int i = 1; i < 4; i++) {
+        size_t s = (size_t)c->ref_ch[i - 1] * 9 * K * (gw >> (i + 1)) * (gh >> (i + 1));
+        if (s > colmax) colmax = s;
+    }
+#define B(p, n) if (!(r->p = sooc_calloc((n), sizeof(float)))) return SOOC_ENOMEM
+    B(cols, colmax);
+    B(gcols, colmax);
+    for (int i = 0; i < 4; i++) B(gy[i], (size_t)c->ref_ch[i] * K * (gw >> (i + 1)) * (gh >> (i + 1)));
+    int hid = c->ref_hidden;
+    B(gflat, (size_t)K * m->robj.nflat);
+    B(gf, (size_t)K * c->ref_fc);
+    B(gx, (size_t)K * (c->ref_fc + m->robj.nvec));
+    B(gg, (size_t)K * 4 * hid);
+    B(gh, (size_t)K * hid);
+#undef B
+    return SOOC_OK;
+}
+
+void mdl_free_ws(sooc_model *m) {
+    dec_ws *w = &m->ws;
+    float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
+                    &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
+                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
+                    &w->g_bias};
+    for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) {
+        sooc_free(*fp[i]);
+        *fp[i] = NULL;
+    }
+    sooc_free(w->ro_pt);
+    sooc_free(w->ro_slot);
+    sooc_free(w->rowof);
+    w->ro_pt = w->ro_slot = w->rowof = NULL;
+    ref_ws *r = &m->rws;
+    float **rp[] = {&r->cols, &r->gcols, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
+                    &r->gg, &r->gh};
+    for (size_t i = 0; i < sizeof rp / sizeof rp[0]; i++) {
+        sooc_free(*rp[i]);
+        *rp[i] = NULL;
+    }
+}

@@ -1,0 +1,161 @@
+/* Internal structures of the model module (not a public API; tests include it). */
+#ifndef SOOC3D_MODEL_INTERNAL_H
+#define SOOC3D_MODEL_INTERNAL_H
+
+#include "sooc3d/model.h"
+#include "sooc3d/geom.h"
+
+#define MDL_NL(d) (6 + 2 * (d))   /* λ size per slot */
+#define MDL_MAXT 64               /* tensors */
+
+typedef struct dec_net {          /* offsets into the slab */
+    size_t W1x, W1z, b1, W2, b2, W3, b3, Wd, bd, Wc1, bc1, Wc2, bc2;
+    int din, dz, H, Hc, nfreq;
+} dec_net;
+
+typedef struct ref_net {
+    size_t cw[4], cb[4], fcW, fcb, Wx, Wh, lb, hW, hb;
+    int cin, ch[4], nflat, fc, hid, nvec, nout;
+} ref_net;
+
+/* Rays of one view in G_t (origin at the camera centre). P = 2 N points:
+ * point 2r = surface sample, 2r + 1 = air sample. */
+typedef struct view_rays {
+    int N, gw, gh;                /* N = gw * gh, ray r <-> grid cell (r / gw, r % gw) */
+    float *dir;                   /* N x 3 unit direction in G                         */
+    float *rgb;                   /* N x 3 observed colour in [0, 1]                   */
+    float *depth;                 /* N Euclidean depth (valid rays)                    */
+    uint8_t *surf;                /* N 1 = surface visible (d <= d_clip)               */
+    float *W;                     /* N air-sample importance weight                    */
+    float *pts;                   /* 2N x 3 points in G                                */
+    float h, pitch;               /* camera height, pitch                              */
+    float blk[3];                 /* active layout block origin in G (x, -h, z)        */
+} view_rays;
+
+/* Noise of one decode, shared with the reference. */
+typedef struct dec_noise {
+    float eps_where[SOOC_MODEL_K_MAX][3];
+    float eps_what[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX];
+    float logistic[SOOC_MODEL_K_MAX];
+    float eps_lay[SOOC_MODEL_D_MAX];
+} dec_noise;
+
+/* Workspace of the fused decoder (sized for P points and K slots at create). */
+typedef struct dec_ws {
+    int Pmax, Kmax;
+    /* object rows */
+    int nro; int *ro_pt, *ro_slot; int cnt[SOOC_MODEL_K_MAX + 1];
+    float *o_pe, *o_a1, *o_a2, *o_a3, *o_ac, *o_sig, *o_col, *o_xk, *o_gf;
+    /* layout rows (one per point) */
+    float *l_pe, *l_a1, *l_a2, *l_a3, *l_ac, *l_sig, *l_col;
+    /* backward scratch */
+    float *gA, *gB, *gC, *gpe;
+    /* dense per point x component (comp 0 = layout, 1..K objects) */
+    float *sh, *ct, *gsh, *gct; int *rowof;
+    float *S, *Sb, *cc;           /* per point */
+    float *ll;                    /* per ray log-lik (ell_c + ell_d) */
+    float *ll_cf;                 /* N x (K+1) counterfactual ell - ell_{-k} */
+    float *slot_bias;             /* (K+1) x H */
+    float *g_bias;                /* (K+1) x H */
+} dec_ws;
+
+/* One decode: inputs, outputs. */
+typedef struct dec_call {
+    const view_rays *rays;
+    int nslot;                    /* active object slots (<= K)                 */
+    const float *lam;             /* nslot x NL                                 */
+    const float *lam0;            /* nslot x NL prior (NULL: no KL, query view) */
+    const float *lay, *lay0;      /* 2 d_l (lay0 NULL: no layout KL)            */
+    const dec_noise *noise;
+    float tau, beta_kl, sigma_c;
+    const uint8_t *hard;          /* per slot: 0 relaxed, 1 straight-through hard, 2 forced one */
+    float wgrad;                  /* scale of decoder weight gradients (0: none)               */
+    const float *zw_sg;           /* TEST ONLY (nslot x 3): forward multiplies σ̂ by
+                                     w_g(Π(zw) x) / w_g(Π(zw_sg) x), i.e. the Gaussian trick
+                                     written as a forward, for finite-difference checks        */
+    int backward;                 /* 0: forward only                                           */
+    /* outputs */
+    double loss, nll, nll_d, nll_c, kl;
+    float *g_lam, *g_lam0, *g_lay, *g_lay0;   /* ACCUMULATED (+=) when non-NULL; UNWEIGHTED */
+    /* samples (outputs, for aux inputs) */
+    float zw[SOOC_MODEL_K_MAX][3], zwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX];
+    float zp[SOOC_MODEL_K_MAX], zp_soft[SOOC_MODEL_K_MAX], zlay[SOOC_MODEL_D_MAX];
+} dec_call;
+
+/* Refinement activations for one (view, iteration), B items. */
+typedef struct ref_act {
+    int B;
+    float *x0;                    /* B x cin x gh x gw  (stored as [c][b][hw]) */
+    float *y[4];                  /* conv outputs [c][b][hw] (post-ELU)        */
+    float *flat, *f;              /* B x nflat, B x fc (post-ELU)              */
+    float *xin;                   /* B x (fc + nvec)                           */
+    float *gates;                 /* B x 4H post-nonlinearity (i, f, g, o)     */
+    float *c_prev, *h_prev, *c, *h; /* B x H                                   */
+} ref_act;
+
+typedef struct ref_ws {           /* scratch for conv forward/backward */
+    float *cols, *gcols, *gy[4], *gflat, *gf, *gx, *gg, *gh;
+} ref_ws;
+
+struct sooc_model {
+    sooc_model_config cfg;
+    int NL;
+    float *p, *g;
+    size_t np;
+    sooc_model_tensor t[MDL_MAXT];
+    int nt;
+    dec_net dobj, dlay;
+    ref_net robj, rlay;
+    size_t prior, prior_lay;      /* K x NL, 2 d_l */
+    int threads;
+    dec_ws ws;
+    ref_ws rws;
+    void *step;                   /* training-step state (step.c) */
+};
+
+/* model.c */
+sooc_status mdl_alloc_ws(sooc_model *m);
+void mdl_free_ws(sooc_model *m);
+
+/* decoder.c */
+void mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n);
+sooc_status mdl_decode(sooc_model *m, dec_call *c);
+/* KL between two slot posteriors (accumulates gradients when non-NULL). */
+double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta,
+                   float *g_lam, float *g_lam0);
+double mdl_kl_gauss(int n, const float *mu, const float *rho, const float *mu0, const float *rho0,
+                    float rmin, float rmax, float beta, float *gmu, float *grho, float *gmu0,
+                    float *grho0);
+/* Rays of a frame: stratified grid with offset (ox, oy), samples from rng. */
+sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r,
+                          view_rays *vr, const double T_wg[16], double h, double pitch,
+                          const double blk_local[2]);
+sooc_status mdl_rays_alloc(view_rays *vr, int gw, int gh);
+void mdl_rays_free(view_rays *vr);
+/* Gaussian-trick density on a single point (exposed for tests):
+ * value = sig * zp; adds dL/dxk for upstream g into gxk (3). */
+void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]);
+/* Π: G point -> object-local; and its backward to (px, pz, th). */
+void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]);
+void mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
+
+/* refine.c */
+int mdl_aux_channels(int layout);
+/* Build the refinement inputs of every object slot (and the layout) after a
+ * decode with backward: images img[c][b][hw] for B = nslot (objects) and 1
+ * (layout), vector inputs vec [B x nvec]. */
+void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const float *g_lay,
+                    float *img_o, float *vec_o, float *img_l, float *vec_l);
+sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a);
+void mdl_ref_act_free(ref_act *a);
+/* forward: a->x0 and the vector part of a->xin must be filled; h_prev/c_prev too. out: B x nout */
+void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out);
+/* backward: gout B x nout; dh/dc: in = from the next iteration, out = to the previous.
+ * gvec (B x nvec) receives d/d(vector inputs) (+=). Weight grads accumulated. */
+void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh,
+                      const float *gout, float *dh, float *dc, float *gvec);
+
+/* step.c */
+void mdl_step_free(sooc_model *m);
+
+#endif

@@ -1,0 +1,389 @@
+/* Refinement inputs (model.md §3.1) and the refinement network (§3.2):
+ * conv 3x3 stride 2 SAME (TF padding: 0 before, 1 after) + ELU, FC + ELU,
+ * LSTMCell, linear head. Activations are [channel][item][pixel]. */
+#include "model/model_internal.h"
+
+#include <cblas.h>
+#include <math.h>
+#include <string.h>
+
+static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
+static inline float elu(float x) { return x > 0 ? x : expf(x) - 1.0f; }
+static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
+
+int mdl_aux_channels(int layout) { return layout ? 25 : 26; }
+
+/* MulMON layer norm over n values at stride 1: (x - mean) / (std + 1e-5). */
+static void ln_inplace(float *x, int n) {
+    double s = 0, s2 = 0;
+    for (int i = 0; i < n; i++) s += x[i];
+    float mean = (float)(s / n);
+    for (int i = 0; i < n; i++) s2 += (double)(x[i] - mean) * (x[i] - mean);
+    float inv = 1.0f / ((float)sqrt(s2 / n) + 1e-5f);
+    for (int i = 0; i < n; i++) x[i] = (x[i] - mean) * inv;
+}
+
+/* LN over channels [c0, c0 + nc) of item b (all pixels), image layout [c][B][HW]. */
+static void ln_img(float *img, int B, int HW, int b, int c0, int nc) {
+    double s = 0, s2 = 0;
+    int n = nc * HW;
+    for (int c = c0; c < c0 + nc; c++)
+        for (int i = 0; i < HW; i++) s += img[((size_t)c * B + b) * HW + i];
+    float mean = (float)(s / n);
+    for (int c = c0; c < c0 + nc; c++)
+        for (int i = 0; i < HW; i++) {
+            float v = img[((size_t)c * B + b) * HW + i] - mean;
+            s2 += (double)v * v;
+        }
+    float inv = 1.0f / ((float)sqrt(s2 / n) + 1e-5f);
+    for (int c = c0; c < c0 + nc; c++)
+        for (int i = 0; i < HW; i++) {
+            float *v = &img[((size_t)c * B + b) * HW + i];
+            *v = (*v - mean) * inv;
+        }
+}
+
+void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
+                    float *vec_o, float *img_l, float *vec_l) {
+    const sooc_model_config *cfg = &m->cfg;
+    const dec_ws *w = &m->ws;
+    const view_rays *vr = c->rays;
+    int N = vr->N, K = c->nslot, C = K + 1, NL = m->NL, d = cfg->d_what, dl = cfg->d_layout;
+    float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * smax;
+    float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c, is2 = 1.0f / (sigc * sigc);
+    float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI));
+    float inv_rh = 1.0f / cfg->box_rh, inv_b = 1.0f / cfg->block_size, s2 = cfg->gauss_s * cfg->gauss_s;
+    for (int comp = 0; comp < C; comp++) {
+        int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
+        float *img = lay ? img_l : img_o;
+#define CH(ch) (img + ((size_t)(ch) * B + b) * N)
+        int o = 0;
+        for (int rr = 0; rr < N; rr++) {
+            int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
+            for (int a = 0; a < 3; a++) CH(a)[rr] = vr->rgb[rr * 3 + a];
+            CH(3)[rr] = surf ? vr->depth[rr] / cfg->d_clip : 1.0f;
+            CH(4)[rr] = surf ? 0.0f : 1.0f;
+            for (int a = 0; a < 3; a++) CH(5 + a)[rr] = vr->dir[rr * 3 + a];
+            o = 8;
+            /* surface point in component frame */
+            float xk[3] = {0, 0, 0};
+            if (surf) {
+                const float *x = vr->pts + (size_t)ps * 3;
+                if (lay) {
+                    for (int a = 0; a < 3; a++) xk[a] = clampf((x[a] - vr->blk[a]) * inv_b, -3, 3);
+                } else {
+                    mdl_pi(x, c->zw[b][0], c->zw[b][1], c->zw[b][2], vr->h, xk);
+                    for (int a = 0; a < 3; a++) xk[a] = xk[a];
+                }
+            }
+            if (!lay) {
+                float wg = surf ? expf(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+                for (int a = 0; a < 3; a++) CH(o + a)[rr] = clampf(xk[a] * inv_rh, -3, 3);
+                CH(o + 3)[rr] = wg;
+                o += 4;
+            } else {
+                for (int a = 0; a < 3; a++) CH(o + a)[rr] = xk[a];
+                o += 3;
+            }
+            const float *sh_s = w->sh + (size_t)ps * C, *sh_a = w->sh + (size_t)pa * C;
+            const float *ct_s = w->ct + (size_t)ps * C * 3;
+            float S = w->S[ps];
+            CH(o)[rr] = sh_s[comp];
+            CH(o + 1)[rr] = surf ? sh_s[comp] / S : 0.0f;
+            for (int a = 0; a < 3; a++) CH(o + 2 + a)[rr] = ct_s[comp * 3 + a];
+            CH(o + 5)[rr] = sh_a[comp] * sh_a[comp] / w->S[pa];
+            /* colour posterior */
+            float post = 0;
+            if (surf) {
+                float lmax = -1e30f, lk = 0, lv[SOOC_MODEL_K_MAX + 1];
+                for (int k = 0; k < C; k++) {
+                    float e = 0;
+                    for (int a = 0; a < 3; a++) {
+                        float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
+                        e += dd * dd;
+                    }
+                    lv[k] = logf(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
+                    if (lv[k] > lmax) lmax = lv[k];
+                }
+                float z = 0;
+                for (int k = 0; k < C; k++) z += expf(lv[k] - lmax);
+                lk = expf(lv[comp] - lmax) / z;
+                post = lk;
+            }
+            CH(o + 6)[rr] = post;
+            CH(o + 7)[rr] = w->ll[rr];
+            /* counterfactual */
+            float lm;
+            {
+                float Sa = w->S[pa], Qa = w->Sb[pa] * Sa;
+                float Sa2 = Sa - sh_a[comp], Qa2 = Qa - sh_a[comp] * sh_a[comp];
+                if (Sa2 < 1e-8f) Sa2 = 1e-8f;
+                if (Qa2 < 0) Qa2 = 0;
+                lm = -vr->W[rr] * smax * Qa2 / Sa2;
+                if (surf) {
+                    float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
+                    if (S2 < 1e-8f) S2 = 1e-8f;
+                    if (Q2 < 0) Q2 = 0;
+                    lm += logf(smax * Q2 / S2 + eps_s);
+                    float e = 0;
+                    for (int a = 0; a < 3; a++) {
+                        float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;
+                        float dd = vr->rgb[rr * 3 + a] - cm;
+                        e += dd * dd;
+                    }
+                    lm += -0.5f * e * is2 - lognorm;
+                }
+            }
+            CH(o + 8)[rr] = w->ll[rr] - lm;
+            CH(o + 9)[rr] = w->gsh[(size_t)ps * C + comp];
+            CH(o + 10)[rr] = w->gsh[(size_t)pa * C + comp];
+            for (int a = 0; a < 3; a++) CH(o + 11 + a)[rr] = w->gct[((size_t)ps * C + comp) * 3 + a];
+        }
+        ln_img(img, B, N, b, o + 7, 1);
+        ln_img(img, B, N, b, o + 8, 1);
+        ln_img(img, B, N, b, o + 9, 1);
+        ln_img(img, B, N, b, o + 10, 1);
+        ln_img(img, B, N, b, o + 11, 3);
+#undef CH
+    }
+    /* vector inputs */
+    int nv = 2 * NL + 6;
+    for (int k = 0; k < K; k++) {
+        float *v = vec_o + (size_t)k * nv;
+        memcpy(v, c->lam + (size_t)k * NL, NL * sizeof(float));
+        memcpy(v + NL, g_lam + (size_t)k * NL, NL * sizeof(float));
+        ln_inplace(v + NL, NL);
+        v[2 * NL + 0] = c->zw[k][0];
+        v[2 * NL + 1] = c->zw[k][1];
+        v[2 * NL + 2] = c->zw[k][2];
+        v[2 * NL + 3] = c->zp[k];
+        v[2 * NL + 4] = vr->h;
+        v[2 * NL + 5] = vr->pitch;
+    }
+    memcpy(vec_l, c->lay, 2 * dl * sizeof(float));
+    memcpy(vec_l + 2 * dl, g_lay, 2 * dl * sizeof(float));
+    ln_inplace(vec_l + 2 * dl, 2 * dl);
+    vec_l[4 * dl] = vr->h;
+    vec_l[4 * dl + 1] = vr->pitch;
+    (void)d;
+}
+
+/* ---------------------------------------------------------------- network */
+
+sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a) {
+    memset(a, 0, sizeof *a);
+    a->B = B;
+    size_t HW = (size_t)gw * gh;
+    int ok = 1;
+#define A(p, cnt) ok &= (a->p = sooc_calloc((cnt), sizeof(float))) != NULL
+    A(x0, (size_t)n->cin * B * HW);
+    for (int i = 0; i < 4; i++) A(y[i], (size_t)n->ch[i] * B * (HW >> (2 * (i + 1))));
+    A(flat, (size_t)B * n->nflat);
+    A(f, (size_t)B * n->fc);
+    A(xin, (size_t)B * (n->fc + n->nvec));
+    A(gates, (size_t)B * 4 * n->hid);
+    A(c_prev, (size_t)B * n->hid);
+    A(h_prev, (size_t)B * n->hid);
+    A(c, (size_t)B * n->hid);
+    A(h, (size_t)B * n->hid);
+#undef A
+    if (!ok) {
+        mdl_ref_act_free(a);
+        return SOOC_ENOMEM;
+    }
+    return SOOC_OK;
+}
+
+void mdl_ref_act_free(ref_act *a) {
+    float **p[] = {&a->x0, &a->y[0], &a->y[1], &a->y[2], &a->y[3], &a->flat, &a->f, &a->xin, &a->gates,
+                   &a->c_prev, &a->h_prev, &a->c, &a->h};
+    for (size_t i = 0; i < sizeof p / sizeof p[0]; i++) {
+        sooc_free(*p[i]);
+        *p[i] = NULL;
+    }
+}
+
+static void im2col(const float *x, int Ci, int B, int Hi, int Wi, float *cols) {
+    int Ho = Hi / 2, Wo = Wi / 2, No = B * Ho * Wo;
+    for (int ci = 0; ci < Ci; ci++)
+        for (int ky = 0; ky < 3; ky++)
+            for (int kx = 0; kx < 3; kx++) {
+                float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
+                for (int b = 0; b < B; b++) {
+                    const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
+                    for (int oy = 0; oy < Ho; oy++) {
+                        int iy = 2 * oy + ky;
+                        float *r = row + ((size_t)b * Ho + oy) * Wo;
+                        if (iy >= Hi) {
+                            memset(r, 0, sizeof(float) * Wo);
+                            continue;
+                        }
+                        for (int ox = 0; ox < Wo; ox++) {
+                            int ix = 2 * ox + kx;
+                            r[ox] = ix < Wi ? xb[iy * Wi + ix] : 0.0f;
+                        }
+                    }
+                }
+            }
+}
+
+static void col2im(const float *cols, int Ci, int B, int Hi, int Wi, float *gx) {
+    int Ho = Hi / 2, Wo = Wi / 2, No = B * Ho * Wo;
+    memset(gx, 0, sizeof(float) * (size_t)Ci * B * Hi * Wi);
+    for (int ci = 0; ci < Ci; ci++)
+        for (int ky = 0; ky < 3; ky++)
+            for (int kx = 0; kx < 3; kx++) {
+                const float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
+                for (int b = 0; b < B; b++) {
+                    float *xb = gx + ((size_t)ci * B + b) * Hi * Wi;
+                    for (int oy = 0; oy < Ho; oy++) {
+                        int iy = 2 * oy + ky;
+                        if (iy >= Hi) continue;
+                        const float *r = row + ((size_t)b * Ho + oy) * Wo;
+                        for (int ox = 0; ox < Wo; ox++) {
+                            int ix = 2 * ox + kx;
+                            if (ix < Wi) xb[iy * Wi + ix] += r[ox];
+                        }
+                    }
+                }
+            }
+}
+
+void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
+    const float *p = m->p;
+    int B = a->B, H = n->hid, nin = n->fc + n->nvec;
+    float *cols = m->rws.cols;
+    const float *x = a->x0;
+    int Ci = n->cin, Hi = gh, Wi = gw;
+    for (int i = 0; i < 4; i++) {
+        int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, No = B * Ho * Wo;
+        im2col(x, Ci, B, Hi, Wi, cols);
+        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, Co, No, Ci * 9, 1.0f, p + n->cw[i], Ci * 9, cols, No,
+                    0.0f, a->y[i], No);
+        for (int co = 0; co < Co; co++) {
+            float bb = p[n->cb[i] + co];
+            float *y = a->y[i] + (size_t)co * No;
+            for (int j = 0; j < No; j++) y[j] = elu(y[j] + bb);
+        }
+        x = a->y[i];
+        Ci = Co, Hi = Ho, Wi = Wo;
+    }
+    int HW4 = Hi * Wi;
+    for (int b = 0; b < B; b++)
+        for (int c = 0; c < Ci; c++)
+            for (int i = 0; i < HW4; i++) a->flat[(size_t)b * n->nflat + c * HW4 + i] = a->y[3][((size_t)c * B + b) * HW4 + i];
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, n->fc, n->nflat, 1.0f, a->flat, n->nflat, p + n->fcW,
+                n->fc, 0.0f, a->f, n->fc);
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < n->fc; j++) {
+            float v = elu(a->f[(size_t)b * n->fc + j] + p[n->fcb + j]);
+            a->f[(size_t)b * n->fc + j] = v;
+            a->xin[(size_t)b * nin + j] = v;
+        }
+    float *gt = a->gates;
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, 4 * H, nin, 1.0f, a->xin, nin, p + n->Wx, 4 * H, 0.0f,
+                gt, 4 * H);
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, 4 * H, H, 1.0f, a->h_prev, H, p + n->Wh, 4 * H, 1.0f,
+                gt, 4 * H);
+    for (int b = 0; b < B; b++) {
+        float *g = gt + (size_t)b * 4 * H;
+        for (int j = 0; j < H; j++) {
+            float gi = sigm(g[j] + p[n->lb + j]), gf = sigm(g[H + j] + p[n->lb + H + j]);
+            float gg = tanhf(g[2 * H + j] + p[n->lb + 2 * H + j]), go = sigm(g[3 * H + j] + p[n->lb + 3 * H + j]);
+            g[j] = gi, g[H + j] = gf, g[2 * H + j] = gg, g[3 * H + j] = go;
+            float cc = gf * a->c_prev[(size_t)b * H + j] + gi * gg;
+            a->c[(size_t)b * H + j] = cc;
+            a->h[(size_t)b * H + j] = go * tanhf(cc);
+        }
+    }
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, n->nout, H, 1.0f, a->h, H, p + n->hW, n->nout, 0.0f,
+                out, n->nout);
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < n->nout; j++) out[(size_t)b * n->nout + j] += p[n->hb + j];
+}
+
+void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
+                      float *dc, float *gvec) {
+    const float *p = m->p;
+    float *g = m->g;
+    ref_ws *s = &m->rws;
+    int B = a->B, H = n->hid, nin = n->fc + n->nvec;
+    /* head */
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, H, n->nout, B, 1.0f, a->h, H, gout, n->nout, 1.0f, g + n->hW,
+                n->nout);
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < n->nout; j++) g[n->hb + j] += gout[(size_t)b * n->nout + j];
+    float *ghh = s->gh;   /* B x H: dL/dh */
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, H, n->nout, 1.0f, gout, n->nout, p + n->hW, n->nout, 0.0f,
+                ghh, H);
+    float *gg = s->gg;
+    for (int b = 0; b < B; b++) {
+        const float *gt = a->gates + (size_t)b * 4 * H;
+        float *q = gg + (size_t)b * 4 * H;
+        for (int j = 0; j < H; j++) {
+            size_t i = (size_t)b * H + j;
+            float gh_ = ghh[i] + dh[i];
+            float gi = gt[j], gf = gt[H + j], ggt = gt[2 * H + j], go = gt[3 * H + j];
+            float tc = tanhf(a->c[i]);
+            float gc = gh_ * go * (1 - tc * tc) + dc[i];
+            q[j] = gc * ggt * gi * (1 - gi);
+            q[H + j] = gc * a->c_prev[i] * gf * (1 - gf);
+            q[2 * H + j] = gc * gi * (1 - ggt * ggt);
+            q[3 * H + j] = gh_ * tc * go * (1 - go);
+            dc[i] = gc * gf;
+        }
+    }
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, nin, 4 * H, B, 1.0f, a->xin, nin, gg, 4 * H, 1.0f, g + n->Wx,
+                4 * H);
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, H, 4 * H, B, 1.0f, a->h_prev, H, gg, 4 * H, 1.0f, g + n->Wh,
+                4 * H);
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < 4 * H; j++) g[n->lb + j] += gg[(size_t)b * 4 * H + j];
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, H, 4 * H, 1.0f, gg, 4 * H, p + n->Wh, 4 * H, 0.0f, dh, H);
+    float *gx = s->gx;
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, nin, 4 * H, 1.0f, gg, 4 * H, p + n->Wx, 4 * H, 0.0f, gx,
+                nin);
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < n->nvec; j++) gvec[(size_t)b * n->nvec + j] += gx[(size_t)b * nin + n->fc + j];
+    /* FC */
+    float *gf = s->gf;
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < n->fc; j++) {
+            float y = a->f[(size_t)b * n->fc + j];
+            gf[(size_t)b * n->fc + j] = gx[(size_t)b * nin + j] * (y > 0 ? 1.0f : y + 1.0f);
+        }
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, n->nflat, n->fc, B, 1.0f, a->flat, n->nflat, gf, n->fc, 1.0f,
+                g + n->fcW, n->fc);
+    for (int b = 0; b < B; b++)
+        for (int j = 0; j < n->fc; j++) g[n->fcb + j] += gf[(size_t)b * n->fc + j];
+    float *gflat = s->gflat;
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, n->nflat, n->fc, 1.0f, gf, n->fc, p + n->fcW, n->fc, 0.0f,
+                gflat, n->nflat);
+    /* conv stack, top down */
+    int Hs[5], Ws[5], Cs[5];
+    Hs[0] = gh, Ws[0] = gw, Cs[0] = n->cin;
+    for (int i = 0; i < 4; i++) Hs[i + 1] = Hs[i] / 2, Ws[i + 1] = Ws[i] / 2, Cs[i + 1] = n->ch[i];
+    int HW4 = Hs[4] * Ws[4];
+    for (int b = 0; b < B; b++)
+        for (int c = 0; c < Cs[4]; c++)
+            for (int i = 0; i < HW4; i++) s->gy[3][((size_t)c * B + b) * HW4 + i] = gflat[(size_t)b * n->nflat + c * HW4 + i];
+    for (int i = 3; i >= 0; i--) {
+        int Co = Cs[i + 1], Ci = Cs[i], No = B * Hs[i + 1] * Ws[i + 1];
+        float *gy = s->gy[i];
+        const float *y = a->y[i];
+        for (size_t j = 0; j < (size_t)Co * No; j++) gy[j] *= y[j] > 0 ? 1.0f : y[j] + 1.0f;
+        const float *x = i ? a->y[i - 1] : a->x0;
+        im2col(x, Ci, B, Hs[i], Ws[i], s->cols);
+        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Ci * 9, No, 1.0f, gy, No, s->cols, No, 1.0f,
+                    g + n->cw[i], Ci * 9);
+        for (int co = 0; co < Co; co++) {
+            double sb = 0;
+            for (int j = 0; j < No; j++) sb += gy[(size_t)co * No + j];
+            g[n->cb[i] + co] += (float)sb;
+        }
+        if (i == 0) break;   /* inputs are stop-gradient */
+        cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Ci * 9, No, Co, 1.0f, p + n->cw[i], Ci * 9, gy, No, 0.0f,
+                    s->gcols, No);
+        col2im(s->gcols, Ci, B, Hs[i], Ws[i], s->gy[i - 1]);
+    }
+}
