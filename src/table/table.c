@@ -401,6 +401,7 @@ struct sooc_table_writer {
     uint32_t *rq_slot;      /* FIFO of removed slots, by removal epoch */
     uint64_t *rq_epoch;
     uint32_t rq_head, rq_len;
+    uint8_t *rq_seen; /* scratch bitmap for rq_compact */
 
     pthread_t hb_thread;
     int hb_running;
@@ -490,11 +491,30 @@ static void end_batch_raw(sooc_table_writer *w) {
     w->in_batch = 0;
 }
 
+/* Drop stale entries (slot resurrected or re-removed later) and duplicates.
+ * Afterwards each slot appears at most once, so rq_len <= capacity. */
+static void rq_compact(sooc_table_writer *w) {
+    memset(w->rq_seen, 0, ((size_t)w->cap + 7) / 8);
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < w->rq_len; k++) {
+        uint32_t i = (w->rq_head + k) % w->cap;
+        uint32_t slot = w->rq_slot[i];
+        uint64_t e = w->rq_epoch[i];
+        if (w->removed_at[slot] != e || (w->rq_seen[slot / 8] & (1u << (slot % 8)))) continue;
+        w->rq_seen[slot / 8] |= (uint8_t)(1u << (slot % 8));
+        uint32_t j = (w->rq_head + n) % w->cap;
+        w->rq_slot[j] = slot;
+        w->rq_epoch[j] = e;
+        n++;
+    }
+    w->rq_len = n;
+}
+
 static void rq_push(sooc_table_writer *w, uint32_t slot, uint64_t epoch) {
-    /* at most one live entry per slot, plus stale ones of resurrected slots;
-     * drop the oldest stale entry if the ring is full (cannot happen with
-     * valid use: entries <= removals since the last reclaim <= capacity) */
-    if (w->rq_len == w->cap) {
+    /* Entries of resurrected slots go stale; a writer that clears and
+     * re-inserts every batch would fill the ring with them, so compact. */
+    if (w->rq_len == w->cap) rq_compact(w);
+    if (w->rq_len == w->cap) { /* cannot happen: each slot is live at most once */
         w->rq_head = (w->rq_head + 1) % w->cap;
         w->rq_len--;
     }
@@ -550,8 +570,9 @@ static int writer_alloc_state(sooc_table_writer *w) {
     w->free_slots = calloc(w->cap, sizeof *w->free_slots);
     w->rq_slot = calloc(w->cap, sizeof *w->rq_slot);
     w->rq_epoch = calloc(w->cap, sizeof *w->rq_epoch);
+    w->rq_seen = calloc(((size_t)w->cap + 7) / 8, 1);
     if (!w->keys || !w->vals || !w->slot_id || !w->removed_at || !w->free_slots || !w->rq_slot ||
-        !w->rq_epoch)
+        !w->rq_epoch || !w->rq_seen)
         return SOOC_TABLE_ENOMEM;
     return SOOC_TABLE_OK;
 }
@@ -565,6 +586,7 @@ static void writer_free(sooc_table_writer *w) {
     free(w->free_slots);
     free(w->rq_slot);
     free(w->rq_epoch);
+    free(w->rq_seen);
     if (w->h) munmap(w->h, w->size);
     if (w->fd >= 0) close(w->fd); /* releases the flock */
     free(w);

@@ -218,8 +218,51 @@ static void test_version_check(void) {
     shm_unlink(shm);
 }
 
+/* The node's pattern: clear and re-insert everything every batch. Removed
+ * slots must still be reclaimed afterwards (no slot leak in the queue). */
+static void test_clear_reinsert(void) {
+    char name[64];
+    tt_name(name, sizeof name, "reins");
+    sooc_table_writer *w = NULL;
+    CHECK(sooc_table_create_writer(name, 4, 0, "map", &w) == 0);
+    if (!w) return;
+    sooc_table_record rec;
+    for (int b = 0; b < 50; b++) {
+        CHECK(sooc_table_begin_batch(w) == 0);
+        CHECK(sooc_table_clear(w) == 0);
+        for (uint64_t id = 1; id <= 4; id++) {
+            tt_make(&rec, id, (uint32_t)b);
+            CHECK(sooc_table_upsert(w, &rec) == 0);
+        }
+        CHECK(sooc_table_end_batch(w) == 0);
+    }
+    CHECK(sooc_table_writer_count(w) == 4);
+    CHECK(sooc_table_begin_batch(w) == 0);
+    CHECK(sooc_table_remove(w, 4) == 0);
+    CHECK(sooc_table_end_batch(w) == 0);
+    for (int b = 0; b < 2; b++) {
+        CHECK(sooc_table_begin_batch(w) == 0);
+        CHECK(sooc_table_end_batch(w) == 0);
+    }
+    CHECK(sooc_table_begin_batch(w) == 0);
+    tt_make(&rec, 5, 1);
+    CHECK(sooc_table_upsert(w, &rec) == 0);
+    tt_make(&rec, 6, 1);
+    CHECK(sooc_table_upsert(w, &rec) == SOOC_TABLE_EFULL);
+    CHECK(sooc_table_end_batch(w) == 0);
+    sooc_table_reader *r = NULL;
+    CHECK(sooc_table_open_reader(name, &r) == 0);
+    sooc_table_record out[4];
+    uint32_t n = 0;
+    CHECK(r && sooc_table_snapshot(r, out, 4, &n, NULL) == 0 && n == 4);
+    CHECK(sooc_table_find(r, 4, &rec) == SOOC_TABLE_ENOENT && sooc_table_find(r, 5, &rec) == 0);
+    sooc_table_close_reader(r);
+    CHECK(sooc_table_close_writer(w, 1) == 0);
+}
+
 int main(void) {
     test_abi();
+    test_clear_reinsert();
     test_names();
     test_roundtrip();
     test_version_check();
