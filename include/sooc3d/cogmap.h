@@ -71,7 +71,7 @@ typedef struct sooc_cogmap sooc_cogmap;
 typedef struct sooc_cogmap_params {
     int dim;              /* object latent dim d, 1..32                      (32)  */
     int layout_dim;       /* layout latent dim d_l, 0..32 (0 = no layout)    (16)  */
-    double cell_size;     /* hash-grid cell side on the floor, metres        (2.0) */
+    double cell_size;     /* hash-grid cell side on the floor, metres        (4.0) */
     double block_size;    /* layout block side B_s, metres                   (4.0) */
     size_t capacity;      /* initial entry capacity (grows as needed)      (1024) */
 } sooc_cogmap_params;

@@ -32,36 +32,32 @@ static uint64_t mix64(uint64_t x) {
 }
 
 static void hmap_free(sooc_hmap *h) {
-    sooc_free(h->keys);
-    sooc_free(h->vals);
+    sooc_free(h->s);
     memset(h, 0, sizeof *h);
 }
 
 static sooc_status hmap_init(sooc_hmap *h, size_t cap) {
     size_t c = 16;
     while (c < cap) c <<= 1;
-    h->keys = sooc_malloc(c * sizeof *h->keys);
-    h->vals = sooc_malloc(c * sizeof *h->vals);
-    if (!h->keys || !h->vals) {
-        hmap_free(h);
-        return sooc_seterr(SOOC_ENOMEM, "cogmap: hash table of %zu slots", c);
-    }
-    memset(h->vals, 0xff, c * sizeof *h->vals);
+    h->s = sooc_malloc(c * sizeof *h->s);
+    if (!h->s) return sooc_seterr(SOOC_ENOMEM, "cogmap: hash table of %zu slots", c);
+    for (size_t i = 0; i < c; i++) h->s[i].val = SOOC_HEMPTY;
     h->cap = c;
     h->n = 0;
     return SOOC_OK;
 }
 
 static void hmap_reset(sooc_hmap *h) {
-    if (h->vals) memset(h->vals, 0xff, h->cap * sizeof *h->vals);
+    for (size_t i = 0; i < h->cap; i++) h->s[i].val = SOOC_HEMPTY;
     h->n = 0;
 }
 
 static uint32_t hmap_get(const sooc_hmap *h, uint64_t key) {
     size_t mask = h->cap - 1, i = (size_t)mix64(key) & mask;
     for (;;) {
-        if (h->vals[i] == SOOC_HEMPTY) return SOOC_HEMPTY;
-        if (h->keys[i] == key) return h->vals[i];
+        const sooc_hslot *sl = &h->s[i];
+        if (sl->val == SOOC_HEMPTY) return SOOC_HEMPTY;
+        if (sl->key == key) return sl->val;
         i = (i + 1) & mask;
     }
 }
@@ -69,30 +65,37 @@ static uint32_t hmap_get(const sooc_hmap *h, uint64_t key) {
 static void hmap_put_noresize(sooc_hmap *h, uint64_t key, uint32_t val) {
     size_t mask = h->cap - 1, i = (size_t)mix64(key) & mask;
     for (;;) {
-        if (h->vals[i] == SOOC_HEMPTY) {
-            h->keys[i] = key;
-            h->vals[i] = val;
+        sooc_hslot *sl = &h->s[i];
+        if (sl->val == SOOC_HEMPTY) {
+            sl->key = key;
+            sl->val = val;
             h->n++;
             return;
         }
-        if (h->keys[i] == key) {
-            h->vals[i] = val;
+        if (sl->key == key) {
+            sl->val = val;
             return;
         }
         i = (i + 1) & mask;
     }
 }
 
+static sooc_status hmap_grow(sooc_hmap *h, size_t cap) {
+    sooc_hmap g = {0};
+    sooc_status s = hmap_init(&g, cap);
+    if (s) return s;
+    for (size_t i = 0; i < h->cap; i++)
+        if (h->s[i].val != SOOC_HEMPTY) hmap_put_noresize(&g, h->s[i].key, h->s[i].val);
+    hmap_free(h);
+    *h = g;
+    return SOOC_OK;
+}
+
 /* Insert or overwrite; grows to keep the load factor <= 1/2. */
 static sooc_status hmap_put(sooc_hmap *h, uint64_t key, uint32_t val) {
     if ((h->n + 1) * 2 > h->cap) {
-        sooc_hmap g = {0};
-        sooc_status s = hmap_init(&g, h->cap * 2);
+        sooc_status s = hmap_grow(h, h->cap * 2);
         if (s) return s;
-        for (size_t i = 0; i < h->cap; i++)
-            if (h->vals[i] != SOOC_HEMPTY) hmap_put_noresize(&g, h->keys[i], h->vals[i]);
-        hmap_free(h);
-        *h = g;
     }
     hmap_put_noresize(h, key, val);
     return SOOC_OK;
@@ -102,24 +105,23 @@ static sooc_status hmap_put(sooc_hmap *h, uint64_t key, uint32_t val) {
 static void hmap_del(sooc_hmap *h, uint64_t key) {
     size_t mask = h->cap - 1, i = (size_t)mix64(key) & mask;
     for (;;) {
-        if (h->vals[i] == SOOC_HEMPTY) return;
-        if (h->keys[i] == key) break;
+        if (h->s[i].val == SOOC_HEMPTY) return;
+        if (h->s[i].key == key) break;
         i = (i + 1) & mask;
     }
     h->n--;
     size_t j = i;
     for (;;) {
-        h->vals[i] = SOOC_HEMPTY;
+        h->s[i].val = SOOC_HEMPTY;
         for (;;) {
             j = (j + 1) & mask;
-            if (h->vals[j] == SOOC_HEMPTY) return;
-            size_t home = (size_t)mix64(h->keys[j]) & mask;
+            if (h->s[j].val == SOOC_HEMPTY) return;
+            size_t home = (size_t)mix64(h->s[j].key) & mask;
             /* move j to i unless home lies cyclically in (i, j] */
             if (i <= j ? (i < home && home <= j) : (i < home || home <= j)) continue;
             break;
         }
-        h->keys[i] = h->keys[j];
-        h->vals[i] = h->vals[j];
+        h->s[i] = h->s[j];
         i = j;
     }
 }
@@ -131,7 +133,7 @@ static uint64_t pack2(int32_t a, int32_t b) { return ((uint64_t)(uint32_t)a << 3
 void sooc_cogmap_params_default(sooc_cogmap_params *p) {
     p->dim = 32;
     p->layout_dim = 16;
-    p->cell_size = 2.0;
+    p->cell_size = 4.0;
     p->block_size = 4.0;
     p->capacity = 1024;
 }
@@ -252,6 +254,8 @@ static sooc_status cell_add(sooc_cogmap *m, uint32_t c, uint32_t idx) {
     }
     cl->mem[cl->n].X = m->ent[idx].X;
     cl->mem[cl->n].Z = m->ent[idx].Z;
+    cl->mem[cl->n].id = m->ent[idx].id;
+    cl->mem[cl->n].pres = m->ent[idx].pres_logit;
     cl->mem[cl->n].idx = idx;
     m->loc[idx].cell = c;
     m->loc[idx].slot = cl->n;
@@ -324,6 +328,7 @@ static sooc_status ent_put(sooc_cogmap *m, const sooc_cogmap_entry *e) {
         if (cl->ci == ci && cl->cj == cj) {
             cl->mem[m->loc[idx].slot].X = e->X;
             cl->mem[m->loc[idx].slot].Z = e->Z;
+            cl->mem[m->loc[idx].slot].pres = e->pres_logit;
             return SOOC_OK;
         }
         uint32_t c = cell_get_or_add(m, ci, cj);
@@ -675,18 +680,18 @@ sooc_status sooc_cogmap_query(const sooc_cogmap *m, const sooc_cogmap_camera *ca
             for (uint32_t i = 0; i < cl->n; i++) {
                 const sooc_cell_member *mb = &cl->mem[i];
                 if (mb->X < lo[0] || mb->X > hi[0] || mb->Z < lo[1] || mb->Z > hi[1]) continue;
-                const sooc_cogmap_entry *e = &m->ent[mb->idx];
-                if (!qcam_in_view(&q, e)) continue;
+                if (q.corners ? !qcam_in_view(&q, &m->ent[mb->idx]) : !point_in_view(&q, mb->X, 0.5 * q.H_b, mb->Z))
+                    continue;
                 nin++;
                 if (k == 0) continue;
-                if (nb == k && !cand_before(e->pres_logit, e->id, best[k - 1].pres, best[k - 1].id)) continue;
+                if (nb == k && !cand_before(mb->pres, mb->id, best[k - 1].pres, best[k - 1].id)) continue;
                 int j = nb < k ? nb++ : k - 1;
-                while (j > 0 && cand_before(e->pres_logit, e->id, best[j - 1].pres, best[j - 1].id)) {
+                while (j > 0 && cand_before(mb->pres, mb->id, best[j - 1].pres, best[j - 1].id)) {
                     best[j] = best[j - 1];
                     j--;
                 }
-                best[j].pres = e->pres_logit;
-                best[j].id = e->id;
+                best[j].pres = mb->pres;
+                best[j].id = mb->id;
                 best[j].idx = mb->idx;
             }
         }
@@ -736,15 +741,9 @@ sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int
         if (lam[(size_t)i * S + SOOC_LAM_PRES(d)] >= 0.0f && !(src_ids && src_ids[i])) n_new++;
     sooc_status s = ent_reserve(m, m->n + (size_t)n_new);
     if (s) return s;
-    while ((m->ids.n + (size_t)n_new) * 2 > m->ids.cap) {
-        /* grow the id table now (a put of an existing key never grows) */
-        sooc_hmap g = {0};
-        if ((s = hmap_init(&g, m->ids.cap * 2))) return s;
-        for (size_t i = 0; i < m->ids.cap; i++)
-            if (m->ids.vals[i] != SOOC_HEMPTY) hmap_put_noresize(&g, m->ids.keys[i], m->ids.vals[i]);
-        hmap_free(&m->ids);
-        m->ids = g;
-    }
+    /* grow the id table now, so the puts below cannot fail */
+    if ((m->ids.n + (size_t)n_new) * 2 > m->ids.cap && (s = hmap_grow(&m->ids, 2 * (m->ids.n + (size_t)n_new))))
+        return s;
 
     sooc_cogmap_reg_stats r = {0};
     for (int i = 0; i < k; i++) {

@@ -6,17 +6,24 @@
 
 #define SOOC_HEMPTY 0xffffffffu
 
-/* open-addressing u64 -> u32 map; vals[i] == SOOC_HEMPTY marks a free slot */
+/* open-addressing u64 -> u32 map; key and value share a slot (one cache line
+ * per probe); val == SOOC_HEMPTY marks a free slot */
+typedef struct sooc_hslot {
+    uint64_t key;
+    uint32_t val, pad;
+} sooc_hslot;
 typedef struct sooc_hmap {
-    uint64_t *keys;
-    uint32_t *vals;
+    sooc_hslot *s;
     size_t cap, n;   /* cap is a power of two */
 } sooc_hmap;
 
+/* A cell member carries copies of what the centre-mode in-view test and the
+ * top-K ranking need, so a query touches entries only for the K winners. */
 typedef struct sooc_cell_member {
-    double X, Z;     /* copy of the entry's floor position (pre-filter without touching entries) */
+    double X, Z;     /* entry's floor position */
+    uint64_t id;
+    float pres;      /* presence logit */
     uint32_t idx;    /* dense entry index */
-    uint32_t pad;
 } sooc_cell_member;
 
 typedef struct sooc_cell {

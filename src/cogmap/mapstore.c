@@ -37,7 +37,7 @@ static const char *k_sql[ST_COUNT] = {
     "INSERT OR REPLACE INTO layout(bi, bj, dim, latent_version, mu, logvar) VALUES(?1,?2,?3,?4,?5,?6)",
     "INSERT OR REPLACE INTO meta(key, value) VALUES(?1, ?2)",
     "INSERT INTO keyframes(t_ns, view, tx, ty, tz, qx, qy, qz, qw, n_changed, n_removed, n_entries) "
-    "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,(SELECT count(*) FROM entries))",
+    "VALUES(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12)",
     "SELECT " ENTRY_COLS " FROM entries WHERE id = ?1",
 };
 
@@ -472,6 +472,7 @@ sooc_status sooc_mapstore_commit_keyframe(sooc_mapstore *s, const sooc_cogmap *m
         for (int i = 0; i < 4; i++) sqlite3_bind_double(k, 6 + i, q[i]);
         sqlite3_bind_int64(k, 10, (sqlite3_int64)n_changed);
         sqlite3_bind_int64(k, 11, (sqlite3_int64)kf->n_removed);
+        sqlite3_bind_int64(k, 12, (sqlite3_int64)sooc_cogmap_count(map)); /* the map after this keyframe */
         if ((st = step_done(s, k, "writing a keyframe"))) goto fail;
     }
     return sooc_mapstore_commit(s);
