@@ -149,6 +149,12 @@ int main(void) {
     double t0 = sooc_seconds();
     CHECK_OK(sooc_render_view(&f, &K, T_gc, &o, &out));
     double t_render = sooc_seconds() - t0;
+    {   /* printed so builds with and without OpenMP can be compared */
+        uint32_t crc = sooc_crc32(0, out.rgb, (size_t)W * H * 3 * sizeof(float));
+        crc = sooc_crc32(crc, out.depth, (size_t)W * H * sizeof(float));
+        crc = sooc_crc32(crc, out.label, (size_t)W * H * sizeof(int16_t));
+        printf("render crc32 %08x\n", crc);
+    }
 
     /* ---- depth and labels against ray casting ---- */
     double R[9], tt[3];
