@@ -1,0 +1,106 @@
+/*
+ * sooc3d RGB-D sequence readers and the synthetic-layout writer
+ * (docs/formats.md §Sequences).
+ *
+ * Formats (auto-detected in this order, or forced):
+ *  - TUM / sooc3d synthetic: rgb.txt, depth.txt, groundtruth.txt
+ *    (`t tx ty tz qx qy qz qw`, camera-to-world), rgb/, depth/ (16-bit PNG),
+ *    calib.yaml (depth_scale); optional instance/ (16-bit ids) and
+ *    scene.yaml (query views). Streams are associated by nearest timestamp
+ *    within max_dt; rgb frames without a depth match are dropped, frames
+ *    without a pose match get has_pose = 0.
+ *  - 7-Scenes / label-fusion: frame-%06d.{color.png, depth.png, pose.txt},
+ *    camera-intrinsics.color.txt (3x3) or calib.yaml.
+ *  - slambook2: pose.txt (`tx ty tz qx qy qz qw` per line, line i = frame
+ *    i+1), color/N.png, depth/N.{pgm,png}; intrinsics and depth_scale must
+ *    come from p->calib_path or <dir>/calib.yaml.
+ *  - Replica (NICE-SLAM): traj.txt (16 floats per line, row-major c2w),
+ *    results/frame%06d.png, results/depth%06d.png (JPEG colour is not
+ *    supported: convert to PNG).
+ *
+ * Every reader validates at open: missing files, unparsable numbers,
+ * non-monotonic timestamps, non-orthonormal rotations; and at read: image
+ * sizes against the calibration and each other, depth bit depth (must be
+ * 16-bit). Messages name the file and the line, e.g.
+ * "seq/groundtruth.txt:7: rotation is not orthonormal (error 0.02)".
+ *
+ * A camera with fy < 0 (ICL-NUIM) is converted to fy > 0 by mirroring the
+ * world y axis: T_wc' = S T_wc S with S = diag(1, -1, 1, 1), cy unchanged
+ * (the image is not flipped).
+ *
+ * Thread safety: a sooc_seq may be used by one thread at a time; distinct
+ * sequences are independent.
+ */
+#ifndef SOOC3D_SEQ_H
+#define SOOC3D_SEQ_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/calib.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sooc_seq_format {
+    SOOC_SEQ_AUTO = 0,
+    SOOC_SEQ_TUM,        /* TUM RGB-D and the sooc3d synthetic layout */
+    SOOC_SEQ_7SCENES,    /* frame-%06d.* (7-Scenes, label-fusion)    */
+    SOOC_SEQ_SLAMBOOK,   /* pose.txt + color/ + depth/               */
+    SOOC_SEQ_REPLICA     /* NICE-SLAM Replica traj.txt + results/    */
+} sooc_seq_format;
+
+const char *sooc_seq_format_name(sooc_seq_format f);
+/* "auto", "tum", "7scenes", "slambook", "replica" */
+sooc_status sooc_seq_format_parse(const char *s, sooc_seq_format *out);
+
+typedef struct sooc_seq_open_params {
+    sooc_seq_format format;   /* AUTO = detect                                         */
+    const char *calib_path;   /* calib YAML overriding <dir>/calib.yaml (may be NULL)  */
+    double depth_scale;       /* > 0 overrides the calibration's depth_scale (m/unit)  */
+    int depth_shift;          /* right-shift raw depth before scaling (label-fusion: 3) */
+    double max_dt;            /* TUM association tolerance in seconds (default 0.02)   */
+    double rot_tol;           /* orthonormality tolerance (default 1e-3)               */
+    double max_depth;         /* depths beyond this are invalid (0 = no limit)         */
+} sooc_seq_open_params;
+
+void sooc_seq_open_params_default(sooc_seq_open_params *p);
+
+typedef struct sooc_seq sooc_seq;
+
+/* Open and validate a sequence directory. p may be NULL (defaults). On
+ * failure *out = NULL and the message names the file and line. */
+sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_params *p);
+int64_t sooc_seq_count(const sooc_seq *s);
+/* Read frame i (0 <= i < count) into f. f must be zero-initialised or hold a
+ * frame from an earlier call (its buffers are reused when the size matches).
+ * Fills rgb, depth (planar metres, 0 = invalid), valid, instance (synthetic
+ * layout only, else NULL), t_ns, has_pose/T_wc, K, index, is_query. */
+sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f);
+sooc_seq_format sooc_seq_get_format(const sooc_seq *s);
+const sooc_calib *sooc_seq_calib(const sooc_seq *s);
+/* Number of rgb entries dropped because no depth matched (TUM). */
+int64_t sooc_seq_dropped(const sooc_seq *s);
+void sooc_seq_close(sooc_seq *s);   /* NULL-safe */
+
+/* ------------------------------------------------------------- writer */
+
+/* Writes the sooc3d synthetic layout (TUM + calib.yaml [+ instance/]):
+ * rgb/%06d.png, depth/%06d.png (16-bit, round(z / depth_scale)),
+ * instance/%06d.png when frames carry ids, and on finish rgb.txt, depth.txt,
+ * groundtruth.txt (timestamps from frame t_ns, 6 decimals) and calib.yaml
+ * (calib->depth_scale must be > 0; depths beyond 65535 units are stored as 0). */
+typedef struct sooc_seq_writer sooc_seq_writer;
+
+sooc_status sooc_seq_writer_create(sooc_seq_writer **out, const char *dir, const sooc_calib *calib,
+                                   int64_t n_frames);
+/* Write frame slot i (0 <= i < n_frames). Thread-safe for distinct i. */
+sooc_status sooc_seq_writer_put(sooc_seq_writer *w, int64_t i, const sooc_frame *f);
+/* Write the index files; fails if a slot was never put. */
+sooc_status sooc_seq_writer_finish(sooc_seq_writer *w);
+void sooc_seq_writer_destroy(sooc_seq_writer *w);  /* NULL-safe */
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_SEQ_H */

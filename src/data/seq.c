@@ -1,0 +1,891 @@
+/* RGB-D sequence readers (TUM/synthetic, 7-Scenes/label-fusion, slambook2,
+ * Replica/NICE-SLAM) with strict validation, and the synthetic writer. */
+#include "sooc3d/seq.h"
+#include "sooc3d/image.h"
+#include "sooc3d/scene.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct seq_entry {
+    char *rgb, *depth, *inst;     /* full paths (inst may be NULL) */
+    int64_t t_ns;
+    int has_pose;
+    double T[16];
+    int line;                     /* line in `src` that listed this frame (0 = none) */
+    const char *src;              /* file that listed it (points into seq->srcnames) */
+    int is_query;
+} seq_entry;
+
+struct sooc_seq {
+    sooc_seq_format fmt;
+    char dir[2048];
+    char srcname[2][4096];        /* list files named in messages */
+    sooc_calib calib;
+    double depth_scale, max_depth;
+    int depth_shift;
+    int flip_y;
+    seq_entry *e;
+    int64_t n, cap, dropped;
+    sooc_image img_rgb, img_depth, img_inst;
+};
+
+const char *sooc_seq_format_name(sooc_seq_format f) {
+    static const char *n[] = {"auto", "tum", "7scenes", "slambook", "replica"};
+    return (unsigned)f < 5 ? n[f] : "?";
+}
+
+sooc_status sooc_seq_format_parse(const char *s, sooc_seq_format *out) {
+    for (int i = 0; i < 5; i++)
+        if (s && !strcmp(s, sooc_seq_format_name((sooc_seq_format)i))) {
+            *out = (sooc_seq_format)i;
+            return SOOC_OK;
+        }
+    return sooc_seterr(SOOC_EINVAL, "unknown sequence format '%s' (auto, tum, 7scenes, slambook, replica)",
+                       s ? s : "");
+}
+
+void sooc_seq_open_params_default(sooc_seq_open_params *p) {
+    memset(p, 0, sizeof *p);
+    p->max_dt = 0.02;
+    p->rot_tol = 1e-3;
+}
+
+/* ------------------------------------------------------------ helpers */
+
+static char *join_dup(const char *a, const char *b) {
+    char buf[4096];
+    if (sooc_path_join(buf, sizeof buf, a, b)) return NULL;
+    return sooc_strdup(buf);
+}
+
+static sooc_status push_entry(sooc_seq *s, seq_entry **out) {
+    if (s->n == s->cap) {
+        int64_t cap = s->cap ? s->cap * 2 : 256;
+        seq_entry *e = sooc_realloc(s->e, sizeof *e * (size_t)cap);
+        if (!e) return SOOC_ENOMEM;
+        s->e = e;
+        s->cap = cap;
+    }
+    *out = &s->e[s->n++];
+    memset(*out, 0, sizeof **out);
+    sooc_se3_identity((*out)->T);
+    return SOOC_OK;
+}
+
+/* Split `line` in place into at most `max` whitespace-separated tokens. */
+static int tokenize(char *line, char **tok, int max) {
+    int n = 0;
+    char *p = line;
+    while (*p) {
+        while (*p == ' ' || *p == '\t' || *p == '\r' || *p == ',') p++;
+        if (!*p) break;
+        if (n == max) return max + 1;
+        tok[n++] = p;
+        while (*p && *p != ' ' && *p != '\t' && *p != '\r' && *p != ',') p++;
+        if (*p) *p++ = 0;
+    }
+    return n;
+}
+
+static int parse_double(const char *t, double *v) {
+    char *end;
+    *v = strtod(t, &end);
+    return end != t && *end == 0 && isfinite(*v);
+}
+
+/* Decimal seconds -> ns without double rounding for plain decimals. */
+static int parse_time_ns(const char *t, int64_t *ns) {
+    const char *p = t;
+    int neg = 0;
+    if (*p == '-') { neg = 1; p++; }
+    int64_t ip = 0, fp = 0;
+    int nd = 0, fd = 0;
+    while (*p >= '0' && *p <= '9') {
+        if (ip > 9000000000LL) return 0;
+        ip = ip * 10 + (*p++ - '0');
+        nd++;
+    }
+    if (*p == '.') {
+        p++;
+        while (*p >= '0' && *p <= '9') {
+            if (fd < 9) { fp = fp * 10 + (*p - '0'); fd++; }
+            p++;
+            nd++;
+        }
+    }
+    if (*p || nd == 0) {
+        double v;
+        if (!parse_double(t, &v) || fabs(v) > 9e9) return 0;
+        *ns = (int64_t)llround(v * 1e9);
+        return 1;
+    }
+    while (fd < 9) { fp *= 10; fd++; }
+    *ns = (neg ? -1 : 1) * (ip * 1000000000LL + fp);
+    return 1;
+}
+
+/* Iterate the lines of a text file: calls fn(user, lineno, line) for each
+ * line that is not empty and not a # comment. */
+typedef sooc_status (*line_fn)(void *user, int lineno, char *line);
+static sooc_status for_lines(const char *path, line_fn fn, void *user) {
+    void *buf;
+    size_t n;
+    sooc_status s = sooc_file_read_all(path, (size_t)256 << 20, &buf, &n);
+    if (s) return s;
+    char *p = buf, *end = p + n;
+    int lineno = 0;
+    while (p < end && !s) {
+        char *nl = memchr(p, '\n', (size_t)(end - p));
+        char *le = nl ? nl : end;
+        *le = 0;
+        lineno++;
+        char *q = p;
+        while (*q == ' ' || *q == '\t' || *q == '\r') q++;
+        if (*q && *q != '#') s = fn(user, lineno, q);
+        p = le + 1;
+    }
+    sooc_free(buf);
+    return s;
+}
+
+static sooc_status check_rotation(const char *file, int line, const double R[9], double tol) {
+    double err;
+    for (int i = 0; i < 9; i++)
+        if (!isfinite(R[i])) return sooc_seterr(SOOC_EINVAL, "%s:%d: non-finite rotation", file, line);
+    if (!sooc_m3_is_rotation(R, tol, &err))
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: rotation is not orthonormal (error %.3g > %.3g)", file,
+                           line, err, tol);
+    return SOOC_OK;
+}
+
+static sooc_status quat_pose(const char *file, int line, char **tok, double T[16], double tol) {
+    double v[7];
+    for (int k = 0; k < 7; k++)
+        if (!parse_double(tok[k], &v[k]))
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a number", file, line, tok[k]);
+    double qn = sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
+    if (fabs(qn - 1) > tol)
+        return sooc_seterr(SOOC_EINVAL,
+                           "%s:%d: quaternion norm %.6g is not 1: rotation is not orthonormal", file,
+                           line, qn);
+    double R[9];
+    sooc_quat_to_m3(R, v + 3);
+    sooc_se3_from_rt(T, R, v);
+    return SOOC_OK;
+}
+
+static sooc_status need_file(const char *list, int line, const char *path) {
+    if (!sooc_file_exists(path)) {
+        if (line > 0) return sooc_seterr(SOOC_ENOTFOUND, "%s:%d: %s: missing file", list, line, path);
+        return sooc_seterr(SOOC_ENOTFOUND, "%s: missing file", path);
+    }
+    return SOOC_OK;
+}
+
+/* Load calibration: explicit path, else <dir>/calib.yaml. Returns
+ * ENOTFOUND (without error text) when neither exists and !required. */
+static sooc_status load_calib(sooc_seq *s, const sooc_seq_open_params *p, int required) {
+    char path[4096];
+    if (p->calib_path) return sooc_calib_load(p->calib_path, &s->calib);
+    sooc_status st = sooc_path_join(path, sizeof path, s->dir, "calib.yaml");
+    if (st) return st;
+    if (sooc_file_exists(path)) return sooc_calib_load(path, &s->calib);
+    if (required)
+        return sooc_seterr(SOOC_ENOTFOUND, "%s: missing file (give the intrinsics and depth_scale "
+                           "in a calib YAML, or pass one with --calib)", path);
+    return SOOC_ENOTFOUND;
+}
+
+/* ------------------------------------------------------------------ TUM */
+
+typedef struct tlist {
+    int64_t *t;
+    char **path;
+    int *line;
+    double *T;       /* groundtruth poses (16 each) */
+    int n, cap;
+    const char *file, *dir;
+    int is_gt;
+    double tol;
+} tlist;
+
+static sooc_status tlist_line(void *user, int lineno, char *line) {
+    tlist *L = user;
+    char *tok[10];
+    int nt = tokenize(line, tok, 9);
+    int want = L->is_gt ? 8 : 2;
+    if (nt != want)
+        return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected %d columns (%s), got %d", L->file, lineno, want,
+                           L->is_gt ? "t tx ty tz qx qy qz qw" : "timestamp filename", nt);
+    int64_t t;
+    if (!parse_time_ns(tok[0], &t))
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: timestamp '%s' is not a number", L->file, lineno, tok[0]);
+    if (L->n > 0 && t <= L->t[L->n - 1])
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: timestamp %s is not after the previous one (line %d): "
+                           "timestamps must increase", L->file, lineno, tok[0], L->line[L->n - 1]);
+    if (L->n == L->cap) {
+        int cap = L->cap ? L->cap * 2 : 256;
+        int64_t *nt2 = sooc_realloc(L->t, sizeof(int64_t) * (size_t)cap);
+        if (!nt2) return SOOC_ENOMEM;
+        L->t = nt2;
+        int *nl = sooc_realloc(L->line, sizeof(int) * (size_t)cap);
+        if (!nl) return SOOC_ENOMEM;
+        L->line = nl;
+        if (L->is_gt) {
+            double *nT = sooc_realloc(L->T, sizeof(double) * 16 * (size_t)cap);
+            if (!nT) return SOOC_ENOMEM;
+            L->T = nT;
+        } else {
+            char **np = sooc_realloc(L->path, sizeof(char *) * (size_t)cap);
+            if (!np) return SOOC_ENOMEM;
+            L->path = np;
+        }
+        L->cap = cap;
+    }
+    if (L->is_gt) {
+        sooc_status s = quat_pose(L->file, lineno, tok + 1, L->T + 16 * L->n, L->tol);
+        if (s) return s;
+    } else {
+        char *full = join_dup(L->dir, tok[1]);
+        if (!full) return sooc_seterr(SOOC_ENOMEM, "%s:%d: path too long", L->file, lineno);
+        sooc_status s = need_file(L->file, lineno, full);
+        if (s) { sooc_free(full); return s; }
+        L->path[L->n] = full;
+    }
+    L->t[L->n] = t;
+    L->line[L->n] = lineno;
+    L->n++;
+    return SOOC_OK;
+}
+
+static void tlist_free(tlist *L) {
+    for (int i = 0; L->path && i < L->n; i++) sooc_free(L->path[i]);
+    sooc_free(L->path);
+    sooc_free(L->t);
+    sooc_free(L->line);
+    sooc_free(L->T);
+    memset(L, 0, sizeof *L);
+}
+
+static int nearest(const int64_t *t, int n, int64_t x) {
+    int lo = 0, hi = n;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (t[mid] < x) lo = mid + 1;
+        else hi = mid;
+    }
+    int best = -1;
+    int64_t bd = INT64_MAX;
+    for (int k = lo - 1; k <= lo; k++)
+        if (k >= 0 && k < n) {
+            int64_t d = t[k] > x ? t[k] - x : x - t[k];
+            if (d < bd) { bd = d; best = k; }
+        }
+    return best;
+}
+
+static sooc_status open_tum(sooc_seq *s, const sooc_seq_open_params *p) {
+    tlist L[3];
+    memset(L, 0, sizeof L);
+    static const char *names[3] = {"rgb.txt", "depth.txt", "groundtruth.txt"};
+    char files[3][4096];
+    sooc_status st = SOOC_OK;
+    for (int k = 0; k < 3 && !st; k++) {
+        st = sooc_path_join(files[k], sizeof files[k], s->dir, names[k]);
+        if (st) break;
+        if (!sooc_file_exists(files[k])) { st = sooc_seterr(SOOC_ENOTFOUND, "%s: missing file", files[k]); break; }
+        L[k].file = files[k];
+        L[k].dir = s->dir;
+        L[k].is_gt = k == 2;
+        L[k].tol = p->rot_tol;
+        st = for_lines(files[k], tlist_line, &L[k]);
+        if (!st && L[k].n == 0 && k < 2) st = sooc_seterr(SOOC_EFORMAT, "%s: no entries", files[k]);
+    }
+    if (!st) st = load_calib(s, p, 1);
+    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", files[0]);
+    snprintf(s->srcname[1], sizeof s->srcname[1], "%s", files[1]);
+    int64_t tol = (int64_t)llround(p->max_dt * 1e9);
+    char idir[4096] = "";
+    int have_inst = 0;
+    if (!st) {
+        st = sooc_path_join(idir, sizeof idir, s->dir, "instance");
+        have_inst = !st && sooc_dir_exists(idir);
+    }
+    for (int i = 0; i < L[0].n && !st; i++) {
+        int jd = nearest(L[1].t, L[1].n, L[0].t[i]);
+        int64_t dd = jd < 0 ? INT64_MAX : llabs(L[1].t[jd] - L[0].t[i]);
+        if (dd > tol) { s->dropped++; continue; }
+        seq_entry *e;
+        st = push_entry(s, &e);
+        if (st) break;
+        e->rgb = L[0].path[i];
+        L[0].path[i] = NULL;
+        e->depth = sooc_strdup(L[1].path[jd]);
+        e->t_ns = L[0].t[i];
+        e->line = L[0].line[i];
+        e->src = s->srcname[0];
+        int jp = nearest(L[2].t, L[2].n, L[0].t[i]);
+        if (jp >= 0 && llabs(L[2].t[jp] - L[0].t[i]) <= tol) {
+            e->has_pose = 1;
+            memcpy(e->T, L[2].T + 16 * jp, sizeof e->T);
+        }
+        if (have_inst) {
+            const char *base = strrchr(e->rgb, '/');
+            e->inst = join_dup(idir, base ? base + 1 : e->rgb);
+            if (!e->inst) { st = SOOC_ENOMEM; break; }
+            st = need_file(s->srcname[0], e->line, e->inst);
+        }
+        if (!e->depth) st = SOOC_ENOMEM;
+    }
+    if (!st && s->n == 0)
+        st = sooc_seterr(SOOC_EFORMAT, "%s: no rgb frame has a depth frame within %.3f s", files[0], p->max_dt);
+    /* scene.yaml: mark query views (synthetic layout) */
+    char spath[4096];
+    if (!st && !sooc_path_join(spath, sizeof spath, s->dir, "scene.yaml") && sooc_file_exists(spath)) {
+        sooc_scene sc;
+        sooc_scene_init(&sc);
+        st = sooc_scene_load(spath, &sc);
+        if (!st && sc.n_views != s->n)
+            st = sooc_seterr(SOOC_EINVAL, "%s: lists %d views but the sequence has %lld frames", spath,
+                             sc.n_views, (long long)s->n);
+        for (int64_t i = 0; !st && i < s->n; i++) s->e[i].is_query = sc.view_is_query[i];
+        sooc_scene_free(&sc);
+    }
+    for (int k = 0; k < 3; k++) tlist_free(&L[k]);
+    return st;
+}
+
+/* ------------------------------------------------------------- 7-Scenes */
+
+typedef struct mat_ctx {
+    double v[16];
+    int rows;
+    const char *file;
+    int lines[4];
+    int ncols;
+} mat_ctx;
+
+static sooc_status mat_line(void *user, int lineno, char *line) {
+    mat_ctx *m = user;
+    char *tok[20];
+    int nt = tokenize(line, tok, 16);
+    if (m->rows >= 4 || (m->rows >= 1 && m->ncols == 3 && m->rows >= 3))
+        return sooc_seterr(SOOC_EFORMAT, "%s:%d: too many rows", m->file, lineno);
+    if (nt != m->ncols)
+        return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected %d numbers, got %d", m->file, lineno, m->ncols, nt);
+    for (int k = 0; k < nt; k++)
+        if (!parse_double(tok[k], &m->v[m->rows * m->ncols + k]))
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a finite number", m->file, lineno, tok[k]);
+    m->lines[m->rows] = lineno;
+    m->rows++;
+    return SOOC_OK;
+}
+
+static sooc_status read_pose4(const char *file, double T[16], double tol) {
+    mat_ctx m;
+    memset(&m, 0, sizeof m);
+    m.file = file;
+    m.ncols = 4;
+    sooc_status s = for_lines(file, mat_line, &m);
+    if (s) return s;
+    if (m.rows != 4) return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 4 rows of 4 numbers, got %d", file, m.rows ? m.lines[m.rows - 1] : 1, m.rows);
+    memcpy(T, m.v, sizeof m.v);
+    double R[9], t[3];
+    sooc_se3_to_rt(R, t, T);
+    s = check_rotation(file, m.lines[0], R, tol);
+    if (s) return s;
+    if (fabs(T[12]) > 1e-6 || fabs(T[13]) > 1e-6 || fabs(T[14]) > 1e-6 || fabs(T[15] - 1) > 1e-6)
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: last row must be 0 0 0 1", file, m.lines[3]);
+    T[12] = T[13] = T[14] = 0;
+    T[15] = 1;
+    return SOOC_OK;
+}
+
+static int cmp_i64(const void *a, const void *b) {
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
+    DIR *d = opendir(s->dir);
+    if (!d) return sooc_seterr(SOOC_ENOTFOUND, "%s: cannot open directory", s->dir);
+    int64_t *idx = NULL;
+    int n = 0, cap = 0;
+    struct dirent *de;
+    sooc_status st = SOOC_OK;
+    while ((de = readdir(d))) {
+        int k, len = 0;
+        if (sscanf(de->d_name, "frame-%d.color.png%n", &k, &len) == 1 && len > 0 &&
+            de->d_name[len] == 0 && k >= 0) {
+            if (n == cap) {
+                cap = cap ? cap * 2 : 256;
+                int64_t *ni = sooc_realloc(idx, sizeof(int64_t) * (size_t)cap);
+                if (!ni) { st = SOOC_ENOMEM; break; }
+                idx = ni;
+            }
+            idx[n++] = k;
+        }
+    }
+    closedir(d);
+    if (!st && n == 0) st = sooc_seterr(SOOC_ENOTFOUND, "%s/frame-000000.color.png: missing file (no frames)", s->dir);
+    if (!st) qsort(idx, (size_t)n, sizeof *idx, cmp_i64);
+    for (int i = 0; i < n && !st; i++) {
+        char name[64];
+        seq_entry *e;
+        st = push_entry(s, &e);
+        if (st) break;
+        snprintf(name, sizeof name, "frame-%06lld.color.png", (long long)idx[i]);
+        e->rgb = join_dup(s->dir, name);
+        snprintf(name, sizeof name, "frame-%06lld.depth.png", (long long)idx[i]);
+        e->depth = join_dup(s->dir, name);
+        snprintf(name, sizeof name, "frame-%06lld.pose.txt", (long long)idx[i]);
+        char *pose = join_dup(s->dir, name);
+        if (!e->rgb || !e->depth || !pose) { sooc_free(pose); st = SOOC_ENOMEM; break; }
+        st = need_file(NULL, 0, e->depth);
+        if (!st) st = need_file(NULL, 0, pose);
+        if (!st) st = read_pose4(pose, e->T, p->rot_tol);
+        sooc_free(pose);
+        e->has_pose = 1;
+        e->t_ns = idx[i] * 33333333LL; /* no timestamps in this layout: 30 Hz by index */
+    }
+    sooc_free(idx);
+    if (st) return st;
+    st = load_calib(s, p, 0);
+    if (st == SOOC_ENOTFOUND) {
+        char kpath[4096];
+        st = sooc_path_join(kpath, sizeof kpath, s->dir, "camera-intrinsics.color.txt");
+        if (st) return st;
+        int w, h;
+        sooc_pixfmt fmt;
+        st = sooc_png_info(s->e[0].rgb, &w, &h, &fmt);
+        if (st) return st;
+        if (sooc_file_exists(kpath)) {
+            mat_ctx m;
+            memset(&m, 0, sizeof m);
+            m.file = kpath;
+            m.ncols = 3;
+            st = for_lines(kpath, mat_line, &m);
+            if (st) return st;
+            if (m.rows != 3) return sooc_seterr(SOOC_EFORMAT, "%s: expected a 3x3 matrix", kpath);
+            if (m.v[0] == 0 || m.v[4] == 0 || m.v[1] != 0 || m.v[3] != 0 || m.v[6] != 0 || m.v[7] != 0 || m.v[8] != 1)
+                return sooc_seterr(SOOC_EINVAL, "%s:%d: expected [fx 0 cx; 0 fy cy; 0 0 1]", kpath, m.lines[0]);
+            sooc_calib_pinhole(&s->calib, w, h, m.v[0], m.v[4], m.v[2], m.v[5]);
+        } else {
+            /* 7-Scenes published intrinsics (Kinect v1, 640x480) */
+            sooc_calib_pinhole(&s->calib, w, h, 585.0 * w / 640.0, 585.0 * h / 480.0, w / 2.0, h / 2.0);
+            sooc_log(SOOC_LOG_WARN, "%s: no calibration, using 7-Scenes intrinsics f=585", s->dir);
+        }
+        s->calib.depth_scale = 0.001; /* 7-Scenes: millimetres */
+    }
+    return st;
+}
+
+/* ------------------------------------------------------------- slambook */
+
+typedef struct sb_ctx {
+    sooc_seq *s;
+    const char *file;
+    double tol;
+    int frame;
+} sb_ctx;
+
+static sooc_status sb_line(void *user, int lineno, char *line) {
+    sb_ctx *c = user;
+    char *tok[10];
+    int nt = tokenize(line, tok, 8);
+    if (nt != 7)
+        return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 7 numbers (tx ty tz qx qy qz qw), got %d", c->file,
+                           lineno, nt);
+    seq_entry *e;
+    sooc_status st = push_entry(c->s, &e);
+    if (st) return st;
+    st = quat_pose(c->file, lineno, tok, e->T, c->tol);
+    if (st) return st;
+    e->has_pose = 1;
+    c->frame++;
+    e->line = lineno;
+    e->src = c->s->srcname[0];
+    e->t_ns = (int64_t)(c->frame - 1) * 33333333LL;
+    char name[64];
+    snprintf(name, sizeof name, "color/%d.png", c->frame);
+    e->rgb = join_dup(c->s->dir, name);
+    snprintf(name, sizeof name, "depth/%d.pgm", c->frame);
+    e->depth = join_dup(c->s->dir, name);
+    if (!e->rgb || !e->depth) return SOOC_ENOMEM;
+    if (!sooc_file_exists(e->depth)) {
+        snprintf(name, sizeof name, "depth/%d.png", c->frame);
+        sooc_free(e->depth);
+        e->depth = join_dup(c->s->dir, name);
+        if (!e->depth) return SOOC_ENOMEM;
+    }
+    st = need_file(c->file, lineno, e->rgb);
+    if (!st) st = need_file(c->file, lineno, e->depth);
+    return st;
+}
+
+static sooc_status open_slambook(sooc_seq *s, const sooc_seq_open_params *p) {
+    char path[4096];
+    sooc_status st = sooc_path_join(path, sizeof path, s->dir, "pose.txt");
+    if (st) return st;
+    st = need_file(NULL, 0, path);
+    if (st) return st;
+    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
+    sb_ctx c = {s, s->srcname[0], p->rot_tol, 0};
+    st = for_lines(path, sb_line, &c);
+    if (!st && s->n == 0) st = sooc_seterr(SOOC_EFORMAT, "%s: no poses", path);
+    if (!st) st = load_calib(s, p, 1);
+    return st;
+}
+
+/* -------------------------------------------------------------- Replica */
+
+typedef struct rp_ctx {
+    sooc_seq *s;
+    const char *file;
+    double tol;
+} rp_ctx;
+
+static sooc_status rp_line(void *user, int lineno, char *line) {
+    rp_ctx *c = user;
+    char *tok[20];
+    int nt = tokenize(line, tok, 16);
+    if (nt != 16)
+        return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 16 numbers (row-major 4x4), got %d", c->file, lineno, nt);
+    seq_entry *e;
+    sooc_status st = push_entry(c->s, &e);
+    if (st) return st;
+    for (int k = 0; k < 16; k++)
+        if (!parse_double(tok[k], &e->T[k]))
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a finite number", c->file, lineno, tok[k]);
+    double R[9], t[3];
+    sooc_se3_to_rt(R, t, e->T);
+    st = check_rotation(c->file, lineno, R, c->tol);
+    if (st) return st;
+    if (fabs(e->T[12]) > 1e-6 || fabs(e->T[13]) > 1e-6 || fabs(e->T[14]) > 1e-6 || fabs(e->T[15] - 1) > 1e-6)
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: last row must be 0 0 0 1", c->file, lineno);
+    e->has_pose = 1;
+    e->line = lineno;
+    e->src = c->s->srcname[0];
+    int64_t i = c->s->n - 1;
+    e->t_ns = i * 33333333LL;
+    char name[64];
+    snprintf(name, sizeof name, "results/frame%06lld.png", (long long)i);
+    e->rgb = join_dup(c->s->dir, name);
+    if (e->rgb && !sooc_file_exists(e->rgb)) {
+        snprintf(name, sizeof name, "results/frame%06lld.jpg", (long long)i);
+        sooc_free(e->rgb);
+        e->rgb = join_dup(c->s->dir, name);
+    }
+    snprintf(name, sizeof name, "results/depth%06lld.png", (long long)i);
+    e->depth = join_dup(c->s->dir, name);
+    if (!e->rgb || !e->depth) return SOOC_ENOMEM;
+    st = need_file(c->file, lineno, e->rgb);
+    if (!st) st = need_file(c->file, lineno, e->depth);
+    return st;
+}
+
+static sooc_status open_replica(sooc_seq *s, const sooc_seq_open_params *p) {
+    char path[4096];
+    sooc_status st = sooc_path_join(path, sizeof path, s->dir, "traj.txt");
+    if (st) return st;
+    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
+    rp_ctx c = {s, s->srcname[0], p->rot_tol};
+    st = for_lines(path, rp_line, &c);
+    if (!st && s->n == 0) st = sooc_seterr(SOOC_EFORMAT, "%s: no poses", path);
+    if (st) return st;
+    st = load_calib(s, p, 0);
+    if (st == SOOC_ENOTFOUND) {
+        /* NICE-SLAM Replica camera (configs/Replica/replica.yaml) */
+        sooc_calib_pinhole(&s->calib, 1200, 680, 600, 600, 599.5, 339.5);
+        s->calib.depth_scale = 1.0 / 6553.5;
+        st = SOOC_OK;
+    }
+    return st;
+}
+
+/* ----------------------------------------------------------------- open */
+
+static sooc_seq_format detect(const char *dir) {
+    char p[4096];
+    if (!sooc_path_join(p, sizeof p, dir, "rgb.txt") && sooc_file_exists(p)) return SOOC_SEQ_TUM;
+    if (!sooc_path_join(p, sizeof p, dir, "traj.txt") && sooc_file_exists(p)) return SOOC_SEQ_REPLICA;
+    if (!sooc_path_join(p, sizeof p, dir, "pose.txt") && sooc_file_exists(p)) return SOOC_SEQ_SLAMBOOK;
+    if (!sooc_path_join(p, sizeof p, dir, "frame-000000.color.png") && sooc_file_exists(p)) return SOOC_SEQ_7SCENES;
+    DIR *d = opendir(dir);
+    if (d) {
+        struct dirent *de;
+        int k;
+        while ((de = readdir(d)))
+            if (sscanf(de->d_name, "frame-%d.color.png", &k) == 1) { closedir(d); return SOOC_SEQ_7SCENES; }
+        closedir(d);
+    }
+    return SOOC_SEQ_AUTO;
+}
+
+sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_params *pp) {
+    *out = NULL;
+    sooc_seq_open_params p;
+    if (pp) p = *pp;
+    else sooc_seq_open_params_default(&p);
+    if (!(p.max_dt > 0)) p.max_dt = 0.02;
+    if (!(p.rot_tol > 0)) p.rot_tol = 1e-3;
+    if (!sooc_dir_exists(dir)) return sooc_seterr(SOOC_ENOTFOUND, "%s: missing directory", dir);
+    sooc_seq *s = sooc_calloc(1, sizeof *s);
+    if (!s) return SOOC_ENOMEM;
+    if (strlen(dir) >= sizeof s->dir) { sooc_free(s); return sooc_seterr(SOOC_EINVAL, "%s: path too long", dir); }
+    snprintf(s->dir, sizeof s->dir, "%s", dir);
+    sooc_calib_init(&s->calib);
+    s->fmt = p.format == SOOC_SEQ_AUTO ? detect(dir) : p.format;
+    sooc_status st;
+    switch (s->fmt) {
+    case SOOC_SEQ_TUM: st = open_tum(s, &p); break;
+    case SOOC_SEQ_7SCENES: st = open_7scenes(s, &p); break;
+    case SOOC_SEQ_SLAMBOOK: st = open_slambook(s, &p); break;
+    case SOOC_SEQ_REPLICA: st = open_replica(s, &p); break;
+    default:
+        st = sooc_seterr(SOOC_ENOTFOUND, "%s: no sequence found (need rgb.txt, traj.txt, pose.txt or "
+                         "frame-%%06d.color.png)", dir);
+    }
+    if (!st) {
+        s->depth_scale = p.depth_scale > 0 ? p.depth_scale : s->calib.depth_scale;
+        if (!(s->depth_scale > 0))
+            st = sooc_seterr(SOOC_EINVAL, "%s: depth_scale: missing in the calibration (metres per depth unit)",
+                             p.calib_path ? p.calib_path : dir);
+        s->depth_shift = p.depth_shift;
+        s->max_depth = p.max_depth;
+        if (s->calib.K.fy < 0) {
+            s->flip_y = 1;
+            s->calib.K.fy = -s->calib.K.fy;
+        }
+        if (s->calib.K.fx < 0)
+            st = sooc_seterr(SOOC_EINVAL, "%s: fx < 0 is not supported", dir);
+    }
+    if (st) { sooc_seq_close(s); return st; }
+    *out = s;
+    return SOOC_OK;
+}
+
+int64_t sooc_seq_count(const sooc_seq *s) { return s ? s->n : 0; }
+sooc_seq_format sooc_seq_get_format(const sooc_seq *s) { return s->fmt; }
+const sooc_calib *sooc_seq_calib(const sooc_seq *s) { return &s->calib; }
+int64_t sooc_seq_dropped(const sooc_seq *s) { return s->dropped; }
+
+void sooc_seq_close(sooc_seq *s) {
+    if (!s) return;
+    for (int64_t i = 0; i < s->n; i++) {
+        sooc_free(s->e[i].rgb);
+        sooc_free(s->e[i].depth);
+        sooc_free(s->e[i].inst);
+    }
+    sooc_free(s->e);
+    sooc_image_free(&s->img_rgb);
+    sooc_image_free(&s->img_depth);
+    sooc_image_free(&s->img_inst);
+    sooc_free(s);
+}
+
+/* "<list>:<line>: " context for per-frame messages. */
+static void ctx_of(const seq_entry *e, char *buf, size_t n) {
+    if (e->src && e->line > 0) snprintf(buf, n, "%s:%d: ", e->src, e->line);
+    else buf[0] = 0;
+}
+
+sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
+    if (!s || i < 0 || i >= s->n)
+        return sooc_seterr(SOOC_EINVAL, "seq read: frame %lld out of range [0, %lld)", (long long)i,
+                           (long long)(s ? s->n : 0));
+    const seq_entry *e = &s->e[i];
+    char ctx[4400];
+    ctx_of(e, ctx, sizeof ctx);
+    sooc_status st = sooc_image_read(e->rgb, &s->img_rgb);
+    if (st) return sooc_adderr(st, "%s", ctx[0] ? ctx : "seq");
+    if (s->img_rgb.fmt != SOOC_PIX_RGB8)
+        return sooc_seterr(SOOC_EFORMAT, "%s%s: colour image is %s, expected 8-bit RGB", ctx, e->rgb,
+                           sooc_pixfmt_name(s->img_rgb.fmt));
+    st = sooc_image_read(e->depth, &s->img_depth);
+    if (st) return sooc_adderr(st, "%s", ctx[0] ? ctx : "seq");
+    if (s->img_depth.fmt != SOOC_PIX_GRAY16)
+        return sooc_seterr(SOOC_EFORMAT, "%s%s: depth image is %s, expected 16-bit single channel", ctx,
+                           e->depth, sooc_pixfmt_name(s->img_depth.fmt));
+    int W = s->img_rgb.width, H = s->img_rgb.height;
+    if (s->img_depth.width != W || s->img_depth.height != H)
+        return sooc_seterr(SOOC_EFORMAT, "%s%s: depth is %dx%d but colour %s is %dx%d", ctx, e->depth,
+                           s->img_depth.width, s->img_depth.height, e->rgb, W, H);
+    if (W != s->calib.K.width || H != s->calib.K.height)
+        return sooc_seterr(SOOC_EFORMAT, "%s%s: image is %dx%d but the calibration says %dx%d", ctx, e->rgb,
+                           W, H, s->calib.K.width, s->calib.K.height);
+    int with_inst = e->inst != NULL;
+    if (with_inst) {
+        st = sooc_png_read(e->inst, &s->img_inst);
+        if (st) return sooc_adderr(st, "%s", ctx[0] ? ctx : "seq");
+        if (s->img_inst.fmt != SOOC_PIX_GRAY16 || s->img_inst.width != W || s->img_inst.height != H)
+            return sooc_seterr(SOOC_EFORMAT, "%s%s: instance image must be 16-bit %dx%d", ctx, e->inst, W, H);
+    }
+    if (!f->rgb || f->width != W || f->height != H || (with_inst != (f->instance != NULL))) {
+        sooc_frame_free(f);
+        st = sooc_frame_alloc(f, W, H, with_inst);
+        if (st) return st;
+    }
+    size_t np = (size_t)W * (size_t)H;
+    memcpy(f->rgb, s->img_rgb.data, np * 3);
+    const uint16_t *dr = s->img_depth.data;
+    for (size_t k = 0; k < np; k++) {
+        uint16_t raw = dr[k];
+        float z = raw == 0 || raw == 65535 ? 0.0f : (float)((double)(raw >> s->depth_shift) * s->depth_scale);
+        if (s->max_depth > 0 && z > s->max_depth) z = 0;
+        f->depth[k] = z;
+        f->valid[k] = z > 0;
+    }
+    if (with_inst) memcpy(f->instance, s->img_inst.data, np * sizeof(uint16_t));
+    f->t_ns = e->t_ns;
+    f->has_pose = e->has_pose;
+    memcpy(f->T_wc, e->T, sizeof f->T_wc);
+    if (s->flip_y && e->has_pose) {
+        /* T' = S T S, S = diag(1, -1, 1, 1): negate entries with exactly one index equal to 1 */
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++)
+                if ((r == 1) != (c == 1)) f->T_wc[4 * r + c] = -f->T_wc[4 * r + c];
+    }
+    f->K = s->calib.K;
+    f->index = i;
+    f->is_query = e->is_query;
+    return SOOC_OK;
+}
+
+/* --------------------------------------------------------------- writer */
+
+struct sooc_seq_writer {
+    char dir[2048];
+    sooc_calib calib;
+    int64_t n;
+    uint8_t *done;
+    int64_t *t_ns;
+    double *T;
+    int *has_pose;
+};
+
+sooc_status sooc_seq_writer_create(sooc_seq_writer **out, const char *dir, const sooc_calib *calib,
+                                   int64_t n_frames) {
+    *out = NULL;
+    if (!(calib->depth_scale > 0)) return sooc_seterr(SOOC_EINVAL, "%s: writer needs depth_scale > 0", dir);
+    if (n_frames <= 0 || n_frames > 100000000) return sooc_seterr(SOOC_EINVAL, "%s: bad frame count", dir);
+    if (strlen(dir) >= 2000) return sooc_seterr(SOOC_EINVAL, "%s: path too long", dir);
+    sooc_seq_writer *w = sooc_calloc(1, sizeof *w);
+    if (!w) return SOOC_ENOMEM;
+    snprintf(w->dir, sizeof w->dir, "%s", dir);
+    w->calib = *calib;
+    w->n = n_frames;
+    w->done = sooc_calloc((size_t)n_frames, 1);
+    w->t_ns = sooc_calloc((size_t)n_frames, sizeof(int64_t));
+    w->T = sooc_calloc((size_t)n_frames * 16, sizeof(double));
+    w->has_pose = sooc_calloc((size_t)n_frames, sizeof(int));
+    if (!w->done || !w->t_ns || !w->T || !w->has_pose) { sooc_seq_writer_destroy(w); return SOOC_ENOMEM; }
+    static const char *sub[] = {"rgb", "depth"};
+    for (int k = 0; k < 2; k++) {
+        char p[4096];
+        sooc_status s = sooc_path_join(p, sizeof p, dir, sub[k]);
+        if (!s) s = sooc_mkdirs(p);
+        if (s) { sooc_seq_writer_destroy(w); return s; }
+    }
+    *out = w;
+    return SOOC_OK;
+}
+
+sooc_status sooc_seq_writer_put(sooc_seq_writer *w, int64_t i, const sooc_frame *f) {
+    if (i < 0 || i >= w->n) return sooc_seterr(SOOC_EINVAL, "%s: writer slot %lld out of range", w->dir, (long long)i);
+    if (f->width != w->calib.K.width || f->height != w->calib.K.height)
+        return sooc_seterr(SOOC_EINVAL, "%s: frame %lld is %dx%d, calibration %dx%d", w->dir, (long long)i,
+                           f->width, f->height, w->calib.K.width, w->calib.K.height);
+    char name[64], path[4096];
+    sooc_image img = {0};
+    sooc_status s = sooc_image_alloc(&img, f->width, f->height, SOOC_PIX_RGB8);
+    size_t np = (size_t)f->width * (size_t)f->height;
+    if (!s) {
+        memcpy(img.data, f->rgb, np * 3);
+        snprintf(name, sizeof name, "rgb/%06lld.png", (long long)i);
+        s = sooc_path_join(path, sizeof path, w->dir, name);
+        if (!s) s = sooc_png_write(path, &img, 6);
+    }
+    if (!s) s = sooc_image_alloc(&img, f->width, f->height, SOOC_PIX_GRAY16);
+    if (!s) {
+        uint16_t *d = img.data;
+        for (size_t k = 0; k < np; k++) {
+            double q = f->valid[k] && f->depth[k] > 0 ? floor(f->depth[k] / w->calib.depth_scale + 0.5) : 0;
+            d[k] = q > 65535 ? 0 : (uint16_t)q;
+        }
+        snprintf(name, sizeof name, "depth/%06lld.png", (long long)i);
+        s = sooc_path_join(path, sizeof path, w->dir, name);
+        if (!s) s = sooc_png_write(path, &img, 6);
+    }
+    if (!s && f->instance) {
+        memcpy(img.data, f->instance, np * sizeof(uint16_t));
+        s = sooc_path_join(path, sizeof path, w->dir, "instance");
+        if (!s) s = sooc_mkdirs(path); /* safe to race: EEXIST is fine */
+        snprintf(name, sizeof name, "instance/%06lld.png", (long long)i);
+        if (!s) s = sooc_path_join(path, sizeof path, w->dir, name);
+        if (!s) s = sooc_png_write(path, &img, 6);
+    }
+    sooc_image_free(&img);
+    if (s) return s;
+    w->t_ns[i] = f->t_ns;
+    w->has_pose[i] = f->has_pose;
+    memcpy(w->T + 16 * i, f->T_wc, sizeof f->T_wc);
+    w->done[i] = 1;
+    return SOOC_OK;
+}
+
+sooc_status sooc_seq_writer_finish(sooc_seq_writer *w) {
+    for (int64_t i = 0; i < w->n; i++) {
+        if (!w->done[i]) return sooc_seterr(SOOC_EINVAL, "%s: frame %lld was never written", w->dir, (long long)i);
+        if (i > 0 && w->t_ns[i] <= w->t_ns[i - 1])
+            return sooc_seterr(SOOC_EINVAL, "%s: frame %lld: timestamps must increase", w->dir, (long long)i);
+    }
+    static const char *files[] = {"rgb.txt", "depth.txt", "groundtruth.txt"};
+    sooc_status s = SOOC_OK;
+    size_t cap = 256 + (size_t)w->n * 160;
+    char *b = sooc_malloc(cap);
+    if (!b) return SOOC_ENOMEM;
+    for (int k = 0; k < 3 && !s; k++) {
+        size_t n = 0;
+        n += (size_t)snprintf(b + n, cap - n, "# %s\n# written by sooc3d (synthetic layout, docs/formats.md)\n# %s\n",
+                              files[k], k == 2 ? "timestamp tx ty tz qx qy qz qw (camera-to-world)" : "timestamp filename");
+        for (int64_t i = 0; i < w->n; i++) {
+            int64_t t = w->t_ns[i];
+            char ts[48];
+            snprintf(ts, sizeof ts, "%s%lld.%06lld", t < 0 ? "-" : "", llabs(t) / 1000000000LL,
+                     (llabs(t) % 1000000000LL) / 1000);
+            if (k < 2) {
+                n += (size_t)snprintf(b + n, cap - n, "%s %s/%06lld.png\n", ts, k ? "depth" : "rgb", (long long)i);
+            } else if (w->has_pose[i]) {
+                double R[9], t3[3], q[4];
+                sooc_se3_to_rt(R, t3, w->T + 16 * i);
+                sooc_m3_to_quat(q, R);
+                n += (size_t)snprintf(b + n, cap - n, "%s %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", ts, t3[0], t3[1],
+                                      t3[2], q[0], q[1], q[2], q[3]);
+            }
+        }
+        char path[4096];
+        s = sooc_path_join(path, sizeof path, w->dir, files[k]);
+        if (!s) s = sooc_file_write_atomic(path, b, n);
+    }
+    sooc_free(b);
+    if (!s) {
+        char path[4096];
+        s = sooc_path_join(path, sizeof path, w->dir, "calib.yaml");
+        if (!s) s = sooc_calib_save(path, &w->calib);
+    }
+    return s;
+}
+
+void sooc_seq_writer_destroy(sooc_seq_writer *w) {
+    if (!w) return;
+    sooc_free(w->done);
+    sooc_free(w->t_ns);
+    sooc_free(w->T);
+    sooc_free(w->has_pose);
+    sooc_free(w);
+}
