@@ -129,15 +129,29 @@ static sooc_status oni_open(sooc_sensor *s, const sooc_sensor_params *p) {
         goto fail;
     }
     if (oniStreamSetProperty(o->ds, ONI_STREAM_PROPERTY_VIDEO_MODE, &o->dmode, sizeof o->dmode) != ONI_STATUS_OK) {
-        st = oni_err(SOOC_EUNSUPPORTED, "set depth video mode");
-        goto fail;
+        /* Some drivers (DummyDevice) do not implement setting the mode: keep
+         * the current one if it is a depth format we read. */
+        OniVideoMode cur;
+        int n = sizeof cur;
+        if (oniStreamGetProperty(o->ds, ONI_STREAM_PROPERTY_VIDEO_MODE, &cur, &n) != ONI_STATUS_OK ||
+            (cur.pixelFormat != ONI_PIXEL_FORMAT_DEPTH_1_MM && cur.pixelFormat != ONI_PIXEL_FORMAT_DEPTH_100_UM)) {
+            st = oni_err(SOOC_EUNSUPPORTED, "set depth video mode");
+            goto fail;
+        }
+        o->dmode = cur;
     }
     if (o->cs) {
         if (!pick_mode(o->cs, ONI_PIXEL_FORMAT_RGB888, o->dmode.resolutionX, o->dmode.resolutionY, o->dmode.fps,
                        &o->cmode) ||
             oniStreamSetProperty(o->cs, ONI_STREAM_PROPERTY_VIDEO_MODE, &o->cmode, sizeof o->cmode) != ONI_STATUS_OK) {
-            st = oni_err(SOOC_EUNSUPPORTED, "colour stream: no usable RGB888 mode");
-            goto fail;
+            OniVideoMode cur;
+            int n = sizeof cur;
+            if (oniStreamGetProperty(o->cs, ONI_STREAM_PROPERTY_VIDEO_MODE, &cur, &n) != ONI_STATUS_OK ||
+                cur.pixelFormat != ONI_PIXEL_FORMAT_RGB888) {
+                st = oni_err(SOOC_EUNSUPPORTED, "colour stream: no usable RGB888 mode");
+                goto fail;
+            }
+            o->cmode = cur;
         }
     }
     OniBool off = p->mirror ? 1 : 0;
@@ -179,7 +193,8 @@ static sooc_status oni_open(sooc_sensor *s, const sooc_sensor_params *p) {
         snprintf(s->info.device, sizeof s->info.device, "%.60s %.60s (%.120s)", di.vendor, di.name, di.uri);
     else
         snprintf(s->info.device, sizeof s->info.device, "%s", uri ? uri : "(any)");
-    o->depth_scale = p->depth_scale > 0 ? p->depth_scale : 0.001;
+    o->depth_scale = p->depth_scale > 0 ? p->depth_scale
+                     : o->dmode.pixelFormat == ONI_PIXEL_FORMAT_DEPTH_100_UM ? 0.0001 : 0.001;
     o->tol_ns = p->pair_tol_ns > 0 ? p->pair_tol_ns : (int64_t)(0.5e9 / (o->dmode.fps > 0 ? o->dmode.fps : 30));
     return SOOC_OK;
 fail:

@@ -22,7 +22,8 @@
 
 typedef struct pose_rec {
     int64_t t_ns;
-    double T[16];   /* camera-to-world */
+    int kind;       /* sooc_pose_kind of T */
+    double T[16];   /* as received: T_wc (camera) or T_base_effector (effector) */
 } pose_rec;
 
 struct sooc_pose_src {
@@ -80,7 +81,7 @@ static int lower_bound(sooc_pose_src *s, int64_t t_ns) {
 }
 
 /* Insert a camera pose. Caller holds mu. Returns 1 if stored. */
-static int insert_locked(sooc_pose_src *s, int64_t t_ns, const double T[16]) {
+static int insert_locked(sooc_pose_src *s, int64_t t_ns, int kind, const double T[16]) {
     int pos = lower_bound(s, t_ns);
     if (pos < s->n && at(s, pos)->t_ns == t_ns) { s->st.duplicates++; return 0; }
     if (s->n == s->cap) {
@@ -95,6 +96,7 @@ static int insert_locked(sooc_pose_src *s, int64_t t_ns, const double T[16]) {
     s->n++;
     pose_rec *r = at(s, pos);
     r->t_ns = t_ns;
+    r->kind = kind;
     memcpy(r->T, T, sizeof r->T);
     s->st.received++;
     pthread_cond_broadcast(&s->cv);
@@ -120,10 +122,10 @@ static sooc_status to_camera(sooc_pose_src *s, sooc_pose_kind kind, const double
 
 sooc_status sooc_pose_push(sooc_pose_src *s, int64_t t_ns, sooc_pose_kind kind, const double T[16]) {
     double Tc[16];
-    sooc_status st = to_camera(s, kind, T, Tc);
+    sooc_status st = to_camera(s, kind, T, Tc);   /* validates */
     pthread_mutex_lock(&s->mu);
     if (st) s->st.rejected++;
-    else insert_locked(s, t_ns, Tc);
+    else insert_locked(s, t_ns, (int)kind, T);
     pthread_mutex_unlock(&s->mu);
     return st;
 }
@@ -153,7 +155,7 @@ static sooc_status lookup_locked(sooc_pose_src *s, int64_t t_ns, int64_t tol_ns,
     *need_newer = 0;
     int i = lower_bound(s, t_ns);
     if (i < s->n && at(s, i)->t_ns == t_ns) {
-        memcpy(out, at(s, i)->T, 16 * sizeof(double));
+        (void)to_camera(s, (sooc_pose_kind)at(s, i)->kind, at(s, i)->T, out);
         s->st.exact++;
         return SOOC_OK;
     }
@@ -176,7 +178,18 @@ static sooc_status lookup_locked(sooc_pose_src *s, int64_t t_ns, int64_t tol_ns,
         return sooc_seterr(SOOC_ENOTFOUND, "pose: gap %.1f ms around t=%lld ns exceeds max_gap",
                            (double)(b->t_ns - a->t_ns) * 1e-6, (long long)t_ns);
     double u = (double)(t_ns - a->t_ns) / (double)(b->t_ns - a->t_ns);
-    sooc_se3_interp(out, a->T, b->T, u);
+    if (a->kind == b->kind) {
+        /* interpolate what was measured (effector poses move smoothly), then
+         * apply the hand-eye */
+        double Ti[16];
+        sooc_se3_interp(Ti, a->T, b->T, u);
+        (void)to_camera(s, (sooc_pose_kind)a->kind, Ti, out);
+    } else {
+        double Ta[16], Tb[16];
+        (void)to_camera(s, (sooc_pose_kind)a->kind, a->T, Ta);
+        (void)to_camera(s, (sooc_pose_kind)b->kind, b->T, Tb);
+        sooc_se3_interp(out, Ta, Tb, u);
+    }
     return SOOC_OK;
 }
 

@@ -286,9 +286,10 @@ static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
     s->impl = r;
     sooc_status st;
 #ifdef SOOC_HAVE_SEQ
-    sooc_seq_params sp;
-    sooc_seq_params_default(&sp);
-    if (p->format) sp.format = p->format;
+    sooc_seq_open_params sp;
+    sooc_seq_open_params_default(&sp);
+    if (p->format && *p->format && (st = sooc_seq_format_parse(p->format, &sp.format)))
+        goto fail;
     if (p->depth_scale > 0) sp.depth_scale = p->depth_scale;
     st = sooc_seq_open(&r->seq, p->uri, &sp);
     if (st) goto fail;
