@@ -194,12 +194,20 @@ static sooc_status reader_table(ckpt_reader *r, const sooc_nn_params *p) {
         const sooc_nn_param_view *v = &p->views[i];
         int same = strcmp(v->name, name) == 0 && v->ndim == (int)nd && v->offset == off;
         for (uint32_t d = 0; same && d < nd; d++) same = v->shape[d] == shape[d];
-        if (!same)
+        if (!same) {
+            char fs[96] = "", ms[96] = "";
+            for (uint32_t d = 0; d < nd; d++)
+                snprintf(fs + strlen(fs), sizeof fs - strlen(fs), "%s%lld", d ? "x" : "",
+                         (long long)shape[d]);
+            for (int d = 0; d < v->ndim; d++)
+                snprintf(ms + strlen(ms), sizeof ms - strlen(ms), "%s%lld", d ? "x" : "",
+                         (long long)v->shape[d]);
             return sooc_seterr(SOOC_EINVAL,
-                               "%s: checkpoint layout mismatch at view %u: file '%s' (ndim %u, "
-                               "offset %llu), model '%s' (ndim %d, offset %zu)",
-                               r->path, i, name, nd, (unsigned long long)off, v->name, v->ndim,
+                               "%s: checkpoint layout mismatch at view %u: file has '%s' [%s] at "
+                               "offset %llu, model has '%s' [%s] at offset %zu",
+                               r->path, i, name, fs, (unsigned long long)off, v->name, ms,
                                v->offset);
+        }
     }
     return SOOC_OK;
 }
