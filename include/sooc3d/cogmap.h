@@ -188,7 +188,9 @@ typedef struct sooc_cogmap_reg_stats {
  * ids_out[i] (may be NULL): the id written for slot i, 0 if dropped.
  * removed_out (may be NULL, room for k): ids removed, count in st->n_removed.
  * Everything is validated first (unknown or repeated src id -> ENOTFOUND /
- * EINVAL, non-finite λ -> ENUMERIC); on error the map is unchanged. */
+ * EINVAL, non-finite λ -> ENUMERIC); on those errors the map is unchanged.
+ * An allocation failure (ENOMEM) may leave part of the view registered, with
+ * the map consistent. */
 sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int k, const float *lam,
                                  const uint64_t *src_ids, int64_t t_ns, int32_t view,
                                  uint64_t *ids_out, uint64_t *removed_out, sooc_cogmap_reg_stats *st);

@@ -577,6 +577,63 @@ static void test_layout_and_alloc(void) {
     sooc_cogmap_destroy(m);
 }
 
+/* Allocation failures: every operation either succeeds or returns ENOMEM,
+ * and the map stays consistent (every counted entry retrievable and found
+ * by a wide query). */
+static void test_fault_injection(void) {
+    int bad = 0, failures = 0;
+    for (uint64_t n_ok = 0; n_ok < 80; n_ok++) {
+        sooc_cogmap *m = NULL;
+        sooc_alloc_fault_inject(n_ok, 1);
+        sooc_cogmap_params p;
+        sooc_cogmap_params_default(&p);
+        p.dim = D;
+        p.capacity = 2;
+        p.cell_size = 1.0;
+        sooc_status st = sooc_cogmap_create(&m, &p);
+        if (st) {
+            sooc_alloc_fault_inject(0, 0);
+            if (st != SOOC_ENOMEM || m) bad++;
+            failures++;
+            continue;
+        }
+        sooc_rng r;
+        sooc_rng_seed(&r, 77, n_ok);
+        for (int i = 0; i < 40; i++) {
+            sooc_cogmap_entry e;
+            rand_entry(&r, &e, sooc_rng_range(&r, -6, 6), sooc_rng_range(&r, -6, 6));
+            st = sooc_cogmap_insert(m, &e, NULL);
+            if (st && st != SOOC_ENOMEM) bad++;
+            if (st) failures++;
+        }
+        sooc_floor_frame gf = {0, 0, 0.3};
+        float lam[4 * SOOC_LAM_MAX];
+        for (int i = 0; i < 4; i++) fill_slot(lam + i * SOOC_LAM_SIZE(D), 9 + i, 9, 1.0f);
+        st = sooc_cogmap_register(m, &gf, 4, lam, NULL, 0, 0, NULL, NULL, NULL);
+        if (st && st != SOOC_ENOMEM) bad++;
+        sooc_alloc_fault_inject(0, 0);
+        size_t n = sooc_cogmap_count(m), nn;
+        sooc_cogmap_entry *all = sooc_malloc((n + 1) * sizeof *all);
+        sooc_cogmap_entries(m, all, n, &nn);
+        for (size_t i = 0; i < nn; i++) {
+            sooc_cogmap_entry e;
+            if (sooc_cogmap_get(m, all[i].id, &e) || memcmp(&e, &all[i], sizeof e)) bad++;
+        }
+        sooc_free(all);
+        sooc_cogmap_camera c;
+        make_cam(&c, 0, 30, 0, 0, 1.55);
+        c.d_clip = 100;
+        c.K.fx = c.K.fy = 5;
+        int ns, nin;
+        sooc_cogmap_slot sl[1];
+        CHECK_OK(sooc_cogmap_query(m, &c, 1, sl, &ns, NULL, &nin));
+        if ((size_t)nin != n) bad++;
+        sooc_cogmap_destroy(m);
+    }
+    CHECK_MSG(bad == 0, "%d inconsistencies under allocation failures", bad);
+    CHECK(failures > 10);
+}
+
 int main(void) {
     test_transforms();
     test_inview();
@@ -586,6 +643,7 @@ int main(void) {
     test_out_of_view_identical();
     test_stress();
     test_layout_and_alloc();
+    test_fault_injection();
     sooc_alloc_stats st;
     sooc_alloc_get_stats(&st);
     CHECK_MSG(st.live_bytes == 0, "%llu bytes leaked", (unsigned long long)st.live_bytes);
