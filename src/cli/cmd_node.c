@@ -1,8 +1,8 @@
 /* sooc3d node <launch.yaml> [--max-keyframes N] [--print-table] [--log-level L]
  *
- * Signals: SIGINT/SIGTERM/SIGHUP/SIGQUIT are blocked before any thread exists
- * (so every thread inherits the mask) and collected by a dedicated sigwait
- * thread. The first SIGINT/SIGTERM asks the node to stop: the keyframe in
+ * Signals: SIGINT/SIGTERM/SIGHUP/SIGQUIT/SIGUSR1 are blocked before any of
+ * our threads exists (so every thread inherits the mask) and collected by a
+ * dedicated signal thread (see on_signal for why it is not sigwait). The first SIGINT/SIGTERM asks the node to stop: the keyframe in
  * progress is finished and committed, the table is closed, exit status 0.
  * A second one exits at once (status 128 + signo). SIGUSR1 cycles the log
  * level. SIGPIPE is ignored. */
@@ -11,6 +11,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdatomic.h>
@@ -40,19 +41,45 @@ static void usage(FILE *f) {
             "Launch file keys: docs/node.md. Examples: launch/*.yaml.\n");
 }
 
+/* Why not a plain sigwait thread: libraries start threads before main()
+ * (OpenBLAS's pthread pool, lttng-ust under libcamera) with the signals
+ * unblocked, so a process-directed SIGTERM can land there and kill the
+ * process with the default action. So: the signals are blocked in main
+ * before any of OUR threads exist; a handler is installed (it runs only in
+ * the signal thread, which unblocks them, or in such foreign threads); the
+ * handler is async-signal-safe: it counts, forwards the signal number through
+ * a pipe to the signal thread, and _exit()s on the second one. */
+static atomic_int g_sig_count;
+static int g_sig_pipe[2] = {-1, -1};
+
+static void on_signal(int sig) {
+    if ((sig == SIGINT || sig == SIGTERM || sig == SIGQUIT) && atomic_fetch_add(&g_sig_count, 1) > 0) {
+        static const char msg[] = "sooc3d node: second signal, exiting now\n";
+        ssize_t w = write(2, msg, sizeof msg - 1);
+        (void)w;
+        _exit(128 + sig);
+    }
+    unsigned char b = (unsigned char)sig;
+    ssize_t w = write(g_sig_pipe[1], &b, 1);
+    (void)w;
+}
+
 typedef struct sigctx {
     sooc_node *node;
     sigset_t set;
     atomic_int done;
-    atomic_int got;
 } sigctx;
 
 static void *sig_main(void *arg) {
     sigctx *c = arg;
-    struct timespec ts = {0, 200 * 1000 * 1000};
+    pthread_sigmask(SIG_UNBLOCK, &c->set, NULL);   /* this thread receives them */
     while (!atomic_load(&c->done)) {
-        int sig = sigtimedwait(&c->set, NULL, &ts);
-        if (sig < 0) continue;   /* EAGAIN (timeout) or EINTR */
+        struct pollfd pf = {g_sig_pipe[0], POLLIN, 0};
+        int r = poll(&pf, 1, 200);
+        if (r <= 0) continue;   /* timeout or EINTR */
+        unsigned char b;
+        if (read(g_sig_pipe[0], &b, 1) != 1) continue;
+        int sig = b;
         if (sig == SIGUSR1) {
             sooc_log_level l = sooc_log_get_level();
             sooc_log_set_level(l >= SOOC_LOG_ERROR ? SOOC_LOG_DEBUG : (sooc_log_level)(l + 1));
@@ -62,16 +89,11 @@ static void *sig_main(void *arg) {
             sooc_log(SOOC_LOG_INFO, "node: SIGHUP ignored (restart to reload the launch file)");
             continue;
         }
-        if (atomic_fetch_add(&c->got, 1) > 0) {
-            static const char msg[] = "sooc3d node: second signal, exiting now\n";
-            ssize_t w = write(2, msg, sizeof msg - 1);
-            (void)w;
-            _exit(128 + sig);
-        }
         sooc_log(SOOC_LOG_INFO, "node: %s received: finishing the current keyframe (again to exit now)",
                  sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "SIGQUIT");
         sooc_node_request_stop(c->node);
     }
+    pthread_sigmask(SIG_BLOCK, &c->set, NULL);
     return NULL;
 }
 
@@ -159,8 +181,19 @@ int sooc_cmd_node(int argc, char **argv) {
     sigaddset(&sc.set, SIGHUP);
     sigaddset(&sc.set, SIGQUIT);
     sigaddset(&sc.set, SIGUSR1);
+    /* block before creating any thread of ours: they all inherit the mask */
     pthread_sigmask(SIG_BLOCK, &sc.set, NULL);
     signal(SIGPIPE, SIG_IGN);
+    if (pipe(g_sig_pipe)) {
+        fprintf(stderr, "sooc3d node: pipe: %s\n", strerror(errno));
+        return 1;
+    }
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigfillset(&sa.sa_mask);
+    for (int s = 1; s < 32; s++)
+        if (sigismember(&sc.set, s)) sigaction(s, &sa, NULL);
 
     print_ctx pc = {print_table || (!quiet && cfg.log_level <= SOOC_LOG_INFO)};
     sooc_node_options opt;
@@ -189,6 +222,6 @@ int sooc_cmd_node(int argc, char **argv) {
     if (st) return sooc_cli_fail("node", st);
     char line[512];
     sooc_node_stats_format(&s, line, sizeof line);
-    fprintf(stderr, "sooc3d node: done%s: %s\n", atomic_load(&sc.got) ? " (stopped by signal)" : "", line);
+    fprintf(stderr, "sooc3d node: done%s: %s\n", atomic_load(&g_sig_count) ? " (stopped by signal)" : "", line);
     return 0;
 }

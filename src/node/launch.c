@@ -246,8 +246,8 @@ static sooc_status sensor_param(pctx *p, const char *key, yaml_node_t *kn, yaml_
     long li;
     int b;
     switch (sp->type) {
-    case PT_STR:
-        if (!*s) return bad(p, vn, key, "expected a non-empty string", s);
+    case PT_STR:   /* openni2 uri "" = any device */
+        if (!*s && strcmp(key, "uri")) return bad(p, vn, key, "expected a non-empty string", s);
         break;
     case PT_INT:
         if ((st = get_int(p, vn, key, 0, 1000000, &li))) return st;

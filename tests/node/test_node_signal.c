@@ -1,0 +1,149 @@
+/* SIGTERM -> clean exit 0 with the final keyframe committed (the table and
+ * the database agree, WRITER_EXITED set, shm kept as configured); a second
+ * signal during a slow keyframe exits at once. Runs the `sooc3d node` command
+ * linked with the fake mapper (sooc3d_node_fake) as a child process, replaying
+ * a looping TUM sequence written here. */
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "node_fixture.h"
+#if SOOC_NODE_HAVE_TABLE
+#include "sooc3d/table.h"
+#endif
+#if SOOC_NODE_HAVE_MAPSTORE
+#include "sooc3d/mapstore.h"
+#endif
+
+static char g_tmp[256], g_shm[64];
+
+static int count_visit(void *u, const sooc_cogmap_entry *e) {
+    (void)e;
+    (*(size_t *)u)++;
+    return 0;
+}
+
+static pid_t spawn(const char *bin, const char *launch, const char *delay_ms) {
+    pid_t pid = fork();
+    if (pid == 0) {
+        if (delay_ms) setenv("SOOC_FAKE_MAPPER_DELAY_MS", delay_ms, 1);
+        char logp[512];
+        snprintf(logp, sizeof logp, "%s/node.log", g_tmp);
+        if (!freopen(logp, "a", stderr) || !freopen("/dev/null", "w", stdout)) _exit(90);
+        execl(bin, bin, launch, "--quiet", (char *)NULL);
+        _exit(91);
+    }
+    return pid;
+}
+
+static void write_launch(const char *path, const char *db, int unlink_on_exit) {
+    FILE *f = fopen(path, "w");
+    fprintf(f,
+            "sensor: {driver: replay, path: %s/tum, format: tum, speed: realtime, loop: true, depth_scale: 0.0002}\n"
+            "pose: {source: sensor}\n"
+            "model: {path: fake.bin}\n"
+            "keyframe: {translation_m: 0.10, rotation_deg: 10, time_s: 0}\n"
+            "shm: {name: %s, capacity: 4096, unlink_on_exit: %s}\n"
+            "map: {db: '%s'}\n"
+            "world: {up: +y, floor: 0.0}\n"
+            "log: {level: info}\n",
+            g_tmp, g_shm, unlink_on_exit ? "true" : "false", db);
+    fclose(f);
+}
+
+int main(void) {
+#if !(SOOC_NODE_HAVE_TABLE && SOOC_NODE_HAVE_MAPSTORE && SOOC_NODE_HAVE_DRIVERS)
+    fprintf(stderr, "test_node_signal: needs the table, map store and drivers modules; skipped\n");
+    return SOOC_TEST_SKIP;
+#else
+    const char *bin = getenv("SOOC_NODE_FAKE_BIN");
+    if (!bin || access(bin, X_OK)) {
+        fprintf(stderr, "test_node_signal: SOOC_NODE_FAKE_BIN not set/executable; skipped\n");
+        return SOOC_TEST_SKIP;
+    }
+    snprintf(g_tmp, sizeof g_tmp, "/tmp/sooc3d_node_sig.%d", (int)getpid());
+    snprintf(g_shm, sizeof g_shm, "node_sig_%d", (int)getpid());
+    sooc_mkdirs(g_tmp);
+    char dir[512], launch[512], db[512], shm_path[128];
+    snprintf(dir, sizeof dir, "%s/tum", g_tmp);
+    snprintf(launch, sizeof launch, "%s/sig.yaml", g_tmp);
+    snprintf(db, sizeof db, "%s/map.sqlite", g_tmp);
+    sooc_table_shm_name(g_shm, shm_path, sizeof shm_path);
+    CHECK(fx_write_tum(dir, 20, 0.15) == 0);
+    write_launch(launch, db, 0);
+
+    /* 1. SIGTERM while running: exit 0, final keyframe committed */
+    pid_t pid = spawn(bin, launch, NULL);
+    sooc_table_reader *r = NULL;
+    double t0 = sooc_seconds();
+    while (sooc_seconds() - t0 < 20) {
+        if (!r && sooc_table_open_reader(g_shm, &r) != SOOC_TABLE_OK) r = NULL;
+        if (r && sooc_table_epoch(r) >= 6) break;   /* a few keyframes published */
+        usleep(5000);
+    }
+    CHECK_MSG(r != NULL, "table never appeared (see %s/node.log)", g_tmp);
+    kill(pid, SIGTERM);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 0, "node exit status %d (signal %d)",
+              WIFEXITED(status) ? WEXITSTATUS(status) : -1, WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+    if (r) {
+        static sooc_table_record recs[4096];
+        uint32_t n = 0;
+        uint64_t epoch = 0;
+        CHECK(sooc_table_snapshot(r, recs, 4096, &n, &epoch) == SOOC_TABLE_OK);
+        size_t live = 0;
+        for (uint32_t i = 0; i < n; i++) live += !(recs[i].flags & SOOC_TABLE_FLAG_REMOVED);
+        sooc_table_liveness lv;
+        CHECK(sooc_table_writer_alive(r, &lv) == 0 && lv.exited);
+        sooc_mapstore *s;
+        sooc_mapstore_params p;
+        sooc_mapstore_params_default(&p);
+        p.create = 0;
+        CHECK_OK(sooc_mapstore_open(&s, db, &p));
+        size_t nd = 0;
+        sooc_mapstore_foreach(s, count_visit, &nd);
+        sooc_mapstore_close(s);
+        printf("SIGTERM: %zu objects in the table, %zu in the database, epoch %llu\n", live, nd,
+               (unsigned long long)epoch);
+        CHECK(live > 0 && live == nd);
+        sooc_table_close_reader(r);
+    }
+    CHECK_MSG(access("/dev/shm", F_OK) || shm_open(shm_path, O_RDONLY, 0) >= 0, "shm unlinked despite config");
+
+    /* 2. second signal during a slow keyframe: immediate exit, non-zero */
+    pid = spawn(bin, launch, "3000");
+    usleep(1500 * 1000);   /* resume + the first (3 s) keyframe under way */
+    kill(pid, SIGTERM);
+    usleep(200 * 1000);
+    double ts = sooc_seconds();
+    kill(pid, SIGTERM);
+    waitpid(pid, &status, 0);
+    double dt = sooc_seconds() - ts;
+    CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM, "second signal: status %d",
+              WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    CHECK_MSG(dt < 1.0, "second signal took %.2f s", dt);
+
+    /* 3. unlink_on_exit: true removes the shm object on a clean exit */
+    write_launch(launch, db, 1);
+    pid = spawn(bin, launch, NULL);
+    usleep(800 * 1000);
+    kill(pid, SIGINT);
+    waitpid(pid, &status, 0);
+    CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    CHECK(shm_open(shm_path, O_RDONLY, 0) < 0);
+
+    shm_unlink(shm_path);
+    char cmd[1200];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_tmp);
+    if (g_check_fail) snprintf(cmd, sizeof cmd, "cat '%s/node.log' >&2; rm -rf '%s'", g_tmp, g_tmp);
+    if (!getenv("SOOC_KEEP_TMP") && system(cmd)) fprintf(stderr, "cleanup failed\n");
+    return check_report("test_node_signal");
+#endif
+}
