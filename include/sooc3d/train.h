@@ -1,0 +1,125 @@
+/*
+ * sooc3d training (issue 4 part 6): scene datasets, the training
+ * configuration, and the training loop around sooc_model_train_step.
+ *
+ * The loop: for each step s, an RNG seeded with (seed, s) picks the scene, the
+ * number of input views T (curriculum), the input segment and the query views,
+ * and drives the model's sampling. So the data order depends only on (seed, s)
+ * and a resumed run repeats exactly what an uninterrupted run would have done.
+ * Adam with clipping, warm-up then linear or cosine decay; the relaxed-
+ * Bernoulli temperature is annealed from tau_start to tau_end over the first
+ * tau_frac of the steps and then held (model.md "Measured findings", run A).
+ *
+ * Output directory:
+ *   last.bin      checkpoint every ckpt_every steps (model + Adam + trainer state)
+ *   best.bin      the checkpoint with the best validation mIoU so far
+ *   log.csv       one row per log_every steps (every loss term, lr, tau, slots)
+ *   val.csv       one row per validation
+ *   curves.png    the loss curves, redrawn at each checkpoint
+ *   config.yaml   a copy of the training configuration
+ */
+#ifndef SOOC3D_TRAIN_H
+#define SOOC3D_TRAIN_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/model.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* --------------------------------------------------------------- dataset */
+
+/* A set of synthetic scenes held in memory: every view of every scene, with
+ * its input/query flag and the scene's ground-truth objects. */
+typedef struct sooc_dataset sooc_dataset;
+
+/* Load scenes from each directory in dirs: a directory holding scene.yaml is
+ * one scene; otherwise every scene_* subdirectory is loaded. All views must
+ * have size (width, height). Fails naming the offending file. */
+sooc_status sooc_dataset_open(sooc_dataset **out, const char *const *dirs, int n_dirs, int width,
+                              int height);
+void sooc_dataset_destroy(sooc_dataset *d);   /* NULL-safe */
+int sooc_dataset_n_scenes(const sooc_dataset *d);
+const char *sooc_dataset_scene_path(const sooc_dataset *d, int scene);
+/* Views of a scene in trajectory order (input and query views interleaved as
+ * stored); is_query marks query views. */
+int sooc_dataset_n_views(const sooc_dataset *d, int scene);
+const sooc_frame *sooc_dataset_view(const sooc_dataset *d, int scene, int view);
+int sooc_dataset_n_inputs(const sooc_dataset *d, int scene);
+/* Ground-truth objects of a scene (world floor position, for L2 and recall). */
+int sooc_dataset_n_objects(const sooc_dataset *d, int scene);
+void sooc_dataset_object(const sooc_dataset *d, int scene, int i, uint16_t *id, double *x, double *z);
+
+/* Pick T consecutive input views (starting at a random input index) and the Q
+ * query views nearest to that segment's cameras. Frames are shallow copies
+ * (they share pixel buffers with the dataset). Returns the counts actually
+ * chosen (a scene may have fewer views). */
+void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, sooc_rng *rng,
+                         sooc_frame *views, int *n_views, sooc_frame *queries, int *n_queries);
+
+/* ---------------------------------------------------------------- config */
+
+typedef struct sooc_train_config {
+    int64_t steps;          /* total optimisation steps                        (20000) */
+    uint64_t seed;          /* data order and sampling                            (1) */
+    uint64_t init_seed;     /* weight initialisation                              (1) */
+    float lr;               /* peak learning rate                              (2e-4) */
+    int64_t warmup;         /* linear warm-up steps                            (1000) */
+    float lr_final_frac;    /* lr at the end = lr * frac                        (0.1) */
+    int cosine;             /* 1 = cosine decay, 0 = linear                       (1) */
+    float clip;             /* gradient-norm clip                               (5.0) */
+    float tau_start, tau_end, tau_frac;   /* temperature anneal        (1, 0.7, 0.2) */
+    int64_t kl_warmup;      /* beta_kl linear 0 -> 1 over this many steps      (1000) */
+    int64_t burnin;         /* presence burn-in steps (straight-through z=1)      (0) */
+    int st_retrieved;       /* hard straight-through presence for retrieved slots (0) */
+    /* curriculum (model.md §3.5): phase A [0, a), B [a, b), C [b, 1) */
+    float phase_a, phase_b; /* fractions of the steps                      (0.15, 0.5) */
+    int t_min_b, t_max_b, t_min_c, t_max_c;  /* input views per phase   (2,3 / 2,5) */
+    int q_a, q_bc;          /* query views in phase A and in B/C              (1, 2) */
+    int accum;              /* scenes per optimisation step (gradient accumulation) (1) */
+    int threads;            /* model threads (0 = OpenMP default)                (0) */
+    /* bookkeeping */
+    int64_t log_every;      /* CSV + progress extra                              (10) */
+    int64_t ckpt_every;     /* checkpoint                                       (250) */
+    int64_t val_every;      /* validation (0 = off)                             (500) */
+    int val_scenes;         /* validation scenes (from --val dirs)                (8) */
+    float val_max_seconds;  /* stop the run cleanly after this many seconds (0 = no) */
+} sooc_train_config;
+
+void sooc_train_config_default(sooc_train_config *c);
+/* Load a YAML training config: top-level training keys (the field names
+ * above) and an optional `model:` mapping with sooc_model_config field names
+ * (K, d_what, L, sigma_max, ...). Unknown keys and bad values are errors that
+ * name the file, line and key. */
+sooc_status sooc_train_config_load(const char *path, sooc_train_config *c, sooc_model_config *mc);
+
+/* --------------------------------------------------------------- running */
+
+/* Validation hook: score the model on the validation scenes; *miou is the
+ * query-view best-match mIoU (higher is better). */
+typedef sooc_status (*sooc_train_val_fn)(void *user, sooc_model *m, const sooc_dataset *val,
+                                         double *miou, double *miou_input, double *l2);
+
+typedef struct sooc_train_run_params {
+    const char *config_path;      /* copied into out_dir/config.yaml               */
+    const char *out_dir;
+    int resume;                   /* 1 = continue from out_dir/last.bin             */
+    const sooc_dataset *train;
+    const sooc_dataset *val;      /* may be NULL                                   */
+    sooc_train_val_fn val_fn;     /* may be NULL (no validation)                   */
+    void *val_user;
+    int progress;                 /* 1 = draw a progress line on stderr (CLI)      */
+    volatile int *stop_flag;      /* set non-zero (e.g. by SIGINT) to checkpoint and stop */
+} sooc_train_run_params;
+
+/* Train until cfg->steps (or the stop flag, or the time budget). Always
+ * leaves a consistent last.bin behind. */
+sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config *mc,
+                           const sooc_train_run_params *rp);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_TRAIN_H */

@@ -1,0 +1,227 @@
+/* In-memory scene datasets for training and validation. */
+#include "sooc3d/train.h"
+#include "sooc3d/scene.h"
+#include "sooc3d/seq.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct ds_scene {
+    char *path;
+    int n_views, n_inputs;
+    sooc_frame *views;          /* n_views, trajectory order       */
+    int *input_idx;             /* n_inputs indices into views     */
+    int n_obj;
+    uint16_t *obj_id;
+    double *obj_xz;             /* n_obj x 2                       */
+} ds_scene;
+
+struct sooc_dataset {
+    int n, cap;
+    ds_scene *scenes;
+};
+
+static void scene_free(ds_scene *s) {
+    for (int i = 0; i < s->n_views; i++) sooc_frame_free(&s->views[i]);
+    sooc_free(s->views);
+    sooc_free(s->input_idx);
+    sooc_free(s->obj_id);
+    sooc_free(s->obj_xz);
+    sooc_free(s->path);
+    memset(s, 0, sizeof *s);
+}
+
+void sooc_dataset_destroy(sooc_dataset *d) {
+    if (!d) return;
+    for (int i = 0; i < d->n; i++) scene_free(&d->scenes[i]);
+    sooc_free(d->scenes);
+    sooc_free(d);
+}
+
+/* Load one scene directory (scene.yaml + TUM layout). */
+static sooc_status load_scene(ds_scene *out, const char *dir, int width, int height) {
+    memset(out, 0, sizeof *out);
+    char path[4096];
+    sooc_status s = sooc_path_join(path, sizeof path, dir, "scene.yaml");
+    if (s) return s;
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    s = sooc_scene_load(path, &sc);
+    if (s) return s;
+    sooc_seq *seq = NULL;
+    s = sooc_seq_open(&seq, dir, NULL);
+    if (s) { sooc_scene_free(&sc); return s; }
+    int64_t n = sooc_seq_count(seq);
+    if (n <= 0 || n > 100000) {
+        s = sooc_seterr(SOOC_EFORMAT, "%s: %lld views", dir, (long long)n);
+        goto done;
+    }
+    out->path = sooc_strdup(dir);
+    out->views = sooc_calloc((size_t)n, sizeof(sooc_frame));
+    out->input_idx = sooc_calloc((size_t)n, sizeof(int));
+    out->obj_id = sooc_calloc((size_t)sc.n_objects + 1, sizeof(uint16_t));
+    out->obj_xz = sooc_calloc((size_t)sc.n_objects + 1, 2 * sizeof(double));
+    if (!out->path || !out->views || !out->input_idx || !out->obj_id || !out->obj_xz) {
+        s = SOOC_ENOMEM;
+        goto done;
+    }
+    for (int64_t i = 0; i < n; i++) {
+        sooc_frame *f = &out->views[i];
+        s = sooc_seq_read(seq, i, f);
+        out->n_views = (int)i + 1;
+        if (s) goto done;
+        if (f->width != width || f->height != height) {
+            s = sooc_seterr(SOOC_EINVAL, "%s: view %lld is %dx%d, the model needs %dx%d", dir, (long long)i,
+                            f->width, f->height, width, height);
+            goto done;
+        }
+        if (!f->has_pose) {
+            s = sooc_seterr(SOOC_EFORMAT, "%s: view %lld has no pose", dir, (long long)i);
+            goto done;
+        }
+        if (sc.view_is_query && i < sc.n_views) f->is_query = sc.view_is_query[i];
+        if (!f->is_query) out->input_idx[out->n_inputs++] = (int)i;
+    }
+    if (out->n_inputs == 0) {
+        s = sooc_seterr(SOOC_EFORMAT, "%s: no input views", dir);
+        goto done;
+    }
+    out->n_obj = sc.n_objects;
+    for (int i = 0; i < sc.n_objects; i++) {
+        double c[3];
+        sooc_scene_object_center(&sc.objects[i], c);
+        out->obj_id[i] = (uint16_t)sc.objects[i].id;
+        out->obj_xz[2 * i] = c[0];
+        out->obj_xz[2 * i + 1] = c[2];
+    }
+done:
+    sooc_seq_close(seq);
+    sooc_scene_free(&sc);
+    if (s) scene_free(out);
+    return s;
+}
+
+static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+static sooc_status push_scene(sooc_dataset *d, const char *dir, int w, int h) {
+    if (d->n == d->cap) {
+        int cap = d->cap ? 2 * d->cap : 16;
+        ds_scene *ns = sooc_realloc(d->scenes, (size_t)cap * sizeof(ds_scene));
+        if (!ns) return SOOC_ENOMEM;
+        d->scenes = ns;
+        d->cap = cap;
+    }
+    sooc_status s = load_scene(&d->scenes[d->n], dir, w, h);
+    if (s) return s;
+    d->n++;
+    return SOOC_OK;
+}
+
+static sooc_status add_dir(sooc_dataset *d, const char *dir, int w, int h) {
+    char path[4096];
+    sooc_status s = sooc_path_join(path, sizeof path, dir, "scene.yaml");
+    if (s) return s;
+    if (sooc_file_exists(path)) return push_scene(d, dir, w, h);
+    DIR *dp = opendir(dir);
+    if (!dp) return sooc_seterr(SOOC_ENOTFOUND, "%s: not a scene or a directory of scenes", dir);
+    char **names = NULL;
+    int n = 0, cap = 0;
+    struct dirent *e;
+    s = SOOC_OK;
+    while ((e = readdir(dp))) {
+        if (strncmp(e->d_name, "scene_", 6) != 0) continue;
+        if (n == cap) {
+            cap = cap ? 2 * cap : 64;
+            char **nn = sooc_realloc(names, (size_t)cap * sizeof(char *));
+            if (!nn) { s = SOOC_ENOMEM; break; }
+            names = nn;
+        }
+        names[n] = sooc_strdup(e->d_name);
+        if (!names[n]) { s = SOOC_ENOMEM; break; }
+        n++;
+    }
+    closedir(dp);
+    if (!s) {
+        qsort(names, (size_t)n, sizeof(char *), cmp_str);
+        for (int i = 0; i < n && !s; i++) {
+            if ((s = sooc_path_join(path, sizeof path, dir, names[i]))) break;
+            s = push_scene(d, path, w, h);
+        }
+        if (!s && n == 0) s = sooc_seterr(SOOC_ENOTFOUND, "%s: no scene.yaml and no scene_* folders", dir);
+    }
+    for (int i = 0; i < n; i++) sooc_free(names[i]);
+    sooc_free(names);
+    return s;
+}
+
+sooc_status sooc_dataset_open(sooc_dataset **out, const char *const *dirs, int n_dirs, int width,
+                              int height) {
+    *out = NULL;
+    sooc_dataset *d = sooc_calloc(1, sizeof *d);
+    if (!d) return SOOC_ENOMEM;
+    for (int i = 0; i < n_dirs; i++) {
+        sooc_status s = add_dir(d, dirs[i], width, height);
+        if (s) { sooc_dataset_destroy(d); return s; }
+    }
+    if (d->n == 0) {
+        sooc_dataset_destroy(d);
+        return sooc_seterr(SOOC_ENOTFOUND, "no scenes found");
+    }
+    *out = d;
+    return SOOC_OK;
+}
+
+int sooc_dataset_n_scenes(const sooc_dataset *d) { return d->n; }
+const char *sooc_dataset_scene_path(const sooc_dataset *d, int s) { return d->scenes[s].path; }
+int sooc_dataset_n_views(const sooc_dataset *d, int s) { return d->scenes[s].n_views; }
+const sooc_frame *sooc_dataset_view(const sooc_dataset *d, int s, int v) { return &d->scenes[s].views[v]; }
+int sooc_dataset_n_inputs(const sooc_dataset *d, int s) { return d->scenes[s].n_inputs; }
+int sooc_dataset_n_objects(const sooc_dataset *d, int s) { return d->scenes[s].n_obj; }
+void sooc_dataset_object(const sooc_dataset *d, int s, int i, uint16_t *id, double *x, double *z) {
+    const ds_scene *sc = &d->scenes[s];
+    *id = sc->obj_id[i];
+    *x = sc->obj_xz[2 * i];
+    *z = sc->obj_xz[2 * i + 1];
+}
+
+void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, sooc_rng *rng, sooc_frame *views,
+                         int *n_views, sooc_frame *queries, int *n_queries) {
+    const ds_scene *sc = &d->scenes[scene];
+    if (T > sc->n_inputs) T = sc->n_inputs;
+    int start = (int)sooc_rng_below(rng, (uint32_t)(sc->n_inputs - T + 1));
+    for (int t = 0; t < T; t++) views[t] = sc->views[sc->input_idx[start + t]];
+    *n_views = T;
+    /* Query views: the Q query frames whose camera centre is nearest (on the
+     * floor) to any camera of the chosen segment, so that they look at what the
+     * segment mapped. Ties go to the lower index: deterministic. */
+    int nq = 0;
+    int used[64] = {0};
+    int n_cand = 0;
+    for (int v = 0; v < sc->n_views && n_cand < 64; v++)
+        if (sc->views[v].is_query) used[n_cand++] = 0;
+    for (int q = 0; q < Q; q++) {
+        double best = INFINITY;
+        int best_v = -1, ci = -1, best_ci = -1;
+        for (int v = 0; v < sc->n_views; v++) {
+            if (!sc->views[v].is_query) continue;
+            if (++ci >= 64) break;
+            if (used[ci]) continue;
+            const double *Tq = sc->views[v].T_wc;
+            for (int t = 0; t < T; t++) {
+                const double *Tv = views[t].T_wc;
+                double dx = Tq[3] - Tv[3], dz = Tq[11] - Tv[11];
+                /* Also prefer a similar heading: 1 m per radian. */
+                double fq = atan2(Tq[2], Tq[10]), fv = atan2(Tv[2], Tv[10]);
+                double da = fabs(remainder(fq - fv, 2 * M_PI));
+                double dist = sqrt(dx * dx + dz * dz) + da;
+                if (dist < best) { best = dist; best_v = v; best_ci = ci; }
+            }
+        }
+        if (best_v < 0) break;
+        used[best_ci] = 1;
+        queries[nq++] = sc->views[best_v];
+    }
+    *n_queries = nq;
+}

@@ -1,0 +1,372 @@
+/* The training loop: curriculum, Adam with clipping, temperature and KL
+ * schedules, checkpoints with exact resume, validation and logs. */
+#include "sooc3d/train.h"
+#include "sooc3d/eval.h"
+#include "sooc3d/nn.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define TRAINER_MAGIC 0x4e525453434f4f53ULL /* "SOOCSTRN" */
+#define TRAINER_VERSION 1u
+
+/* Trainer state stored in the checkpoint's trainer blob, followed by the Adam
+ * moments m and v (n_params floats each). */
+typedef struct trainer_blob {
+    uint64_t magic;
+    uint32_t version, reserved;
+    int64_t step;             /* next step to run                      */
+    int64_t adam_t;
+    uint64_t n_params;
+    uint64_t seed;
+    double best_val;          /* best validation mIoU (-1 = none yet)  */
+    int64_t best_step;
+    int64_t skipped;          /* steps skipped for non-finite values   */
+} trainer_blob;
+
+typedef struct trainer {
+    const sooc_train_config *cfg;
+    const sooc_train_run_params *rp;
+    sooc_model *model;
+    sooc_nn_params adam;      /* wraps the model's slabs               */
+    sooc_nn_param_view view;
+    float *m, *v;
+    size_t n;
+    trainer_blob st;
+    uint8_t *idbits;          /* 65536-bit scratch for counting ids    */
+    char path_last[4096], path_best[4096], path_log[4096], path_val[4096], path_png[4096];
+} trainer;
+
+static float tau_at(const sooc_train_config *c, int64_t s) {
+    double a = c->tau_frac > 0 ? (double)s / ((double)c->tau_frac * (double)c->steps) : 1.0;
+    if (a > 1) a = 1;
+    return (float)(c->tau_start + (c->tau_end - c->tau_start) * a);
+}
+
+static void curriculum(const sooc_train_config *c, int64_t s, sooc_rng *rng, int *T, int *Q) {
+    double f = (double)s / (double)c->steps;
+    if (f < c->phase_a) {
+        *T = 1;
+        *Q = c->q_a;
+    } else if (f < c->phase_b) {
+        *T = c->t_min_b + (int)sooc_rng_below(rng, (uint32_t)(c->t_max_b - c->t_min_b + 1));
+        *Q = c->q_bc;
+    } else {
+        *T = c->t_min_c + (int)sooc_rng_below(rng, (uint32_t)(c->t_max_c - c->t_min_c + 1));
+        *Q = c->q_bc;
+    }
+}
+
+/* Mean number of distinct visible GT objects per view (instance id != 0). */
+static double visible_objects(trainer *tr, const sooc_frame *v, int T) {
+    double sum = 0;
+    for (int t = 0; t < T; t++) {
+        if (!v[t].instance) continue;
+        memset(tr->idbits, 0, 65536 / 8);
+        int n = 0, np = v[t].width * v[t].height;
+        for (int i = 0; i < np; i++) {
+            uint16_t id = v[t].instance[i];
+            if (id && !(tr->idbits[id >> 3] & (1u << (id & 7)))) {
+                tr->idbits[id >> 3] |= (uint8_t)(1u << (id & 7));
+                n++;
+            }
+        }
+        sum += n;
+    }
+    return T ? sum / T : 0;
+}
+
+static sooc_status save_ckpt(trainer *tr, const char *path) {
+    size_t blob_n = sizeof(trainer_blob) + 2 * tr->n * sizeof(float);
+    uint8_t *blob = sooc_malloc(blob_n);
+    if (!blob) return SOOC_ENOMEM;
+    tr->st.adam_t = tr->adam.adam_t;
+    memcpy(blob, &tr->st, sizeof tr->st);
+    memcpy(blob + sizeof tr->st, tr->m, tr->n * sizeof(float));
+    memcpy(blob + sizeof tr->st + tr->n * sizeof(float), tr->v, tr->n * sizeof(float));
+    sooc_status s = sooc_model_save(tr->model, path, blob, blob_n);
+    sooc_free(blob);
+    return s;
+}
+
+static sooc_status restore_blob(trainer *tr, const void *blob, size_t n) {
+    trainer_blob b;
+    if (!blob || n < sizeof b)
+        return sooc_seterr(SOOC_EFORMAT, "%s: no trainer state in the checkpoint", tr->path_last);
+    memcpy(&b, blob, sizeof b);
+    if (b.magic != TRAINER_MAGIC || b.version != TRAINER_VERSION)
+        return sooc_seterr(SOOC_EVERSION, "%s: trainer state has magic/version %llx/%u, expected %llx/%u",
+                           tr->path_last, (unsigned long long)b.magic, b.version,
+                           (unsigned long long)TRAINER_MAGIC, TRAINER_VERSION);
+    if (b.n_params != tr->n || n != sizeof b + 2 * tr->n * sizeof(float))
+        return sooc_seterr(SOOC_EFORMAT, "%s: trainer state is for %llu parameters, the model has %zu",
+                           tr->path_last, (unsigned long long)b.n_params, tr->n);
+    if (b.seed != tr->cfg->seed)
+        return sooc_seterr(SOOC_EINVAL, "%s: checkpoint was trained with seed %llu, the config says %llu",
+                           tr->path_last, (unsigned long long)b.seed, (unsigned long long)tr->cfg->seed);
+    tr->st = b;
+    tr->adam.adam_t = b.adam_t;
+    memcpy(tr->m, (const uint8_t *)blob + sizeof b, tr->n * sizeof(float));
+    memcpy(tr->v, (const uint8_t *)blob + sizeof b + tr->n * sizeof(float), tr->n * sizeof(float));
+    return SOOC_OK;
+}
+
+/* Keep only the rows of a CSV log whose step (first column) is below `step`,
+ * so that a resumed run does not log the same steps twice. */
+static sooc_status trim_log(const char *path, int64_t step) {
+    if (!sooc_file_exists(path)) return SOOC_OK;
+    char *buf = NULL;
+    size_t n = 0;
+    sooc_status s = sooc_file_read_all(path, (size_t)1 << 30, (void **)&buf, &n);
+    if (s) return s;
+    size_t keep = 0;
+    char *line = buf;
+    int first = 1;
+    while (line < buf + n) {
+        char *nl = memchr(line, '\n', (size_t)(buf + n - line));
+        char *end = nl ? nl + 1 : buf + n;
+        if (!first && strtoll(line, NULL, 10) >= step) break;
+        first = 0;
+        keep = (size_t)(end - buf);
+        line = end;
+    }
+    if (keep != n) s = sooc_file_write_atomic(path, buf, keep);
+    sooc_free(buf);
+    return s;
+}
+
+static sooc_status append_line(const char *path, const char *header, const char *line) {
+    int exists = sooc_file_exists(path);
+    FILE *f = fopen(path, "a");
+    if (!f) return sooc_seterr(SOOC_EIO, "%s: cannot open for appending", path);
+    if (!exists) fputs(header, f);
+    fputs(line, f);
+    if (fclose(f) != 0) return sooc_seterr(SOOC_EIO, "%s: write failed", path);
+    return SOOC_OK;
+}
+
+static sooc_status copy_config(const char *src, const char *out_dir) {
+    if (!src) return SOOC_OK;
+    void *buf;
+    size_t n;
+    char dst[4096];
+    sooc_status s = sooc_path_join(dst, sizeof dst, out_dir, "config.yaml");
+    if (!s) s = sooc_file_read_all(src, 1 << 20, &buf, &n);
+    if (s) return s;
+    s = sooc_file_write_atomic(dst, buf, n);
+    sooc_free(buf);
+    return s;
+}
+
+static sooc_status run_validation(trainer *tr, int64_t step) {
+    const sooc_train_run_params *rp = tr->rp;
+    if (!rp->val_fn || !rp->val) return SOOC_OK;
+    double miou = NAN, miou_in = NAN, l2 = NAN, t0 = sooc_seconds();
+    sooc_status s = rp->val_fn(rp->val_user, tr->model, rp->val, &miou, &miou_in, &l2);
+    if (s) return sooc_adderr(s, "validation at step %lld", (long long)step);
+    char line[256];
+    snprintf(line, sizeof line, "%lld,%.5f,%.5f,%.4f,%.1f\n", (long long)step, miou, miou_in, l2,
+             sooc_seconds() - t0);
+    s = append_line(tr->path_val, "step,val_miou_query,val_miou_input,val_l2,seconds\n", line);
+    if (s) return s;
+    sooc_log(SOOC_LOG_INFO, "step %lld: validation query mIoU %.4f (input %.4f, L2 %.3f m)", (long long)step,
+             miou, miou_in, l2);
+    if (isfinite(miou) && miou > tr->st.best_val) {
+        tr->st.best_val = miou;
+        tr->st.best_step = step;
+        s = save_ckpt(tr, tr->path_best);
+        if (s) return s;
+        sooc_log(SOOC_LOG_INFO, "new best checkpoint %s (mIoU %.4f)", tr->path_best, miou);
+    }
+    return SOOC_OK;
+}
+
+static void trainer_free(trainer *tr) {
+    sooc_model_destroy(tr->model);
+    sooc_free(tr->m);
+    sooc_free(tr->v);
+    sooc_free(tr->idbits);
+}
+
+sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config *mc,
+                           const sooc_train_run_params *rp) {
+    trainer tr;
+    memset(&tr, 0, sizeof tr);
+    tr.cfg = cfg;
+    tr.rp = rp;
+    sooc_status s = sooc_mkdirs(rp->out_dir);
+    if (s) return s;
+    sooc_path_join(tr.path_last, sizeof tr.path_last, rp->out_dir, "last.bin");
+    sooc_path_join(tr.path_best, sizeof tr.path_best, rp->out_dir, "best.bin");
+    sooc_path_join(tr.path_log, sizeof tr.path_log, rp->out_dir, "log.csv");
+    sooc_path_join(tr.path_val, sizeof tr.path_val, rp->out_dir, "val.csv");
+    sooc_path_join(tr.path_png, sizeof tr.path_png, rp->out_dir, "curves.png");
+
+    void *blob = NULL;
+    size_t blob_n = 0;
+    if (rp->resume && sooc_file_exists(tr.path_last)) {
+        s = sooc_model_load(&tr.model, tr.path_last, &blob, &blob_n);
+        if (s) return s;
+        if (memcmp(sooc_model_get_config(tr.model), mc, sizeof *mc) != 0)
+            sooc_log(SOOC_LOG_WARN, "%s: the checkpoint's model config differs from the config file; "
+                                    "continuing with the checkpoint's", tr.path_last);
+    } else {
+        if (!rp->resume && sooc_file_exists(tr.path_last))
+            return sooc_seterr(SOOC_EINVAL, "%s exists: pass --resume to continue it, or use another --out",
+                               tr.path_last);
+        s = sooc_model_create(&tr.model, mc, cfg->init_seed);
+        if (s) return s;
+    }
+    sooc_model_set_threads(tr.model, cfg->threads);
+    tr.n = sooc_model_param_count(tr.model);
+    tr.m = sooc_calloc(tr.n, sizeof(float));
+    tr.v = sooc_calloc(tr.n, sizeof(float));
+    tr.idbits = sooc_malloc(65536 / 8);
+    if (!tr.m || !tr.v || !tr.idbits) { s = SOOC_ENOMEM; goto done; }
+    tr.st.magic = TRAINER_MAGIC;
+    tr.st.version = TRAINER_VERSION;
+    tr.st.n_params = tr.n;
+    tr.st.seed = cfg->seed;
+    tr.st.best_val = -1;
+    tr.st.best_step = -1;
+    if (blob) {
+        s = restore_blob(&tr, blob, blob_n);
+        sooc_free(blob);
+        blob = NULL;
+        if (s) goto done;
+        sooc_log(SOOC_LOG_INFO, "resuming %s at step %lld (best val mIoU %.4f at step %lld)", tr.path_last,
+                 (long long)tr.st.step, tr.st.best_val, (long long)tr.st.best_step);
+    }
+    if ((s = trim_log(tr.path_log, tr.st.step)) || (s = trim_log(tr.path_val, tr.st.step))) goto done;
+    if ((s = copy_config(rp->config_path, rp->out_dir))) goto done;
+
+    /* Adam over the model's flat slab: one view that covers everything. */
+    sooc_nn_params_init(&tr.adam);
+    snprintf(tr.view.name, sizeof tr.view.name, "model");
+    tr.view.ndim = 1;
+    tr.view.shape[0] = (int64_t)tr.n;
+    tr.view.offset = 0;
+    tr.view.n = tr.n;
+    tr.view.lr_mult = 1;
+    tr.view.wd_mult = 1;
+    tr.adam.views = &tr.view;
+    tr.adam.n_views = 1;
+    tr.adam.n_total = tr.n;
+    tr.adam.w = sooc_model_params(tr.model);
+    tr.adam.g = sooc_model_grads(tr.model);
+    tr.adam.m = tr.m;
+    tr.adam.v = tr.v;
+    tr.adam.adam_t = tr.st.adam_t;
+    sooc_nn_adam_cfg acfg = sooc_nn_adam_default();
+    sooc_nn_schedule sched = {cfg->lr, cfg->warmup, cfg->steps, cfg->lr_final_frac,
+                              cfg->cosine ? SOOC_NN_DECAY_COSINE : SOOC_NN_DECAY_LINEAR};
+
+    const sooc_dataset *ds = rp->train;
+    int nsc = sooc_dataset_n_scenes(ds);
+    sooc_frame views[64], queries[16];
+    sooc_progress prog;
+    if (rp->progress) sooc_progress_begin(&prog, "train", (uint64_t)cfg->steps);
+    double t_start = sooc_seconds();
+    const char *hdr = "step,lr,tau,beta_kl,total,nll_input,kl,nll_query,nll_depth,nll_color,"
+                      "present_slots,gt_visible,mean_pres_logit,map_entries,grad_norm,T,Q,sec_per_step\n";
+    double acc[8] = {0};
+    int acc_n = 0;
+    char extra[256] = "";
+    while (tr.st.step < cfg->steps) {
+        int64_t step = tr.st.step;
+        double ts = sooc_seconds();
+        sooc_rng rng;
+        sooc_rng_seed(&rng, cfg->seed, (uint64_t)step);
+        sooc_step_opts o;
+        sooc_step_opts_default(&o);
+        o.tau = tau_at(cfg, step);
+        o.beta_kl = cfg->kl_warmup > 0 ? fminf(1.0f, (float)(step + 1) / (float)cfg->kl_warmup) : 1.0f;
+        o.pres_mode = step < cfg->burnin ? SOOC_PRES_ST_ONE
+                      : cfg->st_retrieved ? SOOC_PRES_ST_RETRIEVED : SOOC_PRES_RELAXED;
+        sooc_model_zero_grad(tr.model);
+        sooc_step_losses sum;
+        memset(&sum, 0, sizeof sum);
+        double vis = 0;
+        int T = 1, Q = 1, ok_scenes = 0, nonfinite = 0;
+        for (int a = 0; a < cfg->accum; a++) {
+            curriculum(cfg, step, &rng, &T, &Q);
+            if (T > 64) T = 64;
+            if (Q > 16) Q = 16;
+            int sc = (int)sooc_rng_below(&rng, (uint32_t)nsc), nv = 0, nq = 0;
+            sooc_dataset_sample(ds, sc, T, Q, &rng, views, &nv, queries, &nq);
+            sooc_step_losses l;
+            s = sooc_model_train_step(tr.model, views, nv, queries, nq, &o, &rng, &l);
+            if (s) {
+                sooc_adderr(s, "step %lld, scene %s", (long long)step, sooc_dataset_scene_path(ds, sc));
+                goto done;
+            }
+            if (l.nonfinite) { nonfinite = 1; continue; }
+            ok_scenes++;
+            sum.total += l.total;
+            sum.nll_input += l.nll_input;
+            sum.kl += l.kl;
+            sum.nll_query += l.nll_query;
+            sum.nll_depth += l.nll_depth;
+            sum.nll_color += l.nll_color;
+            sum.present_slots += l.present_slots;
+            sum.mean_pres_logit += l.mean_pres_logit;
+            sum.map_entries += l.map_entries;
+            vis += visible_objects(&tr, views, nv);
+        }
+        double gnorm = NAN;
+        float lr = sooc_nn_schedule_lr(&sched, step);
+        if (ok_scenes > 0) {
+            if (ok_scenes > 1) {
+                float *g = sooc_model_grads(tr.model), sc = 1.0f / (float)ok_scenes;
+                for (size_t i = 0; i < tr.n; i++) g[i] *= sc;
+            }
+            gnorm = sooc_nn_clip_grad_norm(&tr.adam, cfg->clip);
+            s = isfinite(gnorm) ? sooc_nn_adam_step(&tr.adam, &acfg, lr) : SOOC_ENUMERIC;
+            if (s == SOOC_ENUMERIC) { s = SOOC_OK; nonfinite = 1; }
+            else if (s) goto done;
+        }
+        if (nonfinite) tr.st.skipped++;
+        tr.st.step = step + 1;
+        double inv = ok_scenes ? 1.0 / ok_scenes : NAN;
+        double row[8] = {sum.total * inv, sum.nll_input * inv, sum.kl * inv, sum.nll_query * inv,
+                         sum.present_slots * inv, vis * inv, sum.mean_pres_logit * inv, gnorm};
+        for (int i = 0; i < 8; i++) acc[i] += row[i];
+        acc_n++;
+        if (tr.st.step % cfg->log_every == 0 || tr.st.step == cfg->steps) {
+            char line[512];
+            snprintf(line, sizeof line,
+                     "%lld,%.4g,%.4f,%.4f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.3f,%.3f,%.4f,%.2f,%.4g,%d,%d,%.3f\n",
+                     (long long)step, lr, o.tau, o.beta_kl, row[0], row[1], row[2], row[3],
+                     sum.nll_depth * inv, sum.nll_color * inv, row[4], row[5], row[6], sum.map_entries * inv,
+                     gnorm, T, Q, sooc_seconds() - ts);
+            if ((s = append_line(tr.path_log, hdr, line))) goto done;
+            snprintf(extra, sizeof extra, "loss %.4g nll %.4g kl %.4g query %.4g slots %.2f/%.2f gt lr %.2e tau %.2f%s",
+                     acc[0] / acc_n, acc[1] / acc_n, acc[2] / acc_n, acc[3] / acc_n, acc[4] / acc_n,
+                     acc[5] / acc_n, lr, o.tau, tr.st.skipped ? " (skips)" : "");
+            memset(acc, 0, sizeof acc);
+            acc_n = 0;
+        }
+        if (rp->progress) sooc_progress_update(&prog, (uint64_t)tr.st.step, extra);
+        int stop = (rp->stop_flag && *rp->stop_flag) ||
+                   (cfg->val_max_seconds > 0 && sooc_seconds() - t_start > cfg->val_max_seconds);
+        if (cfg->val_every > 0 && tr.st.step % cfg->val_every == 0) {
+            if ((s = run_validation(&tr, tr.st.step))) goto done;
+        }
+        if (tr.st.step % cfg->ckpt_every == 0 || tr.st.step == cfg->steps || stop) {
+            if ((s = save_ckpt(&tr, tr.path_last))) goto done;
+            sooc_status ps = sooc_eval_plot_csv(tr.path_log, tr.path_png, "sooc3d training");
+            if (ps) sooc_log(SOOC_LOG_WARN, "curves: %s", sooc_errmsg());
+        }
+        if (stop) {
+            sooc_log(SOOC_LOG_INFO, "stopping at step %lld (checkpoint %s)", (long long)tr.st.step, tr.path_last);
+            break;
+        }
+    }
+    if (rp->progress) sooc_progress_end(&prog, extra);
+done:
+    sooc_free(blob);
+    trainer_free(&tr);
+    return s;
+}
