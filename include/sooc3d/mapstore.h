@@ -113,6 +113,10 @@ sooc_status sooc_mapstore_put_entries(sooc_mapstore *s, const sooc_cogmap_entry 
 sooc_status sooc_mapstore_remove_entries(sooc_mapstore *s, const uint64_t *ids, size_t n);
 sooc_status sooc_mapstore_put_layout(sooc_mapstore *s, int32_t bi, int32_t bj, const float *mu,
                                      const float *logvar);
+/* Append a keyframe row (t_ns, view, pose, counts from kf; changed ids are
+ * only counted, not written). n_entries: map size after the keyframe, or -1
+ * if unknown. Use inside begin/commit to keep one transaction per keyframe. */
+sooc_status sooc_mapstore_add_keyframe(sooc_mapstore *s, const sooc_mapstore_keyframe *kf, int64_t n_entries);
 /* Raise the stored id counter to at least `next_id`. */
 sooc_status sooc_mapstore_set_next_id(sooc_mapstore *s, uint64_t next_id);
 

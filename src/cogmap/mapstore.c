@@ -437,6 +437,30 @@ static sooc_status check_map(const sooc_mapstore *s, const sooc_cogmap *map) {
     return SOOC_OK;
 }
 
+/* Append a keyframe row; n_entries < 0 stores NULL (unknown). */
+static sooc_status kf_row(sooc_mapstore *s, const sooc_mapstore_keyframe *kf, size_t n_changed, size_t n_removed,
+                          int64_t n_entries) {
+    double R[9], t[3], q[4];
+    sooc_se3_to_rt(R, t, kf->T_wc);
+    sooc_m3_to_quat(q, R);
+    sqlite3_stmt *k = s->st[ST_ADD_KF];
+    sqlite3_bind_int64(k, 1, kf->t_ns);
+    sqlite3_bind_int(k, 2, kf->view);
+    for (int i = 0; i < 3; i++) sqlite3_bind_double(k, 3 + i, t[i]);
+    for (int i = 0; i < 4; i++) sqlite3_bind_double(k, 6 + i, q[i]);
+    sqlite3_bind_int64(k, 10, (sqlite3_int64)n_changed);
+    sqlite3_bind_int64(k, 11, (sqlite3_int64)n_removed);
+    if (n_entries >= 0) sqlite3_bind_int64(k, 12, n_entries);
+    else sqlite3_bind_null(k, 12);
+    return step_done(s, k, "writing a keyframe");
+}
+
+sooc_status sooc_mapstore_add_keyframe(sooc_mapstore *s, const sooc_mapstore_keyframe *kf, int64_t n_entries) {
+    size_t nc = 0;
+    for (size_t i = 0; i < kf->n_changed; i++) nc += kf->changed && kf->changed[i] != 0;
+    return kf_row(s, kf, nc, kf->n_removed, n_entries);
+}
+
 sooc_status sooc_mapstore_commit_keyframe(sooc_mapstore *s, const sooc_cogmap *map, const sooc_mapstore_keyframe *kf) {
     sooc_status st = check_map(s, map);
     if (st) return st;
@@ -461,20 +485,7 @@ sooc_status sooc_mapstore_commit_keyframe(sooc_mapstore *s, const sooc_cogmap *m
         if (st) goto fail;
     }
     if ((st = sooc_mapstore_set_next_id(s, sooc_cogmap_next_id(map)))) goto fail;
-    {
-        double R[9], t[3], q[4];
-        sooc_se3_to_rt(R, t, kf->T_wc);
-        sooc_m3_to_quat(q, R);
-        sqlite3_stmt *k = s->st[ST_ADD_KF];
-        sqlite3_bind_int64(k, 1, kf->t_ns);
-        sqlite3_bind_int(k, 2, kf->view);
-        for (int i = 0; i < 3; i++) sqlite3_bind_double(k, 3 + i, t[i]);
-        for (int i = 0; i < 4; i++) sqlite3_bind_double(k, 6 + i, q[i]);
-        sqlite3_bind_int64(k, 10, (sqlite3_int64)n_changed);
-        sqlite3_bind_int64(k, 11, (sqlite3_int64)kf->n_removed);
-        sqlite3_bind_int64(k, 12, (sqlite3_int64)sooc_cogmap_count(map)); /* the map after this keyframe */
-        if ((st = step_done(s, k, "writing a keyframe"))) goto fail;
-    }
+    if ((st = kf_row(s, kf, n_changed, kf->n_removed, (int64_t)sooc_cogmap_count(map)))) goto fail;
     return sooc_mapstore_commit(s);
 fail:
     sooc_mapstore_rollback(s);

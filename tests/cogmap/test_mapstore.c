@@ -179,6 +179,20 @@ static void test_restart(void) {
     CHECK_OK(sooc_mapstore_get(s, all[0].id, &g));
     CHECK(!memcmp(&g, &all[0], sizeof g));
     CHECK(sooc_mapstore_get(s, maxid, &g) == SOOC_ENOTFOUND);
+    /* low-level keyframe row inside an explicit transaction */
+    sooc_mapstore_info i0, i1;
+    CHECK_OK(sooc_mapstore_info_get(s, &i0));
+    CHECK_OK(sooc_mapstore_begin(s));
+    CHECK(sooc_mapstore_begin(s) == SOOC_EINVAL);
+    CHECK_OK(sooc_mapstore_add_keyframe(s, &kf, -1));
+    CHECK_OK(sooc_mapstore_commit(s));
+    CHECK_OK(sooc_mapstore_info_get(s, &i1));
+    CHECK(i1.n_keyframes == i0.n_keyframes + 1 && i1.n_entries == i0.n_entries);
+    CHECK_OK(sooc_mapstore_begin(s));
+    CHECK_OK(sooc_mapstore_add_keyframe(s, &kf, 5));
+    sooc_mapstore_rollback(s);
+    CHECK_OK(sooc_mapstore_info_get(s, &i1));
+    CHECK(i1.n_keyframes == i0.n_keyframes + 1);
 
     /* R*Tree box query == brute force */
     collect all_c = {sooc_malloc(n * sizeof(sooc_cogmap_entry)), 0, n};
