@@ -6,6 +6,9 @@
  * - Intrinsics from the stream FOV (f = size / (2 tan(fov/2))); when the
  *   property is NOT_IMPLEMENTED (DummyDevice, some forks) the PS1080 defaults
  *   of node.md §2.3 are used, scaled to the resolution.
+ * - Depth and colour are paired by arrival time within half a frame period
+ *   (device stamps of the two streams need not share an origin); t_ns is
+ *   the depth frame's device stamp.
  * - Teardown: the DummyDevice does not join its threads, so we wait 100 ms
  *   after oniStreamStop before destroying the streams (finding 0.2). */
 typedef struct _OniDevice _OniDevice;
@@ -29,7 +32,8 @@ static int g_oni_refs = 0;
 
 typedef struct oni_img {
     int have;
-    int64_t t_ns;
+    int64_t t_ns;       /* device stamp (µs -> ns) */
+    int64_t t_host;     /* arrival, CLOCK_MONOTONIC: used for pairing */
     int index;
 } oni_img;
 
@@ -227,6 +231,7 @@ static void store_frame(sooc_sensor *s, oni *o, OniFrame *fr) {
         if (o->dimg.have && fr->frameIndex > o->dimg.index + 1) s->st.dropped += fr->frameIndex - o->dimg.index - 1;
         o->dimg.have = 1;
         o->dimg.t_ns = t;
+        o->dimg.t_host = sooc_now_ns();
         o->dimg.index = fr->frameIndex;
     } else {
         s->st.color_in++;
@@ -247,6 +252,7 @@ static void store_frame(sooc_sensor *s, oni *o, OniFrame *fr) {
         }
         o->cimg.have = 1;
         o->cimg.t_ns = t;
+        o->cimg.t_host = sooc_now_ns();
         o->cimg.index = fr->frameIndex;
     }
 }
@@ -260,7 +266,9 @@ static sooc_status oni_read(sooc_sensor *s, sooc_frame *f, int timeout_ms) {
     for (;;) {
         int ready = o->dimg.have && (!o->cs || o->cimg.have);
         if (ready && o->cs) {
-            int64_t dt = o->dimg.t_ns - o->cimg.t_ns;
+            /* Pair by arrival time: device stamps of the two streams need not share
+             * an origin (DummyDevice counts frames per stream from its own start). */
+            int64_t dt = o->dimg.t_host - o->cimg.t_host;
             if (dt > o->tol_ns) { o->cimg.have = 0; s->st.unpaired++; ready = 0; }        /* colour too old */
             else if (-dt > o->tol_ns) { o->dimg.have = 0; s->st.unpaired++; ready = 0; }  /* depth too old  */
         }

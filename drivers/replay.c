@@ -291,6 +291,7 @@ static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
     if (p->format && *p->format && (st = sooc_seq_format_parse(p->format, &sp.format)))
         goto fail;
     if (p->depth_scale > 0) sp.depth_scale = p->depth_scale;
+    if (p->calib && *p->calib) sp.calib_path = p->calib;
     st = sooc_seq_open(&r->seq, p->uri, &sp);
     if (st) goto fail;
     r->count = sooc_seq_count(r->seq);

@@ -99,6 +99,7 @@ sooc_status sooc_sensor_params_set(sooc_sensor_params *p, const char *key, const
     if (!strcmp(key, "uri") || !strcmp(key, "device") || !strcmp(key, "path")) { p->uri = v; return SOOC_OK; }
     if (!strcmp(key, "uri2") || !strcmp(key, "color_device")) { p->uri2 = v; return SOOC_OK; }
     if (!strcmp(key, "format")) { p->format = v; return SOOC_OK; }
+    if (!strcmp(key, "calib")) { p->calib = v; return SOOC_OK; }
     if (!strcmp(key, "width")) return parse_int(key, v, 0, 16384, &p->width);
     if (!strcmp(key, "height")) return parse_int(key, v, 0, 16384, &p->height);
     if (!strcmp(key, "fps")) return parse_int(key, v, 0, 1000, &p->fps);
@@ -169,7 +170,7 @@ sooc_status sooc_sensor_open(sooc_sensor **out, const char *driver_name, const s
         return st;
     }
     /* Strings in p are not owned; drop them so nothing dangles after open. */
-    s->p.uri = s->p.uri2 = s->p.format = s->p.depth_format = NULL;
+    s->p.uri = s->p.uri2 = s->p.format = s->p.calib = s->p.depth_format = NULL;
     *out = s;
     return SOOC_OK;
 }

@@ -73,6 +73,7 @@ typedef struct sooc_sensor_params {
     const char *uri;
     const char *uri2;          /* v4l2: the colour node (NULL = depth only)               */
     const char *format;        /* replay: format name for the data module (NULL = auto)   */
+    const char *calib;         /* replay: calib YAML overriding <dir>/calib.yaml (NULL)    */
     int width, height;         /* requested mode (0 = driver default, usually 640x480)    */
     int fps;                   /* requested rate (0 = driver default, 30)                 */
     /* replay */
@@ -104,7 +105,7 @@ typedef struct sooc_sensor_params {
 void sooc_sensor_params_default(sooc_sensor_params *p);
 
 /* Set one parameter from text, for launch files. Keys: uri (aliases device,
- * path), uri2 (alias color_device), format, width, height, fps, speed, loop,
+ * path), uri2 (alias color_device), format, calib, width, height, fps, speed, loop,
  * start (alias start_s), stop (alias stop_s), depth_scale, depth_min,
  * depth_max, registration, mirror, depth_format, timebase ("sensor" |
  * "realtime"), pair_tol_ms. String values are NOT copied: they must outlive

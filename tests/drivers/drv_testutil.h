@@ -83,6 +83,17 @@ static inline int tu_write_tum(const char *dir, int n, int w, int h, double t0, 
     }
     free(rgb);
     free(dep);
+    /* calibration (the data module's readers require it; the built-in reader ignores it) */
+    snprintf(p, sizeof p, "%s/calib.yaml", dir);
+    FILE *fc = fopen(p, "w");
+    if (!fc) return -1;
+    fprintf(fc, "%%YAML 1.2\n---\ncamera_name: test\nimage_width: %d\nimage_height: %d\n"
+                "camera_matrix: {rows: 3, cols: 3, data: [%g, 0, %g, 0, %g, %g, 0, 0, 1]}\n"
+                "distortion_model: plumb_bob\n"
+                "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
+                "depth_scale: 0.0002\n",
+            w, h, 52.5 * w / 64.0, w / 2.0 - 0.5, 52.5 * w / 64.0, h / 2.0 - 0.5);
+    fclose(fc);
     fclose(fr);
     fclose(fd);
     fclose(fg);
