@@ -38,7 +38,7 @@ typedef struct sooc_gen_params {
     int n_query;          /* query views per scene; -1 = default (max(2, views/5))     */
     double fov_deg;       /* horizontal FOV (default 60)                               */
     double clip_depth;    /* d_clip (default 8 m)                                      */
-    double density;       /* objects per m^2 (default 0.35)                            */
+    double density;       /* objects per m^2 (default 0.2)                            */
     double depth_scale;   /* metres per depth PNG unit (default 2e-4: 13.1 m range)   */
     int threads;          /* OpenMP threads for sooc_gen_run (0 = runtime default)     */
     int write_meshes;     /* write meshes/ (default 1)                                 */

@@ -57,7 +57,7 @@ sooc_status sooc_image_copy(sooc_image *dst, const sooc_image *src);
 sooc_status sooc_png_read(const char *path, sooc_image *out);
 /* Read the size and format a PNG would decode to, without decoding pixels. */
 sooc_status sooc_png_info(const char *path, int *w, int *h, sooc_pixfmt *fmt);
-/* Write a PNG atomically (temp file + rename). `level` is the zlib level
+/* Write a PNG via a temp file + rename (no fsync). `level` is the zlib level
  * 0..9, or -1 for the default (6). Output bytes are deterministic. */
 sooc_status sooc_png_write(const char *path, const sooc_image *img, int level);
 /* Encode to a sooc_malloc'd buffer (*out, *n); the caller frees. */

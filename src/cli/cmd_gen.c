@@ -23,7 +23,7 @@ static void usage(FILE *f) {
             "  --views      input views per scene (default 10/20/60/120 for s/m/l/xl)\n"
             "  --query      held-out query views per scene (default max(2, views/5))\n"
             "  --width/--height  image size (default 64x64), 60 degree horizontal FOV\n"
-            "  --density    objects per square metre (default 0.35)\n"
+            "  --density    objects per square metre (default 0.2)\n"
             "  --threads    OpenMP threads (default: all); output does not depend on it\n"
             "  --stats      print objects per view, distance and pixel-size histograms\n");
 }

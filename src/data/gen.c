@@ -23,7 +23,7 @@ void sooc_gen_params_default(sooc_gen_params *p) {
     p->n_query = -1;
     p->fov_deg = 60;
     p->clip_depth = 8;
-    p->density = 0.35;
+    p->density = 0.2;
     p->depth_scale = 2e-4;
     p->write_meshes = 1;
     p->contact_sheet = 1;
@@ -153,13 +153,19 @@ static void cam_pose(double T[16], double x, double z, double h, double yaw, dou
     sooc_se3_from_rt(T, R, t);
 }
 
-static int sample_free_point(sooc_rng *r, const sooc_scene *sc, double *x, double *z) {
-    double half = sc->room_size / 2 - 0.25;
+/* A free point at least `min_dist` from (fx, fz) when possible (the
+ * farthest of the candidates otherwise). Returns 0 if nothing is free. */
+static int sample_free_point(sooc_rng *r, const sooc_scene *sc, double *x, double *z, double fx,
+                             double fz, double min_dist) {
+    double half = sc->room_size / 2 - 0.25, best = -1;
     for (int a = 0; a < 500; a++) {
         double px = U(r, -half, half), pz = U(r, -half, half);
-        if (cam_free(sc, px, pz)) { *x = px; *z = pz; return 1; }
+        if (!cam_free(sc, px, pz)) continue;
+        double d = hypot(px - fx, pz - fz);
+        if (d > best) { best = d; *x = px; *z = pz; }
+        if (d >= min_dist) return 1;
     }
-    return 0;
+    return best >= 0;
 }
 
 sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) {
@@ -256,7 +262,9 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
         return SOOC_ENOMEM;
     }
     double x = 0, z = 0, tx = 0, tz = 0;
-    if (!sample_free_point(r, sc, &x, &z) || !sample_free_point(r, sc, &tx, &tz)) {
+    /* way points lie across the room, so the camera looks over the objects */
+    double far = fmin(0.6 * S, 6.0);
+    if (!sample_free_point(r, sc, &x, &z, 0, 0, 0) || !sample_free_point(r, sc, &tx, &tz, x, z, far)) {
         sooc_free(vx);
         sooc_scene_free(sc);
         return sooc_seterr(SOOC_ERR, "gen: scene %d: no free space for the camera", index);
@@ -265,7 +273,14 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
     double h = U(r, 1.2, 2.0), pitch = U(r, 20, 40) * DEG;
     double *yaws = vx + V;
     for (int v = 0; v < V; v++) {
-        double yaw = heading + sooc_rng_normal(r) * 5 * DEG;
+        /* look at a point ~3 m ahead, kept inside the room (so that small
+         * rooms are looked into, not out of) */
+        double inner = S / 2 - 0.8 > 0.2 ? S / 2 - 0.8 : 0.2;
+        double lx = x + 3.0 * sin(heading), lz = z + 3.0 * cos(heading);
+        lx = lx < -inner ? -inner : lx > inner ? inner : lx;
+        lz = lz < -inner ? -inner : lz > inner ? inner : lz;
+        double look = hypot(lx - x, lz - z) > 0.5 ? atan2(lx - x, lz - z) : heading;
+        double yaw = look + sooc_rng_normal(r) * 5 * DEG;
         cam_pose(sc->view_T_wc + 16 * v, x, z, h, yaw, pitch);
         vx[v] = 0;
         yaws[v] = yaw;
@@ -274,7 +289,7 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
         h = h < 1.2 ? 1.2 : h > 2.0 ? 2.0 : h;
         pitch += sooc_rng_normal(r) * 3 * DEG;
         pitch = pitch < 20 * DEG ? 20 * DEG : pitch > 40 * DEG ? 40 * DEG : pitch;
-        if (hypot(tx - x, tz - z) < 1.0) sample_free_point(r, sc, &tx, &tz);
+        if (hypot(tx - x, tz - z) < fmax(1.0, 0.25 * S < 3 ? 0.25 * S : 3)) sample_free_point(r, sc, &tx, &tz, x, z, far);
         double want = atan2(tx - x, tz - z), dh = sooc_wrap_angle(want - heading);
         double lim = 25 * DEG;
         heading += (dh > lim ? lim : dh < -lim ? -lim : dh) + sooc_rng_normal(r) * 5 * DEG;

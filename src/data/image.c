@@ -1,6 +1,7 @@
 /* Image buffers and the PNG / PGM codecs (libpng classic API; 16-bit samples
  * are big-endian in both formats and host order in memory). */
 #include "sooc3d/image.h"
+#include "data_impl.h"
 
 #include <png.h>
 #include <setjmp.h>
@@ -246,12 +247,32 @@ sooc_status sooc_png_encode(const sooc_image *img, int level, void **out, size_t
     return SOOC_OK;
 }
 
+/* Write to "<path>.tmp" and rename over path: readers never see a partial
+ * file. No fsync (datasets write thousands of small files; a crash may lose
+ * recent files but never leaves a truncated one under the final name). */
+sooc_status sooc_data_write_file(const char *path, const void *buf, size_t n) {
+    char tmp[4200];
+    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
+        return sooc_seterr(SOOC_EINVAL, "%s: path too long", path);
+    FILE *fp = fopen(tmp, "wb");
+    if (!fp) return sooc_seterr(SOOC_EIO, "%s: cannot create: %s", tmp, strerror(errno));
+    size_t w = fwrite(buf, 1, n, fp);
+    int bad = w != n || fflush(fp) != 0;
+    if (fclose(fp) != 0) bad = 1;
+    if (bad || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        return sooc_seterr(SOOC_EIO, "%s: write failed: %s", path, strerror(e));
+    }
+    return SOOC_OK;
+}
+
 sooc_status sooc_png_write(const char *path, const sooc_image *img, int level) {
     void *buf;
     size_t n;
     sooc_status s = sooc_png_encode(img, level, &buf, &n);
     if (s) return sooc_adderr(s, "%s", path);
-    s = sooc_file_write_atomic(path, buf, n);
+    s = sooc_data_write_file(path, buf, n);
     sooc_free(buf);
     return s;
 }
@@ -353,7 +374,7 @@ sooc_status sooc_pgm_write(const char *path, const sooc_image *img) {
     } else {
         memcpy(b + hl, img->data, np);
     }
-    sooc_status s = sooc_file_write_atomic(path, b, (size_t)hl + nd);
+    sooc_status s = sooc_data_write_file(path, b, (size_t)hl + nd);
     sooc_free(b);
     return s;
 }

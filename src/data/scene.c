@@ -1,6 +1,7 @@
 /* Synthetic scene description: object parts, analytic distances, PLY meshes,
  * and scene.yaml load/save (libyaml document API). */
 #include "sooc3d/scene.h"
+#include "data_impl.h"
 
 #include <yaml.h>
 #include <math.h>
@@ -363,7 +364,7 @@ static sooc_status write_ply(const char *path, const mesh *m, const float col[3]
             w += 4;
         }
     }
-    sooc_status s = sooc_file_write_atomic(path, b, n);
+    sooc_status s = sooc_data_write_file(path, b, n);
     sooc_free(b);
     return s;
 }
@@ -468,7 +469,7 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
         sb_printf(&b, "], color: [%.6g, %.6g, %.6g]}\n", o->color[0], o->color[1], o->color[2]);
     }
     if (b.oom) { sooc_free(b.p); return SOOC_ENOMEM; }
-    sooc_status s = sooc_file_write_atomic(path, b.p, b.n);
+    sooc_status s = sooc_data_write_file(path, b.p, b.n);
     sooc_free(b.p);
     return s;
 }

@@ -3,6 +3,7 @@
 #include "sooc3d/seq.h"
 #include "sooc3d/image.h"
 #include "sooc3d/scene.h"
+#include "data_impl.h"
 
 #include <dirent.h>
 #include <math.h>
@@ -870,7 +871,7 @@ sooc_status sooc_seq_writer_finish(sooc_seq_writer *w) {
         }
         char path[4096];
         s = sooc_path_join(path, sizeof path, w->dir, files[k]);
-        if (!s) s = sooc_file_write_atomic(path, b, n);
+        if (!s) s = sooc_data_write_file(path, b, n);
     }
     sooc_free(b);
     if (!s) {

@@ -451,13 +451,17 @@ sooc_status sooc_gen_render_view(const sooc_scene *sc, const double T_wc[16], co
         sooc_v3_scale(planes[i], planes[i], 1 / nn);
     }
     tworld w = {sc, NULL, NULL, 0};
-    int n = sc->n_objects;
-    w.objs = sooc_malloc(sizeof(tobj) * (size_t)(n + 1));
-    w.parts = sooc_malloc(sizeof(tpart) * (size_t)(n + 1) * SOOC_SCENE_MAX_PARTS);
-    if (!w.objs || !w.parts) {
-        sooc_free(w.objs);
-        sooc_free(w.parts);
-        return SOOC_ENOMEM;
+    int n = sc->n_objects, ncull = 0;
+    /* pass 1: count objects in the (widened) frustum */
+    for (int pass = 0; pass < 2; pass++) {
+    if (pass == 1) {
+        w.objs = sooc_malloc(sizeof(tobj) * (size_t)(ncull + 1));
+        w.parts = sooc_malloc(sizeof(tpart) * (size_t)(ncull + 1) * SOOC_SCENE_MAX_PARTS);
+        if (!w.objs || !w.parts) {
+            sooc_free(w.objs);
+            sooc_free(w.parts);
+            return SOOC_ENOMEM;
+        }
     }
     int np = 0;
     for (int i = 0; i < n; i++) {
@@ -473,6 +477,7 @@ sooc_status sooc_gen_render_view(const sooc_scene *sc, const double T_wc[16], co
         for (int k = 0; k < 4 && !out; k++)
             if (sooc_v3_dot(planes[k], pc) > br + margin) out = 1;
         if (out) continue;
+        if (pass == 0) { ncull++; continue; }
         tobj *ob = &w.objs[w.nobj++];
         ob->id = o->id;
         ob->x = o->x;
@@ -493,6 +498,7 @@ sooc_status sooc_gen_render_view(const sooc_scene *sc, const double T_wc[16], co
             memcpy(tp->d, parts[j].d, sizeof tp->d);
             part_aabb(tp);
         }
+    }
     }
     int rows_parallel = 1;
 #ifdef SOOC_HAVE_OPENMP
