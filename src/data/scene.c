@@ -438,18 +438,18 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
                   "# room = [-room_size/2, room_size/2]^2; object pose = floor (x, z, yaw about +y).\n");
     sb_printf(&b, "format: sooc3d-scene\nversion: 1\npreset: %s\nscale: %s\nseed: %llu\nindex: %d\n",
               sc->preset, sc->scale, (unsigned long long)sc->seed, sc->index);
-    sb_printf(&b, "room_size: %.9g\nclip_depth: %.9g\nwalls: %s\nwall_height: %.9g\n", sc->room_size,
+    sb_printf(&b, "room_size: %.12g\nclip_depth: %.12g\nwalls: %s\nwall_height: %.12g\n", sc->room_size,
               sc->clip_depth, sc->walls ? "true" : "false", sc->wall_height);
     sb_f3(&b, "wall_color", sc->wall_color);
     sb_printf(&b, "floor_texture: %s\n", g_tex_names[sc->floor_tex]);
     sb_f3(&b, "floor_color", sc->floor_color);
     sb_f3(&b, "floor_color2", sc->floor_color2);
-    sb_printf(&b, "texture_scale: %.9g\n", sc->tex_scale);
+    sb_printf(&b, "texture_scale: %.12g\n", sc->tex_scale);
     sb_f3(&b, "sky_color", sc->sky_color);
-    sb_printf(&b, "light_dir: [%.9g, %.9g, %.9g]\nambient: %.9g\nshadows: %s\nspecular: %.9g\nshininess: %.9g\n",
+    sb_printf(&b, "light_dir: [%.12g, %.12g, %.12g]\nambient: %.12g\nshadows: %s\nspecular: %.12g\nshininess: %.12g\n",
               sc->light_dir[0], sc->light_dir[1], sc->light_dir[2], sc->ambient,
               sc->shadows ? "true" : "false", sc->specular, sc->shininess);
-    sb_printf(&b, "width: %d\nheight: %d\nfov_deg: %.9g\n", sc->width, sc->height, sc->fov_deg);
+    sb_printf(&b, "width: %d\nheight: %d\nfov_deg: %.12g\n", sc->width, sc->height, sc->fov_deg);
     for (int pass = 0; pass < 2; pass++) {
         sb_printf(&b, "%s: [", pass ? "query_views" : "input_views");
         int first = 1;
@@ -463,9 +463,9 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
     sb_printf(&b, "objects:%s\n", sc->n_objects ? "" : " []");
     for (int i = 0; i < sc->n_objects; i++) {
         const sooc_scene_object *o = &sc->objects[i];
-        sb_printf(&b, "  - {id: %d, shape: %s, x: %.9g, z: %.9g, yaw: %.9g, size: [%.9g, %.9g, %.9g], params: [",
+        sb_printf(&b, "  - {id: %d, shape: %s, x: %.12g, z: %.12g, yaw: %.12g, size: [%.12g, %.12g, %.12g], params: [",
                   o->id, sooc_shape_name(o->shape), o->x, o->z, o->yaw, o->size[0], o->size[1], o->size[2]);
-        for (int k = 0; k < g_shape_nparams[o->shape]; k++) sb_printf(&b, k ? ", %.9g" : "%.9g", o->params[k]);
+        for (int k = 0; k < g_shape_nparams[o->shape]; k++) sb_printf(&b, k ? ", %.12g" : "%.12g", o->params[k]);
         sb_printf(&b, "], color: [%.6g, %.6g, %.6g]}\n", o->color[0], o->color[1], o->color[2]);
     }
     if (b.oom) { sooc_free(b.p); return SOOC_ENOMEM; }

@@ -1,0 +1,119 @@
+/* Images: PNG/PGM round trips (16-bit byte order), drawing, colour maps, sheets. */
+#include "util.h"
+#include "sooc3d/image.h"
+
+static void test_png_roundtrip(const char *dir) {
+    sooc_pixfmt fmts[3] = {SOOC_PIX_RGB8, SOOC_PIX_GRAY8, SOOC_PIX_GRAY16};
+    for (int f = 0; f < 3; f++) {
+        sooc_image a = {0}, b = {0};
+        CHECK_OK(sooc_image_alloc(&a, 37, 21, fmts[f]));
+        size_t nb = (size_t)37 * 21 * (size_t)sooc_pixfmt_bytes(fmts[f]);
+        for (size_t i = 0; i < nb; i++) ((uint8_t *)a.data)[i] = (uint8_t)(i * 31 + 7);
+        char path[600];
+        snprintf(path, sizeof path, "%s/rt_%d.png", dir, f);
+        CHECK_OK(sooc_png_write(path, &a, -1));
+        CHECK_OK(sooc_png_read(path, &b));
+        CHECK(b.fmt == a.fmt && b.width == 37 && b.height == 21);
+        CHECK(b.data && memcmp(a.data, b.data, nb) == 0);
+        int w, h;
+        sooc_pixfmt pf;
+        CHECK_OK(sooc_png_info(path, &w, &h, &pf));
+        CHECK(w == 37 && h == 21 && pf == fmts[f]);
+        sooc_image_free(&a);
+        sooc_image_free(&b);
+    }
+    /* 16-bit PNG is big-endian on disk: decode the IDAT-less check through a
+     * known value read back with the PGM path and compare. */
+    sooc_image g = {0}, r = {0};
+    CHECK_OK(sooc_image_alloc(&g, 2, 1, SOOC_PIX_GRAY16));
+    ((uint16_t *)g.data)[0] = 0x1234;
+    ((uint16_t *)g.data)[1] = 0xABCD;
+    char path[600];
+    snprintf(path, sizeof path, "%s/v.pgm", dir);
+    CHECK_OK(sooc_pgm_write(path, &g));
+    FILE *fp = fopen(path, "rb");
+    unsigned char raw[64];
+    size_t n = fp ? fread(raw, 1, sizeof raw, fp) : 0;
+    if (fp) fclose(fp);
+    CHECK(n >= 4 && raw[n - 4] == 0x12 && raw[n - 3] == 0x34 && raw[n - 2] == 0xAB && raw[n - 1] == 0xCD);
+    CHECK_OK(sooc_pgm_read(path, &r));
+    CHECK(r.fmt == SOOC_PIX_GRAY16 && ((uint16_t *)r.data)[0] == 0x1234 && ((uint16_t *)r.data)[1] == 0xABCD);
+    CHECK_OK(sooc_image_read(path, &r));
+    CHECK(((uint16_t *)r.data)[1] == 0xABCD);
+    /* hand-written big-endian PGM with a comment */
+    fp = fopen(path, "wb");
+    const unsigned char pgm[] = "P5\n# comment\n2 1\n65535\n\x01\x02\x03\x04";
+    fwrite(pgm, 1, sizeof pgm - 1, fp);
+    fclose(fp);
+    CHECK_OK(sooc_pgm_read(path, &r));
+    CHECK(((uint16_t *)r.data)[0] == 0x0102 && ((uint16_t *)r.data)[1] == 0x0304);
+    /* errors name the file */
+    snprintf(path, sizeof path, "%s/missing.png", dir);
+    CHECK_ERR_HAS(sooc_png_read(path, &r), "missing.png");
+    snprintf(path, sizeof path, "%s/v.pgm", dir);
+    CHECK_ERR_HAS(sooc_png_read(path, &r), "v.pgm", "not a PNG");
+    fp = fopen(path, "wb");
+    fputs("P5\n4 4\n65535\n\x01", fp);
+    fclose(fp);
+    CHECK_ERR_HAS(sooc_pgm_read(path, &r), "v.pgm", "truncated");
+    sooc_image_free(&g);
+    sooc_image_free(&r);
+}
+
+static void test_drawing(const char *dir) {
+    sooc_image img = {0};
+    CHECK_OK(sooc_image_alloc(&img, 120, 60, SOOC_PIX_RGB8));
+    sooc_draw_fill(&img, SOOC_RGB(10, 20, 30));
+    const uint8_t *p = img.data;
+    CHECK(p[0] == 10 && p[1] == 20 && p[2] == 30);
+    sooc_draw_rect(&img, 5, 5, 10, 10, SOOC_RGB(255, 0, 0), 0);
+    p = (const uint8_t *)img.data + 3 * (7 * 120 + 7);
+    CHECK(p[0] == 255 && p[1] == 0);
+    sooc_draw_line(&img, -50, -50, 500, 300, SOOC_RGB(0, 255, 0), 2); /* clipped */
+    sooc_draw_circle(&img, 60, 30, 8, SOOC_RGB(0, 0, 255), 1);
+    p = (const uint8_t *)img.data + 3 * (30 * 120 + 60);
+    CHECK(p[2] == 255);
+    sooc_draw_text(&img, 20, 40, "Hi 42!", SOOC_RGB(255, 255, 255), SOOC_DRAW_NOBG, 1);
+    int tw, th;
+    sooc_text_size("Hi 42!\nab", 2, &tw, &th);
+    CHECK(tw == 6 * 6 * 2 && th == 2 * 8 * 2);
+    int white = 0;
+    for (int y = 40; y < 48; y++)
+        for (int x = 20; x < 56; x++) {
+            const uint8_t *q = (const uint8_t *)img.data + 3 * (y * 120 + x);
+            white += q[0] == 255 && q[1] == 255 && q[2] == 255;
+        }
+    CHECK(white > 20);
+    /* colour maps */
+    CHECK(sooc_cmap_turbo(0) != sooc_cmap_turbo(1));
+    CHECK(sooc_cmap_viridis(0.0) != sooc_cmap_viridis(1.0));
+    CHECK(sooc_cmap_id(0) == SOOC_RGB(40, 40, 40));
+    int distinct = 1;
+    for (uint32_t a = 1; a < 16; a++)
+        for (uint32_t b = a + 1; b < 16; b++)
+            if (sooc_cmap_id(a) == sooc_cmap_id(b)) distinct = 0;
+    CHECK(distinct);
+    /* contact sheet */
+    sooc_image t2 = {0}, sheet = {0};
+    float depth[16];
+    for (int i = 0; i < 16; i++) depth[i] = i * 0.5f;
+    CHECK_OK(sooc_image_from_depth(&t2, depth, 4, 4, 0, 8));
+    const sooc_image *tiles[3] = {&img, &t2, NULL};
+    const char *labels[3] = {"drawing", "depth", NULL};
+    CHECK_OK(sooc_image_contact_sheet(&sheet, tiles, labels, 3, 2, 2, "title"));
+    CHECK(sheet.width >= 2 * 120 * 2 && sheet.height >= 2 * 60 * 2);
+    char path[600];
+    snprintf(path, sizeof path, "%s/sheet.png", dir);
+    CHECK_OK(sooc_png_write(path, &sheet, 6));
+    sooc_image_free(&img);
+    sooc_image_free(&t2);
+    sooc_image_free(&sheet);
+}
+
+int main(void) {
+    char *dir = tu_tmpdir("img");
+    test_png_roundtrip(dir);
+    test_drawing(dir);
+    tu_rm_rf(dir);
+    return check_report("test_data_image");
+}

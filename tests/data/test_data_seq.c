@@ -1,0 +1,259 @@
+/* Sequence readers: a crafted good sequence per format, then one crafted bad
+ * file per reader check; every message must name the file and the line. */
+#include "util.h"
+#include "sooc3d/image.h"
+#include "sooc3d/seq.h"
+
+#include <math.h>
+#include <sys/stat.h>
+
+#define W 16
+#define H 12
+
+static void put_png(const char *dir, const char *name, sooc_pixfmt fmt, int w, int h, int val) {
+    sooc_image img = {0};
+    if (sooc_image_alloc(&img, w, h, fmt)) exit(1);
+    size_t n = (size_t)w * h;
+    for (size_t i = 0; i < n; i++) {
+        if (fmt == SOOC_PIX_GRAY16) ((uint16_t *)img.data)[i] = (uint16_t)(val + i);
+        else if (fmt == SOOC_PIX_GRAY8) ((uint8_t *)img.data)[i] = (uint8_t)val;
+        else for (int k = 0; k < 3; k++) ((uint8_t *)img.data)[3 * i + k] = (uint8_t)(val + k);
+    }
+    char path[900];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    if (sooc_png_write(path, &img, 1)) { fprintf(stderr, "%s\n", sooc_errmsg()); exit(1); }
+    sooc_image_free(&img);
+}
+
+static void calib_file(const char *dir, const char *name, double scale) {
+    tu_write(dir, name, "%%YAML 1.2\n---\nimage_width: %d\nimage_height: %d\n"
+             "camera_matrix: {rows: 3, cols: 3, data: [20, 0, 8, 0, 20, 6, 0, 0, 1]}\ndepth_scale: %g\n", W, H, scale);
+}
+
+static char *make_tum(void) {
+    char *d = tu_tmpdir("tum");
+    char p[900];
+    snprintf(p, sizeof p, "%s/rgb", d); mkdir(p, 0755);
+    snprintf(p, sizeof p, "%s/depth", d); mkdir(p, 0755);
+    for (int i = 0; i < 3; i++) {
+        char n[64];
+        snprintf(n, sizeof n, "rgb/%d.png", i); put_png(d, n, SOOC_PIX_RGB8, W, H, 10 * i);
+        snprintf(n, sizeof n, "depth/%d.png", i); put_png(d, n, SOOC_PIX_GRAY16, W, H, 5000);
+    }
+    tu_write(d, "rgb.txt", "0.000000 rgb/0.png\n0.100000 rgb/1.png\n0.200000 rgb/2.png\n");
+    tu_write(d, "depth.txt", "# depth\n0.001000 depth/0.png\n0.101000 depth/1.png\n0.201000 depth/2.png\n");
+    tu_write(d, "groundtruth.txt", "0.0 1 2 3 0 0 0 1\n0.1 1 2 3 0 0.7071068 0 0.7071068\n0.2 0 0 0 0 0 0 1\n");
+    calib_file(d, "calib.yaml", 2e-4);
+    return d;
+}
+
+static void test_tum(void) {
+    char *d = make_tum();
+    sooc_seq *s = NULL;
+    sooc_frame f = {0};
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    CHECK(s && sooc_seq_count(s) == 3);
+    if (s) {
+        CHECK_OK(sooc_seq_read(s, 1, &f));
+        CHECK(f.width == W && f.has_pose && f.instance == NULL);
+        CHECK_CLOSE(f.depth[0], 5000 * 2e-4, 1e-6, 0);
+        CHECK_CLOSE(f.depth[5], 5005 * 2e-4, 1e-6, 0);
+        CHECK_CLOSE(f.T_wc[3], 1, 1e-12, 0);
+        CHECK_CLOSE(f.T_wc[2], 1, 1e-6, 0); /* 90 deg about y: R[0][2] = 1 */
+        CHECK(f.t_ns == 100000000);
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    char rgbtxt[700], dtxt[700], gt[700];
+    snprintf(rgbtxt, sizeof rgbtxt, "%s/rgb.txt", d);
+    snprintf(dtxt, sizeof dtxt, "%s/depth.txt", d);
+    snprintf(gt, sizeof gt, "%s/groundtruth.txt", d);
+    /* missing file */
+    tu_write(d, "rgb.txt", "0.000000 rgb/0.png\n0.100000 rgb/nope.png\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "rgb.txt:2", "nope.png", "missing file");
+    CHECK(s == NULL);
+    tu_write(d, "rgb.txt", "0.000000 rgb/0.png\n0.100000 rgb/1.png\n0.200000 rgb/2.png\n");
+    /* unparsable numbers */
+    tu_write(d, "groundtruth.txt", "0.0 1 2 3 0 0 0 1\n0.1 1 2 zz 0 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "groundtruth.txt:2", "'zz'");
+    tu_write(d, "depth.txt", "0.0x depth/0.png\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "depth.txt:1", "0.0x");
+    /* non-monotonic timestamps */
+    tu_write(d, "depth.txt", "0.001000 depth/0.png\n0.201000 depth/2.png\n0.101000 depth/1.png\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "depth.txt:3", "increase");
+    tu_write(d, "depth.txt", "0.001000 depth/0.png\n0.101000 depth/1.png\n0.201000 depth/2.png\n");
+    /* non-orthonormal rotation */
+    tu_write(d, "groundtruth.txt", "0.0 1 2 3 0 0 0 1\n0.1 1 2 3 0 0.5 0 0.5\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "groundtruth.txt:2", "orthonormal");
+    tu_write(d, "groundtruth.txt", "0.0 1 2 3 0 0 0 1\n0.1 1 2 3 0 0 0 1\n0.2 1 2 3 0 0 0 1\n");
+    /* missing list file */
+    char cmd[2000];
+    snprintf(cmd, sizeof cmd, "mv '%s' '%s.bak'", gt, gt);
+    if (system(cmd)) {}
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "groundtruth.txt", "missing");
+    snprintf(cmd, sizeof cmd, "mv '%s.bak' '%s'", gt, gt);
+    if (system(cmd)) {}
+    /* mismatched image sizes and wrong depth bit depth: found at read */
+    put_png(d, "depth/1.png", SOOC_PIX_GRAY16, W / 2, H, 100);
+    put_png(d, "depth/2.png", SOOC_PIX_GRAY8, W, H, 100);
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        CHECK_OK(sooc_seq_read(s, 0, &f));
+        CHECK_ERR_HAS(sooc_seq_read(s, 1, &f), "rgb.txt:2", "depth/1.png", "8x12", "16x12");
+        CHECK_ERR_HAS(sooc_seq_read(s, 2, &f), "rgb.txt:3", "depth/2.png", "16-bit");
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    put_png(d, "rgb/0.png", SOOC_PIX_RGB8, W, H + 2, 1);
+    put_png(d, "depth/0.png", SOOC_PIX_GRAY16, W, H + 2, 1);
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        CHECK_ERR_HAS(sooc_seq_read(s, 0, &f), "rgb.txt:1", "calibration says 16x12");
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    /* calibration without depth_scale, and an explicit override */
+    tu_write(d, "calib.yaml", "%%YAML 1.2\n---\nimage_width: %d\nimage_height: %d\n"
+             "camera_matrix: {rows: 3, cols: 3, data: [20, 0, 8, 0, 20, 6, 0, 0, 1]}\n", W, H);
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "depth_scale");
+    sooc_seq_open_params op;
+    sooc_seq_open_params_default(&op);
+    op.depth_scale = 0.001;
+    CHECK_OK(sooc_seq_open(&s, d, &op));
+    sooc_seq_close(s);
+    s = NULL;
+    sooc_frame_free(&f);
+    tu_rm_rf(d);
+}
+
+static const char *POSE4 = "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+
+static void test_7scenes(void) {
+    char *d = tu_tmpdir("7s");
+    for (int i = 0; i < 2; i++) {
+        char n[64];
+        snprintf(n, sizeof n, "frame-%06d.color.png", i); put_png(d, n, SOOC_PIX_RGB8, W, H, 1);
+        snprintf(n, sizeof n, "frame-%06d.depth.png", i); put_png(d, n, SOOC_PIX_GRAY16, W, H, 1000);
+        snprintf(n, sizeof n, "frame-%06d.pose.txt", i); tu_write(d, n, "%s", POSE4);
+    }
+    tu_write(d, "camera-intrinsics.color.txt", "20 0 8\n0 20 6\n0 0 1\n");
+    sooc_seq *s = NULL;
+    sooc_frame f = {0};
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        CHECK(sooc_seq_count(s) == 2 && sooc_seq_get_format(s) == SOOC_SEQ_7SCENES);
+        CHECK_OK(sooc_seq_read(s, 1, &f));
+        CHECK_CLOSE(f.depth[0], 1.0, 1e-6, 0);
+        CHECK_CLOSE(f.T_wc[3], 0.5, 1e-12, 0);
+        CHECK(f.K.fx == 20 && f.K.cy == 6);
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    tu_write(d, "frame-000001.pose.txt", "1 0 0 0.5\n0 1 0 0 q\n0 0 1 0\n0 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "frame-000001.pose.txt:2");
+    tu_write(d, "frame-000001.pose.txt", "1 0 0 0.5\n0 1 0 zz\n0 0 1 0\n0 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "frame-000001.pose.txt:2", "'zz'");
+    tu_write(d, "frame-000001.pose.txt", "1 0.3 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "frame-000001.pose.txt:1", "orthonormal");
+    tu_write(d, "frame-000001.pose.txt", "%s", POSE4);
+    char p[900];
+    snprintf(p, sizeof p, "%s/frame-000001.depth.png", d);
+    remove(p);
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "frame-000001.depth.png", "missing file");
+    put_png(d, "frame-000001.depth.png", SOOC_PIX_GRAY8, W, H, 3);
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        CHECK_ERR_HAS(sooc_seq_read(s, 1, &f), "frame-000001.depth.png", "16-bit");
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    tu_write(d, "camera-intrinsics.color.txt", "20 0 8\n0 20\n0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "camera-intrinsics.color.txt:2");
+    sooc_frame_free(&f);
+    tu_rm_rf(d);
+}
+
+static void test_slambook(void) {
+    char *d = tu_tmpdir("sb");
+    char p[900];
+    snprintf(p, sizeof p, "%s/color", d); mkdir(p, 0755);
+    snprintf(p, sizeof p, "%s/depth", d); mkdir(p, 0755);
+    for (int i = 1; i <= 2; i++) {
+        char n[64];
+        snprintf(n, sizeof n, "color/%d.png", i); put_png(d, n, SOOC_PIX_RGB8, W, H, 1);
+        sooc_image img = {0};
+        sooc_image_alloc(&img, W, H, SOOC_PIX_GRAY16);
+        for (int k = 0; k < W * H; k++) ((uint16_t *)img.data)[k] = 1500;
+        snprintf(p, sizeof p, "%s/depth/%d.pgm", d, i);
+        CHECK_OK(sooc_pgm_write(p, &img));
+        sooc_image_free(&img);
+    }
+    tu_write(d, "pose.txt", "0 0 0 0 0 0 1\n1 2 3 0 0 0 1");   /* no final newline, like the real file */
+    sooc_seq *s = NULL;
+    sooc_frame f = {0};
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "calib.yaml", "missing");
+    calib_file(d, "calib.yaml", 0.001);
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        CHECK(sooc_seq_count(s) == 2 && sooc_seq_get_format(s) == SOOC_SEQ_SLAMBOOK);
+        CHECK_OK(sooc_seq_read(s, 1, &f));
+        CHECK_CLOSE(f.depth[3], 1.5, 1e-6, 0);
+        CHECK_CLOSE(f.T_wc[11], 3, 1e-12, 0);
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    tu_write(d, "pose.txt", "0 0 0 0 0 0 1\n1 2 3 0 0 x 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "pose.txt:2", "'x'");
+    tu_write(d, "pose.txt", "0 0 0 0 0 0 1\n1 2 3 0 0 0 1.1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "pose.txt:2", "orthonormal");
+    tu_write(d, "pose.txt", "0 0 0 0 0 0 1\n1 2 3 0 0 0 1\n0 0 0 0 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "pose.txt:3", "color/3.png", "missing file");
+    tu_write(d, "pose.txt", "0 0 0 0 0 0 1\n1 2 3 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "pose.txt:2", "expected 7 numbers");
+    sooc_frame_free(&f);
+    tu_rm_rf(d);
+}
+
+static void test_replica(void) {
+    char *d = tu_tmpdir("rep");
+    char p[900];
+    snprintf(p, sizeof p, "%s/results", d); mkdir(p, 0755);
+    for (int i = 0; i < 2; i++) {
+        char n[64];
+        snprintf(n, sizeof n, "results/frame%06d.png", i); put_png(d, n, SOOC_PIX_RGB8, W, H, 1);
+        snprintf(n, sizeof n, "results/depth%06d.png", i); put_png(d, n, SOOC_PIX_GRAY16, W, H, 6553);
+    }
+    calib_file(d, "calib.yaml", 1 / 6553.5);
+    const char *good = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\n";
+    tu_write(d, "traj.txt", "%s%s", good, good);
+    sooc_seq *s = NULL;
+    sooc_frame f = {0};
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        CHECK(sooc_seq_count(s) == 2 && sooc_seq_get_format(s) == SOOC_SEQ_REPLICA);
+        CHECK_OK(sooc_seq_read(s, 1, &f));
+        CHECK_CLOSE(f.depth[0], 6553 / 6553.5, 1e-5, 0);
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    tu_write(d, "traj.txt", "%s1 0 0 0 0 1 0 0 0 0 1 0 0 0 0\n", good);
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "traj.txt:2", "expected 16 numbers");
+    tu_write(d, "traj.txt", "%s1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1e\n", good);
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "traj.txt:2", "'1e'");
+    tu_write(d, "traj.txt", "1 0 0 0 0 2 0 0 0 0 1 0 0 0 0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "traj.txt:1", "orthonormal");
+    tu_write(d, "traj.txt", "%s%s%s", good, good, good);
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "traj.txt:3", "frame000002", "missing file");
+    sooc_frame_free(&f);
+    tu_rm_rf(d);
+}
+
+int main(void) {
+    test_tum();
+    test_7scenes();
+    test_slambook();
+    test_replica();
+    sooc_seq *s = NULL;
+    CHECK_ERR_HAS(sooc_seq_open(&s, "/nonexistent/seq", NULL), "/nonexistent/seq");
+    return check_report("test_data_seq");
+}
