@@ -27,6 +27,11 @@ static int cmp_d(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+static void fmtnum(char *buf, size_t n, double v, const char *fmt) {
+    if (isnan(v)) snprintf(buf, n, "null");
+    else snprintf(buf, n, fmt, v);
+}
+
 typedef void (*bench_fn)(void *);
 static double median_ms(bench_fn fn, void *ctx) {
     double t[64];
@@ -69,6 +74,36 @@ static void mlp_run(void *p) {
     mlp_ctx *c = p;
     sooc_nn_mlp_forward(&c->m, c->acts, c->x, N, c->sb, NK);
     sooc_nn_mlp_backward(&c->m, NULL, c->dsb, c->dout, c->acts, c->x, N, c->sb, NK, c->scratch);
+}
+
+/* Unfused variant on the tape: whole-N layer-by-layer kernels, the way a
+ * generic autodiff would run it (design comparison for docs/engine.md). */
+typedef struct {
+    mlp_ctx *m;
+    sooc_nn_arena ar;
+    sooc_nn_tape *t;
+    sooc_nn_tensor *w[6], *b[6];
+} tape_ctx;
+
+static void tape_run(void *p) {
+    tape_ctx *c = p;
+    sooc_nn_tape_reset(c->t);
+    sooc_nn_arena_reset(&c->ar);
+    int64_t sx[2] = {N, CIN}, ssb[2] = {K, WID}, s3[3] = {K, NK, WID}, s2[2] = {N, WID};
+    sooc_nn_tensor *x = sooc_nn_tensor_new(c->t, c->m->x, 2, sx, 0);
+    sooc_nn_tensor *sb = sooc_nn_tensor_new(c->t, c->m->sb, 2, ssb, 1);
+    sooc_nn_tensor *h = sooc_nn_linear(c->t, x, c->w[0], c->b[0], SOOC_NN_ACT_NONE);
+    h = sooc_nn_slot_bias(c->t, sooc_nn_reshape(c->t, h, 3, s3), sb);
+    h = sooc_nn_reshape(c->t, sooc_nn_unary(c->t, SOOC_NN_ACT_RELU, h), 2, s2);
+    h = sooc_nn_linear(c->t, h, c->w[1], c->b[1], SOOC_NN_ACT_RELU);
+    h = sooc_nn_linear(c->t, h, c->w[2], c->b[2], SOOC_NN_ACT_RELU);
+    sooc_nn_tensor *d = sooc_nn_linear(c->t, h, c->w[3], c->b[3], SOOC_NN_ACT_SIGMOID);
+    sooc_nn_tensor *g = sooc_nn_linear(c->t, h, c->w[4], c->b[4], SOOC_NN_ACT_RELU);
+    sooc_nn_tensor *col = sooc_nn_linear(c->t, g, c->w[5], c->b[5], SOOC_NN_ACT_SIGMOID);
+    sooc_nn_tape_seed(c->t, d, c->m->dd, 1.f);
+    sooc_nn_tape_seed(c->t, col, c->m->dc, 1.f);
+    sooc_nn_tape_backward(c->t);
+    if (sooc_nn_tape_status(c->t)) { fprintf(stderr, "tape: %s\n", sooc_nn_tape_errmsg(c->t)); exit(1); }
 }
 
 /* ------------------------------------------------------------------ conv */
@@ -114,10 +149,12 @@ int main(int argc, char **argv) {
     g.a = falloc((size_t)g.n * g.n); g.b = falloc((size_t)g.n * g.n); g.c = falloc((size_t)g.n * g.n);
     frand(g.a, (size_t)g.n * g.n, &rng, 1.f);
     frand(g.b, (size_t)g.n * g.n, &rng, 1.f);
+    int blas_thr = sooc_nn_blas_set_threads(2);
     double gemm_ms = median_ms(gemm_run, &g);
     double peak = 2.0 * g.n * (double)g.n * g.n / (gemm_ms * 1e6);
     printf("sgemm %dx%dx%d (%d BLAS threads): %.2f ms  %.1f GFLOP/s\n", g.n, g.n, g.n,
            openblas_get_num_threads(), gemm_ms, peak);
+    sooc_nn_blas_set_threads(blas_thr);
     sooc_free(g.a); sooc_free(g.b); sooc_free(g.c);
 
     /* decoder MLP */
@@ -198,6 +235,37 @@ int main(int argc, char **argv) {
                2.0 * N * (mac_pt + dx_mac_pt) / ((t2 - t1) * 1e9));
     }
 
+    /* the same MLP through the tape, unfused */
+    double tape_ms;
+    {
+        tape_ctx tc;
+        memset(&tc, 0, sizeof tc);
+        tc.m = &mc;
+        if (sooc_nn_arena_init(&tc.ar, (size_t)512 << 20) || sooc_nn_tape_create(&tc.t, &tc.ar, 64)) {
+            fprintf(stderr, "tape setup: %s\n", sooc_errmsg());
+            return 1;
+        }
+        sooc_nn_tape_reset(tc.t);
+        for (int l = 0; l < 6; l++) {
+            int64_t sw[2] = {cout[l], cin[l]}, sbb[1] = {cout[l]};
+            /* persistent leaf structs: allocate outside the per-run arena */
+            tc.w[l] = calloc(1, sizeof(sooc_nn_tensor));
+            tc.b[l] = calloc(1, sizeof(sooc_nn_tensor));
+            *tc.w[l] = (sooc_nn_tensor){.data = (float *)mc.m.layer[l].w, .grad = mc.m.layer[l].dw,
+                                        .ndim = 2, .shape = {sw[0], sw[1]}, .n = sw[0] * sw[1],
+                                        .requires_grad = 1, .is_param = 1};
+            *tc.b[l] = (sooc_nn_tensor){.data = (float *)mc.m.layer[l].b, .grad = mc.m.layer[l].db,
+                                        .ndim = 1, .shape = {sbb[0]}, .n = sbb[0],
+                                        .requires_grad = 1, .is_param = 1};
+        }
+        tape_ms = median_ms(tape_run, &tc);
+        printf("mlp fwd+bwd unfused on the tape (whole-N kernels): %.2f ms, %.1f GFLOP/s, arena peak %.1f MB\n",
+               tape_ms, mlp_flop / (tape_ms * 1e6), tc.ar.peak / 1048576.0);
+        sooc_nn_tape_destroy(tc.t);
+        sooc_nn_arena_deinit(&tc.ar);
+        for (int l = 0; l < 6; l++) { free(tc.w[l]); free(tc.b[l]); }
+    }
+
     /* conv encoder */
     conv_ctx cc;
     memset(&cc, 0, sizeof cc);
@@ -249,12 +317,16 @@ int main(int argc, char **argv) {
         }
     }
     double vs_torch = t_mlp / mlp_ms, conv_vs = t_conv / conv_ms;
-    printf("{\"mlp_gflops\": %.2f, \"mlp_vs_sgemm_peak\": %.3f, \"mlp_vs_torch\": %s%.2f, "
-           "\"conv_vs_torch\": %s%.2f, \"mlp_ms\": %.3f, \"conv_ms\": %.4f, \"torch_mlp_ms\": %s%.3f, "
-           "\"torch_conv_ms\": %s%.4f, \"sgemm_peak_gflops\": %.1f}\n",
-           mlp_gf, mlp_gf / peak, isnan(vs_torch) ? "null, \"_\": " : "", isnan(vs_torch) ? 0 : vs_torch,
-           isnan(conv_vs) ? "null, \"__\": " : "", isnan(conv_vs) ? 0 : conv_vs, mlp_ms, conv_ms,
-           isnan(t_mlp) ? "null, \"___\": " : "", isnan(t_mlp) ? 0 : t_mlp,
-           isnan(t_conv) ? "null, \"____\": " : "", isnan(t_conv) ? 0 : t_conv, peak);
+    char a[32], b2[32], c2[32], d2[32];
+    fmtnum(a, sizeof a, vs_torch, "%.2f");
+    fmtnum(b2, sizeof b2, conv_vs, "%.2f");
+    fmtnum(c2, sizeof c2, t_mlp, "%.3f");
+    fmtnum(d2, sizeof d2, t_conv, "%.4f");
+    printf("{\"mlp_gflops\": %.2f, \"mlp_vs_sgemm_peak\": %.3f, \"mlp_vs_torch\": %s, "
+           "\"conv_vs_torch\": %s, \"mlp_ms\": %.3f, \"conv_ms\": %.4f, \"torch_mlp_ms\": %s, "
+           "\"torch_conv_ms\": %s, \"sgemm_peak_gflops\": %.1f, \"conv_gflops\": %.2f, "
+           "\"mlp_tape_unfused_ms\": %.3f}\n",
+           mlp_gf, mlp_gf / peak, a, b2, mlp_ms, conv_ms, c2, d2, peak,
+           conv_flop / (conv_ms * 1e6), tape_ms);
     return 0;
 }

@@ -35,10 +35,11 @@
  * Threads: OpenMP loops only over outputs each iteration owns; the MLP's
  * weight gradients use a fixed number of lanes (SOOC_NN_MLP_LANES) reduced
  * in a fixed order, so results are bitwise identical with OpenMP on or off
- * and for any thread count. sgemm inside parallel regions is forced to one
- * OpenBLAS thread. Large single sgemm calls (conv, big linear) use OpenBLAS
- * threads, whose M/N partitioning does not change any output element's
- * summation order.
+ * and for any thread count. All nn parallelism is OpenMP: the engine puts
+ * OpenBLAS in single-thread mode on first use (process-global, see
+ * sooc_nn_blas_set_threads) and splits large sgemms into a fixed number of
+ * M/N blocks (never K), so no output element's summation order depends on
+ * the thread count: results are bitwise identical with OpenMP on or off.
  *
  * Thread safety: kernels are reentrant. A tape/arena/params object must be
  * used by one thread at a time.
@@ -499,7 +500,9 @@ sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_b
                                  int64_t N, const float *slot_bias, int64_t pts_per_slot,
                                  float *scratch);
 
-/* Set BLAS threads (OpenBLAS) and return the previous count (1 if unknown). */
+/* Set OpenBLAS threads and return the previous count. The nn kernels reset
+ * it to 1 on their next call (they parallelise with OpenMP themselves); use
+ * this only around your own large BLAS calls. */
 int sooc_nn_blas_set_threads(int n);
 
 #ifdef __cplusplus

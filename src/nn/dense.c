@@ -31,7 +31,7 @@ void sooc_nn_linear_forward(float *y, const float *x, const float *w, const floa
                             int64_t N, int I, int O, sooc_nn_act act) {
     if (N == 0) return;
     /* y[N,O] = x[N,I] w[O,I]^T */
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, (int)N, O, I, 1.f, x, I, w, I, 0.f, y,
+    sooc_nn_sgemm(0, 1, (int)N, O, I, 1.f, x, I, w, I, 0.f, y,
                 O);
     if (!b && act == SOOC_NN_ACT_NONE) return;
 #pragma omp parallel for schedule(static) if (N * O > SOOC_NN_PAR_MIN)
@@ -47,10 +47,10 @@ void sooc_nn_linear_backward(float *dx, float *dw, float *db, float *dy, const f
     if (N == 0) return;
     sooc_nn_act_backward_inplace(act, dy, y, N * O);
     if (dx) /* dx[N,I] += dz[N,O] w[O,I] */
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, (int)N, I, O, 1.f, dy, O, w, I,
+        sooc_nn_sgemm(0, 0, (int)N, I, O, 1.f, dy, O, w, I,
                     1.f, dx, I);
     if (dw) /* dw[O,I] += dz^T[O,N] x[N,I] */
-        cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, O, I, (int)N, 1.f, dy, O, x, I, 1.f,
+        sooc_nn_sgemm(1, 0, O, I, (int)N, 1.f, dy, O, x, I, 1.f,
                     dw, I);
     if (db) {
         for (int o = 0; o < O; o++) {
@@ -114,7 +114,7 @@ void sooc_nn_conv2d_forward(float *y, float *col, float *scratch, const float *x
         }
     }
     float *tmp = scratch; /* [Co, B*P] */
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, Co, (int)BP, Ci * 9, 1.f, w, Ci * 9,
+    sooc_nn_sgemm(0, 0, Co, (int)BP, Ci * 9, 1.f, w, Ci * 9,
                 col, (int)BP, 0.f, tmp, (int)BP);
 #pragma omp parallel for schedule(static)
     for (int bc = 0; bc < B * Co; bc++) {
@@ -147,11 +147,11 @@ void sooc_nn_conv2d_backward(float *dx, float *dw, float *db, float *dy, const f
         if (db) db[co] += (float)s;
     }
     if (dw) /* dw[Co, Ci*9] += tmp[Co,BP] col^T[BP, Ci*9] */
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Ci * 9, (int)BP, 1.f, tmp,
+        sooc_nn_sgemm(0, 1, Co, Ci * 9, (int)BP, 1.f, tmp,
                     (int)BP, col, (int)BP, 1.f, dw, Ci * 9);
     if (!dx) return;
     /* dcol[Ci*9, BP] = w^T[Ci*9, Co] tmp[Co, BP] */
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Ci * 9, (int)BP, Co, 1.f, w, Ci * 9, tmp,
+    sooc_nn_sgemm(1, 0, Ci * 9, (int)BP, Co, 1.f, w, Ci * 9, tmp,
                 (int)BP, 0.f, dcol, (int)BP);
     /* col2im: each (b, ci) owns dx[b, ci, :, :]; taps summed in fixed order */
 #pragma omp parallel for schedule(static)
@@ -179,10 +179,10 @@ void sooc_nn_lstm_forward(float *h1, float *c1, float *gates, const float *x, co
                           const float *c0, const float *w_ih, const float *w_hh,
                           const float *b_ih, const float *b_hh, int B, int I, int G) {
     int G4 = 4 * G;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, G4, I, 1.f, x, I, w_ih, I, 0.f, gates,
+    sooc_nn_sgemm(0, 1, B, G4, I, 1.f, x, I, w_ih, I, 0.f, gates,
                 G4);
     if (h0)
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, G4, G, 1.f, h0, G, w_hh, G, 1.f,
+        sooc_nn_sgemm(0, 1, B, G4, G, 1.f, h0, G, w_hh, G, 1.f,
                     gates, G4);
     for (int bb = 0; bb < B; bb++) {
         float *z = gates + (int64_t)bb * G4;
@@ -228,16 +228,16 @@ void sooc_nn_lstm_backward(float *dx, float *dh0, float *dc0, float *dw_ih, floa
         }
     }
     if (dx)
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, I, G4, 1.f, dz, G4, w_ih, I, 1.f,
+        sooc_nn_sgemm(0, 0, B, I, G4, 1.f, dz, G4, w_ih, I, 1.f,
                     dx, I);
     if (dh0)
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, G, G4, 1.f, dz, G4, w_hh, G, 1.f,
+        sooc_nn_sgemm(0, 0, B, G, G4, 1.f, dz, G4, w_hh, G, 1.f,
                     dh0, G);
     if (dw_ih)
-        cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, G4, I, B, 1.f, dz, G4, x, I, 1.f,
+        sooc_nn_sgemm(1, 0, G4, I, B, 1.f, dz, G4, x, I, 1.f,
                     dw_ih, I);
     if (dw_hh && h0)
-        cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, G4, G, B, 1.f, dz, G4, h0, G, 1.f,
+        sooc_nn_sgemm(1, 0, G4, G, B, 1.f, dz, G4, h0, G, 1.f,
                     dw_hh, G);
     for (int j = 0; j < G4; j++) {
         double s = 0.0;

@@ -9,7 +9,7 @@
  * chunks in order; lanes run in parallel; the lanes are then reduced in lane
  * order. The lane count does not depend on the thread count, so the result
  * is bitwise identical for any number of threads and with OpenMP off.
- * Every sgemm runs on one OpenBLAS thread (set around the call).
+ * Every sgemm runs on one OpenBLAS thread (sooc_nn_blas_single).
  */
 #include "nn_impl.h"
 #include <math.h>
@@ -154,7 +154,7 @@ sooc_status sooc_nn_mlp_forward(const sooc_nn_mlp *m, float *acts, const float *
     chunking c = make_chunks(N, slot_bias ? pts_per_slot : 0);
     float *out[SOOC_NN_MLP_MAX_LAYERS];
     for (int l = 0; l < m->n_layers; l++) out[l] = sooc_nn_mlp_output(m, acts, N, l);
-    int prev = sooc_nn_blas_set_threads(1);
+    sooc_nn_blas_single();
 #pragma omp parallel for schedule(dynamic, 1)
     for (int64_t ci = 0; ci < c.n_chunks; ci++) {
         int64_t r0, r1, k;
@@ -167,7 +167,6 @@ sooc_status sooc_nn_mlp_forward(const sooc_nn_mlp *m, float *acts, const float *
             layer_forward_rows(L, out[l] + r0 * L->c_out, xin, r1 - r0, sb);
         }
     }
-    sooc_nn_blas_set_threads(prev);
     return SOOC_OK;
 }
 
@@ -225,7 +224,7 @@ sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_b
     }
     size_t lf = lane_floats(m, K);
     size_t acc0 = dw_off[0]; /* accumulators start here in each lane */
-    int prev = sooc_nn_blas_set_threads(1);
+    sooc_nn_blas_single();
 #pragma omp parallel for schedule(static, 1)
     for (int lane = 0; lane < SOOC_NN_MLP_LANES; lane++) {
         float *S = scratch + (size_t)lane * lf;
@@ -283,7 +282,6 @@ sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_b
             }
         }
     }
-    sooc_nn_blas_set_threads(prev);
     /* reduce lanes in lane order; each output element owned by one iteration */
     for (int l = 0; l < nl; l++) {
         const sooc_nn_mlp_layer *L = &m->layer[l];

@@ -6,7 +6,28 @@
 #undef I /* complex.h (pulled in by OpenBLAS) defines I; we use it as a size */
 #ifdef SOOC_HAVE_OPENMP
 #include <omp.h>
+#else
+/* Without OpenMP the `#pragma omp` lines are simply ignored (llm.c style);
+ * every loop is written so that its result does not depend on that. */
+#pragma GCC diagnostic ignored "-Wunknown-pragmas"
 #endif
+
+/* Row-major C[M,N] = alpha op(A) op(B) + beta C, split into a FIXED number of
+ * blocks along M or N (whichever is larger; never along K) that OpenMP
+ * threads take; each block is a single-threaded OpenBLAS sgemm. The blocking
+ * does not depend on the thread count, and no output element's K summation is
+ * split, so results are bitwise identical for any thread count and with
+ * OpenMP off. Avoids mixing OpenBLAS' own threads with OpenMP threads
+ * (measured: oversubscription made the conv encoder 50x slower on a loaded
+ * 2-core machine). */
+/* Put OpenBLAS in single-thread mode (process-global; all nn parallelism is
+ * OpenMP). Measured: restoring OpenBLAS' threads after every call left its
+ * workers spinning against the OpenMP threads, making the conv encoder up to
+ * 50x slower on a loaded machine. */
+void sooc_nn_blas_single(void);
+
+void sooc_nn_sgemm(int transa, int transb, int M, int N, int K, float alpha, const float *A,
+                   int lda, const float *B, int ldb, float beta, float *C, int ldc);
 
 /* Minimum elements before an elementwise loop goes parallel. */
 #define SOOC_NN_PAR_MIN 32768

@@ -244,6 +244,8 @@ int main(void) {
     cmp("input grad", f.pts->grad, "grad.in.pts", 1e-6, 1e-4);
     cmp("input grad", f.z->grad, "grad.in.z", 1e-6, 1e-4);
     printf("forward/backward vs torch: worst err/tol %.3f over all tensors\n", g_worst_all);
+    /* digests for comparing builds (OpenMP on/off, thread counts): bitwise */
+    uint32_t grad_crc = sooc_crc32(0, g_p.g, g_p.n_total * sizeof(float));
     fused_mlp_check(&f);
 
     /* 5 Adam steps, lr 1e-2 */
@@ -268,6 +270,8 @@ int main(void) {
         cmp("final param", P(PN[i])->data, gname, 1e-5, 1e-4);
     }
     printf("overall worst err/tol %.3f (1.0 = tolerance)\n", g_worst_all);
+    printf("bitwise digest: grads %08x final params %08x (compare across builds)\n", grad_crc,
+           sooc_crc32(0, g_p.w, g_p.n_total * sizeof(float)));
     sooc_nn_tape_destroy(t);
     sooc_nn_arena_deinit(&ar);
     sooc_nn_params_deinit(&g_p);
