@@ -1,0 +1,152 @@
+/*
+ * fuzz_seeds <out_dir>: write the binary seeds of the fuzz corpus with the
+ * project's own writers (nn/model checkpoints, a SQLite map, pose packets,
+ * PNG/PGM images, a scene.yaml). Text seeds (calib, launch, train config,
+ * TUM) are plain files committed in tests/fuzz/corpus/. Used once to make
+ * tests/fuzz/corpus/; rerun after a format change:
+ *   build/tests/fuzz_seeds tests/fuzz/corpus
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sooc3d/cogmap.h"
+#include "sooc3d/core.h"
+#include "sooc3d/gen.h"
+#include "sooc3d/image.h"
+#include "sooc3d/mapstore.h"
+#include "sooc3d/model.h"
+#include "sooc3d/nn.h"
+#include "sooc3d/pose.h"
+#include "sooc3d/scene.h"
+
+void sooc_fuzz_nn_layout(sooc_nn_params *p);
+
+static const char *out_dir;
+
+static const char *path(const char *target, const char *name) {
+    static char p[4096];
+    char d[4096];
+    snprintf(d, sizeof d, "%s/%s", out_dir, target);
+    if (sooc_mkdirs(d)) { fprintf(stderr, "mkdir %s: %s\n", d, sooc_errmsg()); exit(1); }
+    snprintf(p, sizeof p, "%s/%s", d, name);
+    return p;
+}
+
+#define OK(x) do { sooc_status s_ = (x); if (s_) { fprintf(stderr, "%s:%d: %s: %s\n", __FILE__, __LINE__, #x, sooc_errmsg()); exit(1); } } while (0)
+
+int main(int argc, char **argv) {
+    if (argc != 2) { fprintf(stderr, "usage: fuzz_seeds <out_dir>\n"); return 2; }
+    out_dir = argv[1];
+
+    /* nn checkpoints: with and without optimizer state, with a trainer blob */
+    {
+        sooc_nn_params p;
+        sooc_fuzz_nn_layout(&p);
+        OK(sooc_nn_params_alloc(&p));
+        for (int v = 0; v < p.n_views; v++)
+            for (size_t i = 0; i < p.views[v].n; i++) p.w[p.views[v].offset + i] = 0.25f * (float)(i + 1);
+        p.adam_t = 3;
+        static const char cfg[] = "fuzz-config";
+        static const char trainer[16] = "trainer-state";
+        OK(sooc_nn_ckpt_save(path("nn_ckpt", "plain.ckpt"), &p, cfg, sizeof cfg, NULL, 0, 0));
+        OK(sooc_nn_ckpt_save(path("nn_ckpt", "adam_trainer.ckpt"), &p, cfg, sizeof cfg, trainer, sizeof trainer, 1));
+        sooc_nn_params_deinit(&p);
+    }
+
+    /* a tiny model checkpoint (smallest sizes the config check accepts) */
+    {
+        sooc_model_config c;
+        sooc_model_config_default(&c);
+        c.K = 2; c.d_what = 2; c.d_layout = 1; c.L = 1;
+        c.img_w = c.img_h = 16; c.ray_w = c.ray_h = 16;
+        c.dec_width = 4; c.dec_color_width = 1; c.n_freq = 1; c.n_freq_layout = 0;
+        for (int i = 0; i < 4; i++) c.ref_ch[i] = 1;
+        c.ref_fc = 1; c.ref_hidden = 1;
+        sooc_model *m;
+        OK(sooc_model_create(&m, &c, 7));
+        OK(sooc_model_save(m, path("model_ckpt", "tiny.ckpt"), NULL, 0));
+        OK(sooc_model_save(m, path("model_ckpt", "tiny_blob.ckpt"), "blob", 4));
+        sooc_model_destroy(m);
+    }
+
+    /* a map database with entries, a layout block and a keyframe */
+    {
+        const char *db = path("mapstore", "map.db");
+        remove(db);
+        sooc_cogmap_params cp;
+        sooc_cogmap_params_default(&cp);
+        cp.dim = 2; cp.layout_dim = 1;
+        sooc_cogmap *map;
+        OK(sooc_cogmap_create(&map, &cp));
+        for (int i = 0; i < 3; i++) {
+            sooc_cogmap_entry e;
+            memset(&e, 0, sizeof e);
+            e.X = i; e.Z = -i; e.Theta = 0.5 * i; e.pres_logit = 1.0f; e.dim = 2;
+            e.what_mu[0] = 0.1f * (float)i; e.what_logvar[1] = -1;
+            e.obs_count = 1;
+            OK(sooc_cogmap_insert(map, &e, NULL));
+        }
+        sooc_mapstore_params mp;
+        sooc_mapstore_params_default(&mp);
+        mp.model_id = "fuzz"; mp.dim = 2; mp.layout_dim = 1; mp.block_size = 4;
+        sooc_mapstore *s;
+        OK(sooc_mapstore_open(&s, db, &mp));
+        OK(sooc_mapstore_save_map(s, map));
+        float mu[1] = {0.5f}, lv[1] = {-2};
+        OK(sooc_mapstore_begin(s));
+        OK(sooc_mapstore_put_layout(s, 0, 1, mu, lv));
+        sooc_mapstore_keyframe kf;
+        memset(&kf, 0, sizeof kf);
+        kf.t_ns = 1000; kf.view = 0;
+        for (int i = 0; i < 16; i++) kf.T_wc[i] = i % 5 == 0;
+        OK(sooc_mapstore_add_keyframe(s, &kf, 3));
+        OK(sooc_mapstore_commit(s));
+        sooc_mapstore_close(s);
+        sooc_cogmap_destroy(map);
+    }
+
+    /* pose packets: camera and effector */
+    {
+        sooc_pose_packet pk = {.seq = 7, .kind = SOOC_POSE_CAMERA, .t_ns = 1305031102175304000LL,
+                               .t = {1, 2, 3}, .q = {0, 0, 0, 1}};
+        uint8_t buf[SOOC_POSE_PACKET_SIZE];
+        sooc_pose_packet_encode(buf, &pk);
+        OK(sooc_file_write_atomic(path("pose_packet", "camera.bin"), buf, sizeof buf));
+        pk.kind = SOOC_POSE_EFFECTOR; pk.q[0] = 0.5; pk.q[3] = 0.5;
+        sooc_pose_packet_encode(buf, &pk);
+        OK(sooc_file_write_atomic(path("pose_packet", "effector_unnormalised.bin"), buf, sizeof buf));
+    }
+
+    /* images */
+    {
+        sooc_image img = {0};
+        OK(sooc_image_alloc(&img, 5, 3, SOOC_PIX_RGB8));
+        for (int i = 0; i < 15 * 3; i++) ((uint8_t *)img.data)[i] = (uint8_t)(17 * i);
+        OK(sooc_png_write(path("png", "rgb8.png"), &img, 9));
+        OK(sooc_image_alloc(&img, 4, 4, SOOC_PIX_GRAY8));
+        for (int i = 0; i < 16; i++) ((uint8_t *)img.data)[i] = (uint8_t)(16 * i);
+        OK(sooc_png_write(path("png", "gray8.png"), &img, 9));
+        OK(sooc_pgm_write(path("pgm", "gray8.pgm"), &img));
+        OK(sooc_image_alloc(&img, 3, 2, SOOC_PIX_GRAY16));
+        for (int i = 0; i < 6; i++) ((uint16_t *)img.data)[i] = (uint16_t)(5000 * i + 1);
+        OK(sooc_png_write(path("png", "gray16.png"), &img, 9));
+        OK(sooc_pgm_write(path("pgm", "gray16.pgm"), &img));
+        sooc_image_free(&img);
+        static const char p2[] = "P2\n# comment\n3 2\n255\n0 1 2\n253 254 255\n";
+        OK(sooc_file_write_atomic(path("pgm", "ascii.pgm"), p2, sizeof p2 - 1));
+    }
+
+    /* a generated scene.yaml (small scale) */
+    {
+        sooc_gen_params gp;
+        sooc_gen_params_default(&gp);
+        sooc_scene sc;
+        sooc_scene_init(&sc);
+        OK(sooc_gen_scene(&sc, &gp, 0));
+        OK(sooc_scene_save(path("scene", "gen0.yaml"), &sc));
+        sooc_scene_free(&sc);
+    }
+    printf("seeds written to %s\n", out_dir);
+    return 0;
+}

@@ -1,0 +1,324 @@
+/*
+ * sooc3d fuzz entry points (see fuzz_targets.h). Parsers that only take a
+ * path get the bytes through a per-process temporary file.
+ */
+#include "fuzz_targets.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "sooc3d/calib.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/core.h"
+#include "sooc3d/image.h"
+#include "sooc3d/mapstore.h"
+#include "sooc3d/model.h"
+#include "sooc3d/nn.h"
+#include "sooc3d/node.h"
+#include "sooc3d/pose.h"
+#include "sooc3d/scene.h"
+#include "sooc3d/train.h"
+
+/* ------------------------------------------------------------- helpers */
+
+/* Write data to a per-process temporary file; returns its path (static). */
+static const char *tmp_file(const char *tag, const uint8_t *data, size_t n) {
+    static char path[512];
+    const char *dir = getenv("TMPDIR");
+    if (!dir || !*dir) dir = "/tmp";
+    snprintf(path, sizeof path, "%s/sooc-fuzz-%ld-%s", dir, (long)getpid(), tag);
+    FILE *f = fopen(path, "wb");
+    if (!f) abort();   /* environment problem, not a finding */
+    if (n && fwrite(data, 1, n, f) != n) abort();
+    if (fclose(f)) abort();
+    return path;
+}
+
+static void tmp_remove(const char *path) {
+    char side[600];
+    unlink(path);
+    snprintf(side, sizeof side, "%s-wal", path);
+    unlink(side);
+    snprintf(side, sizeof side, "%s-shm", path);
+    unlink(side);
+    snprintf(side, sizeof side, "%s-journal", path);
+    unlink(side);
+}
+
+/* A copy of d with the little-endian CRC-32 (zlib) of bytes [0, crc_at) stored
+ * at crc_at, so that mutations of a CRC-guarded format reach the parser
+ * behind the CRC check. NULL when the input is too short. */
+static uint8_t *with_crc(const uint8_t *d, size_t n, size_t crc_at) {
+    if (n < crc_at + 4) return NULL;
+    uint8_t *c = malloc(n);
+    if (!c) abort();
+    memcpy(c, d, n);
+    uint32_t crc = sooc_crc32(0, c, crc_at);
+    for (int i = 0; i < 4; i++) c[crc_at + i] = (uint8_t)(crc >> (8 * i));
+    return c;
+}
+
+/* ------------------------------------------------------------- targets */
+
+static int fz_calib(const uint8_t *d, size_t n) {
+    sooc_calib c;
+    int ok = sooc_calib_parse((const char *)d, n, "fuzz.yaml", &c) == SOOC_OK;
+    /* and through the file path (which blanks a leading %YAML:1.0 in place) */
+    const char *p = tmp_file("calib.yaml", d, n);
+    sooc_calib_load(p, &c);
+    tmp_remove(p);
+    return ok;
+}
+
+static int fz_scene(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("scene.yaml", d, n);
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    int ok = sooc_scene_load(p, &sc) == SOOC_OK;
+    if (ok) {
+        /* touch what a loader promises: objects and views */
+        double acc = 0;
+        for (int i = 0; i < sc.n_objects; i++) {
+            sooc_scene_part parts[SOOC_SCENE_MAX_PARTS];
+            acc += sooc_scene_object_parts(&sc.objects[i], parts, SOOC_SCENE_MAX_PARTS);
+            acc += sooc_scene_object_footprint(&sc.objects[i]);
+        }
+        for (int v = 0; v < sc.n_views; v++) {
+            acc += sc.view_is_query[v];
+            if (sc.view_T_wc) acc += sc.view_T_wc[16 * v + 3];
+        }
+        (void)acc;
+    }
+    sooc_scene_free(&sc);
+    tmp_remove(p);
+    return ok;
+}
+
+static int fz_train_config(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("train.yaml", d, n);
+    sooc_train_config c;
+    sooc_model_config mc;
+    sooc_train_config_default(&c);
+    sooc_model_config_default(&mc);
+    int ok = sooc_train_config_load(p, &c, &mc) == SOOC_OK;
+    tmp_remove(p);
+    return ok;
+}
+
+static int fz_launch(const uint8_t *d, size_t n) {
+    static sooc_node_config c;   /* ~7 KB: keep it off the stack */
+    static char buf[16384];
+    sooc_node_config_default(&c);
+    int ok = sooc_node_config_parse(&c, (const char *)d, n, "fuzz_launch.yaml") == SOOC_OK;
+    if (ok) {
+        sooc_node_config_format(&c, buf, sizeof buf);
+        sooc_node_param_get(&c, "uri");
+    }
+    return ok;
+}
+
+/* The fixed layout the nn checkpoint seeds were saved with (fuzz_seeds.c). */
+void sooc_fuzz_nn_layout(sooc_nn_params *p);
+void sooc_fuzz_nn_layout(sooc_nn_params *p) {
+    static const int64_t s_a[2] = {4, 3}, s_b[1] = {5}, s_c[3] = {2, 2, 2};
+    sooc_nn_params_init(p);
+    sooc_nn_params_add(p, "enc.W", 2, s_a);
+    sooc_nn_params_add(p, "enc.b", 1, s_b);
+    sooc_nn_params_add(p, "conv.k", 3, s_c);
+}
+
+static int nn_ckpt_one(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("nn.ckpt", d, n);
+    void *cfg = NULL;
+    size_t cfg_n = 0;
+    sooc_nn_ckpt_read_config(p, 4096, &cfg, &cfg_n);
+    sooc_free(cfg);
+    sooc_nn_params par;
+    sooc_fuzz_nn_layout(&par);
+    int ok = 0;
+    if (sooc_nn_params_alloc(&par) == SOOC_OK) {
+        unsigned char trainer[64];
+        size_t tn = 0;
+        ok = sooc_nn_ckpt_load(p, &par, NULL, 0, trainer, sizeof trainer, &tn) == SOOC_OK;
+        static const char expect[] = "fuzz-config";
+        sooc_nn_ckpt_load(p, &par, expect, sizeof expect, NULL, 0, NULL);
+    }
+    sooc_nn_params_deinit(&par);
+    tmp_remove(p);
+    return ok;
+}
+
+/* The file ends with the CRC of all preceding bytes. */
+static int fz_nn_ckpt(const uint8_t *d, size_t n) {
+    int ok = nn_ckpt_one(d, n);
+    uint8_t *c = n >= 4 ? with_crc(d, n, n - 4) : NULL;
+    if (c) {
+        nn_ckpt_one(c, n);
+        free(c);
+    }
+    return ok;
+}
+
+static int model_ckpt_one(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("model.ckpt", d, n);
+    sooc_model *m = NULL;
+    void *blob = NULL;
+    size_t bn = 0;
+    int ok = sooc_model_load(&m, p, &blob, &bn) == SOOC_OK;
+    sooc_model_destroy(m);
+    sooc_free(blob);
+    tmp_remove(p);
+    return ok;
+}
+
+static int fz_model_ckpt(const uint8_t *d, size_t n) {
+    int ok = model_ckpt_one(d, n);
+    uint8_t *c = n >= 4 ? with_crc(d, n, n - 4) : NULL;
+    if (c) {
+        model_ckpt_one(c, n);
+        free(c);
+    }
+    return ok;
+}
+
+typedef struct visit_acc { double s; int n; } visit_acc;
+static int visit(void *user, const sooc_cogmap_entry *e) {
+    visit_acc *a = user;
+    a->s += e->pres_logit + e->what_mu[0];
+    return ++a->n > 1000;
+}
+
+static int fz_mapstore(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("map.db", d, n);
+    sooc_mapstore_params mp;
+    sooc_mapstore_params_default(&mp);
+    mp.create = 0;
+    sooc_mapstore *s = NULL;
+    int ok = sooc_mapstore_open(&s, p, &mp) == SOOC_OK;
+    if (ok) {
+        sooc_mapstore_info info;
+        visit_acc acc = {0, 0};
+        if (sooc_mapstore_info_get(s, &info) == SOOC_OK) {
+            sooc_cogmap_params cp;
+            sooc_cogmap_params_default(&cp);
+            cp.dim = info.dim;
+            cp.layout_dim = info.layout_dim;
+            if (info.block_size > 0) cp.block_size = info.block_size;
+            sooc_cogmap *map = NULL;
+            if (sooc_cogmap_create(&map, &cp) == SOOC_OK) {
+                if (sooc_mapstore_load_map(s, map) == SOOC_OK) sooc_cogmap_foreach(map, visit, &acc);
+                sooc_cogmap_destroy(map);
+            }
+        }
+        sooc_mapstore_foreach(s, visit, &acc);
+        acc.n = 0;
+        sooc_mapstore_query_box(s, -5, -5, 5, 5, visit, &acc);
+        sooc_cogmap_entry e;
+        sooc_mapstore_get(s, 1, &e);
+        sooc_mapstore_close(s);
+    }
+    tmp_remove(p);
+    return ok;
+}
+
+static int pose_packet_one(const uint8_t *d, size_t n) {
+    sooc_pose_packet pk;
+    if (sooc_pose_packet_decode(d, n, &pk) != SOOC_OK) return 0;
+    int ok = 1;
+    /* a decoded packet goes into the ring as the receiver thread does */
+    sooc_pose_params pp;
+    sooc_pose_params_default(&pp);
+    pp.capacity = 4;
+    sooc_pose_src *src = NULL;
+    if (sooc_pose_open_buffer(&src, &pp) == SOOC_OK) {
+        double T[16];
+        ok = sooc_pose_push_tq(src, pk.t_ns, pk.kind, pk.t, pk.q) == SOOC_OK;
+        sooc_pose_lookup(src, pk.t_ns, 1000000, T);
+        sooc_pose_close(src);
+    }
+    return ok;
+}
+
+/* Bytes 80..83 hold the CRC of bytes 0..79. */
+static int fz_pose_packet(const uint8_t *d, size_t n) {
+    int ok = pose_packet_one(d, n);
+    uint8_t *c = with_crc(d, n, 80);
+    if (c) {
+        pose_packet_one(c, n);
+        free(c);
+    }
+    return ok;
+}
+
+static int fz_tum(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("groundtruth.txt", d, n);
+    sooc_pose_src *src = NULL;
+    int ok = sooc_pose_open_file(&src, p, NULL) == SOOC_OK;
+    if (ok) {
+        sooc_pose_stats st;
+        double T[16];
+        sooc_pose_get_stats(src, &st);
+        int64_t mid = st.t_first_ns / 2 + st.t_last_ns / 2;
+        sooc_pose_lookup(src, st.t_first_ns, 0, T);
+        sooc_pose_lookup(src, mid, INT64_MAX / 4, T);
+        sooc_pose_lookup(src, st.t_last_ns, 1000, T);
+        sooc_pose_close(src);
+    }
+    tmp_remove(p);
+    return ok;
+}
+
+static void touch_image(const sooc_image *img) {
+    size_t bytes = (size_t)img->width * (size_t)img->height * (size_t)sooc_pixfmt_bytes(img->fmt);
+    volatile unsigned acc = 0;
+    if (bytes) acc += ((const uint8_t *)img->data)[0] + ((const uint8_t *)img->data)[bytes - 1];
+    (void)acc;
+}
+
+static int fz_png(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("img.png", d, n);
+    sooc_image img = {0};
+    int w, h;
+    sooc_pixfmt fmt;
+    sooc_png_info(p, &w, &h, &fmt);
+    int ok = sooc_png_read(p, &img) == SOOC_OK;
+    if (ok) touch_image(&img);
+    sooc_image_free(&img);
+    tmp_remove(p);
+    return ok;
+}
+
+static int fz_pgm(const uint8_t *d, size_t n) {
+    const char *p = tmp_file("img.pgm", d, n);
+    sooc_image img = {0};
+    int ok = sooc_pgm_read(p, &img) == SOOC_OK;
+    if (ok) touch_image(&img);
+    sooc_image_free(&img);
+    if (sooc_image_read(p, &img) == SOOC_OK) touch_image(&img);
+    sooc_image_free(&img);
+    tmp_remove(p);
+    return ok;
+}
+
+const sooc_fuzz_target sooc_fuzz_targets[] = {
+    {"calib", fz_calib},
+    {"scene", fz_scene},
+    {"train_config", fz_train_config},
+    {"launch", fz_launch},
+    {"nn_ckpt", fz_nn_ckpt},
+    {"model_ckpt", fz_model_ckpt},
+    {"mapstore", fz_mapstore},
+    {"pose_packet", fz_pose_packet},
+    {"tum", fz_tum},
+    {"png", fz_png},
+    {"pgm", fz_pgm},
+    {NULL, NULL},
+};
+
+const sooc_fuzz_target *sooc_fuzz_find(const char *name) {
+    for (const sooc_fuzz_target *t = sooc_fuzz_targets; t->name; t++)
+        if (!strcmp(t->name, name)) return t;
+    return NULL;
+}
