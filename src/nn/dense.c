@@ -93,7 +93,7 @@ void sooc_nn_conv2d_forward(float *y, float *col, float *scratch, const float *x
     conv_pads(W, stride, &Wo, &pl);
     int64_t P = (int64_t)Ho * Wo, BP = (int64_t)B * P;
     /* im2col: col[(ci*9 + ky*3 + kx), b*P + oy*Wo + ox] */
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (9 * (int64_t)Ci * BP > SOOC_NN_PAR_BIG)
     for (int r = 0; r < Ci * 9; r++) {
         int ci = r / 9, ky = (r % 9) / 3, kx = r % 3;
         float *cr = col + (int64_t)r * BP;
@@ -116,7 +116,7 @@ void sooc_nn_conv2d_forward(float *y, float *col, float *scratch, const float *x
     float *tmp = scratch; /* [Co, B*P] */
     sooc_nn_sgemm(0, 0, Co, (int)BP, Ci * 9, 1.f, w, Ci * 9,
                 col, (int)BP, 0.f, tmp, (int)BP);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if ((int64_t)Co * BP > SOOC_NN_PAR_BIG)
     for (int bc = 0; bc < B * Co; bc++) {
         int bb = bc / Co, co = bc % Co;
         const float *s = tmp + (int64_t)co * BP + bb * P;
@@ -136,7 +136,7 @@ void sooc_nn_conv2d_backward(float *dx, float *dw, float *db, float *dy, const f
     sooc_nn_act_backward_inplace(act, dy, y, (int64_t)B * Co * P);
     float *tmp = scratch;                  /* dz as [Co, B*P] */
     float *dcol = scratch + (int64_t)Co * BP; /* [Ci*9, B*P] */
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if ((int64_t)Co * BP > SOOC_NN_PAR_BIG)
     for (int co = 0; co < Co; co++) {
         double s = 0.0;
         for (int bb = 0; bb < B; bb++) {
@@ -154,7 +154,7 @@ void sooc_nn_conv2d_backward(float *dx, float *dw, float *db, float *dy, const f
     sooc_nn_sgemm(1, 0, Ci * 9, (int)BP, Co, 1.f, w, Ci * 9, tmp,
                 (int)BP, 0.f, dcol, (int)BP);
     /* col2im: each (b, ci) owns dx[b, ci, :, :]; taps summed in fixed order */
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (9 * (int64_t)Ci * BP > SOOC_NN_PAR_BIG)
     for (int bc = 0; bc < B * Ci; bc++) {
         int bb = bc / Ci, ci = bc % Ci;
         float *dxp = dx + (int64_t)bc * H * W;

@@ -31,5 +31,9 @@ void sooc_nn_sgemm(int transa, int transb, int M, int N, int K, float alpha, con
 
 /* Minimum elements before an elementwise loop goes parallel. */
 #define SOOC_NN_PAR_MIN 32768
+/* Threshold for memory-bound loops with little work per element (copies):
+ * below it a parallel region costs more than it saves, and on a loaded
+ * machine every extra OpenMP barrier can cost a scheduler time slice. */
+#define SOOC_NN_PAR_BIG 262144
 
 #endif
