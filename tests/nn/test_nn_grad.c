@@ -14,6 +14,7 @@
  */
 #include "check.h"
 #include "sooc3d/nn.h"
+#include "nn/nn_impl.h" /* sooc_nn_sgemm (internal) */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -337,6 +338,43 @@ static void test_mlp_fused(void) {
     sooc_free(x); sooc_free(sb); sooc_free(d2); sooc_free(d4); sooc_free(acts); sooc_free(scr);
 }
 
+/* the fixed-block parallel sgemm against a naive double product, all
+ * transpose combinations, split along M and along N, beta 0 and 1 */
+static void test_sgemm_blocks(void) {
+    int dims[2][3] = {{300, 40, 200}, {24, 900, 200}}; /* M, N, K: split M / split N */
+    double worst = 0;
+    for (int d = 0; d < 2; d++)
+        for (int ta = 0; ta < 2; ta++)
+            for (int tb = 0; tb < 2; tb++)
+                for (int beta = 0; beta < 2; beta++) {
+                    int M = dims[d][0], N = dims[d][1], K = dims[d][2];
+                    int lda = ta ? M : K, ldb = tb ? K : N;
+                    float *A = sooc_malloc(sizeof(float) * M * K), *B = sooc_malloc(sizeof(float) * K * N);
+                    float *C = sooc_malloc(sizeof(float) * M * N);
+                    for (int i = 0; i < M * K; i++) A[i] = (float)sooc_rng_normal(&g_rng);
+                    for (int i = 0; i < K * N; i++) B[i] = (float)sooc_rng_normal(&g_rng);
+                    for (int i = 0; i < M * N; i++) C[i] = (float)sooc_rng_normal(&g_rng);
+                    double *R = sooc_malloc(sizeof(double) * M * N);
+                    for (int i = 0; i < M; i++)
+                        for (int j = 0; j < N; j++) {
+                            double acc = beta ? C[i * N + j] : 0.0;
+                            for (int k = 0; k < K; k++)
+                                acc += 0.5 * (double)(ta ? A[k * lda + i] : A[i * lda + k]) *
+                                       (double)(tb ? B[j * ldb + k] : B[k * ldb + j]);
+                            R[i * N + j] = acc;
+                        }
+                    sooc_nn_sgemm(ta, tb, M, N, K, 0.5f, A, lda, B, ldb, (float)beta, C, N);
+                    for (int i = 0; i < M * N; i++) {
+                        double e = fabs(C[i] - R[i]) / (1e-4 + 1e-5 * fabs(R[i]));
+                        if (e > worst) worst = e;
+                    }
+                    sooc_free(A); sooc_free(B); sooc_free(C); sooc_free(R);
+                }
+    printf("%-28s %s worst err/tol %.3f (tol 1e-4 + 1e-5|ref|)\n", "sgemm fixed blocks",
+           worst <= 1 ? "ok  " : "FAIL", worst);
+    CHECK_MSG(worst <= 1, "sooc_nn_sgemm worst %.3g", worst);
+}
+
 int main(void) {
     CHECK_OK(sooc_nn_arena_init(&g_arena, (size_t)64 << 20));
     CHECK_OK(sooc_nn_tape_create(&g_tape, &g_arena, 256));
@@ -481,6 +519,7 @@ int main(void) {
         gradcheck("reshape", f_reshape, r, 1, NULL);
     }
     test_mlp_fused();
+    test_sgemm_blocks();
     sooc_nn_tape_destroy(g_tape);
     sooc_nn_arena_deinit(&g_arena);
     return check_report("test_nn_grad");
