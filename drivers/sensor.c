@@ -363,13 +363,14 @@ int sooc__parse_seconds_ns(const char *s, char **end, int64_t *ns) {
     if (*q == 'e' || *q == 'E') {
         char *e2;
         double d = strtod(start, &e2);
-        if (e2 == start || !isfinite(d)) return -1;
+        if (e2 == start || !(fabs(d) < 9.2e9)) return -1;   /* |t| * 1e9 must fit in int64 */
         *ns = (int64_t)llround(d * 1e9);
         *end = e2;
         return 0;
     }
     int nfd = nf > 9 ? 9 : nf;
     for (int k = nfd; k < 9; k++) frac *= 10;
+    if (ip > (INT64_MAX - frac) / 1000000000) return -1;   /* beyond ~292 years of ns */
     int64_t v = ip * 1000000000 + frac;
     *ns = neg ? -v : v;
     *end = (char *)q;

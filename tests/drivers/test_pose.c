@@ -266,6 +266,16 @@ static void test_file(const char *dir) {
     CHECK(sooc_pose_open_file(&src, path, NULL) == SOOC_EFORMAT);
     CHECK_MSG(strstr(sooc_errmsg(), "groundtruth.txt:54") != NULL, "msg: %s", sooc_errmsg());
     CHECK(sooc_pose_open_file(&src, "/nonexistent/gt.txt", NULL) != SOOC_OK);
+    /* fuzz regressions: timestamps whose nanoseconds overflow int64 are rejected
+     * (were signed overflow / an out-of-range llround) */
+    static const char *const huge[] = {"9223372039 0 0 0 0 0 0 1\n", "9223372036.9 0 0 0 0 0 0 1\n",
+                                       "1e300 0 0 0 0 0 0 1\n", "-1e12 0 0 0 0 0 0 1\n"};
+    for (int i = 0; i < 4; i++) {
+        fp = fopen(path, "w");
+        fputs(huge[i], fp);
+        fclose(fp);
+        CHECK_MSG(sooc_pose_open_file(&src, path, NULL) == SOOC_EFORMAT, "huge timestamp %d accepted", i);
+    }
 }
 
 int main(void) {
