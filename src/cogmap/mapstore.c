@@ -268,14 +268,17 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
                          (unsigned long long)v, SOOC_MAPSTORE_SCHEMA_VERSION);
         goto fail;
     }
-    if ((st = meta_get_u64(s, "dim", &v))) goto fail;
-    s->dim = (int)v;
-    if ((st = meta_get_u64(s, "layout_dim", &v))) goto fail;
-    s->layout_dim = (int)v;
-    if (s->dim > SOOC_COGMAP_DIM_MAX || s->layout_dim > SOOC_COGMAP_DIM_MAX) {
-        st = sooc_seterr(SOOC_EFORMAT, "%s: stored dims %d / %d out of range", path, s->dim, s->layout_dim);
+    /* range-check the u64 before narrowing: "-1" or 2^32 + 5 must not wrap into range */
+    uint64_t vd = 0, vl = 0;
+    if ((st = meta_get_u64(s, "dim", &vd))) goto fail;
+    if ((st = meta_get_u64(s, "layout_dim", &vl))) goto fail;
+    if (vd > SOOC_COGMAP_DIM_MAX || vl > SOOC_COGMAP_DIM_MAX) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: stored dims %llu / %llu out of range 0..%d", path,
+                         (unsigned long long)vd, (unsigned long long)vl, SOOC_COGMAP_DIM_MAX);
         goto fail;
     }
+    s->dim = (int)vd;
+    s->layout_dim = (int)vl;
     if ((p.dim && p.dim != s->dim) || (p.layout_dim && p.layout_dim != s->layout_dim)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: map has latent dims %d / %d (object / layout), expected %d / %d", path,
                          s->dim, s->layout_dim, p.dim, p.layout_dim);
