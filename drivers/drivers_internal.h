@@ -4,6 +4,7 @@
 
 #include <stdatomic.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "sooc3d/driver.h"
 
@@ -64,7 +65,20 @@ int64_t sooc__timebase(sooc_sensor *s, int64_t sensor_ns);
 sooc_status sooc__sleep_until(sooc_sensor *s, int64_t deadline_mono_ns);
 int sooc__interrupted(sooc_sensor *s);
 
-/* Parse a decimal seconds value ("1305031102.175304") to exact int64 ns. */
+/* Parse a decimal seconds value ("1305031102.175304") to exact int64 ns.
+ * Returns -1 for a non-number or a value whose ns do not fit in int64. */
 int sooc__parse_seconds_ns(const char *s, char **end, int64_t *ns);
+
+/* Split the next line off a NUL-terminated text buffer in place (its '\n'
+ * becomes '\0') and advance *cur; NULL once the text is used up. For the
+ * TUM-style text readers (pose file, pose datagrams, replay stamp lists). */
+static inline char *sooc__next_line(char **cur) {
+    char *line = *cur;
+    if (!line || !*line) return NULL;
+    char *nl = strchr(line, '\n');
+    if (nl) *nl = '\0';
+    *cur = nl ? nl + 1 : NULL;
+    return line;
+}
 
 #endif

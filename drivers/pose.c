@@ -278,12 +278,10 @@ sooc_status sooc_pose_open_file(sooc_pose_src **out, const char *path, const soo
     if ((size_t)pp.capacity < lines) pp.capacity = (int)lines;
     sooc_pose_src *s;
     if ((st = src_new(&s, &pp))) { sooc_free(buf); return st; }
-    char *line = buf;
+    char *cur = buf, *line;
     int lineno = 0;
-    while (line && *line) {
+    while ((line = sooc__next_line(&cur))) {
         lineno++;
-        char *nl = strchr(line, '\n');
-        if (nl) *nl = '\0';
         int64_t t_ns;
         double t[3], q[4];
         int r = parse_tum_line(line, &t_ns, t, q);
@@ -295,7 +293,6 @@ sooc_status sooc_pose_open_file(sooc_pose_src **out, const char *path, const soo
             st = sooc_adderr(st, "%s:%d", path, lineno);
             break;
         }
-        line = nl ? nl + 1 : NULL;
     }
     sooc_free(buf);
     if (st) { sooc_pose_close(s); return st; }
@@ -443,15 +440,21 @@ static void handle_datagram(sooc_pose_src *s, const uint8_t *buf, size_t n) {
         pthread_mutex_unlock(&s->mu);
         return;
     }
-    /* Text: one or more lines. */
+    /* Text: one or more lines. A datagram longer than the buffer keeps only
+     * its complete lines (a cut line could still parse, with wrong digits). */
     char text[2048];
     size_t m = n < sizeof text - 1 ? n : sizeof text - 1;
     memcpy(text, buf, m);
     text[m] = '\0';
-    char *line = text;
-    while (line && *line) {
-        char *nl = strchr(line, '\n');
-        if (nl) *nl = '\0';
+    if (m < n) {
+        char *last_nl = strrchr(text, '\n');
+        *(last_nl ? last_nl + 1 : text) = '\0';
+        pthread_mutex_lock(&s->mu);
+        s->st.bad_packets++;
+        pthread_mutex_unlock(&s->mu);
+    }
+    char *cur = text, *line;
+    while ((line = sooc__next_line(&cur))) {
         int64_t t_ns;
         double t[3], q[4];
         int r = parse_tum_line(line, &t_ns, t, q);
@@ -462,7 +465,6 @@ static void handle_datagram(sooc_pose_src *s, const uint8_t *buf, size_t n) {
         } else if (r > 0) {
             (void)sooc_pose_push_tq(s, t_ns, s->p.text_kind, t, q);
         }
-        line = nl ? nl + 1 : NULL;
     }
 }
 

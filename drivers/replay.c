@@ -75,12 +75,10 @@ static sooc_status read_list(const char *dir, const char *name, stamp_list *l) {
     l->t = sooc_calloc((size_t)cap, sizeof *l->t);
     l->path = sooc_calloc((size_t)cap, sizeof *l->path);
     if (!l->t || !l->path) { sooc_free(buf); stamp_list_free(l); return SOOC_ENOMEM; }
-    char *line = buf;
+    char *cur = buf, *line;
     int lineno = 0;
-    while (line && *line) {
+    while ((line = sooc__next_line(&cur))) {
         lineno++;
-        char *nl = strchr(line, '\n');
-        if (nl) *nl = '\0';
         char *c = line;
         while (*c == ' ' || *c == '\t') c++;
         if (*c && *c != '#' && *c != '\r') {
@@ -98,7 +96,6 @@ static sooc_status read_list(const char *dir, const char *name, stamp_list *l) {
             l->path[l->n] = sooc_strdup(full);
             l->n++;
         }
-        line = nl ? nl + 1 : NULL;
     }
     sooc_free(buf);
     if (l->n == 0) return sooc_seterr(SOOC_EFORMAT, "%s: no entries", path);

@@ -80,6 +80,14 @@ static int xioctl(v4l *v, int fd, unsigned long req, void *arg) {
     return r;
 }
 
+/* A zeroed memory-mapped capture buffer descriptor for QUERYBUF/QBUF/DQBUF. */
+static void mmap_buf_init(struct v4l2_buffer *b, int index) {
+    memset(b, 0, sizeof *b);
+    b->type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    b->memory = V4L2_MEMORY_MMAP;
+    b->index = (uint32_t)index;
+}
+
 static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_depth, const sooc_sensor_params *p) {
     snprintf(nd->path, sizeof nd->path, "%s", path);
     nd->is_depth = is_depth;
@@ -173,10 +181,7 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
     nd->nbuf = rb.count > V4L_MAX_BUFS ? V4L_MAX_BUFS : (int)rb.count;
     for (int i = 0; i < nd->nbuf; i++) {
         struct v4l2_buffer b;
-        memset(&b, 0, sizeof b);
-        b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-        b.memory = V4L2_MEMORY_MMAP;
-        b.index = (uint32_t)i;
+        mmap_buf_init(&b, i);
         if (xioctl(v, nd->fd, VIDIOC_QUERYBUF, &b) < 0)
             return sooc_seterr(SOOC_EIO, "v4l2: %s: QUERYBUF %d: %s", path, i, strerror(errno));
         void *m = v->ops->mmap(v->ops->user, NULL, b.length, PROT_READ | PROT_WRITE, MAP_SHARED, nd->fd, b.m.offset);
@@ -252,10 +257,7 @@ static sooc_status v4l_start(sooc_sensor *s) {
         v4l_node *nd = &v->n[k];
         for (int i = 0; i < nd->nbuf; i++) {
             struct v4l2_buffer b;
-            memset(&b, 0, sizeof b);
-            b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-            b.memory = V4L2_MEMORY_MMAP;
-            b.index = (uint32_t)i;
+            mmap_buf_init(&b, i);
             if (xioctl(v, nd->fd, VIDIOC_QBUF, &b) < 0)
                 return sooc_seterr(SOOC_EIO, "v4l2: %s: QBUF: %s", nd->path, strerror(errno));
         }
@@ -274,9 +276,7 @@ static sooc_status drain(sooc_sensor *s, v4l *v, int k) {
     v4l_node *nd = &v->n[k];
     for (;;) {
         struct v4l2_buffer b;
-        memset(&b, 0, sizeof b);
-        b.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-        b.memory = V4L2_MEMORY_MMAP;
+        mmap_buf_init(&b, 0);
         if (xioctl(v, nd->fd, VIDIOC_DQBUF, &b) < 0) {
             if (errno == EAGAIN) { return SOOC_OK; }
             if (errno == EIO) { s->st.errors++; return SOOC_OK; }  /* transient, buffer flagged error */
