@@ -243,24 +243,21 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
     }
 }
 
-/* Layers 2.. of a decoder on R rows whose layer-1 pre-activation is in a1
- * (ReLU applied here). */
+/* Layers 2.. of a decoder on R rows (serial; callers split rows across
+ * threads) whose layer-1 pre-activation is in a1 (ReLU applied here). */
 static void mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
-                             float *sig, float *col, int nt) {
+                             float *sig, float *col) {
     const float *p = m->p;
     int H = n->H, Hc = n->Hc;
-    (void)nt;
-#pragma omp parallel for num_threads(nt) schedule(static)
+    if (R <= 0) return;
     for (long i = 0; i < (long)R * H; i++) a1[i] = a1[i] > 0 ? a1[i] : 0;
     gemm_nn(R, H, H, a1, p + n->W2, 0.0f, a2);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (int r = 0; r < R; r++)
         for (int j = 0; j < H; j++) {
             float v = a2[(size_t)r * H + j] + p[n->b2 + j];
             a2[(size_t)r * H + j] = v > 0 ? v : 0;
         }
     gemm_nn(R, H, H, a2, p + n->W3, 0.0f, a3);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (int r = 0; r < R; r++)
         for (int j = 0; j < H; j++) {
             float v = a3[(size_t)r * H + j] + p[n->b3 + j];
@@ -268,7 +265,6 @@ static void mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float
         }
     gemm_nn(R, 1, H, a3, p + n->Wd, 0.0f, sig);
     gemm_nn(R, Hc, H, a3, p + n->Wc1, 0.0f, ac);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (int r = 0; r < R; r++) {
         sig[r] = sigm(sig[r] + p[n->bd]);
         float *hc = ac + (size_t)r * Hc;
@@ -284,18 +280,18 @@ static void mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float
     }
 }
 
-/* Backward through layers 3.. to the layer-1 pre-activation gradient g1 (R x H).
- * gsig, gcol: dL/d(sigmoid outputs) on entry (overwritten with pre-sigmoid grads).
- * Weight grads scaled by ws (0 = skip). Scratch gA, gB (R x H each). */
-static void mlp_tail_backward(sooc_model *m, const dec_net *n, int R, const float *a1, const float *a2,
-                              const float *a3, const float *ac, const float *sig, const float *col, float *gsig,
-                              float *gcol, float *gA, float *gB, float *g1, float ws, int nt) {
+/* Backward through layers 3.. to the layer-1 pre-activation gradient g1 (R x H)
+ * (serial on a row range). gsig, gcol: dL/d(sigmoid outputs) on entry
+ * (overwritten with pre-sigmoid grads). Weight grads scaled by ws go to the
+ * slab `g` (a thread-private copy; 0 = skip). Scratch gA, gB (R x H each);
+ * g1 may alias gA. */
+static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, int R, const float *a1,
+                              const float *a2, const float *a3, const float *ac, const float *sig, const float *col,
+                              float *gsig, float *gcol, float *gA, float *gB, float *g1, float ws) {
     const float *p = m->p;
-    float *g = m->g;
     int H = n->H, Hc = n->Hc;
-    /* heads: pre-sigmoid grads; colour hidden grad into gB[:, :Hc] */
+    if (R <= 0) return;
     float *gac = gB;
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (int r = 0; r < R; r++) {
         gsig[r] *= sig[r] * (1 - sig[r]);
         float *gc = gcol + (size_t)r * 3;
@@ -320,9 +316,7 @@ static void mlp_tail_backward(sooc_model *m, const dec_net *n, int R, const floa
             for (int j = 0; j < Hc; j++) g[n->bc1 + j] += ws * gac[(size_t)r * Hc + j];
         }
     }
-    /* g3 = gsig Wd^T + gac Wc1^T, masked by a3 > 0 -> gA */
     gemm_nt(R, H, Hc, gac, p + n->Wc1, gA);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (int r = 0; r < R; r++)
         for (int j = 0; j < H; j++) {
             size_t i = (size_t)r * H + j;
@@ -334,7 +328,6 @@ static void mlp_tail_backward(sooc_model *m, const dec_net *n, int R, const floa
             for (int j = 0; j < H; j++) g[n->b3 + j] += ws * gA[(size_t)r * H + j];
     }
     gemm_nt(R, H, H, gA, p + n->W3, gB);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (long i = 0; i < (long)R * H; i++) gB[i] = a2[i] > 0 ? gB[i] : 0;
     if (ws != 0) {
         gemm_tn_acc(H, H, R, ws, a1, gB, g + n->W2);
@@ -342,9 +335,20 @@ static void mlp_tail_backward(sooc_model *m, const dec_net *n, int R, const floa
             for (int j = 0; j < H; j++) g[n->b2 + j] += ws * gB[(size_t)r * H + j];
     }
     gemm_nt(R, H, H, gB, p + n->W2, g1);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (long i = 0; i < (long)R * H; i++) g1[i] = a1[i] > 0 ? g1[i] : 0;
 }
+
+static inline void chunk_of(int n, int tid, int nth, int *r0, int *r1) {
+    *r0 = (int)((long)n * tid / nth);
+    *r1 = (int)((long)n * (tid + 1) / nth);
+}
+#ifdef SOOC_HAVE_OPENMP
+#define TID() omp_get_thread_num()
+#define NTH() omp_get_num_threads()
+#else
+#define TID() 0
+#define NTH() 1
+#endif
 
 /* ---------------------------------------------------------------- decode */
 
@@ -360,7 +364,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     int N = vr->N, P = 2 * N, K = c->nslot, C = K + 1, d = cfg->d_what, dl = cfg->d_layout, NL = m->NL;
     int H = cfg->dec_width, nt = nthreads(m);
     SOOC_ASSERT(P <= w->Pmax && K <= w->Kmax);
-    openblas_set_num_threads(nt);
+    openblas_set_num_threads(1);   /* threads split rows; BLAS runs serially inside */
     const dec_net *no = &m->dobj, *nl = &m->dlay;
     float rmin = cfg->rho_min, rmax = cfg->rho_max, tau = c->tau > 0 ? c->tau : 1.0f;
     float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c;
@@ -435,35 +439,39 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     int nrl = 0;
     for (int pt = 0; pt < P; pt++)
         if ((pt & 1) || vr->surf[pt >> 1]) w->rowof[(size_t)pt * C] = nrl++;
-    /* PE */
+    /* 3. PE + MLPs: each thread owns a contiguous chunk of rows */
     float inv_o = 1.0f / cfg->box_rh, inv_l = 1.0f / cfg->block_size;
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (int r = 0; r < nro; r++) pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
-#pragma omp parallel for num_threads(nt) schedule(static)
     for (int pt = 0; pt < P; pt++) {
         int r = w->rowof[(size_t)pt * C];
-        if (r < 0) continue;
-        const float *x = vr->pts + (size_t)pt * 3;
-        float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
-        pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+        if (r >= 0) w->lr_pt[r] = pt;
     }
-
-    /* 3. MLPs */
-    gemm_nn(nro, H, no->din, w->o_pe, p + no->W1x, 0.0f, w->o_a1);
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (int r = 0; r < nro; r++) {
-        const float *b = w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H;
-        float *a = w->o_a1 + (size_t)r * H;
-        for (int j = 0; j < H; j++) a[j] += b[j];
+#pragma omp parallel num_threads(nt)
+    {
+        int r0, r1, tid = TID(), nth = NTH();
+        chunk_of(nro, tid, nth, &r0, &r1);
+        for (int r = r0; r < r1; r++) pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
+        gemm_nn(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, p + no->W1x, 0.0f, w->o_a1 + (size_t)r0 * H);
+        for (int r = r0; r < r1; r++) {
+            const float *b = w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H;
+            float *a = w->o_a1 + (size_t)r * H;
+            for (int j = 0; j < H; j++) a[j] += b[j];
+        }
+        mlp_tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
+                         w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3);
+        chunk_of(nrl, tid, nth, &r0, &r1);
+        for (int r = r0; r < r1; r++) {
+            const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
+            float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
+            pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+        }
+        gemm_nn(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, p + nl->W1x, 0.0f, w->l_a1 + (size_t)r0 * H);
+        for (int r = r0; r < r1; r++) {
+            float *a = w->l_a1 + (size_t)r * H;
+            for (int j = 0; j < H; j++) a[j] += w->slot_bias[j];
+        }
+        mlp_tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
+                         w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3);
     }
-    mlp_tail_forward(m, no, nro, w->o_a1, w->o_a2, w->o_a3, w->o_ac, w->o_sig, w->o_col, nt);
-    gemm_nn(nrl, H, nl->din, w->l_pe, p + nl->W1x, 0.0f, w->l_a1);
-#pragma omp parallel for num_threads(nt) schedule(static)
-    for (int r = 0; r < nrl; r++) {
-        float *a = w->l_a1 + (size_t)r * H;
-        for (int j = 0; j < H; j++) a[j] += w->slot_bias[j];
-    }
-    mlp_tail_forward(m, nl, nrl, w->l_a1, w->l_a2, w->l_a3, w->l_ac, w->l_sig, w->l_col, nt);
 
     /* 4. dense σ̂, c̃, composition, likelihood */
     float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * cfg->sigma_max;
@@ -589,38 +597,64 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         gzp[k] += g * w->o_sig[r];
         memcpy(gcol + (size_t)r * 3, w->gct + ((size_t)pt * C + 1 + k) * 3, 3 * sizeof(float));
     }
-    mlp_tail_backward(m, no, nro, w->o_a1, w->o_a2, w->o_a3, w->o_ac, w->o_sig, w->o_col, gsig, gcol, w->gA, w->gB,
-                      w->gA, ws, nt);
-    /* w->gA now holds the layer-1 pre-activation gradient (R x H) (gemm_nt wrote into gA after gA was consumed) */
-    float *g1 = w->gA;
-    if (ws != 0) gemm_tn_acc(no->din, H, nro, ws, w->o_pe, g1, m->g + no->W1x);
-    gemm_nt(nro, no->din, H, g1, p + no->W1x, w->gpe);
-    memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
+    int ntb = nt < w->nthr ? nt : w->nthr;
+    size_t tstride = w->dec_np + (size_t)C * H + 3 * (size_t)K;
     float s_g = cfg->gauss_s;
-    for (int r = 0; r < nro; r++) {
-        int k = w->ro_slot[r], pt = w->ro_pt[r];
-        float *gb = w->g_bias + (size_t)(1 + k) * H;
-        const float *gr = g1 + (size_t)r * H;
-        for (int j = 0; j < H; j++) gb[j] += gr[j];
-        float gx[3];
-        const float *xk = w->o_xk + (size_t)r * 3;
-        pe_row_back(w->o_pe + (size_t)r * no->din, w->gpe + (size_t)r * no->din, inv_o, no->nfreq, gx);
-        mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, s_g, gx);
-        mdl_pi_backward(xk, c->zw[k][2], gx, gzw[k]);
+#pragma omp parallel num_threads(ntb)
+    {
+        int r0, r1, tid = TID(), nth = NTH();
+        float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
+        memset(tg, 0, tstride * sizeof(float));
+        chunk_of(nro, tid, nth, &r0, &r1);
+        int R = r1 - r0;
+        float *g1 = w->gA + (size_t)r0 * H;
+        mlp_tail_backward(m, tg, no, R, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
+                          w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, gsig + r0,
+                          gcol + (size_t)r0 * 3, w->gA + (size_t)r0 * H, w->gB + (size_t)r0 * H, g1, ws);
+        if (ws != 0 && R > 0) gemm_tn_acc(no->din, H, R, ws, w->o_pe + (size_t)r0 * no->din, g1, tg + no->W1x);
+        if (R > 0) gemm_nt(R, no->din, H, g1, p + no->W1x, w->gpe + (size_t)r0 * no->din);
+        for (int r = r0; r < r1; r++) {
+            int k = w->ro_slot[r], pt = w->ro_pt[r];
+            float *gb = tgb + (size_t)(1 + k) * H;
+            const float *gr = w->gA + (size_t)r * H;
+            for (int j = 0; j < H; j++) gb[j] += gr[j];
+            float gx[3];
+            const float *xk = w->o_xk + (size_t)r * 3;
+            pe_row_back(w->o_pe + (size_t)r * no->din, w->gpe + (size_t)r * no->din, inv_o, no->nfreq, gx);
+            mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, s_g, gx);
+            mdl_pi_backward(xk, c->zw[k][2], gx, tgw + 3 * k);
+        }
     }
     /* layout rows */
-    for (int pt = 0; pt < P; pt++) {
-        int r = w->rowof[(size_t)pt * C];
-        if (r < 0) continue;
+    for (int r = 0; r < nrl; r++) {
+        int pt = w->lr_pt[r];
         gsig[r] = w->gsh[(size_t)pt * C];
         memcpy(gcol + (size_t)r * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
     }
-    mlp_tail_backward(m, nl, nrl, w->l_a1, w->l_a2, w->l_a3, w->l_ac, w->l_sig, w->l_col, gsig, gcol, w->gA, w->gB,
-                      w->gA, ws, nt);
-    g1 = w->gA;
-    if (ws != 0) gemm_tn_acc(nl->din, H, nrl, ws, w->l_pe, g1, m->g + nl->W1x);
-    for (int r = 0; r < nrl; r++)
-        for (int j = 0; j < H; j++) w->g_bias[j] += g1[(size_t)r * H + j];
+#pragma omp parallel num_threads(ntb)
+    {
+        int r0, r1, tid = TID(), nth = NTH();
+        float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np;
+        chunk_of(nrl, tid, nth, &r0, &r1);
+        int R = r1 - r0;
+        float *g1 = w->gA + (size_t)r0 * H;
+        mlp_tail_backward(m, tg, nl, R, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
+                          w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, gsig + r0,
+                          gcol + (size_t)r0 * 3, w->gA + (size_t)r0 * H, w->gB + (size_t)r0 * H, g1, ws);
+        if (ws != 0 && R > 0) gemm_tn_acc(nl->din, H, R, ws, w->l_pe + (size_t)r0 * nl->din, g1, tg + nl->W1x);
+        for (int r = r0; r < r1; r++)
+            for (int j = 0; j < H; j++) tgb[j] += g1[(size_t)(r - r0) * H + j];
+    }
+    /* reduce the thread-private accumulators (fixed order: deterministic) */
+    memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
+    for (int t = 0; t < ntb; t++) {
+        const float *tg = w->tbuf + (size_t)t * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
+        if (ws != 0)
+            for (size_t i = 0; i < w->dec_np; i++) m->g[i] += tg[i];
+        for (size_t i = 0; i < (size_t)C * H; i++) w->g_bias[i] += tgb[i];
+        for (int k = 0; k < K; k++)
+            for (int a = 0; a < 3; a++) gzw[k][a] += tgw[3 * k + a];
+    }
     /* slot biases -> z, b1, W1z */
     float gzl[SOOC_MODEL_D_MAX] = {0};
     for (int k = 0; k <= K; k++) {

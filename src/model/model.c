@@ -397,6 +397,10 @@ sooc_status mdl_alloc_ws(sooc_model *m) {
     A(ll, P, float);
     A(ll_cf, (size_t)P * C, float);
     A(slot_bias, (size_t)C * H, float);
+    A(lr_pt, P, int);
+    w->dec_np = m->robj.cw[0];   /* both decoders come first in the slab */
+    w->nthr = 8;
+    A(tbuf, (size_t)w->nthr * (w->dec_np + (size_t)C * H + 3 * (size_t)K), float);
     A(g_bias, (size_t)C * H, float);
 #undef A
     /* refinement scratch */
@@ -435,7 +439,10 @@ void mdl_free_ws(sooc_model *m) {
     sooc_free(w->ro_pt);
     sooc_free(w->ro_slot);
     sooc_free(w->rowof);
-    w->ro_pt = w->ro_slot = w->rowof = NULL;
+    sooc_free(w->lr_pt);
+    sooc_free(w->tbuf);
+    w->ro_pt = w->ro_slot = w->rowof = w->lr_pt = NULL;
+    w->tbuf = NULL;
     ref_ws *r = &m->rws;
     float **rp[] = {&r->cols, &r->gcols, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
                     &r->gg, &r->gh};

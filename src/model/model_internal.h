@@ -55,6 +55,10 @@ typedef struct dec_ws {
     float *S, *Sb, *cc;           /* per point */
     float *ll;                    /* per ray log-lik (ell_c + ell_d) */
     float *ll_cf;                 /* N x (K+1) counterfactual ell - ell_{-k} */
+    int *lr_pt;                   /* layout row -> point */
+    float *tbuf;                  /* nthr x (dec_np + (K+1) H + 3K) thread-private grads */
+    size_t dec_np;                /* decoder parameters: slab offsets [0, dec_np) */
+    int nthr;
     float *slot_bias;             /* (K+1) x H */
     float *g_bias;                /* (K+1) x H */
 } dec_ws;

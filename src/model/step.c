@@ -1,2 +1,539 @@
-#include "model/model_internal.h"
-void mdl_step_free(sooc_model *m) { (void)m; }
+/* The per-view variational update and the training step (model.md §2.8,
+ * §2.9, §2.12): retrieve -> refine L times -> register, over T input views
+ * with a cognitive map, then Q query views decoded from the final map; one
+ * local backward per decode, then a reverse sweep over the λ chain and the
+ * refinement activations, routing gradients through the map's transforms. */
+#include "model/step_internal.h"
+
+#include <math.h>
+#include <string.h>
+
+static void free_view(view_rec *V) {
+    mdl_rays_free(&V->vr);
+    for (int l = 0; l < V->Lcap; l++) {
+        mdl_ref_act_free(&V->ao[l]);
+        mdl_ref_act_free(&V->al[l]);
+    }
+    sooc_free(V->ao);
+    sooc_free(V->al);
+    sooc_free(V->noise);
+    sooc_free(V->buf);
+    memset(V, 0, sizeof *V);
+}
+
+sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
+    const sooc_model_config *c = &m->cfg;
+    memset(V, 0, sizeof *V);
+    int K = c->K, NL = m->NL, D2 = 2 * c->d_layout;
+    sooc_status st = mdl_rays_alloc(&V->vr, c->ray_w, c->ray_h);
+    if (st) return st;
+    V->Lcap = L;
+    size_t nf = (size_t)(L + 1) * K * NL * 2 + (size_t)(L + 1) * D2 * 2 + (size_t)K * NL * 3 + (size_t)D2 * 3;
+    V->buf = sooc_calloc(nf, sizeof(float));
+    V->ao = sooc_calloc(L > 0 ? L : 1, sizeof(ref_act));
+    V->al = sooc_calloc(L > 0 ? L : 1, sizeof(ref_act));
+    V->noise = sooc_calloc(L + 1, sizeof(dec_noise));
+    if (!V->buf || !V->ao || !V->al || !V->noise) {
+        free_view(V);
+        return SOOC_ENOMEM;
+    }
+    float *p = V->buf;
+    V->lam = p, p += (size_t)(L + 1) * K * NL;
+    V->glam = p, p += (size_t)(L + 1) * K * NL;
+    V->lay = p, p += (size_t)(L + 1) * D2;
+    V->glay = p, p += (size_t)(L + 1) * D2;
+    V->lam0 = p, p += (size_t)K * NL;
+    V->glam0 = p, p += (size_t)K * NL;
+    V->G = p, p += (size_t)K * NL;
+    V->lay0 = p, p += D2;
+    V->glay0 = p, p += D2;
+    V->Glay = p, p += D2;
+    for (int l = 0; l < L; l++) {
+        if ((st = mdl_ref_act_alloc(&m->robj, K, c->ray_w, c->ray_h, &V->ao[l])) ||
+            (st = mdl_ref_act_alloc(&m->rlay, 1, c->ray_w, c->ray_h, &V->al[l]))) {
+            free_view(V);
+            return st;
+        }
+    }
+    return SOOC_OK;
+}
+
+void mdl_view_free(view_rec *V) { free_view(V); }
+
+static step_state *get_state(sooc_model *m, int T, int L) {
+    step_state *S = m->step;
+    const sooc_model_config *c = &m->cfg;
+    if (!S) {
+        S = sooc_calloc(1, sizeof *S);
+        if (!S) return NULL;
+        sooc_cogmap_params cp;
+        sooc_cogmap_params_default(&cp);
+        cp.dim = c->d_what;
+        cp.layout_dim = c->d_layout;
+        cp.block_size = c->block_size;
+        cp.cell_size = 2.0;
+        if (sooc_cogmap_create(&S->map, &cp)) {
+            sooc_free(S);
+            return NULL;
+        }
+        size_t nv = (size_t)c->K * (2 * m->NL + 6);
+        S->vec_o = sooc_calloc(nv, sizeof(float));
+        S->vec_l = sooc_calloc(4 * c->d_layout + 2, sizeof(float));
+        S->gvec = sooc_calloc(nv, sizeof(float));
+        S->dh = sooc_calloc((size_t)c->K * c->ref_hidden, sizeof(float));
+        S->dc = sooc_calloc((size_t)c->K * c->ref_hidden, sizeof(float));
+        S->delta = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
+        S->tmp0 = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
+        S->tmpl0 = sooc_calloc(64, sizeof(float));
+        S->gbak = sooc_calloc(m->np, sizeof(float));
+        m->step = S;
+        if (!S->vec_o || !S->vec_l || !S->gvec || !S->dh || !S->dc || !S->delta || !S->tmp0 || !S->tmpl0 ||
+            !S->gbak)
+            return NULL;
+    }
+    if (L > S->L || T > S->ncap) {
+        int nc = T > S->ncap ? T : S->ncap;
+        int nl = L > S->L ? L : S->L;
+        view_rec *nv = sooc_calloc(nc, sizeof(view_rec));
+        if (!nv) return NULL;
+        for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
+        sooc_free(S->views);
+        S->views = nv;
+        S->ncap = nc;
+        S->L = nl;
+        for (int i = 0; i < nc; i++)
+            if (mdl_view_alloc(m, &S->views[i], nl)) return NULL;
+    }
+    return S;
+}
+
+void mdl_step_free(sooc_model *m) {
+    step_state *S = m->step;
+    if (!S) return;
+    for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
+    sooc_free(S->views);
+    sooc_cogmap_destroy(S->map);
+    sooc_free(S->vec_o);
+    sooc_free(S->vec_l);
+    sooc_free(S->gvec);
+    sooc_free(S->dh);
+    sooc_free(S->dc);
+    sooc_free(S->delta);
+    sooc_free(S->tmp0);
+    sooc_free(S->tmpl0);
+    sooc_free(S->gbak);
+    sooc_free(S->id_view);
+    sooc_free(S->id_slot);
+    sooc_free(S);
+    m->step = NULL;
+}
+
+void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam) {
+    memset(cam, 0, sizeof *cam);
+    memcpy(cam->T_wc, f->T_wc, sizeof cam->T_wc);
+    cam->K = f->K;
+    cam->t_near = m->cfg.t_near;
+    cam->d_clip = m->cfg.d_clip;
+    cam->R_h = m->cfg.box_rh;
+    cam->H_b = m->cfg.box_hb;
+    cam->mode = SOOC_INVIEW_CENTRE;
+}
+
+/* Choose which slot priors pad the view: the ones whose means lie farthest
+ * from the retrieved slots (slot order when nothing is retrieved). */
+static void pick_priors(const sooc_model *m, const float *lam_ret, int n_ret, int *out) {
+    int K = m->cfg.K, NL = m->NL;
+    float score[SOOC_MODEL_K_MAX];
+    int used[SOOC_MODEL_K_MAX] = {0};
+    for (int p = 0; p < K; p++) {
+        const float *pr = m->p + m->prior + (size_t)p * NL;
+        float best = 1e30f;
+        for (int r = 0; r < n_ret; r++) {
+            float dx = pr[0] - lam_ret[(size_t)r * NL], dz = pr[1] - lam_ret[(size_t)r * NL + 1];
+            float d2 = dx * dx + dz * dz;
+            if (d2 < best) best = d2;
+        }
+        score[p] = best;
+    }
+    for (int s = 0; s < K - n_ret; s++) {
+        int bi = -1;
+        for (int p = 0; p < K; p++)
+            if (!used[p] && (bi < 0 || score[p] > score[bi] + 1e-6f)) bi = p;
+        used[bi] = 1;
+        out[s] = bi;
+    }
+    /* keep slot order among the chosen priors (stable slot identity) */
+    for (int i = 1; i < K - n_ret; i++)
+        for (int j = i; j > 0 && out[j] < out[j - 1]; j--) {
+            int t = out[j];
+            out[j] = out[j - 1];
+            out[j - 1] = t;
+        }
+}
+
+/* Set up a view: frame, rays, retrieved slots + priors, layout. */
+sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
+                           sooc_rng *rng, int *n_inview) {
+    const sooc_model_config *c = &m->cfg;
+    int K = c->K, NL = m->NL, dl = c->d_layout;
+    if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "frame %lld has no pose", (long long)f->index);
+    double Twg[16], h, pitch, roll;
+    sooc_status st = sooc_gframe(f->T_wc, Twg, &h, &pitch, &roll);
+    if (st) return st;
+    sooc_floor_frame_of(&V->gf, Twg);
+    sooc_cogmap_camera cam;
+    mdl_camera_of(m, f, &cam);
+    sooc_cogmap_slot slots[SOOC_MODEL_K_MAX];
+    int nret = 0;
+    sooc_floor_frame gq;
+    if ((st = sooc_cogmap_query(map, &cam, K, slots, &nret, &gq, n_inview))) return st;
+    V->n_ret = nret;
+    for (int k = 0; k < nret; k++) {
+        memcpy(V->lam0 + (size_t)k * NL, slots[k].lam, NL * sizeof(float));
+        V->src_id[k] = slots[k].id;
+        V->src_view[k] = slots[k].last_view;
+        V->prior_idx[k] = -1;
+    }
+    V->nslot = pad ? K : nret;
+    if (pad) {
+        int pr[SOOC_MODEL_K_MAX];
+        pick_priors(m, V->lam0, nret, pr);
+        for (int k = nret; k < K; k++) {
+            memcpy(V->lam0 + (size_t)k * NL, m->p + m->prior + (size_t)pr[k - nret] * NL, NL * sizeof(float));
+            V->src_id[k] = 0;
+            V->src_view[k] = -1;
+            V->prior_idx[k] = pr[k - nret];
+        }
+    }
+    /* layout block */
+    double blk[2];
+    if ((st = sooc_cogmap_active_block(map, f->T_wc, c->d_clip, &V->bi, &V->bj, blk))) return st;
+    float lmu[SOOC_COGMAP_DIM_MAX], llv[SOOC_COGMAP_DIM_MAX];
+    if (sooc_cogmap_layout_get(map, V->bi, V->bj, lmu, llv) == SOOC_OK) {
+        memcpy(V->lay0, lmu, dl * sizeof(float));
+        memcpy(V->lay0 + dl, llv, dl * sizeof(float));
+        V->lay_src = -1;   /* resolved by the caller in training */
+    } else {
+        memcpy(V->lay0, m->p + m->prior_lay, 2 * dl * sizeof(float));
+        V->lay_src = -1;
+    }
+    sooc_clearerr();
+    int ox = (int)sooc_rng_below(rng, (uint32_t)(c->img_w / c->ray_w));
+    int oy = (int)sooc_rng_below(rng, (uint32_t)(c->img_h / c->ray_h));
+    V->t_ns = f->t_ns;
+    return mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twg, h, pitch, blk);
+}
+
+/* Forward over the L refinement iterations of one input view.
+ * train = 1: decodes l = 0..L with local backward (weight grads w_l = l/L),
+ * stores everything for the reverse sweep. train = 0: decodes l = 0..L-1
+ * (backward to the inputs only, for the auxiliary inputs), no final decode. */
+sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
+                             sooc_rng *rng, double *loss_w, dec_call *last) {
+    const sooc_model_config *c = &m->cfg;
+    int K = V->nslot, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, H = c->ref_hidden;
+    int gw = c->ray_w, gh = c->ray_h;
+    sooc_status st;
+    uint8_t hard[SOOC_MODEL_K_MAX] = {0};
+    for (int k = 0; k < K; k++)
+        hard[k] = o->pres_mode == SOOC_PRES_ST_ONE ? 2 : (o->pres_mode == SOOC_PRES_ST_RETRIEVED && k < V->n_ret);
+    memcpy(V->lam, V->lam0, (size_t)K * NL * sizeof(float));
+    memcpy(V->lay, V->lay0, D2 * sizeof(float));
+    memset(V->glam, 0, (size_t)(L + 1) * K * NL * sizeof(float));
+    memset(V->glay, 0, (size_t)(L + 1) * D2 * sizeof(float));
+    memset(V->glam0, 0, (size_t)K * NL * sizeof(float));
+    memset(V->glay0, 0, D2 * sizeof(float));
+    memset(V->G, 0, (size_t)K * NL * sizeof(float));
+    memset(V->Glay, 0, D2 * sizeof(float));
+    *loss_w = 0;
+    int nlast = train ? L : L - 1;
+    for (int l = 0; l <= nlast; l++) {
+        float *lam = V->lam + (size_t)l * K * NL, *lay = V->lay + (size_t)l * D2;
+        float *glam = V->glam + (size_t)l * K * NL, *glay = V->glay + (size_t)l * D2;
+        float wl = L > 0 ? (float)l / (float)L : 1.0f;
+        mdl_sample_noise(m, rng, &V->noise[l]);
+        dec_call dc;
+        memset(&dc, 0, sizeof dc);
+        dc.rays = &V->vr;
+        dc.nslot = K;
+        dc.lam = lam, dc.lam0 = V->lam0, dc.lay = lay, dc.lay0 = V->lay0;
+        dc.noise = &V->noise[l];
+        dc.tau = o->tau, dc.beta_kl = o->beta_kl, dc.sigma_c = o->sigma_c;
+        dc.hard = hard;
+        dc.wgrad = train ? wl : 0.0f;
+        dc.backward = 1;
+        dc.g_lam = glam, dc.g_lay = glay;
+        memset(S->tmp0, 0, (size_t)K * NL * sizeof(float));
+        memset(S->tmpl0, 0, D2 * sizeof(float));
+        dc.g_lam0 = S->tmp0, dc.g_lay0 = S->tmpl0;
+        if (S->aux_replay) dc.zw_sg = V->zwb[l];
+        if ((st = mdl_decode(m, &dc))) return st;
+        if (!S->aux_replay)
+            for (int k = 0; k < K; k++)
+                for (int i = 0; i < 3; i++) V->zwb[l][k * 3 + i] = dc.zw[k][i];
+        if (train && wl > 0) {
+            *loss_w += wl * dc.loss;
+            for (int i = 0; i < K * NL; i++) V->glam0[i] += wl * S->tmp0[i];
+            for (int i = 0; i < D2; i++) V->glay0[i] += wl * S->tmpl0[i];
+        }
+        if (last) *last = dc;
+        if (l == L) break;
+        /* refinement */
+        ref_act *ao = &V->ao[l], *al = &V->al[l];
+        ao->B = K;
+        int nvo = m->robj.nvec, fco = m->robj.fc, nvl = m->rlay.nvec, fcl = m->rlay.fc;
+        if (!S->aux_replay) {
+            mdl_aux_inputs(m, &dc, glam, glay, ao->x0, S->vec_o, al->x0, S->vec_l);
+            for (int k = 0; k < K; k++)
+                memcpy(ao->xin + (size_t)k * (fco + nvo) + fco, S->vec_o + (size_t)k * nvo, nvo * sizeof(float));
+            memcpy(al->xin + fcl, S->vec_l, nvl * sizeof(float));
+        } else {
+            for (int k = 0; k < K; k++) memcpy(ao->xin + (size_t)k * (fco + nvo) + fco, lam + (size_t)k * NL, NL * sizeof(float));
+            memcpy(al->xin + fcl, lay, D2 * sizeof(float));
+        }
+        if (l == 0) {
+            memset(ao->h_prev, 0, (size_t)K * H * sizeof(float));
+            memset(ao->c_prev, 0, (size_t)K * H * sizeof(float));
+            memset(al->h_prev, 0, H * sizeof(float));
+            memset(al->c_prev, 0, H * sizeof(float));
+        } else {
+            memcpy(ao->h_prev, V->ao[l - 1].h, (size_t)K * H * sizeof(float));
+            memcpy(ao->c_prev, V->ao[l - 1].c, (size_t)K * H * sizeof(float));
+            memcpy(al->h_prev, V->al[l - 1].h, H * sizeof(float));
+            memcpy(al->c_prev, V->al[l - 1].c, H * sizeof(float));
+        }
+        mdl_ref_forward(m, &m->robj, ao, gw, gh, S->delta);
+        float *nlam = lam + (size_t)K * NL, *nlay = lay + D2;
+        for (int i = 0; i < K * NL; i++) nlam[i] = lam[i] + S->delta[i];
+        mdl_ref_forward(m, &m->rlay, al, gw, gh, S->delta);
+        for (int i = 0; i < D2; i++) nlay[i] = lay[i] + S->delta[i];
+    }
+    return SOOC_OK;
+}
+
+/* Reverse sweep of one view: V->G / V->Glay hold the gradient w.r.t. λ^L from
+ * later views and queries. On return, V->G / V->Glay hold the gradient w.r.t.
+ * the view's starting λ^0 = its prior (including the KL-prior terms). */
+void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L) {
+    const sooc_model_config *c = &m->cfg;
+    int K = V->nslot, NL = m->NL, D2 = 2 * c->d_layout, H = c->ref_hidden;
+    int gw = c->ray_w, gh = c->ray_h;
+    float *G = V->G, *Gl = V->Glay;
+    /* final iterate: weight 1 */
+    const float *gL = V->glam + (size_t)L * K * NL, *glL = V->glay + (size_t)L * D2;
+    for (int i = 0; i < K * NL; i++) G[i] += gL[i];
+    for (int i = 0; i < D2; i++) Gl[i] += glL[i];
+    memset(S->dh, 0, (size_t)K * H * sizeof(float));
+    memset(S->dc, 0, (size_t)K * H * sizeof(float));
+    float dhl[1024], dcl[1024];
+    SOOC_ASSERT(H <= 1024);
+    memset(dhl, 0, H * sizeof(float));
+    memset(dcl, 0, H * sizeof(float));
+    int nvo = m->robj.nvec, nvl = m->rlay.nvec;
+    for (int l = L - 1; l >= 0; l--) {
+        float wl = (float)l / (float)L;
+        /* objects: λ^{l+1} = λ^l + f(λ^l, ...) */
+        memset(S->gvec, 0, (size_t)K * nvo * sizeof(float));
+        mdl_ref_backward(m, &m->robj, &V->ao[l], gw, gh, G, S->dh, S->dc, S->gvec);
+        const float *gl = V->glam + (size_t)l * K * NL;
+        for (int k = 0; k < K; k++)
+            for (int i = 0; i < NL; i++) G[k * NL + i] += S->gvec[(size_t)k * nvo + i] + wl * gl[k * NL + i];
+        memset(S->gvec, 0, nvl * sizeof(float));
+        mdl_ref_backward(m, &m->rlay, &V->al[l], gw, gh, Gl, dhl, dcl, S->gvec);
+        const float *gll = V->glay + (size_t)l * D2;
+        for (int i = 0; i < D2; i++) Gl[i] += S->gvec[i] + wl * gll[i];
+    }
+    for (int i = 0; i < K * NL; i++) G[i] += V->glam0[i];
+    for (int i = 0; i < D2; i++) Gl[i] += V->glay0[i];
+}
+
+static sooc_status ensure_ids(step_state *S, uint64_t id) {
+    if (id < S->id_cap) return SOOC_OK;
+    size_t nc = (size_t)(id + 64) * 2;
+    int *a = sooc_realloc(S->id_view, nc * sizeof(int)), *b;
+    if (!a) return SOOC_ENOMEM;
+    S->id_view = a;
+    b = sooc_realloc(S->id_slot, nc * sizeof(int));
+    if (!b) return SOOC_ENOMEM;
+    S->id_slot = b;
+    S->id_cap = nc;
+    return SOOC_OK;
+}
+
+static int lay_find(const step_state *S, int32_t bi, int32_t bj) {
+    for (int i = 0; i < S->n_lay; i++)
+        if (S->lay_bi[i] == bi && S->lay_bj[i] == bj) return i;
+    return -1;
+}
+
+sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T, const sooc_frame *queries, int Q,
+                                  const sooc_step_opts *opt, sooc_rng *rng, sooc_step_losses *out) {
+    sooc_step_opts od;
+    if (!opt) {
+        sooc_step_opts_default(&od);
+        opt = &od;
+    }
+    memset(out, 0, sizeof *out);
+    if (T < 1 || T > 64 || Q < 0 || Q > 64)
+        return sooc_seterr(SOOC_EINVAL, "train step: T = %d (1..64), Q = %d (0..64)", T, Q);
+    const sooc_model_config *c = &m->cfg;
+    int L = opt->L > 0 ? opt->L : c->L, K = c->K, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
+    if (L < 1) return sooc_seterr(SOOC_EINVAL, "train step: L must be >= 1");
+    step_state *S = get_state(m, T + 1, L);
+    if (!S) return sooc_seterr(SOOC_ENOMEM, "train step: out of memory");
+    memcpy(S->gbak, m->g, m->np * sizeof(float));
+    sooc_cogmap_clear(S->map, 1);
+    S->n_lay = 0;
+    sooc_status st = SOOC_OK;
+    double total = 0;
+    int nonfinite = 0;
+    /* ---- forward over input views ---- */
+    for (int t = 0; t < T; t++) {
+        view_rec *V = &S->views[t];
+        if ((st = mdl_view_setup(m, S->map, V, &views[t], 1, rng, NULL))) goto fail;
+        int li = lay_find(S, V->bi, V->bj);
+        V->lay_src = li >= 0 ? S->lay_view[li] : -1;
+        for (int k = 0; k < V->n_ret; k++) {
+            uint64_t id = V->src_id[k];
+            int ok = id < S->id_cap;
+            V->src_view[k] = ok ? S->id_view[id] : -1;
+            V->src_slot[k] = ok ? S->id_slot[id] : -1;
+        }
+        double lw;
+        dec_call last;
+        if ((st = mdl_view_forward(m, S, V, L, opt, 1, rng, &lw, &last))) {
+            if (st == SOOC_ENUMERIC) {
+                nonfinite = 1;
+                st = SOOC_OK;
+                break;
+            }
+            goto fail;
+        }
+        total += lw;
+        out->nll_input += last.nll;
+        out->nll_depth += last.nll_d;
+        out->nll_color += last.nll_c;
+        out->kl += last.kl;
+        /* register */
+        const float *lamL = V->lam + (size_t)L * K * NL;
+        uint64_t ids[SOOC_MODEL_K_MAX];
+        sooc_cogmap_reg_stats rs;
+        if ((st = sooc_cogmap_register(S->map, &V->gf, K, lamL, V->src_id, V->t_ns, t, ids, NULL, &rs))) {
+            if (st == SOOC_ENUMERIC) {
+                nonfinite = 1;
+                st = SOOC_OK;
+                break;
+            }
+            goto fail;
+        }
+        for (int k = 0; k < K; k++) {
+            float a = lamL[(size_t)k * NL + 5 + 2 * d];
+            out->present_slots += a >= 0;
+            out->mean_pres_logit += a;
+            if (ids[k]) {
+                if ((st = ensure_ids(S, ids[k]))) goto fail;
+                S->id_view[ids[k]] = t;
+                S->id_slot[ids[k]] = k;
+            }
+        }
+        const float *layL = V->lay + (size_t)L * D2;
+        if ((st = sooc_cogmap_layout_set(S->map, V->bi, V->bj, layL, layL + dl))) goto fail;
+        if (li < 0 && S->n_lay < STEP_MAX_LAY) li = S->n_lay++;
+        if (li >= 0) {
+            S->lay_bi[li] = V->bi, S->lay_bj[li] = V->bj, S->lay_view[li] = t;
+        }
+    }
+    out->n_views = T;
+    out->present_slots /= T;
+    out->mean_pres_logit /= (double)T * K;
+    out->map_entries = (double)sooc_cogmap_count(S->map);
+    /* ---- query views ---- */
+    if (!nonfinite)
+        for (int q = 0; q < Q; q++) {
+            view_rec *V = &S->views[T];   /* scratch record */
+            if ((st = mdl_view_setup(m, S->map, V, &queries[q], 0, rng, NULL))) goto fail;
+            int li = lay_find(S, V->bi, V->bj);
+            V->lay_src = li >= 0 ? S->lay_view[li] : -1;
+            mdl_sample_noise(m, rng, &V->noise[0]);
+            memset(S->tmp0, 0, (size_t)K * NL * sizeof(float));
+            memset(S->tmpl0, 0, D2 * sizeof(float));
+            dec_call dc;
+            memset(&dc, 0, sizeof dc);
+            dc.rays = &V->vr;
+            dc.nslot = V->nslot;
+            dc.lam = V->lam0, dc.lay = V->lay0;
+            dc.noise = &V->noise[0];
+            dc.tau = opt->tau, dc.beta_kl = opt->beta_kl, dc.sigma_c = opt->sigma_c;
+            uint8_t hard[SOOC_MODEL_K_MAX];
+            for (int k = 0; k < V->nslot; k++)
+                hard[k] = opt->pres_mode == SOOC_PRES_ST_ONE ? 2 : opt->pres_mode == SOOC_PRES_ST_RETRIEVED;
+            dc.hard = hard;
+            dc.wgrad = 1.0f;
+            dc.backward = 1;
+            dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
+            if (S->aux_replay) dc.zw_sg = S->zq[q];
+            if ((st = mdl_decode(m, &dc))) {
+                if (st == SOOC_ENUMERIC) {
+                    nonfinite = 1;
+                    st = SOOC_OK;
+                    break;
+                }
+                goto fail;
+            }
+            if (!S->aux_replay)
+                for (int k = 0; k < V->nslot; k++)
+                    for (int i = 0; i < 3; i++) S->zq[q][k * 3 + i] = dc.zw[k][i];
+            total += dc.loss;
+            out->nll_query += dc.nll;
+            out->n_queries++;
+            /* route to the registering views */
+            for (int k = 0; k < V->nslot; k++) {
+                uint64_t id = V->src_id[k];
+                if (id >= S->id_cap) continue;
+                int tv = S->id_view[id], ks = S->id_slot[id];
+                sooc_cogmap_grad_route(&S->views[tv].gf, &V->gf, d, S->tmp0 + (size_t)k * NL,
+                                       S->views[tv].G + (size_t)ks * NL);
+            }
+            if (V->lay_src >= 0)
+                for (int i = 0; i < D2; i++) S->views[V->lay_src].Glay[i] += S->tmpl0[i];
+            else
+                for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += S->tmpl0[i];
+        }
+    /* ---- reverse sweep ---- */
+    if (!nonfinite)
+        for (int t = T - 1; t >= 0; t--) {
+            view_rec *V = &S->views[t];
+            mdl_view_backward(m, S, V, L);
+            for (int k = 0; k < K; k++) {
+                const float *g = V->G + (size_t)k * NL;
+                if (V->prior_idx[k] >= 0) {
+                    float *gp = m->g + m->prior + (size_t)V->prior_idx[k] * NL;
+                    for (int i = 0; i < NL; i++) gp[i] += g[i];
+                } else if (!opt->truncate_views && V->src_view[k] >= 0 && V->src_view[k] < t && V->src_slot[k] >= 0) {
+                    int tv = V->src_view[k];
+                    sooc_cogmap_grad_route(&S->views[tv].gf, &V->gf, d, g, S->views[tv].G + (size_t)V->src_slot[k] * NL);
+                }
+            }
+            if (V->lay_src >= 0 && V->lay_src < t) {
+                if (!opt->truncate_views)
+                    for (int i = 0; i < D2; i++) S->views[V->lay_src].Glay[i] += V->Glay[i];
+            } else
+                for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
+        }
+    out->total = total;
+    if (nonfinite || !isfinite(total)) {
+        memcpy(m->g, S->gbak, m->np * sizeof(float));
+        out->nonfinite = 1;
+        return SOOC_OK;
+    }
+    for (size_t i = 0; i < m->np; i++)
+        if (!isfinite(m->g[i])) {
+            memcpy(m->g, S->gbak, m->np * sizeof(float));
+            out->nonfinite = 1;
+            return SOOC_OK;
+        }
+    return SOOC_OK;
+fail:
+    memcpy(m->g, S->gbak, m->np * sizeof(float));
+    return st;
+}

@@ -1,0 +1,57 @@
+/* Per-view records and training-step state (internal). */
+#ifndef SOOC3D_MODEL_STEP_INTERNAL_H
+#define SOOC3D_MODEL_STEP_INTERNAL_H
+
+#include "model/model_internal.h"
+#include "sooc3d/cogmap.h"
+
+#define STEP_MAX_LAY 256
+
+typedef struct view_rec {
+    view_rays vr;
+    sooc_floor_frame gf;          /* G_t floor frame                                   */
+    int nslot, n_ret;             /* slots in use; of which retrieved (first n_ret)    */
+    uint64_t src_id[SOOC_MODEL_K_MAX];
+    int src_view[SOOC_MODEL_K_MAX], src_slot[SOOC_MODEL_K_MAX], prior_idx[SOOC_MODEL_K_MAX];
+    int32_t bi, bj;               /* active layout block                               */
+    int lay_src;                  /* view that last set the block's layout, -1 = prior */
+    int64_t t_ns;
+    int Lcap;
+    float *lam, *glam;            /* (L+1) x K x NL: λ^l and local dL^l/dλ^l (unweighted) */
+    float *lay, *glay;            /* (L+1) x 2 d_l                                     */
+    float *lam0, *glam0, *G;      /* K x NL: start/prior, sum_l w_l dKL^l/dλ^0, sweep grad */
+    float *lay0, *glay0, *Glay;
+    ref_act *ao, *al;             /* L refinement activations (objects, layout)       */
+    dec_noise *noise;             /* L + 1                                             */
+    float *buf;
+    float zwb[17][SOOC_MODEL_K_MAX * 3];   /* sampled z^where per decode (test replay) */
+} view_rec;
+
+typedef struct step_state {
+    sooc_cogmap *map;
+    view_rec *views;
+    int ncap, L;
+    float *vec_o, *vec_l, *gvec, *dh, *dc, *delta, *tmp0, *tmpl0, *gbak;
+    int *id_view, *id_slot;       /* id -> (view, slot) that last registered it */
+    size_t id_cap;
+    int n_lay;
+    int32_t lay_bi[STEP_MAX_LAY], lay_bj[STEP_MAX_LAY];
+    int lay_view[STEP_MAX_LAY];
+    float zq[64][SOOC_MODEL_K_MAX * 3];   /* query-view z^where samples (test replay) */
+    int aux_replay;               /* TEST ONLY: 1 = keep the stored auxiliary inputs (stop-gradient
+                                     as a forward, for finite-difference checks); only the λ part
+                                     of the refinement vector input is refreshed; the Gaussian
+                                     trick is applied as a forward around the stored z^where
+                                     samples (dec_call.zw_sg) */
+} step_state;
+
+sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L);
+void mdl_view_free(view_rec *V);
+void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam);
+sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
+                           sooc_rng *rng, int *n_inview);
+sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
+                             sooc_rng *rng, double *loss_w, dec_call *last);
+void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L);
+
+#endif
