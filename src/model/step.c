@@ -60,7 +60,7 @@ sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
 
 void mdl_view_free(view_rec *V) { free_view(V); }
 
-static step_state *get_state(sooc_model *m, int T, int L) {
+step_state *mdl_step_state(sooc_model *m, int T, int L) {
     step_state *S = m->step;
     const sooc_model_config *c = &m->cfg;
     if (!S) {
@@ -379,7 +379,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
     const sooc_model_config *c = &m->cfg;
     int L = opt->L > 0 ? opt->L : c->L, K = c->K, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "train step: L must be >= 1");
-    step_state *S = get_state(m, T + 1, L);
+    step_state *S = mdl_step_state(m, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_cogmap_clear(S->map, 1);

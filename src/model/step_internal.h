@@ -45,6 +45,8 @@ typedef struct step_state {
                                      samples (dec_call.zw_sg) */
 } step_state;
 
+/* The model's step scratch (created on first use) with room for T view records of L iterations. */
+step_state *mdl_step_state(sooc_model *m, int T, int L);
 sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L);
 void mdl_view_free(view_rec *V);
 void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam);

@@ -1,0 +1,188 @@
+/* The online mapper (include/sooc3d/mapper.h): one amortised variational
+ * update per keyframe on top of the cognitive map: query in-view entries,
+ * pad to K with the slot priors, refine L times, register the present slots. */
+#include "sooc3d/mapper.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "model/step_internal.h"
+
+#define MAPPER_TAU 0.7f   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
+
+struct sooc3d_mapper {
+    sooc_model *m;
+    sooc_cogmap *map;
+    view_rec V;
+    int L, view_idx;
+    sooc_rng rng;
+};
+
+void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
+    memset(p, 0, sizeof *p);
+    p->model_path = "models/default/model.bin";
+    p->seed = 1;
+}
+
+sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads);
+
+sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads) {
+    *out = NULL;
+    sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
+    if (!mp) return SOOC_ENOMEM;
+    mp->m = m;
+    const sooc_model_config *c = sooc_model_get_config(m);
+    mp->L = iterations > 0 ? iterations : c->L;
+    if (mp->L > 16) mp->L = 16;
+    sooc_model_set_threads(m, threads);
+    sooc_cogmap_params cp;
+    sooc_cogmap_params_default(&cp);
+    cp.dim = c->d_what;
+    cp.layout_dim = c->d_layout;
+    cp.block_size = c->block_size;
+    sooc_status st = sooc_cogmap_create(&mp->map, &cp);
+    if (!st) st = mdl_view_alloc(m, &mp->V, mp->L);
+    if (!st && !mdl_step_state(m, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
+    if (st) {
+        mp->m = NULL;
+        sooc3d_mapper_destroy(mp);
+        return st;
+    }
+    sooc_rng_seed(&mp->rng, seed, 0x6d6170ULL);
+    *out = mp;
+    return SOOC_OK;
+}
+
+sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params *p) {
+    *out = NULL;
+    sooc_model *m;
+    sooc_status st = sooc_model_load(&m, p->model_path, NULL, NULL);
+    if (st) return sooc_adderr(st, "mapper");
+    st = mdl_mapper_create_from(out, m, p->iterations, p->seed, p->threads);
+    if (st) sooc_model_destroy(m);
+    return st;
+}
+
+void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
+    if (!mp) return;
+    if (mp->V.buf) mdl_view_free(&mp->V);
+    sooc_cogmap_destroy(mp->map);
+    sooc_model_destroy(mp->m);
+    sooc_free(mp);
+}
+
+void sooc3d_mapper_input_size(const sooc3d_mapper *mp, int *w, int *h) {
+    const sooc_model_config *c = sooc_model_get_config(mp->m);
+    *w = c->img_w;
+    *h = c->img_h;
+}
+
+sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_update_stats *stp) {
+    double t0 = sooc_seconds();
+    sooc3d_update_stats st0;
+    sooc3d_update_stats *st = stp ? stp : &st0;
+    memset(st, 0, sizeof *st);
+    sooc_model *m = mp->m;
+    const sooc_model_config *c = sooc_model_get_config(m);
+    if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld has no pose", (long long)f->index);
+    if (f->width != c->img_w || f->height != c->img_h)
+        return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld is %dx%d, the model needs %dx%d", (long long)f->index,
+                           f->width, f->height, c->img_w, c->img_h);
+    step_state *S = mdl_step_state(m, 1, mp->L);
+    if (!S) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
+    S->aux_replay = 0;
+    view_rec *V = &mp->V;
+    sooc_status s = mdl_view_setup(m, mp->map, V, f, 1, &mp->rng, NULL);
+    if (s) return s;
+    sooc_step_opts o;
+    sooc_step_opts_default(&o);
+    o.tau = MAPPER_TAU;
+    o.L = mp->L;
+    double lw;
+    if ((s = mdl_view_forward(m, S, V, mp->L, &o, 0, &mp->rng, &lw, NULL))) return s;
+    int NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
+    const float *lamL = V->lam + (size_t)mp->L * c->K * NL;
+    const float *layL = V->lay + (size_t)mp->L * D2;
+    sooc_cogmap_reg_stats rs;
+    uint64_t ids[SOOC_MODEL_K_MAX];
+    if ((s = sooc_cogmap_register(mp->map, &V->gf, c->K, lamL, V->src_id, f->t_ns, mp->view_idx, ids, NULL, &rs)))
+        return s;
+    if ((s = sooc_cogmap_layout_set(mp->map, V->bi, V->bj, layL, layL + c->d_layout))) return s;
+    mp->view_idx++;
+    st->n_retrieved = V->n_ret;
+    st->n_registered = rs.n_registered;
+    st->n_new = rs.n_new;
+    st->n_removed = rs.n_removed;
+    st->elapsed_ms = 1e3 * (sooc_seconds() - t0);
+    return SOOC_OK;
+}
+
+static void to_map_entry(const sooc_model_config *c, const sooc_cogmap_entry *e, sooc_map_entry *o) {
+    memset(o, 0, sizeof *o);
+    o->id = e->id;
+    o->x = e->X, o->z = e->Z, o->yaw = e->Theta;
+    o->sigma_t = exp(0.5 * e->rho_t);
+    o->sigma_yaw = exp(0.5 * e->rho_theta);
+    o->presence_logit = e->pres_logit;
+    o->presence = 1.0f / (1.0f + expf(-e->pres_logit));
+    o->latent_dim = e->dim;
+    memcpy(o->what_mu, e->what_mu, sizeof(float) * e->dim);
+    memcpy(o->what_logvar, e->what_logvar, sizeof(float) * e->dim);
+    o->extent[0] = o->extent[2] = 2 * c->box_rh;
+    o->extent[1] = c->box_hb;
+    o->first_seen_ns = e->first_seen_ns, o->last_seen_ns = e->last_seen_ns;
+    o->obs_count = e->obs_count;
+}
+
+sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
+    size_t cnt = sooc_cogmap_count(mp->map);
+    if (!out) {
+        *n = cnt;
+        return SOOC_OK;
+    }
+    if (cnt > cap) cnt = cap;
+    sooc_cogmap_entry *tmp = sooc_calloc(cnt ? cnt : 1, sizeof *tmp);
+    if (!tmp) return SOOC_ENOMEM;
+    size_t got = 0;
+    sooc_status s = sooc_cogmap_entries(mp->map, tmp, cnt, &got);
+    const sooc_model_config *c = sooc_model_get_config(mp->m);
+    for (size_t i = 0; !s && i < got; i++) to_map_entry(c, &tmp[i], &out[i]);
+    *n = s ? 0 : got;
+    sooc_free(tmp);
+    return s;
+}
+
+sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *e, size_t n) {
+    const sooc_model_config *c = sooc_model_get_config(mp->m);
+    sooc_cogmap_entry *tmp = sooc_calloc(n ? n : 1, sizeof *tmp);
+    if (!tmp) return SOOC_ENOMEM;
+    sooc_status s = SOOC_OK;
+    for (size_t i = 0; i < n; i++) {
+        if (e[i].latent_dim != c->d_what) {
+            s = sooc_seterr(SOOC_EINVAL, "mapper: entry %llu has latent_dim %d, model d = %d",
+                            (unsigned long long)e[i].id, e[i].latent_dim, c->d_what);
+            break;
+        }
+        sooc_cogmap_entry *t = &tmp[i];
+        t->id = e[i].id;
+        t->X = e[i].x, t->Z = e[i].z, t->Theta = e[i].yaw;
+        t->rho_t = (float)(2 * log(e[i].sigma_t > 1e-12 ? e[i].sigma_t : 1e-12));
+        t->rho_theta = (float)(2 * log(e[i].sigma_yaw > 1e-12 ? e[i].sigma_yaw : 1e-12));
+        t->pres_logit = e[i].presence_logit;
+        t->dim = e[i].latent_dim;
+        memcpy(t->what_mu, e[i].what_mu, sizeof(float) * t->dim);
+        memcpy(t->what_logvar, e[i].what_logvar, sizeof(float) * t->dim);
+        t->first_seen_ns = e[i].first_seen_ns, t->last_seen_ns = e[i].last_seen_ns;
+        t->obs_count = e[i].obs_count ? e[i].obs_count : 1;
+        t->last_view = -1;
+    }
+    if (!s) s = sooc_cogmap_load(mp->map, tmp, n);
+    sooc_free(tmp);
+    return s;
+}
+
+/* Internal accessors for infer / the field adapter. */
+sooc_model *mdl_mapper_model(sooc3d_mapper *mp);
+sooc_cogmap *mdl_mapper_map(sooc3d_mapper *mp);
+sooc_model *mdl_mapper_model(sooc3d_mapper *mp) { return mp->m; }
+sooc_cogmap *mdl_mapper_map(sooc3d_mapper *mp) { return mp->map; }
