@@ -13,7 +13,7 @@ void sooc_nn_blas_single(void) {
 }
 
 #define SGEMM_BLOCKS 8
-#define SGEMM_MIN_FLOPS 4.0e6 /* below this (~50 us): one call, no threading */
+#define SGEMM_MIN_FLOPS 64.0e6 /* below this (~1 ms single-thread): one call, no threading */
 
 void sooc_nn_sgemm(int transa, int transb, int M, int N, int K, float alpha, const float *A,
                    int lda, const float *B, int ldb, float beta, float *C, int ldc) {

@@ -30,10 +30,10 @@ void sooc_nn_sgemm(int transa, int transb, int M, int N, int K, float alpha, con
                    int lda, const float *B, int ldb, float beta, float *C, int ldc);
 
 /* Minimum elements before an elementwise loop goes parallel. */
-#define SOOC_NN_PAR_MIN 32768
+#define SOOC_NN_PAR_MIN 262144
 /* Threshold for memory-bound loops with little work per element (copies):
  * below it a parallel region costs more than it saves, and on a loaded
  * machine every extra OpenMP barrier can cost a scheduler time slice. */
-#define SOOC_NN_PAR_BIG 262144
+#define SOOC_NN_PAR_BIG 2097152
 
 #endif
