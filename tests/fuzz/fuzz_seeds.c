@@ -27,9 +27,9 @@ static const char *out_dir;
 static const char *path(const char *target, const char *name) {
     static char p[4096];
     char d[4096];
-    snprintf(d, sizeof d, "%s/%s", out_dir, target);
+    if (snprintf(d, sizeof d, "%s/%s", out_dir, target) >= (int)sizeof d) exit(1);
     if (sooc_mkdirs(d)) { fprintf(stderr, "mkdir %s: %s\n", d, sooc_errmsg()); exit(1); }
-    snprintf(p, sizeof p, "%s/%s", d, name);
+    if (snprintf(p, sizeof p, "%s/%s", d, name) >= (int)sizeof p) exit(1);
     return p;
 }
 
