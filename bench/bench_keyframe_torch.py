@@ -1,0 +1,179 @@
+#!/usr/bin/python3
+"""PyTorch reference of one sooc3d keyframe update (the same work as
+bench_keyframe.c): 64x64 frame, 32x32 rays (surface + air sample each), K = 7
+slots + layout, d = 32, L = 3 refinement iterations. Each iteration: sample,
+decode (object rows gathered inside their locality boxes, layout on all
+points), compose, likelihood + KL, one backward for the auxiliary gradients,
+the 26 auxiliary channels, the refinement nets (conv 26->32->32->64->64 stride
+2 SAME + ELU, FC 128, LSTMCell 128, linear head) for all K slots and the
+layout. Prints a JSON object with median_ms last (the faster of --threads
+and 1 thread: see the comment at the end).
+usage: bench_keyframe_torch.py [--threads T] [--n N]
+"""
+import json
+import math
+import sys
+import time
+
+import torch
+import torch.nn.functional as F
+
+args = sys.argv
+threads = int(args[args.index("--threads") + 1]) if "--threads" in args else 2
+n_iter = int(args[args.index("--n") + 1]) if "--n" in args else 30
+torch.set_num_threads(threads)
+torch.manual_seed(0)
+K, d, dl, L, H, Hc, N = 7, 32, 16, 3, 64, 32, 1024
+NL = 6 + 2 * d
+Rh, Hb, s_g, smax, sigc, Bs, h = 0.6, 1.2, 0.3, 30.0, 0.2, 4.0, 1.5
+
+
+def dec_params(din, dz):
+    lin = lambda i, o: (torch.randn(i, o) * math.sqrt(2.0 / i), torch.zeros(o))
+    return [lin(din, H), (torch.randn(dz, H) * 0.1,), lin(H, H), lin(H, H), lin(H, 1), lin(H, Hc), lin(Hc, 3)]
+
+
+obj, lay = dec_params(33, d), dec_params(39, dl)
+
+
+class Refine(torch.nn.Module):
+    def __init__(self, cin, nvec, nout):
+        super().__init__()
+        self.convs = torch.nn.ModuleList([torch.nn.Conv2d(a, b, 3, 2) for a, b in
+                                          zip([cin, 32, 32, 64], [32, 32, 64, 64])])
+        self.fc = torch.nn.Linear(256, 128)
+        self.lstm = torch.nn.LSTMCell(128 + nvec, 128)
+        self.head = torch.nn.Linear(128, nout)
+
+    def forward(self, img, vec, hc):
+        x = img
+        for c in self.convs:
+            x = F.elu(c(F.pad(x, (0, 1, 0, 1))))
+        f = F.elu(self.fc(x.flatten(1)))
+        h_, c_ = self.lstm(torch.cat([f, vec], 1), hc)
+        return self.head(h_), (h_, c_)
+
+
+ref_o, ref_l = Refine(26, 2 * NL + 6, NL), Refine(25, 4 * dl + 2, 2 * dl)
+
+
+def pe(x, n):
+    out = [x]
+    for f in range(n):
+        out += [torch.sin((2 ** f) * x), torch.cos((2 ** f) * x)]
+    return torch.cat(out, -1)
+
+
+def mlp(p, pe_in, bias):
+    a = torch.relu(pe_in @ p[0][0] + bias)
+    a = torch.relu(a @ p[2][0] + p[2][1])
+    a = torch.relu(a @ p[3][0] + p[3][1])
+    sig = torch.sigmoid(a @ p[4][0] + p[4][1])[:, 0]
+    col = torch.sigmoid(torch.relu(a @ p[5][0] + p[5][1]) @ p[6][0] + p[6][1])
+    return sig, col
+
+
+# one synthetic view: rays in G, floor at -h
+yaw = torch.rand(N) - 0.5
+pitch = -0.9 * torch.rand(N) + 0.2
+dirs = torch.stack([torch.sin(yaw) * torch.cos(pitch), torch.sin(pitch), torch.cos(yaw) * torch.cos(pitch)], 1)
+depth = torch.where(dirs[:, 1] < -0.05, -h / dirs[:, 1].clamp(max=-0.05), torch.full((N,), 100.0))
+surf = depth <= 8.0
+depth = torch.where(surf, depth, torch.zeros(N))
+rgb = torch.rand(N, 3)
+ta = torch.where(surf, depth * torch.rand(N), 8.0 * torch.rand(N))
+W = torch.where(surf, 2 * 0.98 * depth, torch.full((N,), 8.0))
+pts = torch.cat([(depth + 0.03 * torch.rand(N))[:, None] * dirs, ta[:, None] * dirs], 0)   # 2N x 3
+blk = torch.tensor([0.5, -h, 4.0])
+lam0 = torch.zeros(K, NL)
+lam0[:, 0] = torch.linspace(-1.5, 1.5, K)
+lam0[:, 1] = torch.linspace(1.3, 6.2, K)
+lam0[:, 3] = math.log(0.25)
+lay0 = torch.zeros(2 * dl)
+
+
+def update():
+    lam, layv = lam0.clone(), lay0.clone()
+    hco, hcl = None, None
+    for it in range(L):
+        lam_ = lam.clone().requires_grad_(True)
+        lay_ = layv.clone().requires_grad_(True)
+        st = torch.exp(0.5 * lam_[:, 3])
+        px = lam_[:, 0] + st * torch.randn(K)
+        pz = lam_[:, 1] + st * torch.randn(K)
+        th = lam_[:, 2] + torch.exp(0.5 * lam_[:, 4]) * torch.randn(K)
+        zw = lam_[:, 5:5 + d] + torch.exp(0.5 * lam_[:, 5 + d:5 + 2 * d]) * torch.randn(K, d)
+        zp = torch.sigmoid((lam_[:, -1] + torch.logit(torch.rand(K).clamp(1e-6, 1 - 1e-6))) / 0.7)
+        zl = lay_[:dl] + torch.exp(0.5 * lay_[dl:]) * torch.randn(dl)
+        c, s = torch.cos(th), torch.sin(th)
+        vx = pts[:, None, 0] - px[None]
+        vz = pts[:, None, 2] - pz[None]
+        xk = torch.stack([c * vx - s * vz, (pts[:, 1] + h)[:, None].expand(-1, K), s * vx + c * vz], 2)  # P x K x 3
+        inside = ((xk[..., 0].abs() <= Rh) & (xk[..., 2].abs() <= Rh) & (xk[..., 1] >= 0) & (xk[..., 1] <= Hb))
+        pi, ki = inside.nonzero(as_tuple=True)
+        rows = xk[pi, ki]
+        sig, col = mlp(obj, pe(rows / Rh, 5), (zw @ obj[1][0] + obj[0][1])[ki])
+        wg = torch.exp(-(rows[:, 0] ** 2 + rows[:, 2] ** 2) / (2 * s_g ** 2))
+        sh_o = sig * zp[ki] * wg / wg.detach()
+        sl, cl = mlp(lay, pe((pts - blk) / Bs, 6), zl @ lay[1][0] + lay[0][1])
+        SH = torch.zeros(2 * N, K + 1).index_put((pi, ki + 1), sh_o)
+        SH = SH + F.pad(sl[:, None], (0, K))
+        CT = torch.zeros(2 * N, K + 1, 3).index_put((pi, ki + 1), col)
+        CT = CT + F.pad(cl[:, None, :], (0, 0, 0, K))
+        SH.retain_grad()
+        CT.retain_grad()
+        S = SH.sum(1) + 1e-8
+        Sb = (SH ** 2).sum(1) / S
+        colc = (SH[..., None] * CT).sum(1) / S[:, None]
+        ll = torch.where(surf, torch.log(smax * Sb[:N] + 3e-3) - ((rgb - colc[:N]) ** 2).sum(1) / (2 * sigc ** 2),
+                         torch.zeros(N)) - W * smax * Sb[N:]
+        kl = 0.5 * (torch.exp(lam_[:, 3:]) - lam_[:, 3:] - 1).sum() + 0.5 * ((lam_ - lam0) ** 2).sum()
+        loss = -4.0 * ll.sum() + kl
+        loss.backward()
+        with torch.no_grad():
+            gl = (lam_.grad - lam_.grad.mean(1, keepdim=True)) / (lam_.grad.std(1, keepdim=True) + 1e-5)
+            ln = lambda t: (t - t.mean()) / (t.std() + 1e-5)
+            img = torch.cat([
+                rgb.T[None].expand(K, -1, -1), depth[None, None].expand(K, 1, -1), surf.float()[None, None].expand(K, 1, -1),
+                dirs.T[None].expand(K, -1, -1), (xk[:N].permute(1, 2, 0) / Rh).clamp(-3, 3),
+                torch.exp(-(xk[:N, :, 0] ** 2 + xk[:N, :, 2] ** 2) / (2 * s_g ** 2)).T[:, None],
+                SH[:N, 1:].T[:, None], (SH[:N, 1:] / S[:N, None]).T[:, None], CT[:N, 1:].permute(1, 2, 0),
+                (SH[N:, 1:] ** 2 / S[N:, None]).T[:, None], torch.softmax(SH[:N, 1:], 1).T[:, None],
+                ln(ll)[None, None].expand(K, 1, -1), ln(ll)[None, None].expand(K, 1, -1),
+                ln(SH.grad[:N, 1:]).T[:, None], ln(SH.grad[N:, 1:]).T[:, None], ln(CT.grad[:N, 1:]).permute(1, 2, 0)],
+                1).reshape(K, 26, 32, 32)
+            vec = torch.cat([lam, gl, torch.stack([px, pz, th, zp], 1), torch.full((K, 2), 1.0)], 1)
+            dlam, hco = ref_o(img, vec, hco)
+            imgl = img[:1, :25]
+            gll = lay_.grad
+            vecl = torch.cat([layv, (gll - gll.mean()) / (gll.std() + 1e-5), torch.ones(2)])[None]
+            dlay, hcl = ref_l(imgl, vecl, hcl)
+            lam = lam + dlam
+            layv = layv + dlay[0]
+    return lam
+
+
+def measure(nt):
+    torch.set_num_threads(nt)
+    for _ in range(3):
+        update()
+    ts = []
+    for _ in range(n_iter):
+        t0 = time.perf_counter()
+        update()
+        ts.append(1e3 * (time.perf_counter() - t0))
+    ts.sort()
+    return ts[len(ts) // 2], ts[int(0.99 * (len(ts) - 1))]
+
+
+# On a busy 2-core machine PyTorch's intra-op threads can be much slower than
+# one thread; report the faster setting so the C/PyTorch ratio is conservative.
+res = {}
+for nt in sorted({threads, 1}, reverse=True):
+    res[nt] = measure(nt)
+    print("torch keyframe update, %d thread(s): median %.2f ms, p99 %.2f ms (torch %s)" %
+          (nt, res[nt][0], res[nt][1], torch.__version__))
+best = min(res, key=lambda k: res[k][0])
+print(json.dumps({"bench": "keyframe_torch", "threads_asked": threads, "threads_best": best, "n": n_iter,
+                  "median_ms_by_threads": {str(k): round(v[0], 3) for k, v in res.items()},
+                  "median_ms": round(res[best][0], 3)}))
