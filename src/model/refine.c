@@ -6,6 +6,9 @@
 #include <cblas.h>
 #include <math.h>
 #include <string.h>
+#ifdef SOOC_HAVE_OPENMP
+#include <omp.h>
+#endif
 
 static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
 static inline float elu(float x) { return x > 0 ? x : expf(x) - 1.0f; }
@@ -53,18 +56,43 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
     float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c, is2 = 1.0f / (sigc * sigc);
     float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI));
     float inv_rh = 1.0f / cfg->box_rh, inv_b = 1.0f / cfg->block_size, s2 = cfg->gauss_s * cfg->gauss_s;
+    /* colour-likelihood posterior softmax_k [log pi_k + log N(C; c_k, sigma_C^2)], once per ray */
+    float *post_all = w->ll_cf;   /* N x C scratch */
+    for (int rr = 0; rr < N; rr++) {
+        if (!vr->surf[rr]) continue;
+        const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
+        float S = w->S[2 * rr], lmax = -1e30f, *lv = post_all + (size_t)rr * C;
+        for (int k = 0; k < C; k++) {
+            float e = 0;
+            for (int a = 0; a < 3; a++) {
+                float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
+                e += dd * dd;
+            }
+            lv[k] = logf(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
+            if (lv[k] > lmax) lmax = lv[k];
+        }
+        float z = 0;
+        for (int k = 0; k < C; k++) z += (lv[k] = expf(lv[k] - lmax));
+        for (int k = 0; k < C; k++) lv[k] /= z;
+    }
+    int nthr = m->threads > 0 ? m->threads : 1;
+#ifdef SOOC_HAVE_OPENMP
+    if (m->threads <= 0) nthr = omp_get_max_threads();
+#endif
+    (void)nthr;
+#pragma omp parallel for num_threads(nthr) schedule(dynamic, 1)
     for (int comp = 0; comp < C; comp++) {
         int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
         float *img = lay ? img_l : img_o;
 #define CH(ch) (img + ((size_t)(ch) * B + b) * N)
         int o = 0;
         for (int rr = 0; rr < N; rr++) {
+            o = 8;
             int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
             for (int a = 0; a < 3; a++) CH(a)[rr] = vr->rgb[rr * 3 + a];
             CH(3)[rr] = surf ? vr->depth[rr] / cfg->d_clip : 1.0f;
             CH(4)[rr] = surf ? 0.0f : 1.0f;
             for (int a = 0; a < 3; a++) CH(5 + a)[rr] = vr->dir[rr * 3 + a];
-            o = 8;
             /* surface point in component frame */
             float xk[3] = {0, 0, 0};
             if (surf) {
@@ -92,24 +120,7 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
             CH(o + 1)[rr] = surf ? sh_s[comp] / S : 0.0f;
             for (int a = 0; a < 3; a++) CH(o + 2 + a)[rr] = ct_s[comp * 3 + a];
             CH(o + 5)[rr] = sh_a[comp] * sh_a[comp] / w->S[pa];
-            /* colour posterior */
-            float post = 0;
-            if (surf) {
-                float lmax = -1e30f, lk = 0, lv[SOOC_MODEL_K_MAX + 1];
-                for (int k = 0; k < C; k++) {
-                    float e = 0;
-                    for (int a = 0; a < 3; a++) {
-                        float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
-                        e += dd * dd;
-                    }
-                    lv[k] = logf(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
-                    if (lv[k] > lmax) lmax = lv[k];
-                }
-                float z = 0;
-                for (int k = 0; k < C; k++) z += expf(lv[k] - lmax);
-                lk = expf(lv[comp] - lmax) / z;
-                post = lk;
-            }
+            float post = surf ? post_all[(size_t)rr * C + comp] : 0.0f;
             CH(o + 6)[rr] = post;
             CH(o + 7)[rr] = w->ll[rr];
             /* counterfactual */
@@ -139,6 +150,7 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
             CH(o + 10)[rr] = w->gsh[(size_t)pa * C + comp];
             for (int a = 0; a < 3; a++) CH(o + 11 + a)[rr] = w->gct[((size_t)ps * C + comp) * 3 + a];
         }
+        o = lay ? 11 : 12;
         ln_img(img, B, N, b, o + 7, 1);
         ln_img(img, B, N, b, o + 8, 1);
         ln_img(img, B, N, b, o + 9, 1);
@@ -209,6 +221,7 @@ static void im2col(const float *x, int Ci, int B, int Hi, int Wi, float *cols) {
         for (int ky = 0; ky < 3; ky++)
             for (int kx = 0; kx < 3; kx++) {
                 float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
+                int wlast = 2 * (Wo - 1) + kx < Wi ? Wo : Wo - 1;   /* only kx = 2 reaches the pad column */
                 for (int b = 0; b < B; b++) {
                     const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
                     for (int oy = 0; oy < Ho; oy++) {
@@ -218,10 +231,9 @@ static void im2col(const float *x, int Ci, int B, int Hi, int Wi, float *cols) {
                             memset(r, 0, sizeof(float) * Wo);
                             continue;
                         }
-                        for (int ox = 0; ox < Wo; ox++) {
-                            int ix = 2 * ox + kx;
-                            r[ox] = ix < Wi ? xb[iy * Wi + ix] : 0.0f;
-                        }
+                        const float *xr = xb + (size_t)iy * Wi + kx;
+                        for (int ox = 0; ox < wlast; ox++) r[ox] = xr[2 * ox];
+                        if (wlast < Wo) r[Wo - 1] = 0.0f;
                     }
                 }
             }
