@@ -26,6 +26,9 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/render.h"
+#include "sooc3d/mapper.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -154,6 +157,36 @@ typedef struct sooc_step_losses {
 sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
                                   const sooc_frame *queries, int Q, const sooc_step_opts *o,
                                   sooc_rng *rng, sooc_step_losses *losses);
+
+/* ---- render.h field adapter (model.md §2.11): draw from a map ----
+ *
+ * A field for one camera: component 0 = the layout of the camera's active
+ * block (its latent from the map, or the layout prior), components 1..n =
+ * the map entries in view (cogmap query, top max_obj by presence), each with
+ * its locality box for culling. Latents at their posterior means, or one
+ * posterior sample when sample_rng != NULL (for the uncertainty map);
+ * z^pres = 1 for registered entries. The field's frame is G of the camera:
+ * pass sooc_model_field_T_fc() to sooc_render_view. Evaluation is
+ * allocation-free (per-worker scratch sized by the prepare callback) and
+ * deterministic per batch. The model and map must outlive the field; the
+ * map is only read during create. */
+typedef struct sooc_model_field sooc_model_field;
+sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const sooc_cogmap *map,
+                                    const double T_wc[16], const sooc_intrinsics *K, int max_obj,
+                                    sooc_rng *sample_rng);
+void sooc_model_field_destroy(sooc_model_field *f);   /* NULL-safe */
+const sooc_field *sooc_model_field_get(const sooc_model_field *f);
+void sooc_model_field_T_fc(const sooc_model_field *f, double T_fc[16]);
+/* Map entry id of component c (0 for the layout). */
+uint64_t sooc_model_field_comp_id(const sooc_model_field *f, int c);
+
+/* The online mapper's model and cognitive map (for rendering / evaluation
+ * from a mapper; owned by the mapper). */
+sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp);
+const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp);
+/* Create a mapper around an already loaded model (takes ownership of m). */
+sooc_status sooc3d_mapper_create_with_model(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed,
+                                            int threads);
 
 #ifdef __cplusplus
 }

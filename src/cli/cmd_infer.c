@@ -1,11 +1,238 @@
-/* sooc3d infer: placeholder until its module lands; it fails loudly rather than pretending. */
+/* sooc3d infer: run the online mapper over a sequence, write the final map
+ * (JSON + CSV) and per-view renders from the final map. */
 #include "cli.h"
+#include "sooc3d/image.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/model.h"
+#include "sooc3d/render.h"
+#include "sooc3d/seq.h"
 
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
+            "                    [--every K] [--max-frames N] [--no-render] [--samples N]\n\n"
+            "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
+            "register) once per input frame of the sequence and writes\n"
+            "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
+            "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, ms)\n"
+            "  DIR/render/%%06d_{rgb,depth,label}.png  renders of every frame from the final map\n"
+            "                               (input and query views; 96 coarse + 32 fine samples)\n\n"
+            "  --model       model checkpoint (models/<name>/model.bin)\n"
+            "  --seq         sequence directory (any format sooc3d reads); frames must have poses and\n"
+            "                the model's resolution (64x64); query frames (scene.yaml) are not mapped\n"
+            "  --iterations  refinement updates per frame (default: the model's L)\n"
+            "  --seed        posterior sampling seed; results are deterministic for a seed (default 1)\n"
+            "  --every       map every K-th input frame (default 1)\n"
+            "  --max-frames  stop after N frames (default all)\n"
+            "  --samples     render samples per ray, coarse (default 96)\n");
+}
+
+static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n) {
+    char path[1024];
+    sooc_status st = sooc_path_join(path, sizeof path, dir, "map.json");
+    if (st) return st;
+    size_t cap = 4096 + n * 2048, len = 0;
+    char *b = malloc(cap);
+    if (!b) return SOOC_ENOMEM;
+    len += (size_t)snprintf(b + len, cap - len, "{\n  \"entries\": [\n");
+    for (size_t i = 0; i < n; i++) {
+        len += (size_t)snprintf(b + len, cap - len,
+                                "    {\"id\": %llu, \"x\": %.6f, \"z\": %.6f, \"yaw\": %.6f, \"sigma_t\": %.6f, "
+                                "\"sigma_yaw\": %.6f, \"presence\": %.6f, \"presence_logit\": %.6f, "
+                                "\"extent\": [%.3f, %.3f, %.3f], \"obs_count\": %u, \"first_seen_ns\": %lld, "
+                                "\"last_seen_ns\": %lld, \"what_mu\": [",
+                                (unsigned long long)e[i].id, e[i].x, e[i].z, e[i].yaw, e[i].sigma_t, e[i].sigma_yaw,
+                                e[i].presence, e[i].presence_logit, e[i].extent[0], e[i].extent[1], e[i].extent[2],
+                                e[i].obs_count, (long long)e[i].first_seen_ns, (long long)e[i].last_seen_ns);
+        for (int k = 0; k < e[i].latent_dim; k++)
+            len += (size_t)snprintf(b + len, cap - len, "%s%.6g", k ? ", " : "", e[i].what_mu[k]);
+        len += (size_t)snprintf(b + len, cap - len, "], \"what_logvar\": [");
+        for (int k = 0; k < e[i].latent_dim; k++)
+            len += (size_t)snprintf(b + len, cap - len, "%s%.6g", k ? ", " : "", e[i].what_logvar[k]);
+        len += (size_t)snprintf(b + len, cap - len, "]}%s\n", i + 1 < n ? "," : "");
+    }
+    len += (size_t)snprintf(b + len, cap - len, "  ]\n}\n");
+    st = sooc_file_write_atomic(path, b, len);
+    if (!st) {
+        len = 0;
+        len += (size_t)snprintf(b + len, cap - len, "id,x,z,yaw,sigma_t,sigma_yaw,presence,obs_count\n");
+        for (size_t i = 0; i < n; i++)
+            len += (size_t)snprintf(b + len, cap - len, "%llu,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u\n",
+                                    (unsigned long long)e[i].id, e[i].x, e[i].z, e[i].yaw, e[i].sigma_t,
+                                    e[i].sigma_yaw, e[i].presence, e[i].obs_count);
+        if (!(st = sooc_path_join(path, sizeof path, dir, "map.csv"))) st = sooc_file_write_atomic(path, b, len);
+    }
+    free(b);
+    return st;
+}
+
+static sooc_status render_frame(sooc3d_mapper *mp, const sooc_frame *f, const char rdir[1024], int samples, int threads) {
+    sooc_model_field *fld;
+    sooc_status st = sooc_model_field_create(&fld, sooc3d_mapper_model(mp), sooc3d_mapper_cogmap(mp), f->T_wc, &f->K,
+                                             63, NULL);
+    if (st) return st;
+    const sooc_model_config *c = sooc_model_get_config(sooc3d_mapper_model(mp));
+    sooc_render_opts o;
+    sooc_render_opts_default(&o);
+    o.n_coarse = samples;
+    o.t_near = c->t_near, o.d_clip = c->d_clip;
+    o.threads = threads;
+    double T_fc[16];
+    sooc_model_field_T_fc(fld, T_fc);
+    sooc_render_out ro;
+    memset(&ro, 0, sizeof ro);
+    st = sooc_render_view(sooc_model_field_get(fld), &f->K, T_fc, &o, &ro);
+    if (!st) {
+        int W = ro.width, H = ro.height;
+        sooc_image img;
+        memset(&img, 0, sizeof img);
+        char path[1200];
+        uint8_t *rgb = malloc((size_t)W * H * 3);
+        uint16_t *ids = malloc((size_t)W * H * 2);
+        for (int i = 0; i < W * H * 3; i++) {
+            float v = ro.rgb[i] < 0 ? 0 : ro.rgb[i] > 1 ? 1 : ro.rgb[i];
+            rgb[i] = (uint8_t)(255.0f * v + 0.5f);
+        }
+        for (int i = 0; i < W * H; i++) {
+            int lab = ro.label[i];
+            ids[i] = (uint16_t)(lab < 0 ? 0 : lab == 0 ? 0 : sooc_model_field_comp_id(fld, lab) & 0xffff);
+        }
+        snprintf(path, sizeof path, "%s/%06lld_rgb.png", rdir, (long long)f->index);
+        if (!(st = sooc_image_from_rgb(&img, rgb, W, H))) st = sooc_png_write(path, &img, 6);
+        snprintf(path, sizeof path, "%s/%06lld_depth.png", rdir, (long long)f->index);
+        if (!st && !(st = sooc_image_from_depth(&img, ro.depth, W, H, 0.0, c->d_clip))) st = sooc_png_write(path, &img, 6);
+        snprintf(path, sizeof path, "%s/%06lld_label.png", rdir, (long long)f->index);
+        if (!st && !(st = sooc_image_from_ids(&img, ids, W, H))) st = sooc_png_write(path, &img, 6);
+        sooc_image_free(&img);
+        free(rgb);
+        free(ids);
+    }
+    sooc_render_out_free(&ro);
+    sooc_model_field_destroy(fld);
+    return st;
+}
 
 int sooc_cmd_infer(int argc, char **argv) {
-    (void)argc;
-    (void)argv;
-    fprintf(stderr, "sooc3d infer: not built yet in this version\n");
-    return 2;
+    if (sooc_cli_wants_help(argc, argv)) {
+        usage(stdout);
+        return 0;
+    }
+    const char *model = NULL, *seq = NULL, *out = NULL;
+    int iters = 0, threads = 0, every = 1, render = 1, samples = 96;
+    long long maxf = -1;
+    uint64_t seed = 1;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        int has = i + 1 < argc;
+        if (!strcmp(a, "--model") && has) model = argv[++i];
+        else if (!strcmp(a, "--seq") && has) seq = argv[++i];
+        else if (!strcmp(a, "--out") && has) out = argv[++i];
+        else if (!strcmp(a, "--iterations") && has) iters = atoi(argv[++i]);
+        else if (!strcmp(a, "--threads") && has) threads = atoi(argv[++i]);
+        else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(a, "--every") && has) every = atoi(argv[++i]);
+        else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
+        else if (!strcmp(a, "--samples") && has) samples = atoi(argv[++i]);
+        else if (!strcmp(a, "--no-render")) render = 0;
+        else {
+            fprintf(stderr, "sooc3d infer: unknown or incomplete option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    if (!model || !seq || !out || every < 1 || samples < 2) {
+        usage(stderr);
+        return 2;
+    }
+    sooc_status st;
+    sooc_seq *sq = NULL;
+    sooc3d_mapper *mp = NULL;
+    sooc_frame f;
+    memset(&f, 0, sizeof f);
+    FILE *uc = NULL;
+    char path[1024], rdir[1024];
+    if ((st = sooc_mkdirs(out))) return sooc_cli_fail("infer", st);
+    if ((st = sooc_seq_open(&sq, seq, NULL))) return sooc_cli_fail("infer", st);
+    sooc3d_mapper_params p;
+    sooc3d_mapper_params_default(&p);
+    p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads;
+    if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
+    int mw, mh;
+    sooc3d_mapper_input_size(mp, &mw, &mh);
+    int64_t n = sooc_seq_count(sq);
+    if (maxf >= 0 && maxf < n) n = maxf;
+    snprintf(path, sizeof path, "%s/updates.csv", out);
+    uc = fopen(path, "w");
+    if (!uc) {
+        st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", path);
+        goto fail;
+    }
+    fprintf(uc, "frame,t_ns,retrieved,registered,new,removed,ms\n");
+    sooc_progress pr;
+    sooc_progress_begin(&pr, "infer", (uint64_t)n);
+    int64_t n_in = 0, mapped = 0;
+    double ms_sum = 0;
+    for (int64_t i = 0; i < n; i++) {
+        if ((st = sooc_seq_read(sq, i, &f))) goto fail;
+        if (f.is_query || !f.has_pose) continue;
+        if (f.width != mw || f.height != mh) {
+            st = sooc_seterr(SOOC_EINVAL, "%s: frame %lld is %dx%d, the model needs %dx%d (resize the sequence)", seq,
+                             (long long)i, f.width, f.height, mw, mh);
+            goto fail;
+        }
+        if (n_in++ % every) continue;
+        sooc3d_update_stats us;
+        if ((st = sooc3d_mapper_update(mp, &f, &us))) goto fail;
+        mapped++;
+        ms_sum += us.elapsed_ms;
+        fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%.3f\n", (long long)i, (long long)f.t_ns, us.n_retrieved, us.n_registered,
+                us.n_new, us.n_removed, us.elapsed_ms);
+        char extra[96];
+        size_t ne = 0;
+        sooc3d_mapper_entries(mp, NULL, 0, &ne);
+        snprintf(extra, sizeof extra, "map %zu, %.1f ms/update", ne, ms_sum / (double)mapped);
+        sooc_progress_update(&pr, (uint64_t)i + 1, extra);
+    }
+    sooc_progress_end(&pr, NULL);
+    fclose(uc);
+    uc = NULL;
+    size_t ne = 0;
+    sooc3d_mapper_entries(mp, NULL, 0, &ne);
+    sooc_map_entry *e = calloc(ne ? ne : 1, sizeof *e);
+    if (!e) {
+        st = SOOC_ENOMEM;
+        goto fail;
+    }
+    if (!(st = sooc3d_mapper_entries(mp, e, ne, &ne))) st = write_map(out, e, ne);
+    free(e);
+    if (st) goto fail;
+    printf("infer: %lld frames mapped (%.1f ms/update mean), %zu map entries -> %s/map.json\n", (long long)mapped,
+           mapped ? ms_sum / (double)mapped : 0.0, ne, out);
+    if (render) {
+        snprintf(rdir, sizeof rdir, "%s/render", out);
+        if ((st = sooc_mkdirs(rdir))) goto fail;
+        int nr = 0;
+        for (int64_t i = 0; i < n; i++) {
+            if ((st = sooc_seq_read(sq, i, &f))) goto fail;
+            if (!f.has_pose) continue;
+            if ((st = render_frame(mp, &f, rdir, samples, threads))) goto fail;
+            nr++;
+        }
+        printf("infer: %d views rendered from the final map -> %s\n", nr, rdir);
+    }
+    sooc_frame_free(&f);
+    sooc3d_mapper_destroy(mp);
+    sooc_seq_close(sq);
+    return 0;
+fail:
+    if (uc) fclose(uc);
+    sooc_frame_free(&f);
+    sooc3d_mapper_destroy(mp);
+    sooc_seq_close(sq);
+    return sooc_cli_fail("infer", st);
 }

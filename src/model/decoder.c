@@ -218,7 +218,7 @@ static void gemm_tn_acc(int M, int N, int R, float alpha, const float *A, const 
     cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, M, N, R, alpha, A, M, B, N, 1.0f, C, N);
 }
 
-static void pe_row(const float *x, float inv, int nf, float *out) {
+void mdl_pe_row(const float *x, float inv, int nf, float *out) {
     float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv};
     out[0] = v[0], out[1] = v[1], out[2] = v[2];
     int o = 3;
@@ -245,7 +245,7 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
 
 /* Layers 2.. of a decoder on R rows (serial; callers split rows across
  * threads) whose layer-1 pre-activation is in a1 (ReLU applied here). */
-static void mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                              float *sig, float *col) {
     const float *p = m->p;
     int H = n->H, Hc = n->Hc;
@@ -449,27 +449,27 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     {
         int r0, r1, tid = TID(), nth = NTH();
         chunk_of(nro, tid, nth, &r0, &r1);
-        for (int r = r0; r < r1; r++) pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
+        for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
         gemm_nn(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, p + no->W1x, 0.0f, w->o_a1 + (size_t)r0 * H);
         for (int r = r0; r < r1; r++) {
             const float *b = w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H;
             float *a = w->o_a1 + (size_t)r * H;
             for (int j = 0; j < H; j++) a[j] += b[j];
         }
-        mlp_tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
+        mdl_mlp_tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
                          w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3);
         chunk_of(nrl, tid, nth, &r0, &r1);
         for (int r = r0; r < r1; r++) {
             const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
-            pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+            mdl_pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
         }
         gemm_nn(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, p + nl->W1x, 0.0f, w->l_a1 + (size_t)r0 * H);
         for (int r = r0; r < r1; r++) {
             float *a = w->l_a1 + (size_t)r * H;
             for (int j = 0; j < H; j++) a[j] += w->slot_bias[j];
         }
-        mlp_tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
+        mdl_mlp_tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
                          w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3);
     }
 

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "model/step_internal.h"
+#include "sooc3d/model.h"
 
 #define MAPPER_TAU 0.7f   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
 
@@ -181,8 +182,9 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
     return s;
 }
 
-/* Internal accessors for infer / the field adapter. */
-sooc_model *mdl_mapper_model(sooc3d_mapper *mp);
-sooc_cogmap *mdl_mapper_map(sooc3d_mapper *mp);
-sooc_model *mdl_mapper_model(sooc3d_mapper *mp) { return mp->m; }
-sooc_cogmap *mdl_mapper_map(sooc3d_mapper *mp) { return mp->map; }
+sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp) { return mp->m; }
+const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp) { return mp->map; }
+sooc_status sooc3d_mapper_create_with_model(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed,
+                                            int threads) {
+    return mdl_mapper_create_from(out, m, iterations, seed, threads);
+}

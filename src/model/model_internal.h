@@ -143,6 +143,11 @@ void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s
 void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]);
 void mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
 
+void mdl_pe_row(const float *x, float inv, int nf, float *out);
+/* Layers 2.. of a decoder on R rows (serial), layer-1 pre-activation in a1. */
+void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+                          float *sig, float *col);
+
 /* refine.c */
 int mdl_aux_channels(int layout);
 /* Build the refinement inputs of every object slot (and the layout) after a
