@@ -462,7 +462,7 @@ void sooc_nn_tape_cut(sooc_nn_tape *t, int mark);
  *   1: src 0,  64->64 RELU                       4: src 2, 64->32 RELU
  *   2: src 1,  64->64 RELU                       5: src 4, 32->3 SIGMOID (colour) */
 #define SOOC_NN_MLP_MAX_LAYERS 12
-#define SOOC_NN_MLP_LANES 8     /* fixed gradient lanes: result independent of threads */
+#define SOOC_NN_MLP_LANES 16    /* fixed gradient lanes: result independent of threads */
 #define SOOC_NN_MLP_CHUNK 256   /* points per chunk */
 
 typedef struct sooc_nn_mlp_layer {

@@ -225,7 +225,7 @@ sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_b
     size_t lf = lane_floats(m, K);
     size_t acc0 = dw_off[0]; /* accumulators start here in each lane */
     sooc_nn_blas_single();
-#pragma omp parallel for schedule(static, 1)
+#pragma omp parallel for schedule(dynamic, 1) /* any thread may take any lane: same result */
     for (int lane = 0; lane < SOOC_NN_MLP_LANES; lane++) {
         float *S = scratch + (size_t)lane * lf;
         memset(S + acc0, 0, (lf - acc0) * sizeof(float));
