@@ -500,6 +500,18 @@ sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_b
                                  int64_t N, const float *slot_bias, int64_t pts_per_slot,
                                  float *scratch);
 
+/* The fused MLP as ONE tape node (so the decoder can live on the tape and
+ * take part in sooc_nn_tape_grad). Weights come from the tensors w[l] [c_out,
+ * c_in] and b[l] [c_out] (b or b[l] may be NULL); m->layer[l].w/b/dw/db are
+ * ignored. x [N, c_in]; slot_bias [K, layer0.c_out] or NULL (N = K *
+ * pts_per_slot). out[l] (may be NULL) receives each layer's [N, c_out] output
+ * tensor; seed/consume any of them. Saved activations and backward scratch
+ * come from the arena. */
+sooc_status sooc_nn_mlp_apply(sooc_nn_tape *t, const sooc_nn_mlp *m, sooc_nn_tensor *const *w,
+                              sooc_nn_tensor *const *b, sooc_nn_tensor *x,
+                              sooc_nn_tensor *slot_bias, int64_t pts_per_slot,
+                              sooc_nn_tensor **out);
+
 /* Set OpenBLAS threads and return the previous count. The nn kernels reset
  * it to 1 on their next call (they parallelise with OpenMP themselves); use
  * this only around your own large BLAS calls. */

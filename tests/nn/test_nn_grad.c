@@ -222,6 +222,64 @@ static sooc_nn_tensor *f_reshape(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
     return sooc_nn_unary(t, SOOC_NN_ACT_TANH, sooc_nn_reshape(t, x[0], 2, s));
 }
 
+/* fused MLP as a tape node: x[12,4] (3 slots x 4 points), sb[3,6],
+ * 0: 4->6 tanh (+slot bias), 1: 6->2 sigmoid, 2: 6->3 elu; loss on 1 and 2 */
+static sooc_nn_mlp g_small_mlp = {3, 4, {{-1, 4, 6, SOOC_NN_ACT_TANH, 0, 0, 0, 0},
+                                         {0, 6, 2, SOOC_NN_ACT_SIGMOID, 0, 0, 0, 0},
+                                         {0, 6, 3, SOOC_NN_ACT_ELU, 0, 0, 0, 0}}};
+static sooc_nn_tensor *f_mlp_apply(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
+    (void)c;
+    sooc_nn_tensor *w[3] = {x[2], x[4], x[6]}, *b[3] = {x[3], x[5], x[7]}, *out[3];
+    if (sooc_nn_mlp_apply(t, &g_small_mlp, w, b, x[0], x[1], 4, out)) return NULL;
+    sooc_nn_tensor *cat[2] = {out[1], out[2]};
+    return sooc_nn_concat(t, cat, 2, 1);
+}
+
+/* tape_grad over a fused-MLP node equals the plain backward */
+static void test_mlp_apply_segment(void) {
+    float xs[12 * 4], sb[18], w0[24], b0[6], w1[12], b1[2], w2[18], b2[3];
+    float *all[8] = {xs, sb, w0, b0, w1, b1, w2, b2};
+    int ns[8] = {48, 18, 24, 6, 12, 2, 18, 3};
+    int64_t sh[8][2] = {{12, 4}, {3, 6}, {6, 4}, {6, 1}, {2, 6}, {2, 1}, {3, 6}, {3, 1}};
+    for (int i = 0; i < 8; i++)
+        for (int e = 0; e < ns[i]; e++) all[i][e] = (float)sooc_rng_normal(&g_rng) * 0.7f;
+    float g[2][8][48], dxs[48], r[12 * 5];
+    for (int i = 0; i < 60; i++) r[i] = (float)sooc_rng_normal(&g_rng);
+    for (int pass = 0; pass < 2; pass++) {
+        memset(g[pass], 0, sizeof g[pass]);
+        sooc_nn_tape_reset(g_tape);
+        sooc_nn_arena_reset(&g_arena);
+        sooc_nn_tensor *ts[8];
+        for (int i = 0; i < 8; i++) {
+            ts[i] = sooc_nn_tensor_new(g_tape, all[i], (i & 1) && i > 1 ? 1 : 2, sh[i], 1);
+            if (i >= 2) { ts[i]->is_param = 1; ts[i]->grad = g[pass][i]; }
+        }
+        int mark = sooc_nn_tape_mark(g_tape);
+        sooc_nn_tensor *y = f_mlp_apply(g_tape, ts, NULL);
+        CHECK(y != NULL);
+        if (!y) return;
+        if (pass == 0) {
+            CHECK_OK(sooc_nn_tape_seed(g_tape, y, r, 1.f));
+            CHECK_OK(sooc_nn_tape_backward(g_tape));
+            memcpy(g[0][0], ts[0]->grad, sizeof(float) * 48);
+            memcpy(g[0][1], ts[1]->grad, sizeof(float) * 18);
+        } else {
+            sooc_nn_tensor *wrt[2] = {ts[0], ts[1]};
+            float *dw[2] = {dxs, g[1][1]};
+            CHECK_OK(sooc_nn_tape_grad(g_tape, mark, y, r, wrt, dw, 2, 1.f));
+            memcpy(g[1][0], dxs, sizeof dxs);
+            CHECK(ts[0]->grad == NULL); /* main gradient untouched */
+        }
+    }
+    double worst = 0;
+    for (int i = 0; i < 8; i++)
+        for (int e = 0; e < ns[i]; e++)
+            worst = fmax(worst, fabs(g[0][i][e] - g[1][i][e]) / (1e-6 + 1e-5 * fabs(g[0][i][e])));
+    printf("%-28s %s tape_grad vs backward worst err/tol %.3f\n", "mlp_apply segment grad",
+           worst <= 1 ? "ok  " : "FAIL", worst);
+    CHECK_MSG(worst <= 1, "mlp_apply segment gradient worst %.3g", worst);
+}
+
 #define IN(nd, a, b, c_, d, lo_, hi_) {nd, {a, b, c_, d}, lo_, hi_, 0, NULL, NULL, 0}
 
 static void test_stopgrad_zero(void) {
@@ -518,6 +576,14 @@ int main(void) {
         gc_input r[1] = {IN(3, 2, 3, 4, 0, -1, 1)};
         gradcheck("reshape", f_reshape, r, 1, NULL);
     }
+    {
+        gc_input in[8] = {IN(2, 12, 4, 0, 0, -1, 1), IN(2, 3, 6, 0, 0, -0.5f, 0.5f),
+                          IN(2, 6, 4, 0, 0, -0.6f, 0.6f), IN(1, 6, 0, 0, 0, -0.3f, 0.3f),
+                          IN(2, 2, 6, 0, 0, -0.6f, 0.6f), IN(1, 2, 0, 0, 0, -0.3f, 0.3f),
+                          IN(2, 3, 6, 0, 0, -0.6f, 0.6f), IN(1, 3, 0, 0, 0, -0.3f, 0.3f)};
+        gradcheck("mlp_apply (fused, tape)", f_mlp_apply, in, 8, NULL);
+    }
+    test_mlp_apply_segment();
     test_mlp_fused();
     test_sgemm_blocks();
     sooc_nn_tape_destroy(g_tape);
