@@ -445,7 +445,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         int r = w->rowof[(size_t)pt * C];
         if (r >= 0) w->lr_pt[r] = pt;
     }
-#pragma omp parallel num_threads(nt)
+MDL_OMP(omp parallel num_threads(nt) if (nro + nrl >= MDL_PAR_ROWS))
     {
         int r0, r1, tid = TID(), nth = NTH();
         chunk_of(nro, tid, nth, &r0, &r1);
@@ -478,7 +478,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     float scale = (float)(cfg->img_w * cfg->img_h) / (float)N;
     float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)), is2 = 1.0f / (sigc * sigc);
     double sum_d = 0, sum_c = 0;
-#pragma omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, sum_c)
+MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, sum_c) if (N >= 4 * MDL_PAR_ROWS))
     for (int rr = 0; rr < N; rr++) {
         for (int q = 0; q < 2; q++) {
             int pt = 2 * rr + q;
@@ -600,7 +600,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     int ntb = nt < w->nthr ? nt : w->nthr;
     size_t tstride = w->dec_np + (size_t)C * H + 3 * (size_t)K;
     float s_g = cfg->gauss_s;
-#pragma omp parallel num_threads(ntb)
+MDL_OMP(omp parallel num_threads(ntb) if (nro >= MDL_PAR_ROWS))
     {
         int r0, r1, tid = TID(), nth = NTH();
         float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
@@ -631,7 +631,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         gsig[r] = w->gsh[(size_t)pt * C];
         memcpy(gcol + (size_t)r * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
     }
-#pragma omp parallel num_threads(ntb)
+MDL_OMP(omp parallel num_threads(ntb) if (nrl >= MDL_PAR_ROWS))
     {
         int r0, r1, tid = TID(), nth = NTH();
         float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np;

@@ -6,6 +6,14 @@
 #include "sooc3d/geom.h"
 
 #define MDL_NL(d) (6 + 2 * (d))   /* λ size per slot */
+/* Parallel regions only pay off with enough rows: with fewer, thread start-up
+ * and barriers dominate (badly so on a loaded 2-core machine). */
+#define MDL_PAR_ROWS 1024
+#ifdef SOOC_HAVE_OPENMP
+#define MDL_OMP(x) _Pragma(#x)
+#else
+#define MDL_OMP(x)
+#endif
 #define MDL_MAXT 64               /* tensors */
 
 typedef struct dec_net {          /* offsets into the slab */

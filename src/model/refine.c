@@ -80,7 +80,7 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
     if (m->threads <= 0) nthr = omp_get_max_threads();
 #endif
     (void)nthr;
-#pragma omp parallel for num_threads(nthr) schedule(dynamic, 1)
+MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR_ROWS))
     for (int comp = 0; comp < C; comp++) {
         int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
         float *img = lay ? img_l : img_o;
