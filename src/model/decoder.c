@@ -219,14 +219,20 @@ static void gemm_tn_acc(int M, int N, int R, float alpha, const float *A, const 
 }
 
 void mdl_pe_row(const float *x, float inv, int nf, float *out) {
-    float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv};
+    float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv}, sn[3], cs[3];
     out[0] = v[0], out[1] = v[1], out[2] = v[2];
+    for (int a = 0; a < 3; a++) {
+        sn[a] = sinf(v[a]);
+        cs[a] = cosf(v[a]);
+    }
     int o = 3;
     for (int f = 0; f < nf; f++) {
-        float s = (float)(1 << f);
         for (int a = 0; a < 3; a++) {
-            out[o + a] = sinf(s * v[a]);
-            out[o + 3 + a] = cosf(s * v[a]);
+            out[o + a] = sn[a];
+            out[o + 3 + a] = cs[a];
+            /* double angle: sin 2x = 2 sin x cos x, cos 2x = cos^2 x - sin^2 x (rel. error ~1e-6 at 2^4) */
+            float s2 = 2.0f * sn[a] * cs[a], c2 = cs[a] * cs[a] - sn[a] * sn[a];
+            sn[a] = s2, cs[a] = c2;
         }
         o += 6;
     }
@@ -251,18 +257,13 @@ void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a
     int H = n->H, Hc = n->Hc;
     if (R <= 0) return;
     for (long i = 0; i < (long)R * H; i++) a1[i] = a1[i] > 0 ? a1[i] : 0;
-    gemm_nn(R, H, H, a1, p + n->W2, 0.0f, a2);
-    for (int r = 0; r < R; r++)
-        for (int j = 0; j < H; j++) {
-            float v = a2[(size_t)r * H + j] + p[n->b2 + j];
-            a2[(size_t)r * H + j] = v > 0 ? v : 0;
-        }
-    gemm_nn(R, H, H, a2, p + n->W3, 0.0f, a3);
-    for (int r = 0; r < R; r++)
-        for (int j = 0; j < H; j++) {
-            float v = a3[(size_t)r * H + j] + p[n->b3 + j];
-            a3[(size_t)r * H + j] = v > 0 ? v : 0;
-        }
+    /* biases are pre-filled and the GEMMs accumulate (beta = 1): no separate zero/bias passes */
+    for (int r = 0; r < R; r++) memcpy(a2 + (size_t)r * H, p + n->b2, H * sizeof(float));
+    gemm_nn(R, H, H, a1, p + n->W2, 1.0f, a2);
+    for (long i = 0; i < (long)R * H; i++) a2[i] = a2[i] > 0 ? a2[i] : 0;
+    for (int r = 0; r < R; r++) memcpy(a3 + (size_t)r * H, p + n->b3, H * sizeof(float));
+    gemm_nn(R, H, H, a2, p + n->W3, 1.0f, a3);
+    for (long i = 0; i < (long)R * H; i++) a3[i] = a3[i] > 0 ? a3[i] : 0;
     gemm_nn(R, 1, H, a3, p + n->Wd, 0.0f, sig);
     gemm_nn(R, Hc, H, a3, p + n->Wc1, 0.0f, ac);
     for (int r = 0; r < R; r++) {
@@ -450,12 +451,9 @@ MDL_OMP(omp parallel num_threads(nt) if (nro + nrl >= MDL_PAR_ROWS))
         int r0, r1, tid = TID(), nth = NTH();
         chunk_of(nro, tid, nth, &r0, &r1);
         for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
-        gemm_nn(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, p + no->W1x, 0.0f, w->o_a1 + (size_t)r0 * H);
-        for (int r = r0; r < r1; r++) {
-            const float *b = w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H;
-            float *a = w->o_a1 + (size_t)r * H;
-            for (int j = 0; j < H; j++) a[j] += b[j];
-        }
+        for (int r = r0; r < r1; r++)
+            memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
+        gemm_nn(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, p + no->W1x, 1.0f, w->o_a1 + (size_t)r0 * H);
         mdl_mlp_tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
                          w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3);
         chunk_of(nrl, tid, nth, &r0, &r1);
@@ -464,11 +462,8 @@ MDL_OMP(omp parallel num_threads(nt) if (nro + nrl >= MDL_PAR_ROWS))
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
             mdl_pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
         }
-        gemm_nn(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, p + nl->W1x, 0.0f, w->l_a1 + (size_t)r0 * H);
-        for (int r = r0; r < r1; r++) {
-            float *a = w->l_a1 + (size_t)r * H;
-            for (int j = 0; j < H; j++) a[j] += w->slot_bias[j];
-        }
+        for (int r = r0; r < r1; r++) memcpy(w->l_a1 + (size_t)r * H, w->slot_bias, H * sizeof(float));
+        gemm_nn(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, p + nl->W1x, 1.0f, w->l_a1 + (size_t)r0 * H);
         mdl_mlp_tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
                          w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3);
     }

@@ -51,10 +51,9 @@ static void field_eval(void *user, int worker, int comp, const float *pts, int n
                 mdl_pe_row(xl, 1.0f / c->block_size, net->nfreq, pe + (size_t)i * din);
             }
         }
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, nb, H, din, 1.0f, pe, din, m->p + net->W1x, H, 0.0f, a1,
+        for (int i = 0; i < nb; i++) memcpy(a1 + (size_t)i * H, fc->bias, H * sizeof(float));
+        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, nb, H, din, 1.0f, pe, din, m->p + net->W1x, H, 1.0f, a1,
                     H);
-        for (int i = 0; i < nb; i++)
-            for (int j = 0; j < H; j++) a1[(size_t)i * H + j] += fc->bias[j];
         mdl_mlp_tail_forward(m, net, nb, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
         for (int i = 0; i < nb; i++) sigma_hat[b0 + i] = in[i] ? sig[i] : 0.0f;
     }

@@ -215,18 +215,19 @@ void mdl_ref_act_free(ref_act *a) {
     }
 }
 
-static void im2col(const float *x, int Ci, int B, int Hi, int Wi, float *cols) {
-    int Ho = Hi / 2, Wo = Wi / 2, No = B * Ho * Wo;
+/* Columns of items [b0, b1) (No = (b1 - b0) Ho Wo columns). */
+static void im2col(const float *x, int Ci, int B, int b0, int b1, int Hi, int Wi, float *cols) {
+    int Ho = Hi / 2, Wo = Wi / 2, No = (b1 - b0) * Ho * Wo;
     for (int ci = 0; ci < Ci; ci++)
         for (int ky = 0; ky < 3; ky++)
             for (int kx = 0; kx < 3; kx++) {
                 float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
                 int wlast = 2 * (Wo - 1) + kx < Wi ? Wo : Wo - 1;   /* only kx = 2 reaches the pad column */
-                for (int b = 0; b < B; b++) {
+                for (int b = b0; b < b1; b++) {
                     const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
                     for (int oy = 0; oy < Ho; oy++) {
                         int iy = 2 * oy + ky;
-                        float *r = row + ((size_t)b * Ho + oy) * Wo;
+                        float *r = row + ((size_t)(b - b0) * Ho + oy) * Wo;
                         if (iy >= Hi) {
                             memset(r, 0, sizeof(float) * Wo);
                             continue;
@@ -267,15 +268,32 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
     float *cols = m->rws.cols;
     const float *x = a->x0;
     int Ci = n->cin, Hi = gh, Wi = gw;
+    int nt = 1;
+#ifdef SOOC_HAVE_OPENMP
+    nt = m->threads > 0 ? m->threads : omp_get_max_threads();
+#endif
+    if (nt > B) nt = B;
     for (int i = 0; i < 4; i++) {
-        int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, No = B * Ho * Wo;
-        im2col(x, Ci, B, Hi, Wi, cols);
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, Co, No, Ci * 9, 1.0f, p + n->cw[i], Ci * 9, cols, No,
-                    0.0f, a->y[i], No);
-        for (int co = 0; co < Co; co++) {
-            float bb = p[n->cb[i] + co];
-            float *y = a->y[i] + (size_t)co * No;
-            for (int j = 0; j < No; j++) y[j] = elu(y[j] + bb);
+        int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, No = B * HWo;
+        /* items split across threads: each fills its own column block of cols and of y */
+        MDL_OMP(omp parallel num_threads(nt) if (nt > 1 && (double)Co * Ci * 9 * No > 4e6))
+        {
+            int tid = 0, nth = 1;
+#ifdef SOOC_HAVE_OPENMP
+            tid = omp_get_thread_num(), nth = omp_get_num_threads();
+#endif
+            int b0 = B * tid / nth, b1 = B * (tid + 1) / nth, nb = b1 - b0;
+            if (nb > 0) {
+                float *ct = cols + (size_t)Ci * 9 * b0 * HWo;
+                im2col(x, Ci, B, b0, b1, Hi, Wi, ct);
+                cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, Co, nb * HWo, Ci * 9, 1.0f, p + n->cw[i],
+                            Ci * 9, ct, nb * HWo, 0.0f, a->y[i] + (size_t)b0 * HWo, No);
+                for (int co = 0; co < Co; co++) {
+                    float bb = p[n->cb[i] + co];
+                    float *y = a->y[i] + (size_t)co * No + (size_t)b0 * HWo;
+                    for (int j = 0; j < nb * HWo; j++) y[j] = elu(y[j] + bb);
+                }
+            }
         }
         x = a->y[i];
         Ci = Co, Hi = Ho, Wi = Wo;
@@ -385,7 +403,7 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
         const float *y = a->y[i];
         for (size_t j = 0; j < (size_t)Co * No; j++) gy[j] *= y[j] > 0 ? 1.0f : y[j] + 1.0f;
         const float *x = i ? a->y[i - 1] : a->x0;
-        im2col(x, Ci, B, Hs[i], Ws[i], s->cols);
+        im2col(x, Ci, B, 0, B, Hs[i], Ws[i], s->cols);
         cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Ci * 9, No, 1.0f, gy, No, s->cols, No, 1.0f,
                     g + n->cw[i], Ci * 9);
         for (int co = 0; co < Co; co++) {
