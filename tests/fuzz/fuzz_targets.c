@@ -7,7 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <unistd.h>
+
+#include <sqlite3.h>
 
 #include "sooc3d/calib.h"
 #include "sooc3d/cogmap.h"
@@ -212,7 +215,17 @@ static int fz_mapstore(const uint8_t *d, size_t n) {
             if (info.block_size > 0) cp.block_size = info.block_size;
             sooc_cogmap *map = NULL;
             if (sooc_cogmap_create(&map, &cp) == SOOC_OK) {
-                if (sooc_mapstore_load_map(s, map) == SOOC_OK) sooc_cogmap_foreach(map, visit, &acc);
+                if (sooc_mapstore_load_map(s, map) == SOOC_OK) {
+                    sooc_cogmap_foreach(map, visit, &acc);
+                    /* ids are never reused: a new entry must not replace a loaded one */
+                    sooc_cogmap_entry e;
+                    memset(&e, 0, sizeof e);
+                    e.dim = info.dim;
+                    e.obs_count = 1;
+                    size_t before = sooc_cogmap_count(map);
+                    if (sooc_cogmap_insert(map, &e, NULL) == SOOC_OK && sooc_cogmap_count(map) != before + 1)
+                        abort();
+                }
                 sooc_cogmap_destroy(map);
             }
         }
@@ -222,6 +235,92 @@ static int fz_mapstore(const uint8_t *d, size_t n) {
         sooc_cogmap_entry e;
         sooc_mapstore_get(s, 1, &e);
         sooc_mapstore_close(s);
+    }
+    tmp_remove(p);
+    return ok;
+}
+
+/* mapstore_sql: the input is SQL run against a valid map (2-d entries,
+ * 1-d layout, 3 entries, a layout block, a keyframe); then the map is opened
+ * and read as in fz_mapstore. Reaches the row/meta validation that random
+ * bytes of a SQLite file rarely do. ATTACH, VACUUM (INTO) and PRAGMA are
+ * refused so the SQL cannot touch other files. */
+static int deny_cb(void *u, int code, const char *a, const char *b, const char *c, const char *d) {
+    (void)u; (void)a; (void)b; (void)c; (void)d;
+    return code == SQLITE_ATTACH || code == SQLITE_DETACH || code == SQLITE_PRAGMA ? SQLITE_DENY : SQLITE_OK;
+}
+static int progress_cb(void *u) { return ++*(int *)u > 2000; }   /* stop runaway CTEs */
+
+static uint8_t *g_tmpl;
+static size_t g_tmpl_n;
+
+static void make_template(void) {
+    const char *p = tmp_file("tmpl.db", (const uint8_t *)"", 0);
+    tmp_remove(p);
+    sooc_cogmap_params cp;
+    sooc_cogmap_params_default(&cp);
+    cp.dim = 2;
+    cp.layout_dim = 1;
+    sooc_cogmap *map = NULL;
+    sooc_mapstore *s = NULL;
+    sooc_mapstore_params mp;
+    sooc_mapstore_params_default(&mp);
+    mp.dim = 2;
+    mp.layout_dim = 1;
+    mp.block_size = 4;
+    if (sooc_cogmap_create(&map, &cp) || sooc_mapstore_open(&s, p, &mp)) abort();
+    for (int i = 0; i < 3; i++) {
+        sooc_cogmap_entry e;
+        memset(&e, 0, sizeof e);
+        e.X = i; e.Z = -i; e.pres_logit = 1; e.dim = 2; e.what_mu[0] = 0.5f; e.obs_count = 1;
+        if (sooc_cogmap_insert(map, &e, NULL)) abort();
+    }
+    float mu = 0.25f, lv = -1;
+    sooc_mapstore_keyframe kf;
+    memset(&kf, 0, sizeof kf);
+    kf.T_wc[0] = kf.T_wc[5] = kf.T_wc[10] = kf.T_wc[15] = 1;
+    if (sooc_mapstore_save_map(s, map) || sooc_mapstore_begin(s) || sooc_mapstore_put_layout(s, 0, 0, &mu, &lv) ||
+        sooc_mapstore_add_keyframe(s, &kf, 3) || sooc_mapstore_commit(s))
+        abort();
+    sooc_mapstore_close(s);
+    sooc_cogmap_destroy(map);
+    void *buf;
+    if (sooc_file_read_all(p, (size_t)1 << 24, &buf, &g_tmpl_n)) abort();
+    g_tmpl = malloc(g_tmpl_n);
+    if (!g_tmpl) abort();
+    memcpy(g_tmpl, buf, g_tmpl_n);
+    sooc_free(buf);
+    tmp_remove(p);
+}
+
+static int fz_mapstore_sql(const uint8_t *d, size_t n) {
+    if (n > 4096) return 0;
+    if (!g_tmpl) make_template();
+    char *sql = malloc(n + 1);
+    if (!sql) abort();
+    memcpy(sql, d, n);
+    sql[n] = 0;
+    for (char *c = sql; *c; c++)   /* VACUUM INTO writes a file: refuse any vacuum */
+        if ((c[0] | 32) == 'v' && !strncasecmp(c, "vacuum", 6)) { free(sql); return 0; }
+    const char *p = tmp_file("sql.db", g_tmpl, g_tmpl_n);
+    sqlite3 *db = NULL;
+    int steps = 0;
+    if (sqlite3_open_v2(p, &db, SQLITE_OPEN_READWRITE, NULL) == SQLITE_OK) {
+        sqlite3_set_authorizer(db, deny_cb, NULL);
+        sqlite3_progress_handler(db, 100, progress_cb, &steps);
+        sqlite3_limit(db, SQLITE_LIMIT_LENGTH, 1 << 20);
+        sqlite3_exec(db, sql, NULL, NULL, NULL);
+    }
+    sqlite3_close(db);
+    free(sql);
+    /* the rest is fz_mapstore on the modified file */
+    void *buf;
+    size_t m;
+    int ok = 0;
+    if (sooc_file_read_all(p, (size_t)1 << 24, &buf, &m) == SOOC_OK) {
+        tmp_remove(p);
+        ok = fz_mapstore(buf, m);
+        sooc_free(buf);
     }
     tmp_remove(p);
     return ok;
@@ -314,6 +413,7 @@ const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"nn_ckpt", fz_nn_ckpt},
     {"model_ckpt", fz_model_ckpt},
     {"mapstore", fz_mapstore},
+    {"mapstore_sql", fz_mapstore_sql},
     {"pose_packet", fz_pose_packet},
     {"tum", fz_tum},
     {"png", fz_png},

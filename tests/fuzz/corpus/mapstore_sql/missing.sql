@@ -1,0 +1,1 @@
+DELETE FROM meta WHERE key='layout_dim'; UPDATE entries SET x=NULL WHERE id=2;
