@@ -1,11 +1,93 @@
-/* sooc3d train: placeholder until its module lands; it fails loudly rather than pretending. */
+/* sooc3d train: train a SOOC3D model on synthetic scenes. */
 #include "cli.h"
+#include "sooc3d/train.h"
 
+#include <signal.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static volatile int g_stop;
+static void on_signal(int sig) {
+    (void)sig;
+    g_stop = 1;
+}
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: sooc3d train --config F --data DIR [DIR...] --out DIR [--val DIR...] [--resume]\n"
+            "                    [--steps N] [--threads N] [--max-seconds S]\n\n"
+            "Train SOOC3D (ELBO + query objective) on scenes written by `sooc3d gen`.\n"
+            "  --config F       training YAML (training keys + a `model:` mapping); see models/*/config.yaml\n"
+            "  --data DIR...    scene folders (or folders of scene_* folders) to train on\n"
+            "  --val DIR...     held-out scenes for periodic validation (best.bin keeps the best mIoU)\n"
+            "  --out DIR        checkpoints (last.bin, best.bin), log.csv, val.csv, curves.png\n"
+            "  --resume         continue from DIR/last.bin with the same data order and RNG\n"
+            "  --steps N        override the config's total steps\n"
+            "  --threads N      decoder threads (default: all cores)\n"
+            "  --max-seconds S  checkpoint and stop after S seconds (for time-sliced runs)\n"
+            "Ctrl-C checkpoints and stops; --resume continues exactly.\n");
+}
+
+/* Validation: provided by the evaluation path (src/train/validate.c). */
+sooc_status sooc_train_validate(void *user, sooc_model *m, const sooc_dataset *val, double *miou,
+                                double *miou_input, double *l2);
 
 int sooc_cmd_train(int argc, char **argv) {
-    (void)argc;
-    (void)argv;
-    fprintf(stderr, "sooc3d train: not built yet in this version\n");
-    return 2;
+    if (sooc_cli_wants_help(argc, argv)) { usage(stdout); return 0; }
+    const char *config = NULL, *out = NULL;
+    const char *data[256], *val[256];
+    int n_data = 0, n_val = 0, resume = 0, threads = -1;
+    long long steps = 0;
+    double max_s = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--config") && i + 1 < argc) config = argv[++i];
+        else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
+        else if (!strcmp(a, "--resume")) resume = 1;
+        else if (!strcmp(a, "--steps") && i + 1 < argc) steps = atoll(argv[++i]);
+        else if (!strcmp(a, "--threads") && i + 1 < argc) threads = atoi(argv[++i]);
+        else if (!strcmp(a, "--max-seconds") && i + 1 < argc) max_s = atof(argv[++i]);
+        else if (!strcmp(a, "--data") || !strcmp(a, "--val")) {
+            int is_val = !strcmp(a, "--val");
+            while (i + 1 < argc && argv[i + 1][0] != '-') {
+                if (is_val ? n_val >= 256 : n_data >= 256) { fprintf(stderr, "too many folders\n"); return 2; }
+                if (is_val) val[n_val++] = argv[++i];
+                else data[n_data++] = argv[++i];
+            }
+        } else {
+            fprintf(stderr, "sooc3d train: unknown or incomplete option '%s'\n\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    if (!config || !out || n_data == 0) { usage(stderr); return 2; }
+    sooc_train_config cfg;
+    sooc_model_config mc;
+    sooc_train_config_default(&cfg);
+    sooc_model_config_default(&mc);
+    sooc_status s = sooc_train_config_load(config, &cfg, &mc);
+    if (s) return sooc_cli_fail("train", s);
+    if (steps > 0) cfg.steps = steps;
+    if (threads >= 0) cfg.threads = threads;
+    if (max_s > 0) cfg.val_max_seconds = (float)max_s;
+    sooc_dataset *train = NULL, *valset = NULL;
+    fprintf(stderr, "loading %d training folder(s)...\n", n_data);
+    s = sooc_dataset_open(&train, data, n_data, mc.img_w, mc.img_h);
+    if (s) return sooc_cli_fail("train", s);
+    if (n_val) {
+        s = sooc_dataset_open(&valset, val, n_val, mc.img_w, mc.img_h);
+        if (s) { sooc_dataset_destroy(train); return sooc_cli_fail("train", s); }
+    }
+    fprintf(stderr, "%d training scenes, %d validation scenes; %lld steps -> %s\n",
+            sooc_dataset_n_scenes(train), valset ? sooc_dataset_n_scenes(valset) : 0, (long long)cfg.steps, out);
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    sooc_train_run_params rp = {config, out, resume, train, valset,
+                                valset ? sooc_train_validate : NULL, &cfg, 1, &g_stop};
+    s = sooc_train_run(&cfg, &mc, &rp);
+    sooc_dataset_destroy(train);
+    sooc_dataset_destroy(valset);
+    if (s) return sooc_cli_fail("train", s);
+    return 0;
 }

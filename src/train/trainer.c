@@ -351,7 +351,7 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
         if (rp->progress) sooc_progress_update(&prog, (uint64_t)tr.st.step, extra);
         int stop = (rp->stop_flag && *rp->stop_flag) ||
                    (cfg->val_max_seconds > 0 && sooc_seconds() - t_start > cfg->val_max_seconds);
-        if (cfg->val_every > 0 && tr.st.step % cfg->val_every == 0) {
+        if (cfg->val_every > 0 && (tr.st.step % cfg->val_every == 0 || tr.st.step == cfg->steps)) {
             if ((s = run_validation(&tr, tr.st.step))) goto done;
         }
         if (tr.st.step % cfg->ckpt_every == 0 || tr.st.step == cfg->steps || stop) {
