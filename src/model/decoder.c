@@ -407,6 +407,8 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     }
 
     /* 2. rows */
+    float cth[SOOC_MODEL_K_MAX], sth[SOOC_MODEL_K_MAX];
+    for (int k = 0; k < K; k++) cth[k] = cosf(c->zw[k][2]), sth[k] = sinf(c->zw[k][2]);
     int nro = 0;
     for (int pt = 0; pt < P; pt++) {
         int used = (pt & 1) || vr->surf[pt >> 1];
@@ -415,7 +417,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         const float *x = vr->pts + (size_t)pt * 3;
         for (int k = 0; k < K; k++) {
             float xk[3];
-            mdl_pi(x, c->zw[k][0], c->zw[k][1], c->zw[k][2], vr->h, xk);
+            mdl_pi_cs(x, c->zw[k][0], c->zw[k][1], cth[k], sth[k], vr->h, xk);
             if (cfg->use_box && (fabsf(xk[0]) > cfg->box_rh || fabsf(xk[2]) > cfg->box_rh || xk[1] < 0 ||
                                  xk[1] > cfg->box_hb))
                 continue;

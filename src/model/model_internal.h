@@ -149,6 +149,13 @@ void mdl_rays_free(view_rays *vr);
 void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]);
 /* Π: G point -> object-local; and its backward to (px, pz, th). */
 void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]);
+/* Π with cos/sin of θ precomputed (hot loops). */
+static inline void mdl_pi_cs(const float x[3], float px, float pz, float c, float s, float h, float xk[3]) {
+    float vx = x[0] - px, vz = x[2] - pz;
+    xk[0] = c * vx - s * vz;
+    xk[1] = x[1] + h;
+    xk[2] = s * vx + c * vz;
+}
 void mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
 
 void mdl_pe_row(const float *x, float inv, int nf, float *out);

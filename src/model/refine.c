@@ -84,6 +84,7 @@ MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR
     for (int comp = 0; comp < C; comp++) {
         int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
         float *img = lay ? img_l : img_o;
+        float cth = lay ? 1.0f : cosf(c->zw[b][2]), sth = lay ? 0.0f : sinf(c->zw[b][2]);
 #define CH(ch) (img + ((size_t)(ch) * B + b) * N)
         int o = 0;
         for (int rr = 0; rr < N; rr++) {
@@ -100,8 +101,7 @@ MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR
                 if (lay) {
                     for (int a = 0; a < 3; a++) xk[a] = clampf((x[a] - vr->blk[a]) * inv_b, -3, 3);
                 } else {
-                    mdl_pi(x, c->zw[b][0], c->zw[b][1], c->zw[b][2], vr->h, xk);
-                    for (int a = 0; a < 3; a++) xk[a] = xk[a];
+                    mdl_pi_cs(x, c->zw[b][0], c->zw[b][1], cth, sth, vr->h, xk);
                 }
             }
             if (!lay) {
