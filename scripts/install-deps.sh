@@ -13,6 +13,7 @@ PKGS=(
   libcamera-dev
   libopenmpi-dev openmpi-bin
   python3 python3-numpy python3-torch
+  clang libclang-rt-14-dev
 )
 
 missing=()
