@@ -52,11 +52,23 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
     if (c->img_w % c->ray_w || c->img_h % c->ray_h)
         return sooc_seterr(SOOC_EINVAL, "model config: image %dx%d not divisible by ray grid %dx%d", c->img_w,
                            c->img_h, c->ray_w, c->ray_h);
-    if (c->dec_width < 4 || c->dec_color_width < 1 || c->n_freq < 0 || c->n_freq_layout < 0)
-        return sooc_seterr(SOOC_EINVAL, "model config: bad decoder sizes");
+    if (c->img_w > 4096 || c->img_h > 4096 || c->ray_w > 1024 || c->ray_h > 1024)
+        return sooc_seterr(SOOC_EINVAL, "model config: image %dx%d / ray grid %dx%d too large", c->img_w, c->img_h,
+                           c->ray_w, c->ray_h);
+    if (c->dec_width < 4 || c->dec_width > 1024 || c->dec_color_width < 1 || c->dec_color_width > 1024 ||
+        c->n_freq < 0 || c->n_freq > 16 || c->n_freq_layout < 0 || c->n_freq_layout > 16)
+        return sooc_seterr(SOOC_EINVAL, "model config: bad decoder sizes (width 4..1024, colour 1..1024, freq 0..16)");
     for (int i = 0; i < 4; i++)
-        if (c->ref_ch[i] < 1) return sooc_seterr(SOOC_EINVAL, "model config: ref_ch[%d] < 1", i);
-    if (c->ref_fc < 1 || c->ref_hidden < 1) return sooc_seterr(SOOC_EINVAL, "model config: bad refinement sizes");
+        if (c->ref_ch[i] < 1 || c->ref_ch[i] > 1024)
+            return sooc_seterr(SOOC_EINVAL, "model config: ref_ch[%d] = %d outside 1..1024", i, c->ref_ch[i]);
+    if (c->ref_fc < 1 || c->ref_fc > 4096 || c->ref_hidden < 1 || c->ref_hidden > 1024)
+        return sooc_seterr(SOOC_EINVAL, "model config: bad refinement sizes (fc 1..4096, hidden 1..1024)");
+    if (!isfinite(c->dens_bias_init) || !(c->eps_sigma_rel >= 0 && c->eps_sigma_rel < 1) || !(c->delta_s >= 0) ||
+        !(c->delta_s < 10) || !(c->t_near >= 0) || !(c->d_clip < 1e4) || !(c->sigma_max < 1e6) ||
+        !(c->prior_sigma_t > 0 && c->prior_sigma_t < 1e3) || !isfinite(c->prior_near) || !isfinite(c->prior_far) ||
+        !isfinite(c->prior_pres_logit) || !isfinite(c->rho_min) || !isfinite(c->rho_max) || !(c->block_size < 1e4) ||
+        (c->use_box != 0 && c->use_box != 1))
+        return sooc_seterr(SOOC_EINVAL, "model config: constant out of range or non-finite");
     if (!(c->sigma_max > 0) || !(c->sigma_c > 0) || !(c->air_cut > 0 && c->air_cut < 1) || !(c->d_clip > c->t_near) ||
         !(c->box_rh > 0) || !(c->box_hb > 0) || !(c->gauss_s > 0) || !(c->block_size > 0) ||
         !(c->rho_max > c->rho_min))
@@ -288,7 +300,7 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     uint64_t np, bs;
     sooc_model_config cfg;
     sooc_model *m = NULL;
-    if (n < 8 + 4 + 4 + 8 + 8 + 4 || memcmp(b, MDL_MAGIC, 8)) {
+    if (n < 8 + 4 + 4 + sizeof cfg + 8 + 8 + 4 || memcmp(b, MDL_MAGIC, 8)) {
         st = sooc_seterr(SOOC_EFORMAT, "%s: not a sooc3d model file (bad magic or too short)", path);
         goto done;
     }
@@ -312,7 +324,7 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
         sooc_adderr(st, "%s: config", path);
         goto done;
     }
-    if (np != m->np || o + np * 4 + 8 + 4 > n) {
+    if (np != m->np || np > (n - o) / 4 || o + np * 4 + 8 + 4 > n) {
         st = sooc_seterr(SOOC_EFORMAT, "%s: %llu parameters stored, config needs %zu", path, (unsigned long long)np,
                          m->np);
         goto done;
@@ -321,7 +333,7 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     o += np * 4;
     memcpy(&bs, b + o, 8);
     o += 8;
-    if (o + bs + 4 != n) {
+    if (bs > n || o + bs + 4 != n) {
         st = sooc_seterr(SOOC_EFORMAT, "%s: trainer blob size %llu inconsistent with file size", path,
                          (unsigned long long)bs);
         goto done;

@@ -4,6 +4,7 @@
  * and the render.h field adapter (a dense render from the map is finite and
  * culls: the field's box is honoured). */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -93,6 +94,22 @@ int main(void) {
         CHECK(sooc_model_load(&m2, bad, NULL, NULL) == SOOC_EFORMAT);
         remove(bad);
         sooc_free(buf);
+    }
+    /* fuzz reproducers (tests/fuzz/crashes/model_ckpt): every one must fail cleanly */
+    {
+        static const char *fz[] = {"int_overflow_model_c114.ckpt", "int_overflow_model_c83.ckpt",
+                                   "oom_unbounded_config_model_c198.ckpt", "overread_config_model_c307.ckpt",
+                                   "overread_np_model_c309.ckpt"};
+        const char *src = getenv("SOOC_SRC") ? getenv("SOOC_SRC") : ".";
+        for (size_t i = 0; i < sizeof fz / sizeof fz[0]; i++) {
+            char fp[512];
+            snprintf(fp, sizeof fp, "%s/tests/fuzz/crashes/model_ckpt/%s", src, fz[i]);
+            if (!sooc_file_exists(fp)) continue;
+            sooc_model *mz = NULL;
+            sooc_status sz = sooc_model_load(&mz, fp, NULL, NULL);
+            CHECK_MSG(sz != SOOC_OK && mz == NULL, "%s loaded", fz[i]);
+            printf("fuzz %s -> %s: %s\n", fz[i], sooc_status_str(sz), sooc_errmsg());
+        }
     }
     /* mapper: deterministic for a seed, registration and retrieval */
     static sooc_map_entry e1[256], e2[256], e3[256];
