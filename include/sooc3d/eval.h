@@ -27,6 +27,7 @@
 #include "sooc3d/image.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/metrics.h"
+#include "sooc3d/model.h"
 #include "sooc3d/render.h"
 
 #ifdef __cplusplus
@@ -137,6 +138,126 @@ sooc_status sooc_eval_topdown_sequence(const char *dir, const sooc_topdown_step 
  * row number) is x; every other numeric column becomes one line plot (log
  * scale when all values are positive and span > 100x). Writes one PNG grid. */
 sooc_status sooc_eval_plot_csv(const char *csv_path, const char *png_path, const char *title);
+
+
+/* ------------------------------------------------- the scene runner (run.c)
+ *
+ * The ONE evaluation path of sooc3d (issue 4 part 8, issue 5): `sooc3d eval`,
+ * `sooc3d render` and the trainer's validation all go through it.
+ *
+ * sooc_eval_run_scene(m, frames, ...): online inference over the scene's
+ * input views in trajectory order with a fresh mapper (an empty cognitive
+ * map), then every view is rendered with the dense renderer and scored
+ * (sooc_eval_view):
+ *   - query views always from the FINAL map;
+ *   - input views from the final map (SOOC_EVAL_FINAL), right after their own
+ *     update (SOOC_EVAL_ONLINE, MulMON's protocol), or both (model.md §6.14).
+ * L2: the components matched to GT objects by that view's best-match mIoU
+ * (IoU >= 0.05) take the world floor position (X, Z) of their map entry
+ * (sooc_model_field_comp_id -> sooc_cogmap_get), compared with the GT
+ * object's floor position (sooc_metric_view).
+ *
+ * Model ownership: the runner never modifies `m`. It makes a private copy
+ * (same config, parameters memcpy'd) that its mapper owns and frees, so `m`
+ * can be shared by successive calls (and, read-only, by other threads).
+ *
+ * Determinism: the result depends only on (m, frames, gt, opts) and the
+ * thread count of the model (opts->threads; the renderer itself is
+ * thread-count independent): the mapper's posterior sampling is seeded with
+ * opts->seed, rendering uses deterministic midpoints, and the uncertainty
+ * samples use RNG streams derived from (seed, frame index, sample).
+ */
+typedef enum sooc_eval_timing {
+    SOOC_EVAL_FINAL = 1,       /* input views rendered from the final map              */
+    SOOC_EVAL_ONLINE = 2,      /* input views rendered right after their own update    */
+    SOOC_EVAL_BOTH = 3         /* both (input views are scored twice)                  */
+} sooc_eval_timing;
+/* "final", "online", "both" -> timing; -1 if unknown. */
+int sooc_eval_timing_parse(const char *s);
+const char *sooc_eval_timing_name(sooc_eval_timing t);
+/* One sentence for a table note, e.g. "input views rendered from the final
+ * map (after all input views); query views always from the final map". */
+const char *sooc_eval_timing_note(sooc_eval_timing t);
+
+typedef struct sooc_eval_run_opts {
+    uint64_t seed;             /* mapper posterior sampling seed                        (1) */
+    int iterations;            /* L refinement updates per input view; 0 = model's L    (0) */
+    sooc_eval_timing timing;   /* input-view timing                                 (FINAL) */
+    int n_coarse, n_fine;      /* render samples per ray                           (96, 32) */
+    int max_views;             /* > 0: map only the first max_views input views and score
+                                  them plus the query views whose nearest input camera is
+                                  one of them; 0 = all views                             (0) */
+    int max_obj;               /* components per rendered view (top by presence of the
+                                  in-view entries); 0 = the model's K                    (0) */
+    int threads;               /* model and renderer threads; 0 = OpenMP default        (0) */
+    /* extras, only for the views flagged in detail_views (NULL = every view): */
+    int components;            /* 1 = per-component images in the render (panels)       (0) */
+    int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */
+    const uint8_t *detail_views;  /* n_frames flags, or NULL                          (NULL) */
+} sooc_eval_run_opts;
+void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
+
+/* Reported once per rendered and scored view. Pointers are valid during the
+ * callback only. */
+typedef struct sooc_eval_view_info {
+    int frame;                 /* index into frames[]                                   */
+    const sooc_frame *gt;
+    int online;                /* 1 = an input view rendered right after its own update */
+    int n_mapped;              /* input views mapped when it was rendered               */
+    const sooc_render_out *render;   /* rgb, depth, alpha, label (+ comp_*, uncert)      */
+    const sooc_view_metrics *metrics;
+    const sooc_iou_match *match;     /* NULL when the frame has no instance ids          */
+    int n_comp;                /* components rendered (0 = layout)                      */
+    const uint64_t *comp_ids;  /* map entry id per component (0 for the layout)          */
+    const double *comp_xz;     /* world (X, Z) per component (NaN for the layout)        */
+} sooc_eval_view_info;
+typedef sooc_status (*sooc_eval_view_fn)(void *user, const sooc_eval_view_info *v);
+
+/* Reported after each input view's update: the map at that moment (for the
+ * top-down figure). */
+typedef struct sooc_eval_step_info {
+    int step;                  /* 0.. input views mapped so far - 1                     */
+    int frame;                 /* index into frames[]                                   */
+    const sooc_frame *gt;
+    const sooc3d_update_stats *stats;
+    const sooc_map_entry *entries;   /* the whole map after the update, by id             */
+    size_t n_entries;
+} sooc_eval_step_info;
+typedef sooc_status (*sooc_eval_step_fn)(void *user, const sooc_eval_step_info *s);
+
+/* Summed per-view metrics of one scene (sooc_metric_sums: means = sum/count). */
+typedef struct sooc_eval_scene_result {
+    sooc_metric_sums input_final;    /* input views from the final map (FINAL, BOTH)     */
+    sooc_metric_sums input_online;   /* input views right after their update (ONLINE, BOTH) */
+    sooc_metric_sums query;          /* query views, from the final map                   */
+    int n_mapped, n_query;           /* input views mapped, query views scored            */
+    size_t n_entries;                /* map entries at the end                            */
+    double update_s, render_s;       /* time in mapper updates and in render + scoring    */
+} sooc_eval_scene_result;
+
+/* Run one scene (see above). frames[0..n_frames): trajectory order, input
+ * and query views (is_query) in any interleaving, all with poses, of the
+ * model's resolution (img_w x img_h); frames without instance ids get no
+ * mIoU/L2. gt: the scene's GT objects (may be NULL / 0). view_cb / step_cb /
+ * res may be NULL. A callback's non-OK status stops the run and is returned. */
+sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_frames,
+                                const sooc_gt_object *gt, int n_gt, const sooc_eval_run_opts *o,
+                                sooc_eval_view_fn view_cb, sooc_eval_step_fn step_cb, void *user,
+                                sooc_eval_scene_result *res);
+
+/* Render and score one view from a given map (what the runner does per view;
+ * `sooc3d render --map` uses it with a map loaded from SQLite). `detail` asks
+ * for the extras of o (components, uncertainty); uncertainty sample s uses an
+ * RNG seeded from (o->seed, s, gt->index). Fills out (reallocated as
+ * needed), vm, match (may be NULL), and if non-NULL comp_ids / comp_xz
+ * (room for SOOC_RENDER_MAX_COMP / 2 x that) and *n_comp. */
+sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc_frame *gt,
+                               const sooc_gt_object *gt_obj, int n_gt, const sooc_eval_run_opts *o,
+                               int detail, sooc_render_out *out, sooc_view_metrics *vm,
+                               sooc_iou_match *match, uint64_t *comp_ids, double *comp_xz, int *n_comp);
+
+/* A private copy of a model (same config and parameters; the caller owns it). */
+sooc_status sooc_eval_model_copy(sooc_model *m, sooc_model **out);
 
 #ifdef __cplusplus
 }

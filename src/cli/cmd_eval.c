@@ -1,11 +1,305 @@
-/* sooc3d eval: placeholder until its module lands; it fails loudly rather than pretending. */
+/* sooc3d eval: the paper's Table 1 (and the supplementary table) for one or
+ * more models on `sooc3d gen` datasets, through the one evaluation path
+ * (sooc_eval_run_scene), averaged over runs with different seeds. */
 #include "cli.h"
+#include "sooc3d/eval.h"
+#include "sooc3d/model.h"
+#include "sooc3d/scene.h"
+#include "sooc3d/train.h"
 
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAX_MODELS 16
+#define MAX_DIRS 64
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: sooc3d eval --model M [--model M2 ...] [--name N ...] --data DIR [DIR...] --json OUT\n"
+            "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
+            "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
+            "                   [--max-views N] [--max-obj K] [--quiet]\n\n"
+            "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
+            "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
+            "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
+            "and scored (model.md §5, docs/metrics.md). Prints the paper's Table 1 (rows model x {I, Q};\n"
+            "columns mIoU, RGB RMSE, depth RMSE, L2 per scale) and the supplementary table (Hungarian\n"
+            "mIoU, matched fraction, recall by distance); writes them as JSON (--json) and Markdown (--md).\n\n"
+            "  --model         model checkpoint; repeat for several models (rows of the table)\n"
+            "  --name          row name of the i-th model (default: its folder name, or file stem)\n"
+            "  --data          dataset directories (several may follow one --data)\n"
+            "  --runs          R runs with seeds S, S+1, ...; cells give mean +- std over runs (1)\n"
+            "  --seed          first posterior-sampling seed (1)\n"
+            "  --input-timing  input views rendered from the final map (final, default), right after\n"
+            "                  their own update (online, MulMON protocol), or both (extra rows\n"
+            "                  '<name> online'); query views always from the final map\n"
+            "  --scenes        at most N scenes per DIR (default all)\n"
+            "  --samples       coarse,fine samples per ray (96,32)\n"
+            "  --threads       model/renderer threads (0 = OpenMP default)\n"
+            "  --iterations    refinement updates per input view (default: the model's L)\n"
+            "  --max-views     map only the first N input views of a scene (and score the query\n"
+            "                  views near them); 0 = all (default)\n"
+            "  --max-obj       components rendered per view (default: the model's K)\n"
+            "  --quiet         no progress line\n");
+}
+
+static void model_name(const char *path, char *out, size_t cap) {
+    const char *b = strrchr(path, '/');
+    b = b ? b + 1 : path;
+    size_t n = strlen(b);
+    const char *dot = strrchr(b, '.');
+    if (!strcmp(b, "model.bin") || !strcmp(b, "best.bin") || !strcmp(b, "last.bin")) {
+        /* models/<name>/model.bin -> <name> (best.bin / last.bin keep a suffix) */
+        if (b > path + 1) {
+            const char *e = b - 1, *s = e;
+            while (s > path && s[-1] != '/') s--;
+            if (!strcmp(b, "model.bin"))
+                snprintf(out, cap, "%.*s", (int)(e - s), s);
+            else
+                snprintf(out, cap, "%.*s/%.*s", (int)(e - s), s, (int)(n - 4), b);
+            if (*out) return;
+        }
+    }
+    snprintf(out, cap, "%.*s", (int)(dot ? (size_t)(dot - b) : n), b);
+}
+
+typedef struct prog_ctx {
+    sooc_progress pr;
+    uint64_t done, total;
+    int quiet;
+    char extra[160];
+    double t0;
+} prog_ctx;
+
+static sooc_status on_view(void *user, const sooc_eval_view_info *v) {
+    (void)v;
+    prog_ctx *p = user;
+    p->done++;
+    if (!p->quiet) sooc_progress_update(&p->pr, p->done < p->total ? p->done : p->total, p->extra);
+    return SOOC_OK;
+}
+
+static int parse_samples(const char *s, int *c, int *f) {
+    char *e;
+    long a = strtol(s, &e, 10), b = 0;
+    if (e == s || a < 2) return 0;
+    if (*e == ',') {
+        const char *s2 = e + 1;
+        b = strtol(s2, &e, 10);
+        if (e == s2 || b < 0) return 0;
+    }
+    if (*e) return 0;
+    *c = (int)a;
+    *f = (int)b;
+    return 1;
+}
 
 int sooc_cmd_eval(int argc, char **argv) {
-    (void)argc;
-    (void)argv;
-    fprintf(stderr, "sooc3d eval: not built yet in this version\n");
-    return 2;
+    if (sooc_cli_wants_help(argc, argv)) {
+        usage(stdout);
+        return 0;
+    }
+    const char *models[MAX_MODELS], *names[MAX_MODELS], *dirs[MAX_DIRS];
+    int n_models = 0, n_names = 0, n_dirs = 0;
+    const char *json = NULL, *md = NULL;
+    int runs = 1, max_scenes = -1, quiet = 0, timing = SOOC_EVAL_FINAL;
+    uint64_t seed = 1;
+    sooc_eval_run_opts ro;
+    sooc_eval_run_opts_default(&ro);
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        int has = i + 1 < argc;
+        if (!strcmp(a, "--model") && has) {
+            if (n_models == MAX_MODELS) { fprintf(stderr, "sooc3d eval: at most %d models\n", MAX_MODELS); return 2; }
+            models[n_models++] = argv[++i];
+        } else if (!strcmp(a, "--name") && has) {
+            if (n_names == MAX_MODELS) { fprintf(stderr, "sooc3d eval: at most %d names\n", MAX_MODELS); return 2; }
+            names[n_names++] = argv[++i];
+        } else if (!strcmp(a, "--data") && has) {
+            while (i + 1 < argc && strncmp(argv[i + 1], "--", 2)) {
+                if (n_dirs == MAX_DIRS) { fprintf(stderr, "sooc3d eval: at most %d data dirs\n", MAX_DIRS); return 2; }
+                dirs[n_dirs++] = argv[++i];
+            }
+        } else if (!strcmp(a, "--json") && has) json = argv[++i];
+        else if (!strcmp(a, "--md") && has) md = argv[++i];
+        else if (!strcmp(a, "--runs") && has) runs = atoi(argv[++i]);
+        else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(a, "--input-timing") && has) {
+            timing = sooc_eval_timing_parse(argv[++i]);
+            if (timing < 0) { fprintf(stderr, "sooc3d eval: --input-timing must be final, online or both\n"); return 2; }
+        } else if (!strcmp(a, "--scenes") && has) max_scenes = atoi(argv[++i]);
+        else if (!strcmp(a, "--samples") && has) {
+            if (!parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
+                fprintf(stderr, "sooc3d eval: --samples wants C[,F] with C >= 2, F >= 0\n");
+                return 2;
+            }
+        } else if (!strcmp(a, "--threads") && has) ro.threads = atoi(argv[++i]);
+        else if (!strcmp(a, "--iterations") && has) ro.iterations = atoi(argv[++i]);
+        else if (!strcmp(a, "--max-views") && has) ro.max_views = atoi(argv[++i]);
+        else if (!strcmp(a, "--max-obj") && has) ro.max_obj = atoi(argv[++i]);
+        else if (!strcmp(a, "--quiet")) quiet = 1;
+        else {
+            fprintf(stderr, "sooc3d eval: unknown or incomplete option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    if (!n_models || !n_dirs || !json || runs < 1 || (n_names && n_names != n_models)) {
+        if (n_names && n_names != n_models) fprintf(stderr, "sooc3d eval: give one --name per --model\n");
+        usage(stderr);
+        return 2;
+    }
+    ro.timing = (sooc_eval_timing)timing;
+
+    sooc_status st = SOOC_OK;
+    sooc_model *mdl[MAX_MODELS] = {0};
+    char mname[MAX_MODELS][128], oname[MAX_MODELS][160];
+    sooc_dataset *ds[MAX_DIRS] = {0};
+    int *scale_of[MAX_DIRS] = {0};
+    int n_sc[MAX_DIRS] = {0};
+    sooc_eval_table *tab = NULL;
+    sooc_frame *fr = NULL;
+    sooc_gt_object *gt = NULL;
+    int fr_cap = 0, gt_cap = 0;
+    char *text = NULL;
+    int W = 0, H = 0;
+    for (int i = 0; i < n_models; i++) {
+        if ((st = sooc_model_load(&mdl[i], models[i], NULL, NULL))) goto fail;
+        const sooc_model_config *c = sooc_model_get_config(mdl[i]);
+        if (i == 0) W = c->img_w, H = c->img_h;
+        else if (c->img_w != W || c->img_h != H) {
+            st = sooc_seterr(SOOC_EINVAL, "%s: model resolution %dx%d differs from %s (%dx%d)", models[i], c->img_w,
+                             c->img_h, models[0], W, H);
+            goto fail;
+        }
+        if (n_names) snprintf(mname[i], sizeof mname[i], "%s", names[i]);
+        else model_name(models[i], mname[i], sizeof mname[i]);
+        snprintf(oname[i], sizeof oname[i], "%.127s online", mname[i]);
+        for (int j = 0; j < i; j++)
+            if (!strcmp(mname[i], mname[j])) {
+                st = sooc_seterr(SOOC_EINVAL, "two models are named '%s': use --name", mname[i]);
+                goto fail;
+            }
+    }
+    /* datasets and the scale of every scene */
+    uint64_t total = 0;
+    int total_scenes = 0;
+    for (int d = 0; d < n_dirs; d++) {
+        if ((st = sooc_dataset_open(&ds[d], &dirs[d], 1, W, H))) goto fail;
+        n_sc[d] = sooc_dataset_n_scenes(ds[d]);
+        if (max_scenes >= 0 && max_scenes < n_sc[d]) n_sc[d] = max_scenes;
+        scale_of[d] = calloc(n_sc[d] ? (size_t)n_sc[d] : 1, sizeof(int));
+        if (!scale_of[d]) { st = SOOC_ENOMEM; goto fail; }
+        for (int s = 0; s < n_sc[d]; s++) {
+            char path[1024];
+            sooc_scene sc;
+            sooc_scene_init(&sc);
+            if ((st = sooc_path_join(path, sizeof path, sooc_dataset_scene_path(ds[d], s), "scene.yaml"))) goto fail;
+            if ((st = sooc_scene_load(path, &sc))) goto fail;
+            char scs[sizeof sc.scale + 1];
+            snprintf(scs, sizeof scs, "%s", sc.scale);
+            scale_of[d][s] = sooc_scale_parse(scs);
+            sooc_scene_free(&sc);
+            if (scale_of[d][s] < 0) {
+                st = sooc_seterr(SOOC_EFORMAT, "%s: unknown scale '%s' (s, m, l, xl)", path, scs);
+                goto fail;
+            }
+            int nv = sooc_dataset_n_views(ds[d], s), ni = sooc_dataset_n_inputs(ds[d], s);
+            if (ro.max_views > 0 && ni > ro.max_views) nv -= ni - ro.max_views, ni = ro.max_views;
+            total += (uint64_t)(nv + (timing == SOOC_EVAL_BOTH ? ni : 0)) * (uint64_t)n_models * (uint64_t)runs;
+            total_scenes++;
+        }
+    }
+    if ((st = sooc_eval_table_create(&tab))) goto fail;
+    {
+        char note[1024];
+        snprintf(note, sizeof note,
+                 "%s Mean +- std over %d run%s (seeds %llu..%llu), %d scene%s; %d+%d samples per ray; "
+                 "RGB RMSE sums the channels (MulMON); L2 in metres for query views.",
+                 sooc_eval_timing_note(ro.timing), runs, runs > 1 ? "s" : "", (unsigned long long)seed,
+                 (unsigned long long)(seed + (uint64_t)runs - 1), total_scenes, total_scenes == 1 ? "" : "s",
+                 ro.n_coarse, ro.n_fine);
+        if ((st = sooc_eval_table_set_note(tab, note))) goto fail;
+    }
+    prog_ctx pc;
+    memset(&pc, 0, sizeof pc);
+    pc.total = total;
+    pc.quiet = quiet;
+    pc.t0 = sooc_seconds();
+    if (!quiet) sooc_progress_begin(&pc.pr, "eval", total);
+    double upd_s = 0, ren_s = 0;
+    long n_upd = 0;
+    for (int d = 0; d < n_dirs; d++) {
+        for (int s = 0; s < n_sc[d]; s++) {
+            int nv = sooc_dataset_n_views(ds[d], s), no = sooc_dataset_n_objects(ds[d], s);
+            if (nv > fr_cap) {
+                free(fr);
+                fr_cap = nv;
+                if (!(fr = malloc((size_t)nv * sizeof *fr))) { st = SOOC_ENOMEM; goto fail; }
+            }
+            if (no > gt_cap) {
+                free(gt);
+                gt_cap = no;
+                if (!(gt = malloc((size_t)no * sizeof *gt))) { st = SOOC_ENOMEM; goto fail; }
+            }
+            for (int v = 0; v < nv; v++) fr[v] = *sooc_dataset_view(ds[d], s, v);
+            for (int i = 0; i < no; i++) sooc_dataset_object(ds[d], s, i, &gt[i].id, &gt[i].x, &gt[i].z);
+            int scale = scale_of[d][s];
+            for (int mi = 0; mi < n_models; mi++) {
+                for (int r = 0; r < runs; r++) {
+                    snprintf(pc.extra, sizeof pc.extra, "%s  %s scene %d/%d  run %d/%d", mname[mi],
+                             sooc_scale_name(scale), s + 1, n_sc[d], r + 1, runs);
+                    ro.seed = seed + (uint64_t)r;
+                    sooc_eval_scene_result res;
+                    st = sooc_eval_run_scene(mdl[mi], fr, nv, gt, no, &ro, on_view, NULL, &pc, &res);
+                    if (st) {
+                        sooc_adderr(st, "%s", sooc_dataset_scene_path(ds[d], s));
+                        goto fail;
+                    }
+                    upd_s += res.update_s;
+                    ren_s += res.render_s;
+                    n_upd += res.n_mapped;
+                    if (ro.timing & SOOC_EVAL_FINAL) {
+                        if ((st = sooc_eval_table_add_sums(tab, mname[mi], scale, r, 0, &res.input_final))) goto fail;
+                        if ((st = sooc_eval_table_add_sums(tab, mname[mi], scale, r, 1, &res.query))) goto fail;
+                    }
+                    if (ro.timing & SOOC_EVAL_ONLINE) {
+                        const char *nm = ro.timing == SOOC_EVAL_BOTH ? oname[mi] : mname[mi];
+                        if ((st = sooc_eval_table_add_sums(tab, nm, scale, r, 0, &res.input_online))) goto fail;
+                        if ((st = sooc_eval_table_add_sums(tab, nm, scale, r, 1, &res.query))) goto fail;
+                    }
+                }
+            }
+        }
+    }
+    double el = sooc_seconds() - pc.t0;
+    if (!quiet) {
+        char extra[128];
+        snprintf(extra, sizeof extra, "%.1f s", el);
+        sooc_progress_end(&pc.pr, extra);
+    }
+    if ((st = sooc_eval_table_text(tab, &text))) goto fail;
+    printf("%s", text);
+    printf("\neval: %d scene%s x %d model%s x %d run%s, %llu views in %.1f s (%.2f views/s); "
+           "mapper %.1f ms/update, rendering + scoring %.1f s\n",
+           total_scenes, total_scenes == 1 ? "" : "s", n_models, n_models == 1 ? "" : "s", runs, runs == 1 ? "" : "s",
+           (unsigned long long)pc.done, el, el > 0 ? (double)pc.done / el : 0.0, n_upd ? 1e3 * upd_s / (double)n_upd : 0.0,
+           ren_s);
+    if ((st = sooc_eval_table_write(tab, json, md))) goto fail;
+    printf("eval: wrote %s%s%s\n", json, md ? " and " : "", md ? md : "");
+    sooc_free(text);
+    text = NULL;
+fail:
+    sooc_free(text);
+    free(fr);
+    free(gt);
+    sooc_eval_table_destroy(tab);
+    for (int d = 0; d < n_dirs; d++) {
+        sooc_dataset_destroy(ds[d]);
+        free(scale_of[d]);
+    }
+    for (int i = 0; i < n_models; i++) sooc_model_destroy(mdl[i]);
+    return st ? sooc_cli_fail("eval", st) : 0;
 }

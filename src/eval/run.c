@@ -1,0 +1,298 @@
+/* The scene runner: the one evaluation path (eval.h "the scene runner").
+ * Online inference over a scene's input views with a fresh mapper, then
+ * render + score every view from the map (query views from the final map,
+ * input views from the final map and/or right after their own update). */
+#include "sooc3d/cogmap.h"
+#include "sooc3d/eval.h"
+
+#include <math.h>
+#include <string.h>
+
+int sooc_eval_timing_parse(const char *s) {
+    if (!s) return -1;
+    if (!strcmp(s, "final")) return SOOC_EVAL_FINAL;
+    if (!strcmp(s, "online")) return SOOC_EVAL_ONLINE;
+    if (!strcmp(s, "both")) return SOOC_EVAL_BOTH;
+    return -1;
+}
+
+const char *sooc_eval_timing_name(sooc_eval_timing t) {
+    switch (t) {
+    case SOOC_EVAL_FINAL: return "final";
+    case SOOC_EVAL_ONLINE: return "online";
+    case SOOC_EVAL_BOTH: return "both";
+    }
+    return "?";
+}
+
+const char *sooc_eval_timing_note(sooc_eval_timing t) {
+    switch (t) {
+    case SOOC_EVAL_FINAL:
+        return "Input views (I) are rendered from the final map, after all input views were mapped; "
+               "query views (Q) always from the final map.";
+    case SOOC_EVAL_ONLINE:
+        return "Input views (I) are rendered right after their own update (MulMON protocol); "
+               "query views (Q) always from the final map.";
+    case SOOC_EVAL_BOTH:
+        return "Input views (I) are rendered from the final map (rows without a suffix) and right after "
+               "their own update (rows marked 'online', MulMON protocol); query views (Q) always from the "
+               "final map.";
+    }
+    return "";
+}
+
+void sooc_eval_run_opts_default(sooc_eval_run_opts *o) {
+    memset(o, 0, sizeof *o);
+    o->seed = 1;
+    o->timing = SOOC_EVAL_FINAL;
+    o->n_coarse = 96;
+    o->n_fine = 32;
+}
+
+sooc_status sooc_eval_model_copy(sooc_model *m, sooc_model **out) {
+    *out = NULL;
+    sooc_model *c = NULL;
+    sooc_status st = sooc_model_create(&c, sooc_model_get_config(m), 0);
+    if (st) return sooc_adderr(st, "eval: model copy");
+    size_t n = sooc_model_param_count(m);
+    if (n != sooc_model_param_count(c)) {
+        sooc_model_destroy(c);
+        return sooc_seterr(SOOC_EINVAL, "eval: model copy has %zu parameters, source %zu",
+                           sooc_model_param_count(c), n);
+    }
+    memcpy(sooc_model_params(c), sooc_model_params(m), n * sizeof(float));
+    *out = c;
+    return SOOC_OK;
+}
+
+/* ---------------------------------------------------- one view from a map */
+
+typedef struct unc_sampler {
+    sooc_model *m;
+    const sooc_cogmap *map;
+    const sooc_frame *gt;
+    const sooc_intrinsics *K;
+    int max_obj;
+    uint64_t seed;
+    sooc_model_field *cur;
+} unc_sampler;
+
+static sooc_status unc_get(void *user, int s, sooc_field *f) {
+    unc_sampler *u = user;
+    sooc_rng rng;
+    sooc_rng_seed(&rng, u->seed + 0x9e3779b97f4a7c15ULL * (uint64_t)(s + 1), 0x756e63ULL ^ (uint64_t)u->gt->index);
+    sooc_model_field_destroy(u->cur);
+    u->cur = NULL;
+    sooc_status st = sooc_model_field_create(&u->cur, u->m, u->map, u->gt->T_wc, u->K, u->max_obj, &rng);
+    if (st) return st;
+    *f = *sooc_model_field_get(u->cur);
+    return SOOC_OK;
+}
+
+static void unc_release(void *user, int s, sooc_field *f) {
+    (void)s;
+    (void)f;
+    unc_sampler *u = user;
+    sooc_model_field_destroy(u->cur);
+    u->cur = NULL;
+}
+
+sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc_frame *gt,
+                               const sooc_gt_object *gt_obj, int n_gt, const sooc_eval_run_opts *o,
+                               int detail, sooc_render_out *out, sooc_view_metrics *vm,
+                               sooc_iou_match *match, uint64_t *comp_ids, double *comp_xz, int *n_comp) {
+    sooc_eval_run_opts od;
+    if (!o) {
+        sooc_eval_run_opts_default(&od);
+        o = &od;
+    }
+    if (!m || !map || !gt || !out || !vm) return sooc_seterr(SOOC_EINVAL, "eval_map_view: missing argument");
+    if (!gt->has_pose)
+        return sooc_seterr(SOOC_EINVAL, "eval: frame %lld has no pose", (long long)gt->index);
+    const sooc_model_config *c = sooc_model_get_config(m);
+    int max_obj = o->max_obj > 0 ? o->max_obj : c->K;
+    if (max_obj > SOOC_RENDER_MAX_COMP - 1) max_obj = SOOC_RENDER_MAX_COMP - 1;
+    sooc_intrinsics K = gt->K;
+    K.width = gt->width;
+    K.height = gt->height;
+    sooc_render_opts ro;
+    sooc_render_opts_default(&ro);
+    ro.n_coarse = o->n_coarse > 0 ? o->n_coarse : 96;
+    ro.n_fine = o->n_fine >= 0 ? o->n_fine : 0;
+    ro.t_near = c->t_near;
+    ro.d_clip = c->d_clip;
+    ro.threads = o->threads;
+    ro.components = detail && o->components;
+    sooc_model_field *fld = NULL;
+    sooc_status st = sooc_model_field_create(&fld, m, map, gt->T_wc, &K, max_obj, NULL);
+    if (st) return sooc_adderr(st, "eval: frame %lld", (long long)gt->index);
+    const sooc_field *field = sooc_model_field_get(fld);
+    double T_fc[16], xz[2 * SOOC_RENDER_MAX_COMP];
+    sooc_model_field_T_fc(fld, T_fc);
+    int nc = field->n_comp;
+    for (int k = 0; k < nc; k++) {
+        sooc_cogmap_entry e;
+        uint64_t id = sooc_model_field_comp_id(fld, k);
+        if (comp_ids) comp_ids[k] = id;
+        if (id && sooc_cogmap_get(map, id, &e) == SOOC_OK) {
+            xz[2 * k] = e.X;
+            xz[2 * k + 1] = e.Z;
+        } else {
+            sooc_clearerr();
+            xz[2 * k] = xz[2 * k + 1] = NAN;
+        }
+    }
+    if (comp_xz) memcpy(comp_xz, xz, sizeof(double) * 2 * (size_t)nc);
+    if (n_comp) *n_comp = nc;
+    st = sooc_eval_view(field, T_fc, gt, &ro, xz, gt_obj, n_gt, out, vm, match);
+    sooc_model_field_destroy(fld);
+    if (!st && detail && o->uncertainty >= 2) {
+        unc_sampler u = {m, map, gt, &K, max_obj, o->seed, NULL};
+        sooc_field_sampler smp = {unc_get, unc_release, &u};
+        ro.components = 0;
+        st = sooc_render_uncertainty(&smp, o->uncertainty, &K, T_fc, &ro, out);
+        sooc_model_field_destroy(u.cur);
+        if (st) sooc_adderr(st, "eval: uncertainty of frame %lld", (long long)gt->index);
+    }
+    return st;
+}
+
+/* ------------------------------------------------------------- the runner */
+
+static double dist2_cam(const sooc_frame *a, const sooc_frame *b) {
+    double dx = a->T_wc[3] - b->T_wc[3], dy = a->T_wc[7] - b->T_wc[7], dz = a->T_wc[11] - b->T_wc[11];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+typedef struct run_ctx {
+    sooc_model *model;
+    const sooc_cogmap *map;
+    const sooc_frame *frames;
+    const sooc_gt_object *gt;
+    int n_gt;
+    const sooc_eval_run_opts *o;
+    sooc_eval_view_fn view_cb;
+    void *user;
+    sooc_render_out rout;
+    sooc_eval_scene_result *res;
+} run_ctx;
+
+static sooc_status score_view(run_ctx *C, int i, int online, int n_mapped, sooc_metric_sums *sums) {
+    const sooc_frame *f = &C->frames[i];
+    int detail = !C->o->detail_views || C->o->detail_views[i];
+    sooc_view_metrics vm;
+    sooc_iou_match match;
+    uint64_t ids[SOOC_RENDER_MAX_COMP];
+    double xz[2 * SOOC_RENDER_MAX_COMP];
+    int nc = 0;
+    double t0 = sooc_seconds();
+    sooc_status st = sooc_eval_map_view(C->model, C->map, f, C->gt, C->n_gt, C->o, detail, &C->rout, &vm, &match,
+                                        ids, xz, &nc);
+    C->res->render_s += sooc_seconds() - t0;
+    if (st) return st;
+    sooc_metric_sums_add_view(sums, &vm);
+    if (!C->view_cb) return SOOC_OK;
+    sooc_eval_view_info vi = {i, f, online, n_mapped, &C->rout, &vm, f->instance ? &match : NULL, nc, ids, xz};
+    return C->view_cb(C->user, &vi);
+}
+
+sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_frames,
+                                const sooc_gt_object *gt, int n_gt, const sooc_eval_run_opts *o,
+                                sooc_eval_view_fn view_cb, sooc_eval_step_fn step_cb, void *user,
+                                sooc_eval_scene_result *res) {
+    sooc_eval_run_opts od;
+    if (!o) {
+        sooc_eval_run_opts_default(&od);
+        o = &od;
+    }
+    sooc_eval_scene_result res_local;
+    if (!res) res = &res_local;
+    memset(res, 0, sizeof *res);
+    if (!m || (!frames && n_frames) || n_frames < 0 || n_gt < 0 || (n_gt && !gt))
+        return sooc_seterr(SOOC_EINVAL, "eval_run_scene: bad arguments");
+    if (o->timing < SOOC_EVAL_FINAL || o->timing > SOOC_EVAL_BOTH)
+        return sooc_seterr(SOOC_EINVAL, "eval_run_scene: bad input-view timing %d", (int)o->timing);
+    if (o->uncertainty == 1) return sooc_seterr(SOOC_EINVAL, "eval_run_scene: uncertainty needs >= 2 samples");
+    for (int i = 0; i < n_frames; i++)
+        if (!frames[i].has_pose)
+            return sooc_seterr(SOOC_EINVAL, "eval: frame %d (index %lld) has no pose", i, (long long)frames[i].index);
+
+    /* which views take part */
+    uint8_t *use = sooc_calloc(n_frames ? (size_t)n_frames : 1, 1);
+    if (!use) return SOOC_ENOMEM;
+    int n_in = 0;
+    for (int i = 0; i < n_frames; i++)
+        if (!frames[i].is_query) use[i] = (o->max_views <= 0 || n_in++ < o->max_views);
+    for (int i = 0; i < n_frames; i++) {
+        if (!frames[i].is_query) continue;
+        if (o->max_views <= 0) {
+            use[i] = 1;
+            continue;
+        }
+        int best = -1;
+        double bd = INFINITY;
+        for (int j = 0; j < n_frames; j++)
+            if (!frames[j].is_query && dist2_cam(&frames[i], &frames[j]) < bd) bd = dist2_cam(&frames[i], &frames[j]), best = j;
+        use[i] = best >= 0 && use[best];
+    }
+
+    sooc_model *copy = NULL;
+    sooc3d_mapper *mp = NULL;
+    sooc_map_entry *ent = NULL;
+    size_t ent_cap = 0;
+    run_ctx C;
+    memset(&C, 0, sizeof C);
+    sooc_status st = sooc_eval_model_copy(m, &copy);
+    if (st) goto done;
+    if ((st = sooc3d_mapper_create_with_model(&mp, copy, o->iterations, o->seed, o->threads))) {
+        sooc_model_destroy(copy);
+        goto done;
+    }
+    C.model = sooc3d_mapper_model(mp);
+    C.map = sooc3d_mapper_cogmap(mp);
+    C.frames = frames, C.gt = gt, C.n_gt = n_gt, C.o = o, C.view_cb = view_cb, C.user = user, C.res = res;
+
+    /* online inference over the input views */
+    for (int i = 0; i < n_frames && !st; i++) {
+        if (!use[i] || frames[i].is_query) continue;
+        sooc3d_update_stats us;
+        double t0 = sooc_seconds();
+        if ((st = sooc3d_mapper_update(mp, &frames[i], &us))) break;
+        res->update_s += sooc_seconds() - t0;
+        res->n_mapped++;
+        if (step_cb) {
+            size_t n = 0;
+            sooc3d_mapper_entries(mp, NULL, 0, &n);
+            if (n > ent_cap) {
+                sooc_free(ent);
+                ent_cap = n + n / 2 + 16;
+                ent = sooc_malloc(ent_cap * sizeof *ent);
+                if (!ent) {
+                    st = SOOC_ENOMEM;
+                    break;
+                }
+            }
+            if ((st = sooc3d_mapper_entries(mp, ent, ent_cap, &n))) break;
+            sooc_eval_step_info si = {res->n_mapped - 1, i, &frames[i], &us, ent, n};
+            if ((st = step_cb(user, &si))) break;
+        }
+        if (o->timing & SOOC_EVAL_ONLINE) st = score_view(&C, i, 1, res->n_mapped, &res->input_online);
+    }
+    /* everything else from the final map */
+    for (int i = 0; i < n_frames && !st; i++) {
+        if (!use[i]) continue;
+        if (frames[i].is_query) {
+            st = score_view(&C, i, 0, res->n_mapped, &res->query);
+            res->n_query++;
+        } else if (o->timing & SOOC_EVAL_FINAL) {
+            st = score_view(&C, i, 0, res->n_mapped, &res->input_final);
+        }
+    }
+    if (!st) res->n_entries = sooc_cogmap_count(C.map);
+done:
+    sooc_render_out_free(&C.rout);
+    sooc_free(ent);
+    sooc3d_mapper_destroy(mp);
+    sooc_free(use);
+    return st;
+}
