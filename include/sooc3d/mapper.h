@@ -78,6 +78,32 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *m, sooc_map_entry *out, s
  * ids continue after the largest one. */
 sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e, size_t n);
 
+/* What the last sooc3d_mapper_update changed, so a publisher's cost does not
+ * depend on the map size: the entries it registered (new or overwritten),
+ * ordered by id, and the ids it removed. At most SOOC_MAPPER_CHANGED_MAX of
+ * each (the model's K). out / removed_ids may be NULL (counts only). EINVAL if
+ * a non-NULL array is too small (*n / *n_removed still give the counts). Empty
+ * after create, after load_entries and after an update that failed early. */
+#define SOOC_MAPPER_CHANGED_MAX 16
+sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
+                                  uint64_t *removed_ids, size_t cap_r, size_t *n_removed);
+
+/* Layout latents (one per floor block, d_l floats of mean and log-variance).
+ * layout_dim is 0 for a mapper without layout latents. last_layout: the block
+ * the last update wrote (SOOC_ENOTFOUND if none). load_layout: restore a
+ * stored block (resume). */
+int sooc3d_mapper_layout_dim(const sooc3d_mapper *m);
+/* z^what dimension of the entries (sooc_map_entry.latent_dim). */
+int sooc3d_mapper_latent_dim(const sooc3d_mapper *m);
+sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar);
+sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
+                                      const float *logvar);
+
+/* Id counter: new entries get ids >= next_id. reserve_ids raises it (resume:
+ * ids of entries removed before the restart are not handed out again). */
+void sooc3d_mapper_reserve_ids(sooc3d_mapper *m, uint64_t next_id);
+uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *m);
+
 #ifdef __cplusplus
 }
 #endif

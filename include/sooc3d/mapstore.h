@@ -129,6 +129,16 @@ sooc_status sooc_mapstore_set_next_id(sooc_mapstore *s, uint64_t next_id);
 sooc_status sooc_mapstore_foreach(sooc_mapstore *s, sooc_cogmap_visit_fn fn, void *user);
 sooc_status sooc_mapstore_query_box(sooc_mapstore *s, double x0, double z0, double x1, double z1,
                                     sooc_cogmap_visit_fn fn, void *user);
+/* Visit every stored layout block, ordered by (bi, bj) (nothing if the map
+ * has no layout latents). A non-zero return from fn stops the walk. */
+sooc_status sooc_mapstore_foreach_layout(sooc_mapstore *s, sooc_cogmap_block_fn fn, void *user);
+
+/* Application meta values (e.g. the node's box extent "0.6 1.2 0.6"). The
+ * schema's own keys (app, schema_version, model_id, dim, layout_dim,
+ * block_size, next_id) are refused. get: SOOC_ENOTFOUND if absent. */
+sooc_status sooc_mapstore_meta_set(sooc_mapstore *s, const char *key, const char *value);
+sooc_status sooc_mapstore_meta_get(sooc_mapstore *s, const char *key, char *buf, size_t cap);
+
 /* Fetch one entry by id (SOOC_ENOTFOUND if absent). */
 sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *out);
 

@@ -261,8 +261,10 @@ typedef struct sooc_node_stats {
     uint64_t published, removed; /* table rows upserted / flagged removed */
     uint64_t n_objects;          /* entries in the map after the last keyframe */
     uint64_t resumed;            /* entries loaded from the database at start */
+    uint64_t resumed_blocks;     /* layout blocks loaded from the database at start */
     double update_p50_ms, update_p99_ms;     /* sooc3d_mapper_update */
     double c2t_p50_ms, c2t_p99_ms;           /* capture (ring push) -> table end_batch */
+    double publish_p50_ms, publish_p99_ms;   /* publisher: table batch + SQLite transaction */
     double elapsed_s;
     int floor_estimated;
     double T_world_src[16];

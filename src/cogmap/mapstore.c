@@ -638,6 +638,63 @@ static int load_cb(void *u, const sooc_cogmap_entry *e) {
     return 0;
 }
 
+/* ------------------------------------------------- layout / meta (node) */
+
+typedef struct load_block_ctx {
+    sooc_cogmap *map;
+    sooc_status st;
+} load_block_ctx;
+
+static int load_block_cb(void *user, int32_t bi, int32_t bj, const float *mu, const float *logvar) {
+    load_block_ctx *c = user;
+    c->st = sooc_cogmap_layout_set(c->map, bi, bj, mu, logvar);
+    return c->st != SOOC_OK;
+}
+
+sooc_status sooc_mapstore_foreach_layout(sooc_mapstore *s, sooc_cogmap_block_fn fn, void *user) {
+    if (!s->layout_dim) return SOOC_OK;
+    sqlite3_stmt *q = NULL;
+    sooc_status st = SOOC_OK;
+    int rc = sqlite3_prepare_v2(s->db, "SELECT bi, bj, dim, latent_version, mu, logvar FROM layout ORDER BY bi, bj",
+                                -1, &q, NULL);
+    if (rc != SQLITE_OK) return dberr(s, rc, "reading layout");
+    size_t nb = (size_t)s->layout_dim * sizeof(float);
+    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+        int bi = sqlite3_column_int(q, 0), bj = sqlite3_column_int(q, 1);
+        if (sqlite3_column_int(q, 2) != s->layout_dim || sqlite3_column_int(q, 3) != SOOC_MAPSTORE_LATENT_VERSION ||
+            (size_t)sqlite3_column_bytes(q, 4) != nb || (size_t)sqlite3_column_bytes(q, 5) != nb) {
+            st = sooc_seterr(SOOC_EFORMAT, "%s: layout block (%d, %d) has a bad latent", s->path, bi, bj);
+            break;
+        }
+        float mu[SOOC_COGMAP_DIM_MAX], lv[SOOC_COGMAP_DIM_MAX];
+        memcpy(mu, sqlite3_column_blob(q, 4), nb);
+        memcpy(lv, sqlite3_column_blob(q, 5), nb);
+        if (fn(user, bi, bj, mu, lv)) {   /* stopped by the callback */
+            rc = SQLITE_DONE;
+            break;
+        }
+    }
+    if (!st && rc != SQLITE_DONE) st = dberr(s, rc, "reading layout");
+    sqlite3_finalize(q);
+    return st;
+}
+
+sooc_status sooc_mapstore_meta_set(sooc_mapstore *s, const char *key, const char *value) {
+    static const char *reserved[] = {"app", "schema_version", "model_id", "dim", "layout_dim", "block_size", "next_id"};
+    for (size_t i = 0; i < sizeof reserved / sizeof *reserved; i++)
+        if (!strcmp(key, reserved[i]))
+            return sooc_seterr(SOOC_EINVAL, "%s: meta key '%s' is reserved", s->path, key);
+    return meta_put(s, key, value);
+}
+
+sooc_status sooc_mapstore_meta_get(sooc_mapstore *s, const char *key, char *buf, size_t cap) {
+    sooc_status err = SOOC_OK;
+    int r = meta_get(s, key, buf, cap, &err);
+    if (r < 0) return err;
+    if (!r) return SOOC_ENOTFOUND;
+    return SOOC_OK;
+}
+
 sooc_status sooc_mapstore_load_map(sooc_mapstore *s, sooc_cogmap *map) {
     sooc_status st = check_map(s, map);
     if (st) return st;
@@ -648,25 +705,8 @@ sooc_status sooc_mapstore_load_map(sooc_mapstore *s, sooc_cogmap *map) {
         goto done;
     }
     if (s->layout_dim) {
-        sqlite3_stmt *q = NULL;
-        int rc = sqlite3_prepare_v2(s->db, "SELECT bi, bj, dim, latent_version, mu, logvar FROM layout", -1, &q, NULL);
-        if (rc != SQLITE_OK) { st = dberr(s, rc, "reading layout"); goto done; }
-        size_t nb = (size_t)s->layout_dim * sizeof(float);
-        while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
-            int bi = sqlite3_column_int(q, 0), bj = sqlite3_column_int(q, 1);
-            if (sqlite3_column_int(q, 2) != s->layout_dim || sqlite3_column_int(q, 3) != SOOC_MAPSTORE_LATENT_VERSION ||
-                (size_t)sqlite3_column_bytes(q, 4) != nb || (size_t)sqlite3_column_bytes(q, 5) != nb) {
-                st = sooc_seterr(SOOC_EFORMAT, "%s: layout block (%d, %d) has a bad latent", s->path, bi, bj);
-                break;
-            }
-            float mu[SOOC_COGMAP_DIM_MAX], lv[SOOC_COGMAP_DIM_MAX];
-            memcpy(mu, sqlite3_column_blob(q, 4), nb);
-            memcpy(lv, sqlite3_column_blob(q, 5), nb);
-            if ((st = sooc_cogmap_layout_set(map, bi, bj, mu, lv))) break;
-        }
-        if (!st && rc != SQLITE_DONE) st = dberr(s, rc, "reading layout");
-        sqlite3_finalize(q);
-        if (st) goto done;
+        load_block_ctx bc = {map, SOOC_OK};
+        if ((st = sooc_mapstore_foreach_layout(s, load_block_cb, &bc)) || (st = bc.st)) goto done;
     }
     uint64_t next = 0;
     if ((st = meta_get_u64(s, "next_id", &next))) goto done;

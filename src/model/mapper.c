@@ -17,6 +17,10 @@ struct sooc3d_mapper {
     view_rec V;
     int L, view_idx;
     sooc_rng rng;
+    /* what the last update changed (sooc3d_mapper_changed / _last_layout) */
+    uint64_t chg_ids[SOOC_MODEL_K_MAX], rem_ids[SOOC_MODEL_K_MAX];
+    int n_chg, n_rem, has_block;
+    int32_t bi, bj;
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -83,6 +87,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     sooc3d_update_stats st0;
     sooc3d_update_stats *st = stp ? stp : &st0;
     memset(st, 0, sizeof *st);
+    mp->n_chg = mp->n_rem = mp->has_block = 0;
     sooc_model *m = mp->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld has no pose", (long long)f->index);
@@ -106,9 +111,23 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     const float *layL = V->lay + (size_t)mp->L * D2;
     sooc_cogmap_reg_stats rs;
     uint64_t ids[SOOC_MODEL_K_MAX];
-    if ((s = sooc_cogmap_register(mp->map, &V->gf, c->K, lamL, V->src_id, f->t_ns, mp->view_idx, ids, NULL, &rs)))
+    if ((s = sooc_cogmap_register(mp->map, &V->gf, c->K, lamL, V->src_id, f->t_ns, mp->view_idx, ids, mp->rem_ids,
+                                  &rs)))
         return s;
+    mp->n_rem = rs.n_removed;
+    for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 16) */
+        if (ids[i]) {
+            int j = mp->n_chg++;
+            while (j > 0 && mp->chg_ids[j - 1] > ids[i]) {
+                mp->chg_ids[j] = mp->chg_ids[j - 1];
+                j--;
+            }
+            mp->chg_ids[j] = ids[i];
+        }
     if ((s = sooc_cogmap_layout_set(mp->map, V->bi, V->bj, layL, layL + c->d_layout))) return s;
+    mp->has_block = 1;
+    mp->bi = V->bi;
+    mp->bj = V->bj;
     mp->view_idx++;
     st->n_retrieved = V->n_ret;
     st->n_registered = rs.n_registered;
@@ -179,8 +198,46 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
     }
     if (!s) s = sooc_cogmap_load(mp->map, tmp, n);
     sooc_free(tmp);
+    mp->n_chg = mp->n_rem = mp->has_block = 0;
     return s;
 }
+
+sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n,
+                                  uint64_t *removed_ids, size_t cap_r, size_t *n_removed) {
+    size_t nc = (size_t)mp->n_chg, nr = (size_t)mp->n_rem;
+    if (n) *n = nc;
+    if (n_removed) *n_removed = nr;
+    if ((out && nc > cap) || (removed_ids && nr > cap_r))
+        return sooc_seterr(SOOC_EINVAL, "mapper changed: %zu changed / %zu removed do not fit in %zu / %zu", nc, nr,
+                           cap, cap_r);
+    const sooc_model_config *c = sooc_model_get_config(mp->m);
+    for (size_t i = 0; out && i < nc; i++) {
+        sooc_cogmap_entry e;
+        sooc_status s = sooc_cogmap_get(mp->map, mp->chg_ids[i], &e);
+        if (s) return sooc_adderr(s, "mapper changed: entry %llu", (unsigned long long)mp->chg_ids[i]);
+        to_map_entry(c, &e, &out[i]);
+    }
+    if (removed_ids) memcpy(removed_ids, mp->rem_ids, nr * sizeof *removed_ids);
+    return SOOC_OK;
+}
+
+int sooc3d_mapper_layout_dim(const sooc3d_mapper *mp) { return sooc_model_get_config(mp->m)->d_layout; }
+int sooc3d_mapper_latent_dim(const sooc3d_mapper *mp) { return sooc_model_get_config(mp->m)->d_what; }
+
+sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *mp, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
+    if (!mp->has_block) return SOOC_ENOTFOUND;
+    *bi = mp->bi;
+    *bj = mp->bj;
+    return sooc_cogmap_layout_get(mp->map, mp->bi, mp->bj, mu, logvar);
+}
+
+sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj, const float *mu,
+                                      const float *logvar) {
+    return sooc_cogmap_layout_set(mp->map, bi, bj, mu, logvar);
+}
+
+void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) { sooc_cogmap_reserve_ids(mp->map, next_id); }
+uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *mp) { return sooc_cogmap_next_id(mp->map); }
 
 sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp) { return mp->m; }
 const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp) { return mp->map; }

@@ -69,19 +69,22 @@ struct sooc_node {
 #endif
 #if SOOC_NODE_HAVE_MAPSTORE
     sooc_mapstore *store;
-    int store_dim;
+    int store_layout_dim;          /* 0: this database keeps no layout latents */
+    int extent_stored;             /* meta "extent" written / read */
 #endif
+    float extent[3];               /* box extent from the database (resume of a mapper without one) */
     int db_exists;
     uint64_t model_id;
 
-    sooc_map_entry *prev, *cur, *changed;
-    size_t n_prev, cap_prev, cap_cur, cap_changed;
-    uint64_t *removed;
-    size_t cap_removed;
+    sooc_map_entry *prev;          /* start-up only: the map republished at create */
+    size_t n_prev, cap_prev;
+    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc3d_mapper_changed */
+    uint64_t removed[SOOC_MAPPER_CHANGED_MAX];
+    uint64_t kf_seq;               /* keyframe rows written */
 
     pthread_mutex_t mu;            /* guards st, lat_* */
     sooc_node_stats st;
-    sooc_latency lat_upd, lat_c2t;
+    sooc_latency lat_upd, lat_c2t, lat_pub;
     double t_start, t_last_stats;
 
     sooc_frame work, pre;
@@ -106,6 +109,8 @@ static void stats_refresh(sooc_node *n) {
     n->st.update_p99_ms = sooc_latency_pct(&n->lat_upd, 0.99);
     n->st.c2t_p50_ms = sooc_latency_pct(&n->lat_c2t, 0.5);
     n->st.c2t_p99_ms = sooc_latency_pct(&n->lat_c2t, 0.99);
+    n->st.publish_p50_ms = sooc_latency_pct(&n->lat_pub, 0.5);
+    n->st.publish_p99_ms = sooc_latency_pct(&n->lat_pub, 0.99);
     if (n->ring) {
         uint64_t pushed, dropped;
         sooc_frame_ring_counts(n->ring, &pushed, &dropped, NULL);
@@ -118,12 +123,13 @@ static void stats_refresh(sooc_node *n) {
 size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap) {
     int w = snprintf(buf, cap,
                      "frames %llu dropped %llu no_pose %llu keyframes %llu (%.2f/s) objects %llu "
-                     "update p50 %.1f ms p99 %.1f ms capture->table p50 %.1f ms p99 %.1f ms",
+                     "update p50 %.1f ms p99 %.1f ms capture->table p50 %.1f ms p99 %.1f ms "
+                     "publish p50 %.2f ms p99 %.2f ms",
                      (unsigned long long)s->frames_in, (unsigned long long)s->frames_dropped,
                      (unsigned long long)s->frames_no_pose, (unsigned long long)s->keyframes,
                      s->elapsed_s > 0 ? (double)s->keyframes / s->elapsed_s : 0.0,
                      (unsigned long long)s->n_objects, s->update_p50_ms, s->update_p99_ms, s->c2t_p50_ms,
-                     s->c2t_p99_ms);
+                     s->c2t_p99_ms, s->publish_p50_ms, s->publish_p99_ms);
     return w > 0 ? (size_t)w : 0;
 }
 
@@ -267,6 +273,12 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
 #endif
 
 #if SOOC_NODE_HAVE_MAPSTORE
+typedef struct load_ctx_l {
+    sooc_node *n;
+    sooc_status st;
+    size_t count;
+} load_ctx_l;
+
 static void to_cog(const sooc_map_entry *e, sooc_cogmap_entry *c) {
     memset(c, 0, sizeof *c);
     c->id = e->id;
@@ -302,6 +314,13 @@ static void from_cog(const sooc_cogmap_entry *c, sooc_map_entry *e) {
     e->obs_count = c->obs_count;
 }
 
+static int load_block(void *user, int32_t bi, int32_t bj, const float *mu, const float *logvar) {
+    load_ctx_l *L = user;
+    L->st = sooc3d_mapper_load_layout(L->n->mapper, bi, bj, mu, logvar);
+    if (!L->st) L->count++;
+    return L->st != SOOC_OK;
+}
+
 typedef struct load_ctx {
     sooc_node *n;
     sooc_status st;
@@ -311,52 +330,71 @@ static int load_visit(void *user, const sooc_cogmap_entry *c) {
     load_ctx *L = user;
     sooc_node *n = L->n;
     if ((L->st = grow((void **)&n->prev, &n->cap_prev, n->n_prev + 1, sizeof *n->prev))) return 1;
-    from_cog(c, &n->prev[n->n_prev++]);
+    from_cog(c, &n->prev[n->n_prev]);
+    memcpy(n->prev[n->n_prev].extent, n->extent, sizeof n->extent);
+    n->n_prev++;
     return 0;
 }
 
-static sooc_status store_open(sooc_node *n, int dim, int create) {
+/* Open the database: an existing one with its own dims (checked against the
+ * mapper's), or a new one with the mapper's latent and layout dims. */
+static sooc_status store_open(sooc_node *n, int create) {
     sooc_mapstore_params mp;
     sooc_mapstore_params_default(&mp);
     mp.create = create;
-    mp.dim = dim;
-    mp.layout_dim = 0;
+    mp.dim = create ? sooc3d_mapper_latent_dim(n->mapper) : 0;
+    mp.layout_dim = create ? sooc3d_mapper_layout_dim(n->mapper) : 0;
     mp.model_id = NULL;
+    if (create && mp.dim <= 0)
+        return sooc_seterr(SOOC_EINVAL, "%s: map.db: the mapper reports latent dim %d", n->cfg.path, mp.dim);
     sooc_status st = sooc_mapstore_open(&n->store, n->cfg.map_db, &mp);
     if (st) return sooc_adderr(st, "%s: map.db", n->cfg.path);
     sooc_mapstore_info info;
-    if (!sooc_mapstore_info_get(n->store, &info)) n->store_dim = info.dim;
+    if ((st = sooc_mapstore_info_get(n->store, &info))) return sooc_adderr(st, "%s: map.db", n->cfg.path);
+    int md = sooc3d_mapper_latent_dim(n->mapper);
+    if (md > 0 && info.dim != md)
+        return sooc_seterr(SOOC_EVERSION, "%s: map.db %s holds latents of dim %d, the model produces %d", n->cfg.path,
+                           n->cfg.map_db, info.dim, md);
+    /* a database written without layout latents (or with other ones) keeps none */
+    n->store_layout_dim = info.layout_dim == sooc3d_mapper_layout_dim(n->mapper) ? info.layout_dim : 0;
+    if (info.layout_dim && !n->store_layout_dim)
+        sooc_log(SOOC_LOG_WARN, "%s: map.db layout dim %d differs from the model's %d: layout not persisted",
+                 n->cfg.map_db, info.layout_dim, sooc3d_mapper_layout_dim(n->mapper));
+    char b[128];
+    if (!sooc_mapstore_meta_get(n->store, "extent", b, sizeof b) &&
+        sscanf(b, "%f %f %f", &n->extent[0], &n->extent[1], &n->extent[2]) == 3)
+        n->extent_stored = 1;
     return SOOC_OK;
 }
 #endif
 
-static int entry_same(const sooc_map_entry *a, const sooc_map_entry *b) {
-    if (a->x != b->x || a->z != b->z || a->yaw != b->yaw || a->sigma_t != b->sigma_t ||
-        a->sigma_yaw != b->sigma_yaw || a->presence_logit != b->presence_logit ||
-        a->presence != b->presence || a->obs_count != b->obs_count || a->last_seen_ns != b->last_seen_ns ||
-        a->first_seen_ns != b->first_seen_ns || a->latent_dim != b->latent_dim)
-        return 0;
-    if (memcmp(a->extent, b->extent, sizeof a->extent)) return 0;
-    size_t d = (size_t)(a->latent_dim > 0 ? a->latent_dim : 0);
-    if (d > SOOC_MAP_LATENT_MAX) d = SOOC_MAP_LATENT_MAX;
-    return !memcmp(a->what_mu, b->what_mu, d * sizeof(float)) &&
-           !memcmp(a->what_logvar, b->what_logvar, d * sizeof(float));
-}
-
 /* ------------------------------------------------------------ publisher */
 
-/* Publish `changed` / `removed`: one table batch and one SQLite transaction. */
+/* Publish `chg` / `rem`: one table batch and one SQLite transaction (changed
+ * entries, removed ids, the active layout block, the id counter and a keyframe
+ * row). Its cost depends on nc + nr, not on the map size. `kf` = NULL for the
+ * start-up batch (no keyframe row); to_db = 0 when the entries came from the
+ * database itself (resume). */
+typedef struct kf_info {
+    int64_t stamp_ns;
+    const double *T_wc;
+    int64_t t_cap_mono;
+} kf_info;
+
 static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                           int clear_first, int64_t stamp_ns, const double *T_wc, int64_t t_cap_mono) {
+                           int clear_first, int to_db, const kf_info *kf) {
     sooc_status st = SOOC_OK;
+    double t0 = sooc_seconds();
+    size_t n_entries = 0;
+    if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &n_entries))) return sooc_adderr(st, "mapper entries");
 #if SOOC_NODE_HAVE_TABLE
     if (n->table) {
         int rc = sooc_table_begin_batch(n->table);
         if (clear_first && !rc) rc = sooc_table_clear(n->table);
-        uint32_t ld = nc ? (uint32_t)chg[0].latent_dim : 0;
+        uint32_t ld = (uint32_t)sooc3d_mapper_latent_dim(n->mapper);
         double T_src_map[16];
         sooc_se3_inverse(T_src_map, n->T_world_src);
-        if (!rc) rc = sooc_table_set_meta(n->table, ld, n->model_id, stamp_ns, T_src_map);
+        if (!rc) rc = sooc_table_set_meta(n->table, ld, n->model_id, kf ? kf->stamp_ns : 0, T_src_map);
         for (size_t i = 0; i < nc && !rc; i++) {
             sooc_table_record r;
             to_record(&chg[i], &r);
@@ -372,83 +410,87 @@ static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, c
     }
 #else
     (void)clear_first;
-    (void)stamp_ns;
 #endif
-    if (t_cap_mono > 0) {
-        double ms = (double)(sooc_now_ns() - t_cap_mono) * 1e-6;
+    if (kf && kf->t_cap_mono > 0) {
+        double ms = (double)(sooc_now_ns() - kf->t_cap_mono) * 1e-6;
         pthread_mutex_lock(&n->mu);
         sooc_latency_add(&n->lat_c2t, ms);
         pthread_mutex_unlock(&n->mu);
     }
 #if SOOC_NODE_HAVE_MAPSTORE
-    if (!st && n->cfg.map_db[0] && (nc || nr)) {
-        if (!n->store) {
-            int dim = nc ? chg[0].latent_dim : 0;
-            if (dim > 0) st = store_open(n, dim, 1);
+    if (!st && n->store && (kf || (to_db && nc))) {
+        st = sooc_mapstore_begin(n->store);
+        sooc_cogmap_entry ce;
+        for (size_t i = 0; i < nc && !st && to_db; i++) {
+            to_cog(&chg[i], &ce);
+            st = sooc_mapstore_put_entries(n->store, &ce, 1);
         }
-        if (n->store && !st) {
-            st = sooc_mapstore_begin(n->store);
-            sooc_cogmap_entry ce;
-            for (size_t i = 0; i < nc && !st; i++) {
-                to_cog(&chg[i], &ce);
-                st = sooc_mapstore_put_entries(n->store, &ce, 1);
+        if (!st && nr) st = sooc_mapstore_remove_entries(n->store, rem, nr);
+        if (!st && !n->extent_stored && nc && chg[0].extent[0] > 0) {
+            char b[96];
+            snprintf(b, sizeof b, "%.9g %.9g %.9g", chg[0].extent[0], chg[0].extent[1], chg[0].extent[2]);
+            if (!(st = sooc_mapstore_meta_set(n->store, "extent", b))) {
+                memcpy(n->extent, chg[0].extent, sizeof n->extent);
+                n->extent_stored = 1;
             }
-            if (!st && nr) st = sooc_mapstore_remove_entries(n->store, rem, nr);
-            if (!st) {
-                uint64_t next = 1;
-                for (size_t i = 0; i < nc; i++)
-                    if (chg[i].id + 1 > next) next = chg[i].id + 1;
-                for (size_t i = 0; i < nr; i++)
-                    if (rem[i] + 1 > next) next = rem[i] + 1;
-                st = sooc_mapstore_set_next_id(n->store, next);
-            }
-            if (!st) st = sooc_mapstore_commit(n->store);
-            else sooc_mapstore_rollback(n->store);
         }
+        int32_t bi = 0, bj = 0;
+        int has_block = 0;
+        if (!st && kf && n->store_layout_dim) {
+            float mu[SOOC_MAP_LATENT_MAX], lv[SOOC_MAP_LATENT_MAX];
+            sooc_status s2 = sooc3d_mapper_last_layout(n->mapper, &bi, &bj, mu, lv);
+            if (!s2) {
+                has_block = 1;
+                st = sooc_mapstore_put_layout(n->store, bi, bj, mu, lv);
+            } else if (s2 != SOOC_ENOTFOUND) {
+                st = s2;
+            }
+        }
+        if (!st) st = sooc_mapstore_set_next_id(n->store, sooc3d_mapper_next_id(n->mapper));
+        if (!st && kf) {
+            sooc_mapstore_keyframe k;
+            memset(&k, 0, sizeof k);
+            k.t_ns = kf->stamp_ns;
+            k.view = (int32_t)n->kf_seq;
+            memcpy(k.T_wc, kf->T_wc, sizeof k.T_wc);
+            uint64_t ids[SOOC_MAPPER_CHANGED_MAX];
+            size_t m = nc < SOOC_MAPPER_CHANGED_MAX ? nc : SOOC_MAPPER_CHANGED_MAX;
+            for (size_t i = 0; i < m; i++) ids[i] = chg[i].id;
+            k.changed = ids;
+            k.n_changed = m;
+            k.removed = rem;
+            k.n_removed = nr;
+            k.has_block = has_block;
+            k.bi = bi;
+            k.bj = bj;
+            st = sooc_mapstore_add_keyframe(n->store, &k, (int64_t)n_entries);
+        }
+        if (!st) st = sooc_mapstore_commit(n->store);
+        else sooc_mapstore_rollback(n->store);
+        if (!st && kf) n->kf_seq++;
     }
+#else
+    (void)to_db;
 #endif
-    (void)T_wc;
+    double ms = (sooc_seconds() - t0) * 1e3;
     pthread_mutex_lock(&n->mu);
+    if (kf) sooc_latency_add(&n->lat_pub, ms);
     n->st.published += nc;
     n->st.removed += nr;
+    n->st.n_objects = n_entries;
     pthread_mutex_unlock(&n->mu);
     return st;
 }
 
-/* Diff the mapper's entries against the last published ones; publish. */
+/* Publish what the last update changed (sooc3d_mapper_changed): O(changes). */
 static sooc_status publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap) {
-    size_t cnt = 0;
-    sooc_status st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt);
-    if (st) return sooc_adderr(st, "mapper entries");
-    if ((st = grow((void **)&n->cur, &n->cap_cur, cnt + 1, sizeof *n->cur))) return st;
-    size_t got = 0;
-    if ((st = sooc3d_mapper_entries(n->mapper, n->cur, n->cap_cur, &got))) return sooc_adderr(st, "mapper entries");
-    if (got > n->cap_cur) got = n->cap_cur;
-    if ((st = grow((void **)&n->changed, &n->cap_changed, got + 1, sizeof *n->changed))) return st;
-    if ((st = grow((void **)&n->removed, &n->cap_removed, n->n_prev + 1, sizeof *n->removed))) return st;
-    size_t nc = 0, nr = 0, i = 0, j = 0;
-    while (i < n->n_prev || j < got) {
-        if (j >= got || (i < n->n_prev && n->prev[i].id < n->cur[j].id)) {
-            n->removed[nr++] = n->prev[i++].id;
-        } else if (i >= n->n_prev || n->cur[j].id < n->prev[i].id) {
-            n->changed[nc++] = n->cur[j++];
-        } else {
-            if (!entry_same(&n->prev[i], &n->cur[j])) n->changed[nc++] = n->cur[j];
-            i++;
-            j++;
-        }
-    }
-    st = publish(n, n->changed, nc, n->removed, nr, 0, stamp_ns, T_wc, t_cap);
-    /* cur becomes prev */
-    sooc_map_entry *tp = n->prev;
-    size_t tc = n->cap_prev;
-    n->prev = n->cur;
-    n->cap_prev = n->cap_cur;
-    n->n_prev = got;
-    n->cur = tp;
-    n->cap_cur = tc;
+    size_t nc = 0, nr = 0;
+    sooc_status st = sooc3d_mapper_changed(n->mapper, n->changed, SOOC_MAPPER_CHANGED_MAX, &nc, n->removed,
+                                           SOOC_MAPPER_CHANGED_MAX, &nr);
+    if (st) return sooc_adderr(st, "mapper changed");
+    kf_info kf = {stamp_ns, T_wc, t_cap};
+    st = publish(n, n->changed, nc, n->removed, nr, 0, 1, &kf);
     pthread_mutex_lock(&n->mu);
-    n->st.n_objects = got;
     stats_refresh(n);
     sooc_node_stats snap = n->st;
     pthread_mutex_unlock(&n->mu);
@@ -566,17 +608,17 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
 
     /* persistent map: resume */
     n->db_exists = c->map_db[0] && sooc_file_exists(c->map_db);
+    int resumed = 0;
 #if SOOC_NODE_HAVE_MAPSTORE
     if (n->db_exists) {
-        if ((st = store_open(n, 0, 0))) goto fail;
-        if (!c->map_resume) {
-            sooc_mapstore_info info;
-            if (!sooc_mapstore_info_get(n->store, &info) && info.n_entries > 0) {
-                st = sooc_seterr(SOOC_EINVAL,
-                                 "%s: map.resume: false, but %s already holds %llu entries (remove it or resume)",
-                                 c->path, c->map_db, (unsigned long long)info.n_entries);
-                goto fail;
-            }
+        if ((st = store_open(n, 0))) goto fail;
+        sooc_mapstore_info info;
+        if ((st = sooc_mapstore_info_get(n->store, &info))) goto fail;
+        if (!c->map_resume && info.n_entries > 0) {
+            st = sooc_seterr(SOOC_EINVAL,
+                             "%s: map.resume: false, but %s already holds %llu entries (remove it or resume)",
+                             c->path, c->map_db, (unsigned long long)info.n_entries);
+            goto fail;
         }
         load_ctx L = {n, SOOC_OK};
         if ((st = sooc_mapstore_foreach(n->store, load_visit, &L)) || (st = L.st)) {
@@ -587,19 +629,35 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             sooc_adderr(st, "%s: resume: mapper refused %zu stored entries", c->path, n->n_prev);
             goto fail;
         }
-        /* keep what the mapper now holds as the published state */
-        size_t cnt = 0;
-        if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
-        if ((st = grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
-        if ((st = sooc3d_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
+        load_ctx_l LB = {n, SOOC_OK, 0};
+        if (n->store_layout_dim &&
+            ((st = sooc_mapstore_foreach_layout(n->store, load_block, &LB)) || (st = LB.st))) {
+            sooc_adderr(st, "%s: resume: layout blocks from %s", c->path, c->map_db);
+            goto fail;
+        }
+        /* ids of entries removed before the restart are not handed out again */
+        sooc3d_mapper_reserve_ids(n->mapper, info.next_id);
         n->st.resumed = n->n_prev;
-        n->st.n_objects = n->n_prev;
+        n->st.resumed_blocks = LB.count;
+        resumed = 1;
+    } else if (c->map_db[0]) {
+        if ((st = store_open(n, 1))) goto fail;
     }
 #else
     if (c->map_db[0])
         sooc_log(SOOC_LOG_WARN, "%s: map.db set but the SQLite map store is not built in; not persisting",
                  c->path);
 #endif
+    /* what the mapper holds now (resumed, or preloaded by the caller) is republished at start */
+    {
+        size_t cnt = 0;
+        if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
+        if ((st = grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
+        if ((st = sooc3d_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
+        for (size_t i = 0; i < n->n_prev; i++)   /* a mapper without a box extent: the stored one */
+            if (n->prev[i].extent[0] <= 0) memcpy(n->prev[i].extent, n->extent, sizeof n->extent);
+        n->st.n_objects = n->n_prev;
+    }
 
     /* shm table */
     if (c->shm_name[0]) {
@@ -620,8 +678,12 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         sooc_log(SOOC_LOG_WARN, "%s: shm.name set but the table module is not built in", c->path);
 #endif
     }
-    /* republish the resumed map (and clear leftovers of an earlier run) */
-    if ((st = publish(n, n->prev, n->n_prev, NULL, 0, 1, 0, NULL, 0))) goto fail;
+    /* republish the resumed map (and clear leftovers of an earlier run); a map
+     * preloaded by the caller also goes to a new database */
+    if ((st = publish(n, n->prev, n->n_prev, NULL, 0, 1, !resumed, NULL))) goto fail;
+    sooc_free(n->prev);
+    n->prev = NULL;
+    n->cap_prev = 0;
     *out = n;
     return SOOC_OK;
 fail:
@@ -802,6 +864,12 @@ sooc_status sooc_node_run(sooc_node *n) {
             pthread_mutex_unlock(&n->mu);
             sooc_log(SOOC_LOG_WARN, "node: mapper update failed on frame %lld: %s", (long long)f->index,
                      sooc_errmsg());
+            /* a late failure may have changed the map already: keep table and database in step */
+            size_t pc = 0, pr = 0;
+            if (!sooc3d_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
+                sooc_status s2 = publish_keyframe(n, f->t_ns, T_wc, t_cap);
+                if (s2) { result = s2; break; }
+            }
             if (st == SOOC_ENOMEM) { result = st; break; }
             continue;
         }
@@ -863,9 +931,6 @@ void sooc_node_destroy(sooc_node *n) {
     sooc_free(n->reg_buf);
     sooc_free(n->floor_pts);
     sooc_free(n->prev);
-    sooc_free(n->cur);
-    sooc_free(n->changed);
-    sooc_free(n->removed);
     pthread_mutex_destroy(&n->mu);
     sooc_free(n);
 }

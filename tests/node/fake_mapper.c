@@ -1,7 +1,9 @@
 /* A tiny stand-in for the model's mapper (tests and bench only): every
  * keyframe registers one new object 1.5 m in front of the camera on the
  * floor, re-observes the object registered before it, and every 5th
- * keyframe removes the oldest remaining object. Deterministic. */
+ * keyframe removes the oldest remaining object. Deterministic. It reports
+ * what changed (sooc3d_mapper_changed) and keeps a 4-float layout latent per
+ * 4 m floor block under the camera. */
 #include "sooc3d/mapper.h"
 
 #include <math.h>
@@ -11,13 +13,39 @@
 #define FAKE_W 32
 #define FAKE_H 24
 #define FAKE_DIM 8
+#define FAKE_LDIM 4
+#define FAKE_MAX_BLOCKS 256
 
 struct sooc3d_mapper {
     sooc_map_entry *e;
     size_t n, cap;
     uint64_t next_id, updates;
     double delay_ms;
+    uint64_t chg[2], rem[1];
+    int n_chg, n_rem, has_block;
+    int32_t bi, bj;
+    struct { int32_t bi, bj; float mu[FAKE_LDIM], lv[FAKE_LDIM]; } blocks[FAKE_MAX_BLOCKS];
+    int n_blocks;
 };
+
+static int find_block(const sooc3d_mapper *m, int32_t bi, int32_t bj) {
+    for (int i = 0; i < m->n_blocks; i++)
+        if (m->blocks[i].bi == bi && m->blocks[i].bj == bj) return i;
+    return -1;
+}
+
+static sooc_status set_block(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu, const float *lv) {
+    int i = find_block(m, bi, bj);
+    if (i < 0) {
+        if (m->n_blocks == FAKE_MAX_BLOCKS) return sooc_seterr(SOOC_ENOMEM, "fake mapper: too many blocks");
+        i = m->n_blocks++;
+        m->blocks[i].bi = bi;
+        m->blocks[i].bj = bj;
+    }
+    memcpy(m->blocks[i].mu, mu, sizeof m->blocks[i].mu);
+    memcpy(m->blocks[i].lv, lv, sizeof m->blocks[i].lv);
+    return SOOC_OK;
+}
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) { memset(p, 0, sizeof *p); }
 
@@ -67,9 +95,11 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_u
         }
     }
     m->updates++;
+    m->n_chg = m->n_rem = m->has_block = 0;
     if (st) memset(st, 0, sizeof *st);
     /* re-observe the newest object */
     if (m->n) {
+        m->chg[m->n_chg++] = m->e[m->n - 1].id;
         sooc_map_entry *l = &m->e[m->n - 1];
         l->obs_count++;
         l->last_seen_ns = f->t_ns;
@@ -102,14 +132,93 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_u
     e.obs_count = 1;
     sooc_status s = push(m, &e);
     if (s) return s;
+    m->chg[m->n_chg++] = e.id;
     if (st) { st->n_registered = 1; st->n_new = 1; }
     if (m->updates % 5 == 0 && m->n > 1) {
+        m->rem[m->n_rem++] = m->e[0].id;
+        if (m->n_chg && m->chg[0] == m->e[0].id) {   /* removed after its re-observation */
+            m->chg[0] = m->chg[1];
+            m->n_chg--;
+        }
         memmove(m->e, m->e + 1, (m->n - 1) * sizeof *m->e);
         m->n--;
         if (st) st->n_removed = 1;
     }
+    /* layout latent of the block under the camera */
+    int32_t bi = (int32_t)floor(f->T_wc[3] / 4.0), bj = (int32_t)floor(f->T_wc[11] / 4.0);
+    float mu[FAKE_LDIM], lv[FAKE_LDIM];
+    for (int i = 0; i < FAKE_LDIM; i++) {
+        mu[i] = (float)m->updates + 0.1f * (float)i;
+        lv[i] = -2.0f;
+    }
+    if ((s = set_block(m, bi, bj, mu, lv))) return s;
+    m->has_block = 1;
+    m->bi = bi;
+    m->bj = bj;
     return SOOC_OK;
 }
+
+static const sooc_map_entry *find_entry(const sooc3d_mapper *m, uint64_t id) {
+    for (size_t i = m->n; i-- > 0;)
+        if (m->e[i].id == id) return &m->e[i];
+    return NULL;
+}
+
+sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
+                                  uint64_t *removed_ids, size_t cap_r, size_t *n_removed) {
+    if (n) *n = (size_t)m->n_chg;
+    if (n_removed) *n_removed = (size_t)m->n_rem;
+    if ((out && (size_t)m->n_chg > cap) || (removed_ids && (size_t)m->n_rem > cap_r))
+        return sooc_seterr(SOOC_EINVAL, "fake mapper: changed arrays too small");
+    for (int i = 0; out && i < m->n_chg; i++) {
+        const sooc_map_entry *e = find_entry(m, m->chg[i]);
+        if (!e) return sooc_seterr(SOOC_ENOTFOUND, "fake mapper: changed id %llu missing", (unsigned long long)m->chg[i]);
+        out[i] = *e;
+    }
+    for (int i = 0; removed_ids && i < m->n_rem; i++) removed_ids[i] = m->rem[i];
+    return SOOC_OK;
+}
+
+int sooc3d_mapper_latent_dim(const sooc3d_mapper *m) {
+    (void)m;
+    return FAKE_DIM;
+}
+
+int sooc3d_mapper_layout_dim(const sooc3d_mapper *m) {
+    (void)m;
+    return FAKE_LDIM;
+}
+
+sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
+    if (!m->has_block) return SOOC_ENOTFOUND;
+    int i = find_block(m, m->bi, m->bj);
+    if (i < 0) return SOOC_ENOTFOUND;
+    *bi = m->bi;
+    *bj = m->bj;
+    memcpy(mu, m->blocks[i].mu, sizeof m->blocks[i].mu);
+    memcpy(logvar, m->blocks[i].lv, sizeof m->blocks[i].lv);
+    return SOOC_OK;
+}
+
+sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
+                                      const float *logvar) {
+    return set_block(m, bi, bj, mu, logvar);
+}
+
+/* Test hook: the layout latent of block (bi, bj). */
+int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu);
+int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu) {
+    int i = find_block(m, bi, bj);
+    if (i < 0) return -1;
+    memcpy(mu, m->blocks[i].mu, sizeof m->blocks[i].mu);
+    return 0;
+}
+
+void sooc3d_mapper_reserve_ids(sooc3d_mapper *m, uint64_t next_id) {
+    if (next_id > m->next_id) m->next_id = next_id;
+}
+
+uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *m) { return m->next_id; }
 
 sooc_status sooc3d_mapper_entries(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n) {
     *n = m->n;
@@ -120,6 +229,7 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *m, sooc_map_entry *out, s
 
 sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e, size_t n) {
     m->n = 0;
+    m->n_chg = m->n_rem = m->has_block = 0;
     for (size_t i = 0; i < n; i++) {
         sooc_status s = push(m, &e[i]);
         if (s) return s;

@@ -141,6 +141,28 @@ static size_t db_count(const char *db) {
 }
 #endif
 
+#if SOOC_NODE_HAVE_MAPSTORE
+/* keyframe rows, layout blocks and the stored box extent */
+static void db_info(const char *db, sooc_mapstore_info *info, float ext[3]) {
+    sooc_mapstore *s;
+    sooc_mapstore_params p;
+    sooc_mapstore_params_default(&p);
+    p.create = 0;
+    p.readonly = 1;
+    memset(info, 0, sizeof *info);
+    ext[0] = ext[1] = ext[2] = -1;
+    CHECK_OK(sooc_mapstore_open(&s, db, &p));
+    if (!s) return;
+    CHECK_OK(sooc_mapstore_info_get(s, info));
+    char b[128];
+    CHECK_OK(sooc_mapstore_meta_get(s, "extent", b, sizeof b));
+    CHECK(sscanf(b, "%f %f %f", &ext[0], &ext[1], &ext[2]) == 3);
+    sooc_mapstore_close(s);
+}
+#endif
+
+int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu);
+
 /* Run the node over `nframes` synthetic frames with a reader process. */
 static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_frame, uint64_t *kf_out,
                      uint64_t *resumed_out) {
@@ -210,6 +232,17 @@ static void test_e2e_and_restart(void) {
     CHECK(n1 == 12 - 2);   /* 12 registered, 2 removed by the fake mapper */
 #if SOOC_NODE_HAVE_MAPSTORE
     CHECK_MSG(db_count(db) == n1, "db holds %zu, map %zu", db_count(db), n1);
+    /* one keyframe row per keyframe, the layout block(s), the box extent */
+    sooc_mapstore_info info;
+    float ext[3];
+    db_info(db, &info, ext);
+    CHECK_MSG(info.n_keyframes == 12, "keyframe rows %llu", (unsigned long long)info.n_keyframes);
+    CHECK_MSG(info.layout_dim == 4 && info.n_layout == 1, "layout dim %d, %llu blocks", info.layout_dim,
+              (unsigned long long)info.n_layout);
+    CHECK(ext[0] == 0.4f && ext[1] == 0.8f && ext[2] == 0.5f);
+    CHECK(info.next_id == 13);
+    float mu1[4] = {0}, mu2[4] = {0};
+    CHECK(fake_mapper_get_block(m, 0, 0, mu1) == 0);
 #endif
     sooc3d_mapper_destroy(m);
 
@@ -218,6 +251,8 @@ static void test_e2e_and_restart(void) {
     CHECK_OK(sooc3d_mapper_create(&m, &mp));
     run_once(db, m, 0, 100, &kf, &resumed);
     CHECK_MSG(resumed == n1, "resumed %llu of %zu", (unsigned long long)resumed, n1);
+    CHECK_MSG(fake_mapper_get_block(m, 0, 0, mu2) == 0 && !memcmp(mu1, mu2, sizeof mu1),
+              "layout block (0,0) restored: %g vs %g", mu2[0], mu1[0]);
     size_t n2 = 0;
     sooc3d_mapper_entries(m, NULL, 0, &n2);
     sooc_map_entry *e2 = calloc(n2 + 1, sizeof *e2);
@@ -232,6 +267,7 @@ static void test_e2e_and_restart(void) {
         CHECK(e2[i].obs_count == e1[i].obs_count);
         CHECK(e2[i].latent_dim == e1[i].latent_dim && e2[i].what_mu[3] == e1[i].what_mu[3]);
         CHECK(e2[i].first_seen_ns == e1[i].first_seen_ns && e2[i].last_seen_ns == e1[i].last_seen_ns);
+        CHECK(e2[i].extent[0] == 0.4f && e2[i].extent[1] == 0.8f && e2[i].extent[2] == 0.5f);
     }
     /* continue mapping: new ids follow the stored ones, nothing duplicated */
     uint64_t maxid = n1 ? e1[n1 - 1].id : 0;
@@ -244,6 +280,8 @@ static void test_e2e_and_restart(void) {
     CHECK(n3 == n1 + 3);
     CHECK(e3[n3 - 1].id == maxid + 3);
     CHECK_MSG(db_count(db) == n3, "db holds %zu, map %zu", db_count(db), n3);
+    db_info(db, &info, ext);
+    CHECK_MSG(info.n_keyframes == 15, "keyframe rows %llu", (unsigned long long)info.n_keyframes);
     free(e2);
     free(e3);
     sooc3d_mapper_destroy(m);

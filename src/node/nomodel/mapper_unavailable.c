@@ -24,3 +24,23 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e
     (void)m; (void)e; (void)n;
     return sooc_seterr(SOOC_EUNSUPPORTED, "no model");
 }
+sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
+                                  uint64_t *removed_ids, size_t cap_r, size_t *n_removed) {
+    (void)m; (void)out; (void)cap; (void)removed_ids; (void)cap_r;
+    if (n) *n = 0;
+    if (n_removed) *n_removed = 0;
+    return SOOC_OK;
+}
+int sooc3d_mapper_layout_dim(const sooc3d_mapper *m) { (void)m; return 0; }
+int sooc3d_mapper_latent_dim(const sooc3d_mapper *m) { (void)m; return 0; }
+sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
+    (void)m; (void)bi; (void)bj; (void)mu; (void)logvar;
+    return SOOC_ENOTFOUND;
+}
+sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
+                                      const float *logvar) {
+    (void)m; (void)bi; (void)bj; (void)mu; (void)logvar;
+    return sooc_seterr(SOOC_EUNSUPPORTED, "no model");
+}
+void sooc3d_mapper_reserve_ids(sooc3d_mapper *m, uint64_t next_id) { (void)m; (void)next_id; }
+uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *m) { (void)m; return 1; }
