@@ -5,7 +5,14 @@
  * dedicated signal thread (see on_signal for why it is not sigwait). The first SIGINT/SIGTERM asks the node to stop: the keyframe in
  * progress is finished and committed, the table is closed, exit status 0.
  * A second one exits at once (status 128 + signo). SIGUSR1 cycles the log
- * level. SIGPIPE is ignored. */
+ * level. SIGPIPE is ignored.
+ *
+ * OpenMP: on a loaded machine libgomp's default busy-wait after each parallel
+ * region costs the mapper 5-70x (docs/model.md). libgomp reads
+ * OMP_WAIT_POLICY once, when it is loaded (before main), so a setenv here
+ * would come too late: if the variable is unset, the node sets it to
+ * "passive" and re-executes itself (/proc/self/exe with the same argv, same
+ * pid) before doing anything else. An explicit OMP_WAIT_POLICY is kept. */
 #include "cli.h"
 #include "sooc3d/node.h"
 
@@ -116,7 +123,29 @@ static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc,
     fflush(stdout);
 }
 
+/* Re-exec with OMP_WAIT_POLICY=passive (see the top of the file). Returns
+ * only if the variable was already set or the exec failed. */
+static void reexec_omp_passive(void) {
+    if (getenv("OMP_WAIT_POLICY")) return;
+    if (setenv("OMP_WAIT_POLICY", "passive", 1)) return;
+    static char buf[65536];
+    FILE *f = fopen("/proc/self/cmdline", "rb");
+    if (!f) return;
+    size_t len = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    if (len == 0 || len >= sizeof buf - 1) return;
+    buf[len] = 0;
+    static char *args[1024];
+    int na = 0;
+    for (size_t i = 0; i < len && na < 1023; i += strlen(buf + i) + 1) args[na++] = buf + i;
+    args[na] = NULL;
+    fflush(NULL);
+    execv("/proc/self/exe", args);
+    /* exec failed: go on with the policy libgomp already read */
+}
+
 int sooc_cmd_node(int argc, char **argv) {
+    reexec_omp_passive();
     if (sooc_cli_wants_help(argc, argv)) {
         usage(stdout);
         return 0;
