@@ -96,6 +96,36 @@ static int parse_samples(const char *s, int *c, int *f) {
     return 1;
 }
 
+static void fmt_stat(char *b, size_t cap, const sooc_eval_stat *s, int runs) {
+    if (!isfinite(s->mean)) snprintf(b, cap, "-");
+    else if (runs > 1) snprintf(b, cap, "%.3f+-%.3f", s->mean, s->std);
+    else snprintf(b, cap, "%.3f", s->mean);
+}
+
+/* The supplementary table (the library's text output holds Table 1 only). */
+static void print_supp(const sooc_eval_table *t, char names[][160], int n_names, const int *scales_used, int runs) {
+    printf("\nSupplementary: one-to-one (Hungarian) mIoU, fraction of visible GT objects matched, recall by\n"
+           "camera distance (matched fraction of visible GT objects per distance bin).\n");
+    printf("%-16s %-2s %-5s %7s  %-14s %-14s %-14s %-14s %-14s\n", "model", "IQ", "scale", "views", "mIoU Hungarian",
+           "matched", "recall <3 m", "recall 3-5 m", "recall >5 m");
+    for (int m = 0; m < n_names; m++)
+        for (int q = 0; q < 2; q++)
+            for (int s = 0; s < SOOC_N_SCALES; s++) {
+                if (!scales_used[s]) continue;
+                sooc_eval_cell c;
+                if (sooc_eval_table_cell(t, names[m], s, q, &c)) {
+                    sooc_clearerr();
+                    continue;
+                }
+                char a[5][48];
+                fmt_stat(a[0], sizeof a[0], &c.miou_hung, runs);
+                fmt_stat(a[1], sizeof a[1], &c.matched_frac, runs);
+                for (int k = 0; k < 3 && k < SOOC_METRIC_N_DBINS; k++) fmt_stat(a[2 + k], sizeof a[2 + k], &c.recall[k], runs);
+                printf("%-16s %-2s %-5s %7ld  %-14s %-14s %-14s %-14s %-14s\n", names[m], q ? "Q" : "I",
+                       sooc_scale_name(s), c.n_views, a[0], a[1], a[2], a[3], a[4]);
+            }
+}
+
 int sooc_cmd_eval(int argc, char **argv) {
     if (sooc_cli_wants_help(argc, argv)) {
         usage(stdout);
@@ -282,6 +312,18 @@ int sooc_cmd_eval(int argc, char **argv) {
     }
     if ((st = sooc_eval_table_text(tab, &text))) goto fail;
     printf("%s", text);
+    {
+        char rows[2 * MAX_MODELS][160];
+        int nr = 0, used[SOOC_N_SCALES] = {0};
+        for (int d = 0; d < n_dirs; d++)
+            for (int s = 0; s < n_sc[d]; s++) used[scale_of[d][s]] = 1;
+        for (int i = 0; i < n_models; i++) {
+            if (ro.timing & SOOC_EVAL_FINAL) snprintf(rows[nr++], sizeof rows[0], "%.150s", mname[i]);
+            if (ro.timing & SOOC_EVAL_ONLINE)
+                snprintf(rows[nr++], sizeof rows[0], "%.150s", ro.timing == SOOC_EVAL_BOTH ? oname[i] : mname[i]);
+        }
+        print_supp(tab, rows, nr, used, runs);
+    }
     printf("\neval: %d scene%s x %d model%s x %d run%s, %llu views in %.1f s (%.2f views/s); "
            "mapper %.1f ms/update, rendering + scoring %.1f s\n",
            total_scenes, total_scenes == 1 ? "" : "s", n_models, n_models == 1 ? "" : "s", runs, runs == 1 ? "" : "s",

@@ -246,10 +246,11 @@ static void test_runner(sooc_model *m, const scene_data *sd) {
         }
     CHECK(vo && vf && !memcmp(vo, vf, sizeof *vo));
     /* online and final differ for an earlier view only if the map changed later: just report */
-    printf("runner: input mIoU final %.4f online %.4f (%ld / %ld views)\n",
+    printf("runner: input mIoU final %.4f online %.4f, RGB RMSE final %.5f online %.5f (%ld / %ld views)\n",
            a.input_final.n_miou ? a.input_final.miou_best / a.input_final.n_miou : NAN,
-           on.input_online.n_miou ? on.input_online.miou_best / on.input_online.n_miou : NAN, a.input_final.n_views,
-           on.input_online.n_views);
+           on.input_online.n_miou ? on.input_online.miou_best / on.input_online.n_miou : NAN,
+           a.input_final.rgb_rmse / a.input_final.n_rgb, on.input_online.rgb_rmse / on.input_online.n_rgb,
+           a.input_final.n_views, on.input_online.n_views);
 
     /* max_views: first input view only, and the query views nearest to it */
     o.timing = SOOC_EVAL_FINAL;
