@@ -10,6 +10,7 @@
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
+#include "sooc3d/mapstore.h"
 #include "sooc3d/scene.h"
 #include "sooc3d/seq.h"
 
@@ -362,6 +363,16 @@ static void test_l2(sooc_model *m0, const scene_data *sd) {
     for (size_t p = 0; p < P; p++) us += r.uncert[p];
     printf("l2: uncertainty sum %.4f over %zu pixels\n", us, P);
     CHECK(us > 0);
+    /* store the crafted map for `sooc3d render --map` */
+    char mp[600];
+    snprintf(mp, sizeof mp, "%s/map.sqlite", g_tmp);
+    sooc_mapstore *ms = NULL;
+    sooc_mapstore_params pp;
+    sooc_mapstore_params_default(&pp);
+    pp.dim = c->d_what, pp.layout_dim = c->d_layout, pp.block_size = c->block_size;
+    CHECK_OK(sooc_mapstore_open(&ms, mp, &pp));
+    CHECK_OK(sooc_mapstore_save_map(ms, map));
+    sooc_mapstore_close(ms);
     sooc_render_out_free(&r);
     sooc_frame_free(&g);
     sooc_cogmap_destroy(map);
@@ -444,6 +455,21 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     char *vc = read_text(p);
     CHECK(vc && strstr(vc, "miou_best"));
     free(vc);
+
+    /* render from a stored map (no updates) */
+    snprintf(cmd, sizeof cmd,
+             "%s render --model %s --seq %s/scene_0000 --out %s/rm --map %s/map.sqlite --views 0 --samples 16,4 "
+             "--threads 1 > %s/rm.txt 2>/dev/null",
+             bin, model, data, g_tmp, g_tmp, g_tmp);
+    CHECK(run(cmd) == 0);
+    snprintf(p, sizeof p, "%s/rm.txt", g_tmp);
+    vc = read_text(p);
+    CHECK(vc && strstr(vc, "2 entries loaded"));
+    free(vc);
+    snprintf(p, sizeof p, "%s/rm/panels/view_000000.png", g_tmp);
+    CHECK_MSG(png_ok(p), "panel from the stored map");
+    snprintf(p, sizeof p, "%s/rm/cogmap/cogmap_sheet.png", g_tmp);
+    CHECK_MSG(png_ok(p), "top-down of the stored map");
 }
 
 int main(void) {
