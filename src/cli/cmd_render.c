@@ -21,7 +21,7 @@ static void usage(FILE *f) {
             "usage: sooc3d render --model M --seq DIR --out DIR [--map map.sqlite] [--views N]\n"
             "                     [--uncertainty M] [--log train_dir/log.csv] [--seed S] [--threads T]\n"
             "                     [--samples C,F] [--iterations L] [--input-timing final|online]\n"
-            "                     [--max-frames N] [--max-obj K]\n\n"
+            "                     [--max-frames N] [--max-obj K] [--calib calib.yaml]\n\n"
             "Runs online inference over the sequence's input views (or, with --map, renders from a map\n"
             "stored by `sooc3d node` / the map store, without updating it) and writes\n"
             "  OUT/panels/view_%%06d.png  one panel per selected view: GT | reconstruction |\n"
@@ -40,6 +40,7 @@ static void usage(FILE *f) {
             "                  after their own update (online)\n"
             "  --samples       coarse,fine samples per ray (96,32)\n"
             "  --max-frames    use only the first N frames of the sequence\n"
+            "  --calib         calibration YAML for sequences without DIR/calib.yaml\n"
             "Frames of another size are cropped/resized to the model's resolution; poses must be in a\n"
             "gravity-aligned world (+y up, floor at y = 0), as for `sooc3d infer`.\n");
 }
@@ -142,13 +143,16 @@ static void to_map_entry(const sooc_model_config *c, const sooc_cogmap_entry *e,
 }
 
 /* Every frame with a pose, at the model's resolution. */
-static sooc_status read_frames(const char *dir, int W, int H, long long maxf, sooc_frame **out, int *n_out,
-                               int *resized) {
+static sooc_status read_frames(const char *dir, const char *calib, int W, int H, long long maxf, sooc_frame **out,
+                               int *n_out, int *resized) {
     sooc_seq *sq = NULL;
     *out = NULL;
     *n_out = 0;
     *resized = 0;
-    sooc_status st = sooc_seq_open(&sq, dir, NULL);
+    sooc_seq_open_params sp;
+    sooc_seq_open_params_default(&sp);
+    sp.calib_path = calib;
+    sooc_status st = sooc_seq_open(&sq, dir, &sp);
     if (st) return st;
     int64_t n = sooc_seq_count(sq);
     if (maxf >= 0 && maxf < n) n = maxf;
@@ -188,7 +192,7 @@ int sooc_cmd_render(int argc, char **argv) {
         usage(stdout);
         return 0;
     }
-    const char *model = NULL, *seqdir = NULL, *out = NULL, *mappath = NULL, *logpath = NULL;
+    const char *model = NULL, *seqdir = NULL, *out = NULL, *mappath = NULL, *logpath = NULL, *calib = NULL;
     int views = 8, timing = SOOC_EVAL_FINAL;
     long long maxf = -1;
     sooc_eval_run_opts ro;
@@ -200,6 +204,7 @@ int sooc_cmd_render(int argc, char **argv) {
         else if (!strcmp(a, "--seq") && has) seqdir = argv[++i];
         else if (!strcmp(a, "--out") && has) out = argv[++i];
         else if (!strcmp(a, "--map") && has) mappath = argv[++i];
+        else if (!strcmp(a, "--calib") && has) calib = argv[++i];
         else if (!strcmp(a, "--log") && has) logpath = argv[++i];
         else if (!strcmp(a, "--views") && has) views = atoi(argv[++i]);
         else if (!strcmp(a, "--uncertainty") && has) ro.uncertainty = atoi(argv[++i]);
@@ -254,7 +259,8 @@ int sooc_cmd_render(int argc, char **argv) {
 
     if ((st = sooc_model_load(&m, model, NULL, NULL))) goto fail;
     const sooc_model_config *mc = sooc_model_get_config(m);
-    if ((st = read_frames(seqdir, mc->img_w, mc->img_h, maxf, &fr, &nf, &resized))) goto fail;
+    if ((st = read_frames(seqdir, calib, mc->img_w, mc->img_h, maxf, &fr, &nf, &resized))) goto fail;
+    if (resized) printf("render: frames cropped/resized to the model's %dx%d\n", mc->img_w, mc->img_h);
     if (nf == 0) {
         st = sooc_seterr(SOOC_EINVAL, "%s: no frame with a pose", seqdir);
         goto fail;
