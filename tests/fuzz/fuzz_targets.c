@@ -63,6 +63,19 @@ static uint8_t *with_crc(const uint8_t *d, size_t n, size_t crc_at) {
     return c;
 }
 
+/* Run `one` on the input as given and on a copy whose CRC field is fixed;
+ * crc_at < 0 means the CRC is the last 4 bytes. Returns the first result. */
+static int raw_and_crc(int (*one)(const uint8_t *, size_t), const uint8_t *d, size_t n, long crc_at) {
+    int ok = one(d, n);
+    size_t at = crc_at >= 0 ? (size_t)crc_at : n >= 4 ? n - 4 : n;
+    uint8_t *c = with_crc(d, n, at);
+    if (c) {
+        one(c, n);
+        free(c);
+    }
+    return ok;
+}
+
 /* ------------------------------------------------------------- targets */
 
 static int fz_calib(const uint8_t *d, size_t n) {
@@ -158,15 +171,7 @@ static int nn_ckpt_one(const uint8_t *d, size_t n) {
 }
 
 /* The file ends with the CRC of all preceding bytes. */
-static int fz_nn_ckpt(const uint8_t *d, size_t n) {
-    int ok = nn_ckpt_one(d, n);
-    uint8_t *c = n >= 4 ? with_crc(d, n, n - 4) : NULL;
-    if (c) {
-        nn_ckpt_one(c, n);
-        free(c);
-    }
-    return ok;
-}
+static int fz_nn_ckpt(const uint8_t *d, size_t n) { return raw_and_crc(nn_ckpt_one, d, n, -1); }
 
 static int model_ckpt_one(const uint8_t *d, size_t n) {
     const char *p = tmp_file("model.ckpt", d, n);
@@ -180,15 +185,7 @@ static int model_ckpt_one(const uint8_t *d, size_t n) {
     return ok;
 }
 
-static int fz_model_ckpt(const uint8_t *d, size_t n) {
-    int ok = model_ckpt_one(d, n);
-    uint8_t *c = n >= 4 ? with_crc(d, n, n - 4) : NULL;
-    if (c) {
-        model_ckpt_one(c, n);
-        free(c);
-    }
-    return ok;
-}
+static int fz_model_ckpt(const uint8_t *d, size_t n) { return raw_and_crc(model_ckpt_one, d, n, -1); }
 
 typedef struct visit_acc { double s; int n; } visit_acc;
 static int visit(void *user, const sooc_cogmap_entry *e) {
@@ -345,15 +342,7 @@ static int pose_packet_one(const uint8_t *d, size_t n) {
 }
 
 /* Bytes 80..83 hold the CRC of bytes 0..79. */
-static int fz_pose_packet(const uint8_t *d, size_t n) {
-    int ok = pose_packet_one(d, n);
-    uint8_t *c = with_crc(d, n, 80);
-    if (c) {
-        pose_packet_one(c, n);
-        free(c);
-    }
-    return ok;
-}
+static int fz_pose_packet(const uint8_t *d, size_t n) { return raw_and_crc(pose_packet_one, d, n, 80); }
 
 static int fz_tum(const uint8_t *d, size_t n) {
     const char *p = tmp_file("groundtruth.txt", d, n);

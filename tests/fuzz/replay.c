@@ -74,7 +74,8 @@ static int run_path(const sooc_fuzz_target *t, const char *path) {
 }
 
 int main(int argc, char **argv) {
-    verbose = getenv("SOOC_FUZZ_VERBOSE") != NULL;
+    const char *vb = getenv("SOOC_FUZZ_VERBOSE");
+    verbose = vb && *vb && strcmp(vb, "0");
     if (argc >= 2) {
         const sooc_fuzz_target *t = sooc_fuzz_find(argv[1]);
         if (!t) { fprintf(stderr, "unknown target %s\n", argv[1]); return 2; }
