@@ -207,16 +207,40 @@ static void gemm_nn(int M, int N, int K, const float *A, const float *B, float b
     if (M <= 0) return;
     cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, K, B, N, beta, C, N);
 }
-static void gemm_nt(int M, int N, int K, const float *A, const float *B, float *C) {
-    /* C[M x N] = A[M x K] B^T, B is [N x K] */
+static void gemm_nt(int M, int N, int K, const float *A, const float *B, float beta, float *C) {
+    /* C[M x N] = A[M x K] B^T (+ beta C), B is [N x K] */
     if (M <= 0) return;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, M, N, K, 1.0f, A, K, B, K, 0.0f, C, N);
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, M, N, K, 1.0f, A, K, B, K, beta, C, N);
 }
 static void gemm_tn_acc(int M, int N, int R, float alpha, const float *A, const float *B, float *C) {
     /* C[M x N] += alpha A^T B, A is [R x M], B is [R x N] */
     if (R <= 0) return;
     cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, M, N, R, alpha, A, M, B, N, 1.0f, C, N);
 }
+
+/* Element-wise helpers: plain loops over restrict pointers (vectorised by the compiler). */
+static void relu_inplace(float *restrict x, size_t n) {
+    for (size_t i = 0; i < n; i++) x[i] = x[i] > 0 ? x[i] : 0;
+}
+static void fill_rows(float *restrict y, int R, int n, const float *restrict b) {
+    for (int r = 0; r < R; r++) memcpy(y + (size_t)r * n, b, (size_t)n * sizeof(float));
+}
+/* g[i] = y[i] > 0 ? g[i] : 0 (ReLU backward on the post-activation). */
+static void relu_mask(float *restrict g, const float *restrict y, size_t n) {
+    for (size_t i = 0; i < n; i++) g[i] = y[i] > 0 ? g[i] : 0;
+}
+/* dot product with 8 independent partial sums (vectorisable without reassociation) */
+static inline float dot8(const float *restrict a, const float *restrict b, int n) {
+    float s[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    int j = 0;
+    for (; j + 8 <= n; j += 8)
+        for (int u = 0; u < 8; u++) s[u] += a[j + u] * b[j + u];
+    float t = ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]));
+    for (; j < n; j++) t += a[j] * b[j];
+    return t;
+}
+
+#define MDL_HC_MAX 256   /* colour-head width bound for the stack copies below */
 
 void mdl_pe_row(const float *x, float inv, int nf, float *out) {
     float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv}, sn[3], cs[3];
@@ -249,35 +273,50 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
     }
 }
 
+/* Rows per block inside a thread's range: a block's activations (~4 x 256 x 64
+ * floats) stay in L2 between layers. */
+#define MDL_BLOCK_ROWS 256
+
+static void tail_forward_block(const float *p, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+                               float *sig, float *col) {
+    int H = n->H, Hc = n->Hc;
+    relu_inplace(a1, (size_t)R * H);
+    /* biases are pre-filled and the GEMMs accumulate (beta = 1): no separate zero/bias passes */
+    fill_rows(a2, R, H, p + n->b2);
+    gemm_nn(R, H, H, a1, p + n->W2, 1.0f, a2);
+    relu_inplace(a2, (size_t)R * H);
+    fill_rows(a3, R, H, p + n->b3);
+    gemm_nn(R, H, H, a2, p + n->W3, 1.0f, a3);
+    relu_inplace(a3, (size_t)R * H);
+    fill_rows(ac, R, Hc, p + n->bc1);
+    gemm_nn(R, Hc, H, a3, p + n->Wc1, 1.0f, ac);
+    relu_inplace(ac, (size_t)R * Hc);
+    /* density and colour heads: Wc2 [Hc x 3] transposed to 3 contiguous rows */
+    float w2t[3][MDL_HC_MAX];
+    for (int j = 0; j < Hc; j++)
+        for (int a = 0; a < 3; a++) w2t[a][j] = p[n->Wc2 + j * 3 + a];
+    const float *Wd = p + n->Wd;
+    float bd = p[n->bd], b0 = p[n->bc2], b1 = p[n->bc2 + 1], b2 = p[n->bc2 + 2];
+    for (int r = 0; r < R; r++) {
+        const float *h3 = a3 + (size_t)r * H, *hc = ac + (size_t)r * Hc;
+        sig[r] = sigm(dot8(h3, Wd, H) + bd);
+        float *cr = col + (size_t)r * 3;
+        cr[0] = sigm(dot8(hc, w2t[0], Hc) + b0);
+        cr[1] = sigm(dot8(hc, w2t[1], Hc) + b1);
+        cr[2] = sigm(dot8(hc, w2t[2], Hc) + b2);
+    }
+}
+
 /* Layers 2.. of a decoder on R rows (serial; callers split rows across
  * threads) whose layer-1 pre-activation is in a1 (ReLU applied here). */
 void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
-                             float *sig, float *col) {
-    const float *p = m->p;
+                          float *sig, float *col) {
     int H = n->H, Hc = n->Hc;
-    if (R <= 0) return;
-    for (long i = 0; i < (long)R * H; i++) a1[i] = a1[i] > 0 ? a1[i] : 0;
-    /* biases are pre-filled and the GEMMs accumulate (beta = 1): no separate zero/bias passes */
-    for (int r = 0; r < R; r++) memcpy(a2 + (size_t)r * H, p + n->b2, H * sizeof(float));
-    gemm_nn(R, H, H, a1, p + n->W2, 1.0f, a2);
-    for (long i = 0; i < (long)R * H; i++) a2[i] = a2[i] > 0 ? a2[i] : 0;
-    for (int r = 0; r < R; r++) memcpy(a3 + (size_t)r * H, p + n->b3, H * sizeof(float));
-    gemm_nn(R, H, H, a2, p + n->W3, 1.0f, a3);
-    for (long i = 0; i < (long)R * H; i++) a3[i] = a3[i] > 0 ? a3[i] : 0;
-    gemm_nn(R, 1, H, a3, p + n->Wd, 0.0f, sig);
-    gemm_nn(R, Hc, H, a3, p + n->Wc1, 0.0f, ac);
-    for (int r = 0; r < R; r++) {
-        sig[r] = sigm(sig[r] + p[n->bd]);
-        float *hc = ac + (size_t)r * Hc;
-        for (int j = 0; j < Hc; j++) {
-            float v = hc[j] + p[n->bc1 + j];
-            hc[j] = v > 0 ? v : 0;
-        }
-        for (int a = 0; a < 3; a++) {
-            float v = p[n->bc2 + a];
-            for (int j = 0; j < Hc; j++) v += hc[j] * p[n->Wc2 + j * 3 + a];
-            col[(size_t)r * 3 + a] = sigm(v);
-        }
+    SOOC_ASSERT(Hc <= MDL_HC_MAX);
+    for (int r0 = 0; r0 < R; r0 += MDL_BLOCK_ROWS) {
+        int nb = R - r0 < MDL_BLOCK_ROWS ? R - r0 : MDL_BLOCK_ROWS;
+        tail_forward_block(m->p, n, nb, a1 + (size_t)r0 * H, a2 + (size_t)r0 * H, a3 + (size_t)r0 * H,
+                           ac + (size_t)r0 * Hc, sig + r0, col + (size_t)r0 * 3);
     }
 }
 
@@ -293,19 +332,27 @@ static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, i
     int H = n->H, Hc = n->Hc;
     if (R <= 0) return;
     float *gac = gB;
+    float w2t[3][MDL_HC_MAX];
+    SOOC_ASSERT(Hc <= MDL_HC_MAX);
+    for (int j = 0; j < Hc; j++)
+        for (int a = 0; a < 3; a++) w2t[a][j] = p[n->Wc2 + j * 3 + a];
+    const float *Wd = p + n->Wd;
     for (int r = 0; r < R; r++) {
         gsig[r] *= sig[r] * (1 - sig[r]);
         float *gc = gcol + (size_t)r * 3;
         const float *cl = col + (size_t)r * 3;
-        for (int a = 0; a < 3; a++) gc[a] *= cl[a] * (1 - cl[a]);
-        const float *hc = ac + (size_t)r * Hc;
-        float *gh = gac + (size_t)r * Hc;
+        float g0 = gc[0] * cl[0] * (1 - cl[0]), g1c = gc[1] * cl[1] * (1 - cl[1]), g2 = gc[2] * cl[2] * (1 - cl[2]);
+        gc[0] = g0, gc[1] = g1c, gc[2] = g2;
+        const float *restrict hc = ac + (size_t)r * Hc;
+        float *restrict gh = gac + (size_t)r * Hc;
         for (int j = 0; j < Hc; j++) {
-            float v = 0;
-            if (hc[j] > 0)
-                for (int a = 0; a < 3; a++) v += gc[a] * p[n->Wc2 + j * 3 + a];
-            gh[j] = v;
+            float v = g0 * w2t[0][j] + g1c * w2t[1][j] + g2 * w2t[2][j];
+            gh[j] = hc[j] > 0 ? v : 0;
         }
+        /* density head: pre-fill gA with gsig ⊗ Wd, the Wc1 GEMM accumulates onto it */
+        float gs = gsig[r];
+        float *restrict ga = gA + (size_t)r * H;
+        for (int j = 0; j < H; j++) ga[j] = gs * Wd[j];
     }
     if (ws != 0) {
         gemm_tn_acc(Hc, 3, R, ws, ac, gcol, g + n->Wc2);
@@ -317,26 +364,22 @@ static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, i
             for (int j = 0; j < Hc; j++) g[n->bc1 + j] += ws * gac[(size_t)r * Hc + j];
         }
     }
-    gemm_nt(R, H, Hc, gac, p + n->Wc1, gA);
-    for (int r = 0; r < R; r++)
-        for (int j = 0; j < H; j++) {
-            size_t i = (size_t)r * H + j;
-            gA[i] = a3[i] > 0 ? gA[i] + gsig[r] * p[n->Wd + j] : 0;
-        }
+    gemm_nt(R, H, Hc, gac, p + n->Wc1, 1.0f, gA);
+    relu_mask(gA, a3, (size_t)R * H);
     if (ws != 0) {
         gemm_tn_acc(H, H, R, ws, a2, gA, g + n->W3);
         for (int r = 0; r < R; r++)
             for (int j = 0; j < H; j++) g[n->b3 + j] += ws * gA[(size_t)r * H + j];
     }
-    gemm_nt(R, H, H, gA, p + n->W3, gB);
-    for (long i = 0; i < (long)R * H; i++) gB[i] = a2[i] > 0 ? gB[i] : 0;
+    gemm_nt(R, H, H, gA, p + n->W3, 0.0f, gB);
+    relu_mask(gB, a2, (size_t)R * H);
     if (ws != 0) {
         gemm_tn_acc(H, H, R, ws, a1, gB, g + n->W2);
         for (int r = 0; r < R; r++)
             for (int j = 0; j < H; j++) g[n->b2 + j] += ws * gB[(size_t)r * H + j];
     }
-    gemm_nt(R, H, H, gB, p + n->W2, g1);
-    for (long i = 0; i < (long)R * H; i++) g1[i] = a1[i] > 0 ? g1[i] : 0;
+    gemm_nt(R, H, H, gB, p + n->W2, 0.0f, g1);
+    relu_mask(g1, a1, (size_t)R * H);
 }
 
 static inline void chunk_of(int n, int tid, int nth, int *r0, int *r1) {
@@ -580,13 +623,20 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
         mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, rmin, rmax, beta, c->g_lay,
                      c->g_lay ? c->g_lay + dl : NULL, c->g_lay0, c->g_lay0 ? c->g_lay0 + dl : NULL);
 
-    /* 7. decoder backward: object rows */
+    /* 7. decoder backward: object and layout rows in one parallel region
+     * (each thread takes a contiguous share of both; thread-private weight /
+     * slot-bias / z^where gradients, reduced below in thread order). The
+     * layout rows' scratch follows the object rows' when it fits. */
     float gzw[SOOC_MODEL_K_MAX][3], gzwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX], gzp[SOOC_MODEL_K_MAX];
     memset(gzw, 0, sizeof gzw);
     memset(gzwhat, 0, sizeof gzwhat);
     memset(gzp, 0, sizeof gzp);
     float ws = c->wgrad;
-    float *gsig = w->gC, *gcol = w->gC + (size_t)(nro > nrl ? nro : nrl);   /* gC has >= R*H >= 4R floats */
+    size_t Rall = (size_t)w->Pmax * (w->Kmax > 1 ? w->Kmax : 1);
+    int merged = (size_t)nro + nrl <= Rall;
+    int loff = merged ? nro : 0;   /* first scratch row of the layout rows */
+    int nrt = merged ? nro + nrl : (nro > nrl ? nro : nrl);
+    float *gsig = w->gC, *gcol = w->gC + (size_t)nrt;   /* gC has >= Rall*H >= 4 nrt floats */
     for (int r = 0; r < nro; r++) {
         int pt = w->ro_pt[r], k = w->ro_slot[r];
         float g = w->gsh[(size_t)pt * C + 1 + k];
@@ -597,50 +647,69 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
     int ntb = nt < w->nthr ? nt : w->nthr;
     size_t tstride = w->dec_np + (size_t)C * H + 3 * (size_t)K;
     float s_g = cfg->gauss_s;
-MDL_OMP(omp parallel num_threads(ntb) if (nro >= MDL_PAR_ROWS))
+    /* Zero every thread-private buffer up front: a region below MDL_PAR_ROWS runs on one
+     * thread only, and the reduction reads all ntb buffers (without weight gradients only
+     * the slot-bias / z^where part is used). */
     {
-        int r0, r1, tid = TID(), nth = NTH();
-        float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
-        memset(tg, 0, tstride * sizeof(float));
-        chunk_of(nro, tid, nth, &r0, &r1);
-        int R = r1 - r0;
-        float *g1 = w->gA + (size_t)r0 * H;
-        mlp_tail_backward(m, tg, no, R, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
-                          w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, gsig + r0,
-                          gcol + (size_t)r0 * 3, w->gA + (size_t)r0 * H, w->gB + (size_t)r0 * H, g1, ws);
-        if (ws != 0 && R > 0) gemm_tn_acc(no->din, H, R, ws, w->o_pe + (size_t)r0 * no->din, g1, tg + no->W1x);
-        if (R > 0) gemm_nt(R, no->din, H, g1, p + no->W1x, w->gpe + (size_t)r0 * no->din);
-        for (int r = r0; r < r1; r++) {
-            int k = w->ro_slot[r], pt = w->ro_pt[r];
-            float *gb = tgb + (size_t)(1 + k) * H;
-            const float *gr = w->gA + (size_t)r * H;
-            for (int j = 0; j < H; j++) gb[j] += gr[j];
-            float gx[3];
-            const float *xk = w->o_xk + (size_t)r * 3;
-            pe_row_back(w->o_pe + (size_t)r * no->din, w->gpe + (size_t)r * no->din, inv_o, no->nfreq, gx);
-            mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, s_g, gx);
-            mdl_pi_backward(xk, c->zw[k][2], gx, tgw + 3 * k);
+        size_t z0 = ws != 0 ? 0 : w->dec_np;
+        for (int t = 0; t < ntb; t++) memset(w->tbuf + (size_t)t * tstride + z0, 0, (tstride - z0) * sizeof(float));
+    }
+    for (int pass = merged ? 1 : 0; pass < 2; pass++) {
+        /* pass 0 (only when the scratch does not fit): object rows alone; pass 1: layout (+ objects if merged) */
+        int do_obj = merged || pass == 0, do_lay = pass == 1;
+        if (do_lay)
+            for (int r = 0; r < nrl; r++) {
+                int pt = w->lr_pt[r];
+                gsig[loff + r] = w->gsh[(size_t)pt * C];
+                memcpy(gcol + (size_t)(loff + r) * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
+            }
+        int rows = (do_obj ? nro : 0) + (do_lay ? nrl : 0);
+MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
+        {
+            int r0, r1, tid = TID(), nth = NTH();
+            float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
+            if (do_obj) {
+                chunk_of(nro, tid, nth, &r0, &r1);
+                for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS) {
+                    int R = r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS;
+                    float *g1 = w->gA + (size_t)b0 * H;
+                    mlp_tail_backward(m, tg, no, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H,
+                                      w->o_a3 + (size_t)b0 * H, w->o_ac + (size_t)b0 * no->Hc, w->o_sig + b0,
+                                      w->o_col + (size_t)b0 * 3, gsig + b0, gcol + (size_t)b0 * 3,
+                                      w->gA + (size_t)b0 * H, w->gB + (size_t)b0 * H, g1, ws);
+                    if (ws != 0) gemm_tn_acc(no->din, H, R, ws, w->o_pe + (size_t)b0 * no->din, g1, tg + no->W1x);
+                    gemm_nt(R, no->din, H, g1, p + no->W1x, 0.0f, w->gpe + (size_t)b0 * no->din);
+                    for (int r = b0; r < b0 + R; r++) {
+                        int k = w->ro_slot[r], pt = w->ro_pt[r];
+                        float *restrict gb = tgb + (size_t)(1 + k) * H;
+                        const float *restrict gr = w->gA + (size_t)r * H;
+                        for (int j = 0; j < H; j++) gb[j] += gr[j];
+                        float gx[3];
+                        const float *xk = w->o_xk + (size_t)r * 3;
+                        pe_row_back(w->o_pe + (size_t)r * no->din, w->gpe + (size_t)r * no->din, inv_o, no->nfreq, gx);
+                        mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, s_g, gx);
+                        mdl_pi_backward(xk, c->zw[k][2], gx, tgw + 3 * k);
+                    }
+                }
+            }
+            if (do_lay) {
+                chunk_of(nrl, tid, nth, &r0, &r1);
+                for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS) {
+                    int R = r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS, s0 = loff + b0;
+                    float *g1 = w->gA + (size_t)s0 * H;
+                    mlp_tail_backward(m, tg, nl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H,
+                                      w->l_a3 + (size_t)b0 * H, w->l_ac + (size_t)b0 * nl->Hc, w->l_sig + b0,
+                                      w->l_col + (size_t)b0 * 3, gsig + s0, gcol + (size_t)s0 * 3,
+                                      w->gA + (size_t)s0 * H, w->gB + (size_t)s0 * H, g1, ws);
+                    if (ws != 0) gemm_tn_acc(nl->din, H, R, ws, w->l_pe + (size_t)b0 * nl->din, g1, tg + nl->W1x);
+                    float *restrict gb = tgb;
+                    for (int r = 0; r < R; r++) {
+                        const float *restrict gr = g1 + (size_t)r * H;
+                        for (int j = 0; j < H; j++) gb[j] += gr[j];
+                    }
+                }
+            }
         }
-    }
-    /* layout rows */
-    for (int r = 0; r < nrl; r++) {
-        int pt = w->lr_pt[r];
-        gsig[r] = w->gsh[(size_t)pt * C];
-        memcpy(gcol + (size_t)r * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
-    }
-MDL_OMP(omp parallel num_threads(ntb) if (nrl >= MDL_PAR_ROWS))
-    {
-        int r0, r1, tid = TID(), nth = NTH();
-        float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np;
-        chunk_of(nrl, tid, nth, &r0, &r1);
-        int R = r1 - r0;
-        float *g1 = w->gA + (size_t)r0 * H;
-        mlp_tail_backward(m, tg, nl, R, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
-                          w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, gsig + r0,
-                          gcol + (size_t)r0 * 3, w->gA + (size_t)r0 * H, w->gB + (size_t)r0 * H, g1, ws);
-        if (ws != 0 && R > 0) gemm_tn_acc(nl->din, H, R, ws, w->l_pe + (size_t)r0 * nl->din, g1, tg + nl->W1x);
-        for (int r = r0; r < r1; r++)
-            for (int j = 0; j < H; j++) tgb[j] += g1[(size_t)(r - r0) * H + j];
     }
     /* reduce the thread-private accumulators (fixed order: deterministic) */
     memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
