@@ -224,6 +224,38 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
     return mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twg, h, pitch, blk);
 }
 
+/* Bounded refinement update (docs/training.md, "What was tried"): the
+ * refinement nets' raw output r is applied as Δ = s·tanh(r/s), per component
+ * scale s (metres / radians / log-variance / latent units per iteration).
+ * Unbounded, the nets learnt to fling latents (|Δpos| 5-9 m, layout |μ| +73
+ * per iteration, KL 1e5 per scene) and presence collapsed. Near 0 the update
+ * is the identity (zero-initialised heads start at λ = prior). */
+#define BOUND_POS 1.0f     /* x, z (m)                 */
+#define BOUND_ANG 1.0f     /* θ (rad)                  */
+#define BOUND_RHO 1.0f     /* log-variances            */
+#define BOUND_WHAT 1.0f    /* z^what and layout means  */
+#define BOUND_PRES 3.0f    /* presence logit           */
+
+static float bound_scale_obj(int i, int d) {
+    if (i < 2) return BOUND_POS;
+    if (i == 2) return BOUND_ANG;
+    if (i < 5) return BOUND_RHO;
+    if (i < 5 + d) return BOUND_WHAT;
+    if (i < 5 + 2 * d) return BOUND_RHO;
+    return BOUND_PRES;
+}
+
+static float bound_scale_lay(int i, int dl) { return i < dl ? BOUND_WHAT : BOUND_RHO; }
+
+static float bound_apply(float r, float s) { return s * tanhf(r / s); }
+
+/* d(bounded)/d(raw) from the applied update Δ = λ^{l+1} − λ^l. */
+static float bound_deriv(float delta, float s) {
+    float t = delta / s;
+    float g = 1.0f - t * t;
+    return g > 0 ? g : 0;
+}
+
 /* Forward over the L refinement iterations of one input view.
  * train = 1: decodes l = 0..L with local backward (weight grads w_l = l/L),
  * stores everything for the reverse sweep. train = 0: decodes l = 0..L-1
@@ -304,9 +336,13 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
         }
         mdl_ref_forward(m, &m->robj, ao, gw, gh, S->delta);
         float *nlam = lam + (size_t)K * NL, *nlay = lay + D2;
-        for (int i = 0; i < K * NL; i++) nlam[i] = lam[i] + S->delta[i];
+        for (int k = 0; k < K; k++)
+            for (int i = 0; i < NL; i++) {
+                size_t j = (size_t)k * NL + i;
+                nlam[j] = lam[j] + bound_apply(S->delta[j], bound_scale_obj(i, c->d_what));
+            }
         mdl_ref_forward(m, &m->rlay, al, gw, gh, S->delta);
-        for (int i = 0; i < D2; i++) nlay[i] = lay[i] + S->delta[i];
+        for (int i = 0; i < D2; i++) nlay[i] = lay[i] + bound_apply(S->delta[i], bound_scale_lay(i, dl));
     }
     return SOOC_OK;
 }
@@ -334,12 +370,22 @@ void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L) {
         float wl = (float)l / (float)L;
         /* objects: λ^{l+1} = λ^l + f(λ^l, ...) */
         memset(S->gvec, 0, (size_t)K * nvo * sizeof(float));
-        mdl_ref_backward(m, &m->robj, &V->ao[l], gw, gh, G, S->dh, S->dc, S->gvec);
+        /* through the bound: d/d(raw) = G · (1 − (Δ/s)²) */
+        const float *la = V->lam + (size_t)l * K * NL, *lb = la + (size_t)K * NL;
+        for (int k = 0; k < K; k++)
+            for (int i = 0; i < NL; i++) {
+                size_t j = (size_t)k * NL + i;
+                float s = bound_scale_obj(i, c->d_what);
+                S->tmp0[j] = G[j] * bound_deriv(lb[j] - la[j], s);
+            }
+        mdl_ref_backward(m, &m->robj, &V->ao[l], gw, gh, S->tmp0, S->dh, S->dc, S->gvec);
         const float *gl = V->glam + (size_t)l * K * NL;
         for (int k = 0; k < K; k++)
             for (int i = 0; i < NL; i++) G[k * NL + i] += S->gvec[(size_t)k * nvo + i] + wl * gl[k * NL + i];
         memset(S->gvec, 0, nvl * sizeof(float));
-        mdl_ref_backward(m, &m->rlay, &V->al[l], gw, gh, Gl, dhl, dcl, S->gvec);
+        const float *ya = V->lay + (size_t)l * D2, *yb = ya + D2;
+        for (int i = 0; i < D2; i++) S->tmpl0[i] = Gl[i] * bound_deriv(yb[i] - ya[i], bound_scale_lay(i, c->d_layout));
+        mdl_ref_backward(m, &m->rlay, &V->al[l], gw, gh, S->tmpl0, dhl, dcl, S->gvec);
         const float *gll = V->glay + (size_t)l * D2;
         for (int i = 0; i < D2; i++) Gl[i] += S->gvec[i] + wl * gll[i];
     }
