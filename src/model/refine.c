@@ -6,12 +6,67 @@
 #include <cblas.h>
 #include <math.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #ifdef SOOC_HAVE_OPENMP
 #include <omp.h>
 #endif
 
 static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
-static inline float elu(float x) { return x > 0 ? x : expf(x) - 1.0f; }
+/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
+ * relative error < 1e-7, like expf). Scalar version, and an SSE2 version for rows. */
+static inline float expf_nonpos(float x) {
+    x = x < -87.0f ? -87.0f : x;
+    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
+    uint32_t bi;
+    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
+    float fn = big - 12582912.0f;
+    float r = x - fn * 0.693359375f;
+    r = r + fn * 2.12194440e-4f;
+    float y = 1.9875691500e-4f;
+    y = y * r + 1.3981999507e-3f;
+    y = y * r + 8.3334519073e-3f;
+    y = y * r + 4.1665795894e-2f;
+    y = y * r + 1.6666665459e-1f;
+    y = y * r + 5.0000001201e-1f;
+    y = y * r * r + r + 1.0f;
+    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
+    float s;
+    memcpy(&s, &bits, sizeof s);
+    return y * s;
+}
+static inline float elu(float x) { return x > 0 ? x : expf_nonpos(x) - 1.0f; }
+
+/* y[j] = elu(y[j] + bias) over a row (the conv epilogue). */
+static void elu_bias_rows(float *y, size_t n, float bias) {
+    size_t j = 0;
+#ifdef __SSE2__
+    const __m128 vb = _mm_set1_ps(bias), lo = _mm_set1_ps(-87.0f), zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    const __m128 l2e = _mm_set1_ps(1.44269504088896341f), c1 = _mm_set1_ps(0.693359375f), c2 = _mm_set1_ps(2.12194440e-4f);
+    for (; j + 4 <= n; j += 4) {
+        __m128 x = _mm_add_ps(_mm_loadu_ps(y + j), vb);
+        __m128 xn = _mm_max_ps(_mm_min_ps(x, zero), lo);
+        __m128i ni = _mm_cvtps_epi32(_mm_mul_ps(xn, l2e));   /* round to nearest (default MXCSR) */
+        __m128 fn = _mm_cvtepi32_ps(ni);
+        __m128 r = _mm_sub_ps(xn, _mm_mul_ps(fn, c1));
+        r = _mm_add_ps(r, _mm_mul_ps(fn, c2));
+        __m128 p = _mm_set1_ps(1.9875691500e-4f);
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(1.3981999507e-3f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(8.3334519073e-3f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(4.1665795894e-2f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(1.6666665459e-1f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(5.0000001201e-1f));
+        p = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(p, r), r), r), one);
+        __m128 s = _mm_castsi128_ps(_mm_slli_epi32(_mm_add_epi32(ni, _mm_set1_epi32(127)), 23));
+        __m128 e = _mm_sub_ps(_mm_mul_ps(p, s), one);
+        __m128 pos = _mm_cmpgt_ps(x, zero);
+        _mm_storeu_ps(y + j, _mm_or_ps(_mm_and_ps(pos, x), _mm_andnot_ps(pos, e)));
+    }
+#endif
+    for (; j < n; j++) y[j] = elu(y[j] + bias);
+}
+
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
 int mdl_aux_channels(int layout) { return layout ? 25 : 26; }
@@ -80,57 +135,91 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
     if (m->threads <= 0) nthr = omp_get_max_threads();
 #endif
     (void)nthr;
+    /* Channels 0-7 (colour, depth, beyond-clip flag, ray direction) are the same for every
+     * component: written once into the layout image, copied into each object's. */
+    {
+        float *restrict c0 = img_l, *restrict c1 = img_l + N, *restrict c2 = img_l + 2 * (size_t)N;
+        float *restrict c3 = img_l + 3 * (size_t)N, *restrict c4 = img_l + 4 * (size_t)N;
+        for (int rr = 0; rr < N; rr++) {
+            int surf = vr->surf[rr];
+            c0[rr] = vr->rgb[rr * 3], c1[rr] = vr->rgb[rr * 3 + 1], c2[rr] = vr->rgb[rr * 3 + 2];
+            c3[rr] = surf ? vr->depth[rr] / cfg->d_clip : 1.0f;
+            c4[rr] = surf ? 0.0f : 1.0f;
+        }
+        float *restrict c5 = img_l + 5 * (size_t)N, *restrict c6 = img_l + 6 * (size_t)N, *restrict c7 = img_l + 7 * (size_t)N;
+        for (int rr = 0; rr < N; rr++) c5[rr] = vr->dir[rr * 3], c6[rr] = vr->dir[rr * 3 + 1], c7[rr] = vr->dir[rr * 3 + 2];
+    }
 MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR_ROWS))
     for (int comp = 0; comp < C; comp++) {
         int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
         float *img = lay ? img_l : img_o;
         float cth = lay ? 1.0f : cosf(c->zw[b][2]), sth = lay ? 0.0f : sinf(c->zw[b][2]);
 #define CH(ch) (img + ((size_t)(ch) * B + b) * N)
-        int o = 0;
-        for (int rr = 0; rr < N; rr++) {
-            o = 8;
-            int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
-            for (int a = 0; a < 3; a++) CH(a)[rr] = vr->rgb[rr * 3 + a];
-            CH(3)[rr] = surf ? vr->depth[rr] / cfg->d_clip : 1.0f;
-            CH(4)[rr] = surf ? 0.0f : 1.0f;
-            for (int a = 0; a < 3; a++) CH(5 + a)[rr] = vr->dir[rr * 3 + a];
-            /* surface point in component frame */
-            float xk[3] = {0, 0, 0};
-            if (surf) {
-                const float *x = vr->pts + (size_t)ps * 3;
-                if (lay) {
+        /* Each channel is written by its own loop over rays: the channels of one item are
+         * N floats (4 KB) apart, so writing all 26 per ray thrashes L1 associativity. */
+        if (!lay)
+            for (int ch = 0; ch < 8; ch++) memcpy(CH(ch), img_l + (size_t)ch * N, (size_t)N * sizeof(float));
+        int o = 8;
+        /* surface point in the component frame */
+        if (!lay) {
+            float *restrict x0 = CH(o), *restrict x1 = CH(o + 1), *restrict x2 = CH(o + 2), *restrict wgc = CH(o + 3);
+            float px = c->zw[b][0], pz = c->zw[b][1];
+            for (int rr = 0; rr < N; rr++) {
+                float xk[3] = {0, 0, 0};
+                int surf = vr->surf[rr];
+                if (surf) mdl_pi_cs(vr->pts + (size_t)2 * rr * 3, px, pz, cth, sth, vr->h, xk);
+                x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
+                x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
+                x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
+                wgc[rr] = surf ? expf(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+            }
+            o += 4;
+        } else {
+            float *restrict x0 = CH(o), *restrict x1 = CH(o + 1), *restrict x2 = CH(o + 2);
+            for (int rr = 0; rr < N; rr++) {
+                float xk[3] = {0, 0, 0};
+                if (vr->surf[rr]) {
+                    const float *x = vr->pts + (size_t)2 * rr * 3;
                     for (int a = 0; a < 3; a++) xk[a] = clampf((x[a] - vr->blk[a]) * inv_b, -3, 3);
-                } else {
-                    mdl_pi_cs(x, c->zw[b][0], c->zw[b][1], cth, sth, vr->h, xk);
                 }
+                x0[rr] = xk[0], x1[rr] = xk[1], x2[rr] = xk[2];
             }
-            if (!lay) {
-                float wg = surf ? expf(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
-                for (int a = 0; a < 3; a++) CH(o + a)[rr] = clampf(xk[a] * inv_rh, -3, 3);
-                CH(o + 3)[rr] = wg;
-                o += 4;
-            } else {
-                for (int a = 0; a < 3; a++) CH(o + a)[rr] = xk[a];
-                o += 3;
+            o += 3;
+        }
+        const float *restrict sh = w->sh, *restrict Sv = w->S, *restrict ctv = w->ct;
+        {
+            float *restrict d0 = CH(o), *restrict d1 = CH(o + 1), *restrict d5 = CH(o + 5);
+            for (int rr = 0; rr < N; rr++) {
+                int ps = 2 * rr, pa = ps + 1;
+                float ss = sh[(size_t)ps * C + comp], sa = sh[(size_t)pa * C + comp];
+                d0[rr] = ss;
+                d1[rr] = vr->surf[rr] ? ss / Sv[ps] : 0.0f;
+                d5[rr] = sa * sa / Sv[pa];
             }
-            const float *sh_s = w->sh + (size_t)ps * C, *sh_a = w->sh + (size_t)pa * C;
-            const float *ct_s = w->ct + (size_t)ps * C * 3;
-            float S = w->S[ps];
-            CH(o)[rr] = sh_s[comp];
-            CH(o + 1)[rr] = surf ? sh_s[comp] / S : 0.0f;
-            for (int a = 0; a < 3; a++) CH(o + 2 + a)[rr] = ct_s[comp * 3 + a];
-            CH(o + 5)[rr] = sh_a[comp] * sh_a[comp] / w->S[pa];
-            float post = surf ? post_all[(size_t)rr * C + comp] : 0.0f;
-            CH(o + 6)[rr] = post;
-            CH(o + 7)[rr] = w->ll[rr];
-            /* counterfactual */
-            float lm;
-            {
-                float Sa = w->S[pa], Qa = w->Sb[pa] * Sa;
+            float *restrict e0 = CH(o + 2), *restrict e1 = CH(o + 3), *restrict e2 = CH(o + 4);
+            for (int rr = 0; rr < N; rr++) {
+                const float *ct = ctv + ((size_t)2 * rr * C + comp) * 3;
+                e0[rr] = ct[0], e1[rr] = ct[1], e2[rr] = ct[2];
+            }
+            float *restrict d6 = CH(o + 6), *restrict d7 = CH(o + 7);
+            for (int rr = 0; rr < N; rr++) {
+                d6[rr] = vr->surf[rr] ? post_all[(size_t)rr * C + comp] : 0.0f;
+                d7[rr] = w->ll[rr];
+            }
+        }
+        /* counterfactual ell - ell_{-k} */
+        {
+            float *restrict d8 = CH(o + 8);
+            for (int rr = 0; rr < N; rr++) {
+                int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
+                const float *sh_s = sh + (size_t)ps * C, *sh_a = sh + (size_t)pa * C;
+                const float *ct_s = ctv + (size_t)ps * C * 3;
+                float S = Sv[ps];
+                float Sa = Sv[pa], Qa = w->Sb[pa] * Sa;
                 float Sa2 = Sa - sh_a[comp], Qa2 = Qa - sh_a[comp] * sh_a[comp];
                 if (Sa2 < 1e-8f) Sa2 = 1e-8f;
                 if (Qa2 < 0) Qa2 = 0;
-                lm = -vr->W[rr] * smax * Qa2 / Sa2;
+                float lm = -vr->W[rr] * smax * Qa2 / Sa2;
                 if (surf) {
                     float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
                     if (S2 < 1e-8f) S2 = 1e-8f;
@@ -144,13 +233,21 @@ MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR
                     }
                     lm += -0.5f * e * is2 - lognorm;
                 }
+                d8[rr] = w->ll[rr] - lm;
             }
-            CH(o + 8)[rr] = w->ll[rr] - lm;
-            CH(o + 9)[rr] = w->gsh[(size_t)ps * C + comp];
-            CH(o + 10)[rr] = w->gsh[(size_t)pa * C + comp];
-            for (int a = 0; a < 3; a++) CH(o + 11 + a)[rr] = w->gct[((size_t)ps * C + comp) * 3 + a];
         }
-        o = lay ? 11 : 12;
+        {
+            float *restrict d9 = CH(o + 9), *restrict d10 = CH(o + 10);
+            for (int rr = 0; rr < N; rr++) {
+                d9[rr] = w->gsh[(size_t)2 * rr * C + comp];
+                d10[rr] = w->gsh[(size_t)(2 * rr + 1) * C + comp];
+            }
+            float *restrict e0 = CH(o + 11), *restrict e1 = CH(o + 12), *restrict e2 = CH(o + 13);
+            for (int rr = 0; rr < N; rr++) {
+                const float *g = w->gct + ((size_t)2 * rr * C + comp) * 3;
+                e0[rr] = g[0], e1[rr] = g[1], e2[rr] = g[2];
+            }
+        }
         ln_img(img, B, N, b, o + 7, 1);
         ln_img(img, B, N, b, o + 8, 1);
         ln_img(img, B, N, b, o + 9, 1);
@@ -215,29 +312,44 @@ void mdl_ref_act_free(ref_act *a) {
     }
 }
 
-/* Columns of items [b0, b1) (No = (b1 - b0) Ho Wo columns). */
+/* Columns of items [b0, b1) (No = (b1 - b0) Ho Wo columns), 3x3 stride 2, TF SAME
+ * padding on even sizes (nothing before, one zero row/column after).
+ * Row (ci, ky, kx), column (b, oy, ox) = x[ci][b][2 oy + ky][2 ox + kx]. Each input row
+ * is split once into its even and odd columns; every tap's output row is then a
+ * contiguous copy (kx = 0: even, 1: odd, 2: even shifted by one, the pad last). */
+#define MDL_IM2COL_WMAX 1024
 static void im2col(const float *x, int Ci, int B, int b0, int b1, int Hi, int Wi, float *cols) {
-    int Ho = Hi / 2, Wo = Wi / 2, No = (b1 - b0) * Ho * Wo;
+    int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
+    size_t No = (size_t)(b1 - b0) * HWo, rowb = (size_t)Wo * sizeof(float);
+    float ev[MDL_IM2COL_WMAX + 1], od[MDL_IM2COL_WMAX];
+    SOOC_ASSERT(Wo <= MDL_IM2COL_WMAX && Hi % 2 == 0 && Wi % 2 == 0);
     for (int ci = 0; ci < Ci; ci++)
-        for (int ky = 0; ky < 3; ky++)
-            for (int kx = 0; kx < 3; kx++) {
-                float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
-                int wlast = 2 * (Wo - 1) + kx < Wi ? Wo : Wo - 1;   /* only kx = 2 reaches the pad column */
-                for (int b = b0; b < b1; b++) {
-                    const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
-                    for (int oy = 0; oy < Ho; oy++) {
-                        int iy = 2 * oy + ky;
-                        float *r = row + ((size_t)(b - b0) * Ho + oy) * Wo;
-                        if (iy >= Hi) {
-                            memset(r, 0, sizeof(float) * Wo);
-                            continue;
-                        }
-                        const float *xr = xb + (size_t)iy * Wi + kx;
-                        for (int ox = 0; ox < wlast; ox++) r[ox] = xr[2 * ox];
-                        if (wlast < Wo) r[Wo - 1] = 0.0f;
-                    }
+        for (int b = b0; b < b1; b++) {
+            const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
+            float *base = cols + (size_t)ci * 9 * No + (size_t)(b - b0) * HWo;
+            for (int kx = 0; kx < 3; kx++) memset(base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo, 0, rowb);
+            ev[Wo] = 0.0f;
+            for (int iy = 0; iy < Hi; iy++) {
+                const float *restrict xr = xb + (size_t)iy * Wi;
+                for (int ox = 0; ox < Wo; ox++) {
+                    ev[ox] = xr[2 * ox];
+                    od[ox] = xr[2 * ox + 1];
+                }
+                int ky[2], oy[2], nt = 0;
+                if (iy & 1) {
+                    ky[nt] = 1, oy[nt++] = iy >> 1;
+                } else {
+                    ky[nt] = 0, oy[nt++] = iy >> 1;
+                    if (iy >= 2) ky[nt] = 2, oy[nt++] = (iy >> 1) - 1;
+                }
+                for (int t = 0; t < nt; t++) {
+                    float *r = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
+                    memcpy(r, ev, rowb);
+                    memcpy(r + No, od, rowb);
+                    memcpy(r + 2 * No, ev + 1, rowb);
                 }
             }
+        }
 }
 
 static void col2im(const float *cols, int Ci, int B, int Hi, int Wi, float *gx) {
@@ -290,8 +402,7 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
                             Ci * 9, ct, nb * HWo, 0.0f, a->y[i] + (size_t)b0 * HWo, No);
                 for (int co = 0; co < Co; co++) {
                     float bb = p[n->cb[i] + co];
-                    float *y = a->y[i] + (size_t)co * No + (size_t)b0 * HWo;
-                    for (int j = 0; j < nb * HWo; j++) y[j] = elu(y[j] + bb);
+                    elu_bias_rows(a->y[i] + (size_t)co * No + (size_t)b0 * HWo, (size_t)nb * HWo, bb);
                 }
             }
         }
