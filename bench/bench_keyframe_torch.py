@@ -73,11 +73,25 @@ def mlp(p, pe_in, bias):
     return sig, col
 
 
-# one synthetic view: rays in G, floor at -h
-yaw = torch.rand(N) - 0.5
-pitch = -0.9 * torch.rand(N) + 0.2
-dirs = torch.stack([torch.sin(yaw) * torch.cos(pitch), torch.sin(pitch), torch.cos(yaw) * torch.cos(pitch)], 1)
+# one synthetic view in G, like bench_keyframe.c's frames: 64x64 pinhole camera with a 60 degree
+# field of view, pitched down 0.45 rad, 1.5 m above the floor (y = -h), rays on the 32x32 stratified
+# grid; the slots sit where that bench's spheres are (so a similar number of object rows is decoded).
+fx = 0.5 * 64 / math.tan(math.radians(30.0))
+jj, ii = torch.meshgrid(torch.arange(32), torch.arange(32), indexing="xy")
+xc = ((2 * jj.flatten() + 1).float() - 32.0) / fx
+yc = ((2 * ii.flatten() + 1).float() - 32.0) / fx
+p_ = -0.45
+dirs = torch.stack([xc, -yc * math.cos(p_) + math.sin(p_), yc * math.sin(p_) + math.cos(p_)], 1)
+dirs = dirs / dirs.norm(dim=1, keepdim=True)
 depth = torch.where(dirs[:, 1] < -0.05, -h / dirs[:, 1].clamp(max=-0.05), torch.full((N,), 100.0))
+# the six spheres of bench_keyframe.c (centre x, height, z relative to the camera; radius)
+for cx, cy, cz, rad in [(0.3, 0.4, 3.5, 0.4), (-0.8, 0.3, 2.7, 0.3), (1.2, 0.35, 5.0, 0.35),
+                        (-1.5, 0.5, 5.5, 0.5), (0.0, 0.25, 2.3, 0.25), (2.0, 0.4, 3.7, 0.4)]:
+    cvec = torch.tensor([cx, cy - h, cz])
+    bq = dirs @ cvec
+    disc = bq * bq - (cvec @ cvec - rad * rad)
+    tq = bq - disc.clamp(min=0).sqrt()
+    depth = torch.where((disc > 0) & (tq > 0) & (tq < depth), tq, depth)
 surf = depth <= 8.0
 depth = torch.where(surf, depth, torch.zeros(N))
 rgb = torch.rand(N, 3)
@@ -85,9 +99,13 @@ ta = torch.where(surf, depth * torch.rand(N), 8.0 * torch.rand(N))
 W = torch.where(surf, 2 * 0.98 * depth, torch.full((N,), 8.0))
 pts = torch.cat([(depth + 0.03 * torch.rand(N))[:, None] * dirs, ta[:, None] * dirs], 0)   # 2N x 3
 blk = torch.tensor([0.5, -h, 4.0])
+used = torch.cat([surf, torch.ones(N, dtype=torch.bool)])   # points the C decoder evaluates
+ui = used.nonzero()[:, 0]
+zero_i = torch.zeros_like(ui)
+rows_seen = []
 lam0 = torch.zeros(K, NL)
-lam0[:, 0] = torch.linspace(-1.5, 1.5, K)
-lam0[:, 1] = torch.linspace(1.3, 6.2, K)
+lam0[:, 0] = torch.tensor([0.3, -0.8, 1.2, -1.5, 0.0, 2.0, 0.0])
+lam0[:, 1] = torch.tensor([3.5, 2.7, 5.0, 5.5, 2.3, 3.7, 1.3])
 lam0[:, 3] = math.log(0.25)
 lay0 = torch.zeros(2 * dl)
 
@@ -109,17 +127,18 @@ def update():
         vx = pts[:, None, 0] - px[None]
         vz = pts[:, None, 2] - pz[None]
         xk = torch.stack([c * vx - s * vz, (pts[:, 1] + h)[:, None].expand(-1, K), s * vx + c * vz], 2)  # P x K x 3
-        inside = ((xk[..., 0].abs() <= Rh) & (xk[..., 2].abs() <= Rh) & (xk[..., 1] >= 0) & (xk[..., 1] <= Hb))
+        inside = ((xk[..., 0].abs() <= Rh) & (xk[..., 2].abs() <= Rh) & (xk[..., 1] >= 0) & (xk[..., 1] <= Hb)
+                  & used[:, None])
         pi, ki = inside.nonzero(as_tuple=True)
+        rows_seen.append((int(pi.numel()), int(ui.numel())))
         rows = xk[pi, ki]
         sig, col = mlp(obj, pe(rows / Rh, 5), (zw @ obj[1][0] + obj[0][1])[ki])
         wg = torch.exp(-(rows[:, 0] ** 2 + rows[:, 2] ** 2) / (2 * s_g ** 2))
         sh_o = sig * zp[ki] * wg / wg.detach()
-        sl, cl = mlp(lay, pe((pts - blk) / Bs, 6), zl @ lay[1][0] + lay[0][1])
-        SH = torch.zeros(2 * N, K + 1).index_put((pi, ki + 1), sh_o)
-        SH = SH + F.pad(sl[:, None], (0, K))
-        CT = torch.zeros(2 * N, K + 1, 3).index_put((pi, ki + 1), col)
-        CT = CT + F.pad(cl[:, None, :], (0, 0, 0, K))
+        # layout rows: used points only (surface samples of rays with a surface, every air sample), as in C
+        sl, cl = mlp(lay, pe((pts[ui] - blk) / Bs, 6), zl @ lay[1][0] + lay[0][1])
+        SH = torch.zeros(2 * N, K + 1).index_put((pi, ki + 1), sh_o).index_put((ui, zero_i), sl)
+        CT = torch.zeros(2 * N, K + 1, 3).index_put((pi, ki + 1), col).index_put((ui, zero_i), cl)
         SH.retain_grad()
         CT.retain_grad()
         S = SH.sum(1) + 1e-8
@@ -174,6 +193,10 @@ for nt in sorted({threads, 1}, reverse=True):
     print("torch keyframe update, %d thread(s): median %.2f ms, p99 %.2f ms (torch %s)" %
           (nt, res[nt][0], res[nt][1], torch.__version__))
 best = min(res, key=lambda k: res[k][0])
+nro = sum(r[0] for r in rows_seen) / max(len(rows_seen), 1)
+nrl = sum(r[1] for r in rows_seen) / max(len(rows_seen), 1)
+print("torch decode rows per iteration: objects %.0f, layout %.0f (C bench: ~430-630 / ~1770-1800)" % (nro, nrl))
 print(json.dumps({"bench": "keyframe_torch", "threads_asked": threads, "threads_best": best, "n": n_iter,
                   "median_ms_by_threads": {str(k): round(v[0], 3) for k, v in res.items()},
+                  "obj_rows": round(nro), "layout_rows": round(nrl),
                   "median_ms": round(res[best][0], 3)}))
