@@ -664,6 +664,7 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
                 memcpy(gcol + (size_t)(loff + r) * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
             }
         int rows = (do_obj ? nro : 0) + (do_lay ? nrl : 0);
+        (void)rows;   /* only read by the OpenMP clause */
 MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
         {
             int r0, r1, tid = TID(), nth = NTH();
