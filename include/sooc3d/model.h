@@ -34,7 +34,7 @@
 extern "C" {
 #endif
 
-#define SOOC_MODEL_K_MAX 16
+#define SOOC_MODEL_K_MAX 32   /* 32: the global-frame baseline needs K > 26 objects (docs/baseline.md) */
 #define SOOC_MODEL_D_MAX 32
 
 /* All sizes and constants. Stored in the checkpoint; sooc_model_config_default
@@ -75,6 +75,11 @@ typedef struct sooc_model_config {
     float prior_sigma_t;     /* slot prior position std, m                  (0.5) */
     float prior_near, prior_far; /* slot prior means spread ahead, m    (1.3, 6.2) */
     float prior_pres_logit;  /* initial learnable prior presence logit       (0) */
+    /* MulMON-style global-frame baseline (src/model/global.c, docs/baseline.md);
+     * appended fields (checkpoint version 2; version-1 files load with these = 0) */
+    int global_frame;        /* 1 = the baseline: K world-frame slots, no cogmap   (0) */
+    float global_radius;     /* slot prior means spread over a disc of this radius
+                                around the world origin, m                    (4.2) */
 } sooc_model_config;
 
 void sooc_model_config_default(sooc_model_config *c);

@@ -2,6 +2,7 @@
 #include "model/model_internal.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -39,6 +40,8 @@ void sooc_model_config_default(sooc_model_config *c) {
     c->prior_near = 1.3f;
     c->prior_far = 6.2f;
     c->prior_pres_logit = 0.0f;
+    c->global_frame = 0;
+    c->global_radius = 4.2f;
 }
 
 sooc_status sooc_model_config_check(const sooc_model_config *c) {
@@ -67,7 +70,8 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
         !(c->delta_s < 10) || !(c->t_near >= 0) || !(c->d_clip < 1e4) || !(c->sigma_max < 1e6) ||
         !(c->prior_sigma_t > 0 && c->prior_sigma_t < 1e3) || !isfinite(c->prior_near) || !isfinite(c->prior_far) ||
         !isfinite(c->prior_pres_logit) || !isfinite(c->rho_min) || !isfinite(c->rho_max) || !(c->block_size < 1e4) ||
-        (c->use_box != 0 && c->use_box != 1))
+        (c->use_box != 0 && c->use_box != 1) || (c->global_frame != 0 && c->global_frame != 1) ||
+        !(c->global_radius > 0 && c->global_radius < 1e4))
         return sooc_seterr(SOOC_EINVAL, "model config: constant out of range or non-finite");
     if (!(c->sigma_max > 0) || !(c->sigma_c > 0) || !(c->air_cut > 0 && c->air_cut < 1) || !(c->d_clip > c->t_near) ||
         !(c->box_rh > 0) || !(c->box_hb > 0) || !(c->gauss_s > 0) || !(c->block_size > 0) ||
@@ -220,6 +224,7 @@ sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint
     init_ref(m, &m->robj, &r);
     init_ref(m, &m->rlay, &r);
     init_priors(m);
+    if (c->global_frame) mdl_global_init_priors(m);   /* global.c: priors spread over the scene */
     if ((st = mdl_alloc_ws(m))) {
         sooc_model_destroy(m);
         return st;
@@ -260,7 +265,9 @@ void sooc_step_opts_default(sooc_step_opts *o) {
 /* ------------------------------------------------------------ checkpoint */
 
 #define MDL_MAGIC "SOOCMDL1"
-#define MDL_VERSION 1u
+#define MDL_VERSION 2u   /* 2: config gained global_frame, global_radius (appended) */
+/* version-1 files: the config without the appended baseline fields */
+#define MDL_V1_CONFIG_SIZE offsetof(sooc_model_config, global_frame)
 
 sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *blob, size_t blob_size) {
     sooc_afile f;
@@ -311,13 +318,21 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     }
     memcpy(&ver, b + 8, 4);
     memcpy(&csz, b + 12, 4);
-    if (ver != MDL_VERSION || csz != sizeof cfg) {
+    int v1 = ver == 1u && csz == MDL_V1_CONFIG_SIZE;
+    if (!v1 && (ver != MDL_VERSION || csz != sizeof cfg)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: model file version %u / config size %u, expected %u / %zu", path, ver,
                          csz, MDL_VERSION, sizeof cfg);
         goto done;
     }
-    memcpy(&cfg, b + 16, sizeof cfg);
-    size_t o = 16 + sizeof cfg;
+    if (v1) {
+        sooc_model_config_default(&cfg);   /* appended fields keep their defaults */
+        if (n < 8 + 4 + 4 + (size_t)csz + 8 + 8 + 4) {
+            st = sooc_seterr(SOOC_EFORMAT, "%s: too short", path);
+            goto done;
+        }
+    }
+    memcpy(&cfg, b + 16, csz);
+    size_t o = 16 + (size_t)csz;
     memcpy(&np, b + o, 8);
     o += 8;
     if ((st = sooc_model_create(&m, &cfg, 0))) {

@@ -182,4 +182,7 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
 /* step.c */
 void mdl_step_free(sooc_model *m);
 
+/* global.c (the global-frame baseline, docs/baseline.md) */
+void mdl_global_init_priors(sooc_model *m);
+
 #endif
