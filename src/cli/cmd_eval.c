@@ -279,8 +279,10 @@ int sooc_cmd_eval(int argc, char **argv) {
             int scale = scale_of[d][s];
             for (int mi = 0; mi < n_models; mi++) {
                 for (int r = 0; r < runs; r++) {
-                    snprintf(pc.extra, sizeof pc.extra, "%s  %s scene %d/%d  run %d/%d", mname[mi],
-                             sooc_scale_name(scale), s + 1, n_sc[d], r + 1, runs);
+                    /* A long model name may be cut: this is only the progress line. */
+                    if (snprintf(pc.extra, sizeof pc.extra, "%s  %s scene %d/%d  run %d/%d", mname[mi],
+                                 sooc_scale_name(scale), s + 1, n_sc[d], r + 1, runs) >= (int)sizeof pc.extra)
+                        pc.extra[sizeof pc.extra - 1] = 0;
                     ro.seed = seed + (uint64_t)r;
                     sooc_eval_scene_result res;
                     st = sooc_eval_run_scene(mdl[mi], fr, nv, gt, no, &ro, on_view, NULL, &pc, &res);

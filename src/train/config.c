@@ -149,7 +149,10 @@ sooc_status sooc_train_config_load(const char *path, sooc_train_config *c, sooc_
     if (s) return s;
     yaml_parser_t parser;
     yaml_document_t doc;
-    yaml_parser_initialize(&parser);
+    if (!yaml_parser_initialize(&parser)) {
+        sooc_free(buf);
+        return sooc_seterr(SOOC_ENOMEM, "%s: cannot initialise the YAML parser", path);
+    }
     yaml_parser_set_input_string(&parser, buf, n);
     if (!yaml_parser_load(&parser, &doc)) {
         s = sooc_seterr(SOOC_EFORMAT, "%s:%d: YAML error: %s", path, (int)parser.problem_mark.line + 1,
