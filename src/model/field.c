@@ -90,6 +90,12 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     sooc_se3_inverse(T_gw, T_wg);
     sooc_se3_mul(F->T_gc, T_gw, T_wc);
     F->h = (float)h;
+    if (c->global_frame) {   /* global-frame baseline (global.c): world axes, origin (0, h, 0) */
+        double T_fw[16];
+        sooc_se3_identity(T_fw);
+        T_fw[7] = -h;
+        sooc_se3_mul(F->T_gc, T_fw, T_wc);
+    }
     sooc_cogmap_camera cam;
     memset(&cam, 0, sizeof cam);
     memcpy(cam.T_wc, T_wc, sizeof cam.T_wc);
@@ -100,9 +106,12 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     int nret = 0;
     sooc_floor_frame gf;
     if ((st = sooc_cogmap_query(map, &cam, max_obj, slots, &nret, &gf, NULL))) goto fail;
-    int32_t bi, bj;
-    double blk[2];
-    if ((st = sooc_cogmap_active_block(map, T_wc, c->d_clip, &bi, &bj, blk))) goto fail;
+    int32_t bi = 0, bj = 0;
+    double blk[2] = {0, 0};
+    if (c->global_frame)   /* baseline: world-frame slots, one layout latent at the world origin */
+        for (int i = 0; i < nret; i++) mdl_global_world_lam(map, slots[i].id, slots[i].lam);
+    else if ((st = sooc_cogmap_active_block(map, T_wc, c->d_clip, &bi, &bj, blk)))
+        goto fail;
     F->blk[0] = (float)blk[0], F->blk[1] = (float)-h, F->blk[2] = (float)blk[1];
     int nc = 1 + nret, H = c->dec_width, d = c->d_what, dl = c->d_layout;
     F->comp = sooc_calloc(nc, sizeof(fcomp));

@@ -23,3 +23,370 @@ void mdl_global_init_priors(sooc_model *m) {
         l[1] = (float)(r * sin(a));
     }
 }
+
+int sooc_model_is_global(const sooc_model *m) { return m && m->cfg.global_frame; }
+
+int sooc_model_global_slots(const sooc_model *m, int n_objects) {
+    int K = m->cfg.K;
+    if (n_objects <= 0 || n_objects + 1 >= K) return K;
+    return n_objects + 1;
+}
+
+/* Rays of one view in the decoding frame W_t: world axes, origin (0, h_t, 0)
+ * above the world origin (h_t = camera height), so that the floor is the
+ * plane y = -h_t exactly as in G_t and Π(z^where) of decoder.c maps a world
+ * pose (X, Z, Θ) to the object frame unchanged. The layout block origin is
+ * the world origin: the single layout latent sees world coordinates. */
+static sooc_status glob_view_setup(sooc_model *m, view_rec *V, const sooc_frame *f, sooc_rng *rng) {
+    const sooc_model_config *c = &m->cfg;
+    if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "frame %lld has no pose", (long long)f->index);
+    double Twg[16], h, pitch, roll;
+    sooc_status st = sooc_gframe(f->T_wc, Twg, &h, &pitch, &roll);
+    if (st) return st;
+    double Twc_frame[16];   /* world axes at the camera centre: rays come out relative to the camera */
+    sooc_se3_identity(Twc_frame);
+    double Xc = f->T_wc[3], Zc = f->T_wc[11];
+    Twc_frame[3] = Xc, Twc_frame[7] = f->T_wc[7], Twc_frame[11] = Zc;
+    memset(&V->gf, 0, sizeof V->gf);
+    V->bi = V->bj = 0;
+    V->lay_src = -1;
+    V->t_ns = f->t_ns;
+    int ox = (int)sooc_rng_below(rng, (uint32_t)(c->img_w / c->ray_w));
+    int oy = (int)sooc_rng_below(rng, (uint32_t)(c->img_h / c->ray_h));
+    const double blk0[2] = {0, 0};
+    if ((st = mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twc_frame, h, pitch, blk0))) return st;
+    /* move the origin from the camera centre to (0, h, 0): + (Xc, 0, Zc) */
+    for (int p = 0; p < 2 * V->vr.N; p++) {
+        V->vr.pts[3 * p] += (float)Xc;
+        V->vr.pts[3 * p + 2] += (float)Zc;
+    }
+    V->vr.blk[0] = 0, V->vr.blk[1] = (float)-h, V->vr.blk[2] = 0;
+    return SOOC_OK;
+}
+
+/* The K (or n) persistent slots: view t starts from view t-1's final
+ * posterior (the learnable slot priors for t = 0). */
+static void glob_view_start(sooc_model *m, view_rec *V, int n, int started, const float *lam, const float *lay) {
+    int NL = m->NL, D2 = 2 * m->cfg.d_layout;
+    V->nslot = n;
+    V->n_ret = started ? n : 0;
+    memcpy(V->lam0, lam, (size_t)n * NL * sizeof(float));
+    memcpy(V->lay0, lay, (size_t)D2 * sizeof(float));
+    for (int k = 0; k < n; k++) {
+        V->src_id[k] = 0;
+        V->src_view[k] = -1;
+        V->src_slot[k] = k;
+        V->prior_idx[k] = started ? -1 : k;
+    }
+}
+
+sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views, int T, const sooc_frame *queries,
+                                         int Q, int n_objects, const sooc_step_opts *opt, sooc_rng *rng,
+                                         sooc_step_losses *out) {
+    sooc_step_opts od;
+    if (!opt) {
+        sooc_step_opts_default(&od);
+        opt = &od;
+    }
+    memset(out, 0, sizeof *out);
+    if (!m->cfg.global_frame) return sooc_seterr(SOOC_EINVAL, "global train step: the model is not global_frame");
+    if (T < 1 || T > 64 || Q < 0 || Q > 64)
+        return sooc_seterr(SOOC_EINVAL, "global train step: T = %d (1..64), Q = %d (0..64)", T, Q);
+    const sooc_model_config *c = &m->cfg;
+    int L = opt->L > 0 ? opt->L : c->L, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
+    int n = sooc_model_global_slots(m, n_objects);
+    if (L < 1) return sooc_seterr(SOOC_EINVAL, "global train step: L must be >= 1");
+    step_state *S = mdl_step_state(m, T + 1, L);
+    if (!S) return sooc_seterr(SOOC_ENOMEM, "global train step: out of memory");
+    memcpy(S->gbak, m->g, m->np * sizeof(float));
+    sooc_status st = SOOC_OK;
+    double total = 0;
+    int nonfinite = 0;
+    /* ---- forward over the input views: one slot set carried through ---- */
+    for (int t = 0; t < T; t++) {
+        view_rec *V = &S->views[t];
+        if ((st = glob_view_setup(m, V, &views[t], rng))) goto fail;
+        if (t == 0)
+            glob_view_start(m, V, n, 0, m->p + m->prior, m->p + m->prior_lay);
+        else {
+            const view_rec *P = &S->views[t - 1];
+            glob_view_start(m, V, n, 1, P->lam + (size_t)L * n * NL, P->lay + (size_t)L * D2);
+            for (int k = 0; k < n; k++) V->src_view[k] = t - 1;
+        }
+        double lw;
+        dec_call last;
+        if ((st = mdl_view_forward(m, S, V, L, opt, 1, rng, &lw, &last))) {
+            if (st == SOOC_ENUMERIC) {
+                nonfinite = 1;
+                st = SOOC_OK;
+                break;
+            }
+            goto fail;
+        }
+        total += lw;
+        out->nll_input += last.nll;
+        out->nll_depth += last.nll_d;
+        out->nll_color += last.nll_c;
+        out->kl += last.kl;
+        const float *lamL = V->lam + (size_t)L * n * NL;
+        for (int k = 0; k < n; k++) {
+            float a = lamL[(size_t)k * NL + 5 + 2 * d];
+            out->present_slots += a >= 0;
+            out->mean_pres_logit += a;
+            if (t == T - 1) out->map_entries += a >= 0;
+        }
+    }
+    out->n_views = T;
+    out->present_slots /= T;
+    out->mean_pres_logit /= (double)T * n;
+    /* ---- query views: every slot of the final posterior ---- */
+    const view_rec *VL = &S->views[T - 1];
+    const float *lamF = VL->lam + (size_t)L * n * NL, *layF = VL->lay + (size_t)L * D2;
+    if (!nonfinite)
+        for (int q = 0; q < Q; q++) {
+            view_rec *V = &S->views[T];   /* scratch record */
+            if ((st = glob_view_setup(m, V, &queries[q], rng))) goto fail;
+            mdl_sample_noise(m, rng, &V->noise[0]);
+            memset(S->tmp0, 0, (size_t)n * NL * sizeof(float));
+            memset(S->tmpl0, 0, D2 * sizeof(float));
+            dec_call dc;
+            memset(&dc, 0, sizeof dc);
+            dc.rays = &V->vr;
+            dc.nslot = n;
+            dc.lam = lamF, dc.lay = layF;
+            dc.noise = &V->noise[0];
+            dc.tau = opt->tau, dc.beta_kl = opt->beta_kl, dc.sigma_c = opt->sigma_c;
+            uint8_t hard[SOOC_MODEL_K_MAX];
+            for (int k = 0; k < n; k++)
+                hard[k] = opt->pres_mode == SOOC_PRES_ST_ONE ? 2 : opt->pres_mode == SOOC_PRES_ST_RETRIEVED;
+            dc.hard = hard;
+            dc.wgrad = 1.0f;
+            dc.backward = 1;
+            dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
+            if (S->aux_replay) dc.zw_sg = S->zq[q];
+            if ((st = mdl_decode(m, &dc))) {
+                if (st == SOOC_ENUMERIC) {
+                    nonfinite = 1;
+                    st = SOOC_OK;
+                    break;
+                }
+                goto fail;
+            }
+            if (!S->aux_replay)
+                for (int k = 0; k < n; k++)
+                    for (int i = 0; i < 3; i++) S->zq[q][k * 3 + i] = dc.zw[k][i];
+            total += dc.loss;
+            out->nll_query += dc.nll;
+            out->n_queries++;
+            view_rec *W = &S->views[T - 1];
+            for (int i = 0; i < n * NL; i++) W->G[i] += S->tmp0[i];
+            for (int i = 0; i < D2; i++) W->Glay[i] += S->tmpl0[i];
+        }
+    /* ---- reverse sweep: identity transport between views (world frame) ---- */
+    if (!nonfinite)
+        for (int t = T - 1; t >= 0; t--) {
+            view_rec *V = &S->views[t];
+            mdl_view_backward(m, S, V, L);
+            if (t > 0) {
+                if (!opt->truncate_views) {
+                    view_rec *P = &S->views[t - 1];
+                    for (int i = 0; i < n * NL; i++) P->G[i] += V->G[i];
+                    for (int i = 0; i < D2; i++) P->Glay[i] += V->Glay[i];
+                }
+            } else {
+                for (int i = 0; i < n * NL; i++) m->g[m->prior + i] += V->G[i];
+                for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
+            }
+        }
+    out->total = total;
+    if (nonfinite || !isfinite(total)) {
+        memcpy(m->g, S->gbak, m->np * sizeof(float));
+        out->nonfinite = 1;
+        return SOOC_OK;
+    }
+    for (size_t i = 0; i < m->np; i++)
+        if (!isfinite(m->g[i])) {
+            memcpy(m->g, S->gbak, m->np * sizeof(float));
+            out->nonfinite = 1;
+            return SOOC_OK;
+        }
+    return SOOC_OK;
+fail:
+    memcpy(m->g, S->gbak, m->np * sizeof(float));
+    return st;
+}
+
+/* ------------------------------------------------------- online inference */
+
+#define GLOBAL_TAU 0.7f   /* the mapper's (and the trainer's final) temperature */
+
+struct sooc_global_mapper {
+    sooc_model *m;
+    sooc_cogmap *map;          /* the present slots (id = slot + 1) + the layout at block (0, 0) */
+    view_rec V;
+    int L, n, started, view_idx;
+    sooc_rng rng;
+    float *lam, *lay;          /* current posterior: n x NL (world frame), 2 d_l */
+    int64_t first_ns[SOOC_MODEL_K_MAX];
+    uint32_t obs[SOOC_MODEL_K_MAX];
+    uint8_t present[SOOC_MODEL_K_MAX];
+};
+
+sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, int n_objects, int iterations,
+                                      uint64_t seed, int threads) {
+    *out = NULL;
+    if (!m || !m->cfg.global_frame) return sooc_seterr(SOOC_EINVAL, "global mapper: the model is not global_frame");
+    const sooc_model_config *c = &m->cfg;
+    sooc_global_mapper *g = sooc_calloc(1, sizeof *g);
+    if (!g) return SOOC_ENOMEM;
+    g->L = iterations > 0 ? iterations : c->L;
+    if (g->L > 16) g->L = 16;
+    if (g->L < 1) g->L = 1;
+    g->n = sooc_model_global_slots(m, n_objects);
+    sooc_model_set_threads(m, threads);
+    sooc_cogmap_params cp;
+    sooc_cogmap_params_default(&cp);
+    cp.dim = c->d_what;
+    cp.layout_dim = c->d_layout;
+    cp.block_size = c->block_size;
+    sooc_status st = sooc_cogmap_create(&g->map, &cp);
+    g->lam = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
+    g->lay = sooc_calloc((size_t)2 * c->d_layout, sizeof(float));
+    if (!st && (!g->lam || !g->lay)) st = SOOC_ENOMEM;
+    if (!st) st = mdl_view_alloc(m, &g->V, g->L);
+    if (!st && !mdl_step_state(m, 1, g->L)) st = sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
+    if (st) {
+        sooc_global_mapper_destroy(g);
+        return st;
+    }
+    memcpy(g->lam, m->p + m->prior, (size_t)g->n * m->NL * sizeof(float));
+    memcpy(g->lay, m->p + m->prior_lay, (size_t)2 * c->d_layout * sizeof(float));
+    sooc_rng_seed(&g->rng, seed, 0x676c6f62ULL);
+    g->m = m;
+    *out = g;
+    return SOOC_OK;
+}
+
+void sooc_global_mapper_destroy(sooc_global_mapper *g) {
+    if (!g) return;
+    if (g->V.buf) mdl_view_free(&g->V);
+    sooc_cogmap_destroy(g->map);
+    sooc_model_destroy(g->m);
+    sooc_free(g->lam);
+    sooc_free(g->lay);
+    sooc_free(g);
+}
+
+sooc_model *sooc_global_mapper_model(sooc_global_mapper *g) { return g->m; }
+const sooc_cogmap *sooc_global_mapper_cogmap(const sooc_global_mapper *g) { return g->map; }
+int sooc_global_mapper_n_slots(const sooc_global_mapper *g) { return g->n; }
+const float *sooc_global_mapper_slot(const sooc_global_mapper *g, int k) {
+    return k >= 0 && k < g->n ? g->lam + (size_t)k * g->m->NL : NULL;
+}
+const float *sooc_global_mapper_layout(const sooc_global_mapper *g) { return g->lay; }
+
+sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc3d_update_stats *stp) {
+    double t0 = sooc_seconds();
+    sooc3d_update_stats st0;
+    sooc3d_update_stats *us = stp ? stp : &st0;
+    memset(us, 0, sizeof *us);
+    sooc_model *m = g->m;
+    const sooc_model_config *c = &m->cfg;
+    if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "global mapper: frame %lld has no pose", (long long)f->index);
+    if (f->width != c->img_w || f->height != c->img_h)
+        return sooc_seterr(SOOC_EINVAL, "global mapper: frame %lld is %dx%d, the model needs %dx%d",
+                           (long long)f->index, f->width, f->height, c->img_w, c->img_h);
+    step_state *S = mdl_step_state(m, 1, g->L);
+    if (!S) return sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
+    S->aux_replay = 0;
+    view_rec *V = &g->V;
+    sooc_status s = glob_view_setup(m, V, f, &g->rng);
+    if (s) return s;
+    glob_view_start(m, V, g->n, g->started, g->lam, g->lay);
+    sooc_step_opts o;
+    sooc_step_opts_default(&o);
+    o.tau = GLOBAL_TAU;
+    o.L = g->L;
+    double lw;
+    if ((s = mdl_view_forward(m, S, V, g->L, &o, 0, &g->rng, &lw, NULL))) return s;
+    int NL = m->NL, D2 = 2 * c->d_layout, d = c->d_what, n = g->n;
+    const float *lamL = V->lam + (size_t)g->L * n * NL, *layL = V->lay + (size_t)g->L * D2;
+    for (int i = 0; i < n * NL; i++)
+        if (!isfinite(lamL[i])) return sooc_seterr(SOOC_ENUMERIC, "global mapper: non-finite posterior");
+    memcpy(g->lam, lamL, (size_t)n * NL * sizeof(float));
+    memcpy(g->lay, layL, (size_t)D2 * sizeof(float));
+    /* the "map" the eval path renders: the present slots, ids = slot + 1 */
+    sooc_cogmap_clear(g->map, 1);
+    for (int k = 0; k < n; k++) {
+        const float *l = g->lam + (size_t)k * NL;
+        int pres = l[5 + 2 * d] >= 0;
+        us->n_new += pres && !g->present[k];
+        us->n_removed += !pres && g->present[k];
+        if (pres && !g->present[k]) g->first_ns[k] = f->t_ns, g->obs[k] = 0;
+        g->present[k] = (uint8_t)pres;
+        if (!pres) continue;
+        g->obs[k]++;
+        sooc_cogmap_entry e;
+        memset(&e, 0, sizeof e);
+        e.id = (uint64_t)k + 1;
+        e.X = l[0], e.Z = l[1], e.Theta = l[2];
+        e.rho_t = l[3], e.rho_theta = l[4];
+        e.pres_logit = l[5 + 2 * d];
+        e.dim = d;
+        memcpy(e.what_mu, l + 5, d * sizeof(float));
+        memcpy(e.what_logvar, l + 5 + d, d * sizeof(float));
+        e.first_seen_ns = g->first_ns[k], e.last_seen_ns = f->t_ns;
+        e.obs_count = g->obs[k];
+        e.last_view = g->view_idx;
+        if ((s = sooc_cogmap_insert(g->map, &e, NULL))) return s;
+        us->n_registered++;
+    }
+    if ((s = sooc_cogmap_layout_set(g->map, 0, 0, g->lay, g->lay + c->d_layout))) return s;
+    us->n_retrieved = g->started ? n : 0;
+    g->started = 1;
+    g->view_idx++;
+    us->elapsed_ms = 1e3 * (sooc_seconds() - t0);
+    return SOOC_OK;
+}
+
+sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_entry *out, size_t cap, size_t *n) {
+    size_t cnt = sooc_cogmap_count(g->map);
+    if (!out) {
+        *n = cnt;
+        return SOOC_OK;
+    }
+    if (cnt > cap) cnt = cap;
+    sooc_cogmap_entry tmp[SOOC_MODEL_K_MAX];
+    if (cnt > SOOC_MODEL_K_MAX) cnt = SOOC_MODEL_K_MAX;
+    size_t got = 0;
+    sooc_status s = sooc_cogmap_entries(g->map, tmp, cnt, &got);
+    const sooc_model_config *c = &g->m->cfg;
+    for (size_t i = 0; !s && i < got; i++) {
+        const sooc_cogmap_entry *e = &tmp[i];
+        sooc_map_entry *o = &out[i];
+        memset(o, 0, sizeof *o);
+        o->id = e->id;
+        o->x = e->X, o->z = e->Z, o->yaw = e->Theta;
+        o->sigma_t = exp(0.5 * e->rho_t);
+        o->sigma_yaw = exp(0.5 * e->rho_theta);
+        o->presence_logit = e->pres_logit;
+        o->presence = 1.0f / (1.0f + expf(-e->pres_logit));
+        o->latent_dim = e->dim;
+        memcpy(o->what_mu, e->what_mu, sizeof(float) * e->dim);
+        memcpy(o->what_logvar, e->what_logvar, sizeof(float) * e->dim);
+        o->extent[0] = o->extent[2] = 2 * c->box_rh;
+        o->extent[1] = c->box_hb;
+        o->first_seen_ns = e->first_seen_ns, o->last_seen_ns = e->last_seen_ns;
+        o->obs_count = e->obs_count;
+    }
+    *n = s ? 0 : got;
+    return s;
+}
+
+/* Field helper (field.c, global branch): the world-frame λ of map entries. */
+void mdl_global_world_lam(const sooc_cogmap *map, uint64_t id, float *lam) {
+    sooc_cogmap_entry e;
+    sooc_floor_frame ident = {0, 0, 0};
+    if (sooc_cogmap_get(map, id, &e) == SOOC_OK) sooc_cogmap_lam_to_local(&ident, &e, lam);
+    else sooc_clearerr();
+}

@@ -184,5 +184,7 @@ void mdl_step_free(sooc_model *m);
 
 /* global.c (the global-frame baseline, docs/baseline.md) */
 void mdl_global_init_priors(sooc_model *m);
+/* World-frame λ of map entry id (field.c, global branch). */
+void mdl_global_world_lam(const sooc_cogmap *map, uint64_t id, float *lam);
 
 #endif
