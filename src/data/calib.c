@@ -108,6 +108,11 @@ static sooc_status parse_matrix(const pctx *c, yaml_node_t *n, const char *key, 
     if (r < 1 || cl < 1)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: rows and cols must be given and >= 1", c->name,
                            line_of(n), key);
+    /* every calibration matrix has at most 16 values; bounding rows and cols
+     * keeps r * cl from overflowing */
+    if (r > 16 || cl > 16)
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: rows and cols must be <= 16 (got %dx%d)", c->name,
+                           line_of(n), key, r, cl);
     if (!data || data->type != YAML_SEQUENCE_NODE)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: missing data: [...] list", c->name, line_of(n), key);
     nd = (int)(data->data.sequence.items.top - data->data.sequence.items.start);

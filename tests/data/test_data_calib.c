@@ -89,6 +89,10 @@ int main(void) {
          "skew.yaml:5", "camera_matrix"},
         {"sub.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, typ: x, data: [50, 0, 32, 0, 50, 32, 0, 0, 1]}\n",
          "sub.yaml:5", "unknown key 'typ'"},
+        /* fuzz finding: rows * cols overflowed int */
+        {"rows.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 48\ncamera_matrix: {rows: 3, cols: 3, data: [50, 0, 32, 0, 50, 24, 0, 0, 1]}\n"
+                      "rectification_matrix: {rows: 936714640, cols: 3, data: [1]}\n",
+         "rows.yaml:6", "rectification_matrix: rows and cols must be <= 16"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         tu_write(dir, bad[i].name, bad[i].text);
