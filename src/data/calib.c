@@ -1,5 +1,6 @@
 /* Calibration YAML load/save with the libyaml document API. */
 #include "sooc3d/calib.h"
+#include "data_impl.h"
 
 #include <yaml.h>
 #include <math.h>
@@ -87,6 +88,10 @@ static sooc_status parse_matrix(const pctx *c, yaml_node_t *n, const char *key, 
         snprintf(sub, sizeof sub, "%s.%s", key, ks ? ks : "?");
         sooc_status s = SOOC_OK;
         if (!ks) return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: non-scalar key", c->name, line_of(k), key);
+        int dup = sooc_data_yaml_dup_line(c->doc, n, p, ks);
+        if (dup)
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: duplicate key (first given at line %d)", c->name,
+                               line_of(k), sub, dup);
         if (!strcmp(ks, "rows")) s = parse_int(c, v, sub, &r);
         else if (!strcmp(ks, "cols")) s = parse_int(c, v, sub, &cl);
         else if (!strcmp(ks, "dt")) {
@@ -166,6 +171,10 @@ static sooc_status parse_doc(pctx *c, sooc_calib *out) {
         yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
         const char *ks = scalar(k);
         if (!ks) return sooc_seterr(SOOC_EINVAL, "%s:%d: non-scalar key", c->name, line_of(k));
+        int dup = sooc_data_yaml_dup_line(c->doc, root, p, ks);
+        if (dup)
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: duplicate key (first given at line %d)", c->name,
+                               line_of(k), ks, dup);
         sooc_status s = SOOC_OK;
         int r = 0, cl = 0;
         if (!strcmp(ks, "image_width")) { s = parse_int(c, v, ks, &out->K.width); have_w = 1;

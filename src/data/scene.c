@@ -552,6 +552,10 @@ static sooc_status parse_object(const yctx *c, yaml_node_t *n, sooc_scene_object
         sooc_status s = SOOC_OK;
         long long iv = 0;
         if (!ks) return sooc_seterr(SOOC_EINVAL, "%s:%d: objects: non-scalar key", c->name, yline(k));
+        int dup = sooc_data_yaml_dup_line(c->doc, n, p, ks);
+        if (dup)
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.%s: duplicate key (first given at line %d)",
+                               c->name, yline(k), ks, dup);
         if (!strcmp(ks, "id")) { s = yint(c, v, "objects.id", 1, 65535, &iv); o->id = (int)iv; seen |= 1; }
         else if (!strcmp(ks, "shape")) {
             s = sooc_shape_parse(yscalar(v), &o->shape);
@@ -584,6 +588,7 @@ static sooc_status parse_views(const yctx *c, yaml_node_t *v, const char *key, i
     if (v->type != YAML_SEQUENCE_NODE)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a list of view indices", c->name, yline(v), key);
     int k = (int)(v->data.sequence.items.top - v->data.sequence.items.start);
+    sooc_free(*out); /* duplicate keys are rejected before this; never leak a previous list */
     *out = sooc_malloc(sizeof(int) * (size_t)(k + 1));
     if (!*out) return SOOC_ENOMEM;
     for (int i = 0; i < k; i++) {
@@ -609,6 +614,12 @@ static sooc_status parse_scene(const yctx *c, sooc_scene *sc) {
         long long iv = 0;
         double dv[3];
         if (!ks) { s = sooc_seterr(SOOC_EINVAL, "%s:%d: non-scalar key", c->name, yline(k)); break; }
+        int dup = sooc_data_yaml_dup_line(c->doc, root, p, ks);
+        if (dup) {
+            s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: duplicate key (first given at line %d)", c->name, yline(k),
+                            ks, dup);
+            break;
+        }
         if (!strcmp(ks, "format")) {
             have_fmt = 1;
             if (!vs || strcmp(vs, "sooc3d-scene"))

@@ -93,6 +93,11 @@ int main(void) {
         {"rows.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 48\ncamera_matrix: {rows: 3, cols: 3, data: [50, 0, 32, 0, 50, 24, 0, 0, 1]}\n"
                       "rectification_matrix: {rows: 936714640, cols: 3, data: [1]}\n",
          "rows.yaml:6", "rectification_matrix: rows and cols must be <= 16"},
+        /* duplicate keys are errors (YAML forbids them; libyaml does not check) */
+        {"dup.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 48\nimage_width: 32\n",
+         "dup.yaml:5", "image_width: duplicate key (first given at line 3)"},
+        {"dupsub.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 48\ncamera_matrix: {rows: 3, cols: 3, rows: 3, data: [50, 0, 32, 0, 50, 24, 0, 0, 1]}\n",
+         "dupsub.yaml:5", "camera_matrix.rows: duplicate key"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         tu_write(dir, bad[i].name, bad[i].text);

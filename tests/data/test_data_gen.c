@@ -169,6 +169,14 @@ static void test_geometry(void) {
                  "objects:\n  - {id: 1, shape: blob, x: 0, z: 0, yaw: 0, size: [1, 1, 1], params: [1], color: [1, 1, 1]}\n");
         snprintf(path, sizeof path, "%s/bad.yaml", dir);
         CHECK_ERR_HAS(sooc_scene_load(path, &back), "bad.yaml:8", "blob");
+        /* duplicate keys are errors (a repeated input_views leaked the first list) */
+        tu_write(dir, "dup.yaml", "format: sooc3d-scene\ninput_views: [0]\ninput_views: [1]\n");
+        snprintf(path, sizeof path, "%s/dup.yaml", dir);
+        CHECK_ERR_HAS(sooc_scene_load(path, &back), "dup.yaml:3", "input_views: duplicate key (first given at line 2)");
+        tu_write(dir, "dupobj.yaml", "format: sooc3d-scene\nversion: 1\ninput_views: [0]\nquery_views: []\nobjects:\n"
+                 "  - {id: 1, shape: box, x: 0, x: 1, z: 0, yaw: 0, size: [1, 1, 1], params: [1], color: [1, 1, 1]}\n");
+        snprintf(path, sizeof path, "%s/dupobj.yaml", dir);
+        CHECK_ERR_HAS(sooc_scene_load(path, &back), "dupobj.yaml:6", "objects.x: duplicate key");
         sooc_scene_free(&back);
         tu_rm_rf(dir);
         sooc_frame_free(&f);
