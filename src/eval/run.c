@@ -238,18 +238,28 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
 
     sooc_model *copy = NULL;
     sooc3d_mapper *mp = NULL;
+    sooc_global_mapper *gm = NULL;   /* global-frame baseline: its fixed slot set is the "map" */
     sooc_map_entry *ent = NULL;
     size_t ent_cap = 0;
     run_ctx C;
     memset(&C, 0, sizeof C);
     sooc_status st = sooc_eval_model_copy(m, &copy);
     if (st) goto done;
-    if ((st = sooc3d_mapper_create_with_model(&mp, copy, o->iterations, o->seed, o->threads))) {
-        sooc_model_destroy(copy);
-        goto done;
+    if (sooc_model_is_global(copy)) {
+        if ((st = sooc_global_mapper_create(&gm, copy, n_gt, o->iterations, o->seed, o->threads))) {
+            sooc_model_destroy(copy);
+            goto done;
+        }
+        C.model = sooc_global_mapper_model(gm);
+        C.map = sooc_global_mapper_cogmap(gm);
+    } else {
+        if ((st = sooc3d_mapper_create_with_model(&mp, copy, o->iterations, o->seed, o->threads))) {
+            sooc_model_destroy(copy);
+            goto done;
+        }
+        C.model = sooc3d_mapper_model(mp);
+        C.map = sooc3d_mapper_cogmap(mp);
     }
-    C.model = sooc3d_mapper_model(mp);
-    C.map = sooc3d_mapper_cogmap(mp);
     C.frames = frames, C.gt = gt, C.n_gt = n_gt, C.o = o, C.view_cb = view_cb, C.user = user, C.res = res;
 
     /* online inference over the input views */
@@ -257,12 +267,14 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         if (!use[i] || frames[i].is_query) continue;
         sooc3d_update_stats us;
         double t0 = sooc_seconds();
-        if ((st = sooc3d_mapper_update(mp, &frames[i], &us))) break;
+        if ((st = gm ? sooc_global_mapper_update(gm, &frames[i], &us) : sooc3d_mapper_update(mp, &frames[i], &us)))
+            break;
         res->update_s += sooc_seconds() - t0;
         res->n_mapped++;
         if (step_cb) {
             size_t n = 0;
-            sooc3d_mapper_entries(mp, NULL, 0, &n);
+            if (gm) sooc_global_mapper_entries(gm, NULL, 0, &n);
+            else sooc3d_mapper_entries(mp, NULL, 0, &n);
             if (n > ent_cap) {
                 sooc_free(ent);
                 ent_cap = n + n / 2 + 16;
@@ -272,7 +284,8 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
                     break;
                 }
             }
-            if ((st = sooc3d_mapper_entries(mp, ent, ent_cap, &n))) break;
+            if ((st = gm ? sooc_global_mapper_entries(gm, ent, ent_cap, &n) : sooc3d_mapper_entries(mp, ent, ent_cap, &n)))
+                break;
             sooc_eval_step_info si = {res->n_mapped - 1, i, &frames[i], &us, ent, n};
             if ((st = step_cb(user, &si))) break;
         }
@@ -293,6 +306,7 @@ done:
     sooc_render_out_free(&C.rout);
     sooc_free(ent);
     sooc3d_mapper_destroy(mp);
+    sooc_global_mapper_destroy(gm);
     sooc_free(use);
     return st;
 }

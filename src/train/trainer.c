@@ -297,7 +297,11 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             int sc = (int)sooc_rng_below(&rng, (uint32_t)nsc), nv = 0, nq = 0;
             sooc_dataset_sample(ds, sc, T, Q, &rng, views, &nv, queries, &nq);
             sooc_step_losses l;
-            s = sooc_model_train_step(tr.model, views, nv, queries, nq, &o, &rng, &l);
+            if (sooc_model_is_global(tr.model))   /* MulMON-style baseline (docs/baseline.md) */
+                s = sooc_model_global_train_step(tr.model, views, nv, queries, nq, sooc_dataset_n_objects(ds, sc),
+                                                 &o, &rng, &l);
+            else
+                s = sooc_model_train_step(tr.model, views, nv, queries, nq, &o, &rng, &l);
             if (s) {
                 sooc_adderr(s, "step %lld, scene %s", (long long)step, sooc_dataset_scene_path(ds, sc));
                 goto done;
