@@ -116,7 +116,8 @@ sooc_status sooc_node_config_load(sooc_node_config *c, const char *path);
 sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t n, const char *name);
 /* Look up a sensor parameter (NULL if absent). */
 const char *sooc_node_param_get(const sooc_node_config *c, const char *key);
-/* Write the effective config as YAML text (for the INFO log); returns length. */
+/* Write the effective config as YAML text (for the INFO log). snprintf-style:
+ * returns the full length whatever `cap` is; `buf` may be NULL when cap is 0. */
 size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap);
 
 /* ---------------------------------------------------------- preprocessing */

@@ -609,7 +609,7 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     size_t k = 0;
 #define OUT(...)                                                                    \
     do {                                                                            \
-        int w_ = snprintf(buf + (k < cap ? k : cap), k < cap ? cap - k : 0, __VA_ARGS__); \
+        int w_ = snprintf(k < cap ? buf + k : NULL, k < cap ? cap - k : 0, __VA_ARGS__); \
         if (w_ > 0) k += (size_t)w_;                                                \
     } while (0)
     OUT("sensor: {driver: %s", c->driver);

@@ -129,11 +129,10 @@ static int fz_launch(const uint8_t *d, size_t n) {
     sooc_node_config_default(&c);
     int ok = sooc_node_config_parse(&c, (const char *)d, n, "fuzz_launch.yaml") == SOOC_OK;
     if (ok) {
-        /* (NULL, 0) sizing is not exercised: launch.c:612 computes NULL + 0 (UB),
-         * reported to the node owner; re-enable once fixed. */
-        size_t need = sooc_node_config_format(&c, buf, 7);   /* truncated */
+        size_t need = sooc_node_config_format(&c, NULL, 0);  /* sizing */
+        size_t part = sooc_node_config_format(&c, buf, 7);   /* truncated */
         size_t got = sooc_node_config_format(&c, buf, sizeof buf);
-        if (need != got) abort();   /* snprintf-style: full length either way */
+        if (need != got || part != got) abort();   /* snprintf-style: full length either way */
         sooc_node_param_get(&c, "uri");
     }
     return ok;

@@ -63,7 +63,11 @@ static void test_launch(void) {
     CHECK(c.ring_capacity == 4 && c.block_when_full == 1);
     CHECK(c.log_level == SOOC_LOG_WARN);
     char buf[4096];
-    CHECK(sooc_node_config_format(&c, buf, sizeof buf) > 100);
+    size_t flen = sooc_node_config_format(&c, buf, sizeof buf);
+    CHECK(flen > 100 && flen < sizeof buf && strlen(buf) == flen);
+    /* snprintf-style sizing: (NULL, 0) and a short buffer report the full length */
+    CHECK(sooc_node_config_format(&c, NULL, 0) == flen);
+    CHECK(sooc_node_config_format(&c, buf, 8) == flen && strlen(buf) == 7);
 
     /* floor: estimate, vector up */
     const char *est = "sensor: {driver: replay, path: x}\nworld:\n  up: [0, 0, 2]\n  floor: estimate\n";
