@@ -291,13 +291,14 @@ static sooc_status sec_sensor(pctx *p, yaml_node_t *m, sooc_node_config *c) {
     for (yaml_node_pair_t *pr = m->data.mapping.pairs.start; pr < m->data.mapping.pairs.top; pr++) {
         yaml_node_t *kn = yaml_document_get_node(p->doc, pr->key);
         if (kn && kn->type == YAML_SCALAR_NODE && !strcmp((char *)kn->data.scalar.value, "driver")) {
+            /* the first driver decides; a second one is an error, not "last one wins" */
+            if (dk) return bad(p, kn, "driver", "duplicate key", NULL);
             dk = kn;
             dv = yaml_document_get_node(p->doc, pr->value);
         }
     }
     if (!dv) return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor.driver: missing (one of %s)", p->name,
                                 line_of(m), g_drivers);
-    (void)dk;
     sooc_status st = get_str(p, dv, "driver", c->driver, sizeof c->driver, 0);
     if (st) return st;
     if (!in_enum(c->driver, g_drivers)) {

@@ -103,6 +103,12 @@ static void test_launch(void) {
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  width: 64\n", "model.width", NULL);
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  colour: red\n", "t.yaml:3", "model.colour");
     expect_bad("sensor: {driver: replay, path: x}\nmap: {db: a, db: b}\n", "t.yaml:2", "map.db");
+    /* duplicate keys are errors at every level (libyaml keeps both) */
+    expect_bad("sensor: {driver: replay, path: x}\nmap: {db: a, db: b}\n", "t.yaml:2", "duplicate key");
+    expect_bad("sensor: {driver: replay, path: x}\nlog: {level: warn}\nlog: {level: info}\n", "t.yaml:3",
+               "duplicate key");
+    expect_bad("sensor:\n  driver: replay\n  path: x\n  path: y\n", "t.yaml:4", "duplicate key");
+    expect_bad("sensor:\n  driver: replay\n  path: x\n  driver: openni2\n", "t.yaml:4", "duplicate key");
     expect_bad("sensor: {driver: replay, path: x}\nmap: [1, 2]\n", "t.yaml:2", "map");
     expect_bad("sensor: {driver: replay\n", "t.yaml", "YAML error");
     expect_bad("pose: {source: sensor}\n", "sensor", NULL);
