@@ -108,7 +108,7 @@ static sooc_status png_read_impl(const char *path, sooc_image *out, int header_o
     png_err_ctx ectx = {{0}};
     png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ectx, png_err_cb, png_warn_cb);
     png_infop info = png ? png_create_info_struct(png) : NULL;
-    png_bytep *rows = NULL;
+    png_bytep *volatile rows = NULL; /* volatile: set after setjmp, freed after a longjmp */
     if (!png || !info) {
         if (png) png_destroy_read_struct(&png, NULL, NULL);
         fclose(fp);
@@ -211,7 +211,7 @@ sooc_status sooc_png_encode(const sooc_image *img, int level, void **out, size_t
     png_err_ctx ectx = {{0}};
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ectx, png_err_cb, png_warn_cb);
     png_infop info = png ? png_create_info_struct(png) : NULL;
-    png_bytep *rows = NULL;
+    png_bytep *volatile rows = NULL; /* volatile: set after setjmp, freed after a longjmp */
     if (!png || !info) {
         if (png) png_destroy_write_struct(&png, NULL);
         return sooc_seterr(SOOC_ENOMEM, "png encode: libpng init failed");
