@@ -51,6 +51,12 @@ sooc_status sooc_image_copy(sooc_image *dst, const sooc_image *src);
 
 /* --------------------------------------------------------------- codecs */
 
+/* Limits of the readers (PNG and PGM): width and height <= 16384 and at most
+ * 256 MiB of decoded pixels; larger files are rejected (EFORMAT, naming the
+ * file) before anything is allocated. */
+#define SOOC_IMAGE_READ_MAX_DIM 16384
+#define SOOC_IMAGE_READ_MAX_BYTES ((size_t)256 << 20)
+
 /* Read a PNG. Gray 1/2/4/8-bit -> GRAY8, gray 16-bit -> GRAY16, RGB or
  * palette -> RGB8 (16-bit colour is reduced to 8 bits), alpha is dropped.
  * Errors name the file: ENOTFOUND (missing), EFORMAT (not a PNG / corrupt). */

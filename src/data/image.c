@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <errno.h>
+#include <sys/stat.h>
 
 const char *sooc_pixfmt_name(sooc_pixfmt f) {
     switch (f) {
@@ -62,6 +63,17 @@ sooc_status sooc_image_copy(sooc_image *dst, const sooc_image *src) {
     if (s) return s;
     memcpy(dst->data, src->data,
            (size_t)src->width * (size_t)src->height * (size_t)sooc_pixfmt_bytes(src->fmt));
+    return SOOC_OK;
+}
+
+/* Reader size limits (image.h): checked on the header, before allocating. */
+static sooc_status check_read_size(const char *path, const char *what, size_t w, size_t h, size_t bpp) {
+    if (w > SOOC_IMAGE_READ_MAX_DIM || h > SOOC_IMAGE_READ_MAX_DIM)
+        return sooc_seterr(SOOC_EFORMAT, "%s: %s of %zux%zu is larger than the %dx%d limit", path, what, w,
+                           h, SOOC_IMAGE_READ_MAX_DIM, SOOC_IMAGE_READ_MAX_DIM);
+    if (w * h * bpp > SOOC_IMAGE_READ_MAX_BYTES)
+        return sooc_seterr(SOOC_EFORMAT, "%s: %s of %zux%zu needs %zu MiB, more than the %zu MiB limit", path,
+                           what, w, h, (w * h * bpp) >> 20, SOOC_IMAGE_READ_MAX_BYTES >> 20);
     return SOOC_OK;
 }
 
@@ -131,6 +143,21 @@ static sooc_status png_read_impl(const char *path, sooc_image *out, int header_o
         fmt = depth == 16 ? SOOC_PIX_GRAY16 : SOOC_PIX_GRAY8;
     else
         fmt = SOOC_PIX_RGB8;
+    /* Bound the decoded size before allocating: by the reader limits, and by
+     * what the file can hold (deflate expands at most ~1032:1 and every pixel
+     * takes at least one bit of the inflated stream), so a tiny file cannot
+     * claim a huge image. */
+    struct stat sb;
+    size_t fsize = fstat(fileno(fp), &sb) == 0 && sb.st_size > 0 ? (size_t)sb.st_size : 0;
+    st = check_read_size(path, "PNG", w, h, (size_t)sooc_pixfmt_bytes(fmt));
+    if (!st && (size_t)w * h > (size_t)8 * 1100 * (fsize + 1024))
+        st = sooc_seterr(SOOC_EFORMAT, "%s: corrupt PNG: %ux%u pixels cannot fit in a %zu-byte file", path,
+                         (unsigned)w, (unsigned)h, fsize);
+    if (st) {
+        png_destroy_read_struct(&png, &info, NULL);
+        fclose(fp);
+        return st;
+    }
     if (pw) *pw = (int)w;
     if (ph) *ph = (int)h;
     if (pfmt) *pfmt = fmt;
