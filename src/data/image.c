@@ -348,9 +348,20 @@ sooc_status sooc_pgm_read(const char *path, sooc_image *out) {
         return sooc_seterr(SOOC_EFORMAT, "%s: bad PGM header", path);
     }
     sooc_pixfmt fmt = maxval > 255 ? SOOC_PIX_GRAY16 : SOOC_PIX_GRAY8;
-    s = sooc_image_alloc(out, (int)w, (int)h, fmt);
+    size_t np = (size_t)w * (size_t)h, bpp = fmt == SOOC_PIX_GRAY16 ? 2 : 1;
+    s = check_read_size(path, "PGM", (size_t)w, (size_t)h, bpp);
     if (s) { sooc_free(buf); return s; }
-    size_t np = (size_t)w * (size_t)h;
+    /* Check the data length against the header before allocating: binary
+     * needs np * bpp bytes after the single whitespace byte; ASCII at least a
+     * separator and a digit per sample. */
+    size_t need = ascii ? 2 * np : 1 + np * bpp, have = n - pos;
+    if (have < need) {
+        sooc_free(buf);
+        return sooc_seterr(SOOC_EFORMAT, "%s: truncated PGM (%ldx%ld needs %zu bytes after the header, %zu present)",
+                           path, w, h, need, have);
+    }
+    s = sooc_image_alloc(out, (int)w, (int)h, fmt);
+    if (s) { sooc_free(buf); return sooc_adderr(s, "%s", path); }
     if (ascii) {
         for (size_t i = 0; i < np; i++) {
             long v;
@@ -362,13 +373,7 @@ sooc_status sooc_pgm_read(const char *path, sooc_image *out) {
             else ((uint8_t *)out->data)[i] = (uint8_t)v;
         }
     } else {
-        pos++; /* exactly one whitespace byte after maxval */
-        size_t need = np * (fmt == SOOC_PIX_GRAY16 ? 2 : 1);
-        if (pos > n || n - pos < need) {
-            sooc_free(buf);
-            return sooc_seterr(SOOC_EFORMAT, "%s: truncated PGM (%zu of %zu data bytes)", path,
-                               pos > n ? 0 : n - pos, need);
-        }
+        pos++; /* exactly one whitespace byte after maxval (length checked above) */
         if (fmt == SOOC_PIX_GRAY16) {
             uint16_t *d = out->data;
             for (size_t i = 0; i < np; i++)

@@ -109,7 +109,26 @@ static void test_hostile(const char *dir) {
     snprintf(path, sizeof path, "%s/badcrc.png", dir);
     write_bytes(path, png_badcrc, sizeof png_badcrc);
     CHECK_ERR_HAS(sooc_png_read(path, &r), "badcrc.png", "corrupt PNG");
+    sooc_image_free(&r);
 
+    /* 22-byte PGM claiming 32768x32768 16-bit (2 GiB) */
+    snprintf(path, sizeof path, "%s/huge.pgm", dir);
+    write_bytes(path, "P5 32768 32768 65535\n\0", 22);
+    CHECK_ERR_HAS(sooc_pgm_read(path, &r), "huge.pgm", "32768x32768", "limit");
+    CHECK_ERR_HAS(sooc_image_read(path, &r), "huge.pgm", "limit");
+    /* within the limits, but the data is missing: checked before allocating */
+    snprintf(path, sizeof path, "%s/short.pgm", dir);
+    write_bytes(path, "P5 16000 16000 255\n\0", 20);
+    CHECK_ERR_HAS(sooc_pgm_read(path, &r), "short.pgm", "truncated", "16000x16000");
+    snprintf(path, sizeof path, "%s/short_ascii.pgm", dir);
+    write_bytes(path, "P2 3000 3000 255\n1 2 3\n", 23);
+    CHECK_ERR_HAS(sooc_pgm_read(path, &r), "short_ascii.pgm", "truncated");
+    CHECK(r.data == NULL);
+    /* an exact-size ASCII file still reads */
+    snprintf(path, sizeof path, "%s/ok_ascii.pgm", dir);
+    write_bytes(path, "P2 2 2 255\n1 2 3 4", 18);
+    CHECK_OK(sooc_pgm_read(path, &r));
+    CHECK(r.width == 2 && r.height == 2 && ((uint8_t *)r.data)[3] == 4);
     sooc_image_free(&r);
 }
 
