@@ -1,0 +1,285 @@
+/* The MulMON-style global-frame baseline (src/model/global.c, docs/baseline.md):
+ *  1. finite-difference check of d(total)/d(params) of the global training step
+ *     (T = 3 input views carrying one slot set, L = 2, one query view) w.r.t.
+ *     the slot and layout priors and samples of every other tensor; box off,
+ *     Gaussian-trick width 100 m and stop-gradient inputs replayed, as in
+ *     test_model_step;
+ *  2. slots persist: view t starts from view t-1's final posterior (bitwise),
+ *     and in online inference a slot present after view 1 keeps its id and its
+ *     world position in view 3 (zero refinement heads: no view-relative
+ *     transform is ever applied), and the rendered field's component of that
+ *     id sits at the same world position;
+ *  3. overfit: the loss falls on one scene;
+ *  4. the one eval path (sooc_eval_run_scene) runs the baseline and returns
+ *     finite metrics. */
+#include <stdio.h>
+#include <string.h>
+
+#include "check.h"
+#include "model/step_internal.h"
+#include "sooc3d/eval.h"
+#include "synth.h"
+
+static void tiny_cfg(sooc_model_config *c) {
+    sooc_model_config_default(c);
+    c->K = 3, c->d_what = 4, c->d_layout = 3, c->L = 2;
+    c->img_w = c->img_h = 32, c->ray_w = c->ray_h = 16;
+    c->dec_width = 16, c->dec_color_width = 8, c->n_freq = 3, c->n_freq_layout = 3;
+    c->ref_ch[0] = 4, c->ref_ch[1] = 4, c->ref_ch[2] = 6, c->ref_ch[3] = 6;
+    c->ref_fc = 8, c->ref_hidden = 8;
+    c->use_box = 0;
+    c->sigma_max = 5.0f;
+    c->d_clip = 5.0f;
+    c->dens_bias_init = 0.0f;
+    c->prior_pres_logit = 1.5f;
+    c->gauss_s = 100.0f;
+    c->global_frame = 1;
+    c->global_radius = 2.5f;
+}
+
+static sooc_frame F[4];
+
+static double total_of(sooc_model *m, uint64_t seed, sooc_step_losses *ls) {
+    sooc_rng r;
+    sooc_rng_seed(&r, seed, 0);
+    sooc_step_opts o;
+    sooc_step_opts_default(&o);
+    o.tau = 0.8f;
+    sooc_step_losses l;
+    CHECK_OK(sooc_model_global_train_step(m, F, 3, F + 3, 1, 0, &o, &r, &l));
+    if (ls) *ls = l;
+    return l.total;
+}
+
+static void random_heads(sooc_model *m, sooc_rng *r, float s) {
+    for (int t = 0; t < m->nt; t++)
+        if (strstr(m->t[t].name, "head"))
+            for (size_t i = 0; i < m->t[t].count; i++) m->p[m->t[t].offset + i] = s * (float)sooc_rng_normal(r);
+}
+
+static void test_grad(void) {
+    sooc_model_config c;
+    tiny_cfg(&c);
+    sooc_model *m;
+    CHECK_OK(sooc_model_create(&m, &c, 5));
+    CHECK(sooc_model_is_global(m));
+    CHECK(sooc_model_global_slots(m, 0) == 3 && sooc_model_global_slots(m, 1) == 2 &&
+          sooc_model_global_slots(m, 7) == 3);
+    sooc_rng r;
+    sooc_rng_seed(&r, 9, 0);
+    random_heads(m, &r, 0.02f);
+    sooc_model_zero_grad(m);
+    sooc_step_losses ls;
+    double L0 = total_of(m, 77, &ls);
+    printf("global step: total %.3f nll_in %.3f kl %.3f nll_q %.3f present %.2f slots on %.0f\n", ls.total,
+           ls.nll_input, ls.kl, ls.nll_query, ls.present_slots, ls.map_entries);
+    CHECK(isfinite(L0) && !ls.nonfinite && ls.n_queries == 1 && ls.n_views == 3);
+    float *g = sooc_malloc(m->np * sizeof(float));
+    memcpy(g, m->g, m->np * sizeof(float));
+    sooc_model_zero_grad(m);
+    CHECK(total_of(m, 77, NULL) == L0);
+    CHECK(memcmp(g, m->g, m->np * sizeof(float)) == 0);
+    /* persistence in the training step: λ^0 of view t = λ^L of view t-1 */
+    step_state *S = m->step;
+    int NL = m->NL, n = 3, L = c.L;
+    for (int t = 1; t < 3; t++) {
+        CHECK(S->views[t].nslot == n);
+        CHECK(memcmp(S->views[t].lam0, S->views[t - 1].lam + (size_t)L * n * NL, (size_t)n * NL * sizeof(float)) == 0);
+        CHECK(memcmp(S->views[t].lay0, S->views[t - 1].lay + (size_t)L * 2 * c.d_layout,
+                     (size_t)2 * c.d_layout * sizeof(float)) == 0);
+    }
+    CHECK(memcmp(S->views[0].lam0, m->p + m->prior, (size_t)n * NL * sizeof(float)) == 0);
+    /* FD with the stop-gradient inputs replayed */
+    S->aux_replay = 1;
+    CHECK(total_of(m, 77, NULL) == L0);
+    double worst = 0, wa = 0, wn = 0;
+    char wname[96] = "";
+    int nchk = 0;
+    for (int t = 0; t < m->nt; t++) {
+        int ns = strncmp(m->t[t].name, "prior", 5) ? 1 : 8;
+        for (int s = 0; s < ns; s++) {
+            size_t i = m->t[t].offset + sooc_rng_below(&r, (uint32_t)m->t[t].count);
+            double a = g[i], best = 0, berr = 1e300;
+            static const double eps[3] = {1e-3, 3e-4, 3e-3};
+            float keep = m->p[i];
+            for (int e = 0; e < 3 && berr > 0.02 + 0.01 * fabs(a); e++) {
+                m->p[i] = keep + (float)eps[e];
+                double fp = total_of(m, 77, NULL);
+                m->p[i] = keep - (float)eps[e];
+                double fm = total_of(m, 77, NULL);
+                m->p[i] = keep;
+                double nn = (fp - fm) / (2 * eps[e]);
+                if (fabs(nn - a) < berr) berr = fabs(nn - a), best = nn;
+            }
+            double mx = fabs(a) > fabs(best) ? fabs(a) : fabs(best);
+            double ratio = fabs(a - best) / (0.1 + 0.08 * mx);
+            nchk++;
+            if (ratio > 1 || getenv("SDBG"))
+                printf("  %s[%zu] a % .5e n % .5e ratio %.2f\n", m->t[t].name, i - m->t[t].offset, a, best, ratio);
+            if (ratio > worst) {
+                worst = ratio, wa = a, wn = best;
+                snprintf(wname, sizeof wname, "%s[%zu]", m->t[t].name, i - m->t[t].offset);
+            }
+        }
+    }
+    printf("global step d(total)/d(params): %d elements, worst %s analytic % .6e numeric % .6e err/tol %.3f\n", nchk,
+           wname, wa, wn, worst);
+    CHECK_MSG(worst <= 1.0, "global-step gradient check failed at %s", wname);
+    sooc_free(g);
+    sooc_model_destroy(m);
+}
+
+static void test_persist(void) {
+    sooc_model_config c;
+    tiny_cfg(&c);
+    c.use_box = 1, c.gauss_s = 0.3f;
+    sooc_model *m;
+    CHECK_OK(sooc_model_create(&m, &c, 3));   /* zero refinement heads: λ stays at the priors */
+    int NL = m->NL, d = c.d_what;
+    /* slot 0 on sphere 0 (world (0.3, 3.0)), present; slot 1 off */
+    float *pr = m->p + m->prior;
+    pr[0] = 0.3f, pr[1] = 3.0f, pr[5 + 2 * d] = 3.0f;
+    pr[NL + 5 + 2 * d] = -3.0f;
+    sooc_global_mapper *gm;
+    CHECK_OK(sooc_global_mapper_create(&gm, m, 0, 0, 1, 1));
+    double X1 = NAN, Z1 = NAN;
+    for (int v = 0; v < 3; v++) {
+        sooc3d_update_stats us;
+        CHECK_OK(sooc_global_mapper_update(gm, &F[v], &us));
+        sooc_cogmap_entry e;
+        CHECK_OK(sooc_cogmap_get(sooc_global_mapper_cogmap(gm), 1, &e));   /* id = slot + 1 */
+        CHECK(sooc_cogmap_get(sooc_global_mapper_cogmap(gm), 2, &e) == SOOC_ENOTFOUND);
+        sooc_clearerr();
+        CHECK_OK(sooc_cogmap_get(sooc_global_mapper_cogmap(gm), 1, &e));
+        const float *l = sooc_global_mapper_slot(gm, 0);
+        CHECK(e.X == l[0] && e.Z == l[1]);
+        if (v == 0) X1 = e.X, Z1 = e.Z;
+        printf("view %d: slot 0 world (%.3f, %.3f), retrieved %d registered %d new %d\n", v + 1, e.X, e.Z,
+               us.n_retrieved, us.n_registered, us.n_new);
+        CHECK(e.X == X1 && e.Z == Z1);
+        CHECK(us.n_retrieved == (v ? 3 : 0));
+        CHECK(us.n_new == (v == 0 ? us.n_registered : 0));
+        /* the field of a global model: the component of id 1 at the slot's world position */
+        sooc_model_field *fld;
+        sooc_intrinsics K = F[v].K;
+        CHECK_OK(sooc_model_field_create(&fld, sooc_global_mapper_model(gm), sooc_global_mapper_cogmap(gm), F[v].T_wc,
+                                         &K, c.K, NULL));
+        const sooc_field *fl = sooc_model_field_get(fld);
+        int found = 0;
+        for (int k = 1; k < fl->n_comp; k++)
+            if (sooc_model_field_comp_id(fld, k) == 1) {
+                double T_fc[16], T_cf[16], T_wf[16], o[3] = {0, 0, 0}, bw[3], bf[3];
+                sooc_model_field_T_fc(fld, T_fc);
+                sooc_se3_inverse(T_cf, T_fc);
+                sooc_se3_mul(T_wf, F[v].T_wc, T_cf);
+                sooc_se3_apply(bf, fl->boxes[k].T_fb, o);   /* box origin (floor under the object) in the field */
+                sooc_se3_apply(bw, T_wf, bf);
+                CHECK_CLOSE(bw[0], 0.3, 1e-4, 0);
+                CHECK_CLOSE(bw[1], 0.0, 1e-4, 0);
+                CHECK_CLOSE(bw[2], 3.0, 1e-4, 0);
+                found = 1;
+            }
+        CHECK(found);
+        sooc_model_field_destroy(fld);
+    }
+    sooc_global_mapper_destroy(gm);
+}
+
+static void test_overfit(void) {
+    sooc_model_config c;
+    sooc_model_config_default(&c);
+    c.K = 3, c.d_what = 8, c.d_layout = 4, c.L = 2;
+    c.img_w = c.img_h = 32, c.ray_w = c.ray_h = 16;
+    c.dec_width = 32, c.dec_color_width = 16;
+    c.ref_ch[0] = 8, c.ref_ch[1] = 8, c.ref_ch[2] = 16, c.ref_ch[3] = 16;
+    c.ref_fc = 32, c.ref_hidden = 32;
+    c.global_frame = 1, c.global_radius = 2.5f;
+    sooc_model *m;
+    CHECK_OK(sooc_model_create(&m, &c, 2));
+    size_t n = sooc_model_param_count(m);
+    float *p = sooc_model_params(m), *g = sooc_model_grads(m);
+    float *mo = calloc(n, sizeof(float)), *vo = calloc(n, sizeof(float));
+    sooc_rng r;
+    sooc_rng_seed(&r, 5, 0);
+    sooc_step_opts o;
+    sooc_step_opts_default(&o);
+    double first = 0, last = 0, lr = 3e-3, t0 = sooc_seconds();
+    const int steps = 120;
+    for (int s = 1; s <= steps; s++) {
+        sooc_model_zero_grad(m);
+        sooc_step_losses ls;
+        CHECK_OK(sooc_model_global_train_step(m, F, 2, F + 3, 1, 2, &o, &r, &ls));
+        if (ls.nonfinite) continue;
+        if (s <= 10) first += ls.total / 10;
+        if (s > steps - 10) last += ls.total / 10;
+        double gn = 0;
+        for (size_t i = 0; i < n; i++) gn += (double)g[i] * g[i];
+        gn = sqrt(gn);
+        float cs = gn > 1e4 ? (float)(1e4 / gn) : 1.0f;
+        double b1 = 1 - pow(0.9, s), b2 = 1 - pow(0.999, s);
+        for (size_t i = 0; i < n; i++) {
+            float gi = g[i] * cs;
+            mo[i] = 0.9f * mo[i] + 0.1f * gi;
+            vo[i] = 0.999f * vo[i] + 0.001f * gi * gi;
+            p[i] -= (float)(lr * (mo[i] / b1) / (sqrt(vo[i] / b2) + 1e-8));
+        }
+        if (s % 30 == 0 || s == 1)
+            printf("step %3d total %10.1f nll_in %9.1f kl %7.2f nll_q %9.1f present %.2f\n", s, ls.total, ls.nll_input,
+                   ls.kl, ls.nll_query, ls.present_slots);
+    }
+    printf("global overfit: mean loss first 10 steps %.1f, last 10 %.1f: drop %.2fx |first|, %.1f s\n", first, last,
+           (first - last) / fabs(first), sooc_seconds() - t0);
+    CHECK(first - last >= 0.5 * fabs(first));
+    free(mo), free(vo);
+    sooc_model_destroy(m);
+}
+
+static void test_eval(void) {
+    sooc_model_config c;
+    tiny_cfg(&c);
+    c.use_box = 1, c.gauss_s = 0.3f;
+    sooc_model *m;
+    CHECK_OK(sooc_model_create(&m, &c, 4));
+    sooc_rng r;
+    sooc_rng_seed(&r, 3, 0);
+    random_heads(m, &r, 0.02f);
+    sooc_frame fr[4];
+    memcpy(fr, F, sizeof fr);
+    fr[3].is_query = 1;
+    for (int i = 0; i < 3; i++) fr[i].is_query = 0;
+    sooc_gt_object gt[2] = {{1, 0.3, 3.0}, {2, -0.8, 2.2}};
+    sooc_eval_run_opts o;
+    sooc_eval_run_opts_default(&o);
+    o.n_coarse = 32, o.n_fine = 0, o.threads = 1;
+    o.timing = SOOC_EVAL_BOTH;
+    sooc_eval_scene_result res;
+    CHECK_OK(sooc_eval_run_scene(m, fr, 4, gt, 2, &o, NULL, NULL, NULL, &res));
+    sooc_metric_means qm, im;
+    sooc_metric_sums_means(&res.query, &qm);
+    sooc_metric_sums_means(&res.input_final, &im);
+    printf("eval (untrained baseline): mapped %d, query views %d, slots on %zu; Q mIoU %.3f rgb %.3f depth %.3f; "
+           "I mIoU %.3f rgb %.3f depth %.3f\n",
+           res.n_mapped, res.n_query, (size_t)res.n_entries, qm.miou_best, qm.rgb_rmse, qm.depth_rmse, im.miou_best,
+           im.rgb_rmse, im.depth_rmse);
+    CHECK(res.n_mapped == 3 && res.n_query == 1);
+    CHECK(isfinite(qm.miou_best) && isfinite(qm.rgb_rmse) && isfinite(qm.depth_rmse));
+    CHECK(isfinite(im.miou_best) && isfinite(im.rgb_rmse) && isfinite(im.depth_rmse));
+    CHECK(res.input_online.n_views == 3);
+    sooc_model_destroy(m);
+}
+
+int main(void) {
+    synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
+    double T[4][16];
+    synth_pose(T[0], 0, 1.5, 0, 0.1, -0.45);
+    synth_pose(T[1], 0.4, 1.4, 0.3, -0.1, -0.4);
+    synth_pose(T[2], -1.0, 1.5, 0.8, 0.5, -0.45);   /* view 3: moved and turned */
+    synth_pose(T[3], -0.3, 1.5, 0.2, 0.2, -0.45);
+    for (int i = 0; i < 4; i++) CHECK_OK(synth_frame(&F[i], 32, 32, 60, T[i], sp, 2));
+    if (!getenv("GSKIP_GRAD")) test_grad();
+    test_persist();
+    test_overfit();
+    test_eval();
+    for (int i = 0; i < 4; i++) sooc_frame_free(&F[i]);
+    return check_report("test_model_global");
+}
