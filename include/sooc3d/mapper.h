@@ -15,8 +15,12 @@
 #ifndef SOOC3D_MAPPER_H
 #define SOOC3D_MAPPER_H
 
+#include "sooc3d/cogmap.h"
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
+
+#include <math.h>
+#include <string.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -38,6 +42,59 @@ typedef struct sooc_map_entry {
     int64_t first_seen_ns, last_seen_ns;
     uint32_t obs_count;
 } sooc_map_entry;
+
+/* Conversions between a map entry and the cognitive map's entry (the rows of
+ * the SQLite map store): the one definition the mapper and the node share.
+ * Header-only so that the node also links against a fake mapper.
+ *
+ * from_cogmap: sigma = exp(rho / 2), presence = sigmoid(logit), latent_dim
+ *   clamped to [0, SOOC_MAP_LATENT_MAX]. The cogmap does not store the box
+ *   extent: it is copied from `extent` (the model's box, or the one stored
+ *   with a map; NULL = zeros).
+ * to_cogmap: rho = 2 log(max(sigma, 1e-12)), latent_dim clamped to
+ *   [0, SOOC_COGMAP_DIM_MAX], obs_count >= 1 (an entry in a map has been
+ *   registered at least once: the cogmap invariant), last_view = -1 (a map
+ *   entry does not carry it; -1 = not registered by a view of this session,
+ *   where 0 would claim view 0). The extent is dropped. */
+static inline void sooc3d_mapper_entry_from_cogmap(const sooc_cogmap_entry *c, const float extent[3],
+                                                   sooc_map_entry *e) {
+    memset(e, 0, sizeof *e);
+    e->id = c->id;
+    e->x = c->X;
+    e->z = c->Z;
+    e->yaw = c->Theta;
+    e->sigma_t = exp(0.5 * c->rho_t);
+    e->sigma_yaw = exp(0.5 * c->rho_theta);
+    e->presence_logit = c->pres_logit;
+    e->presence = 1.0f / (1.0f + expf(-c->pres_logit));
+    int d = c->dim < 0 ? 0 : c->dim > SOOC_MAP_LATENT_MAX ? SOOC_MAP_LATENT_MAX : c->dim;
+    e->latent_dim = d;
+    memcpy(e->what_mu, c->what_mu, sizeof(float) * (size_t)d);
+    memcpy(e->what_logvar, c->what_logvar, sizeof(float) * (size_t)d);
+    if (extent) memcpy(e->extent, extent, sizeof e->extent);
+    e->first_seen_ns = c->first_seen_ns;
+    e->last_seen_ns = c->last_seen_ns;
+    e->obs_count = c->obs_count;
+}
+
+static inline void sooc3d_mapper_entry_to_cogmap(const sooc_map_entry *e, sooc_cogmap_entry *c) {
+    memset(c, 0, sizeof *c);
+    c->id = e->id;
+    c->X = e->x;
+    c->Z = e->z;
+    c->Theta = e->yaw;
+    c->rho_t = (float)(2.0 * log(e->sigma_t > 1e-12 ? e->sigma_t : 1e-12));
+    c->rho_theta = (float)(2.0 * log(e->sigma_yaw > 1e-12 ? e->sigma_yaw : 1e-12));
+    c->pres_logit = e->presence_logit;
+    int d = e->latent_dim < 0 ? 0 : e->latent_dim > SOOC_COGMAP_DIM_MAX ? SOOC_COGMAP_DIM_MAX : e->latent_dim;
+    c->dim = d;
+    memcpy(c->what_mu, e->what_mu, sizeof(float) * (size_t)d);
+    memcpy(c->what_logvar, e->what_logvar, sizeof(float) * (size_t)d);
+    c->first_seen_ns = e->first_seen_ns;
+    c->last_seen_ns = e->last_seen_ns;
+    c->obs_count = e->obs_count ? e->obs_count : 1;
+    c->last_view = -1;
+}
 
 typedef struct sooc3d_mapper sooc3d_mapper;
 

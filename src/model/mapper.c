@@ -137,21 +137,10 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     return SOOC_OK;
 }
 
-static void to_map_entry(const sooc_model_config *c, const sooc_cogmap_entry *e, sooc_map_entry *o) {
-    memset(o, 0, sizeof *o);
-    o->id = e->id;
-    o->x = e->X, o->z = e->Z, o->yaw = e->Theta;
-    o->sigma_t = exp(0.5 * e->rho_t);
-    o->sigma_yaw = exp(0.5 * e->rho_theta);
-    o->presence_logit = e->pres_logit;
-    o->presence = 1.0f / (1.0f + expf(-e->pres_logit));
-    o->latent_dim = e->dim;
-    memcpy(o->what_mu, e->what_mu, sizeof(float) * e->dim);
-    memcpy(o->what_logvar, e->what_logvar, sizeof(float) * e->dim);
-    o->extent[0] = o->extent[2] = 2 * c->box_rh;
-    o->extent[1] = c->box_hb;
-    o->first_seen_ns = e->first_seen_ns, o->last_seen_ns = e->last_seen_ns;
-    o->obs_count = e->obs_count;
+/* The box of the model's locality window (sooc_map_entry.extent). */
+static void model_extent(const sooc_model_config *c, float ext[3]) {
+    ext[0] = ext[2] = 2 * c->box_rh;
+    ext[1] = c->box_hb;
 }
 
 sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
@@ -165,8 +154,9 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
     if (!tmp) return SOOC_ENOMEM;
     size_t got = 0;
     sooc_status s = sooc_cogmap_entries(mp->map, tmp, cnt, &got);
-    const sooc_model_config *c = sooc_model_get_config(mp->m);
-    for (size_t i = 0; !s && i < got; i++) to_map_entry(c, &tmp[i], &out[i]);
+    float ext[3];
+    model_extent(sooc_model_get_config(mp->m), ext);
+    for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
     *n = s ? 0 : got;
     sooc_free(tmp);
     return s;
@@ -183,18 +173,7 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
                             (unsigned long long)e[i].id, e[i].latent_dim, c->d_what);
             break;
         }
-        sooc_cogmap_entry *t = &tmp[i];
-        t->id = e[i].id;
-        t->X = e[i].x, t->Z = e[i].z, t->Theta = e[i].yaw;
-        t->rho_t = (float)(2 * log(e[i].sigma_t > 1e-12 ? e[i].sigma_t : 1e-12));
-        t->rho_theta = (float)(2 * log(e[i].sigma_yaw > 1e-12 ? e[i].sigma_yaw : 1e-12));
-        t->pres_logit = e[i].presence_logit;
-        t->dim = e[i].latent_dim;
-        memcpy(t->what_mu, e[i].what_mu, sizeof(float) * t->dim);
-        memcpy(t->what_logvar, e[i].what_logvar, sizeof(float) * t->dim);
-        t->first_seen_ns = e[i].first_seen_ns, t->last_seen_ns = e[i].last_seen_ns;
-        t->obs_count = e[i].obs_count ? e[i].obs_count : 1;
-        t->last_view = -1;
+        sooc3d_mapper_entry_to_cogmap(&e[i], &tmp[i]);
     }
     if (!s) s = sooc_cogmap_load(mp->map, tmp, n);
     sooc_free(tmp);
@@ -210,12 +189,13 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
     if ((out && nc > cap) || (removed_ids && nr > cap_r))
         return sooc_seterr(SOOC_EINVAL, "mapper changed: %zu changed / %zu removed do not fit in %zu / %zu", nc, nr,
                            cap, cap_r);
-    const sooc_model_config *c = sooc_model_get_config(mp->m);
+    float ext[3];
+    model_extent(sooc_model_get_config(mp->m), ext);
     for (size_t i = 0; out && i < nc; i++) {
         sooc_cogmap_entry e;
         sooc_status s = sooc_cogmap_get(mp->map, mp->chg_ids[i], &e);
         if (s) return sooc_adderr(s, "mapper changed: entry %llu", (unsigned long long)mp->chg_ids[i]);
-        to_map_entry(c, &e, &out[i]);
+        sooc3d_mapper_entry_from_cogmap(&e, ext, &out[i]);
     }
     if (removed_ids) memcpy(removed_ids, mp->rem_ids, nr * sizeof *removed_ids);
     return SOOC_OK;

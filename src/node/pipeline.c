@@ -244,8 +244,6 @@ static sooc_status open_pose(sooc_node *n) {
 
 /* --------------------------------------------------------- conversions */
 
-static float sigmoidf_(float a) { return 1.0f / (1.0f + expf(-a)); }
-
 #if SOOC_NODE_HAVE_TABLE
 static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     memset(r, 0, sizeof *r);
@@ -279,41 +277,6 @@ typedef struct load_ctx_l {
     size_t count;
 } load_ctx_l;
 
-static void to_cog(const sooc_map_entry *e, sooc_cogmap_entry *c) {
-    memset(c, 0, sizeof *c);
-    c->id = e->id;
-    c->X = e->x;
-    c->Z = e->z;
-    c->Theta = e->yaw;
-    c->rho_t = (float)(2.0 * log(e->sigma_t > 1e-12 ? e->sigma_t : 1e-12));
-    c->rho_theta = (float)(2.0 * log(e->sigma_yaw > 1e-12 ? e->sigma_yaw : 1e-12));
-    c->pres_logit = e->presence_logit;
-    c->dim = e->latent_dim;
-    memcpy(c->what_mu, e->what_mu, (size_t)e->latent_dim * sizeof(float));
-    memcpy(c->what_logvar, e->what_logvar, (size_t)e->latent_dim * sizeof(float));
-    c->first_seen_ns = e->first_seen_ns;
-    c->last_seen_ns = e->last_seen_ns;
-    c->obs_count = e->obs_count;
-}
-
-static void from_cog(const sooc_cogmap_entry *c, sooc_map_entry *e) {
-    memset(e, 0, sizeof *e);
-    e->id = c->id;
-    e->x = c->X;
-    e->z = c->Z;
-    e->yaw = c->Theta;
-    e->sigma_t = exp(0.5 * c->rho_t);
-    e->sigma_yaw = exp(0.5 * c->rho_theta);
-    e->presence_logit = c->pres_logit;
-    e->presence = sigmoidf_(c->pres_logit);
-    e->latent_dim = c->dim > SOOC_MAP_LATENT_MAX ? SOOC_MAP_LATENT_MAX : c->dim;
-    memcpy(e->what_mu, c->what_mu, (size_t)e->latent_dim * sizeof(float));
-    memcpy(e->what_logvar, c->what_logvar, (size_t)e->latent_dim * sizeof(float));
-    e->first_seen_ns = c->first_seen_ns;
-    e->last_seen_ns = c->last_seen_ns;
-    e->obs_count = c->obs_count;
-}
-
 static int load_block(void *user, int32_t bi, int32_t bj, const float *mu, const float *logvar) {
     load_ctx_l *L = user;
     L->st = sooc3d_mapper_load_layout(L->n->mapper, bi, bj, mu, logvar);
@@ -330,8 +293,7 @@ static int load_visit(void *user, const sooc_cogmap_entry *c) {
     load_ctx *L = user;
     sooc_node *n = L->n;
     if ((L->st = grow((void **)&n->prev, &n->cap_prev, n->n_prev + 1, sizeof *n->prev))) return 1;
-    from_cog(c, &n->prev[n->n_prev]);
-    memcpy(n->prev[n->n_prev].extent, n->extent, sizeof n->extent);
+    sooc3d_mapper_entry_from_cogmap(c, n->extent, &n->prev[n->n_prev]);
     n->n_prev++;
     return 0;
 }
@@ -422,7 +384,7 @@ static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, c
         st = sooc_mapstore_begin(n->store);
         sooc_cogmap_entry ce;
         for (size_t i = 0; i < nc && !st && to_db; i++) {
-            to_cog(&chg[i], &ce);
+            sooc3d_mapper_entry_to_cogmap(&chg[i], &ce);
             st = sooc_mapstore_put_entries(n->store, &ce, 1);
         }
         if (!st && nr) st = sooc_mapstore_remove_entries(n->store, rem, nr);
