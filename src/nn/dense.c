@@ -7,24 +7,6 @@
 #include <math.h>
 #include <string.h>
 
-static inline float sigm(float x) {
-    if (x >= 0.f) return 1.f / (1.f + expf(-x));
-    float e = expf(x);
-    return e / (1.f + e);
-}
-
-static inline float act_apply(sooc_nn_act a, float v) {
-    switch (a) {
-    case SOOC_NN_ACT_NONE: return v;
-    case SOOC_NN_ACT_RELU: return v > 0.f ? v : 0.f;
-    case SOOC_NN_ACT_ELU: return v > 0.f ? v : expm1f(v);
-    case SOOC_NN_ACT_SIGMOID: return sigm(v);
-    case SOOC_NN_ACT_TANH: return tanhf(v);
-    default: SOOC_ASSERT(!"fused activation must be NONE/RELU/ELU/SIGMOID/TANH");
-    }
-    return v;
-}
-
 /* --------------------------------------------------------------- linear */
 
 void sooc_nn_linear_forward(float *y, const float *x, const float *w, const float *b,
@@ -37,7 +19,7 @@ void sooc_nn_linear_forward(float *y, const float *x, const float *w, const floa
 #pragma omp parallel for schedule(static) if (N * O > SOOC_NN_PAR_MIN)
     for (int64_t n = 0; n < N; n++) {
         float *r = y + n * O;
-        for (int o = 0; o < O; o++) r[o] = act_apply(act, b ? r[o] + b[o] : r[o]);
+        for (int o = 0; o < O; o++) r[o] = sooc_nn_act_apply(act, b ? r[o] + b[o] : r[o]);
     }
 }
 
@@ -122,7 +104,7 @@ void sooc_nn_conv2d_forward(float *y, float *col, float *scratch, const float *x
         const float *s = tmp + (int64_t)co * BP + bb * P;
         float *d = y + (int64_t)bc * P;
         float bias = b ? b[co] : 0.f;
-        for (int64_t p = 0; p < P; p++) d[p] = act_apply(act, s[p] + bias);
+        for (int64_t p = 0; p < P; p++) d[p] = sooc_nn_act_apply(act, s[p] + bias);
     }
 }
 
@@ -190,7 +172,7 @@ void sooc_nn_lstm_forward(float *h1, float *c1, float *gates, const float *x, co
             float v = z[j];
             if (b_ih) v += b_ih[j];
             if (b_hh) v += b_hh[j];
-            z[j] = (j >= 2 * G && j < 3 * G) ? tanhf(v) : sigm(v);
+            z[j] = (j >= 2 * G && j < 3 * G) ? tanhf(v) : sooc_nn_sigm(v);
         }
         for (int j = 0; j < G; j++) {
             float ig = z[j], fg = z[G + j], gg = z[2 * G + j], og = z[3 * G + j];

@@ -20,23 +20,6 @@
 
 static inline size_t up16(size_t n) { return (n + 15) & ~(size_t)15; }
 
-static inline float sigm(float x) {
-    if (x >= 0.f) return 1.f / (1.f + expf(-x));
-    float e = expf(x);
-    return e / (1.f + e);
-}
-
-static inline float act_apply(sooc_nn_act a, float v) {
-    switch (a) {
-    case SOOC_NN_ACT_NONE: return v;
-    case SOOC_NN_ACT_RELU: return v > 0.f ? v : 0.f;
-    case SOOC_NN_ACT_ELU: return v > 0.f ? v : expm1f(v);
-    case SOOC_NN_ACT_SIGMOID: return sigm(v);
-    case SOOC_NN_ACT_TANH: return tanhf(v);
-    default: return v;
-    }
-}
-
 static int64_t sum_out(const sooc_nn_mlp *m) {
     int64_t s = 0;
     for (int l = 0; l < m->n_layers; l++) s += m->layer[l].c_out;
@@ -112,7 +95,7 @@ static void layer_forward_rows(const sooc_nn_mlp_layer *L, float *y, const float
                 float s = 0.f;
                 for (int i = 0; i < I; i++) s += xr[i] * wr[i];
                 float v = s + (L->b ? L->b[o] : 0.f) + (sbias ? sbias[o] : 0.f);
-                y[r * O + o] = act_apply(L->act, v);
+                y[r * O + o] = sooc_nn_act_apply(L->act, v);
             }
         }
         return;
@@ -139,7 +122,7 @@ static void layer_forward_rows(const sooc_nn_mlp_layer *L, float *y, const float
     default:
         for (int64_t r = 0; r < R; r++) {
             float *yr = y + r * O;
-            for (int o = 0; o < O; o++) yr[o] = act_apply(L->act, bp ? yr[o] + bp[o] : yr[o]);
+            for (int o = 0; o < O; o++) yr[o] = sooc_nn_act_apply(L->act, bp ? yr[o] + bp[o] : yr[o]);
         }
     }
 }

@@ -15,10 +15,7 @@ static inline float act_f(sooc_nn_act f, float x) {
     case SOOC_NN_ACT_NONE: return x;
     case SOOC_NN_ACT_RELU: return x > 0.f ? x : 0.f;
     case SOOC_NN_ACT_ELU: return x > 0.f ? x : expm1f(x);
-    case SOOC_NN_ACT_SIGMOID:
-        /* stable for both signs */
-        if (x >= 0.f) return 1.f / (1.f + expf(-x));
-        else { float e = expf(x); return e / (1.f + e); }
+    case SOOC_NN_ACT_SIGMOID: return sooc_nn_sigm(x);
     case SOOC_NN_ACT_SOFTPLUS:
         /* torch: threshold 20 -> identity; log1p(exp(x)) otherwise */
         return x > 20.f ? x : log1pf(expf(x));
