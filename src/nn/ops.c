@@ -146,6 +146,25 @@ static inline void binop_grad(sooc_nn_binop op, float a, float b, float g, float
     }
 }
 
+/* Accumulate the gradient of operand a (side 0, into g = da) or b (side 1,
+ * into g = db) in output order. A broadcast operand (ng < n) receives sums in
+ * that fixed order, so the loop is serial; when the operand is not broadcast
+ * (ng == n) each i owns its element and the loop may run in parallel. Either
+ * way the result is bitwise the same. */
+static void binary_grad_acc(sooc_nn_binop op, int side, float *g, int64_t ng, const float *dout,
+                            const float *a, const float *b, int64_t n, const int64_t *o,
+                            const int64_t *sa, const int64_t *sb, int ndim) {
+#pragma omp parallel for schedule(static) if (ng == n && n > SOOC_NN_PAR_MIN)
+    for (int64_t i = 0; i < n; i++) {
+        int64_t ia, ib;
+        float ga = 0.f, gb = 0.f;
+        bcast_index(i, o, sa, sb, ndim, &ia, &ib);
+        binop_grad(op, a[ia], b[ib], dout[i], &ga, &gb);
+        if (side) g[ib] += gb;
+        else g[ia] += ga;
+    }
+}
+
 void sooc_nn_binary_backward(sooc_nn_binop op, float *da, float *db, const float *dout,
                              const float *a, const int64_t *ashape, const float *b,
                              const int64_t *bshape, int ndim) {
@@ -153,49 +172,8 @@ void sooc_nn_binary_backward(sooc_nn_binop op, float *da, float *db, const float
     int64_t n = bcast_setup(ashape, bshape, ndim, o, sa, sb);
     int64_t na = 1, nb = 1;
     for (int d = 0; d < ndim; d++) { na *= ashape[d]; nb *= bshape[d]; }
-    /* Serial loop in output order: broadcast inputs receive sums in a fixed
-     * order (deterministic). When the operand is not broadcast (na == n) the
-     * loop is parallel since each i owns its element. */
-    if (da) {
-        if (na == n) {
-#pragma omp parallel for schedule(static) if (n > SOOC_NN_PAR_MIN)
-            for (int64_t i = 0; i < n; i++) {
-                int64_t ia, ib;
-                float ga = 0.f, gb = 0.f;
-                bcast_index(i, o, sa, sb, ndim, &ia, &ib);
-                binop_grad(op, a[ia], b[ib], dout[i], &ga, &gb);
-                da[ia] += ga;
-            }
-        } else {
-            for (int64_t i = 0; i < n; i++) {
-                int64_t ia, ib;
-                float ga = 0.f, gb = 0.f;
-                bcast_index(i, o, sa, sb, ndim, &ia, &ib);
-                binop_grad(op, a[ia], b[ib], dout[i], &ga, &gb);
-                da[ia] += ga;
-            }
-        }
-    }
-    if (db) {
-        if (nb == n) {
-#pragma omp parallel for schedule(static) if (n > SOOC_NN_PAR_MIN)
-            for (int64_t i = 0; i < n; i++) {
-                int64_t ia, ib;
-                float ga = 0.f, gb = 0.f;
-                bcast_index(i, o, sa, sb, ndim, &ia, &ib);
-                binop_grad(op, a[ia], b[ib], dout[i], &ga, &gb);
-                db[ib] += gb;
-            }
-        } else {
-            for (int64_t i = 0; i < n; i++) {
-                int64_t ia, ib;
-                float ga = 0.f, gb = 0.f;
-                bcast_index(i, o, sa, sb, ndim, &ia, &ib);
-                binop_grad(op, a[ia], b[ib], dout[i], &ga, &gb);
-                db[ib] += gb;
-            }
-        }
-    }
+    if (da) binary_grad_acc(op, 0, da, na, dout, a, b, n, o, sa, sb, ndim);
+    if (db) binary_grad_acc(op, 1, db, nb, dout, a, b, n, o, sa, sb, ndim);
 }
 
 /* ------------------------------------------------------ slot bias */

@@ -328,44 +328,41 @@ static int32_t *copy_idx(sooc_nn_tape *t, const int32_t *idx, int64_t N) {
     return c;
 }
 
-sooc_nn_tensor *sooc_nn_gather(sooc_nn_tape *t, sooc_nn_tensor *x, const int32_t *idx,
-                               int64_t N) {
-    CHECK_IN(x);
-    int64_t M = x->shape[0], C = x->shape[0] ? x->n / x->shape[0] : 0;
+/* gather (out row n = x row idx[n]; N rows out of M) and scatter-add (out row
+ * idx[n] += x row n; M rows from N): the same index check, index copy, output
+ * and node. The node keeps ia = {N, M, C}. */
+static sooc_nn_tensor *index_op(sooc_nn_tape *t, int op, sooc_nn_tensor *x, const int32_t *idx, int64_t N,
+                                int64_t M) {
+    int gather = op == OP_GATHER;
+    int64_t rows_in = x->shape[0], C = rows_in ? x->n / rows_in : 0;
     for (int64_t i = 0; i < N; i++)
-        if (idx[i] < 0 || idx[i] >= M) return fail(t, SOOC_EINVAL, "nn tape: gather index out of range%s", "");
+        if (idx[i] < 0 || idx[i] >= M)
+            return fail(t, SOOC_EINVAL, "nn tape: %s index out of range", gather ? "gather" : "scatter");
     int64_t shp[SOOC_NN_MAX_DIMS];
     memcpy(shp, x->shape, sizeof shp);
-    shp[0] = N;
+    shp[0] = gather ? N : M;
     int32_t *ci = copy_idx(t, idx, N);
     sooc_nn_tensor *y = ci ? new_tensor(t, NULL, x->ndim, shp, 0) : NULL;
     if (!y) return NULL;
-    sooc_nn_gather_forward(y->data, x->data, ci, N, M, C);
-    node *nd = push(t, OP_GATHER, y, 1, x);
+    if (gather) sooc_nn_gather_forward(y->data, x->data, ci, N, M, C);
+    else sooc_nn_scatter_add_forward(y->data, x->data, ci, N, M, C);
+    node *nd = push(t, op, y, 1, x);
     if (!nd) return NULL;
     nd->aux = ci;
     nd->ia[0] = N; nd->ia[1] = M; nd->ia[2] = C;
     return y;
 }
 
+sooc_nn_tensor *sooc_nn_gather(sooc_nn_tape *t, sooc_nn_tensor *x, const int32_t *idx,
+                               int64_t N) {
+    CHECK_IN(x);
+    return index_op(t, OP_GATHER, x, idx, N, x->shape[0]);
+}
+
 sooc_nn_tensor *sooc_nn_scatter_add(sooc_nn_tape *t, sooc_nn_tensor *src, const int32_t *idx,
                                     int64_t M) {
     CHECK_IN(src);
-    int64_t N = src->shape[0], C = N ? src->n / N : 0;
-    for (int64_t i = 0; i < N; i++)
-        if (idx[i] < 0 || idx[i] >= M) return fail(t, SOOC_EINVAL, "nn tape: scatter index out of range%s", "");
-    int64_t shp[SOOC_NN_MAX_DIMS];
-    memcpy(shp, src->shape, sizeof shp);
-    shp[0] = M;
-    int32_t *ci = copy_idx(t, idx, N);
-    sooc_nn_tensor *y = ci ? new_tensor(t, NULL, src->ndim, shp, 0) : NULL;
-    if (!y) return NULL;
-    sooc_nn_scatter_add_forward(y->data, src->data, ci, N, M, C);
-    node *nd = push(t, OP_SCATTER, y, 1, src);
-    if (!nd) return NULL;
-    nd->aux = ci;
-    nd->ia[0] = N; nd->ia[1] = M; nd->ia[2] = C;
-    return y;
+    return index_op(t, OP_SCATTER, src, idx, src->shape[0], M);
 }
 
 static sooc_nn_tensor *reduce(sooc_nn_tape *t, sooc_nn_tensor *x, int axis, int mean) {
