@@ -21,12 +21,6 @@ static const struct {
 };
 #define NCMDS (sizeof g_cmds / sizeof g_cmds[0])
 
-static void cli_log(void *user, sooc_log_level level, const char *msg) {
-    (void)user;
-    static const char *tag[] = {"debug", "info", "warn", "error", "fatal"};
-    fprintf(stderr, "[%s] %s\n", tag[level], msg);
-}
-
 static void usage(FILE *f) {
     fprintf(f, "usage: sooc3d <command> [options]\n\ncommands:\n");
     for (size_t i = 0; i < NCMDS; i++) fprintf(f, "  %-9s %s\n", g_cmds[i].name, g_cmds[i].help);
@@ -34,19 +28,8 @@ static void usage(FILE *f) {
     fprintf(f, "\nRun `sooc3d <command> --help` for a command's options.\n");
 }
 
-int sooc_cli_fail(const char *cmd, sooc_status s) {
-    fprintf(stderr, "sooc3d %s: error (%s): %s\n", cmd, sooc_status_str(s), sooc_errmsg());
-    return 1;
-}
-
-int sooc_cli_wants_help(int argc, char **argv) {
-    for (int i = 1; i < argc; i++)
-        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) return 1;
-    return 0;
-}
-
 int main(int argc, char **argv) {
-    sooc_log_set_callback(cli_log, NULL);
+    sooc_log_set_callback(sooc_cli_log, NULL);
     if (argc < 2) { usage(stderr); return 2; }
     const char *name = argv[1];
     if (!strcmp(name, "help") || !strcmp(name, "--help") || !strcmp(name, "-h")) {

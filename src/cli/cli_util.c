@@ -1,0 +1,23 @@
+/* Helpers every sooc3d command uses (cli.h); linked into the sooc3d binary and
+ * into tests/node's sooc3d_node_fake. */
+#include "cli.h"
+
+#include <stdio.h>
+#include <string.h>
+
+int sooc_cli_fail(const char *cmd, sooc_status s) {
+    fprintf(stderr, "sooc3d %s: error (%s): %s\n", cmd, sooc_status_str(s), sooc_errmsg());
+    return 1;
+}
+
+int sooc_cli_wants_help(int argc, char **argv) {
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) return 1;
+    return 0;
+}
+
+void sooc_cli_log(void *user, sooc_log_level level, const char *msg) {
+    (void)user;
+    static const char *tag[] = {"debug", "info", "warn", "error", "fatal"};
+    fprintf(stderr, "[%s] %s\n", tag[level], msg);
+}
