@@ -267,7 +267,10 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
     int nsc = sooc_dataset_n_scenes(ds);
     sooc_frame views[64], queries[16];
     sooc_progress prog;
-    if (rp->progress) sooc_progress_begin(&prog, "train", (uint64_t)cfg->steps);
+    /* progress (rate, ETA) counts the steps of this session, so a resumed run's
+     * rate is not inflated by the steps done before; the absolute step is in `extra` */
+    int64_t step0 = tr.st.step;
+    if (rp->progress) sooc_progress_begin(&prog, "train", (uint64_t)(cfg->steps > step0 ? cfg->steps - step0 : 0));
     double t_start = sooc_seconds();
     const char *hdr = "step,lr,tau,beta_kl,total,nll_input,kl,nll_query,nll_depth,nll_color,"
                       "present_slots,gt_visible,mean_pres_logit,map_entries,grad_norm,T,Q,sec_per_step\n";
@@ -346,13 +349,13 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
                      sum.nll_depth * inv, sum.nll_color * inv, row[4], row[5], row[6], sum.map_entries * inv,
                      gnorm, T, Q, sooc_seconds() - ts);
             if ((s = append_line(tr.path_log, hdr, line))) goto done;
-            snprintf(extra, sizeof extra, "loss %.4g nll %.4g kl %.4g query %.4g slots %.2f/%.2f gt lr %.2e tau %.2f%s",
-                     acc[0] / acc_n, acc[1] / acc_n, acc[2] / acc_n, acc[3] / acc_n, acc[4] / acc_n,
+            snprintf(extra, sizeof extra, "step %lld loss %.4g nll %.4g kl %.4g query %.4g slots %.2f/%.2f gt lr %.2e tau %.2f%s",
+                     (long long)tr.st.step, acc[0] / acc_n, acc[1] / acc_n, acc[2] / acc_n, acc[3] / acc_n, acc[4] / acc_n,
                      acc[5] / acc_n, lr, o.tau, tr.st.skipped ? " (skips)" : "");
             memset(acc, 0, sizeof acc);
             acc_n = 0;
         }
-        if (rp->progress) sooc_progress_update(&prog, (uint64_t)tr.st.step, extra);
+        if (rp->progress) sooc_progress_update(&prog, (uint64_t)(tr.st.step - step0), extra);
         int stop = (rp->stop_flag && *rp->stop_flag) ||
                    (cfg->val_max_seconds > 0 && sooc_seconds() - t_start > cfg->val_max_seconds);
         if (cfg->val_every > 0 && (tr.st.step % cfg->val_every == 0 || tr.st.step == cfg->steps)) {
