@@ -12,6 +12,7 @@
  * against a brute-force scan before timing. Last line: JSON. */
 #include "sooc3d/cogmap.h"
 #include "sooc3d/mapstore.h"
+#include "../tests/cogmap/cogmap_cam.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -22,23 +23,8 @@
 #define D 32
 #define NSLOT 7
 
-static void make_cam(sooc_cogmap_camera *c, double x, double z, double psi) {
-    memset(c, 0, sizeof *c);
-    double down = 0.2;
-    double base[9] = {-1, 0, 0, 0, -1, 0, 0, 0, 1}, Rx[9] = {1, 0, 0, 0, cos(down), -sin(down), 0, sin(down), cos(down)};
-    double Ry[9], t1[9], R[9], t[3] = {x, 1.5, z};
-    sooc_m3_rot_y(Ry, psi);
-    sooc_m3_mul(t1, Rx, base);
-    sooc_m3_mul(R, Ry, t1);
-    sooc_se3_from_rt(c->T_wc, R, t);
-    c->K.width = c->K.height = 64;
-    c->K.fx = c->K.fy = 50;
-    c->K.cx = c->K.cy = 32;
-    c->t_near = 0.1;
-    c->d_clip = 8;
-    c->R_h = 0.6;
-    c->H_b = 1.2;
-}
+/* bench cameras: 1.5 m high, 0.2 rad down */
+static void make_cam(sooc_cogmap_camera *c, double x, double z, double psi) { cogmap_test_cam(c, x, 1.5, z, psi, 0.2); }
 
 static void rand_entry(sooc_rng *r, sooc_cogmap_entry *e, double side) {
     memset(e, 0, sizeof *e);

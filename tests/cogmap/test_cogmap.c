@@ -4,32 +4,12 @@
  * out-of-view entries, registration rules, removal stress, layout blocks. */
 #include "check.h"
 #include "sooc3d/cogmap.h"
+#include "cogmap_cam.h"
 
 #include <math.h>
 #include <string.h>
 
 #define D 8
-
-/* Camera at (x, h, z) with yaw psi (G forward = (sin psi, 0, cos psi)) looking
- * down by `down` rad (OpenCV axes). */
-static void make_cam(sooc_cogmap_camera *c, double x, double h, double z, double psi, double down) {
-    memset(c, 0, sizeof *c);
-    double base[9] = {-1, 0, 0, 0, -1, 0, 0, 0, 1}, Rx[9] = {1, 0, 0, 0, cos(down), -sin(down), 0, sin(down), cos(down)};
-    double Ry[9], t1[9], R[9], t[3] = {x, h, z};
-    sooc_m3_rot_y(Ry, psi);
-    sooc_m3_mul(t1, Rx, base);
-    sooc_m3_mul(R, Ry, t1);
-    sooc_se3_from_rt(c->T_wc, R, t);
-    c->K.width = 64;
-    c->K.height = 64;
-    c->K.fx = c->K.fy = 50;
-    c->K.cx = c->K.cy = 32;
-    c->t_near = 0.1;
-    c->d_clip = 8;
-    c->R_h = 0.6;
-    c->H_b = 1.2;
-    c->mode = SOOC_INVIEW_CENTRE;
-}
 
 static void rand_entry(sooc_rng *r, sooc_cogmap_entry *e, double X, double Z) {
     memset(e, 0, sizeof *e);
@@ -175,7 +155,7 @@ static void test_inview(void) {
     sooc_cogmap_entry e;
     sooc_rng r;
     sooc_rng_seed(&r, 2, 0);
-    make_cam(&c, 0, 1.5, 0, 0, 0); /* looking along +z */
+    cogmap_test_cam(&c, 0, 1.5, 0, 0, 0); /* looking along +z */
     rand_entry(&r, &e, 0, 3);
     CHECK(sooc_cogmap_in_view(&c, &e));          /* in front */
     e.Z = -3;
@@ -201,7 +181,7 @@ static void test_inview(void) {
     CHECK(!sooc_cogmap_in_view(&c, &e));
     c.mode = SOOC_INVIEW_CENTRE;
     /* yawed camera: psi = pi/2 looks along +x */
-    make_cam(&c, 10, 1.5, 10, M_PI / 2, 0);
+    cogmap_test_cam(&c, 10, 1.5, 10, M_PI / 2, 0);
     e.X = 13; e.Z = 10;
     CHECK(sooc_cogmap_in_view(&c, &e));
     e.X = 7;
@@ -209,7 +189,7 @@ static void test_inview(void) {
     e.X = 10; e.Z = 13;
     CHECK(!sooc_cogmap_in_view(&c, &e));
     /* pitched down 45 deg from 1.5 m: the floor right below-ahead is in view, far objects are not */
-    make_cam(&c, 0, 1.5, 0, 0, 45 * M_PI / 180);
+    cogmap_test_cam(&c, 0, 1.5, 0, 0, 45 * M_PI / 180);
     e.X = 0; e.Z = 1.0;
     CHECK(sooc_cogmap_in_view(&c, &e));
     e.Z = 7;
@@ -243,7 +223,7 @@ static void test_topk(void) {
         CHECK_OK(sooc_cogmap_insert(m, &e, NULL));
     }
     sooc_cogmap_camera c;
-    make_cam(&c, 0, 1.5, 0, 0, 0);
+    cogmap_test_cam(&c, 0, 1.5, 0, 0, 0);
     sooc_cogmap_slot sl[SOOC_COGMAP_K_MAX];
     int n, nin;
     sooc_floor_frame gf;
@@ -291,7 +271,7 @@ static void test_query_vs_bruteforce(void) {
         int bad = 0;
         for (int it = 0; it < 200; it++) {
             sooc_cogmap_camera c;
-            make_cam(&c, sooc_rng_range(&r, -25, 25), sooc_rng_range(&r, 0.3, 2.5), sooc_rng_range(&r, -25, 25),
+            cogmap_test_cam(&c, sooc_rng_range(&r, -25, 25), sooc_rng_range(&r, 0.3, 2.5), sooc_rng_range(&r, -25, 25),
                      sooc_rng_range(&r, -M_PI, M_PI), sooc_rng_range(&r, -0.3, 1.0));
             c.mode = (it & 1) ? SOOC_INVIEW_CORNERS : SOOC_INVIEW_CENTRE;
             int k = 1 + (int)sooc_rng_below(&r, 20);
@@ -326,7 +306,7 @@ static void test_registration_and_ids(void) {
     sooc_cogmap *m = new_map(2.0);
     const int S = SOOC_LAM_SIZE(D);
     sooc_cogmap_camera c;
-    make_cam(&c, 0, 1.5, 0, 0, 0);
+    cogmap_test_cam(&c, 0, 1.5, 0, 0, 0);
     sooc_cogmap_slot sl[8];
     int n;
     sooc_floor_frame gf;
@@ -351,7 +331,7 @@ static void test_registration_and_ids(void) {
     CHECK(e.first_seen_ns == 100 && e.last_seen_ns == 100 && e.obs_count == 1 && e.last_view == 0);
 
     /* view 1 from another pose: retrieve, update id 1, drop id 2, keep 3, add one */
-    make_cam(&c, 0.3, 1.5, -0.5, -0.2, 0.1);
+    cogmap_test_cam(&c, 0.3, 1.5, -0.5, -0.2, 0.1);
     CHECK_OK(sooc_cogmap_query(m, &c, 7, sl, &n, &gf, NULL));
     CHECK(n == 3);
     for (int i = 0; i < n; i++) {
@@ -389,7 +369,7 @@ static void test_registration_and_ids(void) {
     CHECK(sooc_cogmap_count(m) == before);
 
     /* a re-registered entry moves through the grid */
-    make_cam(&c, 0, 1.5, 0, 0, 0);
+    cogmap_test_cam(&c, 0, 1.5, 0, 0, 0);
     CHECK_OK(sooc_cogmap_query(m, &c, 7, sl, &n, &gf, NULL));
     sooc_floor_frame far = {40, 40, 0};
     uint64_t one = 1;
@@ -401,7 +381,7 @@ static void test_registration_and_ids(void) {
     int nin;
     CHECK_OK(sooc_cogmap_query(m, &c, 7, sl, &n, NULL, &nin));
     for (int i = 0; i < n; i++) CHECK(sl[i].id != 1);
-    make_cam(&c, 40, 1.5, 40, 0, 0);
+    cogmap_test_cam(&c, 40, 1.5, 40, 0, 0);
     CHECK_OK(sooc_cogmap_query(m, &c, 7, sl, &n, NULL, NULL));
     CHECK(n == 1 && sl[0].id == 1);
 
@@ -441,7 +421,7 @@ static void test_out_of_view_identical(void) {
         size_t na, nb;
         CHECK_OK(sooc_cogmap_entries(m, a, 2 * N, &na));
         sooc_cogmap_camera c;
-        make_cam(&c, sooc_rng_range(&r, -15, 15), 1.5, sooc_rng_range(&r, -15, 15), sooc_rng_range(&r, -3, 3), 0.2);
+        cogmap_test_cam(&c, sooc_rng_range(&r, -15, 15), 1.5, sooc_rng_range(&r, -15, 15), sooc_rng_range(&r, -3, 3), 0.2);
         sooc_cogmap_slot sl[7];
         int n;
         sooc_floor_frame gf;
@@ -518,7 +498,7 @@ static void test_stress(void) {
     }
     /* the grid agrees: a wide top-down camera sees every entry exactly once */
     sooc_cogmap_camera c;
-    make_cam(&c, 0, 30, 0, 0, 1.55);
+    cogmap_test_cam(&c, 0, 30, 0, 0, 1.55);
     c.d_clip = 100;
     c.K.fx = c.K.fy = 5;
     int n, nin;
@@ -535,7 +515,7 @@ static void test_layout_and_alloc(void) {
     int32_t bi, bj;
     double ol[2];
     sooc_cogmap_camera c;
-    make_cam(&c, 1, 1.5, 1, 0, 0.2);
+    cogmap_test_cam(&c, 1, 1.5, 1, 0, 0.2);
     CHECK_OK(sooc_cogmap_active_block(m, c.T_wc, 8, &bi, &bj, ol));
     /* ground point 4 m ahead along +z from (1, 1): (1, 5) -> block (0, 1) with B_s = 4 */
     CHECK(bi == 0 && bj == 1);
@@ -566,13 +546,13 @@ static void test_layout_and_alloc(void) {
     sooc_cogmap_slot sl[7];
     int n;
     for (int i = 0; i < 100; i++) {
-        make_cam(&c, sooc_rng_range(&r, -10, 10), 1.5, sooc_rng_range(&r, -10, 10), sooc_rng_range(&r, -3, 3), 0.1);
+        cogmap_test_cam(&c, sooc_rng_range(&r, -10, 10), 1.5, sooc_rng_range(&r, -10, 10), sooc_rng_range(&r, -3, 3), 0.1);
         CHECK_OK(sooc_cogmap_query(m, &c, 7, sl, &n, NULL, NULL));
     }
     sooc_alloc_get_stats(&s1);
     CHECK(s1.n_alloc == s0.n_alloc);
     /* bad camera */
-    make_cam(&c, 0, 1.5, 0, 0, M_PI / 2);
+    cogmap_test_cam(&c, 0, 1.5, 0, 0, M_PI / 2);
     CHECK(sooc_cogmap_query(m, &c, 7, sl, &n, NULL, NULL) == SOOC_EINVAL);
     sooc_cogmap_destroy(m);
 }
@@ -621,7 +601,7 @@ static void test_fault_injection(void) {
         }
         sooc_free(all);
         sooc_cogmap_camera c;
-        make_cam(&c, 0, 30, 0, 0, 1.55);
+        cogmap_test_cam(&c, 0, 30, 0, 0, 1.55);
         c.d_clip = 100;
         c.K.fx = c.K.fy = 5;
         int ns, nin;

@@ -9,6 +9,25 @@
 
 #include "sooc3d/frame.h"
 #include "sooc3d/geom.h"
+#include "sooc3d/model.h"
+
+/* The tiny model of the gradient and step tests: K slots, d_what 4, d_layout
+ * 3, L 2, 32x32 images with 16x16 rays, small decoders and refinement nets,
+ * and a mild likelihood scale (sigma_max 5, d_clip 5, density bias 0): the
+ * loss is piecewise smooth (ReLU kinks times large per-ray weights), so finite
+ * differences need a gentle landscape. */
+static inline void synth_tiny_cfg(sooc_model_config *c, int K, int use_box) {
+    sooc_model_config_default(c);
+    c->K = K, c->d_what = 4, c->d_layout = 3, c->L = 2;
+    c->img_w = c->img_h = 32, c->ray_w = c->ray_h = 16;
+    c->dec_width = 16, c->dec_color_width = 8, c->n_freq = 3, c->n_freq_layout = 3;
+    c->ref_ch[0] = 4, c->ref_ch[1] = 4, c->ref_ch[2] = 6, c->ref_ch[3] = 6;
+    c->ref_fc = 8, c->ref_hidden = 8;
+    c->use_box = use_box;
+    c->sigma_max = 5.0f;
+    c->d_clip = 5.0f;
+    c->dens_bias_init = 0.0f;
+}
 
 typedef struct synth_sphere {
     double c[3], r;

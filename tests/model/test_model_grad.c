@@ -28,21 +28,6 @@ static void report(const worst *w, const char *name) {
     CHECK_MSG(w->ratio <= 1.0, "%s: gradient check failed at %s", name, w->what);
 }
 
-static void tiny_cfg(sooc_model_config *c, int use_box) {
-    sooc_model_config_default(c);
-    c->K = 2, c->d_what = 4, c->d_layout = 3, c->L = 2;
-    c->img_w = c->img_h = 32, c->ray_w = c->ray_h = 16;
-    c->dec_width = 16, c->dec_color_width = 8, c->n_freq = 3, c->n_freq_layout = 3;
-    c->ref_ch[0] = 4, c->ref_ch[1] = 4, c->ref_ch[2] = 6, c->ref_ch[3] = 6;
-    c->ref_fc = 8, c->ref_hidden = 8;
-    c->use_box = use_box;
-    /* milder likelihood scale: the loss is piecewise smooth (ReLU kinks times
-     * large per-ray weights), so finite differences need a gentle landscape */
-    c->sigma_max = 5.0f;
-    c->d_clip = 5.0f;
-    c->dens_bias_init = 0.0f;
-}
-
 /* ---- Π and the Gaussian rule on single points ---- */
 static void test_pi_gauss(void) {
     worst w = {0};
@@ -93,7 +78,7 @@ static void test_pi_gauss(void) {
 /* ---- KL ---- */
 static void test_kl(void) {
     sooc_model_config c;
-    tiny_cfg(&c, 1);
+    synth_tiny_cfg(&c, 2, 1);
     int NL = MDL_NL(c.d_what);
     sooc_rng r;
     sooc_rng_seed(&r, 2, 0);
@@ -136,7 +121,7 @@ typedef struct dec_fixture {
 static void fixture(dec_fixture *F, int use_box, uint64_t seed) {
     memset(F, 0, sizeof *F);
     sooc_model_config c;
-    tiny_cfg(&c, use_box);
+    synth_tiny_cfg(&c, 2, use_box);
     CHECK_OK(sooc_model_create(&F->m, &c, seed));
     double T[16], Twg[16], h, pitch, roll;
     synth_pose(T, 0, 1.5, 0, 0.1, -0.45);
@@ -274,7 +259,7 @@ static double ref_run(sooc_model *m, const ref_net *n, ref_act a[2], const float
 
 static void test_refine(void) {
     sooc_model_config c;
-    tiny_cfg(&c, 1);
+    synth_tiny_cfg(&c, 2, 1);
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 11));
     sooc_rng r;

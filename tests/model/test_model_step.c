@@ -17,16 +17,7 @@
 #include "synth.h"
 
 static void tiny_cfg(sooc_model_config *c) {
-    sooc_model_config_default(c);
-    c->K = 3, c->d_what = 4, c->d_layout = 3, c->L = 2;
-    c->img_w = c->img_h = 32, c->ray_w = c->ray_h = 16;
-    c->dec_width = 16, c->dec_color_width = 8, c->n_freq = 3, c->n_freq_layout = 3;
-    c->ref_ch[0] = 4, c->ref_ch[1] = 4, c->ref_ch[2] = 6, c->ref_ch[3] = 6;
-    c->ref_fc = 8, c->ref_hidden = 8;
-    c->use_box = 0;
-    c->sigma_max = 5.0f;
-    c->d_clip = 5.0f;
-    c->dens_bias_init = 0.0f;
+    synth_tiny_cfg(c, 3, 0);
     c->prior_pres_logit = 1.5f;
     c->prior_far = 4.0f;
     /* with the box off every point counts for every slot; the Gaussian-trick term
