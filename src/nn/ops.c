@@ -12,19 +12,14 @@
 
 static inline float act_f(sooc_nn_act f, float x) {
     switch (f) {
-    case SOOC_NN_ACT_NONE: return x;
-    case SOOC_NN_ACT_RELU: return x > 0.f ? x : 0.f;
-    case SOOC_NN_ACT_ELU: return x > 0.f ? x : expm1f(x);
-    case SOOC_NN_ACT_SIGMOID: return sooc_nn_sigm(x);
     case SOOC_NN_ACT_SOFTPLUS:
         /* torch: threshold 20 -> identity; log1p(exp(x)) otherwise */
         return x > 20.f ? x : log1pf(expf(x));
     case SOOC_NN_ACT_EXP: return expf(x);
     case SOOC_NN_ACT_LOG: return logf(x);
     case SOOC_NN_ACT_SQUARE: return x * x;
-    case SOOC_NN_ACT_TANH: return tanhf(x);
+    default: return sooc_nn_act_apply(f, x);   /* NONE, RELU, ELU, SIGMOID, TANH */
     }
-    return x;
 }
 
 /* derivative dy/dx from x and y */
