@@ -22,6 +22,8 @@ int sooc_cmd_node(int argc, char **argv);
 int sooc_cli_fail(const char *cmd, sooc_status s);
 /* True if argv has -h or --help. */
 int sooc_cli_wants_help(int argc, char **argv);
+/* Parse "C" or "C,F" render sample counts (C >= 2, F >= 0); 1 on success. */
+int sooc_cli_parse_samples(const char *s, int *c, int *f);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */
 void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
 

@@ -3,6 +3,7 @@
 #include "cli.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 int sooc_cli_fail(const char *cmd, sooc_status s) {
@@ -20,4 +21,20 @@ void sooc_cli_log(void *user, sooc_log_level level, const char *msg) {
     (void)user;
     static const char *tag[] = {"debug", "info", "warn", "error", "fatal"};
     fprintf(stderr, "[%s] %s\n", tag[level], msg);
+}
+
+/* "C" or "C,F": coarse and fine render samples per ray (C >= 2, F >= 0). */
+int sooc_cli_parse_samples(const char *s, int *c, int *f) {
+    char *e;
+    long a = strtol(s, &e, 10), b = 0;
+    if (e == s || a < 2) return 0;
+    if (*e == ',') {
+        const char *s2 = e + 1;
+        b = strtol(s2, &e, 10);
+        if (e == s2 || b < 0) return 0;
+    }
+    if (*e) return 0;
+    *c = (int)a;
+    *f = (int)b;
+    return 1;
 }

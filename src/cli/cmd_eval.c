@@ -81,21 +81,6 @@ static sooc_status on_view(void *user, const sooc_eval_view_info *v) {
     return SOOC_OK;
 }
 
-static int parse_samples(const char *s, int *c, int *f) {
-    char *e;
-    long a = strtol(s, &e, 10), b = 0;
-    if (e == s || a < 2) return 0;
-    if (*e == ',') {
-        const char *s2 = e + 1;
-        b = strtol(s2, &e, 10);
-        if (e == s2 || b < 0) return 0;
-    }
-    if (*e) return 0;
-    *c = (int)a;
-    *f = (int)b;
-    return 1;
-}
-
 static void fmt_stat(char *b, size_t cap, const sooc_eval_stat *s, int runs) {
     if (!isfinite(s->mean)) snprintf(b, cap, "-");
     else if (runs > 1) snprintf(b, cap, "%.3f+-%.3f", s->mean, s->std);
@@ -161,7 +146,7 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (timing < 0) { fprintf(stderr, "sooc3d eval: --input-timing must be final, online or both\n"); return 2; }
         } else if (!strcmp(a, "--scenes") && has) max_scenes = atoi(argv[++i]);
         else if (!strcmp(a, "--samples") && has) {
-            if (!parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
+            if (!sooc_cli_parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
                 fprintf(stderr, "sooc3d eval: --samples wants C[,F] with C >= 2, F >= 0\n");
                 return 2;
             }

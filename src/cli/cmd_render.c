@@ -45,21 +45,6 @@ static void usage(FILE *f) {
             "gravity-aligned world (+y up, floor at y = 0), as for `sooc3d infer`.\n");
 }
 
-static int parse_samples(const char *s, int *c, int *f) {
-    char *e;
-    long a = strtol(s, &e, 10), b = 0;
-    if (e == s || a < 2) return 0;
-    if (*e == ',') {
-        const char *s2 = e + 1;
-        b = strtol(s2, &e, 10);
-        if (e == s2 || b < 0) return 0;
-    }
-    if (*e) return 0;
-    *c = (int)a;
-    *f = (int)b;
-    return 1;
-}
-
 typedef struct render_ctx {
     const char *out;
     const sooc_model_config *mc;
@@ -214,7 +199,7 @@ int sooc_cmd_render(int argc, char **argv) {
         else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
         else if (!strcmp(a, "--max-obj") && has) ro.max_obj = atoi(argv[++i]);
         else if (!strcmp(a, "--samples") && has) {
-            if (!parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
+            if (!sooc_cli_parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
                 fprintf(stderr, "sooc3d render: --samples wants C[,F] with C >= 2, F >= 0\n");
                 return 2;
             }
