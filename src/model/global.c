@@ -198,19 +198,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
                 for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
             }
         }
-    out->total = total;
-    if (nonfinite || !isfinite(total)) {
-        memcpy(m->g, S->gbak, m->np * sizeof(float));
-        out->nonfinite = 1;
-        return SOOC_OK;
-    }
-    for (size_t i = 0; i < m->np; i++)
-        if (!isfinite(m->g[i])) {
-            memcpy(m->g, S->gbak, m->np * sizeof(float));
-            out->nonfinite = 1;
-            return SOOC_OK;
-        }
-    return SOOC_OK;
+    return mdl_step_finish(m, S, total, nonfinite, out);
 fail:
     memcpy(m->g, S->gbak, m->np * sizeof(float));
     return st;

@@ -566,20 +566,22 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
             } else
                 for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
         }
-    out->total = total;
-    if (nonfinite || !isfinite(total)) {
-        memcpy(m->g, S->gbak, m->np * sizeof(float));
-        out->nonfinite = 1;
-        return SOOC_OK;
-    }
-    for (size_t i = 0; i < m->np; i++)
-        if (!isfinite(m->g[i])) {
-            memcpy(m->g, S->gbak, m->np * sizeof(float));
-            out->nonfinite = 1;
-            return SOOC_OK;
-        }
-    return SOOC_OK;
+    return mdl_step_finish(m, S, total, nonfinite, out);
 fail:
     memcpy(m->g, S->gbak, m->np * sizeof(float));
     return st;
+}
+
+/* End of a training step (plain and global-frame): record the loss and, if
+ * the loss or any accumulated gradient is non-finite, restore the gradient
+ * slab to its value at entry (S->gbak) and flag the step as skipped. */
+sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out) {
+    out->total = total;
+    int bad = nonfinite || !isfinite(total);
+    for (size_t i = 0; i < m->np && !bad; i++) bad = !isfinite(m->g[i]);
+    if (bad) {
+        memcpy(m->g, S->gbak, m->np * sizeof(float));
+        out->nonfinite = 1;
+    }
+    return SOOC_OK;
 }
