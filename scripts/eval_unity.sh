@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# The README's results table: the shipped unity model (and the global-frame
+# baseline, when its weights exist) on held-out unity s/m/l/xl scenes
+# (scripts/make_datasets.sh, seed 9001, never used in training).
+#   bash scripts/eval_unity.sh [SCENES_PER_SCALE] [RUNS]     (defaults 20, 1)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+N=${1:-20}
+R=${2:-1}
+BIN=${SOOC3D:-build/bin/sooc3d}
+args=(--model models/sooc3d_unity/model.bin --name SOOC3D)
+if [ -f models/baseline_global/model.bin ]; then
+  args+=(--model models/baseline_global/model.bin --name global-frame)
+fi
+data=()
+for sc in ${SCALES:-s m l xl}; do data+=("out/data/test_$sc"); done
+mkdir -p out/eval
+OMP_WAIT_POLICY=passive "$BIN" eval "${args[@]}" --data "${data[@]}" --scenes "$N" --runs "$R" \
+  --json out/eval/unity.json --md out/eval/unity.md --threads 2
