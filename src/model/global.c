@@ -113,21 +113,8 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
             glob_view_start(m, V, n, 1, P->lam + (size_t)L * n * NL, P->lay + (size_t)L * D2);
             for (int k = 0; k < n; k++) V->src_view[k] = t - 1;
         }
-        double lw;
-        dec_call last;
-        if ((st = mdl_view_forward(m, S, V, L, opt, 1, rng, &lw, &last))) {
-            if (st == SOOC_ENUMERIC) {
-                nonfinite = 1;
-                st = SOOC_OK;
-                break;
-            }
-            goto fail;
-        }
-        total += lw;
-        out->nll_input += last.nll;
-        out->nll_depth += last.nll_d;
-        out->nll_color += last.nll_c;
-        out->kl += last.kl;
+        if ((st = mdl_view_forward_train(m, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
+        if (nonfinite) break;
         const float *lamL = V->lam + (size_t)L * n * NL;
         for (int k = 0; k < n; k++) {
             float a = lamL[(size_t)k * NL + 5 + 2 * d];

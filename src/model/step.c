@@ -445,21 +445,8 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
             V->src_view[k] = ok ? S->id_view[id] : -1;
             V->src_slot[k] = ok ? S->id_slot[id] : -1;
         }
-        double lw;
-        dec_call last;
-        if ((st = mdl_view_forward(m, S, V, L, opt, 1, rng, &lw, &last))) {
-            if (st == SOOC_ENUMERIC) {
-                nonfinite = 1;
-                st = SOOC_OK;
-                break;
-            }
-            goto fail;
-        }
-        total += lw;
-        out->nll_input += last.nll;
-        out->nll_depth += last.nll_d;
-        out->nll_color += last.nll_c;
-        out->kl += last.kl;
+        if ((st = mdl_view_forward_train(m, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
+        if (nonfinite) break;
         /* register */
         const float *lamL = V->lam + (size_t)L * K * NL;
         uint64_t ids[SOOC_MODEL_K_MAX];
@@ -583,5 +570,26 @@ sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonf
         memcpy(m->g, S->gbak, m->np * sizeof(float));
         out->nonfinite = 1;
     }
+    return SOOC_OK;
+}
+
+/* Training forward of one input view (plain and global-frame steps): add its
+ * weighted loss to *total and its final-iterate terms to out. A non-finite
+ * loss is not an error: it sets *nonfinite and returns SOOC_OK. */
+sooc_status mdl_view_forward_train(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+                                   sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite) {
+    double lw;
+    dec_call last;
+    sooc_status st = mdl_view_forward(m, S, V, L, opt, 1, rng, &lw, &last);
+    if (st == SOOC_ENUMERIC) {
+        *nonfinite = 1;
+        return SOOC_OK;
+    }
+    if (st) return st;
+    *total += lw;
+    out->nll_input += last.nll;
+    out->nll_depth += last.nll_d;
+    out->nll_color += last.nll_c;
+    out->kl += last.kl;
     return SOOC_OK;
 }

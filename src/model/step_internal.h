@@ -55,6 +55,8 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
 sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
                              sooc_rng *rng, double *loss_w, dec_call *last);
 void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L);
+sooc_status mdl_view_forward_train(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+                                   sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite);
 sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out);
 
 #endif
