@@ -133,38 +133,8 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
         for (int q = 0; q < Q; q++) {
             view_rec *V = &S->views[T];   /* scratch record */
             if ((st = glob_view_setup(m, V, &queries[q], rng))) goto fail;
-            mdl_sample_noise(m, rng, &V->noise[0]);
-            memset(S->tmp0, 0, (size_t)n * NL * sizeof(float));
-            memset(S->tmpl0, 0, D2 * sizeof(float));
-            dec_call dc;
-            memset(&dc, 0, sizeof dc);
-            dc.rays = &V->vr;
-            dc.nslot = n;
-            dc.lam = lamF, dc.lay = layF;
-            dc.noise = &V->noise[0];
-            dc.tau = opt->tau, dc.beta_kl = opt->beta_kl, dc.sigma_c = opt->sigma_c;
-            uint8_t hard[SOOC_MODEL_K_MAX];
-            for (int k = 0; k < n; k++)
-                hard[k] = opt->pres_mode == SOOC_PRES_ST_ONE ? 2 : opt->pres_mode == SOOC_PRES_ST_RETRIEVED;
-            dc.hard = hard;
-            dc.wgrad = 1.0f;
-            dc.backward = 1;
-            dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
-            if (S->aux_replay) dc.zw_sg = S->zq[q];
-            if ((st = mdl_decode(m, &dc))) {
-                if (st == SOOC_ENUMERIC) {
-                    nonfinite = 1;
-                    st = SOOC_OK;
-                    break;
-                }
-                goto fail;
-            }
-            if (!S->aux_replay)
-                for (int k = 0; k < n; k++)
-                    for (int i = 0; i < 3; i++) S->zq[q][k * 3 + i] = dc.zw[k][i];
-            total += dc.loss;
-            out->nll_query += dc.nll;
-            out->n_queries++;
+            if ((st = mdl_query_decode(m, S, V, q, n, lamF, layF, opt, rng, &total, out, &nonfinite))) goto fail;
+            if (nonfinite) break;
             view_rec *W = &S->views[T - 1];
             for (int i = 0; i < n * NL; i++) W->G[i] += S->tmp0[i];
             for (int i = 0; i < D2; i++) W->Glay[i] += S->tmpl0[i];

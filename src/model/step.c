@@ -487,38 +487,9 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
             if ((st = mdl_view_setup(m, S->map, V, &queries[q], 0, rng, NULL))) goto fail;
             int li = lay_find(S, V->bi, V->bj);
             V->lay_src = li >= 0 ? S->lay_view[li] : -1;
-            mdl_sample_noise(m, rng, &V->noise[0]);
-            memset(S->tmp0, 0, (size_t)K * NL * sizeof(float));
-            memset(S->tmpl0, 0, D2 * sizeof(float));
-            dec_call dc;
-            memset(&dc, 0, sizeof dc);
-            dc.rays = &V->vr;
-            dc.nslot = V->nslot;
-            dc.lam = V->lam0, dc.lay = V->lay0;
-            dc.noise = &V->noise[0];
-            dc.tau = opt->tau, dc.beta_kl = opt->beta_kl, dc.sigma_c = opt->sigma_c;
-            uint8_t hard[SOOC_MODEL_K_MAX];
-            for (int k = 0; k < V->nslot; k++)
-                hard[k] = opt->pres_mode == SOOC_PRES_ST_ONE ? 2 : opt->pres_mode == SOOC_PRES_ST_RETRIEVED;
-            dc.hard = hard;
-            dc.wgrad = 1.0f;
-            dc.backward = 1;
-            dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
-            if (S->aux_replay) dc.zw_sg = S->zq[q];
-            if ((st = mdl_decode(m, &dc))) {
-                if (st == SOOC_ENUMERIC) {
-                    nonfinite = 1;
-                    st = SOOC_OK;
-                    break;
-                }
+            if ((st = mdl_query_decode(m, S, V, q, V->nslot, V->lam0, V->lay0, opt, rng, &total, out, &nonfinite)))
                 goto fail;
-            }
-            if (!S->aux_replay)
-                for (int k = 0; k < V->nslot; k++)
-                    for (int i = 0; i < 3; i++) S->zq[q][k * 3 + i] = dc.zw[k][i];
-            total += dc.loss;
-            out->nll_query += dc.nll;
-            out->n_queries++;
+            if (nonfinite) break;
             /* route to the registering views */
             for (int k = 0; k < V->nslot; k++) {
                 uint64_t id = V->src_id[k];
@@ -591,5 +562,47 @@ sooc_status mdl_view_forward_train(sooc_model *m, step_state *S, view_rec *V, in
     out->nll_depth += last.nll_d;
     out->nll_color += last.nll_c;
     out->kl += last.kl;
+    return SOOC_OK;
+}
+
+/* Decode query view q of a training step (plain and global-frame) from the
+ * slot posteriors lam (nslot x NL) and layout lay, with one local backward:
+ * the λ-gradients land in S->tmp0 / S->tmpl0 (zeroed here) for the caller to
+ * route; the loss goes to *total and out. The sampled z_where are kept in
+ * S->zq[q] (or replayed from it, S->aux_replay) for the gradient checks. A
+ * non-finite loss sets *nonfinite and returns SOOC_OK. */
+sooc_status mdl_query_decode(sooc_model *m, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+                             const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
+                             sooc_step_losses *out, int *nonfinite) {
+    mdl_sample_noise(m, rng, &V->noise[0]);
+    memset(S->tmp0, 0, (size_t)nslot * m->NL * sizeof(float));
+    memset(S->tmpl0, 0, 2 * (size_t)m->cfg.d_layout * sizeof(float));
+    dec_call dc;
+    memset(&dc, 0, sizeof dc);
+    dc.rays = &V->vr;
+    dc.nslot = nslot;
+    dc.lam = lam, dc.lay = lay;
+    dc.noise = &V->noise[0];
+    dc.tau = opt->tau, dc.beta_kl = opt->beta_kl, dc.sigma_c = opt->sigma_c;
+    uint8_t hard[SOOC_MODEL_K_MAX];
+    for (int k = 0; k < nslot; k++)
+        hard[k] = opt->pres_mode == SOOC_PRES_ST_ONE ? 2 : opt->pres_mode == SOOC_PRES_ST_RETRIEVED;
+    dc.hard = hard;
+    dc.wgrad = 1.0f;
+    dc.backward = 1;
+    dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
+    if (S->aux_replay) dc.zw_sg = S->zq[q];
+    sooc_status st = mdl_decode(m, &dc);
+    if (st == SOOC_ENUMERIC) {
+        *nonfinite = 1;
+        return SOOC_OK;
+    }
+    if (st) return st;
+    if (!S->aux_replay)
+        for (int k = 0; k < nslot; k++)
+            for (int i = 0; i < 3; i++) S->zq[q][k * 3 + i] = dc.zw[k][i];
+    *total += dc.loss;
+    out->nll_query += dc.nll;
+    out->n_queries++;
     return SOOC_OK;
 }

@@ -57,6 +57,9 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
 void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L);
 sooc_status mdl_view_forward_train(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
                                    sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite);
+sooc_status mdl_query_decode(sooc_model *m, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+                             const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
+                             sooc_step_losses *out, int *nonfinite);
 sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out);
 
 #endif
