@@ -187,9 +187,13 @@ typedef struct sooc_eval_run_opts {
     int max_views;             /* > 0: map only the first max_views input views and score
                                   them plus the query views whose nearest input camera is
                                   one of them; 0 = all views                             (0) */
-    int max_obj;               /* components per rendered view (top by presence of the
-                                  in-view entries); 0 = the model's K                    (0) */
+    int max_obj;               /* > 0: render at most this many in-view map entries (top by
+                                  presence); 0 = every in-view entry, up to 63 (model.md §5:
+                                  "layout plus in-view objects"; the K-slot limit is for the
+                                  refinement, not the rendering)                         (0) */
     int threads;               /* model and renderer threads; 0 = OpenMP default        (0) */
+    double d_clip;             /* > 0: clip depth for inference and scoring instead of the
+                                  model's (sooc_model_set_clip); 0 = the model's         (0) */
     /* extras, only for the views flagged in detail_views (NULL = every view): */
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */

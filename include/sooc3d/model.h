@@ -95,6 +95,11 @@ void sooc_model_destroy(sooc_model *m);   /* NULL-safe */
 const sooc_model_config *sooc_model_get_config(const sooc_model *m);
 /* Threads for the decoder / refinement loops (0 = OpenMP default). */
 void sooc_model_set_threads(sooc_model *m, int n);
+/* Use another clip depth d_clip (metres) than the one trained with, e.g. the
+ * usable range of the depth sensor: pixels beyond it count as "no surface
+ * up to d_clip", and map entries beyond it are out of view. The weights are
+ * unchanged. SOOC_EINVAL unless t_near < d_clip < 1e4. */
+sooc_status sooc_model_set_clip(sooc_model *m, float d_clip);
 
 /* ---- parameters: one flat float slab, with named tensors ---- */
 size_t sooc_model_param_count(const sooc_model *m);

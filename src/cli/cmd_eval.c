@@ -20,7 +20,7 @@ static void usage(FILE *f) {
             "usage: sooc3d eval --model M [--model M2 ...] [--name N ...] --data DIR [DIR...] --json OUT\n"
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
-            "                   [--max-views N] [--max-obj K] [--quiet]\n\n"
+            "                   [--max-views N] [--max-obj K] [--clip D] [--quiet]\n\n"
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
             "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
             "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
@@ -41,7 +41,9 @@ static void usage(FILE *f) {
             "  --iterations    refinement updates per input view (default: the model's L)\n"
             "  --max-views     map only the first N input views of a scene (and score the query\n"
             "                  views near them); 0 = all (default)\n"
-            "  --max-obj       components rendered per view (default: the model's K)\n"
+            "  --max-obj       render at most K in-view objects per view (default: all, up to 63)\n"
+            "  --clip          clip depth in metres for inference and scoring (default: the model's\n"
+            "                  d_clip): pixels beyond it are masked, objects beyond it are out of view\n"
             "  --quiet         no progress line\n");
 }
 
@@ -154,6 +156,10 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--iterations") && has) ro.iterations = atoi(argv[++i]);
         else if (!strcmp(a, "--max-views") && has) ro.max_views = atoi(argv[++i]);
         else if (!strcmp(a, "--max-obj") && has) ro.max_obj = atoi(argv[++i]);
+        else if (!strcmp(a, "--clip") && has) {
+            ro.d_clip = atof(argv[++i]);
+            if (!(ro.d_clip > 0)) { fprintf(stderr, "sooc3d eval: --clip wants a depth > 0 in metres\n"); return 2; }
+        }
         else if (!strcmp(a, "--quiet")) quiet = 1;
         else {
             fprintf(stderr, "sooc3d eval: unknown or incomplete option '%s'\n", a);
@@ -229,13 +235,15 @@ int sooc_cmd_eval(int argc, char **argv) {
     }
     if ((st = sooc_eval_table_create(&tab))) goto fail;
     {
-        char note[1024];
+        char note[1024], clip[64];
+        if (ro.d_clip > 0) snprintf(clip, sizeof clip, "%g m (--clip)", ro.d_clip);
+        else snprintf(clip, sizeof clip, "%g m (the model's)", (double)sooc_model_get_config(mdl[0])->d_clip);
         snprintf(note, sizeof note,
                  "%s Mean +- std over %d run%s (seeds %llu..%llu), %d scene%s; %d+%d samples per ray; "
-                 "RGB RMSE sums the channels (MulMON); L2 in metres for query views.",
+                 "RGB RMSE sums the channels (MulMON); L2 in metres for query views; clip depth %s.",
                  sooc_eval_timing_note(ro.timing), runs, runs > 1 ? "s" : "", (unsigned long long)seed,
                  (unsigned long long)(seed + (uint64_t)runs - 1), total_scenes, total_scenes == 1 ? "" : "s",
-                 ro.n_coarse, ro.n_fine);
+                 ro.n_coarse, ro.n_fine, clip);
         if ((st = sooc_eval_table_set_note(tab, note))) goto fail;
     }
     prog_ctx pc;

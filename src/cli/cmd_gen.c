@@ -10,7 +10,7 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d gen --preset unity|blender --scale s|m|l|xl --scenes N --seed S --out DIR\n"
             "                  [--width 64 --height 64 --views V --query Q --threads T --first K\n"
-            "                   --density D --no-meshes --no-sheet --stats]\n\n"
+            "                   --density D --clip D --no-meshes --no-sheet --stats]\n\n"
             "Renders N scenes with an exact CPU ray tracer into DIR/scene_%%04d/ (TUM layout +\n"
             "calib.yaml + scene.yaml + instance/ + meshes/) and DIR/contact_sheet.png.\n\n"
             "  --preset     unity: spheres/boxes/cylinders/cones, uniform colours, Lambertian + ambient\n"
@@ -24,6 +24,7 @@ static void usage(FILE *f) {
             "  --query      held-out query views per scene (default max(2, views/5))\n"
             "  --width/--height  image size (default 64x64), 60 degree horizontal FOV\n"
             "  --density    objects per square metre (default 0.2)\n"
+            "  --clip       camera clipping depth in m: depth beyond it is stored as 0 (default 8)\n"
             "  --threads    OpenMP threads (default: all); output does not depend on it\n"
             "  --stats      print objects per view, distance and pixel-size histograms\n");
 }
@@ -89,6 +90,7 @@ int sooc_cmd_gen(int argc, char **argv) {
         else if (!strcmp(a, "--query")) { NEEDV(); p.n_query = atoi(v); }
         else if (!strcmp(a, "--threads")) { NEEDV(); p.threads = atoi(v); }
         else if (!strcmp(a, "--density")) { NEEDV(); p.density = atof(v); }
+        else if (!strcmp(a, "--clip")) { NEEDV(); p.clip_depth = atof(v); }
         else if (!strcmp(a, "--no-meshes")) p.write_meshes = 0;
         else if (!strcmp(a, "--no-sheet")) p.contact_sheet = 0;
         else if (!strcmp(a, "--stats")) stats = 1;

@@ -21,7 +21,7 @@ static void usage(FILE *f) {
             "usage: sooc3d render --model M --seq DIR --out DIR [--map map.sqlite] [--views N]\n"
             "                     [--uncertainty M] [--log train_dir/log.csv] [--seed S] [--threads T]\n"
             "                     [--samples C,F] [--iterations L] [--input-timing final|online]\n"
-            "                     [--max-frames N] [--max-obj K] [--calib calib.yaml]\n\n"
+            "                     [--max-frames N] [--max-obj K] [--clip D] [--calib calib.yaml]\n\n"
             "Runs online inference over the sequence's input views (or, with --map, renders from a map\n"
             "stored by `sooc3d node` / the map store, without updating it) and writes\n"
             "  OUT/panels/view_%%06d.png  one panel per selected view: GT | reconstruction |\n"
@@ -40,6 +40,9 @@ static void usage(FILE *f) {
             "                  after their own update (online)\n"
             "  --samples       coarse,fine samples per ray (96,32)\n"
             "  --max-frames    use only the first N frames of the sequence\n"
+            "  --max-obj       render at most K in-view objects per view (default: all, up to 63)\n"
+            "  --clip          clip depth in metres instead of the model's d_clip (e.g. the sensor's\n"
+            "                  usable range): deeper pixels are unscored, deeper objects out of view\n"
             "  --calib         calibration YAML for sequences without DIR/calib.yaml\n"
             "Frames of another size are cropped/resized to the model's resolution; poses must be in a\n"
             "gravity-aligned world (+y up, floor at y = 0), as for `sooc3d infer`.\n");
@@ -178,6 +181,7 @@ int sooc_cmd_render(int argc, char **argv) {
         return 0;
     }
     const char *model = NULL, *seqdir = NULL, *out = NULL, *mappath = NULL, *logpath = NULL, *calib = NULL;
+    double clip = 0;
     int views = 8, timing = SOOC_EVAL_FINAL;
     long long maxf = -1;
     sooc_eval_run_opts ro;
@@ -198,6 +202,10 @@ int sooc_cmd_render(int argc, char **argv) {
         else if (!strcmp(a, "--iterations") && has) ro.iterations = atoi(argv[++i]);
         else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
         else if (!strcmp(a, "--max-obj") && has) ro.max_obj = atoi(argv[++i]);
+        else if (!strcmp(a, "--clip") && has) {
+            clip = atof(argv[++i]);
+            if (!(clip > 0)) { fprintf(stderr, "sooc3d render: --clip wants a depth > 0 in metres\n"); return 2; }
+        }
         else if (!strcmp(a, "--samples") && has) {
             if (!sooc_cli_parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
                 fprintf(stderr, "sooc3d render: --samples wants C[,F] with C >= 2, F >= 0\n");
@@ -243,6 +251,7 @@ int sooc_cmd_render(int argc, char **argv) {
     char path[1200];
 
     if ((st = sooc_model_load(&m, model, NULL, NULL))) goto fail;
+    if (clip > 0 && (st = sooc_model_set_clip(m, (float)clip))) goto fail;
     const sooc_model_config *mc = sooc_model_get_config(m);
     if ((st = read_frames(seqdir, calib, mc->img_w, mc->img_h, maxf, &fr, &nf, &resized))) goto fail;
     if (resized) printf("render: frames cropped/resized to the model's %dx%d\n", mc->img_w, mc->img_h);

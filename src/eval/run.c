@@ -110,7 +110,7 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
     if (!gt->has_pose)
         return sooc_seterr(SOOC_EINVAL, "eval: frame %lld has no pose", (long long)gt->index);
     const sooc_model_config *c = sooc_model_get_config(m);
-    int max_obj = o->max_obj > 0 ? o->max_obj : c->K;
+    int max_obj = o->max_obj > 0 ? o->max_obj : SOOC_RENDER_MAX_COMP - 1;   /* model.md §5: every in-view object */
     if (max_obj > SOOC_RENDER_MAX_COMP - 1) max_obj = SOOC_RENDER_MAX_COMP - 1;
     sooc_intrinsics K = gt->K;
     K.width = gt->width;
@@ -245,6 +245,10 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     memset(&C, 0, sizeof C);
     sooc_status st = sooc_eval_model_copy(m, &copy);
     if (st) goto done;
+    if (o->d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->d_clip))) {
+        sooc_model_destroy(copy);
+        goto done;
+    }
     if (sooc_model_is_global(copy)) {
         if ((st = sooc_global_mapper_create(&gm, copy, n_gt, o->iterations, o->seed, o->threads))) {
             sooc_model_destroy(copy);

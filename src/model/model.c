@@ -244,6 +244,13 @@ void sooc_model_destroy(sooc_model *m) {
 
 const sooc_model_config *sooc_model_get_config(const sooc_model *m) { return &m->cfg; }
 void sooc_model_set_threads(sooc_model *m, int n) { m->threads = n < 0 ? 0 : n; }
+sooc_status sooc_model_set_clip(sooc_model *m, float d_clip) {
+    if (!m || !(d_clip > m->cfg.t_near && d_clip < 1e4f))
+        return sooc_seterr(SOOC_EINVAL, "model: clip depth %g m outside (t_near %g, 1e4)", (double)d_clip,
+                           m ? (double)m->cfg.t_near : 0.0);
+    m->cfg.d_clip = d_clip;
+    return SOOC_OK;
+}
 size_t sooc_model_param_count(const sooc_model *m) { return m->np; }
 float *sooc_model_params(sooc_model *m) { return m->p; }
 float *sooc_model_grads(sooc_model *m) { return m->g; }

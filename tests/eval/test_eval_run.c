@@ -259,8 +259,22 @@ static void test_runner(sooc_model *m, const scene_data *sd) {
     sooc_eval_scene_result mv;
     CHECK_OK(sooc_eval_run_scene(m, sd->fr, sd->n, sd->gt, sd->n_gt, &o, NULL, NULL, NULL, &mv));
     CHECK(mv.n_mapped == 1 && mv.input_final.n_views == 1 && mv.n_query <= n_q);
-    /* bad options */
+    /* d_clip: a shorter clip scores fewer pixels (depth beyond it is masked), and a
+     * clip inside the near plane is refused */
     o.max_views = 0;
+    o.d_clip = 2.0;
+    rec rc = {0};
+    sooc_eval_scene_result cl;
+    CHECK_OK(sooc_eval_run_scene(m, sd->fr, sd->n, sd->gt, sd->n_gt, &o, rec_view, NULL, &rc, &cl));
+    CHECK(rc.n == ra.n);
+    long px_default = 0, px_clip = 0;
+    for (int k = 0; k < rc.n; k++) px_default += (long)ra.vm[k].n_valid_pixels, px_clip += (long)rc.vm[k].n_valid_pixels;
+    printf("runner: scored pixels at the model's clip %ld, at 2 m %ld\n", px_default, px_clip);
+    CHECK_MSG(px_clip < px_default && px_clip > 0, "a 2 m clip masks the deeper pixels");
+    o.d_clip = 0.05;
+    CHECK(sooc_eval_run_scene(m, sd->fr, sd->n, sd->gt, sd->n_gt, &o, NULL, NULL, NULL, NULL) == SOOC_EINVAL);
+    o.d_clip = 0;
+    /* bad options */
     o.timing = (sooc_eval_timing)0;
     CHECK(sooc_eval_run_scene(m, sd->fr, sd->n, sd->gt, sd->n_gt, &o, NULL, NULL, NULL, NULL) == SOOC_EINVAL);
 }
