@@ -18,19 +18,11 @@
 #include "check.h"
 #include "model/step_internal.h"
 #include "sooc3d/eval.h"
+#include "steptest.h"
 #include "synth.h"
 
 static void tiny_cfg(sooc_model_config *c) {
-    sooc_model_config_default(c);
-    c->K = 3, c->d_what = 4, c->d_layout = 3, c->L = 2;
-    c->img_w = c->img_h = 32, c->ray_w = c->ray_h = 16;
-    c->dec_width = 16, c->dec_color_width = 8, c->n_freq = 3, c->n_freq_layout = 3;
-    c->ref_ch[0] = 4, c->ref_ch[1] = 4, c->ref_ch[2] = 6, c->ref_ch[3] = 6;
-    c->ref_fc = 8, c->ref_hidden = 8;
-    c->use_box = 0;
-    c->sigma_max = 5.0f;
-    c->d_clip = 5.0f;
-    c->dens_bias_init = 0.0f;
+    synth_tiny_cfg(c, 3, 0);
     c->prior_pres_logit = 1.5f;
     c->gauss_s = 100.0f;
     c->global_frame = 1;
@@ -51,10 +43,15 @@ static double total_of(sooc_model *m, uint64_t seed, sooc_step_losses *ls) {
     return l.total;
 }
 
-static void random_heads(sooc_model *m, sooc_rng *r, float s) {
-    for (int t = 0; t < m->nt; t++)
-        if (strstr(m->t[t].name, "head"))
-            for (size_t i = 0; i < m->t[t].count; i++) m->p[m->t[t].offset + i] = s * (float)sooc_rng_normal(r);
+static double fd_total(sooc_model *m, void *ctx) {
+    (void)ctx;
+    return total_of(m, 77, NULL);
+}
+
+static sooc_status overfit_step(sooc_model *m, const sooc_step_opts *o, sooc_rng *r, sooc_step_losses *ls,
+                                void *ctx) {
+    const sooc_frame *F = ctx;
+    return sooc_model_global_train_step(m, F, 2, F + 3, 1, 2, o, r, ls);
 }
 
 static void test_grad(void) {
@@ -67,7 +64,7 @@ static void test_grad(void) {
           sooc_model_global_slots(m, 7) == 3);
     sooc_rng r;
     sooc_rng_seed(&r, 9, 0);
-    random_heads(m, &r, 0.02f);
+    steptest_random_heads(m, &r, 0.02f);
     sooc_model_zero_grad(m);
     sooc_step_losses ls;
     double L0 = total_of(m, 77, &ls);
@@ -92,39 +89,9 @@ static void test_grad(void) {
     /* FD with the stop-gradient inputs replayed */
     S->aux_replay = 1;
     CHECK(total_of(m, 77, NULL) == L0);
-    double worst = 0, wa = 0, wn = 0;
-    char wname[96] = "";
-    int nchk = 0;
-    for (int t = 0; t < m->nt; t++) {
-        int ns = strncmp(m->t[t].name, "prior", 5) ? 1 : 8;
-        for (int s = 0; s < ns; s++) {
-            size_t i = m->t[t].offset + sooc_rng_below(&r, (uint32_t)m->t[t].count);
-            double a = g[i], best = 0, berr = 1e300;
-            static const double eps[3] = {1e-3, 3e-4, 3e-3};
-            float keep = m->p[i];
-            for (int e = 0; e < 3 && berr > 0.02 + 0.01 * fabs(a); e++) {
-                m->p[i] = keep + (float)eps[e];
-                double fp = total_of(m, 77, NULL);
-                m->p[i] = keep - (float)eps[e];
-                double fm = total_of(m, 77, NULL);
-                m->p[i] = keep;
-                double nn = (fp - fm) / (2 * eps[e]);
-                if (fabs(nn - a) < berr) berr = fabs(nn - a), best = nn;
-            }
-            double mx = fabs(a) > fabs(best) ? fabs(a) : fabs(best);
-            double ratio = fabs(a - best) / (0.1 + 0.08 * mx);
-            nchk++;
-            if (ratio > 1 || getenv("SDBG"))
-                printf("  %s[%zu] a % .5e n % .5e ratio %.2f\n", m->t[t].name, i - m->t[t].offset, a, best, ratio);
-            if (ratio > worst) {
-                worst = ratio, wa = a, wn = best;
-                snprintf(wname, sizeof wname, "%s[%zu]", m->t[t].name, i - m->t[t].offset);
-            }
-        }
-    }
-    printf("global step d(total)/d(params): %d elements, worst %s analytic % .6e numeric % .6e err/tol %.3f\n", nchk,
-           wname, wa, wn, worst);
-    CHECK_MSG(worst <= 1.0, "global-step gradient check failed at %s", wname);
+    steptest_fd_result fd;
+    steptest_fd_check(m, g, &r, 1, 8, fd_total, NULL, "global step", &fd);
+    CHECK_MSG(fd.worst <= 1.0, "global-step gradient check failed at %s", fd.wname);
     sooc_free(g);
     sooc_model_destroy(m);
 }
@@ -187,50 +154,15 @@ static void test_persist(void) {
 
 static void test_overfit(void) {
     sooc_model_config c;
-    sooc_model_config_default(&c);
-    c.K = 3, c.d_what = 8, c.d_layout = 4, c.L = 2;
-    c.img_w = c.img_h = 32, c.ray_w = c.ray_h = 16;
-    c.dec_width = 32, c.dec_color_width = 16;
-    c.ref_ch[0] = 8, c.ref_ch[1] = 8, c.ref_ch[2] = 16, c.ref_ch[3] = 16;
-    c.ref_fc = 32, c.ref_hidden = 32;
+    steptest_overfit_cfg(&c);
     c.global_frame = 1, c.global_radius = 2.5f;
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 2));
-    size_t n = sooc_model_param_count(m);
-    float *p = sooc_model_params(m), *g = sooc_model_grads(m);
-    float *mo = calloc(n, sizeof(float)), *vo = calloc(n, sizeof(float));
-    sooc_rng r;
-    sooc_rng_seed(&r, 5, 0);
-    sooc_step_opts o;
-    sooc_step_opts_default(&o);
-    double first = 0, last = 0, lr = 3e-3, t0 = sooc_seconds();
-    const int steps = 120;
-    for (int s = 1; s <= steps; s++) {
-        sooc_model_zero_grad(m);
-        sooc_step_losses ls;
-        CHECK_OK(sooc_model_global_train_step(m, F, 2, F + 3, 1, 2, &o, &r, &ls));
-        if (ls.nonfinite) continue;
-        if (s <= 10) first += ls.total / 10;
-        if (s > steps - 10) last += ls.total / 10;
-        double gn = 0;
-        for (size_t i = 0; i < n; i++) gn += (double)g[i] * g[i];
-        gn = sqrt(gn);
-        float cs = gn > 1e4 ? (float)(1e4 / gn) : 1.0f;
-        double b1 = 1 - pow(0.9, s), b2 = 1 - pow(0.999, s);
-        for (size_t i = 0; i < n; i++) {
-            float gi = g[i] * cs;
-            mo[i] = 0.9f * mo[i] + 0.1f * gi;
-            vo[i] = 0.999f * vo[i] + 0.001f * gi * gi;
-            p[i] -= (float)(lr * (mo[i] / b1) / (sqrt(vo[i] / b2) + 1e-8));
-        }
-        if (s % 30 == 0 || s == 1)
-            printf("step %3d total %10.1f nll_in %9.1f kl %7.2f nll_q %9.1f present %.2f\n", s, ls.total, ls.nll_input,
-                   ls.kl, ls.nll_query, ls.present_slots);
-    }
+    double first, last, t0 = sooc_seconds();
+    steptest_overfit(m, 120, 30, overfit_step, F, &first, &last);
     printf("global overfit: mean loss first 10 steps %.1f, last 10 %.1f: drop %.2fx |first|, %.1f s\n", first, last,
            (first - last) / fabs(first), sooc_seconds() - t0);
     CHECK(first - last >= 0.5 * fabs(first));
-    free(mo), free(vo);
     sooc_model_destroy(m);
 }
 
@@ -242,7 +174,7 @@ static void test_eval(void) {
     CHECK_OK(sooc_model_create(&m, &c, 4));
     sooc_rng r;
     sooc_rng_seed(&r, 3, 0);
-    random_heads(m, &r, 0.02f);
+    steptest_random_heads(m, &r, 0.02f);
     sooc_frame fr[4];
     memcpy(fr, F, sizeof fr);
     fr[3].is_query = 1;

@@ -14,6 +14,7 @@
 
 #include "check.h"
 #include "model/step_internal.h"
+#include "steptest.h"
 #include "synth.h"
 
 static void tiny_cfg(sooc_model_config *c) {
@@ -41,6 +42,11 @@ static double total_of(sooc_model *m, uint64_t seed, sooc_step_losses *ls) {
     return l.total;
 }
 
+static double fd_total(sooc_model *m, void *ctx) {
+    (void)ctx;
+    return total_of(m, 77, NULL);
+}
+
 int main(void) {
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
     double T[3][16];
@@ -55,9 +61,7 @@ int main(void) {
     sooc_rng r;
     sooc_rng_seed(&r, 9, 0);
     /* non-zero refinement heads, so that gradients reach the refinement trunks */
-    for (int t = 0; t < m->nt; t++)
-        if (strstr(m->t[t].name, "head"))
-            for (size_t i = 0; i < m->t[t].count; i++) m->p[m->t[t].offset + i] = 0.02f * (float)sooc_rng_normal(&r);
+    steptest_random_heads(m, &r, 0.02f);
     sooc_model_zero_grad(m);
     sooc_step_losses ls;
     double L0 = total_of(m, 77, &ls);
@@ -80,40 +84,9 @@ int main(void) {
      * model.md §2.8 written as a forward */
     S->aux_replay = 1;
     CHECK(total_of(m, 77, NULL) == L0);
-    double worst = 0;
-    char wname[96] = "";
-    double wa = 0, wn = 0;
-    int nchk = 0;
-    for (int t = 0; t < m->nt; t++) {
-        int ns = strncmp(m->t[t].name, "prior", 5) ? 2 : 6;
-        for (int s = 0; s < ns; s++) {
-            size_t i = m->t[t].offset + sooc_rng_below(&r, (uint32_t)m->t[t].count);
-            double a = g[i], best = 0, berr = 1e300;
-            static const double eps[3] = {1e-3, 3e-4, 3e-3};
-            float keep = m->p[i];
-            for (int e = 0; e < 3 && berr > 0.02 + 0.01 * fabs(a); e++) {
-                m->p[i] = keep + (float)eps[e];
-                double fp = total_of(m, 77, NULL);
-                m->p[i] = keep - (float)eps[e];
-                double fm = total_of(m, 77, NULL);
-                m->p[i] = keep;
-                double n = (fp - fm) / (2 * eps[e]);
-                if (fabs(n - a) < berr) berr = fabs(n - a), best = n;
-            }
-            double mx = fabs(a) > fabs(best) ? fabs(a) : fabs(best);
-            double ratio = fabs(a - best) / (0.1 + 0.08 * mx);   /* stiff: see the header comment */
-            nchk++;
-            if (ratio > 1 || getenv("SDBG"))
-                printf("  %s[%zu] a % .5e n % .5e ratio %.2f\n", m->t[t].name, i - m->t[t].offset, a, best, ratio);
-            if (ratio > worst) {
-                worst = ratio, wa = a, wn = best;
-                snprintf(wname, sizeof wname, "%s[%zu]", m->t[t].name, i - m->t[t].offset);
-            }
-        }
-    }
-    printf("train-step d(total)/d(params): %d elements, worst %s analytic % .6e numeric % .6e err/tol %.3f\n", nchk,
-           wname, wa, wn, worst);
-    CHECK_MSG(worst <= 1.0, "train-step gradient check failed at %s", wname);
+    steptest_fd_result fd;
+    steptest_fd_check(m, g, &r, 2, 6, fd_total, NULL, "train-step", &fd);   /* stiff: see the header comment */
+    CHECK_MSG(fd.worst <= 1.0, "train-step gradient check failed at %s", fd.wname);
     sooc_free(g);
     sooc_model_destroy(m);
     for (int i = 0; i < 3; i++) sooc_frame_free(&F[i]);
