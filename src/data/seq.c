@@ -163,6 +163,18 @@ static sooc_status check_rotation(const char *file, int line, const double R[9],
     return SOOC_OK;
 }
 
+/* A 4x4 row-major pose from a file: rotation block orthonormal (reported at
+ * line_r), last row 0 0 0 1 (reported at line_last). */
+static sooc_status check_pose4(const char *file, int line_r, int line_last, const double T[16], double tol) {
+    double R[9], t[3];
+    sooc_se3_to_rt(R, t, T);
+    sooc_status s = check_rotation(file, line_r, R, tol);
+    if (s) return s;
+    if (fabs(T[12]) > 1e-6 || fabs(T[13]) > 1e-6 || fabs(T[14]) > 1e-6 || fabs(T[15] - 1) > 1e-6)
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: last row must be 0 0 0 1", file, line_last);
+    return SOOC_OK;
+}
+
 static sooc_status quat_pose(const char *file, int line, char **tok, double T[16], double tol) {
     double v[7];
     for (int k = 0; k < 7; k++)
@@ -185,6 +197,22 @@ static sooc_status need_file(const char *list, int line, const char *path) {
         return sooc_seterr(SOOC_ENOTFOUND, "%s: missing file", path);
     }
     return SOOC_OK;
+}
+
+/* <dir>/<prefix><i zero-padded to width digits><ext>; when that file does
+ * not exist and alt_ext is given, the same name with alt_ext instead (need_file
+ * then reports it if it is missing too). NULL if out of memory or too long. */
+static char *frame_path(const char *dir, const char *prefix, int width, int64_t i, const char *ext,
+                        const char *alt_ext) {
+    char name[128];
+    snprintf(name, sizeof name, "%s%0*lld%s", prefix, width, (long long)i, ext);
+    char *path = join_dup(dir, name);
+    if (path && alt_ext && !sooc_file_exists(path)) {
+        sooc_free(path);
+        snprintf(name, sizeof name, "%s%0*lld%s", prefix, width, (long long)i, alt_ext);
+        path = join_dup(dir, name);
+    }
+    return path;
 }
 
 /* Load calibration: explicit path, else <dir>/calib.yaml. Returns
@@ -395,12 +423,8 @@ static sooc_status read_pose4(const char *file, double T[16], double tol) {
     if (s) return s;
     if (m.rows != 4) return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 4 rows of 4 numbers, got %d", file, m.rows ? m.lines[m.rows - 1] : 1, m.rows);
     memcpy(T, m.v, sizeof m.v);
-    double R[9], t[3];
-    sooc_se3_to_rt(R, t, T);
-    s = check_rotation(file, m.lines[0], R, tol);
+    s = check_pose4(file, m.lines[0], m.lines[3], T, tol);
     if (s) return s;
-    if (fabs(T[12]) > 1e-6 || fabs(T[13]) > 1e-6 || fabs(T[14]) > 1e-6 || fabs(T[15] - 1) > 1e-6)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: last row must be 0 0 0 1", file, m.lines[3]);
     T[12] = T[13] = T[14] = 0;
     T[15] = 1;
     return SOOC_OK;
@@ -435,16 +459,12 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
     if (!st && n == 0) st = sooc_seterr(SOOC_ENOTFOUND, "%s/frame-000000.color.png: missing file (no frames)", s->dir);
     if (!st) qsort(idx, (size_t)n, sizeof *idx, cmp_i64);
     for (int i = 0; i < n && !st; i++) {
-        char name[64];
         seq_entry *e;
         st = push_entry(s, &e);
         if (st) break;
-        snprintf(name, sizeof name, "frame-%06lld.color.png", (long long)idx[i]);
-        e->rgb = join_dup(s->dir, name);
-        snprintf(name, sizeof name, "frame-%06lld.depth.png", (long long)idx[i]);
-        e->depth = join_dup(s->dir, name);
-        snprintf(name, sizeof name, "frame-%06lld.pose.txt", (long long)idx[i]);
-        char *pose = join_dup(s->dir, name);
+        e->rgb = frame_path(s->dir, "frame-", 6, idx[i], ".color.png", NULL);
+        e->depth = frame_path(s->dir, "frame-", 6, idx[i], ".depth.png", NULL);
+        char *pose = frame_path(s->dir, "frame-", 6, idx[i], ".pose.txt", NULL);
         if (!e->rgb || !e->depth || !pose) { sooc_free(pose); st = SOOC_ENOMEM; break; }
         st = need_file(NULL, 0, e->depth);
         if (!st) st = need_file(NULL, 0, pose);
@@ -485,17 +505,51 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
     return st;
 }
 
-/* ------------------------------------------------------------- slambook */
+/* ------------------------------------------- pose lists: slambook, Replica */
 
-typedef struct sb_ctx {
+/* slambook2 and Replica list one pose a line in one file and name each
+ * frame's images by its number; neither has timestamps (30 Hz by index). */
+typedef struct list_ctx {
     sooc_seq *s;
     const char *file;
     double tol;
-    int frame;
-} sb_ctx;
+} list_ctx;
 
+/* Fills the fields every listed frame shares (its pose has been read) and
+ * checks that both images exist; rgb and depth are set by the caller. */
+static sooc_status list_entry_done(const list_ctx *c, int lineno, seq_entry *e) {
+    e->has_pose = 1;
+    e->line = lineno;
+    e->src = c->s->srcname[0];
+    e->t_ns = (c->s->n - 1) * 33333333LL;
+    if (!e->rgb || !e->depth) return SOOC_ENOMEM;
+    sooc_status st = need_file(c->file, lineno, e->rgb);
+    if (!st) st = need_file(c->file, lineno, e->depth);
+    return st;
+}
+
+/* Reads the pose list <dir>/<name> with fn (one frame a line; at least
+ * one). The list's path goes to s->srcname[0] for per-frame messages. */
+static sooc_status read_pose_list(sooc_seq *s, const sooc_seq_open_params *p, const char *name, int need,
+                                  line_fn fn) {
+    char path[4096];
+    sooc_status st = sooc_path_join(path, sizeof path, s->dir, name);
+    if (st) return st;
+    if (need) {
+        st = need_file(NULL, 0, path);
+        if (st) return st;
+    }
+    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
+    list_ctx c = {s, s->srcname[0], p->rot_tol};
+    st = for_lines(path, fn, &c);
+    if (!st && s->n == 0) st = sooc_seterr(SOOC_EFORMAT, "%s: no poses", path);
+    return st;
+}
+
+/* slambook2: pose.txt "tx ty tz qx qy qz qw"; color/<n>.png and
+ * depth/<n>.pgm (or .png), n from 1. */
 static sooc_status sb_line(void *user, int lineno, char *line) {
-    sb_ctx *c = user;
+    list_ctx *c = user;
     char *tok[10];
     int nt = tokenize(line, tok, 8);
     if (nt != 7)
@@ -506,52 +560,21 @@ static sooc_status sb_line(void *user, int lineno, char *line) {
     if (st) return st;
     st = quat_pose(c->file, lineno, tok, e->T, c->tol);
     if (st) return st;
-    e->has_pose = 1;
-    c->frame++;
-    e->line = lineno;
-    e->src = c->s->srcname[0];
-    e->t_ns = (int64_t)(c->frame - 1) * 33333333LL;
-    char name[64];
-    snprintf(name, sizeof name, "color/%d.png", c->frame);
-    e->rgb = join_dup(c->s->dir, name);
-    snprintf(name, sizeof name, "depth/%d.pgm", c->frame);
-    e->depth = join_dup(c->s->dir, name);
-    if (!e->rgb || !e->depth) return SOOC_ENOMEM;
-    if (!sooc_file_exists(e->depth)) {
-        snprintf(name, sizeof name, "depth/%d.png", c->frame);
-        sooc_free(e->depth);
-        e->depth = join_dup(c->s->dir, name);
-        if (!e->depth) return SOOC_ENOMEM;
-    }
-    st = need_file(c->file, lineno, e->rgb);
-    if (!st) st = need_file(c->file, lineno, e->depth);
-    return st;
+    e->rgb = frame_path(c->s->dir, "color/", 0, c->s->n, ".png", NULL);
+    e->depth = frame_path(c->s->dir, "depth/", 0, c->s->n, ".pgm", ".png");
+    return list_entry_done(c, lineno, e);
 }
 
 static sooc_status open_slambook(sooc_seq *s, const sooc_seq_open_params *p) {
-    char path[4096];
-    sooc_status st = sooc_path_join(path, sizeof path, s->dir, "pose.txt");
-    if (st) return st;
-    st = need_file(NULL, 0, path);
-    if (st) return st;
-    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
-    sb_ctx c = {s, s->srcname[0], p->rot_tol, 0};
-    st = for_lines(path, sb_line, &c);
-    if (!st && s->n == 0) st = sooc_seterr(SOOC_EFORMAT, "%s: no poses", path);
+    sooc_status st = read_pose_list(s, p, "pose.txt", 1, sb_line);
     if (!st) st = load_calib(s, p, 1);
     return st;
 }
 
-/* -------------------------------------------------------------- Replica */
-
-typedef struct rp_ctx {
-    sooc_seq *s;
-    const char *file;
-    double tol;
-} rp_ctx;
-
+/* Replica (NICE-SLAM): traj.txt, a row-major 4x4 a line;
+ * results/frame<i>.png (or .jpg) and results/depth<i>.png, i from 0. */
 static sooc_status rp_line(void *user, int lineno, char *line) {
-    rp_ctx *c = user;
+    list_ctx *c = user;
     char *tok[20];
     int nt = tokenize(line, tok, 16);
     if (nt != 16)
@@ -562,41 +585,16 @@ static sooc_status rp_line(void *user, int lineno, char *line) {
     for (int k = 0; k < 16; k++)
         if (!parse_double(tok[k], &e->T[k]))
             return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a finite number", c->file, lineno, tok[k]);
-    double R[9], t[3];
-    sooc_se3_to_rt(R, t, e->T);
-    st = check_rotation(c->file, lineno, R, c->tol);
+    st = check_pose4(c->file, lineno, lineno, e->T, c->tol);
     if (st) return st;
-    if (fabs(e->T[12]) > 1e-6 || fabs(e->T[13]) > 1e-6 || fabs(e->T[14]) > 1e-6 || fabs(e->T[15] - 1) > 1e-6)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: last row must be 0 0 0 1", c->file, lineno);
-    e->has_pose = 1;
-    e->line = lineno;
-    e->src = c->s->srcname[0];
     int64_t i = c->s->n - 1;
-    e->t_ns = i * 33333333LL;
-    char name[64];
-    snprintf(name, sizeof name, "results/frame%06lld.png", (long long)i);
-    e->rgb = join_dup(c->s->dir, name);
-    if (e->rgb && !sooc_file_exists(e->rgb)) {
-        snprintf(name, sizeof name, "results/frame%06lld.jpg", (long long)i);
-        sooc_free(e->rgb);
-        e->rgb = join_dup(c->s->dir, name);
-    }
-    snprintf(name, sizeof name, "results/depth%06lld.png", (long long)i);
-    e->depth = join_dup(c->s->dir, name);
-    if (!e->rgb || !e->depth) return SOOC_ENOMEM;
-    st = need_file(c->file, lineno, e->rgb);
-    if (!st) st = need_file(c->file, lineno, e->depth);
-    return st;
+    e->rgb = frame_path(c->s->dir, "results/frame", 6, i, ".png", ".jpg");
+    e->depth = frame_path(c->s->dir, "results/depth", 6, i, ".png", NULL);
+    return list_entry_done(c, lineno, e);
 }
 
 static sooc_status open_replica(sooc_seq *s, const sooc_seq_open_params *p) {
-    char path[4096];
-    sooc_status st = sooc_path_join(path, sizeof path, s->dir, "traj.txt");
-    if (st) return st;
-    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
-    rp_ctx c = {s, s->srcname[0], p->rot_tol};
-    st = for_lines(path, rp_line, &c);
-    if (!st && s->n == 0) st = sooc_seterr(SOOC_EFORMAT, "%s: no poses", path);
+    sooc_status st = read_pose_list(s, p, "traj.txt", 0, rp_line);
     if (st) return st;
     st = load_calib(s, p, 0);
     if (st == SOOC_ENOTFOUND) {
