@@ -8,7 +8,9 @@ the 26 auxiliary channels, the refinement nets (conv 26->32->32->64->64 stride
 2 SAME + ELU, FC 128, LSTMCell 128, linear head) for all K slots and the
 layout. Prints a JSON object with median_ms last (the faster of --threads
 and 1 thread: see the comment at the end).
-usage: bench_keyframe_torch.py [--threads T] [--n N]
+usage: bench_keyframe_torch.py [--threads T] [--n N] [--serve]
+--serve: stay up and run one batch of updates per line read on stdin (the
+interleaved rounds of bench_keyframe.c).
 """
 import json
 import math
@@ -21,6 +23,7 @@ import torch.nn.functional as F
 args = sys.argv
 threads = int(args[args.index("--threads") + 1]) if "--threads" in args else 2
 n_iter = int(args[args.index("--n") + 1]) if "--n" in args else 30
+serve = "--serve" in args
 torch.set_num_threads(threads)
 torch.manual_seed(0)
 K, d, dl, L, H, Hc, N = 7, 32, 16, 3, 64, 32, 1024
@@ -172,24 +175,43 @@ def update():
     return lam
 
 
-def measure(nt):
+def measure(nt, n):
     torch.set_num_threads(nt)
-    for _ in range(3):
-        update()
     ts = []
-    for _ in range(n_iter):
+    for _ in range(n):
         t0 = time.perf_counter()
         update()
         ts.append(1e3 * (time.perf_counter() - t0))
-    ts.sort()
-    return ts[len(ts) // 2], ts[int(0.99 * (len(ts) - 1))]
+    return ts
+
+
+def med(ts):
+    ts = sorted(ts)
+    return ts[len(ts) // 2]
 
 
 # On a busy 2-core machine PyTorch's intra-op threads can be much slower than
-# one thread; report the faster setting so the C/PyTorch ratio is conservative.
+# one thread; both settings are measured and the faster counts, so that the
+# C/PyTorch ratio is conservative.
+settings = sorted({threads, 1}, reverse=True)
+for nt in settings:
+    measure(nt, 3)   # warm-up
+if serve:
+    # bench_keyframe.c: one batch of n updates per setting for each line "n" on stdin;
+    # answers "times <threads> <n> t_1 .. t_n [<threads> <n> ...]" (ms per update).
+    print("ready: torch %s, threads %s" % (torch.__version__, settings), flush=True)
+    for line in sys.stdin:
+        n = int(line)
+        out = ["times"]
+        for nt in settings:
+            ts = measure(nt, n)
+            out += [str(nt), str(n)] + ["%.4f" % t for t in ts]
+        print(" ".join(out), flush=True)
+    sys.exit(0)
 res = {}
-for nt in sorted({threads, 1}, reverse=True):
-    res[nt] = measure(nt)
+for nt in settings:
+    ts = sorted(measure(nt, n_iter))
+    res[nt] = (ts[len(ts) // 2], ts[int(0.99 * (len(ts) - 1))])
     print("torch keyframe update, %d thread(s): median %.2f ms, p99 %.2f ms (torch %s)" %
           (nt, res[nt][0], res[nt][1], torch.__version__))
 best = min(res, key=lambda k: res[k][0])

@@ -15,6 +15,10 @@
 #include <omp.h>
 #endif
 
+#ifdef MDL_PROFILE
+double mdl_prof[MDL_PR_N];
+#endif
+
 static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
@@ -203,10 +207,6 @@ double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *
 
 /* ---------------------------------------------------------------- MLP */
 
-static void gemm_nn(int M, int N, int K, const float *A, const float *B, float beta, float *C) {
-    if (M <= 0) return;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, K, B, N, beta, C, N);
-}
 static void gemm_nt(int M, int N, int K, const float *A, const float *B, float beta, float *C) {
     /* C[M x N] = A[M x K] B^T (+ beta C), B is [N x K] */
     if (M <= 0) return;
@@ -221,9 +221,6 @@ static void gemm_tn_acc(int M, int N, int R, float alpha, const float *A, const 
 /* Element-wise helpers: plain loops over restrict pointers (vectorised by the compiler). */
 static void relu_inplace(float *restrict x, size_t n) {
     for (size_t i = 0; i < n; i++) x[i] = x[i] > 0 ? x[i] : 0;
-}
-static void fill_rows(float *restrict y, int R, int n, const float *restrict b) {
-    for (int r = 0; r < R; r++) memcpy(y + (size_t)r * n, b, (size_t)n * sizeof(float));
 }
 /* g[i] = y[i] > 0 ? g[i] : 0 (ReLU backward on the post-activation). */
 static void relu_mask(float *restrict g, const float *restrict y, size_t n) {
@@ -278,19 +275,13 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
 #define MDL_BLOCK_ROWS 256
 
 static void tail_forward_block(const float *p, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
-                               float *sig, float *col) {
+                               float *sig, float *col, int a1_relu) {
     int H = n->H, Hc = n->Hc;
-    relu_inplace(a1, (size_t)R * H);
-    /* biases are pre-filled and the GEMMs accumulate (beta = 1): no separate zero/bias passes */
-    fill_rows(a2, R, H, p + n->b2);
-    gemm_nn(R, H, H, a1, p + n->W2, 1.0f, a2);
-    relu_inplace(a2, (size_t)R * H);
-    fill_rows(a3, R, H, p + n->b3);
-    gemm_nn(R, H, H, a2, p + n->W3, 1.0f, a3);
-    relu_inplace(a3, (size_t)R * H);
-    fill_rows(ac, R, Hc, p + n->bc1);
-    gemm_nn(R, Hc, H, a3, p + n->Wc1, 1.0f, ac);
-    relu_inplace(ac, (size_t)R * Hc);
+    if (!a1_relu) relu_inplace(a1, (size_t)R * H);
+    /* bias, GEMM and ReLU in one pass (kern.c) */
+    mdl_gemm(R, H, H, a1, H, p + n->W2, H, a2, H, p + n->b2, 0, MDL_EP_RELU, NULL, 0);
+    mdl_gemm(R, H, H, a2, H, p + n->W3, H, a3, H, p + n->b3, 0, MDL_EP_RELU, NULL, 0);
+    mdl_gemm(R, Hc, H, a3, H, p + n->Wc1, Hc, ac, Hc, p + n->bc1, 0, MDL_EP_RELU, NULL, 0);
     /* density and colour heads: Wc2 [Hc x 3] transposed to 3 contiguous rows */
     float w2t[3][MDL_HC_MAX];
     for (int j = 0; j < Hc; j++)
@@ -309,15 +300,20 @@ static void tail_forward_block(const float *p, const dec_net *n, int R, float *a
 
 /* Layers 2.. of a decoder on R rows (serial; callers split rows across
  * threads) whose layer-1 pre-activation is in a1 (ReLU applied here). */
-void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
-                          float *sig, float *col) {
+static void tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+                         float *sig, float *col, int a1_relu) {
     int H = n->H, Hc = n->Hc;
     SOOC_ASSERT(Hc <= MDL_HC_MAX);
     for (int r0 = 0; r0 < R; r0 += MDL_BLOCK_ROWS) {
         int nb = R - r0 < MDL_BLOCK_ROWS ? R - r0 : MDL_BLOCK_ROWS;
         tail_forward_block(m->p, n, nb, a1 + (size_t)r0 * H, a2 + (size_t)r0 * H, a3 + (size_t)r0 * H,
-                           ac + (size_t)r0 * Hc, sig + r0, col + (size_t)r0 * 3);
+                           ac + (size_t)r0 * Hc, sig + r0, col + (size_t)r0 * 3, a1_relu);
     }
+}
+
+void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+                          float *sig, float *col) {
+    tail_forward(m, n, R, a1, a2, a3, ac, sig, col, 0);
 }
 
 /* Backward through layers 3.. to the layer-1 pre-activation gradient g1 (R x H)
@@ -325,9 +321,34 @@ void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a
  * (overwritten with pre-sigmoid grads). Weight grads scaled by ws go to the
  * slab `g` (a thread-private copy; 0 = skip). Scratch gA, gB (R x H each);
  * g1 may alias gA. */
-static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, int R, const float *a1,
-                              const float *a2, const float *a3, const float *ac, const float *sig, const float *col,
-                              float *gsig, float *gcol, float *gA, float *gB, float *g1, float ws) {
+/* Transposed decoder weights ([out x in] row-major) for the backward GEMMs
+ * (input gradients = output gradients x W^T) through mdl_gemm. */
+typedef struct dec_wt {
+    const float *W2, *W3, *Wc1, *W1x;
+} dec_wt;
+
+static size_t wt_floats(const dec_net *n, int with_w1) {
+    return (size_t)n->H * (2 * n->H + n->Hc + (with_w1 ? n->din : 0));
+}
+
+static void transpose(const float *restrict W, int rows, int cols, float *restrict T) {
+    for (int i = 0; i < rows; i++)
+        for (int j = 0; j < cols; j++) T[(size_t)j * rows + i] = W[(size_t)i * cols + j];
+}
+
+static float *wt_build(const float *p, const dec_net *n, int with_w1, float *buf, dec_wt *t) {
+    int H = n->H, Hc = n->Hc;
+    t->W2 = buf, transpose(p + n->W2, H, H, buf), buf += (size_t)H * H;
+    t->W3 = buf, transpose(p + n->W3, H, H, buf), buf += (size_t)H * H;
+    t->Wc1 = buf, transpose(p + n->Wc1, H, Hc, buf), buf += (size_t)H * Hc;
+    t->W1x = NULL;
+    if (with_w1) t->W1x = buf, transpose(p + n->W1x, n->din, H, buf), buf += (size_t)H * n->din;
+    return buf;
+}
+
+static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, const dec_wt *wt, int R,
+                              const float *a1, const float *a2, const float *a3, const float *ac, const float *sig,
+                              const float *col, float *gsig, float *gcol, float *gA, float *gB, float *g1, float ws) {
     const float *p = m->p;
     int H = n->H, Hc = n->Hc;
     if (R <= 0) return;
@@ -364,22 +385,34 @@ static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, i
             for (int j = 0; j < Hc; j++) g[n->bc1 + j] += ws * gac[(size_t)r * Hc + j];
         }
     }
-    gemm_nt(R, H, Hc, gac, p + n->Wc1, 1.0f, gA);
-    relu_mask(gA, a3, (size_t)R * H);
+    if (wt) {
+        mdl_gemm(R, H, Hc, gac, Hc, wt->Wc1, H, gA, H, NULL, 1, MDL_EP_MASK, a3, H);
+    } else {
+        gemm_nt(R, H, Hc, gac, p + n->Wc1, 1.0f, gA);
+        relu_mask(gA, a3, (size_t)R * H);
+    }
     if (ws != 0) {
         gemm_tn_acc(H, H, R, ws, a2, gA, g + n->W3);
         for (int r = 0; r < R; r++)
             for (int j = 0; j < H; j++) g[n->b3 + j] += ws * gA[(size_t)r * H + j];
     }
-    gemm_nt(R, H, H, gA, p + n->W3, 0.0f, gB);
-    relu_mask(gB, a2, (size_t)R * H);
+    if (wt) {
+        mdl_gemm(R, H, H, gA, H, wt->W3, H, gB, H, NULL, 0, MDL_EP_MASK, a2, H);
+    } else {
+        gemm_nt(R, H, H, gA, p + n->W3, 0.0f, gB);
+        relu_mask(gB, a2, (size_t)R * H);
+    }
     if (ws != 0) {
         gemm_tn_acc(H, H, R, ws, a1, gB, g + n->W2);
         for (int r = 0; r < R; r++)
             for (int j = 0; j < H; j++) g[n->b2 + j] += ws * gB[(size_t)r * H + j];
     }
-    gemm_nt(R, H, H, gB, p + n->W2, 0.0f, g1);
-    relu_mask(g1, a1, (size_t)R * H);
+    if (wt) {
+        mdl_gemm(R, H, H, gB, H, wt->W2, H, g1, H, NULL, 0, MDL_EP_MASK, a1, H);
+    } else {
+        gemm_nt(R, H, H, gB, p + n->W2, 0.0f, g1);
+        relu_mask(g1, a1, (size_t)R * H);
+    }
 }
 
 static inline void chunk_of(int n, int tid, int nth, int *r0, int *r1) {
@@ -408,6 +441,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     int N = vr->N, P = 2 * N, K = c->nslot, C = K + 1, d = cfg->d_what, dl = cfg->d_layout, NL = m->NL;
     int H = cfg->dec_width, nt = nthreads(m);
     SOOC_ASSERT(P <= w->Pmax && K <= w->Kmax);
+    MDL_PT(tprof);
     openblas_set_num_threads(1);   /* threads split rows; BLAS runs serially inside */
     const dec_net *no = &m->dobj, *nl = &m->dlay;
     float rmin = cfg->rho_min, rmax = cfg->rho_max, tau = c->tau > 0 ? c->tau : 1.0f;
@@ -491,6 +525,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         int r = w->rowof[(size_t)pt * C];
         if (r >= 0) w->lr_pt[r] = pt;
     }
+    MDL_PACC(MDL_PR_DEC_PREP, tprof);
 MDL_OMP(omp parallel num_threads(nt) if (nro + nrl >= MDL_PAR_ROWS))
     {
         int r0, r1, tid = TID(), nth = NTH();
@@ -498,21 +533,23 @@ MDL_OMP(omp parallel num_threads(nt) if (nro + nrl >= MDL_PAR_ROWS))
         for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
         for (int r = r0; r < r1; r++)
             memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
-        gemm_nn(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, p + no->W1x, 1.0f, w->o_a1 + (size_t)r0 * H);
-        mdl_mlp_tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
-                         w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3);
+        mdl_gemm(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, H, w->o_a1 + (size_t)r0 * H,
+                 H, NULL, 1, MDL_EP_RELU, NULL, 0);
+        tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
+                     w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
         chunk_of(nrl, tid, nth, &r0, &r1);
         for (int r = r0; r < r1; r++) {
             const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
             mdl_pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
         }
-        for (int r = r0; r < r1; r++) memcpy(w->l_a1 + (size_t)r * H, w->slot_bias, H * sizeof(float));
-        gemm_nn(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, p + nl->W1x, 1.0f, w->l_a1 + (size_t)r0 * H);
-        mdl_mlp_tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
-                         w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3);
+        mdl_gemm(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, H, w->l_a1 + (size_t)r0 * H,
+                 H, w->slot_bias, 0, MDL_EP_RELU, NULL, 0);
+        tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
+                     w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, 1);
     }
 
+    MDL_PACC(MDL_PR_DEC_FWD, tprof);
     /* 4. dense σ̂, c̃, composition, likelihood */
     float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * cfg->sigma_max;
     float scale = (float)(cfg->img_w * cfg->img_h) / (float)N;
@@ -600,6 +637,7 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
     c->nll_c = -scale * sum_c;
     c->nll = c->nll_d + c->nll_c;
 
+    MDL_PACC(MDL_PR_DEC_COMP, tprof);
     /* 5. KL */
     c->kl = 0;
     float beta = c->beta_kl;
@@ -637,6 +675,15 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
     int loff = merged ? nro : 0;   /* first scratch row of the layout rows */
     int nrt = merged ? nro + nrl : (nro > nrl ? nro : nrl);
     float *gsig = w->gC, *gcol = w->gC + (size_t)nrt;   /* gC has >= Rall*H >= 4 nrt floats */
+    /* transposed weights for the backward GEMMs after the first 4 Rall floats of gC
+     * (OpenBLAS on the untransposed weights when they do not fit, or without AVX2) */
+    dec_wt wto, wtl;
+    const dec_wt *pwo = NULL, *pwl = NULL;
+    if (mdl_kern_avx2() && H > 4 && wt_floats(no, 1) + wt_floats(nl, 0) <= (size_t)(H - 4) * Rall) {
+        float *q = wt_build(p, no, 1, w->gC + 4 * Rall, &wto);
+        wt_build(p, nl, 0, q, &wtl);
+        pwo = &wto, pwl = &wtl;
+    }
     for (int r = 0; r < nro; r++) {
         int pt = w->ro_pt[r], k = w->ro_slot[r];
         float g = w->gsh[(size_t)pt * C + 1 + k];
@@ -674,12 +721,16 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
                 for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS) {
                     int R = r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS;
                     float *g1 = w->gA + (size_t)b0 * H;
-                    mlp_tail_backward(m, tg, no, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H,
+                    mlp_tail_backward(m, tg, no, pwo, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H,
                                       w->o_a3 + (size_t)b0 * H, w->o_ac + (size_t)b0 * no->Hc, w->o_sig + b0,
                                       w->o_col + (size_t)b0 * 3, gsig + b0, gcol + (size_t)b0 * 3,
                                       w->gA + (size_t)b0 * H, w->gB + (size_t)b0 * H, g1, ws);
                     if (ws != 0) gemm_tn_acc(no->din, H, R, ws, w->o_pe + (size_t)b0 * no->din, g1, tg + no->W1x);
-                    gemm_nt(R, no->din, H, g1, p + no->W1x, 0.0f, w->gpe + (size_t)b0 * no->din);
+                    if (pwo)
+                        mdl_gemm(R, no->din, H, g1, H, pwo->W1x, no->din, w->gpe + (size_t)b0 * no->din, no->din, NULL,
+                                 0, MDL_EP_NONE, NULL, 0);
+                    else
+                        gemm_nt(R, no->din, H, g1, p + no->W1x, 0.0f, w->gpe + (size_t)b0 * no->din);
                     for (int r = b0; r < b0 + R; r++) {
                         int k = w->ro_slot[r], pt = w->ro_pt[r];
                         float *restrict gb = tgb + (size_t)(1 + k) * H;
@@ -698,7 +749,7 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
                 for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS) {
                     int R = r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS, s0 = loff + b0;
                     float *g1 = w->gA + (size_t)s0 * H;
-                    mlp_tail_backward(m, tg, nl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H,
+                    mlp_tail_backward(m, tg, nl, pwl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H,
                                       w->l_a3 + (size_t)b0 * H, w->l_ac + (size_t)b0 * nl->Hc, w->l_sig + b0,
                                       w->l_col + (size_t)b0 * 3, gsig + s0, gcol + (size_t)s0 * 3,
                                       w->gA + (size_t)s0 * H, w->gB + (size_t)s0 * H, g1, ws);
@@ -712,6 +763,7 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
             }
         }
     }
+    MDL_PACC(MDL_PR_DEC_BWD, tprof);
     /* reduce the thread-private accumulators (fixed order: deterministic) */
     memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
     for (int t = 0; t < ntb; t++) {
@@ -768,5 +820,6 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
             if (c->lay[dl + i] >= rmin && c->lay[dl + i] <= rmax)
                 c->g_lay[dl + i] += 0.5f * sig_lay[i] * gzl[i] * c->noise->eps_lay[i];
         }
+    MDL_PACC(MDL_PR_DEC_RED, tprof);
     return SOOC_OK;
 }

@@ -16,6 +16,20 @@
 #endif
 #define MDL_MAXT 64               /* tensors */
 
+/* Phase timers (compiled out by default; build with -DMDL_PROFILE to read
+ * where an update's time goes: bench_keyframe prints them). */
+enum { MDL_PR_DEC_PREP, MDL_PR_DEC_FWD, MDL_PR_DEC_COMP, MDL_PR_DEC_BWD, MDL_PR_DEC_RED, MDL_PR_AUX,
+       MDL_PR_CONV0, MDL_PR_CONV1, MDL_PR_CONV2, MDL_PR_CONV3, MDL_PR_FC, MDL_PR_GATES, MDL_PR_LSTM, MDL_PR_HEAD,
+       MDL_PR_N };
+#ifdef MDL_PROFILE
+extern double mdl_prof[MDL_PR_N];
+#define MDL_PT(v) double v = sooc_seconds()
+#define MDL_PACC(i, v) (mdl_prof[i] += sooc_seconds() - (v), (v) = sooc_seconds())
+#else
+#define MDL_PT(v) ((void)0)
+#define MDL_PACC(i, v) ((void)0)
+#endif
+
 typedef struct dec_net {          /* offsets into the slab */
     size_t W1x, W1z, b1, W2, b2, W3, b3, Wd, bd, Wc1, bc1, Wc2, bc2;
     int din, dz, H, Hc, nfreq;
@@ -162,6 +176,16 @@ void mdl_pe_row(const float *x, float inv, int nf, float *out);
 /* Layers 2.. of a decoder on R rows (serial), layer-1 pre-activation in a1. */
 void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col);
+
+/* kern.c: C[M x N] = init + A[M x K] B[K x N], all row-major (leading dimensions
+ * lda, ldb, ldc), init = C (acc != 0), else the row vector bias (N; NULL: 0);
+ * then the epilogue ep: MDL_EP_RELU max(0, .), MDL_EP_MASK zero where
+ * mask[i ldm + j] <= 0 (ReLU backward on a post-activation). AVX2/FMA when the
+ * CPU has it (SOOC_NO_AVX2 set in the environment forces the portable path). */
+enum { MDL_EP_NONE, MDL_EP_RELU, MDL_EP_MASK };
+void mdl_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+              const float *bias, int acc, int ep, const float *mask, int ldm);
+int mdl_kern_avx2(void);
 
 /* refine.c */
 int mdl_aux_channels(int layout);

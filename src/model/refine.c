@@ -103,6 +103,7 @@ static void ln_img(float *img, int B, int HW, int b, int c0, int nc) {
 
 void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
                     float *vec_o, float *img_l, float *vec_l) {
+    MDL_PT(tprof);
     const sooc_model_config *cfg = &m->cfg;
     const dec_ws *w = &m->ws;
     const view_rays *vr = c->rays;
@@ -275,6 +276,7 @@ MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR
     vec_l[4 * dl] = vr->h;
     vec_l[4 * dl + 1] = vr->pitch;
     (void)d;
+    MDL_PACC(MDL_PR_AUX, tprof);
 }
 
 /* ---------------------------------------------------------------- network */
@@ -385,6 +387,7 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
     nt = m->threads > 0 ? m->threads : omp_get_max_threads();
 #endif
     if (nt > B) nt = B;
+    MDL_PT(tprof);
     for (int i = 0; i < 4; i++) {
         int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, No = B * HWo;
         /* items split across threads: each fills its own column block of cols and of y */
@@ -398,8 +401,8 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
             if (nb > 0) {
                 float *ct = cols + (size_t)Ci * 9 * b0 * HWo;
                 im2col(x, Ci, B, b0, b1, Hi, Wi, ct);
-                cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, Co, nb * HWo, Ci * 9, 1.0f, p + n->cw[i],
-                            Ci * 9, ct, nb * HWo, 0.0f, a->y[i] + (size_t)b0 * HWo, No);
+                mdl_gemm(Co, nb * HWo, Ci * 9, p + n->cw[i], Ci * 9, ct, nb * HWo, a->y[i] + (size_t)b0 * HWo, No,
+                         NULL, 0, MDL_EP_NONE, NULL, 0);
                 for (int co = 0; co < Co; co++) {
                     float bb = p[n->cb[i] + co];
                     elu_bias_rows(a->y[i] + (size_t)co * No + (size_t)b0 * HWo, (size_t)nb * HWo, bb);
@@ -408,24 +411,24 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
         }
         x = a->y[i];
         Ci = Co, Hi = Ho, Wi = Wo;
+        MDL_PACC(MDL_PR_CONV0 + i, tprof);
     }
     int HW4 = Hi * Wi;
     for (int b = 0; b < B; b++)
         for (int c = 0; c < Ci; c++)
             for (int i = 0; i < HW4; i++) a->flat[(size_t)b * n->nflat + c * HW4 + i] = a->y[3][((size_t)c * B + b) * HW4 + i];
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, n->fc, n->nflat, 1.0f, a->flat, n->nflat, p + n->fcW,
-                n->fc, 0.0f, a->f, n->fc);
+    mdl_gemm(B, n->fc, n->nflat, a->flat, n->nflat, p + n->fcW, n->fc, a->f, n->fc, NULL, 0, MDL_EP_NONE, NULL, 0);
     for (int b = 0; b < B; b++)
         for (int j = 0; j < n->fc; j++) {
             float v = elu(a->f[(size_t)b * n->fc + j] + p[n->fcb + j]);
             a->f[(size_t)b * n->fc + j] = v;
             a->xin[(size_t)b * nin + j] = v;
         }
+    MDL_PACC(MDL_PR_FC, tprof);
     float *gt = a->gates;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, 4 * H, nin, 1.0f, a->xin, nin, p + n->Wx, 4 * H, 0.0f,
-                gt, 4 * H);
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, 4 * H, H, 1.0f, a->h_prev, H, p + n->Wh, 4 * H, 1.0f,
-                gt, 4 * H);
+    mdl_gemm(B, 4 * H, nin, a->xin, nin, p + n->Wx, 4 * H, gt, 4 * H, NULL, 0, MDL_EP_NONE, NULL, 0);
+    mdl_gemm(B, 4 * H, H, a->h_prev, H, p + n->Wh, 4 * H, gt, 4 * H, NULL, 1, MDL_EP_NONE, NULL, 0);
+    MDL_PACC(MDL_PR_GATES, tprof);
     for (int b = 0; b < B; b++) {
         float *g = gt + (size_t)b * 4 * H;
         for (int j = 0; j < H; j++) {
@@ -437,10 +440,11 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
             a->h[(size_t)b * H + j] = go * tanhf(cc);
         }
     }
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, n->nout, H, 1.0f, a->h, H, p + n->hW, n->nout, 0.0f,
-                out, n->nout);
+    MDL_PACC(MDL_PR_LSTM, tprof);
+    mdl_gemm(B, n->nout, H, a->h, H, p + n->hW, n->nout, out, n->nout, NULL, 0, MDL_EP_NONE, NULL, 0);
     for (int b = 0; b < B; b++)
         for (int j = 0; j < n->nout; j++) out[(size_t)b * n->nout + j] += p[n->hb + j];
+    MDL_PACC(MDL_PR_HEAD, tprof);
 }
 
 void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,

@@ -1,0 +1,202 @@
+/* Small row-major GEMM for the decoder MLPs and the refinement convs
+ * (model_internal.h, mdl_gemm). The layers are narrow (N = 16..64 outputs,
+ * K = 33..576), so OpenBLAS spends a good part of its time packing A and B
+ * and in its beta pass; this kernel reads A and B in place (B rows are
+ * contiguous in N, A elements are broadcast), starts from the bias, the
+ * existing C or zero, and applies the epilogue (ReLU or a ReLU-backward mask)
+ * on the registers before the single store.
+ *
+ * Every C element is accumulated as one FMA chain over k = 0..K-1 in order,
+ * whatever the row or column blocking, so results do not depend on how rows
+ * are split across threads. The AVX2/FMA kernel is selected at run time
+ * (GCC/Clang on x86-64, CPUs with AVX2 and FMA); elsewhere OpenBLAS runs
+ * instead (different rounding, also independent of the thread split). */
+#include "model/model_internal.h"
+
+#include <cblas.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* portable path: OpenBLAS, then the epilogue as a separate pass */
+static void gemm_blas(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                      const float *bias, int acc, int ep, const float *mask, int ldm) {
+    if (!acc && bias)
+        for (int i = 0; i < M; i++) memcpy(C + (size_t)i * ldc, bias, (size_t)N * sizeof(float));
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, lda, B, ldb, acc || bias ? 1.0f : 0.0f,
+                C, ldc);
+    if (ep == MDL_EP_NONE) return;
+    for (int i = 0; i < M; i++) {
+        float *restrict c = C + (size_t)i * ldc;
+        if (ep == MDL_EP_RELU)
+            for (int j = 0; j < N; j++) c[j] = c[j] > 0 ? c[j] : 0;
+        else
+            for (int j = 0; j < N; j++) c[j] = mask[(size_t)i * ldm + j] > 0 ? c[j] : 0;
+    }
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#define MDL_KERN_X86 1
+#include <immintrin.h>
+
+#define TGT __attribute__((target("avx2,fma")))
+#define AI __attribute__((always_inline)) inline
+
+/* MR rows x 16 columns (two vectors); m0/m1: column masks of the two vectors. */
+static TGT AI void k16(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                       const float *bias, int acc, int ep, const float *mask, int ldm, __m256i m0, __m256i m1) {
+    __m256 c0[6], c1[6];
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        if (acc) {
+            c0[r] = _mm256_maskload_ps(C + (size_t)r * ldc, m0);
+            c1[r] = _mm256_maskload_ps(C + (size_t)r * ldc + 8, m1);
+        } else if (bias) {
+            c0[r] = _mm256_maskload_ps(bias, m0);
+            c1[r] = _mm256_maskload_ps(bias + 8, m1);
+        } else {
+            c0[r] = _mm256_setzero_ps();
+            c1[r] = _mm256_setzero_ps();
+        }
+    }
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb;
+        __m256 b0 = _mm256_maskload_ps(b, m0), b1 = _mm256_maskload_ps(b + 8, m1);
+#pragma GCC unroll 6
+        for (int r = 0; r < MR; r++) {
+            __m256 a = _mm256_broadcast_ss(A + (size_t)r * lda + k);
+            c0[r] = _mm256_fmadd_ps(a, b0, c0[r]);
+            c1[r] = _mm256_fmadd_ps(a, b1, c1[r]);
+        }
+    }
+    const __m256 z = _mm256_setzero_ps();
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        if (ep == MDL_EP_RELU) {
+            c0[r] = _mm256_max_ps(c0[r], z);
+            c1[r] = _mm256_max_ps(c1[r], z);
+        } else if (ep == MDL_EP_MASK) {
+            __m256 q0 = _mm256_maskload_ps(mask + (size_t)r * ldm, m0), q1 = _mm256_maskload_ps(mask + (size_t)r * ldm + 8, m1);
+            c0[r] = _mm256_and_ps(c0[r], _mm256_cmp_ps(q0, z, _CMP_GT_OQ));
+            c1[r] = _mm256_and_ps(c1[r], _mm256_cmp_ps(q1, z, _CMP_GT_OQ));
+        }
+        _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
+        _mm256_maskstore_ps(C + (size_t)r * ldc + 8, m1, c1[r]);
+    }
+}
+
+/* Full 16-column panels without masks (the common case). */
+static TGT AI void k16f(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                        const float *bias, int acc, int ep, const float *mask, int ldm) {
+    __m256 c0[6], c1[6];
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        if (acc) {
+            c0[r] = _mm256_loadu_ps(C + (size_t)r * ldc);
+            c1[r] = _mm256_loadu_ps(C + (size_t)r * ldc + 8);
+        } else if (bias) {
+            c0[r] = _mm256_loadu_ps(bias);
+            c1[r] = _mm256_loadu_ps(bias + 8);
+        } else {
+            c0[r] = _mm256_setzero_ps();
+            c1[r] = _mm256_setzero_ps();
+        }
+    }
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb;
+        __m256 b0 = _mm256_loadu_ps(b), b1 = _mm256_loadu_ps(b + 8);
+#pragma GCC unroll 6
+        for (int r = 0; r < MR; r++) {
+            __m256 a = _mm256_broadcast_ss(A + (size_t)r * lda + k);
+            c0[r] = _mm256_fmadd_ps(a, b0, c0[r]);
+            c1[r] = _mm256_fmadd_ps(a, b1, c1[r]);
+        }
+    }
+    const __m256 z = _mm256_setzero_ps();
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        if (ep == MDL_EP_RELU) {
+            c0[r] = _mm256_max_ps(c0[r], z);
+            c1[r] = _mm256_max_ps(c1[r], z);
+        } else if (ep == MDL_EP_MASK) {
+            __m256 q0 = _mm256_loadu_ps(mask + (size_t)r * ldm), q1 = _mm256_loadu_ps(mask + (size_t)r * ldm + 8);
+            c0[r] = _mm256_and_ps(c0[r], _mm256_cmp_ps(q0, z, _CMP_GT_OQ));
+            c1[r] = _mm256_and_ps(c1[r], _mm256_cmp_ps(q1, z, _CMP_GT_OQ));
+        }
+        _mm256_storeu_ps(C + (size_t)r * ldc, c0[r]);
+        _mm256_storeu_ps(C + (size_t)r * ldc + 8, c1[r]);
+    }
+}
+
+static TGT void gemm_avx2(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                          const float *bias, int acc, int ep, const float *mask, int ldm) {
+    /* column panels outermost: a K x 16 panel of B stays in L1 while all rows stream past */
+    for (int j = 0; j < N; j += 16) {
+        int nr = N - j < 16 ? N - j : 16;
+        const float *Bj = B + j, *bj = bias ? bias + j : NULL, *mj = mask ? mask + j : NULL;
+        float *Cj = C + j;
+        if (nr == 16) {
+            int i = 0;
+            for (; i + 6 <= M; i += 6)
+                k16f(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, bj, acc, ep,
+                     mj ? mj + (size_t)i * ldm : NULL, ldm);
+            const float *Ai = A + (size_t)i * lda, *Mi = mj ? mj + (size_t)i * ldm : NULL;
+            float *Ci = Cj + (size_t)i * ldc;
+            switch (M - i) {
+            case 5: k16f(5, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm); break;
+            case 4: k16f(4, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm); break;
+            case 3: k16f(3, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm); break;
+            case 2: k16f(2, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm); break;
+            case 1: k16f(1, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm); break;
+            default: break;
+            }
+        } else {
+            int32_t lane[16];
+            for (int t = 0; t < 16; t++) lane[t] = t < nr ? -1 : 0;
+            __m256i m0 = _mm256_loadu_si256((const __m256i *)lane), m1 = _mm256_loadu_si256((const __m256i *)(lane + 8));
+            int i = 0;
+            for (; i + 6 <= M; i += 6)
+                k16(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, bj, acc, ep,
+                    mj ? mj + (size_t)i * ldm : NULL, ldm, m0, m1);
+            const float *Ai = A + (size_t)i * lda, *Mi = mj ? mj + (size_t)i * ldm : NULL;
+            float *Ci = Cj + (size_t)i * ldc;
+            switch (M - i) {
+            case 5: k16(5, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm, m0, m1); break;
+            case 4: k16(4, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm, m0, m1); break;
+            case 3: k16(3, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm, m0, m1); break;
+            case 2: k16(2, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm, m0, m1); break;
+            case 1: k16(1, K, Ai, lda, Bj, ldb, Ci, ldc, bj, acc, ep, Mi, ldm, m0, m1); break;
+            default: break;
+            }
+        }
+    }
+}
+#endif
+
+static atomic_int kern_mode = -1;   /* -1 unknown, 0 portable, 1 AVX2/FMA */
+
+int mdl_kern_avx2(void) {
+    int mode = atomic_load_explicit(&kern_mode, memory_order_relaxed);
+    if (mode < 0) {
+        mode = 0;
+#ifdef MDL_KERN_X86
+        __builtin_cpu_init();
+        mode = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
+        if (getenv("SOOC_NO_AVX2")) mode = 0;
+        atomic_store_explicit(&kern_mode, mode, memory_order_relaxed);
+    }
+    return mode;
+}
+
+void mdl_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+              const float *bias, int acc, int ep, const float *mask, int ldm) {
+    if (M <= 0 || N <= 0) return;
+#ifdef MDL_KERN_X86
+    if (mdl_kern_avx2()) {
+        gemm_avx2(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
+        return;
+    }
+#endif
+    gemm_blas(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
+}
