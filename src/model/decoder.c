@@ -273,6 +273,8 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
 /* Rows per block inside a thread's range: a block's activations (~4 x 256 x 64
  * floats) stay in L2 between layers. */
 #define MDL_BLOCK_ROWS 256
+/* Rows per dynamically scheduled block of the decode (forward, and backward without weight gradients). */
+#define MDL_DYN_ROWS 128
 
 static void tail_forward_block(const float *p, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                                float *sig, float *col, int a1_relu) {
@@ -433,6 +435,58 @@ typedef struct slot_sample {
     float sig_t, sig_th, sig_what[SOOC_MODEL_D_MAX];
 } slot_sample;
 
+/* Backward of one block of object / layout rows (step 7 of mdl_decode). Leaves
+ * each row's layer-1 pre-activation gradient in gA (object row r at r, layout
+ * row r at loff + r) and, for object rows, the row's z^where gradient in the
+ * first 3 floats of its gpe row. Weight gradients (ws != 0) go to tg. */
+typedef struct bwd_ctx {
+    const sooc_model *m;
+    const dec_call *c;
+    const dec_net *no, *nl;
+    const dec_wt *pwo, *pwl;
+    float *gsig, *gcol, ws, inv_o, s_g;
+    int C, loff;
+} bwd_ctx;
+
+static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
+    const sooc_model *m = x->m;
+    const dec_ws *w = &m->ws;
+    const dec_net *no = x->no;
+    const dec_call *c = x->c;
+    int H = no->H, C = x->C;
+    float *g1 = w->gA + (size_t)b0 * H;
+    mlp_tail_backward(m, tg, no, x->pwo, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H, w->o_a3 + (size_t)b0 * H,
+                      w->o_ac + (size_t)b0 * no->Hc, w->o_sig + b0, w->o_col + (size_t)b0 * 3, x->gsig + b0,
+                      x->gcol + (size_t)b0 * 3, w->gA + (size_t)b0 * H, w->gB + (size_t)b0 * H, g1, x->ws);
+    if (x->ws != 0) gemm_tn_acc(no->din, H, R, x->ws, w->o_pe + (size_t)b0 * no->din, g1, tg + no->W1x);
+    if (x->pwo)
+        mdl_gemm(R, no->din, H, g1, H, x->pwo->W1x, no->din, w->gpe + (size_t)b0 * no->din, no->din, NULL, 0,
+                 MDL_EP_NONE, NULL, 0);
+    else
+        gemm_nt(R, no->din, H, g1, m->p + no->W1x, 0.0f, w->gpe + (size_t)b0 * no->din);
+    for (int r = b0; r < b0 + R; r++) {
+        int k = w->ro_slot[r], pt = w->ro_pt[r];
+        float gx[3], *gw = w->gpe + (size_t)r * no->din;
+        const float *xk = w->o_xk + (size_t)r * 3;
+        pe_row_back(w->o_pe + (size_t)r * no->din, gw, x->inv_o, no->nfreq, gx);
+        mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, x->s_g, gx);
+        gw[0] = gw[1] = gw[2] = 0.0f;   /* the row's dL/dpe is consumed: reuse it for dL/d(px, pz, th) */
+        mdl_pi_backward(xk, c->zw[k][2], gx, gw);
+    }
+}
+
+static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
+    const sooc_model *m = x->m;
+    const dec_ws *w = &m->ws;
+    const dec_net *nl = x->nl;
+    int H = nl->H, s0 = x->loff + b0;
+    float *g1 = w->gA + (size_t)s0 * H;
+    mlp_tail_backward(m, tg, nl, x->pwl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H, w->l_a3 + (size_t)b0 * H,
+                      w->l_ac + (size_t)b0 * nl->Hc, w->l_sig + b0, w->l_col + (size_t)b0 * 3, x->gsig + s0,
+                      x->gcol + (size_t)s0 * 3, w->gA + (size_t)s0 * H, w->gB + (size_t)s0 * H, g1, x->ws);
+    if (x->ws != 0) gemm_tn_acc(nl->din, H, R, x->ws, w->l_pe + (size_t)b0 * nl->din, g1, tg + nl->W1x);
+}
+
 sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     const sooc_model_config *cfg = &m->cfg;
     dec_ws *w = &m->ws;
@@ -526,27 +580,34 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         if (r >= 0) w->lr_pt[r] = pt;
     }
     MDL_PACC(MDL_PR_DEC_PREP, tprof);
-MDL_OMP(omp parallel num_threads(nt) if (nro + nrl >= MDL_PAR_ROWS))
-    {
-        int r0, r1, tid = TID(), nth = NTH();
-        chunk_of(nro, tid, nth, &r0, &r1);
-        for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
-        for (int r = r0; r < r1; r++)
-            memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
-        mdl_gemm(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, H, w->o_a1 + (size_t)r0 * H,
-                 H, NULL, 1, MDL_EP_RELU, NULL, 0);
-        tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
-                     w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
-        chunk_of(nrl, tid, nth, &r0, &r1);
-        for (int r = r0; r < r1; r++) {
-            const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
-            float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
-            mdl_pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+    /* Fixed blocks of rows handed out dynamically: every row's result is the same whichever
+     * thread computes it, and a thread that the OS delays (a loaded machine) holds up the
+     * others by at most one block. */
+    int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
+MDL_OMP(omp parallel for num_threads(nt) schedule(dynamic, 1) if (nro + nrl >= MDL_PAR_ROWS))
+    for (int blk = 0; blk < nbo + nbl; blk++) {
+        if (blk < nbo) {
+            int r0 = blk * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nro ? r0 + MDL_DYN_ROWS : nro;
+            for (int r = r0; r < r1; r++)
+                mdl_pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
+            for (int r = r0; r < r1; r++)
+                memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
+            mdl_gemm(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, H,
+                     w->o_a1 + (size_t)r0 * H, H, NULL, 1, MDL_EP_RELU, NULL, 0);
+            tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
+                         w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
+        } else {
+            int r0 = (blk - nbo) * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nrl ? r0 + MDL_DYN_ROWS : nrl;
+            for (int r = r0; r < r1; r++) {
+                const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
+                float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
+                mdl_pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+            }
+            mdl_gemm(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, H,
+                     w->l_a1 + (size_t)r0 * H, H, w->slot_bias, 0, MDL_EP_RELU, NULL, 0);
+            tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
+                         w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, 1);
         }
-        mdl_gemm(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, H, w->l_a1 + (size_t)r0 * H,
-                 H, w->slot_bias, 0, MDL_EP_RELU, NULL, 0);
-        tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
-                     w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, 1);
     }
 
     MDL_PACC(MDL_PR_DEC_FWD, tprof);
@@ -692,15 +753,16 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
         memcpy(gcol + (size_t)r * 3, w->gct + ((size_t)pt * C + 1 + k) * 3, 3 * sizeof(float));
     }
     int ntb = nt < w->nthr ? nt : w->nthr;
-    size_t tstride = w->dec_np + (size_t)C * H + 3 * (size_t)K;
-    float s_g = cfg->gauss_s;
-    /* Zero every thread-private buffer up front: a region below MDL_PAR_ROWS runs on one
-     * thread only, and the reduction reads all ntb buffers (without weight gradients only
-     * the slot-bias / z^where part is used). */
-    {
-        size_t z0 = ws != 0 ? 0 : w->dec_np;
-        for (int t = 0; t < ntb; t++) memset(w->tbuf + (size_t)t * tstride + z0, 0, (tstride - z0) * sizeof(float));
-    }
+    size_t tstride = w->dec_np;
+    /* Weight gradients (ws != 0) go to thread-private copies of the decoder slab, reduced in
+     * thread order below (deterministic for a thread count; rows then split statically).
+     * Without them (inference) rows are handed out in dynamically scheduled fixed blocks.
+     * Slot-bias and z^where gradients are summed per row in row order after each pass,
+     * so they do not depend on the thread count. */
+    if (ws != 0)
+        for (int t = 0; t < ntb; t++) memset(w->tbuf + (size_t)t * tstride, 0, tstride * sizeof(float));
+    bwd_ctx bx = {m, c, no, nl, pwo, pwl, gsig, gcol, ws, inv_o, cfg->gauss_s, C, 0};
+    memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
     for (int pass = merged ? 1 : 0; pass < 2; pass++) {
         /* pass 0 (only when the scratch does not fit): object rows alone; pass 1: layout (+ objects if merged) */
         int do_obj = merged || pass == 0, do_lay = pass == 1;
@@ -710,70 +772,52 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
                 gsig[loff + r] = w->gsh[(size_t)pt * C];
                 memcpy(gcol + (size_t)(loff + r) * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
             }
-        int rows = (do_obj ? nro : 0) + (do_lay ? nrl : 0);
-        (void)rows;   /* only read by the OpenMP clause */
+        bx.loff = loff;
+        int no_ = do_obj ? nro : 0, nl_ = do_lay ? nrl : 0, rows = no_ + nl_;
+        (void)rows;   /* only read by the OpenMP clauses */
+        if (ws != 0) {
 MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
-        {
-            int r0, r1, tid = TID(), nth = NTH();
-            float *tg = w->tbuf + (size_t)tid * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
-            if (do_obj) {
-                chunk_of(nro, tid, nth, &r0, &r1);
-                for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS) {
-                    int R = r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS;
-                    float *g1 = w->gA + (size_t)b0 * H;
-                    mlp_tail_backward(m, tg, no, pwo, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H,
-                                      w->o_a3 + (size_t)b0 * H, w->o_ac + (size_t)b0 * no->Hc, w->o_sig + b0,
-                                      w->o_col + (size_t)b0 * 3, gsig + b0, gcol + (size_t)b0 * 3,
-                                      w->gA + (size_t)b0 * H, w->gB + (size_t)b0 * H, g1, ws);
-                    if (ws != 0) gemm_tn_acc(no->din, H, R, ws, w->o_pe + (size_t)b0 * no->din, g1, tg + no->W1x);
-                    if (pwo)
-                        mdl_gemm(R, no->din, H, g1, H, pwo->W1x, no->din, w->gpe + (size_t)b0 * no->din, no->din, NULL,
-                                 0, MDL_EP_NONE, NULL, 0);
-                    else
-                        gemm_nt(R, no->din, H, g1, p + no->W1x, 0.0f, w->gpe + (size_t)b0 * no->din);
-                    for (int r = b0; r < b0 + R; r++) {
-                        int k = w->ro_slot[r], pt = w->ro_pt[r];
-                        float *restrict gb = tgb + (size_t)(1 + k) * H;
-                        const float *restrict gr = w->gA + (size_t)r * H;
-                        for (int j = 0; j < H; j++) gb[j] += gr[j];
-                        float gx[3];
-                        const float *xk = w->o_xk + (size_t)r * 3;
-                        pe_row_back(w->o_pe + (size_t)r * no->din, w->gpe + (size_t)r * no->din, inv_o, no->nfreq, gx);
-                        mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, s_g, gx);
-                        mdl_pi_backward(xk, c->zw[k][2], gx, tgw + 3 * k);
-                    }
-                }
+            {
+                int r0, r1, tid = TID(), nth = NTH();
+                float *tg = w->tbuf + (size_t)tid * tstride;
+                chunk_of(no_, tid, nth, &r0, &r1);
+                for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS)
+                    bwd_obj_block(&bx, b0, r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS, tg);
+                chunk_of(nl_, tid, nth, &r0, &r1);
+                for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS)
+                    bwd_lay_block(&bx, b0, r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS, tg);
             }
-            if (do_lay) {
-                chunk_of(nrl, tid, nth, &r0, &r1);
-                for (int b0 = r0; b0 < r1; b0 += MDL_BLOCK_ROWS) {
-                    int R = r1 - b0 < MDL_BLOCK_ROWS ? r1 - b0 : MDL_BLOCK_ROWS, s0 = loff + b0;
-                    float *g1 = w->gA + (size_t)s0 * H;
-                    mlp_tail_backward(m, tg, nl, pwl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H,
-                                      w->l_a3 + (size_t)b0 * H, w->l_ac + (size_t)b0 * nl->Hc, w->l_sig + b0,
-                                      w->l_col + (size_t)b0 * 3, gsig + s0, gcol + (size_t)s0 * 3,
-                                      w->gA + (size_t)s0 * H, w->gB + (size_t)s0 * H, g1, ws);
-                    if (ws != 0) gemm_tn_acc(nl->din, H, R, ws, w->l_pe + (size_t)b0 * nl->din, g1, tg + nl->W1x);
-                    float *restrict gb = tgb;
-                    for (int r = 0; r < R; r++) {
-                        const float *restrict gr = g1 + (size_t)r * H;
-                        for (int j = 0; j < H; j++) gb[j] += gr[j];
-                    }
-                }
+        } else {
+            int nbo = (no_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nl_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
+MDL_OMP(omp parallel for num_threads(ntb) schedule(dynamic, 1) if (rows >= MDL_PAR_ROWS))
+            for (int blk = 0; blk < nbo + nbl; blk++) {
+                int b0 = (blk < nbo ? blk : blk - nbo) * MDL_DYN_ROWS, n = blk < nbo ? no_ : nl_;
+                int R = n - b0 < MDL_DYN_ROWS ? n - b0 : MDL_DYN_ROWS;
+                if (blk < nbo) bwd_obj_block(&bx, b0, R, NULL);
+                else bwd_lay_block(&bx, b0, R, NULL);
             }
+        }
+        /* slot-bias (layer-1 pre-activation) and z^where gradients, row order */
+        for (int r = 0; r < no_; r++) {
+            int k = w->ro_slot[r];
+            float *restrict gb = w->g_bias + (size_t)(1 + k) * H;
+            const float *restrict gr = w->gA + (size_t)r * H;
+            for (int j = 0; j < H; j++) gb[j] += gr[j];
+            const float *gw = w->gpe + (size_t)r * no->din;
+            gzw[k][0] += gw[0], gzw[k][1] += gw[1], gzw[k][2] += gw[2];
+        }
+        for (int r = 0; r < nl_; r++) {
+            float *restrict gb = w->g_bias;
+            const float *restrict gr = w->gA + (size_t)(loff + r) * H;
+            for (int j = 0; j < H; j++) gb[j] += gr[j];
         }
     }
     MDL_PACC(MDL_PR_DEC_BWD, tprof);
-    /* reduce the thread-private accumulators (fixed order: deterministic) */
-    memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
-    for (int t = 0; t < ntb; t++) {
-        const float *tg = w->tbuf + (size_t)t * tstride, *tgb = tg + w->dec_np, *tgw = tgb + (size_t)C * H;
-        if (ws != 0)
+    if (ws != 0)   /* thread order: deterministic */
+        for (int t = 0; t < ntb; t++) {
+            const float *tg = w->tbuf + (size_t)t * tstride;
             for (size_t i = 0; i < w->dec_np; i++) m->g[i] += tg[i];
-        for (size_t i = 0; i < (size_t)C * H; i++) w->g_bias[i] += tgb[i];
-        for (int k = 0; k < K; k++)
-            for (int a = 0; a < 3; a++) gzw[k][a] += tgw[3 * k + a];
-    }
+        }
     /* slot biases -> z, b1, W1z */
     float gzl[SOOC_MODEL_D_MAX] = {0};
     for (int k = 0; k <= K; k++) {

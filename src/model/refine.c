@@ -379,40 +379,66 @@ static void col2im(const float *cols, int Ci, int B, int Hi, int Wi, float *gx) 
 void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
     const float *p = m->p;
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
-    float *cols = m->rws.cols;
-    const float *x = a->x0;
-    int Ci = n->cin, Hi = gh, Wi = gw;
     int nt = 1;
 #ifdef SOOC_HAVE_OPENMP
     nt = m->threads > 0 ? m->threads : omp_get_max_threads();
 #endif
     if (nt > B) nt = B;
     MDL_PT(tprof);
-    for (int i = 0; i < 4; i++) {
-        int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, No = B * HWo;
-        /* items split across threads: each fills its own column block of cols and of y */
-        MDL_OMP(omp parallel num_threads(nt) if (nt > 1 && (double)Co * Ci * 9 * No > 4e6))
-        {
-            int tid = 0, nth = 1;
-#ifdef SOOC_HAVE_OPENMP
-            tid = omp_get_thread_num(), nth = omp_get_num_threads();
-#endif
-            int b0 = B * tid / nth, b1 = B * (tid + 1) / nth, nb = b1 - b0;
-            if (nb > 0) {
-                float *ct = cols + (size_t)Ci * 9 * b0 * HWo;
-                im2col(x, Ci, B, b0, b1, Hi, Wi, ct);
-                mdl_gemm(Co, nb * HWo, Ci * 9, p + n->cw[i], Ci * 9, ct, nb * HWo, a->y[i] + (size_t)b0 * HWo, No,
-                         NULL, 0, MDL_EP_NONE, NULL, 0);
-                for (int co = 0; co < Co; co++) {
-                    float bb = p[n->cb[i] + co];
-                    elu_bias_rows(a->y[i] + (size_t)co * No + (size_t)b0 * HWo, (size_t)nb * HWo, bb);
-                }
-            }
+    /* Leading input channels that are the same for every item (the colour, depth and ray
+     * channels of the object images): their share of the first convolution is computed
+     * once (into ysh) and every item's own channels are accumulated onto it. */
+    size_t HW = (size_t)gw * gh, HW1 = HW / 4;
+    int nsh = 0;
+    if (B > 1)
+        for (; nsh < n->cin; nsh++) {
+            const float *c0 = a->x0 + (size_t)nsh * B * HW;
+            int same = 1;
+            for (int b = 1; b < B && same; b++) same = !memcmp(c0, c0 + (size_t)b * HW, HW * sizeof(float));
+            if (!same) break;
         }
-        x = a->y[i];
-        Ci = Co, Hi = Ho, Wi = Wo;
-        MDL_PACC(MDL_PR_CONV0 + i, tprof);
+    if (nsh == n->cin || n->ch[0] > n->cin * 9 * B) nsh = 0;   /* all items identical, or ysh does not fit */
+    float *ysh = m->rws.gcols;    /* free during the forward; ch[0] x HW1 <= cin 9 B HW1 floats */
+    if (nsh > 0) {
+        im2col(a->x0, nsh, B, 0, 1, gh, gw, m->rws.cols);
+        mdl_gemm(n->ch[0], (int)HW1, nsh * 9, p + n->cw[0], n->cin * 9, m->rws.cols, (int)HW1, ysh, (int)HW1, NULL, 0,
+                 MDL_EP_NONE, NULL, 0);
     }
+    /* Items are independent through the conv stack: each runs all four layers on one
+     * thread (dynamic schedule; thread t uses its own slice of the column scratch). */
+    size_t cstride = (size_t)n->cin * 9 * HW1;
+    for (int i = 1; i < 4; i++) {
+        size_t s = (size_t)n->ch[i - 1] * 9 * (HW >> (2 * (i + 1)));
+        if (s > cstride) cstride = s;
+    }
+MDL_OMP(omp parallel for num_threads(nt) schedule(dynamic, 1) if (nt > 1))
+    for (int b = 0; b < B; b++) {
+        int tid = 0;
+#ifdef SOOC_HAVE_OPENMP
+        tid = omp_get_thread_num();
+#endif
+        float *ct = m->rws.cols + (size_t)tid * cstride;
+        const float *x = a->x0;
+        int Ci = n->cin, Hi = gh, Wi = gw;
+        for (int i = 0; i < 4; i++) {
+            int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, ldy = B * HWo;
+            float *y = a->y[i] + (size_t)b * HWo;
+            if (i == 0 && nsh > 0) {
+                for (int co = 0; co < Co; co++) memcpy(y + (size_t)co * ldy, ysh + (size_t)co * HWo, HWo * sizeof(float));
+                im2col(x + (size_t)nsh * B * Hi * Wi, Ci - nsh, B, b, b + 1, Hi, Wi, ct);
+                mdl_gemm(Co, HWo, (Ci - nsh) * 9, p + n->cw[i] + nsh * 9, Ci * 9, ct, HWo, y, ldy, NULL, 1, MDL_EP_NONE,
+                         NULL, 0);
+            } else {
+                im2col(x, Ci, B, b, b + 1, Hi, Wi, ct);
+                mdl_gemm(Co, HWo, Ci * 9, p + n->cw[i], Ci * 9, ct, HWo, y, ldy, NULL, 0, MDL_EP_NONE, NULL, 0);
+            }
+            for (int co = 0; co < Co; co++) elu_bias_rows(y + (size_t)co * ldy, (size_t)HWo, p[n->cb[i] + co]);
+            x = a->y[i];
+            Ci = Co, Hi = Ho, Wi = Wo;
+        }
+    }
+    MDL_PACC(MDL_PR_CONV0, tprof);
+    int Ci = n->ch[3], Hi = gh >> 4, Wi = gw >> 4;
     int HW4 = Hi * Wi;
     for (int b = 0; b < B; b++)
         for (int c = 0; c < Ci; c++)
