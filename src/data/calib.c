@@ -1,8 +1,7 @@
 /* Calibration YAML load/save with the libyaml document API. */
 #include "sooc3d/calib.h"
-#include "data_impl.h"
+#include "data/yaml_doc.h"
 
-#include <yaml.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -30,105 +29,91 @@ void sooc_calib_pinhole(sooc_calib *c, int w, int h, double fx, double fy, doubl
     c->P[0] = fx; c->P[2] = cx; c->P[5] = fy; c->P[6] = cy; c->P[10] = 1;
 }
 
-typedef struct pctx {
-    const char *name;
-    yaml_document_t *doc;
-} pctx;
 
-static int line_of(const yaml_node_t *n) { return (int)n->start_mark.line + 1; }
-
-static const char *scalar(const yaml_node_t *n) {
-    return n && n->type == YAML_SCALAR_NODE ? (const char *)n->data.scalar.value : NULL;
-}
-
-static sooc_status parse_num(const pctx *c, const yaml_node_t *n, const char *key, double *out) {
-    const char *s = scalar(n);
-    if (!s) return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a number", c->name, line_of(n), key);
+static sooc_status parse_num(sooc_ydoc *c, const yaml_node_t *n, const char *key, double *out) {
+    const char *s = sooc_yscalar(n);
+    if (!s) return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a number", c->name, sooc_yline(n), key);
     char *end;
     double v = strtod(s, &end);
     if (end == s || *end != '\0' || !isfinite(v))
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: '%s' is not a finite number", c->name,
-                           line_of(n), key, s);
+                           sooc_yline(n), key, s);
     *out = v;
     return SOOC_OK;
 }
 
-static sooc_status parse_int(const pctx *c, const yaml_node_t *n, const char *key, int *out) {
+static sooc_status parse_int(sooc_ydoc *c, const yaml_node_t *n, const char *key, int *out) {
     double v = 0;
     sooc_status s = parse_num(c, n, key, &v);
     if (s) return s;
     if (v != floor(v) || v < -1e9 || v > 1e9)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected an integer", c->name, line_of(n), key);
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected an integer", c->name, sooc_yline(n), key);
     *out = (int)v;
     return SOOC_OK;
 }
 
-static sooc_status parse_bool(const pctx *c, const yaml_node_t *n, const char *key, int *out) {
-    const char *s = scalar(n);
+static sooc_status parse_bool(sooc_ydoc *c, const yaml_node_t *n, const char *key, int *out) {
+    const char *s = sooc_yscalar(n);
     if (s && (!strcmp(s, "true") || !strcmp(s, "True") || !strcmp(s, "1"))) { *out = 1; return SOOC_OK; }
     if (s && (!strcmp(s, "false") || !strcmp(s, "False") || !strcmp(s, "0"))) { *out = 0; return SOOC_OK; }
-    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected true or false", c->name, line_of(n), key);
+    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected true or false", c->name, sooc_yline(n), key);
 }
 
 /* A matrix node: {rows, cols, [dt], data: [...]} (ROS or !!opencv-matrix).
  * Fills up to `cap` values and returns rows and cols. The keys parent and child
  * (T_effector_camera only) are copied when parent/child are non-NULL. */
-static sooc_status parse_matrix(const pctx *c, yaml_node_t *n, const char *key, double *vals, int cap,
+static sooc_status parse_matrix(sooc_ydoc *c, yaml_node_t *n, const char *key, double *vals, int cap,
                                 int *rows, int *cols, char *parent, char *child) {
     if (n->type != YAML_MAPPING_NODE)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a mapping {rows, cols, data}", c->name,
-                           line_of(n), key);
+                           sooc_yline(n), key);
     int r = -1, cl = -1, nd = -1;
     yaml_node_t *data = NULL;
     for (yaml_node_pair_t *p = n->data.mapping.pairs.start; p < n->data.mapping.pairs.top; p++) {
-        yaml_node_t *k = yaml_document_get_node(c->doc, p->key);
-        yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
-        const char *ks = scalar(k);
+        sooc_ypair pr;
+        sooc_status s = sooc_ymap_pair(c, n, p, key, 1, &pr);
+        if (s) return s;
+        yaml_node_t *k = pr.k, *v = pr.v;
+        const char *ks = pr.key;
         char sub[96];
-        snprintf(sub, sizeof sub, "%s.%s", key, ks ? ks : "?");
-        sooc_status s = SOOC_OK;
-        if (!ks) return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: non-scalar key", c->name, line_of(k), key);
-        int dup = sooc_data_yaml_dup_line(c->doc, n, p, ks);
-        if (dup)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: duplicate key (first given at line %d)", c->name,
-                               line_of(k), sub, dup);
+        snprintf(sub, sizeof sub, "%s.%s", key, ks);
         if (!strcmp(ks, "rows")) s = parse_int(c, v, sub, &r);
         else if (!strcmp(ks, "cols")) s = parse_int(c, v, sub, &cl);
         else if (!strcmp(ks, "dt")) {
-            const char *dt = scalar(v);
+            const char *dt = sooc_yscalar(v);
             if (!dt || (strcmp(dt, "d") && strcmp(dt, "f") && strcmp(dt, "i")))
-                return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: dt must be d, f or i", c->name, line_of(v),
+                return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: dt must be d, f or i", c->name, sooc_yline(v),
                                    sub);
         } else if (!strcmp(ks, "data")) {
             data = v;
-        } else if (parent && !strcmp(ks, "parent") && scalar(v)) {
-            snprintf(parent, 64, "%s", scalar(v));
-        } else if (child && !strcmp(ks, "child") && scalar(v)) {
-            snprintf(child, 64, "%s", scalar(v));
+        } else if (parent && !strcmp(ks, "parent") && sooc_yscalar(v)) {
+            snprintf(parent, 64, "%s", sooc_yscalar(v));
+        } else if (child && !strcmp(ks, "child") && sooc_yscalar(v)) {
+            snprintf(child, 64, "%s", sooc_yscalar(v));
         } else {
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: unknown key '%s'", c->name, line_of(k), key, ks);
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: unknown key '%s'", c->name, sooc_yline(k), key, ks);
         }
         if (s) return s;
     }
     if (r < 1 || cl < 1)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: rows and cols must be given and >= 1", c->name,
-                           line_of(n), key);
+                           sooc_yline(n), key);
     /* every calibration matrix has at most 16 values; bounding rows and cols
      * keeps r * cl from overflowing */
     if (r > 16 || cl > 16)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: rows and cols must be <= 16 (got %dx%d)", c->name,
-                           line_of(n), key, r, cl);
+                           sooc_yline(n), key, r, cl);
     if (!data || data->type != YAML_SEQUENCE_NODE)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: missing data: [...] list", c->name, line_of(n), key);
-    nd = (int)(data->data.sequence.items.top - data->data.sequence.items.start);
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: missing data: [...] list", c->name, sooc_yline(n), key);
+    nd = sooc_yseq_len(data);
     if (nd != r * cl)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected %d numbers (%dx%d), got %d", c->name,
-                           line_of(data), key, r * cl, r, cl, nd);
+                           sooc_yline(data), key, r * cl, r, cl, nd);
     if (nd > cap)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: too many values (%d > %d)", c->name, line_of(data),
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: too many values (%d > %d)", c->name, sooc_yline(data),
                            key, nd, cap);
     for (int i = 0; i < nd; i++) {
-        yaml_node_t *it = yaml_document_get_node(c->doc, data->data.sequence.items.start[i]);
+        yaml_node_t *it = sooc_yseq_item(c, data, i);
         char sub[96];
         snprintf(sub, sizeof sub, "%s.data[%d]", key, i);
         sooc_status s = parse_num(c, it, sub, &vals[i]);
@@ -139,84 +124,80 @@ static sooc_status parse_matrix(const pctx *c, yaml_node_t *n, const char *key, 
     return SOOC_OK;
 }
 
-static sooc_status parse_rigid(const pctx *c, yaml_node_t *n, const char *key, double T[16],
+static sooc_status parse_rigid(sooc_ydoc *c, yaml_node_t *n, const char *key, double T[16],
                                char *parent, char *child) {
     int r, cl;
     sooc_status s = parse_matrix(c, n, key, T, 16, &r, &cl, parent, child);
     if (s) return s;
     if (r != 4 || cl != 4)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a 4x4 matrix, got %dx%d", c->name,
-                           line_of(n), key, r, cl);
+                           sooc_yline(n), key, r, cl);
     double R[9], t[3], err;
     sooc_se3_to_rt(R, t, T);
     if (!sooc_m3_is_rotation(R, 1e-4, &err))
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: rotation part is not orthonormal (error %.3g)",
-                           c->name, line_of(n), key, err);
+                           c->name, sooc_yline(n), key, err);
     if (T[12] != 0 || T[13] != 0 || T[14] != 0 || T[15] != 1)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: last row must be 0 0 0 1", c->name, line_of(n), key);
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: last row must be 0 0 0 1", c->name, sooc_yline(n), key);
     return SOOC_OK;
 }
 
-static sooc_status parse_doc(pctx *c, sooc_calib *out) {
-    yaml_node_t *root = yaml_document_get_root_node(c->doc);
+static sooc_status parse_doc(sooc_ydoc *c, sooc_calib *out) {
+    yaml_node_t *root = sooc_ydoc_root(c);
     if (!root) return sooc_seterr(SOOC_EFORMAT, "%s: empty YAML document", c->name);
     if (root->type != YAML_MAPPING_NODE)
-        return sooc_seterr(SOOC_EFORMAT, "%s:%d: top level must be a mapping", c->name, line_of(root));
+        return sooc_seterr(SOOC_EFORMAT, "%s:%d: top level must be a mapping", c->name, sooc_yline(root));
     sooc_calib_init(out);
-    int have_w = 0, have_h = 0, have_K = 0, have_P = 0, have_model = 0, root_line = line_of(root);
+    int have_w = 0, have_h = 0, have_K = 0, have_P = 0, have_model = 0, root_line = sooc_yline(root);
     double Km[9] = {0};
     int Kline = 0;
     for (yaml_node_pair_t *p = root->data.mapping.pairs.start; p < root->data.mapping.pairs.top; p++) {
-        yaml_node_t *k = yaml_document_get_node(c->doc, p->key);
-        yaml_node_t *v = yaml_document_get_node(c->doc, p->value);
-        const char *ks = scalar(k);
-        if (!ks) return sooc_seterr(SOOC_EINVAL, "%s:%d: non-scalar key", c->name, line_of(k));
-        int dup = sooc_data_yaml_dup_line(c->doc, root, p, ks);
-        if (dup)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: duplicate key (first given at line %d)", c->name,
-                               line_of(k), ks, dup);
-        sooc_status s = SOOC_OK;
+        sooc_ypair pr;
+        sooc_status s = sooc_ymap_pair(c, root, p, NULL, 1, &pr);
+        if (s) return s;
+        yaml_node_t *k = pr.k, *v = pr.v;
+        const char *ks = pr.key;
         int r = 0, cl = 0;
         if (!strcmp(ks, "image_width")) { s = parse_int(c, v, ks, &out->K.width); have_w = 1;
-            if (!s && out->K.width <= 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0", c->name, line_of(v), ks);
+            if (!s && out->K.width <= 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0", c->name, sooc_yline(v), ks);
         } else if (!strcmp(ks, "image_height")) { s = parse_int(c, v, ks, &out->K.height); have_h = 1;
-            if (!s && out->K.height <= 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0", c->name, line_of(v), ks);
+            if (!s && out->K.height <= 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0", c->name, sooc_yline(v), ks);
         } else if (!strcmp(ks, "camera_name")) {
-            if (!scalar(v)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a string", c->name, line_of(v), ks);
-            else snprintf(out->camera_name, sizeof out->camera_name, "%s", scalar(v));
+            if (!sooc_yscalar(v)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a string", c->name, sooc_yline(v), ks);
+            else snprintf(out->camera_name, sizeof out->camera_name, "%s", sooc_yscalar(v));
         } else if (!strcmp(ks, "camera_matrix")) {
             s = parse_matrix(c, v, ks, Km, 9, &r, &cl, NULL, NULL);
             if (!s && (r != 3 || cl != 3))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected 3x3, got %dx%d", c->name, line_of(v), ks, r, cl);
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected 3x3, got %dx%d", c->name, sooc_yline(v), ks, r, cl);
             have_K = 1;
-            Kline = line_of(v);
+            Kline = sooc_yline(v);
         } else if (!strcmp(ks, "distortion_model")) {
-            const char *m = scalar(v);
+            const char *m = sooc_yscalar(v);
             have_model = 1;
             if (m && !strcmp(m, "plumb_bob")) out->K.dist_model = SOOC_DIST_PLUMB_BOB;
             else if (m && !strcmp(m, "rational_polynomial")) out->K.dist_model = SOOC_DIST_RATIONAL;
             else if (m && (!strcmp(m, "equidistant") || !strcmp(m, "fisheye"))) out->K.dist_model = SOOC_DIST_EQUIDISTANT;
             else if (m && !strcmp(m, "none")) out->K.dist_model = SOOC_DIST_NONE;
             else s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: unknown model '%s' (plumb_bob, rational_polynomial, equidistant, none)",
-                                 c->name, line_of(v), ks, m ? m : "?");
+                                 c->name, sooc_yline(v), ks, m ? m : "?");
         } else if (!strcmp(ks, "distortion_coefficients")) {
             s = parse_matrix(c, v, ks, out->K.dist, 8, &r, &cl, NULL, NULL);
             if (!s && r != 1 && cl != 1)
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a row or column vector", c->name, line_of(v), ks);
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a row or column vector", c->name, sooc_yline(v), ks);
             out->n_dist = r * cl;
         } else if (!strcmp(ks, "rectification_matrix")) {
             s = parse_matrix(c, v, ks, out->R_rect, 9, &r, &cl, NULL, NULL);
             if (!s && (r != 3 || cl != 3))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected 3x3, got %dx%d", c->name, line_of(v), ks, r, cl);
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected 3x3, got %dx%d", c->name, sooc_yline(v), ks, r, cl);
         } else if (!strcmp(ks, "projection_matrix")) {
             s = parse_matrix(c, v, ks, out->P, 12, &r, &cl, NULL, NULL);
             if (!s && (r != 3 || cl != 4))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected 3x4, got %dx%d", c->name, line_of(v), ks, r, cl);
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected 3x4, got %dx%d", c->name, sooc_yline(v), ks, r, cl);
             have_P = 1;
         } else if (!strcmp(ks, "depth_scale")) {
             s = parse_num(c, v, ks, &out->depth_scale);
             if (!s && !(out->depth_scale > 0))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0 (metres per depth unit)", c->name, line_of(v), ks);
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0 (metres per depth unit)", c->name, sooc_yline(v), ks);
         } else if (!strcmp(ks, "depth_registered")) {
             s = parse_bool(c, v, ks, &out->depth_registered);
         } else if (!strcmp(ks, "T_color_depth")) {
@@ -226,7 +207,7 @@ static sooc_status parse_doc(pctx *c, sooc_calib *out) {
             s = parse_rigid(c, v, ks, out->T_effector_camera, out->effector_parent, out->effector_child);
             out->has_T_effector_camera = 1;
         } else {
-            s = sooc_seterr(SOOC_EINVAL, "%s:%d: unknown key '%s'", c->name, line_of(k), ks);
+            s = sooc_seterr(SOOC_EINVAL, "%s:%d: unknown key '%s'", c->name, sooc_yline(k), ks);
         }
         if (s) return s;
     }
@@ -254,36 +235,11 @@ static sooc_status parse_doc(pctx *c, sooc_calib *out) {
 }
 
 sooc_status sooc_calib_parse(const char *text, size_t n, const char *name, sooc_calib *out) {
-    /* Blank an OpenCV "%YAML:1.0" first line (keeps line numbers). */
-    char *buf = sooc_malloc(n + 1);
-    if (!buf) return SOOC_ENOMEM;
-    memcpy(buf, text, n);
-    buf[n] = 0;
-    size_t off = 0;
-    if (n >= 3 && (unsigned char)buf[0] == 0xEF && (unsigned char)buf[1] == 0xBB && (unsigned char)buf[2] == 0xBF)
-        off = 3;
-    if (n - off >= 6 && !strncmp(buf + off, "%YAML:", 6))
-        for (size_t i = off; i < n && buf[i] != '\n'; i++) buf[i] = ' ';
-    yaml_parser_t parser;
-    yaml_document_t doc;
-    if (!yaml_parser_initialize(&parser)) {
-        sooc_free(buf);
-        return sooc_seterr(SOOC_ENOMEM, "%s: libyaml init failed", name);
-    }
-    yaml_parser_set_input_string(&parser, (const unsigned char *)buf, n);
-    sooc_status s = SOOC_OK;
-    if (!yaml_parser_load(&parser, &doc)) {
-        s = sooc_seterr(SOOC_EFORMAT, "%s:%d: YAML error: %s %s", name, (int)parser.problem_mark.line + 1,
-                        parser.problem ? parser.problem : "", parser.context ? parser.context : "");
-        yaml_parser_delete(&parser);
-        sooc_free(buf);
-        return s;
-    }
-    pctx c = {name, &doc};
-    s = parse_doc(&c, out);
-    yaml_document_delete(&doc);
-    yaml_parser_delete(&parser);
-    sooc_free(buf);
+    sooc_ydoc d;
+    sooc_status s = sooc_ydoc_parse(&d, text, n, name);
+    if (s) return s;
+    s = parse_doc(&d, out);
+    sooc_ydoc_free(&d);
     return s;
 }
 

@@ -2,8 +2,8 @@
  * and scene.yaml load/save (libyaml document API). */
 #include "sooc3d/scene.h"
 #include "data_impl.h"
+#include "data/yaml_doc.h"
 
-#include <yaml.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -474,64 +474,55 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
     return s;
 }
 
-typedef struct yctx {
-    const char *name;
-    yaml_document_t *doc;
-} yctx;
 
-static int yline(const yaml_node_t *n) { return (int)n->start_mark.line + 1; }
-static const char *yscalar(const yaml_node_t *n) {
-    return n && n->type == YAML_SCALAR_NODE ? (const char *)n->data.scalar.value : NULL;
-}
-
-static sooc_status ynum(const yctx *c, const yaml_node_t *n, const char *key, double *out) {
-    const char *s = yscalar(n);
+static sooc_status ynum(sooc_ydoc *c, const yaml_node_t *n, const char *key, double *out) {
+    const char *s = sooc_yscalar(n);
     char *end = NULL;
     double v = s ? strtod(s, &end) : 0;
     if (!s || end == s || *end || !isfinite(v))
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a finite number", c->name, yline(n), key);
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a finite number", c->name, sooc_yline(n), key);
     *out = v;
     return SOOC_OK;
 }
 
-static sooc_status yint(const yctx *c, const yaml_node_t *n, const char *key, double lo, double hi,
+static sooc_status yint(sooc_ydoc *c, const yaml_node_t *n, const char *key, double lo, double hi,
                         long long *out) {
     double v = 0;
     sooc_status s = ynum(c, n, key, &v);
     if (s) return s;
     if (v != floor(v) || v < lo || v > hi)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected an integer in [%.0f, %.0f]", c->name,
-                           yline(n), key, lo, hi);
+                           sooc_yline(n), key, lo, hi);
     *out = (long long)v;
     return SOOC_OK;
 }
 
-static sooc_status ybool(const yctx *c, const yaml_node_t *n, const char *key, int *out) {
-    const char *s = yscalar(n);
+static sooc_status ybool(sooc_ydoc *c, const yaml_node_t *n, const char *key, int *out) {
+    const char *s = sooc_yscalar(n);
     if (s && !strcmp(s, "true")) { *out = 1; return SOOC_OK; }
     if (s && !strcmp(s, "false")) { *out = 0; return SOOC_OK; }
-    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected true or false", c->name, yline(n), key);
+    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected true or false", c->name, sooc_yline(n), key);
 }
 
 /* A flow list of numbers; *count is set; more than cap is an error. If
  * exact >= 0 the list must have exactly that many items. */
-static sooc_status ylist(const yctx *c, const yaml_node_t *n, const char *key, double *out, int cap,
+static sooc_status ylist(sooc_ydoc *c, const yaml_node_t *n, const char *key, double *out, int cap,
                          int exact, int *count) {
     if (!n || n->type != YAML_SEQUENCE_NODE)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a list", c->name, n ? yline(n) : 0, key);
-    int k = (int)(n->data.sequence.items.top - n->data.sequence.items.start);
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a list", c->name, n ? sooc_yline(n) : 0, key);
+    int k = sooc_yseq_len(n);
     if ((exact >= 0 && k != exact) || k > cap)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected %d numbers, got %d", c->name, yline(n), key,
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected %d numbers, got %d", c->name, sooc_yline(n), key,
                            exact >= 0 ? exact : cap, k);
     for (int i = 0; i < k; i++) {
-        sooc_status s = ynum(c, yaml_document_get_node(c->doc, n->data.sequence.items.start[i]), key, &out[i]);
+        sooc_status s = ynum(c, sooc_yseq_item(c, n, i), key, &out[i]);
         if (s) return s;
     }
     if (count) *count = k;
     return SOOC_OK;
 }
 
-static sooc_status yf3(const yctx *c, const yaml_node_t *n, const char *key, float out[3]) {
+static sooc_status yf3(sooc_ydoc *c, const yaml_node_t *n, const char *key, float out[3]) {
     double v[3];
     sooc_status s = ylist(c, n, key, v, 3, 3, NULL);
     if (s) return s;
@@ -539,28 +530,25 @@ static sooc_status yf3(const yctx *c, const yaml_node_t *n, const char *key, flo
     return SOOC_OK;
 }
 
-static sooc_status parse_object(const yctx *c, yaml_node_t *n, sooc_scene_object *o) {
+static sooc_status parse_object(sooc_ydoc *c, yaml_node_t *n, sooc_scene_object *o) {
     if (n->type != YAML_MAPPING_NODE)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: objects: each item must be a mapping", c->name, yline(n));
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: objects: each item must be a mapping", c->name, sooc_yline(n));
     memset(o, 0, sizeof *o);
     unsigned seen = 0;
     int nparams = 0;
     yaml_node_t *params_node = NULL;
     for (yaml_node_pair_t *p = n->data.mapping.pairs.start; p < n->data.mapping.pairs.top; p++) {
-        yaml_node_t *k = yaml_document_get_node(c->doc, p->key), *v = yaml_document_get_node(c->doc, p->value);
-        const char *ks = yscalar(k);
-        sooc_status s = SOOC_OK;
+        sooc_ypair pr;
+        sooc_status s = sooc_ymap_pair(c, n, p, "objects", 1, &pr);
+        if (s) return s;
+        yaml_node_t *k = pr.k, *v = pr.v;
+        const char *ks = pr.key;
         long long iv = 0;
-        if (!ks) return sooc_seterr(SOOC_EINVAL, "%s:%d: objects: non-scalar key", c->name, yline(k));
-        int dup = sooc_data_yaml_dup_line(c->doc, n, p, ks);
-        if (dup)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.%s: duplicate key (first given at line %d)",
-                               c->name, yline(k), ks, dup);
         if (!strcmp(ks, "id")) { s = yint(c, v, "objects.id", 1, 65535, &iv); o->id = (int)iv; seen |= 1; }
         else if (!strcmp(ks, "shape")) {
-            s = sooc_shape_parse(yscalar(v), &o->shape);
-            if (s) s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects.shape: unknown shape '%s'", c->name, yline(v),
-                                   yscalar(v) ? yscalar(v) : "?");
+            s = sooc_shape_parse(sooc_yscalar(v), &o->shape);
+            if (s) s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects.shape: unknown shape '%s'", c->name, sooc_yline(v),
+                                   sooc_yscalar(v) ? sooc_yscalar(v) : "?");
             seen |= 2;
         } else if (!strcmp(ks, "x")) { s = ynum(c, v, "objects.x", &o->x); seen |= 4; }
         else if (!strcmp(ks, "z")) { s = ynum(c, v, "objects.z", &o->z); seen |= 8; }
@@ -568,33 +556,32 @@ static sooc_status parse_object(const yctx *c, yaml_node_t *n, sooc_scene_object
         else if (!strcmp(ks, "size")) { s = ylist(c, v, "objects.size", o->size, 3, 3, NULL); seen |= 32; }
         else if (!strcmp(ks, "params")) { params_node = v; s = ylist(c, v, "objects.params", o->params, 6, -1, &nparams); seen |= 64; }
         else if (!strcmp(ks, "color")) { s = yf3(c, v, "objects.color", o->color); seen |= 128; }
-        else s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects: unknown key '%s'", c->name, yline(k), ks);
+        else s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects: unknown key '%s'", c->name, sooc_yline(k), ks);
         if (s) return s;
     }
     static const char *names[] = {"id", "shape", "x", "z", "yaw", "size", "params", "color"};
     for (int i = 0; i < 8; i++)
         if (!(seen & (1u << i)))
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.%s: missing", c->name, yline(n), names[i]);
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.%s: missing", c->name, sooc_yline(n), names[i]);
     if (nparams != g_shape_nparams[o->shape])
         return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.params: shape %s needs %d params, got %d", c->name,
-                           yline(params_node), sooc_shape_name(o->shape), g_shape_nparams[o->shape], nparams);
+                           sooc_yline(params_node), sooc_shape_name(o->shape), g_shape_nparams[o->shape], nparams);
     for (int i = 0; i < nparams; i++)
         if (!(o->params[i] > 0))
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.params: values must be > 0", c->name, yline(params_node));
+            return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.params: values must be > 0", c->name, sooc_yline(params_node));
     return SOOC_OK;
 }
 
-static sooc_status parse_views(const yctx *c, yaml_node_t *v, const char *key, int **out, int *n) {
+static sooc_status parse_views(sooc_ydoc *c, yaml_node_t *v, const char *key, int **out, int *n) {
     if (v->type != YAML_SEQUENCE_NODE)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a list of view indices", c->name, yline(v), key);
-    int k = (int)(v->data.sequence.items.top - v->data.sequence.items.start);
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a list of view indices", c->name, sooc_yline(v), key);
+    int k = sooc_yseq_len(v);
     sooc_free(*out); /* duplicate keys are rejected before this; never leak a previous list */
     *out = sooc_malloc(sizeof(int) * (size_t)(k + 1));
     if (!*out) return SOOC_ENOMEM;
     for (int i = 0; i < k; i++) {
         long long iv = 0;
-        sooc_status s = yint(c, yaml_document_get_node(c->doc, v->data.sequence.items.start[i]), key, 0,
-                             1e7, &iv);
+        sooc_status s = yint(c, sooc_yseq_item(c, v, i), key, 0, 1e7, &iv);
         if (s) return s;
         (*out)[i] = (int)iv;
     }
@@ -602,57 +589,53 @@ static sooc_status parse_views(const yctx *c, yaml_node_t *v, const char *key, i
     return SOOC_OK;
 }
 
-static sooc_status parse_scene(const yctx *c, sooc_scene *sc) {
-    yaml_node_t *root = yaml_document_get_root_node(c->doc);
+static sooc_status parse_scene(sooc_ydoc *c, sooc_scene *sc) {
+    yaml_node_t *root = sooc_ydoc_root(c);
     if (!root || root->type != YAML_MAPPING_NODE)
         return sooc_seterr(SOOC_EFORMAT, "%s:1: top level must be a mapping", c->name);
     int *iv_in = NULL, *iv_q = NULL, n_in = 0, n_q = 0, have_in = 0, have_q = 0, have_fmt = 0;
     sooc_status s = SOOC_OK;
     for (yaml_node_pair_t *p = root->data.mapping.pairs.start; p < root->data.mapping.pairs.top && !s; p++) {
-        yaml_node_t *k = yaml_document_get_node(c->doc, p->key), *v = yaml_document_get_node(c->doc, p->value);
-        const char *ks = yscalar(k), *vs = yscalar(v);
+        sooc_ypair pr;
+        s = sooc_ymap_pair(c, root, p, NULL, 1, &pr);
+        if (s) break;
+        yaml_node_t *k = pr.k, *v = pr.v;
+        const char *ks = pr.key, *vs = sooc_yscalar(v);
         long long iv = 0;
         double dv[3];
-        if (!ks) { s = sooc_seterr(SOOC_EINVAL, "%s:%d: non-scalar key", c->name, yline(k)); break; }
-        int dup = sooc_data_yaml_dup_line(c->doc, root, p, ks);
-        if (dup) {
-            s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: duplicate key (first given at line %d)", c->name, yline(k),
-                            ks, dup);
-            break;
-        }
         if (!strcmp(ks, "format")) {
             have_fmt = 1;
             if (!vs || strcmp(vs, "sooc3d-scene"))
-                s = sooc_seterr(SOOC_EFORMAT, "%s:%d: format: expected sooc3d-scene", c->name, yline(v));
+                s = sooc_seterr(SOOC_EFORMAT, "%s:%d: format: expected sooc3d-scene", c->name, sooc_yline(v));
         } else if (!strcmp(ks, "version")) {
             s = yint(c, v, ks, 0, 1e6, &iv);
             if (!s && iv != 1)
-                s = sooc_seterr(SOOC_EVERSION, "%s:%d: version: %lld is not supported (this build reads 1)", c->name, yline(v), iv);
+                s = sooc_seterr(SOOC_EVERSION, "%s:%d: version: %lld is not supported (this build reads 1)", c->name, sooc_yline(v), iv);
         } else if (!strcmp(ks, "preset")) {
             if (!vs || (strcmp(vs, "unity") && strcmp(vs, "blender")))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: preset: expected unity or blender", c->name, yline(v));
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: preset: expected unity or blender", c->name, sooc_yline(v));
             else snprintf(sc->preset, sizeof sc->preset, "%s", vs);
         } else if (!strcmp(ks, "scale")) {
             if (!vs || (strcmp(vs, "s") && strcmp(vs, "m") && strcmp(vs, "l") && strcmp(vs, "xl")))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: scale: expected s, m, l or xl", c->name, yline(v));
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: scale: expected s, m, l or xl", c->name, sooc_yline(v));
             else snprintf(sc->scale, sizeof sc->scale, "%s", vs);
         } else if (!strcmp(ks, "seed")) {
             char *end = NULL;
             unsigned long long u = vs ? strtoull(vs, &end, 10) : 0;
-            if (!vs || end == vs || *end) s = sooc_seterr(SOOC_EINVAL, "%s:%d: seed: expected an integer", c->name, yline(v));
+            if (!vs || end == vs || *end) s = sooc_seterr(SOOC_EINVAL, "%s:%d: seed: expected an integer", c->name, sooc_yline(v));
             sc->seed = u;
         } else if (!strcmp(ks, "index")) { s = yint(c, v, ks, 0, 1e9, &iv); sc->index = (int)iv; }
         else if (!strcmp(ks, "room_size")) { s = ynum(c, v, ks, &sc->room_size);
-            if (!s && !(sc->room_size > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: room_size: must be > 0", c->name, yline(v)); }
+            if (!s && !(sc->room_size > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: room_size: must be > 0", c->name, sooc_yline(v)); }
         else if (!strcmp(ks, "clip_depth")) { s = ynum(c, v, ks, &sc->clip_depth);
-            if (!s && !(sc->clip_depth > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: clip_depth: must be > 0", c->name, yline(v)); }
+            if (!s && !(sc->clip_depth > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: clip_depth: must be > 0", c->name, sooc_yline(v)); }
         else if (!strcmp(ks, "walls")) s = ybool(c, v, ks, &sc->walls);
         else if (!strcmp(ks, "wall_height")) s = ynum(c, v, ks, &sc->wall_height);
         else if (!strcmp(ks, "wall_color")) s = yf3(c, v, ks, sc->wall_color);
         else if (!strcmp(ks, "floor_texture")) {
             int f = -1;
             for (int i = 0; i < 4; i++) if (vs && !strcmp(vs, g_tex_names[i])) f = i;
-            if (f < 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: floor_texture: expected uniform, checker, wood or noise", c->name, yline(v));
+            if (f < 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: floor_texture: expected uniform, checker, wood or noise", c->name, sooc_yline(v));
             else sc->floor_tex = (sooc_floor_tex)f;
         } else if (!strcmp(ks, "floor_color")) s = yf3(c, v, ks, sc->floor_color);
         else if (!strcmp(ks, "floor_color2")) s = yf3(c, v, ks, sc->floor_color2);
@@ -660,7 +643,7 @@ static sooc_status parse_scene(const yctx *c, sooc_scene *sc) {
         else if (!strcmp(ks, "sky_color")) s = yf3(c, v, ks, sc->sky_color);
         else if (!strcmp(ks, "light_dir")) {
             s = ylist(c, v, ks, dv, 3, 3, NULL);
-            if (!s && sooc_v3_normalize(dv) == 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: light_dir: zero vector", c->name, yline(v));
+            if (!s && sooc_v3_normalize(dv) == 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: light_dir: zero vector", c->name, sooc_yline(v));
             memcpy(sc->light_dir, dv, sizeof dv);
         } else if (!strcmp(ks, "ambient")) s = ynum(c, v, ks, &sc->ambient);
         else if (!strcmp(ks, "shadows")) s = ybool(c, v, ks, &sc->shadows);
@@ -669,28 +652,28 @@ static sooc_status parse_scene(const yctx *c, sooc_scene *sc) {
         else if (!strcmp(ks, "width")) { s = yint(c, v, ks, 1, 32768, &iv); sc->width = (int)iv; }
         else if (!strcmp(ks, "height")) { s = yint(c, v, ks, 1, 32768, &iv); sc->height = (int)iv; }
         else if (!strcmp(ks, "fov_deg")) { s = ynum(c, v, ks, &sc->fov_deg);
-            if (!s && !(sc->fov_deg > 1 && sc->fov_deg < 179)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: fov_deg: out of range", c->name, yline(v)); }
+            if (!s && !(sc->fov_deg > 1 && sc->fov_deg < 179)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: fov_deg: out of range", c->name, sooc_yline(v)); }
         else if (!strcmp(ks, "input_views")) { s = parse_views(c, v, ks, &iv_in, &n_in); have_in = 1; }
         else if (!strcmp(ks, "query_views")) { s = parse_views(c, v, ks, &iv_q, &n_q); have_q = 1; }
         else if (!strcmp(ks, "objects")) {
-            if (v->type != YAML_SEQUENCE_NODE) { s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects: expected a list", c->name, yline(v)); break; }
-            int k2 = (int)(v->data.sequence.items.top - v->data.sequence.items.start);
+            if (v->type != YAML_SEQUENCE_NODE) { s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects: expected a list", c->name, sooc_yline(v)); break; }
+            int k2 = sooc_yseq_len(v);
             sooc_free(sc->objects);
             sc->objects = sooc_calloc((size_t)(k2 + 1), sizeof *sc->objects);
             if (!sc->objects) { s = SOOC_ENOMEM; break; }
             sc->n_objects = k2;
             for (int i = 0; i < k2 && !s; i++) {
-                yaml_node_t *it = yaml_document_get_node(c->doc, v->data.sequence.items.start[i]);
+                yaml_node_t *it = sooc_yseq_item(c, v, i);
                 s = parse_object(c, it, &sc->objects[i]);
                 for (int j = 0; j < i && !s; j++)
                     if (sc->objects[j].id == sc->objects[i].id)
-                        s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects.id: duplicate id %d", c->name, yline(it), sc->objects[i].id);
+                        s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects.id: duplicate id %d", c->name, sooc_yline(it), sc->objects[i].id);
             }
-        } else s = sooc_seterr(SOOC_EINVAL, "%s:%d: unknown key '%s'", c->name, yline(k), ks);
+        } else s = sooc_seterr(SOOC_EINVAL, "%s:%d: unknown key '%s'", c->name, sooc_yline(k), ks);
     }
-    if (!s && !have_fmt) s = sooc_seterr(SOOC_EFORMAT, "%s:%d: format: missing (expected sooc3d-scene)", c->name, yline(root));
+    if (!s && !have_fmt) s = sooc_seterr(SOOC_EFORMAT, "%s:%d: format: missing (expected sooc3d-scene)", c->name, sooc_yline(root));
     if (!s && (!have_in || !have_q))
-        s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: missing", c->name, yline(root), have_in ? "query_views" : "input_views");
+        s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: missing", c->name, sooc_yline(root), have_in ? "query_views" : "input_views");
     if (!s) {
         sc->n_views = n_in + n_q;
         sc->view_is_query = sooc_calloc((size_t)sc->n_views + 1, 1);
@@ -715,24 +698,14 @@ sooc_status sooc_scene_load(const char *path, sooc_scene *out) {
     size_t n;
     sooc_status s = sooc_file_read_all(path, (size_t)64 << 20, &buf, &n);
     if (s) return s;
-    yaml_parser_t parser;
-    yaml_document_t doc;
-    if (!yaml_parser_initialize(&parser)) { sooc_free(buf); return SOOC_ENOMEM; }
-    yaml_parser_set_input_string(&parser, buf, n);
-    if (!yaml_parser_load(&parser, &doc)) {
-        s = sooc_seterr(SOOC_EFORMAT, "%s:%d: YAML error: %s", path, (int)parser.problem_mark.line + 1,
-                        parser.problem ? parser.problem : "");
-        yaml_parser_delete(&parser);
-        sooc_free(buf);
-        return s;
-    }
+    sooc_ydoc d;
+    s = sooc_ydoc_parse(&d, buf, n, path);
+    sooc_free(buf);
+    if (s) return s;
     sooc_scene sc;
     sooc_scene_init(&sc);
-    yctx c = {path, &doc};
-    s = parse_scene(&c, &sc);
-    yaml_document_delete(&doc);
-    yaml_parser_delete(&parser);
-    sooc_free(buf);
+    s = parse_scene(&d, &sc);
+    sooc_ydoc_free(&d);
     if (s) { sooc_scene_free(&sc); return s; }
     sooc_scene_free(out);
     *out = sc;

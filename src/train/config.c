@@ -5,13 +5,13 @@
  * The loader is table-driven: every key maps to a typed field, so unknown keys
  * and bad values are reported with the file, the line and the key. */
 #include "sooc3d/train.h"
+#include "data/yaml_doc.h"
 
 #include <errno.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
-#include <yaml.h>
 
 void sooc_train_config_default(sooc_train_config *c) {
     memset(c, 0, sizeof *c);
@@ -100,19 +100,24 @@ static sooc_status parse_num(const char *file, int line, const char *key, const 
     return SOOC_OK;
 }
 
-static sooc_status apply_mapping(const char *file, yaml_document_t *doc, yaml_node_t *map, const field *fields,
-                                 int nf, void *base, sooc_model_config *mc, int allow_model) {
+/* Applies the pairs of mapping `map` to the fields of `base`; at the top
+ * level (allow_model) a `model:` mapping goes to mc. Later duplicate keys
+ * override earlier ones (not checked, unlike the other loaders). */
+static sooc_status apply_mapping(sooc_ydoc *d, yaml_node_t *map, const field *fields, int nf, void *base,
+                                 sooc_model_config *mc, int allow_model) {
+    const char *file = d->name;
     for (yaml_node_pair_t *pr = map->data.mapping.pairs.start; pr < map->data.mapping.pairs.top; pr++) {
-        yaml_node_t *k = yaml_document_get_node(doc, pr->key), *v = yaml_document_get_node(doc, pr->value);
-        int line = (int)k->start_mark.line + 1;
-        if (k->type != YAML_SCALAR_NODE)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: keys must be plain names", file, line);
-        const char *key = (const char *)k->data.scalar.value;
+        sooc_ypair kv;
+        sooc_status s = sooc_ymap_pair(d, map, pr, allow_model ? NULL : "model", 0, &kv);
+        if (s) return s;
+        yaml_node_t *v = kv.v;
+        const char *key = kv.key;
+        int line = sooc_yline(kv.k);
         if (allow_model && !strcmp(key, "model")) {
             if (v->type != YAML_MAPPING_NODE)
                 return sooc_seterr(SOOC_EINVAL, "%s:%d: model: expected a mapping of model settings", file, line);
-            sooc_status s = apply_mapping(file, doc, v, g_model_fields,
-                                          (int)(sizeof g_model_fields / sizeof g_model_fields[0]), mc, mc, 0);
+            s = apply_mapping(d, v, g_model_fields, (int)(sizeof g_model_fields / sizeof g_model_fields[0]), mc,
+                              mc, 0);
             if (s) return s;
             continue;
         }
@@ -121,22 +126,20 @@ static sooc_status apply_mapping(const char *file, yaml_document_t *doc, yaml_no
             if (!strcmp(fields[i].name, key)) f = &fields[i];
         if (!f) return sooc_seterr(SOOC_EINVAL, "%s:%d: unknown key '%s'", file, line, key);
         if (f->type == F_INT4) {
-            if (v->type != YAML_SEQUENCE_NODE || v->data.sequence.items.top - v->data.sequence.items.start != 4)
+            if (v->type != YAML_SEQUENCE_NODE || sooc_yseq_len(v) != 4)
                 return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a list of 4 integers", file, line, key);
             for (int i = 0; i < 4; i++) {
-                yaml_node_t *it = yaml_document_get_node(doc, v->data.sequence.items.start[i]);
-                if (it->type != YAML_SCALAR_NODE)
-                    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected numbers", file, line, key);
+                const char *it = sooc_yscalar(sooc_yseq_item(d, v, i));
+                if (!it) return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected numbers", file, line, key);
                 field fi = *f;
                 fi.off += (size_t)i * sizeof(int);
-                sooc_status s = parse_num(file, line, key, (const char *)it->data.scalar.value, &fi, base);
+                s = parse_num(file, line, key, it, &fi, base);
                 if (s) return s;
             }
             continue;
         }
-        if (v->type != YAML_SCALAR_NODE)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a number", file, line, key);
-        sooc_status s = parse_num(file, line, key, (const char *)v->data.scalar.value, f, base);
+        if (!sooc_yscalar(v)) return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a number", file, line, key);
+        s = parse_num(file, line, key, sooc_yscalar(v), f, base);
         if (s) return s;
     }
     return SOOC_OK;
@@ -147,24 +150,14 @@ sooc_status sooc_train_config_load(const char *path, sooc_train_config *c, sooc_
     size_t n = 0;
     sooc_status s = sooc_file_read_all(path, 1 << 20, &buf, &n);
     if (s) return s;
-    yaml_parser_t parser;
-    yaml_document_t doc;
-    if (!yaml_parser_initialize(&parser)) {
-        sooc_free(buf);
-        return sooc_seterr(SOOC_ENOMEM, "%s: cannot initialise the YAML parser", path);
-    }
-    yaml_parser_set_input_string(&parser, buf, n);
-    if (!yaml_parser_load(&parser, &doc)) {
-        s = sooc_seterr(SOOC_EFORMAT, "%s:%d: YAML error: %s", path, (int)parser.problem_mark.line + 1,
-                        parser.problem ? parser.problem : "unknown");
-        yaml_parser_delete(&parser);
-        sooc_free(buf);
-        return s;
-    }
-    yaml_node_t *root = yaml_document_get_root_node(&doc);
+    sooc_ydoc d;
+    s = sooc_ydoc_parse(&d, buf, n, path);
+    sooc_free(buf);
+    if (s) return s;
+    yaml_node_t *root = sooc_ydoc_root(&d);
     if (root && root->type == YAML_MAPPING_NODE) {
-        s = apply_mapping(path, &doc, root, g_train_fields,
-                          (int)(sizeof g_train_fields / sizeof g_train_fields[0]), c, mc, 1);
+        s = apply_mapping(&d, root, g_train_fields, (int)(sizeof g_train_fields / sizeof g_train_fields[0]), c, mc,
+                          1);
     } else if (root) {
         s = sooc_seterr(SOOC_EFORMAT, "%s:1: expected a mapping of training settings", path);
     }
@@ -176,8 +169,6 @@ sooc_status sooc_train_config_load(const char *path, sooc_train_config *c, sooc_
         s = sooc_model_config_check(mc);
         if (s) sooc_adderr(s, "%s: model", path);
     }
-    yaml_document_delete(&doc);
-    yaml_parser_delete(&parser);
-    sooc_free(buf);
+    sooc_ydoc_free(&d);
     return s;
 }
