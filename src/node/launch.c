@@ -1,14 +1,16 @@
-/* Launch files: YAML (libyaml document API) -> sooc_node_config.
- * Every error names the file, the line and the key (section.key). */
+/* Launch files: YAML (libyaml document API, walked with data/yaml_doc.h)
+ * -> sooc_node_config. Sections are read through key tables (field, type,
+ * range). Every error names the file, the line and the key (section.key). */
 #include "sooc3d/node.h"
+#include "data/yaml_doc.h"
 
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <yaml.h>
 
 void sooc_node_config_default(sooc_node_config *c) {
     memset(c, 0, sizeof *c);
@@ -40,19 +42,17 @@ const char *sooc_node_param_get(const sooc_node_config *c, const char *key) {
 /* ----------------------------------------------------------- yaml helpers */
 
 typedef struct pctx {
-    yaml_document_t *doc;
-    const char *name;
-    const char *section;
+    sooc_ydoc *d;
+    const char *name;       /* the launch file (= d->name) */
+    const char *section;    /* NULL at the top level */
 } pctx;
-
-static int line_of(const yaml_node_t *n) { return (int)n->start_mark.line + 1; }
 
 static sooc_status bad(const pctx *p, const yaml_node_t *n, const char *key, const char *what,
                        const char *got) {
     if (got)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s%s%s: %s, got '%s'", p->name, line_of(n),
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: %s%s%s: %s, got '%s'", p->name, sooc_yline(n),
                            p->section ? p->section : "", p->section ? "." : "", key, what, got);
-    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s%s%s: %s", p->name, line_of(n), p->section ? p->section : "",
+    return sooc_seterr(SOOC_EINVAL, "%s:%d: %s%s%s: %s", p->name, sooc_yline(n), p->section ? p->section : "",
                        p->section ? "." : "", key, what);
 }
 
@@ -136,27 +136,18 @@ static sooc_status get_bool(const pctx *p, const yaml_node_t *v, const char *key
     return SOOC_OK;
 }
 
-/* Iterate a mapping: for each pair call fn(key string, key node, value node). */
+/* Iterate a mapping: for each pair call fn(key string, key node, value node).
+ * Keys must be plain strings and must not repeat. */
 typedef sooc_status (*pair_fn)(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u);
 
 static sooc_status walk_map(pctx *p, yaml_node_t *m, const char *what, pair_fn fn, void *u) {
     if (m->type != YAML_MAPPING_NODE)
         return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: expected a mapping (key: value lines)", p->name,
-                           line_of(m), what);
+                           sooc_yline(m), what);
     for (yaml_node_pair_t *pr = m->data.mapping.pairs.start; pr < m->data.mapping.pairs.top; pr++) {
-        yaml_node_t *kn = yaml_document_get_node(p->doc, pr->key);
-        yaml_node_t *vn = yaml_document_get_node(p->doc, pr->value);
-        if (!kn || !vn || kn->type != YAML_SCALAR_NODE)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: %s: keys must be plain strings", p->name,
-                               kn ? line_of(kn) : 0, what);
-        const char *key = (const char *)kn->data.scalar.value;
-        /* duplicate keys are errors (YAML says so; libyaml does not check) */
-        for (yaml_node_pair_t *q = m->data.mapping.pairs.start; q < pr; q++) {
-            yaml_node_t *k2 = yaml_document_get_node(p->doc, q->key);
-            if (k2 && k2->type == YAML_SCALAR_NODE && !strcmp((const char *)k2->data.scalar.value, key))
-                return bad(p, kn, key, "duplicate key", NULL);
-        }
-        sooc_status st = fn(p, key, kn, vn, u);
+        sooc_ypair kv;
+        sooc_status st = sooc_ymap_pair(p->d, m, pr, p->section, 1, &kv);
+        if (!st) st = fn(p, kv.key, kv.k, kv.v, u);
         if (st) return st;
     }
     return SOOC_OK;
@@ -279,26 +270,26 @@ static sooc_status sensor_param(pctx *p, const char *key, yaml_node_t *kn, yaml_
     sooc_node_param *pp = &c->params[c->n_params++];
     snprintf(pp->key, sizeof pp->key, "%s", key);
     snprintf(pp->value, sizeof pp->value, "%s", s);
-    pp->line = line_of(vn);
+    pp->line = sooc_yline(vn);
     return SOOC_OK;
 }
 
 static sooc_status sec_sensor(pctx *p, yaml_node_t *m, sooc_node_config *c) {
     if (m->type != YAML_MAPPING_NODE)
-        return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor: expected a mapping", p->name, line_of(m));
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor: expected a mapping", p->name, sooc_yline(m));
     /* driver first: the other keys depend on it */
     yaml_node_t *dv = NULL, *dk = NULL;
     for (yaml_node_pair_t *pr = m->data.mapping.pairs.start; pr < m->data.mapping.pairs.top; pr++) {
-        yaml_node_t *kn = yaml_document_get_node(p->doc, pr->key);
+        yaml_node_t *kn = yaml_document_get_node(&p->d->doc, pr->key);
         if (kn && kn->type == YAML_SCALAR_NODE && !strcmp((char *)kn->data.scalar.value, "driver")) {
             /* the first driver decides; a second one is an error, not "last one wins" */
             if (dk) return bad(p, kn, "driver", "duplicate key", NULL);
             dk = kn;
-            dv = yaml_document_get_node(p->doc, pr->value);
+            dv = yaml_document_get_node(&p->d->doc, pr->value);
         }
     }
     if (!dv) return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor.driver: missing (one of %s)", p->name,
-                                line_of(m), g_drivers);
+                                sooc_yline(m), g_drivers);
     sooc_status st = get_str(p, dv, "driver", c->driver, sizeof c->driver, 0);
     if (st) return st;
     if (!in_enum(c->driver, g_drivers)) {
@@ -308,208 +299,221 @@ static sooc_status sec_sensor(pctx *p, yaml_node_t *m, sooc_node_config *c) {
     }
     c->n_params = 0;
     for (yaml_node_pair_t *pr = m->data.mapping.pairs.start; pr < m->data.mapping.pairs.top; pr++) {
-        yaml_node_t *kn = yaml_document_get_node(p->doc, pr->key);
-        yaml_node_t *vn = yaml_document_get_node(p->doc, pr->value);
-        if (!kn || kn->type != YAML_SCALAR_NODE)
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor: keys must be plain strings", p->name, line_of(m));
-        const char *key = (const char *)kn->data.scalar.value;
-        for (yaml_node_pair_t *q = m->data.mapping.pairs.start; q < pr; q++) {
-            yaml_node_t *k2 = yaml_document_get_node(p->doc, q->key);
-            if (k2 && k2->type == YAML_SCALAR_NODE && !strcmp((const char *)k2->data.scalar.value, key))
-                return bad(p, kn, key, "duplicate key", NULL);
-        }
-        if (!strcmp(key, "driver")) continue;
-        if ((st = sensor_param(p, key, kn, vn, c))) return st;
+        sooc_ypair kv;
+        if ((st = sooc_ymap_pair(p->d, m, pr, p->section, 1, &kv))) return st;
+        if (!strcmp(kv.key, "driver")) continue;
+        if ((st = sensor_param(p, kv.key, kv.k, kv.v, c))) return st;
     }
     if (!strcmp(c->driver, "replay") && !sooc_node_param_get(c, "path"))
         return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor.path: missing (the recording to replay)", p->name,
-                           line_of(m));
+                           sooc_yline(m));
     return SOOC_OK;
 }
 
 /* -------------------------------------------------------------- sections */
 
-static sooc_status k_pose(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    const char *s = "";
-    sooc_status st;
-    if (!strcmp(key, "source")) {
-        if ((st = get_scalar(p, vn, key, &s))) return st;
-        if (!strcmp(s, "sensor")) c->pose_kind = SOOC_NODE_POSE_SENSOR;
-        else if (!strcmp(s, "file")) c->pose_kind = SOOC_NODE_POSE_FILE;
-        else if (!strcmp(s, "socket")) c->pose_kind = SOOC_NODE_POSE_SOCKET;
-        else return bad(p, vn, key, "expected sensor, file or socket", s);
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "path") || !strcmp(key, "address"))
-        return get_str(p, vn, key, c->pose_path, sizeof c->pose_path, 0);
-    if (!strcmp(key, "tolerance_ms")) {
-        double x;
-        if ((st = get_num(p, vn, key, 0, 10000, &x))) return st;
-        c->pose_tolerance_s = x * 1e-3;
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "frame")) {
-        if ((st = get_scalar(p, vn, key, &s))) return st;
-        if (!strcmp(s, "camera")) c->pose_is_effector = 0;
-        else if (!strcmp(s, "effector")) c->pose_is_effector = 1;
-        else return bad(p, vn, key, "expected camera or effector", s);
-        return SOOC_OK;
-    }
-    return unknown(p, kn, key, "unknown key (known: source, path, address, tolerance_ms, frame)");
+/* Keys that need more than a typed field (KV_FN). */
+typedef sooc_status (*key_fn)(pctx *p, const char *key, yaml_node_t *vn, sooc_node_config *c);
+
+static sooc_status f_shm_name(pctx *p, const char *key, yaml_node_t *vn, sooc_node_config *c) {
+    sooc_status st = get_str(p, vn, key, c->shm_name, sizeof c->shm_name, 1);
+    if (st) return st;
+    for (const char *q = c->shm_name; *q; q++)
+        if (!isalnum((unsigned char)*q) && *q != '_' && *q != '-' && *q != '.')
+            return bad(p, vn, key, "only letters, digits, '_', '-' and '.' are allowed", c->shm_name);
+    if (strlen(c->shm_name) > 40) return bad(p, vn, key, "at most 40 characters", c->shm_name);
+    return SOOC_OK;
 }
 
-static sooc_status k_model(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
+static sooc_status f_world_up(pctx *p, const char *key, yaml_node_t *vn, sooc_node_config *c) {
+    double v[3] = {0, 0, 0};
+    if (vn->type == YAML_SCALAR_NODE) {
+        const char *s = (const char *)vn->data.scalar.value;
+        static const char *ax[] = {"+x", "-x", "+y", "-y", "+z", "-z"};
+        int k = -1;
+        for (int i = 0; i < 6; i++)
+            if (!strcmp(s, ax[i]) || (s[0] == ax[i][1] && !s[1] && ax[i][0] == '+')) k = i;
+        if (k < 0) return bad(p, vn, key, "expected +x, -x, +y, -y, +z, -z or [x, y, z]", s);
+        v[k / 2] = (k % 2) ? -1.0 : 1.0;
+    } else if (vn->type == YAML_SEQUENCE_NODE) {
+        if (sooc_yseq_len(vn) != 3) return bad(p, vn, key, "expected 3 numbers", NULL);
+        for (int i = 0; i < 3; i++) {
+            sooc_status st = get_num(p, sooc_yseq_item(p->d, vn, i), key, -1e6, 1e6, &v[i]);
+            if (st) return st;
+        }
+        if (sooc_v3_normalize(v) < 1e-9) return bad(p, vn, key, "zero vector", NULL);
+    } else {
+        return bad(p, vn, key, "expected an axis or [x, y, z]", NULL);
+    }
+    memcpy(c->up, v, sizeof v);
+    c->up_given = 1;
+    return SOOC_OK;
+}
+
+static sooc_status f_world_floor(pctx *p, const char *key, yaml_node_t *vn, sooc_node_config *c) {
+    const char *s = "";
+    sooc_status st = get_scalar(p, vn, key, &s);
+    if (st) return st;
+    if (!strcmp(s, "estimate")) {
+        c->floor_mode = SOOC_NODE_FLOOR_ESTIMATE;
+        return SOOC_OK;
+    }
+    double x;
+    if (!parse_num(s, &x)) return bad(p, vn, key, "expected a height in metres or 'estimate'", s);
+    c->floor_mode = SOOC_NODE_FLOOR_GIVEN;
+    c->floor_height = x;
+    return SOOC_OK;
+}
+
+static sooc_status f_log_level(pctx *p, const char *key, yaml_node_t *vn, sooc_node_config *c) {
+    const char *s = "";
+    sooc_status st = get_scalar(p, vn, key, &s);
+    if (st) return st;
+    if (sooc_log_level_parse(s, &c->log_level)) return bad(p, vn, key, "expected debug, info, warn or error", s);
+    return SOOC_OK;
+}
+
+/* How a key's value is read and where it goes (a field of sooc_node_config). */
+typedef enum {
+    KV_NUM,      /* double in [lo, hi] */
+    KV_MS,       /* milliseconds in [lo, hi], stored as seconds (double) */
+    KV_INT,      /* int in [lo, hi] */
+    KV_U32,      /* uint32_t in [lo, hi] */
+    KV_U64,      /* uint64_t in [lo, hi] */
+    KV_BOOL,     /* int 0/1 */
+    KV_STR,      /* char[], non-empty */
+    KV_STR0,     /* char[], may be empty */
+    KV_CHOICE,   /* int or enum field: index of the value in choices "a|b|c" */
+    KV_FN        /* fn reads and checks it */
+} kv_kind;
+
+typedef struct kspec {
+    const char *section, *key;
+    kv_kind kind;
+    size_t off, size;       /* the field's offsetof and sizeof */
+    double lo, hi;
+    const char *choices;
+    key_fn fn;
+} kspec;
+
+#define FIELD(f) offsetof(sooc_node_config, f), sizeof(((sooc_node_config *)0)->f)
+#define KV(sec, key, kind, f, lo, hi) {sec, key, kind, FIELD(f), lo, hi, NULL, NULL}
+#define KV_CH(sec, key, f, choices) {sec, key, KV_CHOICE, FIELD(f), 0, 0, choices, NULL}
+#define KV_F(sec, key, fn) {sec, key, KV_FN, 0, 0, 0, 0, NULL, fn}
+
+/* KV_CHOICE stores through an int lvalue: the enum fields must be int-sized. */
+_Static_assert(sizeof(sooc_node_pose_kind) == sizeof(int) && sizeof(sooc_node_depth_resample) == sizeof(int),
+               "enum fields read as int");
+
+/* Every key of every section but sensor (g_pspecs) and the top-level calib;
+ * "unknown key (known: ...)" lists a section's keys in this order. */
+static const kspec g_keys[] = {
+    KV_CH("pose", "source", pose_kind, "sensor|file|socket"),   /* order of sooc_node_pose_kind */
+    KV("pose", "path", KV_STR, pose_path, 0, 0),
+    KV("pose", "address", KV_STR, pose_path, 0, 0),
+    KV("pose", "tolerance_ms", KV_MS, pose_tolerance_s, 0, 10000),
+    KV_CH("pose", "frame", pose_is_effector, "camera|effector"),
+    KV("model", "path", KV_STR, model_path, 0, 0),
+    KV("model", "width", KV_INT, input_width, 0, 8192),
+    KV("model", "height", KV_INT, input_height, 0, 8192),
+    KV("model", "iterations", KV_INT, iterations, 0, 1000),
+    KV("model", "threads", KV_INT, threads, 0, 1024),
+    KV("model", "seed", KV_U64, seed, 0, 2147483647L),
+    KV_CH("model", "depth_resample", depth_resample, "min|nearest"),   /* order of sooc_node_depth_resample */
+    KV("keyframe", "translation_m", KV_NUM, kf_translation_m, 0, 1000),
+    KV("keyframe", "rotation_deg", KV_NUM, kf_rotation_deg, 0, 360),
+    KV("keyframe", "time_s", KV_NUM, kf_time_s, 0, 86400),
+    KV_F("shm", "name", f_shm_name),
+    KV("shm", "capacity", KV_U32, shm_capacity, 1, 1L << 20),
+    KV("shm", "unlink_on_exit", KV_BOOL, shm_unlink_on_exit, 0, 0),
+    KV("map", "db", KV_STR0, map_db, 0, 0),
+    KV("map", "resume", KV_BOOL, map_resume, 0, 0),
+    KV_F("world", "up", f_world_up),
+    KV_F("world", "floor", f_world_floor),
+    KV("world", "ransac_threshold_m", KV_NUM, floor_ransac_threshold_m, 1e-4, 1.0),
+    KV("world", "ransac_iterations", KV_INT, floor_ransac_iterations, 1, 100000),
+    KV("pipeline", "ring_capacity", KV_INT, ring_capacity, 1, 1024),
+    KV("pipeline", "block_when_full", KV_BOOL, block_when_full, 0, 0),
+    KV("pipeline", "stats_period_s", KV_NUM, stats_period_s, 0, 86400),
+    KV("pipeline", "min_depth_m", KV_NUM, min_depth_m, 0, 100),
+    KV("pipeline", "max_depth_m", KV_NUM, max_depth_m, 0, 1000),
+    KV_F("log", "level", f_log_level),
+};
+#define N_KEYS (sizeof g_keys / sizeof *g_keys)
+
+#undef KV_F
+#undef KV_CH
+#undef KV
+#undef FIELD
+
+/* "expected a, b or c" from "a|b|c". */
+static void choices_what(const char *choices, char *what, size_t cap) {
+    size_t n = (size_t)snprintf(what, cap, "expected ");
+    for (const char *q = choices; *q && n < cap;) {
+        const char *e = strchr(q, '|');
+        size_t m = e ? (size_t)(e - q) : strlen(q);
+        const char *sep = q == choices ? "" : e ? ", " : " or ";
+        n += (size_t)snprintf(what + n, cap - n, "%s%.*s", sep, (int)m, q);
+        q = e ? e + 1 : q + m;
+    }
+}
+
+/* Reads one key of section p->section (a section of g_keys). */
+static sooc_status k_section(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
     sooc_node_config *c = u;
+    const kspec *k = NULL;
+    char what[512];
+    size_t n = (size_t)snprintf(what, sizeof what, "unknown key (known: ");
+    const char *sep = "";
+    for (size_t i = 0; i < N_KEYS; i++) {
+        if (strcmp(g_keys[i].section, p->section)) continue;
+        if (!strcmp(g_keys[i].key, key)) k = &g_keys[i];
+        if (n < sizeof what) n += (size_t)snprintf(what + n, sizeof what - n, "%s%s", sep, g_keys[i].key);
+        sep = ", ";
+    }
+    if (!k) {
+        if (n < sizeof what) snprintf(what + n, sizeof what - n, ")");
+        return unknown(p, kn, key, what);
+    }
+    char *dst = (char *)c + k->off;
+    sooc_status st = SOOC_OK;
+    double x;
     long li;
-    sooc_status st;
-    if (!strcmp(key, "path")) return get_str(p, vn, key, c->model_path, sizeof c->model_path, 0);
-    if (!strcmp(key, "width") || !strcmp(key, "height")) {
-        if ((st = get_int(p, vn, key, 0, 8192, &li))) return st;
-        if (key[0] == 'w') c->input_width = (int)li;
-        else c->input_height = (int)li;
+    switch (k->kind) {
+    case KV_NUM: return get_num(p, vn, key, k->lo, k->hi, (double *)dst);
+    case KV_MS:
+        if ((st = get_num(p, vn, key, k->lo, k->hi, &x))) return st;
+        *(double *)dst = x * 1e-3;
         return SOOC_OK;
-    }
-    if (!strcmp(key, "iterations")) {
-        if ((st = get_int(p, vn, key, 0, 1000, &li))) return st;
-        c->iterations = (int)li;
+    case KV_INT: case KV_U32: case KV_U64:
+        if ((st = get_int(p, vn, key, (long)k->lo, (long)k->hi, &li))) return st;
+        if (k->kind == KV_INT) *(int *)dst = (int)li;
+        else if (k->kind == KV_U32) *(uint32_t *)dst = (uint32_t)li;
+        else *(uint64_t *)dst = (uint64_t)li;
         return SOOC_OK;
-    }
-    if (!strcmp(key, "threads")) {
-        if ((st = get_int(p, vn, key, 0, 1024, &li))) return st;
-        c->threads = (int)li;
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "seed")) {
-        if ((st = get_int(p, vn, key, 0, 2147483647L, &li))) return st;
-        c->seed = (uint64_t)li;
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "depth_resample")) {
+    case KV_BOOL: return get_bool(p, vn, key, (int *)dst);
+    case KV_STR: case KV_STR0: return get_str(p, vn, key, dst, k->size, k->kind == KV_STR0);
+    case KV_CHOICE: {
         const char *s = "";
         if ((st = get_scalar(p, vn, key, &s))) return st;
-        if (!strcmp(s, "min")) c->depth_resample = SOOC_NODE_DEPTH_MIN;
-        else if (!strcmp(s, "nearest")) c->depth_resample = SOOC_NODE_DEPTH_NEAREST;
-        else return bad(p, vn, key, "expected min or nearest", s);
-        return SOOC_OK;
-    }
-    return unknown(p, kn, key,
-                   "unknown key (known: path, width, height, iterations, threads, seed, depth_resample)");
-}
-
-static sooc_status k_keyframe(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    if (!strcmp(key, "translation_m")) return get_num(p, vn, key, 0, 1000, &c->kf_translation_m);
-    if (!strcmp(key, "rotation_deg")) return get_num(p, vn, key, 0, 360, &c->kf_rotation_deg);
-    if (!strcmp(key, "time_s")) return get_num(p, vn, key, 0, 86400, &c->kf_time_s);
-    return unknown(p, kn, key, "unknown key (known: translation_m, rotation_deg, time_s)");
-}
-
-static sooc_status k_shm(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    sooc_status st;
-    if (!strcmp(key, "name")) {
-        if ((st = get_str(p, vn, key, c->shm_name, sizeof c->shm_name, 1))) return st;
-        for (const char *q = c->shm_name; *q; q++)
-            if (!isalnum((unsigned char)*q) && *q != '_' && *q != '-' && *q != '.')
-                return bad(p, vn, key, "only letters, digits, '_', '-' and '.' are allowed", c->shm_name);
-        if (strlen(c->shm_name) > 40) return bad(p, vn, key, "at most 40 characters", c->shm_name);
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "capacity")) {
-        long li;
-        if ((st = get_int(p, vn, key, 1, 1L << 20, &li))) return st;
-        c->shm_capacity = (uint32_t)li;
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "unlink_on_exit")) return get_bool(p, vn, key, &c->shm_unlink_on_exit);
-    return unknown(p, kn, key, "unknown key (known: name, capacity, unlink_on_exit)");
-}
-
-static sooc_status k_map(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    if (!strcmp(key, "db")) return get_str(p, vn, key, c->map_db, sizeof c->map_db, 1);
-    if (!strcmp(key, "resume")) return get_bool(p, vn, key, &c->map_resume);
-    return unknown(p, kn, key, "unknown key (known: db, resume)");
-}
-
-static sooc_status k_world(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    sooc_status st;
-    const char *s = "";
-    if (!strcmp(key, "up")) {
-        double v[3] = {0, 0, 0};
-        if (vn->type == YAML_SCALAR_NODE) {
-            s = (const char *)vn->data.scalar.value;
-            static const char *ax[] = {"+x", "-x", "+y", "-y", "+z", "-z"};
-            int k = -1;
-            for (int i = 0; i < 6; i++)
-                if (!strcmp(s, ax[i]) || (s[0] == ax[i][1] && !s[1] && ax[i][0] == '+')) k = i;
-            if (k < 0) return bad(p, vn, key, "expected +x, -x, +y, -y, +z, -z or [x, y, z]", s);
-            v[k / 2] = (k % 2) ? -1.0 : 1.0;
-        } else if (vn->type == YAML_SEQUENCE_NODE) {
-            int n = (int)(vn->data.sequence.items.top - vn->data.sequence.items.start);
-            if (n != 3) return bad(p, vn, key, "expected 3 numbers", NULL);
-            for (int i = 0; i < 3; i++) {
-                yaml_node_t *e = yaml_document_get_node(p->doc, vn->data.sequence.items.start[i]);
-                if ((st = get_num(p, e, key, -1e6, 1e6, &v[i]))) return st;
+        const char *q = k->choices;
+        for (int i = 0;; i++) {
+            const char *e = strchr(q, '|');
+            size_t m = e ? (size_t)(e - q) : strlen(q);
+            if (strlen(s) == m && !strncmp(q, s, m)) {
+                *(int *)dst = i;
+                return SOOC_OK;
             }
-            if (sooc_v3_normalize(v) < 1e-9) return bad(p, vn, key, "zero vector", NULL);
-        } else {
-            return bad(p, vn, key, "expected an axis or [x, y, z]", NULL);
+            if (!e) break;
+            q = e + 1;
         }
-        memcpy(c->up, v, sizeof v);
-        c->up_given = 1;
-        return SOOC_OK;
+        char what[256];
+        choices_what(k->choices, what, sizeof what);
+        return bad(p, vn, key, what, s);
     }
-    if (!strcmp(key, "floor")) {
-        if ((st = get_scalar(p, vn, key, &s))) return st;
-        if (!strcmp(s, "estimate")) {
-            c->floor_mode = SOOC_NODE_FLOOR_ESTIMATE;
-            return SOOC_OK;
-        }
-        double x;
-        if (!parse_num(s, &x)) return bad(p, vn, key, "expected a height in metres or 'estimate'", s);
-        c->floor_mode = SOOC_NODE_FLOOR_GIVEN;
-        c->floor_height = x;
-        return SOOC_OK;
+    case KV_FN: return k->fn(p, key, vn, c);
     }
-    if (!strcmp(key, "ransac_threshold_m")) return get_num(p, vn, key, 1e-4, 1.0, &c->floor_ransac_threshold_m);
-    if (!strcmp(key, "ransac_iterations")) {
-        long li;
-        if ((st = get_int(p, vn, key, 1, 100000, &li))) return st;
-        c->floor_ransac_iterations = (int)li;
-        return SOOC_OK;
-    }
-    return unknown(p, kn, key, "unknown key (known: up, floor, ransac_threshold_m, ransac_iterations)");
-}
-
-static sooc_status k_pipeline(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    sooc_status st;
-    if (!strcmp(key, "ring_capacity")) {
-        long li;
-        if ((st = get_int(p, vn, key, 1, 1024, &li))) return st;
-        c->ring_capacity = (int)li;
-        return SOOC_OK;
-    }
-    if (!strcmp(key, "block_when_full")) return get_bool(p, vn, key, &c->block_when_full);
-    if (!strcmp(key, "stats_period_s")) return get_num(p, vn, key, 0, 86400, &c->stats_period_s);
-    if (!strcmp(key, "min_depth_m")) return get_num(p, vn, key, 0, 100, &c->min_depth_m);
-    if (!strcmp(key, "max_depth_m")) return get_num(p, vn, key, 0, 1000, &c->max_depth_m);
-    return unknown(p, kn, key, "unknown key (known: ring_capacity, block_when_full, stats_period_s, min_depth_m, max_depth_m)");
-}
-
-static sooc_status k_log(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
-    sooc_node_config *c = u;
-    if (!strcmp(key, "level")) {
-        const char *s = "";
-        sooc_status st = get_scalar(p, vn, key, &s);
-        if (st) return st;
-        if (sooc_log_level_parse(s, &c->log_level)) return bad(p, vn, key, "expected debug, info, warn or error", s);
-        return SOOC_OK;
-    }
-    return unknown(p, kn, key, "unknown key (known: level)");
+    return SOOC_OK;
 }
 
 static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t *vn, void *u) {
@@ -517,19 +521,10 @@ static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t
     pctx q = *p;
     q.section = key;
     if (!strcmp(key, "sensor")) return sec_sensor(&q, vn, c);
-    if (!strcmp(key, "pose")) return walk_map(&q, vn, key, k_pose, c);
-    if (!strcmp(key, "model")) return walk_map(&q, vn, key, k_model, c);
-    if (!strcmp(key, "keyframe")) return walk_map(&q, vn, key, k_keyframe, c);
-    if (!strcmp(key, "shm")) return walk_map(&q, vn, key, k_shm, c);
-    if (!strcmp(key, "map")) return walk_map(&q, vn, key, k_map, c);
-    if (!strcmp(key, "world")) return walk_map(&q, vn, key, k_world, c);
-    if (!strcmp(key, "pipeline")) return walk_map(&q, vn, key, k_pipeline, c);
-    if (!strcmp(key, "log")) return walk_map(&q, vn, key, k_log, c);
-    if (!strcmp(key, "calib")) {
-        q.section = NULL;
-        return get_str(&q, vn, key, c->calib_path, sizeof c->calib_path, 1);
-    }
+    for (size_t i = 0; i < N_KEYS; i++)
+        if (!strcmp(key, g_keys[i].section)) return walk_map(&q, vn, key, k_section, c);
     q.section = NULL;
+    if (!strcmp(key, "calib")) return get_str(&q, vn, key, c->calib_path, sizeof c->calib_path, 1);
     return unknown(&q, kn, key,
                    "unknown key (known: sensor, pose, calib, model, keyframe, shm, map, world, pipeline, log)");
 }
@@ -537,36 +532,11 @@ static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t
 sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t n, const char *name) {
     sooc_node_config_default(c);
     snprintf(c->path, sizeof c->path, "%s", name);
-    /* libyaml refuses OpenCV's "%YAML:1.0" header line: skip it (node.md finding 6). */
-    if (n >= 6 && !strncmp(text, "%YAML:", 6)) {
-        const char *nl = memchr(text, '\n', n);
-        size_t skip = nl ? (size_t)(nl - text) : n;
-        /* keep line numbers: replace by a comment of equal length */
-        char *t = sooc_malloc(n + 1);
-        if (!t) return SOOC_ENOMEM;
-        memcpy(t, text, n);
-        t[n] = 0;
-        t[0] = '#';
-        (void)skip;
-        sooc_status st = sooc_node_config_parse(c, t, n, name);
-        sooc_free(t);
-        return st;
-    }
-    yaml_parser_t parser;
-    yaml_document_t doc;
-    if (!yaml_parser_initialize(&parser)) return sooc_seterr(SOOC_ENOMEM, "%s: yaml parser init failed", name);
-    yaml_parser_set_input_string(&parser, (const unsigned char *)text, n);
-    if (!yaml_parser_load(&parser, &doc)) {
-        sooc_status st = sooc_seterr(SOOC_EFORMAT, "%s:%d: YAML error: %s%s%s", name,
-                                     (int)parser.problem_mark.line + 1,
-                                     parser.problem ? parser.problem : "parse error",
-                                     parser.context ? " " : "", parser.context ? parser.context : "");
-        yaml_parser_delete(&parser);
-        return st;
-    }
-    sooc_status st = SOOC_OK;
-    yaml_node_t *root = yaml_document_get_root_node(&doc);
-    pctx p = {&doc, name, NULL};
+    sooc_ydoc d;
+    sooc_status st = sooc_ydoc_parse(&d, text, n, name);   /* also skips OpenCV's "%YAML:1.0" (node.md finding 6) */
+    if (st) return st;
+    yaml_node_t *root = sooc_ydoc_root(&d);
+    pctx p = {&d, name, NULL};
     if (!root) st = sooc_seterr(SOOC_EINVAL, "%s: empty launch file", name);
     else st = walk_map(&p, root, "launch file", k_root, c);
     if (!st && !c->driver[0])
@@ -587,8 +557,7 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
     if (!st && strcmp(c->driver, "replay") && c->pose_kind == SOOC_NODE_POSE_SENSOR)
         st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: live driver '%s' carries no poses; use file or socket",
                          name, c->driver);
-    yaml_document_delete(&doc);
-    yaml_parser_delete(&parser);
+    sooc_ydoc_free(&d);
     return st;
 }
 
