@@ -81,24 +81,39 @@ static void ln_inplace(float *x, int n) {
     for (int i = 0; i < n; i++) x[i] = (x[i] - mean) * inv;
 }
 
-/* LN over channels [c0, c0 + nc) of item b (all pixels), image layout [c][B][HW]. */
+/* LN over channels [c0, c0 + nc) of item b (all pixels), image layout [c][B][HW].
+ * Sums in double with 8 independent partial sums (vectorisable; the order is fixed). */
 static void ln_img(float *img, int B, int HW, int b, int c0, int nc) {
-    double s = 0, s2 = 0;
+    double s8[8] = {0}, q8[8] = {0};
     int n = nc * HW;
-    for (int c = c0; c < c0 + nc; c++)
-        for (int i = 0; i < HW; i++) s += img[((size_t)c * B + b) * HW + i];
+    for (int c = c0; c < c0 + nc; c++) {
+        const float *restrict v = img + ((size_t)c * B + b) * HW;
+        int i = 0;
+        for (; i + 8 <= HW; i += 8)
+            for (int u = 0; u < 8; u++) s8[u] += v[i + u];
+        for (; i < HW; i++) s8[0] += v[i];
+    }
+    double s = ((s8[0] + s8[4]) + (s8[1] + s8[5])) + ((s8[2] + s8[6]) + (s8[3] + s8[7]));
     float mean = (float)(s / n);
-    for (int c = c0; c < c0 + nc; c++)
-        for (int i = 0; i < HW; i++) {
-            float v = img[((size_t)c * B + b) * HW + i] - mean;
-            s2 += (double)v * v;
+    for (int c = c0; c < c0 + nc; c++) {
+        const float *restrict v = img + ((size_t)c * B + b) * HW;
+        int i = 0;
+        for (; i + 8 <= HW; i += 8)
+            for (int u = 0; u < 8; u++) {
+                double d = v[i + u] - mean;
+                q8[u] += d * d;
+            }
+        for (; i < HW; i++) {
+            double d = v[i] - mean;
+            q8[0] += d * d;
         }
+    }
+    double s2 = ((q8[0] + q8[4]) + (q8[1] + q8[5])) + ((q8[2] + q8[6]) + (q8[3] + q8[7]));
     float inv = 1.0f / ((float)sqrt(s2 / n) + 1e-5f);
-    for (int c = c0; c < c0 + nc; c++)
-        for (int i = 0; i < HW; i++) {
-            float *v = &img[((size_t)c * B + b) * HW + i];
-            *v = (*v - mean) * inv;
-        }
+    for (int c = c0; c < c0 + nc; c++) {
+        float *restrict v = img + ((size_t)c * B + b) * HW;
+        for (int i = 0; i < HW; i++) v[i] = (v[i] - mean) * inv;
+    }
 }
 
 void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
