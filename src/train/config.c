@@ -101,14 +101,15 @@ static sooc_status parse_num(const char *file, int line, const char *key, const 
 }
 
 /* Applies the pairs of mapping `map` to the fields of `base`; at the top
- * level (allow_model) a `model:` mapping goes to mc. Later duplicate keys
- * override earlier ones (not checked, unlike the other loaders). */
+ * level (allow_model) a `model:` mapping goes to mc. A repeated key is an
+ * error naming both lines (YAML forbids them; silently taking the later one
+ * hid typos in long configs). */
 static sooc_status apply_mapping(sooc_ydoc *d, yaml_node_t *map, const field *fields, int nf, void *base,
                                  sooc_model_config *mc, int allow_model) {
     const char *file = d->name;
     for (yaml_node_pair_t *pr = map->data.mapping.pairs.start; pr < map->data.mapping.pairs.top; pr++) {
         sooc_ypair kv;
-        sooc_status s = sooc_ymap_pair(d, map, pr, allow_model ? NULL : "model", 0, &kv);
+        sooc_status s = sooc_ymap_pair(d, map, pr, allow_model ? NULL : "model", 1, &kv);
         if (s) return s;
         yaml_node_t *v = kv.v;
         const char *key = kv.key;

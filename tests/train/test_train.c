@@ -31,6 +31,8 @@ static void test_config(void) {
     CHECK_CLOSE(c.lr, 1e-3, 1e-9, 0);
     static const struct { const char *text, *needle; } bad[] = {
         {"steps: 10\nbogus: 1\n", "unknown key 'bogus'"},
+        {"steps: 10\nlr: 1e-3\nsteps: 20\n", "duplicate key (first given at line 1)"},
+        {"model:\n  K: 5\n  K: 6\n", "duplicate key"},
         {"steps: ten\n", "steps"},
         {"lr: 5\n", "outside"},
         {"steps: 1.5\n", "integer"},
