@@ -371,7 +371,11 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             break;
         }
     }
-    if (rp->progress) sooc_progress_end(&prog, extra);
+    if (rp->progress) {
+        /* stopped early (signal, --max-seconds): the last line shows the steps done, not 100% */
+        if (tr.st.step < cfg->steps) prog.total = (uint64_t)(tr.st.step - step0);
+        sooc_progress_end(&prog, extra);
+    }
 done:
     sooc_free(blob);
     trainer_free(&tr);
