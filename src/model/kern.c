@@ -128,6 +128,29 @@ static TGT AI void k16f(int MR, int K, const float *A, int lda, const float *B, 
     }
 }
 
+/* MR rows x up to 8 columns (one masked vector): narrow panels (the last columns of an
+ * odd-width layer, the 2x2 outputs of the last conv). */
+static TGT AI void k8(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                      const float *bias, int acc, int ep, const float *mask, int ldm, __m256i m0) {
+    __m256 c0[12];
+#pragma GCC unroll 12
+    for (int r = 0; r < MR; r++)
+        c0[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc, m0) : bias ? _mm256_maskload_ps(bias, m0) : _mm256_setzero_ps();
+    for (int k = 0; k < K; k++) {
+        __m256 b0 = _mm256_maskload_ps(B + (size_t)k * ldb, m0);
+#pragma GCC unroll 12
+        for (int r = 0; r < MR; r++) c0[r] = _mm256_fmadd_ps(_mm256_broadcast_ss(A + (size_t)r * lda + k), b0, c0[r]);
+    }
+    const __m256 z = _mm256_setzero_ps();
+#pragma GCC unroll 12
+    for (int r = 0; r < MR; r++) {
+        if (ep == MDL_EP_RELU) c0[r] = _mm256_max_ps(c0[r], z);
+        else if (ep == MDL_EP_MASK)
+            c0[r] = _mm256_and_ps(c0[r], _mm256_cmp_ps(_mm256_maskload_ps(mask + (size_t)r * ldm, m0), z, _CMP_GT_OQ));
+        _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
+    }
+}
+
 static TGT void gemm_avx2(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
                           const float *bias, int acc, int ep, const float *mask, int ldm) {
     /* column panels outermost: a K x 16 panel of B stays in L1 while all rows stream past */
@@ -135,7 +158,21 @@ static TGT void gemm_avx2(int M, int N, int K, const float *A, int lda, const fl
         int nr = N - j < 16 ? N - j : 16;
         const float *Bj = B + j, *bj = bias ? bias + j : NULL, *mj = mask ? mask + j : NULL;
         float *Cj = C + j;
-        if (nr == 16) {
+        if (nr <= 8) {
+            int32_t lane[8];
+            for (int t = 0; t < 8; t++) lane[t] = t < nr ? -1 : 0;
+            __m256i m0 = _mm256_loadu_si256((const __m256i *)lane);
+            int i = 0;
+            for (; i + 12 <= M; i += 12)
+                k8(12, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, bj, acc, ep,
+                   mj ? mj + (size_t)i * ldm : NULL, ldm, m0);
+            for (; i + 4 <= M; i += 4)
+                k8(4, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, bj, acc, ep,
+                   mj ? mj + (size_t)i * ldm : NULL, ldm, m0);
+            for (; i < M; i++)
+                k8(1, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, bj, acc, ep,
+                   mj ? mj + (size_t)i * ldm : NULL, ldm, m0);
+        } else if (nr == 16) {
             int i = 0;
             for (; i + 6 <= M; i += 6)
                 k16f(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, bj, acc, ep,
