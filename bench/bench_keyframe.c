@@ -2,7 +2,7 @@
  * pad -> L refinement iterations -> register) at 64x64, K = 7, L = 3, 2
  * threads, through the public mapper API, and its ratio to the same update in
  * the PyTorch reference (bench/bench_keyframe_torch.py). JSON on the last line.
- *   bench_keyframe [--model M] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch]
+ *   bench_keyframe [--model M] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]
  *
  * The ratio is measured in interleaved rounds so that it is robust to the
  * load of other jobs on a shared machine: the PyTorch reference runs as one
@@ -13,7 +13,9 @@
  * (speedup_vs_torch) and minimum. median_ms / p99_ms are over all C updates.
  * Without --model a freshly initialised default-config model is used (the
  * cost does not depend on the weights). The camera path repeats every 64
- * frames so that every round sees the same kind of views. */
+ * frames so that every round sees the same kind of views. --dump F writes
+ * the final map entries as text (%.17g, one entry a line) to F, to compare
+ * results across builds and thread counts (identical files = bitwise equal). */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -37,6 +39,32 @@ static int cmpd(const void *a, const void *b) {
 static double median(double *v, int n) {
     qsort(v, n, sizeof(double), cmpd);
     return n ? v[n / 2] : -1.0;
+}
+
+/* The map entries as text, one a line, every number exact (%.17g). */
+static int dump_entries(const sooc3d_mapper *mp, const char *path) {
+    size_t ne = 0;
+    sooc3d_mapper_entries(mp, NULL, 0, &ne);
+    sooc_map_entry *e = calloc(ne ? ne : 1, sizeof *e);
+    FILE *f = fopen(path, "w");
+    int bad = !e || !f || sooc3d_mapper_entries(mp, e, ne, &ne);
+    for (size_t i = 0; !bad && i < ne; i++) {
+        fprintf(f, "%llu %.17g %.17g %.17g %.17g %.17g %.17g %.17g", (unsigned long long)e[i].id, e[i].x, e[i].z,
+                e[i].yaw, e[i].sigma_t, e[i].sigma_yaw, (double)e[i].presence, (double)e[i].presence_logit);
+        for (int j = 0; j < e[i].latent_dim; j++) fprintf(f, " %.17g %.17g", (double)e[i].what_mu[j], (double)e[i].what_logvar[j]);
+        fprintf(f, " %u\n", e[i].obs_count);
+    }
+    int dl = sooc3d_mapper_layout_dim(mp);
+    float mu[SOOC_MAP_LATENT_MAX], lv[SOOC_MAP_LATENT_MAX];
+    int32_t bi, bj;
+    if (!bad && dl > 0 && dl <= SOOC_MAP_LATENT_MAX && !sooc3d_mapper_last_layout(mp, &bi, &bj, mu, lv)) {
+        fprintf(f, "layout %d %d", (int)bi, (int)bj);
+        for (int j = 0; j < dl; j++) fprintf(f, " %.17g %.17g", (double)mu[j], (double)lv[j]);
+        fprintf(f, "\n");
+    }
+    if (f && fclose(f)) bad = 1;
+    free(e);
+    return bad;
 }
 
 /* The PyTorch reference as a persistent child: write "n\n", read one line. */
@@ -117,7 +145,7 @@ int main(int argc, char **argv) {
         setenv("OMP_WAIT_POLICY", "passive", 1);
         execv("/proc/self/exe", argv);
     }
-    const char *model = NULL;
+    const char *model = NULL, *dump = NULL;
     int rounds = 9, n = 12, tn = 6, threads = 2, torch = 1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
@@ -126,8 +154,9 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--tn") && i + 1 < argc) tn = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--threads") && i + 1 < argc) threads = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--no-torch")) torch = 0;
+        else if (!strcmp(argv[i], "--dump") && i + 1 < argc) dump = argv[++i];
         else {
-            fprintf(stderr, "usage: bench_keyframe [--model M] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch]\n");
+            fprintf(stderr, "usage: bench_keyframe [--model M] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]\n");
             return 2;
         }
     }
@@ -246,6 +275,7 @@ int main(int argc, char **argv) {
         printf("profile %-13s %7.3f ms/update (%4.1f%%)\n", "rest", (ptot - acc) / tot, 100 * (ptot - acc) / ptot);
     }
 #endif
+    if (dump && dump_entries(mp, dump)) return fprintf(stderr, "bench_keyframe: cannot write %s\n", dump), 1;
     sooc3d_mapper_destroy(mp);
     double tmed = -1, rmed = -1, rmin = -1;
     if (torch) {
