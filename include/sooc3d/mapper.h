@@ -103,6 +103,10 @@ typedef struct sooc3d_mapper_params {
     int iterations;            /* L refinement updates per keyframe; 0 = model default */
     uint64_t seed;             /* posterior sampling seed (results are deterministic)  */
     int threads;               /* 0 = OpenMP default                                   */
+    double d_clip;             /* > 0: clip depth in m instead of the model's trained one,
+                                  e.g. the depth sensor's usable range (deeper pixels are
+                                  "no surface up to d_clip", deeper objects out of view);
+                                  0 = the model's                                      */
 } sooc3d_mapper_params;
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p);

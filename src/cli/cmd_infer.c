@@ -15,7 +15,7 @@
 static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
-            "                    [--every K] [--max-frames N] [--no-render] [--samples N]\n\n"
+            "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
             "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
@@ -29,7 +29,8 @@ static void usage(FILE *f) {
             "  --seed        posterior sampling seed; results are deterministic for a seed (default 1)\n"
             "  --every       map every K-th input frame (default 1)\n"
             "  --max-frames  stop after N frames (default all)\n"
-            "  --samples     render samples per ray, coarse (default 96)\n");
+            "  --samples     render samples per ray, coarse (default 96)\n"
+            "  --clip        clip depth in m instead of the model's (e.g. the sensor's usable range)\n");
 }
 
 static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n) {
@@ -124,6 +125,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     }
     const char *model = NULL, *seq = NULL, *out = NULL;
     int iters = 0, threads = 0, every = 1, render = 1, samples = 96;
+    double clip = 0;
     long long maxf = -1;
     uint64_t seed = 1;
     for (int i = 1; i < argc; i++) {
@@ -133,6 +135,10 @@ int sooc_cmd_infer(int argc, char **argv) {
         else if (!strcmp(a, "--seq") && has) seq = argv[++i];
         else if (!strcmp(a, "--out") && has) out = argv[++i];
         else if (!strcmp(a, "--iterations") && has) iters = atoi(argv[++i]);
+        else if (!strcmp(a, "--clip") && has) {
+            clip = atof(argv[++i]);
+            if (!(clip > 0)) { fprintf(stderr, "sooc3d infer: --clip wants a depth > 0 in metres\n"); return 2; }
+        }
         else if (!strcmp(a, "--threads") && has) threads = atoi(argv[++i]);
         else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
         else if (!strcmp(a, "--every") && has) every = atoi(argv[++i]);
@@ -160,7 +166,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     if ((st = sooc_seq_open(&sq, seq, NULL))) return sooc_cli_fail("infer", st);
     sooc3d_mapper_params p;
     sooc3d_mapper_params_default(&p);
-    p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads;
+    p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
     int mw, mh;
     sooc3d_mapper_input_size(mp, &mw, &mh);
