@@ -74,6 +74,7 @@ typedef struct sooc_node_config {
     int iterations, threads;
     uint64_t seed;
     sooc_node_depth_resample depth_resample;
+    double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
 
     /* keyframe: */
     double kf_translation_m;                 /* default 0.10 */

@@ -74,6 +74,13 @@ static void test_launch(void) {
     CHECK_OK(sooc_node_config_parse(&c, est, strlen(est), "e.yaml"));
     CHECK(c.floor_mode == SOOC_NODE_FLOOR_ESTIMATE && c.up_given && fabs(c.up[2] - 1) < 1e-12);
 
+    /* model.clip_m: the sensor's range instead of the trained clip (0 = the model's) */
+    const char *clip = "sensor: {driver: replay, path: x}\nmodel:\n  clip_m: 4.5\n";
+    CHECK_OK(sooc_node_config_parse(&c, clip, strlen(clip), "c.yaml"));
+    CHECK_CLOSE(c.clip_m, 4.5, 0, 0);
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "clip_m: 4.5"));
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  clip_m: -1\n", "t.yaml:3", "model.clip_m");
+
     /* an OpenCV-style header line is tolerated */
     const char *ocv = "%YAML:1.0\n---\nsensor: {driver: replay, path: x}\n";
     CHECK_OK(sooc_node_config_parse(&c, ocv, strlen(ocv), "o.yaml"));
