@@ -736,12 +736,12 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
     int loff = merged ? nro : 0;   /* first scratch row of the layout rows */
     int nrt = merged ? nro + nrl : (nro > nrl ? nro : nrl);
     float *gsig = w->gC, *gcol = w->gC + (size_t)nrt;   /* gC has >= Rall*H >= 4 nrt floats */
-    /* transposed weights for the backward GEMMs after the first 4 Rall floats of gC
-     * (OpenBLAS on the untransposed weights when they do not fit, or without AVX2) */
+    /* transposed weights for the backward GEMMs (OpenBLAS on the untransposed weights
+     * without AVX2) */
     dec_wt wto, wtl;
     const dec_wt *pwo = NULL, *pwl = NULL;
-    if (mdl_kern_avx2() && H > 4 && wt_floats(no, 1) + wt_floats(nl, 0) <= (size_t)(H - 4) * Rall) {
-        float *q = wt_build(p, no, 1, w->gC + 4 * Rall, &wto);
+    if (mdl_kern_avx2() && wt_floats(no, 1) + wt_floats(nl, 0) <= w->nwt) {
+        float *q = wt_build(p, no, 1, w->wt, &wto);
         wt_build(p, nl, 0, q, &wtl);
         pwo = &wto, pwl = &wtl;
     }

@@ -436,6 +436,9 @@ sooc_status mdl_alloc_ws(sooc_model *m) {
     w->nthr = 8;
     A(tbuf, (size_t)w->nthr * (w->dec_np + (size_t)C * H + 3 * (size_t)K), float);
     A(g_bias, (size_t)C * H, float);
+    /* transposed W2, W3, Wc1 of both decoders and W1x of the object decoder */
+    w->nwt = (size_t)H * (2 * H + c->dec_color_width) * 2 + (size_t)H * m->dobj.din;
+    A(wt, w->nwt, float);
 #undef A
     /* refinement scratch */
     ref_ws *r = &m->rws;
@@ -449,6 +452,9 @@ sooc_status mdl_alloc_ws(sooc_model *m) {
 #define B(p, n) if (!(r->p = sooc_calloc((n), sizeof(float)))) return SOOC_ENOMEM
     B(cols, colmax);
     B(gcols, colmax);
+    r->ncols = colmax;
+    r->ysh_ch = c->ref_ch[0];
+    B(ysh, (size_t)2 * c->ref_ch[0] * (gw / 2) * (gh / 2));
     for (int i = 0; i < 4; i++) B(gy[i], (size_t)c->ref_ch[i] * K * (gw >> (i + 1)) * (gh >> (i + 1)));
     int hid = c->ref_hidden;
     B(gflat, (size_t)K * m->robj.nflat);
@@ -465,7 +471,7 @@ void mdl_free_ws(sooc_model *m) {
     float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
                     &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
                     &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
-                    &w->g_bias};
+                    &w->g_bias, &w->wt};
     for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) {
         sooc_free(*fp[i]);
         *fp[i] = NULL;
@@ -478,7 +484,7 @@ void mdl_free_ws(sooc_model *m) {
     w->ro_pt = w->ro_slot = w->rowof = w->lr_pt = NULL;
     w->tbuf = NULL;
     ref_ws *r = &m->rws;
-    float **rp[] = {&r->cols, &r->gcols, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
+    float **rp[] = {&r->cols, &r->gcols, &r->ysh, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
                     &r->gg, &r->gh};
     for (size_t i = 0; i < sizeof rp / sizeof rp[0]; i++) {
         sooc_free(*rp[i]);

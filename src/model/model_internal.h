@@ -82,6 +82,8 @@ typedef struct dec_ws {
     size_t dec_np;                /* decoder parameters: slab offsets [0, dec_np) */
     int nthr;
     float *slot_bias;             /* (K+1) x H */
+    float *wt;                    /* nwt: transposed decoder weights for the backward GEMMs */
+    size_t nwt;
     float *g_bias;                /* (K+1) x H */
 } dec_ws;
 
@@ -111,6 +113,8 @@ typedef struct dec_call {
 /* Refinement activations for one (view, iteration), B items. */
 typedef struct ref_act {
     int B;
+    int nsh;                      /* leading input channels shared by every item, stored for
+                                     item 0 only (the backward fills the other copies); 0 = none */
     float *x0;                    /* B x cin x gh x gw  (stored as [c][b][hw]) */
     float *y[4];                  /* conv outputs [c][b][hw] (post-ELU)        */
     float *flat, *f;              /* B x nflat, B x fc (post-ELU)              */
@@ -121,6 +125,9 @@ typedef struct ref_act {
 
 typedef struct ref_ws {           /* scratch for conv forward/backward */
     float *cols, *gcols, *gy[4], *gflat, *gf, *gx, *gg, *gh;
+    size_t ncols;                 /* floats in cols (and gcols): per-thread slices in the forward */
+    float *ysh;                   /* 2 x ysh_ch x (gw gh / 4): first-conv share of the shared channels */
+    int ysh_ch;
 } ref_ws;
 
 struct sooc_model {
@@ -196,8 +203,15 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
                     float *img_o, float *vec_o, float *img_l, float *vec_l);
 sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a);
 void mdl_ref_act_free(ref_act *a);
-/* forward: a->x0 and the vector part of a->xin must be filled; h_prev/c_prev too. out: B x nout */
+/* forward: a->x0 (and a->nsh) and the vector part of a->xin must be filled; h_prev/c_prev too. out: B x nout */
 void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out);
+/* Two nets' forwards in one parallel pass (the object and the layout refinement: their
+ * items split across the threads together). n1 / a1 / out1 NULL: one net. */
+void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
+                      float *out1, int gw, int gh);
+/* Leading object-image aux channels that are the same for every slot (colour, depth,
+ * beyond-clip flag, ray direction): mdl_aux_inputs writes them for slot 0 only. */
+#define MDL_AUX_NSH 8
 /* backward: gout B x nout; dh/dc: in = from the next iteration, out = to the previous.
  * gvec (B x nvec) receives d/d(vector inputs) (+=). Weight grads accumulated. */
 void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh,

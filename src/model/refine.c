@@ -172,9 +172,10 @@ MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR
         float cth = lay ? 1.0f : cosf(c->zw[b][2]), sth = lay ? 0.0f : sinf(c->zw[b][2]);
 #define CH(ch) (img + ((size_t)(ch) * B + b) * N)
         /* Each channel is written by its own loop over rays: the channels of one item are
-         * N floats (4 KB) apart, so writing all 26 per ray thrashes L1 associativity. */
-        if (!lay)
-            for (int ch = 0; ch < 8; ch++) memcpy(CH(ch), img_l + (size_t)ch * N, (size_t)N * sizeof(float));
+         * N floats (4 KB) apart, so writing all 26 per ray thrashes L1 associativity.
+         * The shared leading channels are stored for slot 0 only (ref_act.nsh). */
+        if (!lay && b == 0)
+            for (int ch = 0; ch < MDL_AUX_NSH; ch++) memcpy(CH(ch), img_l + (size_t)ch * N, (size_t)N * sizeof(float));
         int o = 8;
         /* surface point in the component frame */
         if (!lay) {
@@ -391,70 +392,37 @@ static void col2im(const float *cols, int Ci, int B, int Hi, int Wi, float *gx) 
             }
 }
 
-void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
-    const float *p = m->p;
+/* The four conv layers of item b of a (on the calling thread; ct: its column scratch).
+ * The first a->nsh input channels are stored once (item 0) and their share of the first
+ * convolution is in ysh (ch[0] x HW1): the item's own channels are accumulated onto it
+ * (the same FMA chain over k as the full product with the AVX2 kernel). */
+static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const float *ysh, float *ct, int gw, int gh) {
+    int B = a->B, nsh = ysh ? a->nsh : 0;
+    const float *x = a->x0;
+    int Ci = n->cin, Hi = gh, Wi = gw;
+    for (int i = 0; i < 4; i++) {
+        int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, ldy = B * HWo;
+        float *y = a->y[i] + (size_t)b * HWo;
+        if (i == 0 && nsh > 0) {
+            for (int co = 0; co < Co; co++) memcpy(y + (size_t)co * ldy, ysh + (size_t)co * HWo, HWo * sizeof(float));
+            im2col(x + (size_t)nsh * B * Hi * Wi, Ci - nsh, B, b, b + 1, Hi, Wi, ct);
+            mdl_gemm(Co, HWo, (Ci - nsh) * 9, p + n->cw[i] + nsh * 9, Ci * 9, ct, HWo, y, ldy, NULL, 1, MDL_EP_NONE, NULL,
+                     0);
+        } else {
+            im2col(x, Ci, B, b, b + 1, Hi, Wi, ct);
+            mdl_gemm(Co, HWo, Ci * 9, p + n->cw[i], Ci * 9, ct, HWo, y, ldy, NULL, 0, MDL_EP_NONE, NULL, 0);
+        }
+        for (int co = 0; co < Co; co++) elu_bias_rows(y + (size_t)co * ldy, (size_t)HWo, p[n->cb[i] + co]);
+        x = a->y[i];
+        Ci = Co, Hi = Ho, Wi = Wo;
+    }
+}
+
+/* FC + ELU, LSTM cell and linear head of every item of a (serial). */
+static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int gh, float *out, int prof) {
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
-    int nt = 1;
-#ifdef SOOC_HAVE_OPENMP
-    nt = m->threads > 0 ? m->threads : omp_get_max_threads();
-#endif
-    if (nt > B) nt = B;
     MDL_PT(tprof);
-    /* Leading input channels that are the same for every item (the colour, depth and ray
-     * channels of the object images): their share of the first convolution is computed
-     * once (into ysh) and every item's own channels are accumulated onto it. */
-    size_t HW = (size_t)gw * gh, HW1 = HW / 4;
-    int nsh = 0;
-    if (B > 1)
-        for (; nsh < n->cin; nsh++) {
-            const float *c0 = a->x0 + (size_t)nsh * B * HW;
-            int same = 1;
-            for (int b = 1; b < B && same; b++) same = !memcmp(c0, c0 + (size_t)b * HW, HW * sizeof(float));
-            if (!same) break;
-        }
-    if (nsh == n->cin || n->ch[0] > n->cin * 9 * B) nsh = 0;   /* all items identical, or ysh does not fit */
-    float *ysh = m->rws.gcols;    /* free during the forward; ch[0] x HW1 <= cin 9 B HW1 floats */
-    if (nsh > 0) {
-        im2col(a->x0, nsh, B, 0, 1, gh, gw, m->rws.cols);
-        mdl_gemm(n->ch[0], (int)HW1, nsh * 9, p + n->cw[0], n->cin * 9, m->rws.cols, (int)HW1, ysh, (int)HW1, NULL, 0,
-                 MDL_EP_NONE, NULL, 0);
-    }
-    /* Items are independent through the conv stack: each runs all four layers on one
-     * thread (dynamic schedule; thread t uses its own slice of the column scratch). */
-    size_t cstride = (size_t)n->cin * 9 * HW1;
-    for (int i = 1; i < 4; i++) {
-        size_t s = (size_t)n->ch[i - 1] * 9 * (HW >> (2 * (i + 1)));
-        if (s > cstride) cstride = s;
-    }
-MDL_OMP(omp parallel for num_threads(nt) schedule(dynamic, 1) if (nt > 1))
-    for (int b = 0; b < B; b++) {
-        int tid = 0;
-#ifdef SOOC_HAVE_OPENMP
-        tid = omp_get_thread_num();
-#endif
-        float *ct = m->rws.cols + (size_t)tid * cstride;
-        const float *x = a->x0;
-        int Ci = n->cin, Hi = gh, Wi = gw;
-        for (int i = 0; i < 4; i++) {
-            int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, ldy = B * HWo;
-            float *y = a->y[i] + (size_t)b * HWo;
-            if (i == 0 && nsh > 0) {
-                for (int co = 0; co < Co; co++) memcpy(y + (size_t)co * ldy, ysh + (size_t)co * HWo, HWo * sizeof(float));
-                im2col(x + (size_t)nsh * B * Hi * Wi, Ci - nsh, B, b, b + 1, Hi, Wi, ct);
-                mdl_gemm(Co, HWo, (Ci - nsh) * 9, p + n->cw[i] + nsh * 9, Ci * 9, ct, HWo, y, ldy, NULL, 1, MDL_EP_NONE,
-                         NULL, 0);
-            } else {
-                im2col(x, Ci, B, b, b + 1, Hi, Wi, ct);
-                mdl_gemm(Co, HWo, Ci * 9, p + n->cw[i], Ci * 9, ct, HWo, y, ldy, NULL, 0, MDL_EP_NONE, NULL, 0);
-            }
-            for (int co = 0; co < Co; co++) elu_bias_rows(y + (size_t)co * ldy, (size_t)HWo, p[n->cb[i] + co]);
-            x = a->y[i];
-            Ci = Co, Hi = Ho, Wi = Wo;
-        }
-    }
-    MDL_PACC(MDL_PR_CONV0, tprof);
-    int Ci = n->ch[3], Hi = gh >> 4, Wi = gw >> 4;
-    int HW4 = Hi * Wi;
+    int Ci = n->ch[3], HW4 = (gh >> 4) * (gw >> 4);
     for (int b = 0; b < B; b++)
         for (int c = 0; c < Ci; c++)
             for (int i = 0; i < HW4; i++) a->flat[(size_t)b * n->nflat + c * HW4 + i] = a->y[3][((size_t)c * B + b) * HW4 + i];
@@ -465,11 +433,11 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(dynamic, 1) if (nt > 1))
             a->f[(size_t)b * n->fc + j] = v;
             a->xin[(size_t)b * nin + j] = v;
         }
-    MDL_PACC(MDL_PR_FC, tprof);
+    if (prof) MDL_PACC(MDL_PR_FC, tprof);
     float *gt = a->gates;
     mdl_gemm(B, 4 * H, nin, a->xin, nin, p + n->Wx, 4 * H, gt, 4 * H, NULL, 0, MDL_EP_NONE, NULL, 0);
     mdl_gemm(B, 4 * H, H, a->h_prev, H, p + n->Wh, 4 * H, gt, 4 * H, NULL, 1, MDL_EP_NONE, NULL, 0);
-    MDL_PACC(MDL_PR_GATES, tprof);
+    if (prof) MDL_PACC(MDL_PR_GATES, tprof);
     for (int b = 0; b < B; b++) {
         float *g = gt + (size_t)b * 4 * H;
         for (int j = 0; j < H; j++) {
@@ -481,11 +449,77 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(dynamic, 1) if (nt > 1))
             a->h[(size_t)b * H + j] = go * tanhf(cc);
         }
     }
-    MDL_PACC(MDL_PR_LSTM, tprof);
+    if (prof) MDL_PACC(MDL_PR_LSTM, tprof);
     mdl_gemm(B, n->nout, H, a->h, H, p + n->hW, n->nout, out, n->nout, NULL, 0, MDL_EP_NONE, NULL, 0);
     for (int b = 0; b < B; b++)
         for (int j = 0; j < n->nout; j++) out[(size_t)b * n->nout + j] += p[n->hb + j];
-    MDL_PACC(MDL_PR_HEAD, tprof);
+    if (prof) MDL_PACC(MDL_PR_HEAD, tprof);
+}
+
+void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
+                      float *out1, int gw, int gh) {
+    const float *p = m->p;
+    const ref_net *nn[2] = {n0, n1};
+    ref_act *aa[2] = {a0, a1};
+    float *oo[2] = {out0, out1};
+    int nnet = n1 ? 2 : 1;
+    size_t HW = (size_t)gw * gh, HW1 = HW / 4;
+    MDL_PT(tprof);
+    /* shared leading channels: their share of the first convolution, once per net */
+    const float *ysh[2] = {NULL, NULL};
+    size_t cstride = 0;
+    int ntask = 0;
+    for (int q = 0; q < nnet; q++) {
+        const ref_net *n = nn[q];
+        ref_act *a = aa[q];
+        ntask += a->B;
+        if (a->nsh > 0 && a->nsh < n->cin && a->B > 1 && (size_t)n->ch[0] <= (size_t)m->rws.ysh_ch) {
+            float *y = m->rws.ysh + (size_t)q * m->rws.ysh_ch * HW1;
+            im2col(a->x0, a->nsh, a->B, 0, 1, gh, gw, m->rws.cols);
+            mdl_gemm(n->ch[0], (int)HW1, a->nsh * 9, p + n->cw[0], n->cin * 9, m->rws.cols, (int)HW1, y, (int)HW1, NULL,
+                     0, MDL_EP_NONE, NULL, 0);
+            ysh[q] = y;
+        }
+        size_t s = (size_t)n->cin * 9 * HW1;
+        for (int i = 1; i < 4; i++) {
+            size_t t = (size_t)n->ch[i - 1] * 9 * (HW >> (2 * (i + 1)));
+            if (t > s) s = t;
+        }
+        if (s > cstride) cstride = s;
+    }
+    int nt = 1;
+#ifdef SOOC_HAVE_OPENMP
+    nt = m->threads > 0 ? m->threads : omp_get_max_threads();
+#endif
+    if (nt > ntask) nt = ntask;
+    if ((size_t)nt * cstride > m->rws.ncols) nt = (int)(m->rws.ncols / cstride);
+    if (nt < 1) nt = 1;
+    /* Items are independent through the conv stack: each runs all four layers on one
+     * thread (dynamically scheduled, the second net's items first: the layout item has no
+     * shared channels and costs the most); then each net's FC/LSTM/head on one thread. */
+MDL_OMP(omp parallel num_threads(nt) if (nt > 1))
+    {
+        int tid = 0;
+#ifdef SOOC_HAVE_OPENMP
+        tid = omp_get_thread_num();
+#endif
+        float *ct = m->rws.cols + (size_t)tid * cstride;
+MDL_OMP(omp for schedule(dynamic, 1))
+        for (int t = 0; t < ntask; t++) {
+            int q = nnet - 1, b = t;
+            if (b >= aa[q]->B) b -= aa[q]->B, q = 0;
+            conv_item(p, nn[q], aa[q], b, ysh[q], ct, gw, gh);
+        }
+#ifdef MDL_PROFILE
+        if (tid == 0) MDL_PACC(MDL_PR_CONV0, tprof);
+#endif
+MDL_OMP(omp for schedule(dynamic, 1))
+        for (int q = 0; q < nnet; q++) ref_tail(p, nn[q], aa[q], gw, gh, oo[q], tid == 0);
+    }
+}
+
+void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
+    mdl_ref_forward2(m, n, a, out, NULL, NULL, NULL, gw, gh);
 }
 
 void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
@@ -550,6 +584,7 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
     Hs[0] = gh, Ws[0] = gw, Cs[0] = n->cin;
     for (int i = 0; i < 4; i++) Hs[i + 1] = Hs[i] / 2, Ws[i + 1] = Ws[i] / 2, Cs[i + 1] = n->ch[i];
     int HW4 = Hs[4] * Ws[4];
+    size_t HW = (size_t)gw * gh;
     for (int b = 0; b < B; b++)
         for (int c = 0; c < Cs[4]; c++)
             for (int i = 0; i < HW4; i++) s->gy[3][((size_t)c * B + b) * HW4 + i] = gflat[(size_t)b * n->nflat + c * HW4 + i];
@@ -559,6 +594,10 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
         const float *y = a->y[i];
         for (size_t j = 0; j < (size_t)Co * No; j++) gy[j] *= y[j] > 0 ? 1.0f : y[j] + 1.0f;
         const float *x = i ? a->y[i - 1] : a->x0;
+        if (i == 0)   /* shared leading channels stored for item 0 only: fill the other items' copies */
+            for (int c = 0; c < a->nsh; c++)
+                for (int b = 1; b < B; b++)
+                    memcpy(a->x0 + ((size_t)c * B + b) * HW, a->x0 + (size_t)c * B * HW, HW * sizeof(float));
         im2col(x, Ci, B, 0, B, Hs[i], Ws[i], s->cols);
         cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Ci * 9, No, 1.0f, gy, No, s->cols, No, 1.0f,
                     g + n->cw[i], Ci * 9);

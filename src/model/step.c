@@ -82,7 +82,7 @@ step_state *mdl_step_state(sooc_model *m, int T, int L) {
         S->gvec = sooc_calloc(nv, sizeof(float));
         S->dh = sooc_calloc((size_t)c->K * c->ref_hidden, sizeof(float));
         S->dc = sooc_calloc((size_t)c->K * c->ref_hidden, sizeof(float));
-        S->delta = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
+        S->delta = sooc_calloc((size_t)c->K * m->NL + 2 * c->d_layout, sizeof(float));   /* objects, layout */
         S->tmp0 = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
         S->tmpl0 = sooc_calloc(64, sizeof(float));
         S->gbak = sooc_calloc(m->np, sizeof(float));
@@ -316,6 +316,8 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
         int nvo = m->robj.nvec, fco = m->robj.fc, nvl = m->rlay.nvec, fcl = m->rlay.fc;
         if (!S->aux_replay) {
             mdl_aux_inputs(m, &dc, glam, glay, ao->x0, S->vec_o, al->x0, S->vec_l);
+            ao->nsh = K > 1 ? MDL_AUX_NSH : 0;
+            al->nsh = 0;
             for (int k = 0; k < K; k++)
                 memcpy(ao->xin + (size_t)k * (fco + nvo) + fco, S->vec_o + (size_t)k * nvo, nvo * sizeof(float));
             memcpy(al->xin + fcl, S->vec_l, nvl * sizeof(float));
@@ -334,15 +336,16 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
             memcpy(al->h_prev, V->al[l - 1].h, H * sizeof(float));
             memcpy(al->c_prev, V->al[l - 1].c, H * sizeof(float));
         }
-        mdl_ref_forward(m, &m->robj, ao, gw, gh, S->delta);
+        /* objects and layout in one pass (their conv items split across the threads together) */
+        float *dl_lay = S->delta + (size_t)c->K * NL;
+        mdl_ref_forward2(m, &m->robj, ao, S->delta, &m->rlay, al, dl_lay, gw, gh);
         float *nlam = lam + (size_t)K * NL, *nlay = lay + D2;
         for (int k = 0; k < K; k++)
             for (int i = 0; i < NL; i++) {
                 size_t j = (size_t)k * NL + i;
                 nlam[j] = lam[j] + bound_apply(S->delta[j], bound_scale_obj(i, c->d_what));
             }
-        mdl_ref_forward(m, &m->rlay, al, gw, gh, S->delta);
-        for (int i = 0; i < D2; i++) nlay[i] = lay[i] + bound_apply(S->delta[i], bound_scale_lay(i, dl));
+        for (int i = 0; i < D2; i++) nlay[i] = lay[i] + bound_apply(dl_lay[i], bound_scale_lay(i, dl));
     }
     return SOOC_OK;
 }
