@@ -487,6 +487,61 @@ static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
     if (x->ws != 0) gemm_tn_acc(nl->din, H, R, x->ws, w->l_pe + (size_t)b0 * nl->din, g1, tg + nl->W1x);
 }
 
+/* One fixed block of object or layout rows of the decoder forward (a pool task). */
+typedef struct fwd_job {
+    const sooc_model *m;
+    const view_rays *vr;
+    int nbo, nro, nrl;
+    float inv_o, inv_l;
+} fwd_job;
+
+static void fwd_task(void *ctx, int blk, int tid) {
+    const fwd_job *j = ctx;
+    const sooc_model *m = j->m;
+    const dec_ws *w = &m->ws;
+    const dec_net *no = &m->dobj, *nl = &m->dlay;
+    const view_rays *vr = j->vr;
+    const float *p = m->p;
+    int H = m->cfg.dec_width, nro = j->nro, nrl = j->nrl, nbo = j->nbo;
+    (void)tid;
+    if (blk < nbo) {
+        int r0 = blk * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nro ? r0 + MDL_DYN_ROWS : nro;
+        for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, j->inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
+        for (int r = r0; r < r1; r++)
+            memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
+        mdl_gemm(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, H, w->o_a1 + (size_t)r0 * H,
+                 H, NULL, 1, MDL_EP_RELU, NULL, 0);
+        tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
+                     w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
+    } else {
+        int r0 = (blk - nbo) * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nrl ? r0 + MDL_DYN_ROWS : nrl;
+        for (int r = r0; r < r1; r++) {
+            const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
+            float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
+            mdl_pe_row(xl, j->inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+        }
+        mdl_gemm(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, H, w->l_a1 + (size_t)r0 * H,
+                 H, w->slot_bias, 0, MDL_EP_RELU, NULL, 0);
+        tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
+                     w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, 1);
+    }
+}
+
+/* One fixed block of the decoder backward without weight gradients (a pool task). */
+typedef struct bwd_job {
+    const bwd_ctx *bx;
+    int nbo, no_, nl_;
+} bwd_job;
+
+static void bwd_task(void *ctx, int blk, int tid) {
+    const bwd_job *j = ctx;
+    (void)tid;
+    int b0 = (blk < j->nbo ? blk : blk - j->nbo) * MDL_DYN_ROWS, n = blk < j->nbo ? j->no_ : j->nl_;
+    int R = n - b0 < MDL_DYN_ROWS ? n - b0 : MDL_DYN_ROWS;
+    if (blk < j->nbo) bwd_obj_block(j->bx, b0, R, NULL);
+    else bwd_lay_block(j->bx, b0, R, NULL);
+}
+
 sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     const sooc_model_config *cfg = &m->cfg;
     dec_ws *w = &m->ws;
@@ -584,31 +639,10 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
      * thread computes it, and a thread that the OS delays (a loaded machine) holds up the
      * others by at most one block. */
     int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-MDL_OMP(omp parallel for num_threads(nt) schedule(dynamic, 1) if (nro + nrl >= MDL_PAR_ROWS))
-    for (int blk = 0; blk < nbo + nbl; blk++) {
-        if (blk < nbo) {
-            int r0 = blk * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nro ? r0 + MDL_DYN_ROWS : nro;
-            for (int r = r0; r < r1; r++)
-                mdl_pe_row(w->o_xk + (size_t)r * 3, inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
-            for (int r = r0; r < r1; r++)
-                memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
-            mdl_gemm(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, H,
-                     w->o_a1 + (size_t)r0 * H, H, NULL, 1, MDL_EP_RELU, NULL, 0);
-            tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
-                         w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
-        } else {
-            int r0 = (blk - nbo) * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nrl ? r0 + MDL_DYN_ROWS : nrl;
-            for (int r = r0; r < r1; r++) {
-                const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
-                float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
-                mdl_pe_row(xl, inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
-            }
-            mdl_gemm(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, H,
-                     w->l_a1 + (size_t)r0 * H, H, w->slot_bias, 0, MDL_EP_RELU, NULL, 0);
-            tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
-                         w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, 1);
-        }
-    }
+    fwd_job fj = {m, vr, nbo, nro, nrl, inv_o, inv_l};
+    if (nro + nrl >= MDL_PAR_ROWS && nt > 1) mdl_par_run(m, nbo + nbl, fwd_task, &fj);
+    else
+        for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
 
     MDL_PACC(MDL_PR_DEC_FWD, tprof);
     /* 4. dense σ̂, c̃, composition, likelihood */
@@ -789,13 +823,10 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
             }
         } else {
             int nbo = (no_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nl_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-MDL_OMP(omp parallel for num_threads(ntb) schedule(dynamic, 1) if (rows >= MDL_PAR_ROWS))
-            for (int blk = 0; blk < nbo + nbl; blk++) {
-                int b0 = (blk < nbo ? blk : blk - nbo) * MDL_DYN_ROWS, n = blk < nbo ? no_ : nl_;
-                int R = n - b0 < MDL_DYN_ROWS ? n - b0 : MDL_DYN_ROWS;
-                if (blk < nbo) bwd_obj_block(&bx, b0, R, NULL);
-                else bwd_lay_block(&bx, b0, R, NULL);
-            }
+            bwd_job bj = {&bx, nbo, no_, nl_};
+            if (rows >= MDL_PAR_ROWS && ntb > 1) mdl_par_run(m, nbo + nbl, bwd_task, &bj);
+            else
+                for (int blk = 0; blk < nbo + nbl; blk++) bwd_task(&bj, blk, 0);
         }
         /* slot-bias (layer-1 pre-activation) and z^where gradients, row order */
         for (int r = 0; r < no_; r++) {

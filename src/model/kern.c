@@ -14,9 +14,14 @@
 #include "model/model_internal.h"
 
 #include <cblas.h>
+#include <pthread.h>
 #include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef SOOC_HAVE_OPENMP
+#include <omp.h>
+#endif
 
 /* portable path: OpenBLAS, then the epilogue as a separate pass */
 static void gemm_blas(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
@@ -236,4 +241,143 @@ void mdl_gemm(int M, int N, int K, const float *A, int lda, const float *B, int 
     }
 #endif
     gemm_blas(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
+}
+
+/* ---------------------------------------------------------------- task pool
+ *
+ * The inference passes (decode forward / backward without weight gradients,
+ * aux inputs, refinement convs) run through a small pthread pool instead of
+ * OpenMP parallel regions: tasks are claimed one at a time from a counter
+ * tagged with the job's generation, and the caller waits only for tasks a
+ * helper has claimed. On a loaded machine a helper that the OS has not
+ * scheduled yet claims nothing, so the caller does not wait for it (an
+ * OpenMP region ends with a barrier that every thread must reach). Which
+ * thread runs a task never changes its result. Serial without OpenMP
+ * (SOOC_OPENMP=OFF), like the rest of the module. */
+#define MDL_POOL_MAX 16
+
+typedef struct mdl_pool_arg {
+    struct mdl_pool *p;
+    int tid;
+} mdl_pool_arg;
+
+struct mdl_pool {
+    int nthr, nstarted, stop;
+    pthread_t th[MDL_POOL_MAX];
+    mdl_pool_arg arg[MDL_POOL_MAX];
+    pthread_mutex_t mu;
+    pthread_cond_t wake, fin;
+    uint32_t gen;                 /* job generation (under mu)                        */
+    mdl_task_fn fn;               /* the job (under mu)                               */
+    void *ctx;
+    int n;
+    _Atomic uint64_t claim;       /* gen << 32 | next unclaimed task                  */
+    atomic_int done;              /* tasks of the current job finished                */
+};
+
+static int pool_claim(struct mdl_pool *p, uint32_t gen, int n) {
+    uint64_t c = atomic_load_explicit(&p->claim, memory_order_acquire);
+    for (;;) {
+        if ((uint32_t)(c >> 32) != gen || (int)(c & 0xffffffffu) >= n) return -1;
+        if (atomic_compare_exchange_weak_explicit(&p->claim, &c, c + 1, memory_order_acq_rel, memory_order_acquire))
+            return (int)(c & 0xffffffffu);
+    }
+}
+
+static void *pool_helper(void *arg) {
+    mdl_pool_arg *a = arg;
+    struct mdl_pool *p = a->p;
+    uint32_t seen = 0;
+    for (;;) {
+        pthread_mutex_lock(&p->mu);
+        while (!p->stop && p->gen == seen) pthread_cond_wait(&p->wake, &p->mu);
+        if (p->stop) {
+            pthread_mutex_unlock(&p->mu);
+            return NULL;
+        }
+        seen = p->gen;
+        mdl_task_fn fn = p->fn;
+        void *ctx = p->ctx;
+        int n = p->n;
+        pthread_mutex_unlock(&p->mu);
+        int t;
+        while ((t = pool_claim(p, seen, n)) >= 0) {
+            fn(ctx, t, a->tid);
+            if (atomic_fetch_add_explicit(&p->done, 1, memory_order_acq_rel) + 1 == n) {
+                pthread_mutex_lock(&p->mu);
+                pthread_cond_signal(&p->fin);
+                pthread_mutex_unlock(&p->mu);
+            }
+        }
+    }
+}
+
+void mdl_pool_free(sooc_model *m) {
+    struct mdl_pool *p = m->pool;
+    if (!p) return;
+    pthread_mutex_lock(&p->mu);
+    p->stop = 1;
+    pthread_cond_broadcast(&p->wake);
+    pthread_mutex_unlock(&p->mu);
+    for (int i = 0; i < p->nstarted; i++) pthread_join(p->th[i], NULL);
+    pthread_cond_destroy(&p->wake);
+    pthread_cond_destroy(&p->fin);
+    pthread_mutex_destroy(&p->mu);
+    sooc_free(p);
+    m->pool = NULL;
+}
+
+int mdl_par_threads(sooc_model *m) {
+    int nt = 1;
+#ifdef SOOC_HAVE_OPENMP
+    nt = m->threads > 0 ? m->threads : omp_get_max_threads();
+#endif
+    if (nt > MDL_POOL_MAX) nt = MDL_POOL_MAX;
+    if (nt < 2) return 1;
+    if (m->pool && m->pool->nthr == nt) return nt;
+    mdl_pool_free(m);
+    struct mdl_pool *p = sooc_calloc(1, sizeof *p);
+    if (!p) return 1;   /* serial */
+    if (pthread_mutex_init(&p->mu, NULL)) {
+        sooc_free(p);
+        return 1;
+    }
+    pthread_cond_init(&p->wake, NULL);
+    pthread_cond_init(&p->fin, NULL);
+    atomic_init(&p->claim, 0);
+    atomic_init(&p->done, 0);
+    m->pool = p;
+    for (int i = 0; i < nt - 1; i++) {
+        p->arg[i].p = p;
+        p->arg[i].tid = i + 1;
+        if (pthread_create(&p->th[i], NULL, pool_helper, &p->arg[i])) break;
+        p->nstarted++;
+    }
+    p->nthr = nt;
+    return p->nstarted + 1;
+}
+
+void mdl_par_run(sooc_model *m, int n, mdl_task_fn fn, void *ctx) {
+    struct mdl_pool *p = n > 1 && mdl_par_threads(m) > 1 ? m->pool : NULL;
+    if (!p || p->nstarted < 1) {
+        for (int t = 0; t < n; t++) fn(ctx, t, 0);
+        return;
+    }
+    pthread_mutex_lock(&p->mu);
+    uint32_t gen = ++p->gen;
+    p->fn = fn, p->ctx = ctx, p->n = n;
+    atomic_store_explicit(&p->done, 0, memory_order_relaxed);
+    atomic_store_explicit(&p->claim, (uint64_t)gen << 32, memory_order_release);
+    pthread_cond_broadcast(&p->wake);
+    pthread_mutex_unlock(&p->mu);
+    int t;
+    while ((t = pool_claim(p, gen, n)) >= 0) {
+        fn(ctx, t, 0);
+        atomic_fetch_add_explicit(&p->done, 1, memory_order_acq_rel);
+    }
+    if (atomic_load_explicit(&p->done, memory_order_acquire) < n) {
+        pthread_mutex_lock(&p->mu);
+        while (atomic_load_explicit(&p->done, memory_order_acquire) < n) pthread_cond_wait(&p->fin, &p->mu);
+        pthread_mutex_unlock(&p->mu);
+    }
 }

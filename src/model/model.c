@@ -467,6 +467,7 @@ sooc_status mdl_alloc_ws(sooc_model *m) {
 }
 
 void mdl_free_ws(sooc_model *m) {
+    mdl_pool_free(m);
     dec_ws *w = &m->ws;
     float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
                     &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,

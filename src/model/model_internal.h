@@ -144,6 +144,7 @@ struct sooc_model {
     dec_ws ws;
     ref_ws rws;
     void *step;                   /* training-step state (step.c) */
+    struct mdl_pool *pool;        /* task pool of the inference passes (kern.c), made on first use */
 };
 
 /* model.c */
@@ -193,6 +194,14 @@ enum { MDL_EP_NONE, MDL_EP_RELU, MDL_EP_MASK };
 void mdl_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
               const float *bias, int acc, int ep, const float *mask, int ldm);
 int mdl_kern_avx2(void);
+/* kern.c: task pool. mdl_par_run runs fn(ctx, t, tid) for t = 0..n-1, the caller being
+ * tid 0 and up to mdl_par_threads(m) - 1 helpers the others (tid < mdl_par_threads(m));
+ * tasks are claimed one at a time and the caller waits only for claimed tasks. A task's
+ * result must not depend on tid. mdl_par_threads makes the pool (m->threads) if needed. */
+typedef void (*mdl_task_fn)(void *ctx, int task, int tid);
+int mdl_par_threads(sooc_model *m);
+void mdl_par_run(sooc_model *m, int n, mdl_task_fn fn, void *ctx);
+void mdl_pool_free(sooc_model *m);
 
 /* refine.c */
 int mdl_aux_channels(int layout);

@@ -116,6 +116,133 @@ static void ln_img(float *img, int B, int HW, int b, int c0, int nc) {
     }
 }
 
+/* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
+typedef struct aux_job {
+    const sooc_model *m;
+    const dec_call *c;
+    float *img_o, *img_l;
+    const float *post_all;
+    int N, K, C;
+    float smax, eps_s, is2, lognorm, inv_rh, inv_b, s2;
+} aux_job;
+
+static void aux_task(void *ctx, int comp, int tid) {
+    const aux_job *j = ctx;
+    const dec_call *c = j->c;
+    const dec_ws *w = &j->m->ws;
+    const view_rays *vr = c->rays;
+    float *img_o = j->img_o, *img_l = j->img_l;
+    const float *post_all = j->post_all;
+    int N = j->N, K = j->K, C = j->C;
+    float smax = j->smax, eps_s = j->eps_s, is2 = j->is2, lognorm = j->lognorm, inv_rh = j->inv_rh, inv_b = j->inv_b,
+          s2 = j->s2;
+    (void)tid;
+    int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
+    float *img = lay ? img_l : img_o;
+    float cth = lay ? 1.0f : cosf(c->zw[b][2]), sth = lay ? 0.0f : sinf(c->zw[b][2]);
+#define CH(ch) (img + ((size_t)(ch) * B + b) * N)
+    /* Each channel is written by its own loop over rays: the channels of one item are
+     * N floats (4 KB) apart, so writing all 26 per ray thrashes L1 associativity.
+     * The shared leading channels are stored for slot 0 only (ref_act.nsh). */
+    if (!lay && b == 0)
+        for (int ch = 0; ch < MDL_AUX_NSH; ch++) memcpy(CH(ch), img_l + (size_t)ch * N, (size_t)N * sizeof(float));
+    int o = 8;
+    /* surface point in the component frame */
+    if (!lay) {
+        float *restrict x0 = CH(o), *restrict x1 = CH(o + 1), *restrict x2 = CH(o + 2), *restrict wgc = CH(o + 3);
+        float px = c->zw[b][0], pz = c->zw[b][1];
+        for (int rr = 0; rr < N; rr++) {
+            float xk[3] = {0, 0, 0};
+            int surf = vr->surf[rr];
+            if (surf) mdl_pi_cs(vr->pts + (size_t)2 * rr * 3, px, pz, cth, sth, vr->h, xk);
+            x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
+            x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
+            x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
+            wgc[rr] = surf ? expf(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+        }
+        o += 4;
+    } else {
+        float *restrict x0 = CH(o), *restrict x1 = CH(o + 1), *restrict x2 = CH(o + 2);
+        for (int rr = 0; rr < N; rr++) {
+            float xk[3] = {0, 0, 0};
+            if (vr->surf[rr]) {
+                const float *x = vr->pts + (size_t)2 * rr * 3;
+                for (int a = 0; a < 3; a++) xk[a] = clampf((x[a] - vr->blk[a]) * inv_b, -3, 3);
+            }
+            x0[rr] = xk[0], x1[rr] = xk[1], x2[rr] = xk[2];
+        }
+        o += 3;
+    }
+    const float *restrict sh = w->sh, *restrict Sv = w->S, *restrict ctv = w->ct;
+    {
+        float *restrict d0 = CH(o), *restrict d1 = CH(o + 1), *restrict d5 = CH(o + 5);
+        for (int rr = 0; rr < N; rr++) {
+            int ps = 2 * rr, pa = ps + 1;
+            float ss = sh[(size_t)ps * C + comp], sa = sh[(size_t)pa * C + comp];
+            d0[rr] = ss;
+            d1[rr] = vr->surf[rr] ? ss / Sv[ps] : 0.0f;
+            d5[rr] = sa * sa / Sv[pa];
+        }
+        float *restrict e0 = CH(o + 2), *restrict e1 = CH(o + 3), *restrict e2 = CH(o + 4);
+        for (int rr = 0; rr < N; rr++) {
+            const float *ct = ctv + ((size_t)2 * rr * C + comp) * 3;
+            e0[rr] = ct[0], e1[rr] = ct[1], e2[rr] = ct[2];
+        }
+        float *restrict d6 = CH(o + 6), *restrict d7 = CH(o + 7);
+        for (int rr = 0; rr < N; rr++) {
+            d6[rr] = vr->surf[rr] ? post_all[(size_t)rr * C + comp] : 0.0f;
+            d7[rr] = w->ll[rr];
+        }
+    }
+    /* counterfactual ell - ell_{-k} */
+    {
+        float *restrict d8 = CH(o + 8);
+        for (int rr = 0; rr < N; rr++) {
+            int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
+            const float *sh_s = sh + (size_t)ps * C, *sh_a = sh + (size_t)pa * C;
+            const float *ct_s = ctv + (size_t)ps * C * 3;
+            float S = Sv[ps];
+            float Sa = Sv[pa], Qa = w->Sb[pa] * Sa;
+            float Sa2 = Sa - sh_a[comp], Qa2 = Qa - sh_a[comp] * sh_a[comp];
+            if (Sa2 < 1e-8f) Sa2 = 1e-8f;
+            if (Qa2 < 0) Qa2 = 0;
+            float lm = -vr->W[rr] * smax * Qa2 / Sa2;
+            if (surf) {
+                float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
+                if (S2 < 1e-8f) S2 = 1e-8f;
+                if (Q2 < 0) Q2 = 0;
+                lm += logf(smax * Q2 / S2 + eps_s);
+                float e = 0;
+                for (int a = 0; a < 3; a++) {
+                    float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;
+                    float dd = vr->rgb[rr * 3 + a] - cm;
+                    e += dd * dd;
+                }
+                lm += -0.5f * e * is2 - lognorm;
+            }
+            d8[rr] = w->ll[rr] - lm;
+        }
+    }
+    {
+        float *restrict d9 = CH(o + 9), *restrict d10 = CH(o + 10);
+        for (int rr = 0; rr < N; rr++) {
+            d9[rr] = w->gsh[(size_t)2 * rr * C + comp];
+            d10[rr] = w->gsh[(size_t)(2 * rr + 1) * C + comp];
+        }
+        float *restrict e0 = CH(o + 11), *restrict e1 = CH(o + 12), *restrict e2 = CH(o + 13);
+        for (int rr = 0; rr < N; rr++) {
+            const float *g = w->gct + ((size_t)2 * rr * C + comp) * 3;
+            e0[rr] = g[0], e1[rr] = g[1], e2[rr] = g[2];
+        }
+    }
+    ln_img(img, B, N, b, o + 7, 1);
+    ln_img(img, B, N, b, o + 8, 1);
+    ln_img(img, B, N, b, o + 9, 1);
+    ln_img(img, B, N, b, o + 10, 1);
+    ln_img(img, B, N, b, o + 11, 3);
+#undef CH
+}
+
 void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
                     float *vec_o, float *img_l, float *vec_l) {
     MDL_PT(tprof);
@@ -146,11 +273,6 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
         for (int k = 0; k < C; k++) z += (lv[k] = expf(lv[k] - lmax));
         for (int k = 0; k < C; k++) lv[k] /= z;
     }
-    int nthr = m->threads > 0 ? m->threads : 1;
-#ifdef SOOC_HAVE_OPENMP
-    if (m->threads <= 0) nthr = omp_get_max_threads();
-#endif
-    (void)nthr;
     /* Channels 0-7 (colour, depth, beyond-clip flag, ray direction) are the same for every
      * component: written once into the layout image, copied into each object's. */
     {
@@ -165,113 +287,10 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
         float *restrict c5 = img_l + 5 * (size_t)N, *restrict c6 = img_l + 6 * (size_t)N, *restrict c7 = img_l + 7 * (size_t)N;
         for (int rr = 0; rr < N; rr++) c5[rr] = vr->dir[rr * 3], c6[rr] = vr->dir[rr * 3 + 1], c7[rr] = vr->dir[rr * 3 + 2];
     }
-MDL_OMP(omp parallel for num_threads(nthr) schedule(dynamic, 1) if (N >= MDL_PAR_ROWS))
-    for (int comp = 0; comp < C; comp++) {
-        int lay = comp == 0, b = lay ? 0 : comp - 1, B = lay ? 1 : K;
-        float *img = lay ? img_l : img_o;
-        float cth = lay ? 1.0f : cosf(c->zw[b][2]), sth = lay ? 0.0f : sinf(c->zw[b][2]);
-#define CH(ch) (img + ((size_t)(ch) * B + b) * N)
-        /* Each channel is written by its own loop over rays: the channels of one item are
-         * N floats (4 KB) apart, so writing all 26 per ray thrashes L1 associativity.
-         * The shared leading channels are stored for slot 0 only (ref_act.nsh). */
-        if (!lay && b == 0)
-            for (int ch = 0; ch < MDL_AUX_NSH; ch++) memcpy(CH(ch), img_l + (size_t)ch * N, (size_t)N * sizeof(float));
-        int o = 8;
-        /* surface point in the component frame */
-        if (!lay) {
-            float *restrict x0 = CH(o), *restrict x1 = CH(o + 1), *restrict x2 = CH(o + 2), *restrict wgc = CH(o + 3);
-            float px = c->zw[b][0], pz = c->zw[b][1];
-            for (int rr = 0; rr < N; rr++) {
-                float xk[3] = {0, 0, 0};
-                int surf = vr->surf[rr];
-                if (surf) mdl_pi_cs(vr->pts + (size_t)2 * rr * 3, px, pz, cth, sth, vr->h, xk);
-                x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
-                x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
-                x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
-                wgc[rr] = surf ? expf(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
-            }
-            o += 4;
-        } else {
-            float *restrict x0 = CH(o), *restrict x1 = CH(o + 1), *restrict x2 = CH(o + 2);
-            for (int rr = 0; rr < N; rr++) {
-                float xk[3] = {0, 0, 0};
-                if (vr->surf[rr]) {
-                    const float *x = vr->pts + (size_t)2 * rr * 3;
-                    for (int a = 0; a < 3; a++) xk[a] = clampf((x[a] - vr->blk[a]) * inv_b, -3, 3);
-                }
-                x0[rr] = xk[0], x1[rr] = xk[1], x2[rr] = xk[2];
-            }
-            o += 3;
-        }
-        const float *restrict sh = w->sh, *restrict Sv = w->S, *restrict ctv = w->ct;
-        {
-            float *restrict d0 = CH(o), *restrict d1 = CH(o + 1), *restrict d5 = CH(o + 5);
-            for (int rr = 0; rr < N; rr++) {
-                int ps = 2 * rr, pa = ps + 1;
-                float ss = sh[(size_t)ps * C + comp], sa = sh[(size_t)pa * C + comp];
-                d0[rr] = ss;
-                d1[rr] = vr->surf[rr] ? ss / Sv[ps] : 0.0f;
-                d5[rr] = sa * sa / Sv[pa];
-            }
-            float *restrict e0 = CH(o + 2), *restrict e1 = CH(o + 3), *restrict e2 = CH(o + 4);
-            for (int rr = 0; rr < N; rr++) {
-                const float *ct = ctv + ((size_t)2 * rr * C + comp) * 3;
-                e0[rr] = ct[0], e1[rr] = ct[1], e2[rr] = ct[2];
-            }
-            float *restrict d6 = CH(o + 6), *restrict d7 = CH(o + 7);
-            for (int rr = 0; rr < N; rr++) {
-                d6[rr] = vr->surf[rr] ? post_all[(size_t)rr * C + comp] : 0.0f;
-                d7[rr] = w->ll[rr];
-            }
-        }
-        /* counterfactual ell - ell_{-k} */
-        {
-            float *restrict d8 = CH(o + 8);
-            for (int rr = 0; rr < N; rr++) {
-                int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
-                const float *sh_s = sh + (size_t)ps * C, *sh_a = sh + (size_t)pa * C;
-                const float *ct_s = ctv + (size_t)ps * C * 3;
-                float S = Sv[ps];
-                float Sa = Sv[pa], Qa = w->Sb[pa] * Sa;
-                float Sa2 = Sa - sh_a[comp], Qa2 = Qa - sh_a[comp] * sh_a[comp];
-                if (Sa2 < 1e-8f) Sa2 = 1e-8f;
-                if (Qa2 < 0) Qa2 = 0;
-                float lm = -vr->W[rr] * smax * Qa2 / Sa2;
-                if (surf) {
-                    float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
-                    if (S2 < 1e-8f) S2 = 1e-8f;
-                    if (Q2 < 0) Q2 = 0;
-                    lm += logf(smax * Q2 / S2 + eps_s);
-                    float e = 0;
-                    for (int a = 0; a < 3; a++) {
-                        float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;
-                        float dd = vr->rgb[rr * 3 + a] - cm;
-                        e += dd * dd;
-                    }
-                    lm += -0.5f * e * is2 - lognorm;
-                }
-                d8[rr] = w->ll[rr] - lm;
-            }
-        }
-        {
-            float *restrict d9 = CH(o + 9), *restrict d10 = CH(o + 10);
-            for (int rr = 0; rr < N; rr++) {
-                d9[rr] = w->gsh[(size_t)2 * rr * C + comp];
-                d10[rr] = w->gsh[(size_t)(2 * rr + 1) * C + comp];
-            }
-            float *restrict e0 = CH(o + 11), *restrict e1 = CH(o + 12), *restrict e2 = CH(o + 13);
-            for (int rr = 0; rr < N; rr++) {
-                const float *g = w->gct + ((size_t)2 * rr * C + comp) * 3;
-                e0[rr] = g[0], e1[rr] = g[1], e2[rr] = g[2];
-            }
-        }
-        ln_img(img, B, N, b, o + 7, 1);
-        ln_img(img, B, N, b, o + 8, 1);
-        ln_img(img, B, N, b, o + 9, 1);
-        ln_img(img, B, N, b, o + 10, 1);
-        ln_img(img, B, N, b, o + 11, 3);
-#undef CH
-    }
+    aux_job aj = {m, c, img_o, img_l, post_all, N, K, C, smax, eps_s, is2, lognorm, inv_rh, inv_b, s2};
+    if (N >= MDL_PAR_ROWS && mdl_par_threads(m) > 1) mdl_par_run(m, C, aux_task, &aj);
+    else
+        for (int comp = 0; comp < C; comp++) aux_task(&aj, comp, 0);
     /* vector inputs */
     int nv = 2 * NL + 6;
     for (int k = 0; k < K; k++) {
@@ -333,26 +352,22 @@ void mdl_ref_act_free(ref_act *a) {
 /* Columns of items [b0, b1) (No = (b1 - b0) Ho Wo columns), 3x3 stride 2, TF SAME
  * padding on even sizes (nothing before, one zero row/column after).
  * Row (ci, ky, kx), column (b, oy, ox) = x[ci][b][2 oy + ky][2 ox + kx]. Each input row
- * is split once into its even and odd columns; every tap's output row is then a
- * contiguous copy (kx = 0: even, 1: odd, 2: even shifted by one, the pad last). */
-#define MDL_IM2COL_WMAX 1024
+ * feeds one or two output rows per kx (even columns, odd columns, even columns shifted
+ * by one with the pad last), written by plain loops (no small memcpy calls). */
 static void im2col(const float *x, int Ci, int B, int b0, int b1, int Hi, int Wi, float *cols) {
     int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
-    size_t No = (size_t)(b1 - b0) * HWo, rowb = (size_t)Wo * sizeof(float);
-    float ev[MDL_IM2COL_WMAX + 1], od[MDL_IM2COL_WMAX];
-    SOOC_ASSERT(Wo <= MDL_IM2COL_WMAX && Hi % 2 == 0 && Wi % 2 == 0);
+    size_t No = (size_t)(b1 - b0) * HWo;
+    SOOC_ASSERT(Hi % 2 == 0 && Wi % 2 == 0);
     for (int ci = 0; ci < Ci; ci++)
         for (int b = b0; b < b1; b++) {
             const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
             float *base = cols + (size_t)ci * 9 * No + (size_t)(b - b0) * HWo;
-            for (int kx = 0; kx < 3; kx++) memset(base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo, 0, rowb);
-            ev[Wo] = 0.0f;
+            for (int kx = 0; kx < 3; kx++) {
+                float *restrict r = base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo;
+                for (int ox = 0; ox < Wo; ox++) r[ox] = 0.0f;
+            }
             for (int iy = 0; iy < Hi; iy++) {
                 const float *restrict xr = xb + (size_t)iy * Wi;
-                for (int ox = 0; ox < Wo; ox++) {
-                    ev[ox] = xr[2 * ox];
-                    od[ox] = xr[2 * ox + 1];
-                }
                 int ky[2], oy[2], nt = 0;
                 if (iy & 1) {
                     ky[nt] = 1, oy[nt++] = iy >> 1;
@@ -361,10 +376,14 @@ static void im2col(const float *x, int Ci, int B, int b0, int b1, int Hi, int Wi
                     if (iy >= 2) ky[nt] = 2, oy[nt++] = (iy >> 1) - 1;
                 }
                 for (int t = 0; t < nt; t++) {
-                    float *r = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
-                    memcpy(r, ev, rowb);
-                    memcpy(r + No, od, rowb);
-                    memcpy(r + 2 * No, ev + 1, rowb);
+                    float *restrict r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
+                    float *restrict r1 = r0 + No, *restrict r2 = r0 + 2 * No;
+                    for (int ox = 0; ox < Wo; ox++) {
+                        r0[ox] = xr[2 * ox];
+                        r1[ox] = xr[2 * ox + 1];
+                    }
+                    for (int ox = 0; ox + 1 < Wo; ox++) r2[ox] = xr[2 * ox + 2];
+                    r2[Wo - 1] = 0.0f;
                 }
             }
         }
@@ -456,6 +475,29 @@ static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int g
     if (prof) MDL_PACC(MDL_PR_HEAD, tprof);
 }
 
+typedef struct ref_job {
+    const float *p;
+    const ref_net *nn[2];
+    ref_act *aa[2];
+    float *oo[2];
+    const float *ysh[2];
+    float *cols;
+    size_t cstride;
+    int nnet, gw, gh;
+} ref_job;
+
+static void ref_conv_task(void *ctx, int t, int tid) {
+    const ref_job *j = ctx;
+    int q = j->nnet - 1, b = t;
+    if (b >= j->aa[q]->B) b -= j->aa[q]->B, q = 0;
+    conv_item(j->p, j->nn[q], j->aa[q], b, j->ysh[q], j->cols + (size_t)tid * j->cstride, j->gw, j->gh);
+}
+
+static void ref_tail_task(void *ctx, int q, int tid) {
+    const ref_job *j = ctx;
+    ref_tail(j->p, j->nn[q], j->aa[q], j->gw, j->gh, j->oo[q], tid == 0);
+}
+
 void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
                       float *out1, int gw, int gh) {
     const float *p = m->p;
@@ -487,34 +529,20 @@ void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0
         }
         if (s > cstride) cstride = s;
     }
-    int nt = 1;
-#ifdef SOOC_HAVE_OPENMP
-    nt = m->threads > 0 ? m->threads : omp_get_max_threads();
-#endif
-    if (nt > ntask) nt = ntask;
-    if ((size_t)nt * cstride > m->rws.ncols) nt = (int)(m->rws.ncols / cstride);
-    if (nt < 1) nt = 1;
+    int nt = mdl_par_threads(m);
+    if ((size_t)nt * cstride > m->rws.ncols) nt = 1;   /* a column slice per thread does not fit (never at K >= threads) */
     /* Items are independent through the conv stack: each runs all four layers on one
-     * thread (dynamically scheduled, the second net's items first: the layout item has no
-     * shared channels and costs the most); then each net's FC/LSTM/head on one thread. */
-MDL_OMP(omp parallel num_threads(nt) if (nt > 1))
-    {
-        int tid = 0;
-#ifdef SOOC_HAVE_OPENMP
-        tid = omp_get_thread_num();
-#endif
-        float *ct = m->rws.cols + (size_t)tid * cstride;
-MDL_OMP(omp for schedule(dynamic, 1))
-        for (int t = 0; t < ntask; t++) {
-            int q = nnet - 1, b = t;
-            if (b >= aa[q]->B) b -= aa[q]->B, q = 0;
-            conv_item(p, nn[q], aa[q], b, ysh[q], ct, gw, gh);
-        }
-#ifdef MDL_PROFILE
-        if (tid == 0) MDL_PACC(MDL_PR_CONV0, tprof);
-#endif
-MDL_OMP(omp for schedule(dynamic, 1))
-        for (int q = 0; q < nnet; q++) ref_tail(p, nn[q], aa[q], gw, gh, oo[q], tid == 0);
+     * thread (the second net's items first: the layout item has no shared channels and
+     * costs the most); then each net's FC/LSTM/head on one thread. */
+    ref_job j = {p, {nn[0], nn[1]}, {aa[0], aa[1]}, {oo[0], oo[1]}, {ysh[0], ysh[1]}, m->rws.cols, cstride, nnet, gw, gh};
+    if (nt > 1) {
+        mdl_par_run(m, ntask, ref_conv_task, &j);
+        MDL_PACC(MDL_PR_CONV0, tprof);
+        mdl_par_run(m, nnet, ref_tail_task, &j);
+    } else {
+        for (int t = 0; t < ntask; t++) ref_conv_task(&j, t, 0);
+        MDL_PACC(MDL_PR_CONV0, tprof);
+        for (int q = 0; q < nnet; q++) ref_tail_task(&j, q, 0);
     }
 }
 
