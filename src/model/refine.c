@@ -38,6 +38,36 @@ static inline float expf_nonpos(float x) {
 }
 static inline float elu(float x) { return x > 0 ? x : expf_nonpos(x) - 1.0f; }
 
+/* log(x) for normal x > 0 (Cephes logf polynomial on the mantissa in [sqrt(1/2), sqrt(2));
+ * relative error ~1e-7, like logf; inlined in the per-ray loops of the aux inputs). */
+static inline float logf_pos(float x) {
+    if (!(x >= 1.17549435e-38f && x <= 3.40282347e38f)) return logf(x);   /* 0, subnormal, inf, NaN, < 0 */
+    uint32_t ix;
+    memcpy(&ix, &x, sizeof ix);
+    int e = (int)(ix >> 23) - 127;
+    ix = (ix & 0x007fffffu) | 0x3f800000u;
+    float mt;
+    memcpy(&mt, &ix, sizeof mt);   /* [1, 2) */
+    if (mt > 1.41421356237f) {
+        mt *= 0.5f;
+        e++;
+    }
+    float f = mt - 1.0f, z = f * f, fe = (float)e;
+    float y = 7.0376836292e-2f;
+    y = y * f - 1.1514610310e-1f;
+    y = y * f + 1.1676998740e-1f;
+    y = y * f - 1.2420140846e-1f;
+    y = y * f + 1.4249322787e-1f;
+    y = y * f - 1.6668057665e-1f;
+    y = y * f + 2.0000714765e-1f;
+    y = y * f - 2.4999993993e-1f;
+    y = y * f + 3.3333331174e-1f;
+    y = y * f * z;
+    y += -2.12194440e-4f * fe;
+    y += -0.5f * z;
+    return f + y + 0.693359375f * fe;
+}
+
 /* y[j] = elu(y[j] + bias) over a row (the conv epilogue). */
 static void elu_bias_rows(float *y, size_t n, float bias) {
     size_t j = 0;
@@ -158,7 +188,7 @@ static void aux_task(void *ctx, int comp, int tid) {
             x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
             x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
             x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
-            wgc[rr] = surf ? expf(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+            wgc[rr] = surf ? expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
         }
         o += 4;
     } else {
@@ -211,7 +241,7 @@ static void aux_task(void *ctx, int comp, int tid) {
                 float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
                 if (S2 < 1e-8f) S2 = 1e-8f;
                 if (Q2 < 0) Q2 = 0;
-                lm += logf(smax * Q2 / S2 + eps_s);
+                lm += logf_pos(smax * Q2 / S2 + eps_s);
                 float e = 0;
                 for (int a = 0; a < 3; a++) {
                     float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;
@@ -266,11 +296,11 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
                 float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
                 e += dd * dd;
             }
-            lv[k] = logf(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
+            lv[k] = logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
             if (lv[k] > lmax) lmax = lv[k];
         }
         float z = 0;
-        for (int k = 0; k < C; k++) z += (lv[k] = expf(lv[k] - lmax));
+        for (int k = 0; k < C; k++) z += (lv[k] = expf_nonpos(lv[k] - lmax));
         for (int k = 0; k < C; k++) lv[k] /= z;
     }
     /* Channels 0-7 (colour, depth, beyond-clip flag, ray direction) are the same for every
