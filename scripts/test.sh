@@ -15,6 +15,6 @@ run() {
 }
 run build-ci-omp "" -DCMAKE_BUILD_TYPE=Release -DSOOC_OPENMP=ON -DSOOC_BUILD_FUZZ=ON
 run build-ci-asan "" -DCMAKE_BUILD_TYPE=Debug -DSOOC_OPENMP=OFF -DSOOC_ASAN=ON -DSOOC_BUILD_BENCH=OFF -DSOOC_BUILD_FUZZ=ON
-run build-ci-asan-omp "model|nn|eval|render|node_model|node_e2e" -DCMAKE_BUILD_TYPE=Debug -DSOOC_OPENMP=ON \
+run build-ci-asan-omp "^test_(model|nn|eval|render|node_model|node_e2e)" -DCMAKE_BUILD_TYPE=Debug -DSOOC_OPENMP=ON \
   -DSOOC_ASAN=ON -DSOOC_BUILD_BENCH=OFF
 echo "all tests passed"
