@@ -116,20 +116,6 @@ static sooc_status on_step(void *user, const sooc_eval_step_info *s) {
     return SOOC_OK;
 }
 
-static void to_map_entry(const sooc_model_config *c, const sooc_cogmap_entry *e, sooc_map_entry *o) {
-    memset(o, 0, sizeof *o);
-    o->id = e->id;
-    o->x = e->X, o->z = e->Z, o->yaw = e->Theta;
-    o->sigma_t = exp(0.5 * e->rho_t);
-    o->sigma_yaw = exp(0.5 * e->rho_theta);
-    o->presence_logit = e->pres_logit;
-    o->presence = 1.0f / (1.0f + expf(-e->pres_logit));
-    o->latent_dim = e->dim;
-    o->extent[0] = o->extent[2] = 2 * c->box_rh;
-    o->extent[1] = c->box_hb;
-    o->obs_count = e->obs_count;
-}
-
 /* Every frame with a pose, at the model's resolution. */
 static sooc_status read_frames(const char *dir, const char *calib, int W, int H, long long maxf, sooc_frame **out,
                                int *n_out, int *resized) {
@@ -322,7 +308,10 @@ int sooc_cmd_render(int argc, char **argv) {
         ment = calloc(ne ? ne : 1, sizeof *ment);
         if (!ce || !ment) { free(ce); st = SOOC_ENOMEM; goto fail; }
         if ((st = sooc_cogmap_entries(map, ce, ne, &ne))) { free(ce); goto fail; }
-        for (size_t i = 0; i < ne; i++) to_map_entry(mc, &ce[i], &ment[i]);
+        {
+            const float ext[3] = {2 * mc->box_rh, mc->box_hb, 2 * mc->box_rh};
+            for (size_t i = 0; i < ne; i++) sooc3d_mapper_entry_from_cogmap(&ce[i], ext, &ment[i]);
+        }
         free(ce);
         R.n_total = nf;
         R.timing = SOOC_EVAL_FINAL;

@@ -306,24 +306,8 @@ sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_ent
     size_t got = 0;
     sooc_status s = sooc_cogmap_entries(g->map, tmp, cnt, &got);
     const sooc_model_config *c = &g->m->cfg;
-    for (size_t i = 0; !s && i < got; i++) {
-        const sooc_cogmap_entry *e = &tmp[i];
-        sooc_map_entry *o = &out[i];
-        memset(o, 0, sizeof *o);
-        o->id = e->id;
-        o->x = e->X, o->z = e->Z, o->yaw = e->Theta;
-        o->sigma_t = exp(0.5 * e->rho_t);
-        o->sigma_yaw = exp(0.5 * e->rho_theta);
-        o->presence_logit = e->pres_logit;
-        o->presence = 1.0f / (1.0f + expf(-e->pres_logit));
-        o->latent_dim = e->dim;
-        memcpy(o->what_mu, e->what_mu, sizeof(float) * e->dim);
-        memcpy(o->what_logvar, e->what_logvar, sizeof(float) * e->dim);
-        o->extent[0] = o->extent[2] = 2 * c->box_rh;
-        o->extent[1] = c->box_hb;
-        o->first_seen_ns = e->first_seen_ns, o->last_seen_ns = e->last_seen_ns;
-        o->obs_count = e->obs_count;
-    }
+    const float ext[3] = {2 * c->box_rh, c->box_hb, 2 * c->box_rh};
+    for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
     *n = s ? 0 : got;
     return s;
 }
