@@ -93,6 +93,9 @@ typedef struct sooc_model sooc_model;
 sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint64_t init_seed);
 void sooc_model_destroy(sooc_model *m);   /* NULL-safe */
 const sooc_model_config *sooc_model_get_config(const sooc_model *m);
+/* The object locality box as a map-entry extent (x, y, z) in metres:
+ * (2 R_h, H_b, 2 R_h). */
+void sooc_model_box_extent(const sooc_model_config *c, float ext[3]);
 /* Threads for the decoder / refinement loops (0 = OpenMP default). */
 void sooc_model_set_threads(sooc_model *m, int n);
 /* Use another clip depth d_clip (metres) than the one trained with, e.g. the

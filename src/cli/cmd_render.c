@@ -309,7 +309,8 @@ int sooc_cmd_render(int argc, char **argv) {
         if (!ce || !ment) { free(ce); st = SOOC_ENOMEM; goto fail; }
         if ((st = sooc_cogmap_entries(map, ce, ne, &ne))) { free(ce); goto fail; }
         {
-            const float ext[3] = {2 * mc->box_rh, mc->box_hb, 2 * mc->box_rh};
+            float ext[3];
+            sooc_model_box_extent(mc, ext);
             for (size_t i = 0; i < ne; i++) sooc3d_mapper_entry_from_cogmap(&ce[i], ext, &ment[i]);
         }
         free(ce);

@@ -306,7 +306,8 @@ sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_ent
     size_t got = 0;
     sooc_status s = sooc_cogmap_entries(g->map, tmp, cnt, &got);
     const sooc_model_config *c = &g->m->cfg;
-    const float ext[3] = {2 * c->box_rh, c->box_hb, 2 * c->box_rh};
+    float ext[3];
+    sooc_model_box_extent(c, ext);
     for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
     *n = s ? 0 : got;
     return s;

@@ -142,11 +142,6 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
 }
 
 /* The box of the model's locality window (sooc_map_entry.extent). */
-static void model_extent(const sooc_model_config *c, float ext[3]) {
-    ext[0] = ext[2] = 2 * c->box_rh;
-    ext[1] = c->box_hb;
-}
-
 sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
     size_t cnt = sooc_cogmap_count(mp->map);
     if (!out) {
@@ -159,7 +154,7 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
     size_t got = 0;
     sooc_status s = sooc_cogmap_entries(mp->map, tmp, cnt, &got);
     float ext[3];
-    model_extent(sooc_model_get_config(mp->m), ext);
+    sooc_model_box_extent(sooc_model_get_config(mp->m), ext);
     for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
     *n = s ? 0 : got;
     sooc_free(tmp);
@@ -194,7 +189,7 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
         return sooc_seterr(SOOC_EINVAL, "mapper changed: %zu changed / %zu removed do not fit in %zu / %zu", nc, nr,
                            cap, cap_r);
     float ext[3];
-    model_extent(sooc_model_get_config(mp->m), ext);
+    sooc_model_box_extent(sooc_model_get_config(mp->m), ext);
     for (size_t i = 0; out && i < nc; i++) {
         sooc_cogmap_entry e;
         sooc_status s = sooc_cogmap_get(mp->map, mp->chg_ids[i], &e);

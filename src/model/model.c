@@ -244,6 +244,10 @@ void sooc_model_destroy(sooc_model *m) {
 
 const sooc_model_config *sooc_model_get_config(const sooc_model *m) { return &m->cfg; }
 void sooc_model_set_threads(sooc_model *m, int n) { m->threads = n < 0 ? 0 : n; }
+void sooc_model_box_extent(const sooc_model_config *c, float ext[3]) {
+    ext[0] = ext[2] = 2 * c->box_rh;
+    ext[1] = c->box_hb;
+}
 sooc_status sooc_model_set_clip(sooc_model *m, float d_clip) {
     if (!m || !(d_clip > m->cfg.t_near && d_clip < 1e4f))
         return sooc_seterr(SOOC_EINVAL, "model: clip depth %g m outside (t_near %g, 1e4)", (double)d_clip,
