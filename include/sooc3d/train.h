@@ -52,11 +52,16 @@ int sooc_dataset_n_inputs(const sooc_dataset *d, int scene);
 int sooc_dataset_n_objects(const sooc_dataset *d, int scene);
 void sooc_dataset_object(const sooc_dataset *d, int scene, int i, uint16_t *id, double *x, double *z);
 
-/* Pick T consecutive input views (starting at a random input index) and the Q
- * query views nearest to that segment's cameras. Frames are shallow copies
- * (they share pixel buffers with the dataset). Returns the counts actually
- * chosen (a scene may have fewer views). */
-void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, sooc_rng *rng,
+/* Pick T consecutive input views (starting at a random input index) and Q
+ * query views. mode 0: the query-flagged views nearest to the segment's
+ * cameras. mode 1 (held-out views): Q views drawn at random among all views
+ * outside the segment (query-flagged or not) that show an object and whose
+ * object pixels are at least SOOC_HELD_OUT_COVER objects the segment saw;
+ * falls back to mode 0 when none qualifies. Frames are shallow copies (they
+ * share pixel buffers with the dataset). Returns the counts actually chosen
+ * (a scene may have fewer views). */
+#define SOOC_HELD_OUT_COVER 0.9
+void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, int mode, sooc_rng *rng,
                          sooc_frame *views, int *n_views, sooc_frame *queries, int *n_queries);
 
 /* ---------------------------------------------------------------- config */
@@ -78,6 +83,8 @@ typedef struct sooc_train_config {
     float phase_a, phase_b; /* fractions of the steps                      (0.15, 0.5) */
     int t_min_b, t_max_b, t_min_c, t_max_c;  /* input views per phase   (2,3 / 2,5) */
     int q_a, q_bc;          /* query views in phase A and in B/C              (1, 2) */
+    int query_held_out;     /* 1 = query views drawn from held-out views that see
+                               the segment's objects (sooc_dataset_sample mode 1) (0) */
     int accum;              /* scenes per optimisation step (gradient accumulation) (1) */
     int threads;            /* model threads (0 = OpenMP default)                (0) */
     /* bookkeeping */

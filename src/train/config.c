@@ -37,6 +37,7 @@ void sooc_train_config_default(sooc_train_config *c) {
     c->t_max_c = 5;
     c->q_a = 1;
     c->q_bc = 2;
+    c->query_held_out = 0;
     c->accum = 1;
     c->threads = 0;
     c->log_every = 10;
@@ -58,6 +59,7 @@ static const field g_train_fields[] = {
     TF(burnin, F_I64, 0, 1e9), TF(st_retrieved, F_INT, 0, 1), TF(phase_a, F_FLOAT, 0, 1),
     TF(phase_b, F_FLOAT, 0, 1), TF(t_min_b, F_INT, 1, 64), TF(t_max_b, F_INT, 1, 64),
     TF(t_min_c, F_INT, 1, 64), TF(t_max_c, F_INT, 1, 64), TF(q_a, F_INT, 0, 16), TF(q_bc, F_INT, 0, 16),
+    TF(query_held_out, F_INT, 0, 1),
     TF(accum, F_INT, 1, 64), TF(threads, F_INT, 0, 256), TF(log_every, F_I64, 1, 1e9),
     TF(ckpt_every, F_I64, 1, 1e9), TF(val_every, F_I64, 0, 1e9), TF(val_scenes, F_INT, 1, 100000),
     TF(val_max_seconds, F_FLOAT, 0, 1e9),

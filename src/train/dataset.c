@@ -186,21 +186,12 @@ void sooc_dataset_object(const sooc_dataset *d, int s, int i, uint16_t *id, doub
     *z = sc->obj_xz[2 * i + 1];
 }
 
-void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, sooc_rng *rng, sooc_frame *views,
-                         int *n_views, sooc_frame *queries, int *n_queries) {
-    const ds_scene *sc = &d->scenes[scene];
-    if (T > sc->n_inputs) T = sc->n_inputs;
-    int start = (int)sooc_rng_below(rng, (uint32_t)(sc->n_inputs - T + 1));
-    for (int t = 0; t < T; t++) views[t] = sc->views[sc->input_idx[start + t]];
-    *n_views = T;
-    /* Query views: the Q query frames whose camera centre is nearest (on the
-     * floor) to any camera of the chosen segment, so that they look at what the
-     * segment mapped. Ties go to the lower index: deterministic. */
+/* Query views of mode 0: the Q query frames whose camera centre is nearest
+ * (on the floor) to any camera of the chosen segment, so that they look at
+ * what the segment mapped. Ties go to the lower index: deterministic. */
+static int sample_nearest(const ds_scene *sc, const sooc_frame *views, int T, int Q, sooc_frame *queries) {
     int nq = 0;
     int used[64] = {0};
-    int n_cand = 0;
-    for (int v = 0; v < sc->n_views && n_cand < 64; v++)
-        if (sc->views[v].is_query) used[n_cand++] = 0;
     for (int q = 0; q < Q; q++) {
         double best = INFINITY;
         int best_v = -1, ci = -1, best_ci = -1;
@@ -223,5 +214,80 @@ void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, sooc_rn
         used[best_ci] = 1;
         queries[nq++] = sc->views[best_v];
     }
+    return nq;
+}
+
+/* Query views of mode 1 (held-out views): any view of the scene outside the
+ * segment (query-flagged or another input view) that shows at least one
+ * object and whose object pixels belong, for at least SOOC_HELD_OUT_COVER of
+ * them, to objects the segment saw (>= SEEN_MIN_PX pixels in one of its
+ * views). Q of them are drawn at random. These views look at what the segment
+ * mapped from other positions and headings than the nearest query frames, so
+ * the query term asks for objects as seen from where the walk has not been
+ * (docs/training.md, "Held-out query views"). Returns 0 when no view qualifies
+ * (the caller falls back to mode 0). */
+#define SEEN_MIN_PX 16
+static int sample_held_out(const ds_scene *sc, int start, int T, int Q, sooc_rng *rng, sooc_frame *queries) {
+    uint64_t seen[65536 / 64];
+    uint16_t cnt_id[64];
+    int cnt_px[64];
+    memset(seen, 0, sizeof seen);
+    for (int t = 0; t < T; t++) {
+        const sooc_frame *f = &sc->views[sc->input_idx[start + t]];
+        if (!f->instance) return 0;
+        /* per-view pixel counts of up to 64 distinct ids (scenes hold fewer) */
+        int n_ids = 0;
+        size_t np = (size_t)f->width * (size_t)f->height;
+        for (size_t i = 0; i < np; i++) {
+            uint16_t id = f->instance[i];
+            if (!id || !f->valid[i]) continue;
+            int k = 0;
+            while (k < n_ids && cnt_id[k] != id) k++;
+            if (k == n_ids) {
+                if (n_ids == 64) continue;
+                cnt_id[n_ids] = id;
+                cnt_px[n_ids++] = 0;
+            }
+            cnt_px[k]++;
+        }
+        for (int k = 0; k < n_ids; k++)
+            if (cnt_px[k] >= SEEN_MIN_PX) seen[cnt_id[k] >> 6] |= 1ull << (cnt_id[k] & 63);
+    }
+    int cand[256], n_cand = 0;
+    int seg_lo = sc->input_idx[start], seg_hi = sc->input_idx[start + T - 1];
+    for (int v = 0; v < sc->n_views && n_cand < 256; v++) {
+        const sooc_frame *f = &sc->views[v];
+        if (v >= seg_lo && v <= seg_hi && !f->is_query) continue;   /* in the segment */
+        if (!f->instance) continue;
+        size_t np = (size_t)f->width * (size_t)f->height, obj = 0, cov = 0;
+        for (size_t i = 0; i < np; i++) {
+            uint16_t id = f->instance[i];
+            if (!id || !f->valid[i]) continue;
+            obj++;
+            cov += (seen[id >> 6] >> (id & 63)) & 1;
+        }
+        if (obj >= SEEN_MIN_PX && (double)cov >= SOOC_HELD_OUT_COVER * (double)obj) cand[n_cand++] = v;
+    }
+    int nq = 0;
+    for (; nq < Q && nq < n_cand; nq++) {   /* partial Fisher-Yates */
+        int j = nq + (int)sooc_rng_below(rng, (uint32_t)(n_cand - nq));
+        int tmp = cand[nq];
+        cand[nq] = cand[j];
+        cand[j] = tmp;
+        queries[nq] = sc->views[cand[nq]];
+    }
+    return nq;
+}
+
+void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, int mode, sooc_rng *rng,
+                         sooc_frame *views, int *n_views, sooc_frame *queries, int *n_queries) {
+    const ds_scene *sc = &d->scenes[scene];
+    if (T > sc->n_inputs) T = sc->n_inputs;
+    int start = (int)sooc_rng_below(rng, (uint32_t)(sc->n_inputs - T + 1));
+    for (int t = 0; t < T; t++) views[t] = sc->views[sc->input_idx[start + t]];
+    *n_views = T;
+    int nq = 0;
+    if (mode == 1 && Q > 0) nq = sample_held_out(sc, start, T, Q, rng, queries);
+    if (nq == 0) nq = sample_nearest(sc, views, T, Q, queries);
     *n_queries = nq;
 }

@@ -298,7 +298,7 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             if (T > 64) T = 64;
             if (Q > 16) Q = 16;
             int sc = (int)sooc_rng_below(&rng, (uint32_t)nsc), nv = 0, nq = 0;
-            sooc_dataset_sample(ds, sc, T, Q, &rng, views, &nv, queries, &nq);
+            sooc_dataset_sample(ds, sc, T, Q, cfg->query_held_out, &rng, views, &nv, queries, &nq);
             sooc_step_losses l;
             if (sooc_model_is_global(tr.model))   /* MulMON-style baseline (docs/baseline.md) */
                 s = sooc_model_global_train_step(tr.model, views, nv, queries, nq, sooc_dataset_n_objects(ds, sc),

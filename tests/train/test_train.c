@@ -115,13 +115,42 @@ static void test_resume(void) {
     sooc_rng r1, r2;
     sooc_rng_seed(&r1, 3, 7);
     sooc_rng_seed(&r2, 3, 7);
-    sooc_dataset_sample(ds, 1, 3, 2, &r1, v1, &nv1, q1, &nq1);
-    sooc_dataset_sample(ds, 1, 3, 2, &r2, v2, &nv2, q2, &nq2);
+    sooc_dataset_sample(ds, 1, 3, 2, 0, &r1, v1, &nv1, q1, &nq1);
+    sooc_dataset_sample(ds, 1, 3, 2, 0, &r2, v2, &nv2, q2, &nq2);
     CHECK(nv1 == 3 && nq1 == 2 && nv1 == nv2 && nq1 == nq2);
     for (int i = 0; i < nv1; i++) CHECK(!v1[i].is_query && v1[i].index == v2[i].index);
     for (int i = 1; i < nv1; i++) CHECK(v1[i].index > v1[i - 1].index);
     for (int i = 0; i < nq1; i++) CHECK(q1[i].is_query && q1[i].index == q2[i].index);
     CHECK(nq1 < 2 || q1[0].index != q1[1].index);
+    /* mode 1 (held-out views): outside the segment, distinct, deterministic,
+     * and their object pixels are (>= 90%) objects the segment saw */
+    for (int rep = 0; rep < 20; rep++) {
+        sooc_rng_seed(&r1, 5, (uint64_t)rep);
+        sooc_rng_seed(&r2, 5, (uint64_t)rep);
+        sooc_dataset_sample(ds, rep % 3, 2, 2, 1, &r1, v1, &nv1, q1, &nq1);
+        sooc_dataset_sample(ds, rep % 3, 2, 2, 1, &r2, v2, &nv2, q2, &nq2);
+        CHECK(nq1 >= 1 && nq1 == nq2);
+        for (int i = 0; i < nq1; i++) {
+            CHECK(q1[i].index == q2[i].index);
+            for (int t = 0; t < nv1; t++) CHECK(q1[i].index != v1[t].index);
+            for (int j = 0; j < i; j++) CHECK(q1[i].index != q1[j].index);
+            size_t np = (size_t)q1[i].width * (size_t)q1[i].height, obj = 0, cov = 0;
+            for (size_t p = 0; p < np; p++) {
+                uint16_t id = q1[i].instance[p];
+                if (!id || !q1[i].valid[p]) continue;
+                obj++;
+                int seen = 0;
+                for (int t = 0; t < nv1 && !seen; t++) {
+                    size_t c = 0;
+                    for (size_t p2 = 0; p2 < np; p2++) c += v1[t].instance[p2] == id && v1[t].valid[p2];
+                    seen = c >= 16;
+                }
+                cov += (size_t)seen;
+            }
+            /* a fallback to mode 0 (no view qualified) returns query frames */
+            CHECK(q1[i].is_query || (obj > 0 && cov >= 0.9 * obj));
+        }
+    }
 
     sooc_train_config c;
     sooc_model_config mc;
