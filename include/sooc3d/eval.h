@@ -62,10 +62,24 @@ typedef struct sooc_eval_cell {
     sooc_eval_stat recall[SOOC_METRIC_N_DBINS];
     sooc_eval_stat mesh_acc_cm, mesh_comp_cm;
     long n_views;                      /* summed over runs */
+    /* mIoU of the views with b visible GT objects (b >= 7 in the last bin),
+     * pooled over runs (NaN where no view has that count), and their number */
+    double miou_by_nobj[SOOC_METRIC_N_OBINS];
+    long n_by_nobj[SOOC_METRIC_N_OBINS];
 } sooc_eval_cell;
 /* Statistics over runs of one cell; SOOC_ENOTFOUND if it has no data. */
 sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, int scale, int is_query,
                                  sooc_eval_cell *out);
+/* Composition-matched mIoU (direct standardisation): the cell's mIoU per
+ * visible-object count, weighted by how many views of the reference scale
+ * (same model and view type) have that count. It answers "what would this
+ * scale score on views that hold as many objects as the reference scale's",
+ * since best-match mIoU falls with the objects a view holds (docs/metrics.md).
+ * Counts the reference has but the cell lacks are left out and the weights
+ * renormalised; *coverage (may be NULL) receives the reference weight used.
+ * SOOC_ENOTFOUND if either cell has no data. */
+sooc_status sooc_eval_table_miou_matched(const sooc_eval_table *t, const char *model, int scale, int is_query,
+                                         int ref_scale, double *miou, double *coverage);
 
 /* Formatted table in a sooc_malloc'd, NUL-terminated string (caller frees). */
 sooc_status sooc_eval_table_text(const sooc_eval_table *t, char **out);

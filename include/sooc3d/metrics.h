@@ -26,6 +26,7 @@ extern "C" {
 #define SOOC_METRIC_MAX_PRED 1024     /* predicted labels per view (0..n_pred-1)  */
 #define SOOC_METRIC_IOU_MIN 0.05      /* IoU below this scores 0 (MulMON)         */
 #define SOOC_METRIC_N_DBINS 3         /* recall bins: < 3 m, 3-5 m, >= 5 m        */
+#define SOOC_METRIC_N_OBINS 8         /* views by visible GT objects: 0..6, >= 7  */
 
 /* ---------------------------------------------------------------- Hungarian */
 
@@ -128,6 +129,8 @@ typedef struct sooc_metric_sums {
     double depth_rmse; long n_depth;
     double l2_sum; long n_obj_matched, n_obj_visible;
     long recall_hit[SOOC_METRIC_N_DBINS], recall_tot[SOOC_METRIC_N_DBINS];
+    /* best-match mIoU of the views with b visible GT objects (b >= 7 in the last bin) */
+    double miou_by_nobj[SOOC_METRIC_N_OBINS]; long n_by_nobj[SOOC_METRIC_N_OBINS];
     sooc_mesh_sums mesh;
 } sooc_metric_sums;
 
@@ -140,6 +143,8 @@ typedef struct sooc_metric_means {
     double l2;                     /* mean over matched (object, view) pairs    */
     double matched_frac;           /* n_obj_matched / n_obj_visible             */
     double recall[SOOC_METRIC_N_DBINS];
+    double miou_by_nobj[SOOC_METRIC_N_OBINS];   /* NaN where no view has that count */
+    long n_by_nobj[SOOC_METRIC_N_OBINS];
     double mesh_acc_cm, mesh_comp_cm, mesh_fscore;
     long n_views;
 } sooc_metric_means;

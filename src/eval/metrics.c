@@ -286,7 +286,14 @@ const char *sooc_scale_name(int scale) {
 
 void sooc_metric_sums_add_view(sooc_metric_sums *s, const sooc_view_metrics *v) {
     s->n_views++;
-    if (isfinite(v->miou_best)) { s->miou_best += v->miou_best; s->miou_hung += v->miou_hung; s->n_miou++; }
+    if (isfinite(v->miou_best)) {
+        s->miou_best += v->miou_best;
+        s->miou_hung += v->miou_hung;
+        s->n_miou++;
+        int b = v->n_obj_visible < SOOC_METRIC_N_OBINS - 1 ? v->n_obj_visible : SOOC_METRIC_N_OBINS - 1;
+        s->miou_by_nobj[b] += v->miou_best;
+        s->n_by_nobj[b]++;
+    }
     if (isfinite(v->rgb_rmse)) { s->rgb_rmse += v->rgb_rmse; s->n_rgb++; }
     if (isfinite(v->depth_rmse)) { s->depth_rmse += v->depth_rmse; s->n_depth++; }
     s->l2_sum += v->l2_sum;
@@ -308,6 +315,10 @@ void sooc_metric_sums_merge(sooc_metric_sums *d, const sooc_metric_sums *s) {
         d->recall_hit[b] += s->recall_hit[b];
         d->recall_tot[b] += s->recall_tot[b];
     }
+    for (int b = 0; b < SOOC_METRIC_N_OBINS; b++) {
+        d->miou_by_nobj[b] += s->miou_by_nobj[b];
+        d->n_by_nobj[b] += s->n_by_nobj[b];
+    }
     d->mesh.n_obj += s->mesh.n_obj;
     d->mesh.acc_cm += s->mesh.acc_cm;
     d->mesh.comp_cm += s->mesh.comp_cm;
@@ -325,6 +336,10 @@ void sooc_metric_sums_means(const sooc_metric_sums *s, sooc_metric_means *m) {
     m->l2 = ratio(s->l2_sum, s->n_obj_matched);
     m->matched_frac = ratio((double)s->n_obj_matched, s->n_obj_visible);
     for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) m->recall[b] = ratio((double)s->recall_hit[b], s->recall_tot[b]);
+    for (int b = 0; b < SOOC_METRIC_N_OBINS; b++) {
+        m->miou_by_nobj[b] = ratio(s->miou_by_nobj[b], s->n_by_nobj[b]);
+        m->n_by_nobj[b] = s->n_by_nobj[b];
+    }
     m->mesh_acc_cm = ratio(s->mesh.acc_cm, s->mesh.n_obj);
     m->mesh_comp_cm = ratio(s->mesh.comp_cm, s->mesh.n_obj);
     m->mesh_fscore = ratio(s->mesh.fscore, s->mesh.n_obj);

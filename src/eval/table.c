@@ -114,6 +114,7 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
     memset(out, 0, sizeof *out);
     enum { NM = 8 + SOOC_METRIC_N_DBINS };
     static _Thread_local double vals[NM][MAX_RUNS];
+    double by_sum[SOOC_METRIC_N_OBINS] = {0};
     int n = 0;
     for (int i = 0; i < t->n; i++) {
         const entry *e = &t->e[i];
@@ -127,6 +128,10 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
         vals[3][n] = m.depth_rmse; vals[4][n] = m.l2; vals[5][n] = m.matched_frac;
         vals[6][n] = m.mesh_acc_cm; vals[7][n] = m.mesh_comp_cm;
         for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) vals[8 + b][n] = m.recall[b];
+        for (int b = 0; b < SOOC_METRIC_N_OBINS; b++) {
+            by_sum[b] += s->miou_by_nobj[b];
+            out->n_by_nobj[b] += s->n_by_nobj[b];
+        }
         out->n_views += s->n_views;
         n++;
     }
@@ -136,6 +141,28 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
     stat_of(vals[4], n, &out->l2); stat_of(vals[5], n, &out->matched_frac);
     stat_of(vals[6], n, &out->mesh_acc_cm); stat_of(vals[7], n, &out->mesh_comp_cm);
     for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) stat_of(vals[8 + b], n, &out->recall[b]);
+    for (int b = 0; b < SOOC_METRIC_N_OBINS; b++)
+        out->miou_by_nobj[b] = out->n_by_nobj[b] ? by_sum[b] / (double)out->n_by_nobj[b] : NAN;
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_table_miou_matched(const sooc_eval_table *t, const char *model, int scale, int is_query,
+                                         int ref_scale, double *miou, double *coverage) {
+    sooc_eval_cell c, r;
+    *miou = NAN;
+    if (coverage) *coverage = 0;
+    if (sooc_eval_table_cell(t, model, scale, is_query, &c) || sooc_eval_table_cell(t, model, ref_scale, is_query, &r))
+        return SOOC_ENOTFOUND;
+    double num = 0, wsum = 0, wall = 0;
+    for (int b = 0; b < SOOC_METRIC_N_OBINS; b++) {
+        wall += (double)r.n_by_nobj[b];
+        if (!r.n_by_nobj[b] || !c.n_by_nobj[b]) continue;
+        num += (double)r.n_by_nobj[b] * c.miou_by_nobj[b];
+        wsum += (double)r.n_by_nobj[b];
+    }
+    if (wsum <= 0) return SOOC_ENOTFOUND;
+    *miou = num / wsum;
+    if (coverage) *coverage = wsum / wall;
     return SOOC_OK;
 }
 
@@ -276,6 +303,37 @@ sooc_status sooc_eval_table_text(const sooc_eval_table *t, char **out) {
     return sb_finish(&b, out);
 }
 
+/* Supplementary table: mIoU by visible objects per view, and the
+ * composition-matched mIoU against medium scenes when they were evaluated. */
+static void md_by_nobj(sbuf *b, const sooc_eval_table *t, const char **models, int nm, const int *sc, int ns) {
+    int have_m = 0;
+    for (int s = 0; s < ns; s++) have_m |= sc[s] == SOOC_SCALE_M;
+    sb_printf(b, "\nSupplementary: mIoU by the number of GT objects a view holds (views in brackets)%s.\n\n"
+                 "| model | view | scale |", have_m ? "; composition-matched: the same, weighted as the medium "
+                 "views are (docs/metrics.md)" : "");
+    for (int k = 0; k < SOOC_METRIC_N_OBINS; k++)
+        sb_printf(b, " %d%s |", k, k == SOOC_METRIC_N_OBINS - 1 ? "+" : "");
+    sb_printf(b, "%s\n|---|---|---|", have_m ? " composition-matched |" : "");
+    for (int k = 0; k < SOOC_METRIC_N_OBINS + have_m; k++) sb_printf(b, "---:|");
+    sb_printf(b, "\n");
+    for (int m = 0; m < nm; m++)
+        for (int q = 0; q < 2; q++)
+            for (int s = 0; s < ns; s++) {
+                sooc_eval_cell c;
+                if (sooc_eval_table_cell(t, models[m], sc[s], q, &c)) continue;
+                sb_printf(b, "| %s | %s | %s |", models[m], q ? "Q" : "I", sooc_scale_name(sc[s]));
+                for (int k = 0; k < SOOC_METRIC_N_OBINS; k++) {
+                    if (c.n_by_nobj[k]) sb_printf(b, " %.3f (%ld) |", c.miou_by_nobj[k], c.n_by_nobj[k]);
+                    else sb_printf(b, " - |");
+                }
+                double mm, cov;
+                if (have_m && !sooc_eval_table_miou_matched(t, models[m], sc[s], q, SOOC_SCALE_M, &mm, &cov))
+                    sb_printf(b, cov < 1 ? " %.3f (%.0f%% of m views) |" : " %.3f |", mm, 100 * cov);
+                else if (have_m) sb_printf(b, " - |");
+                sb_printf(b, "\n");
+            }
+}
+
 sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
     sbuf b = {0};
     const char *models[MAXM];
@@ -313,6 +371,7 @@ sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
                 sb_printf(&b, "| %s | %s | %s | %ld | %s | %s | %s | %s | %s |\n", models[m], q ? "Q" : "I",
                           sooc_scale_name(sc[s]), c.n_views, h, mf, r[0], r[1], r[2]);
             }
+    md_by_nobj(&b, t, models, nm, sc, ns);
     sb_printf(&b, "\nmIoU: MulMON best-match per GT instance (background included, IoU < 0.05 -> 0); "
                   "RGB RMSE: sqrt of the per-pixel channel SUM of squared errors (divide by sqrt(3) for "
                   "the per-channel mean); depth RMSE in m over GT depth <= d_clip; L2: floor-plane error "
@@ -376,7 +435,18 @@ sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
                 json_stat(&b, "recall_3to5m", &c.recall[1], 1);
                 json_stat(&b, "recall_gt5m", &c.recall[2], 1);
                 json_stat(&b, "mesh_acc_cm", &c.mesh_acc_cm, 1);
-                json_stat(&b, "mesh_comp_cm", &c.mesh_comp_cm, 0);
+                json_stat(&b, "mesh_comp_cm", &c.mesh_comp_cm, 1);
+                sb_printf(&b, "\"miou_by_nobj\": [");
+                for (int k = 0; k < SOOC_METRIC_N_OBINS; k++) {
+                    json_num(&b, c.miou_by_nobj[k]);
+                    sb_printf(&b, k + 1 < SOOC_METRIC_N_OBINS ? ", " : "], \"views_by_nobj\": [");
+                }
+                for (int k = 0; k < SOOC_METRIC_N_OBINS; k++)
+                    sb_printf(&b, "%ld%s", c.n_by_nobj[k], k + 1 < SOOC_METRIC_N_OBINS ? ", " : "]");
+                double mm = NAN;
+                sooc_eval_table_miou_matched(t, models[m], sc[s], q, SOOC_SCALE_M, &mm, NULL);
+                sb_printf(&b, ", \"miou_composition_matched_m\": ");
+                json_num(&b, mm);
                 sb_printf(&b, "}");
             }
     sb_printf(&b, "\n]}\n");

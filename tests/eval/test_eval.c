@@ -109,6 +109,44 @@ static void test_table(const char *dir) {
     CHECK_OK(sooc_eval_table_write(t, jp, mp));
     CHECK(sooc_file_exists(jp) && sooc_file_exists(mp));
     sooc_eval_table_destroy(t);
+
+    /* composition-matched mIoU: medium views hold 1 object (0.8) or 3 (0.6), 3:1;
+     * large views hold 1 (0.7), 3 (0.5) or 8 (0.2), 1:1:2. Large's plain mean is
+     * 0.4; weighted as medium's views: 0.75 * 0.7 + 0.25 * 0.5 = 0.65. */
+    CHECK_OK(sooc_eval_table_create(&t));
+    struct { int scale, nobj, n; double miou; } vs[] = {
+        {SOOC_SCALE_M, 1, 3, 0.8}, {SOOC_SCALE_M, 3, 1, 0.6},
+        {SOOC_SCALE_L, 1, 1, 0.7}, {SOOC_SCALE_L, 3, 1, 0.5}, {SOOC_SCALE_L, 8, 2, 0.2}};
+    for (int i = 0; i < 5; i++)
+        for (int k = 0; k < vs[i].n; k++) {
+            sooc_view_metrics vm;
+            memset(&vm, 0, sizeof vm);
+            vm.is_query = 1;
+            vm.miou_best = vm.miou_hung = vs[i].miou;
+            vm.rgb_rmse = vm.depth_rmse = 0.1;
+            vm.n_obj_visible = vs[i].nobj;
+            CHECK_OK(sooc_eval_table_add_view(t, "ours", vs[i].scale, 0, &vm));
+        }
+    CHECK_OK(sooc_eval_table_cell(t, "ours", SOOC_SCALE_L, 1, &c));
+    CHECK_CLOSE(c.miou_best.mean, 0.4, 1e-12, 0);
+    CHECK(c.n_by_nobj[1] == 1 && c.n_by_nobj[3] == 1 && c.n_by_nobj[SOOC_METRIC_N_OBINS - 1] == 2 && c.n_by_nobj[0] == 0);
+    CHECK(isnan(c.miou_by_nobj[0]));
+    CHECK_CLOSE(c.miou_by_nobj[SOOC_METRIC_N_OBINS - 1], 0.2, 1e-12, 0);
+    double mm = 0, cov = 0;
+    CHECK_OK(sooc_eval_table_miou_matched(t, "ours", SOOC_SCALE_L, 1, SOOC_SCALE_M, &mm, &cov));
+    CHECK_CLOSE(mm, 0.65, 1e-12, 0);
+    CHECK_CLOSE(cov, 1.0, 1e-12, 0);
+    CHECK_OK(sooc_eval_table_miou_matched(t, "ours", SOOC_SCALE_M, 1, SOOC_SCALE_M, &mm, &cov));
+    CHECK_CLOSE(mm, 0.75, 1e-12, 0);   /* a scale matched to itself is its plain mean */
+    /* no small-scene views, and no input views at all: nothing to match */
+    CHECK(sooc_eval_table_miou_matched(t, "ours", SOOC_SCALE_S, 1, SOOC_SCALE_M, &mm, &cov) == SOOC_ENOTFOUND);
+    CHECK(sooc_eval_table_miou_matched(t, "ours", SOOC_SCALE_L, 0, SOOC_SCALE_M, &mm, &cov) == SOOC_ENOTFOUND);
+    CHECK_OK(sooc_eval_table_markdown(t, &md));
+    if (md) CHECK(strstr(md, "| ours | Q | l | - | 0.700 (1) | - | 0.500 (1) |") && strstr(md, " 0.650 |"));
+    CHECK_OK(sooc_eval_table_json(t, &js));
+    if (js) CHECK(strstr(js, "\"miou_composition_matched_m\": 0.65") != NULL);
+    sooc_free(md); sooc_free(js);
+    sooc_eval_table_destroy(t);
 }
 
 static void check_png(const char *path, int min_w, int min_h) {
