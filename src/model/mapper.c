@@ -141,7 +141,6 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     return SOOC_OK;
 }
 
-/* The box of the model's locality window (sooc_map_entry.extent). */
 sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
     size_t cnt = sooc_cogmap_count(mp->map);
     if (!out) {
