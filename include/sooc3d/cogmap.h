@@ -195,6 +195,16 @@ sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int
                                  const uint64_t *src_ids, int64_t t_ns, int32_t view,
                                  uint64_t *ids_out, uint64_t *removed_out, sooc_cogmap_reg_stats *st);
 
+/* Merge duplicates among the entries one view registered (ids[0..k), 0 =
+ * none): two of them whose floor positions are closer than `radius` metres
+ * describe one object split over two slots; the one observed more often is
+ * kept (on a tie, the older: smaller id) and the other removed. Only these
+ * entries are looked at, so entries outside the view stay untouched. Removed
+ * ids are zeroed in ids[] and written to removed_out (may be NULL, room for
+ * k), count in *n_removed. radius <= 0 does nothing. Unknown ids are skipped. */
+void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint64_t *removed_out,
+                       int *n_removed);
+
 /* --------------------------------------------------------- layout blocks */
 
 /* Block (bi, bj) covers [bi*B_s, (bi+1)*B_s) x [bj*B_s, (bj+1)*B_s) on (X, Z);

@@ -107,7 +107,14 @@ typedef struct sooc3d_mapper_params {
                                   e.g. the depth sensor's usable range (deeper pixels are
                                   "no surface up to d_clip", deeper objects out of view);
                                   0 = the model's                                      */
+    double merge_radius;       /* entries one keyframe registers closer than this on the
+                                  floor (m) are one object split over two slots: the
+                                  better-observed one is kept (sooc_cogmap_merge).
+                                  0 = SOOC3D_MAPPER_MERGE_DEFAULT, < 0 = never merge   */
 } sooc3d_mapper_params;
+
+/* docs/model.md "Merging split objects": 0.35 m measured best of 0.25/0.35/0.5 */
+#define SOOC3D_MAPPER_MERGE_DEFAULT 0.35
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
 
@@ -123,11 +130,14 @@ typedef struct sooc3d_update_stats {
     int n_registered;          /* slots written back (present)            */
     int n_new;                 /* of which new entries                    */
     int n_removed;             /* retrieved entries whose presence fell   */
+    int n_merged;              /* registered entries merged away (removed) */
     double elapsed_ms;
 } sooc3d_update_stats;
 
 /* One keyframe: query in-view entries, pad to K with the slot priors, refine
- * L times, register the present slots. `f` must have a pose and the model's
+ * L times, register the present slots, then merge the registered entries that
+ * lie closer than the merge radius (sooc_cogmap_merge; removals are reported
+ * by sooc3d_mapper_changed like presence removals). `f` must have a pose and the model's
  * resolution; depth is planar metres with 0 = invalid. */
 sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st);
 
@@ -159,6 +169,9 @@ int sooc3d_mapper_latent_dim(const sooc3d_mapper *m);
 sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar);
 sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar);
+
+/* Set the merge radius of a live mapper (same meaning as the parameter). */
+void sooc3d_mapper_set_merge_radius(sooc3d_mapper *m, double radius);
 
 /* Id counter: new entries get ids >= next_id. reserve_ids raises it (resume:
  * ids of entries removed before the restart are not handed out again). */

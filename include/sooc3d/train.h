@@ -119,6 +119,11 @@ typedef struct sooc_train_run_params {
     void *val_user;
     int progress;                 /* 1 = draw a progress line on stderr (CLI)      */
     volatile int *stop_flag;      /* set non-zero (e.g. by SIGINT) to checkpoint and stop */
+    const char *init_path;        /* new run (not a resume): start from this checkpoint's
+                                     weights (fine-tuning) instead of init_seed's random
+                                     ones; its network shapes must match the config's,
+                                     other settings (clip, likelihood) come from the
+                                     config. Fresh optimiser state. NULL = random init */
 } sooc_train_run_params;
 
 /* Train until cfg->steps (or the stop flag, or the time budget). Always

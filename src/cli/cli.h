@@ -24,6 +24,8 @@ int sooc_cli_fail(const char *cmd, sooc_status s);
 int sooc_cli_wants_help(int argc, char **argv);
 /* Parse "C" or "C,F" render sample counts (C >= 2, F >= 0); 1 on success. */
 int sooc_cli_parse_samples(const char *s, int *c, int *f);
+/* "--merge R": R >= 0 metres; 0 (never merge) becomes the mapper's "off" (-1). */
+int sooc_cli_parse_merge(const char *s, double *radius);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */
 void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
 

@@ -23,6 +23,14 @@ void sooc_cli_log(void *user, sooc_log_level level, const char *msg) {
     fprintf(stderr, "[%s] %s\n", tag[level], msg);
 }
 
+int sooc_cli_parse_merge(const char *s, double *radius) {
+    char *e;
+    double r = strtod(s, &e);
+    if (e == s || *e || !(r >= 0) || !(r < 100)) return 0;
+    *radius = r > 0 ? r : -1;
+    return 1;
+}
+
 /* "C" or "C,F": coarse and fine render samples per ray (C >= 2, F >= 0). */
 int sooc_cli_parse_samples(const char *s, int *c, int *f) {
     char *e;

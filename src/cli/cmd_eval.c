@@ -20,7 +20,7 @@ static void usage(FILE *f) {
             "usage: sooc3d eval --model M [--model M2 ...] [--name N ...] --data DIR [DIR...] --json OUT\n"
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
-            "                   [--max-views N] [--max-obj K] [--clip D] [--quiet]\n\n"
+            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R] [--quiet]\n\n"
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
             "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
             "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
@@ -44,6 +44,8 @@ static void usage(FILE *f) {
             "  --max-obj       render at most K in-view objects per view (default: all, up to 63)\n"
             "  --clip          clip depth in metres for inference and scoring (default: the model's\n"
             "                  d_clip): pixels beyond it are masked, objects beyond it are out of view\n"
+            "  --merge         SOOC3D mapper: merge entries one view registers closer than R m\n"
+            "                  (0 = never; default 0.35, docs/model.md \"Merging split objects\")\n"
             "  --quiet         no progress line\n");
 }
 
@@ -159,6 +161,12 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--clip") && has) {
             ro.d_clip = atof(argv[++i]);
             if (!(ro.d_clip > 0)) { fprintf(stderr, "sooc3d eval: --clip wants a depth > 0 in metres\n"); return 2; }
+        }
+        else if (!strcmp(a, "--merge") && has) {
+            if (!sooc_cli_parse_merge(argv[++i], &ro.merge_radius)) {
+                fprintf(stderr, "sooc3d eval: --merge wants a radius >= 0 in metres (0 = never merge)\n");
+                return 2;
+            }
         }
         else if (!strcmp(a, "--quiet")) quiet = 1;
         else {

@@ -15,11 +15,12 @@
 static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
-            "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n\n"
+            "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n"
+            "                    [--merge R]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
             "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
-            "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, ms)\n"
+            "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, merged, ms)\n"
             "  DIR/render/%%06d_{rgb,depth,label}.png  renders of every frame from the final map\n"
             "                               (input and query views; 96 coarse + 32 fine samples)\n\n"
             "  --model       model checkpoint (models/<name>/model.bin)\n"
@@ -30,7 +31,9 @@ static void usage(FILE *f) {
             "  --every       map every K-th input frame (default 1)\n"
             "  --max-frames  stop after N frames (default all)\n"
             "  --samples     render samples per ray, coarse (default 96)\n"
-            "  --clip        clip depth in m instead of the model's (e.g. the sensor's usable range)\n");
+            "  --clip        clip depth in m instead of the model's (e.g. the sensor's usable range)\n"
+            "  --merge       entries one frame registers closer than R m are merged (one object\n"
+            "                split over two slots); 0 = never (default 0.35, docs/model.md)\n");
 }
 
 static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n) {
@@ -125,7 +128,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     }
     const char *model = NULL, *seq = NULL, *out = NULL;
     int iters = 0, threads = 0, every = 1, render = 1, samples = 96;
-    double clip = 0;
+    double clip = 0, merge = 0;
     long long maxf = -1;
     uint64_t seed = 1;
     for (int i = 1; i < argc; i++) {
@@ -138,6 +141,12 @@ int sooc_cmd_infer(int argc, char **argv) {
         else if (!strcmp(a, "--clip") && has) {
             clip = atof(argv[++i]);
             if (!(clip > 0)) { fprintf(stderr, "sooc3d infer: --clip wants a depth > 0 in metres\n"); return 2; }
+        }
+        else if (!strcmp(a, "--merge") && has) {
+            if (!sooc_cli_parse_merge(argv[++i], &merge)) {
+                fprintf(stderr, "sooc3d infer: --merge wants a radius >= 0 in metres (0 = never merge)\n");
+                return 2;
+            }
         }
         else if (!strcmp(a, "--threads") && has) threads = atoi(argv[++i]);
         else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
@@ -167,6 +176,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     sooc3d_mapper_params p;
     sooc3d_mapper_params_default(&p);
     p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
+    p.merge_radius = merge;
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
     int mw, mh;
     sooc3d_mapper_input_size(mp, &mw, &mh);
@@ -178,7 +188,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", path);
         goto fail;
     }
-    fprintf(uc, "frame,t_ns,retrieved,registered,new,removed,ms\n");
+    fprintf(uc, "frame,t_ns,retrieved,registered,new,removed,merged,ms\n");
     sooc_progress pr;
     sooc_progress_begin(&pr, "infer", (uint64_t)n);
     int64_t n_in = 0, mapped = 0;
@@ -196,8 +206,8 @@ int sooc_cmd_infer(int argc, char **argv) {
         if ((st = sooc3d_mapper_update(mp, &f, &us))) goto fail;
         mapped++;
         ms_sum += us.elapsed_ms;
-        fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%.3f\n", (long long)i, (long long)f.t_ns, us.n_retrieved, us.n_registered,
-                us.n_new, us.n_removed, us.elapsed_ms);
+        fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%d,%.3f\n", (long long)i, (long long)f.t_ns, us.n_retrieved,
+                us.n_registered, us.n_new, us.n_removed, us.n_merged, us.elapsed_ms);
         char extra[96];
         size_t ne = 0;
         sooc3d_mapper_entries(mp, NULL, 0, &ne);

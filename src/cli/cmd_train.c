@@ -16,13 +16,15 @@ static void on_signal(int sig) {
 static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d train --config F --data DIR [DIR...] --out DIR [--val DIR...] [--resume]\n"
-            "                    [--steps N] [--threads N] [--max-seconds S]\n\n"
+            "                    [--init M] [--steps N] [--threads N] [--max-seconds S]\n\n"
             "Train SOOC3D (ELBO + query objective) on scenes written by `sooc3d gen`.\n"
             "  --config F       training YAML (training keys + a `model:` mapping); see models/*/config.yaml\n"
             "  --data DIR...    scene folders (or folders of scene_* folders) to train on\n"
             "  --val DIR...     held-out scenes for periodic validation (best.bin keeps the best mIoU)\n"
             "  --out DIR        checkpoints (last.bin, best.bin), log.csv, val.csv, curves.png\n"
             "  --resume         continue from DIR/last.bin with the same data order and RNG\n"
+            "  --init M         new run from checkpoint M's weights (fine-tuning, e.g. to another clip\n"
+            "                   depth); network shapes must match the config, optimiser starts fresh\n"
             "  --steps N        override the config's total steps\n"
             "  --threads N      decoder threads (default: all cores)\n"
             "  --max-seconds S  checkpoint and stop after S seconds (for time-sliced runs)\n"
@@ -35,7 +37,7 @@ sooc_status sooc_train_validate(void *user, sooc_model *m, const sooc_dataset *v
 
 int sooc_cmd_train(int argc, char **argv) {
     if (sooc_cli_wants_help(argc, argv)) { usage(stdout); return 0; }
-    const char *config = NULL, *out = NULL;
+    const char *config = NULL, *out = NULL, *init = NULL;
     const char *data[256], *val[256];
     int n_data = 0, n_val = 0, resume = 0, threads = -1;
     long long steps = 0;
@@ -45,6 +47,7 @@ int sooc_cmd_train(int argc, char **argv) {
         if (!strcmp(a, "--config") && i + 1 < argc) config = argv[++i];
         else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
         else if (!strcmp(a, "--resume")) resume = 1;
+        else if (!strcmp(a, "--init") && i + 1 < argc) init = argv[++i];
         else if (!strcmp(a, "--steps") && i + 1 < argc) steps = atoll(argv[++i]);
         else if (!strcmp(a, "--threads") && i + 1 < argc) threads = atoi(argv[++i]);
         else if (!strcmp(a, "--max-seconds") && i + 1 < argc) max_s = atof(argv[++i]);
@@ -84,7 +87,7 @@ int sooc_cmd_train(int argc, char **argv) {
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     sooc_train_run_params rp = {config, out, resume, train, valset,
-                                valset ? sooc_train_validate : NULL, &cfg, 1, &g_stop};
+                                valset ? sooc_train_validate : NULL, &cfg, 1, &g_stop, init};
     s = sooc_train_run(&cfg, &mc, &rp);
     sooc_dataset_destroy(train);
     sooc_dataset_destroy(valset);

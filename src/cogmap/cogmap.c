@@ -784,6 +784,30 @@ sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int
     return SOOC_OK;
 }
 
+void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint64_t *removed_out,
+                       int *n_removed) {
+    int nr = 0;
+    for (int i = 0; radius > 0 && i < k; i++) {
+        uint32_t a = ids[i] ? hmap_get(&m->ids, ids[i]) : SOOC_HEMPTY;
+        for (int j = i + 1; a != SOOC_HEMPTY && j < k; j++) {
+            uint32_t b = ids[j] ? hmap_get(&m->ids, ids[j]) : SOOC_HEMPTY;
+            if (b == SOOC_HEMPTY) continue;
+            const sooc_cogmap_entry *ea = &m->ent[a], *eb = &m->ent[b];
+            double dx = ea->X - eb->X, dz = ea->Z - eb->Z;
+            if (!(dx * dx + dz * dz < radius * radius)) continue;
+            int keep_a = ea->obs_count > eb->obs_count || (ea->obs_count == eb->obs_count && ea->id < eb->id);
+            int lose = keep_a ? j : i;
+            ent_del_at(m, keep_a ? b : a);
+            if (removed_out) removed_out[nr] = ids[lose];
+            nr++;
+            ids[lose] = 0;
+            if (!keep_a) break;   /* entry i is gone; b may have moved in the dense array */
+            a = hmap_get(&m->ids, ids[i]);
+        }
+    }
+    if (n_removed) *n_removed = nr;
+}
+
 /* --------------------------------------------------------- layout blocks */
 
 void sooc_cogmap_block_of(const sooc_cogmap *m, double X, double Z, int32_t *bi, int32_t *bj) {

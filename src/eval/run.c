@@ -261,6 +261,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
             sooc_model_destroy(copy);
             goto done;
         }
+        sooc3d_mapper_set_merge_radius(mp, o->merge_radius);
         C.model = sooc3d_mapper_model(mp);
         C.map = sooc3d_mapper_cogmap(mp);
     }

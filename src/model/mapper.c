@@ -16,6 +16,7 @@ struct sooc3d_mapper {
     sooc_cogmap *map;
     view_rec V;
     int L, view_idx;
+    double merge_r;   /* sooc3d_mapper_params.merge_radius, resolved (0 = off) */
     sooc_rng rng;
     /* what the last update changed (sooc3d_mapper_changed / _last_layout) */
     uint64_t chg_ids[SOOC_MODEL_K_MAX], rem_ids[SOOC_MODEL_K_MAX];
@@ -36,6 +37,7 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
     if (!mp) return SOOC_ENOMEM;
     mp->m = m;
+    mp->merge_r = SOOC3D_MAPPER_MERGE_DEFAULT;
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
     if (mp->L > 16) mp->L = 16;
@@ -69,6 +71,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
     }
     st = mdl_mapper_create_from(out, m, p->iterations, p->seed, p->threads);
     if (st) sooc_model_destroy(m);
+    else sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
     return st;
 }
 
@@ -119,6 +122,9 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
                                   &rs)))
         return s;
     mp->n_rem = rs.n_removed;
+    int n_merged = 0;   /* merged-away entries: removed, and no longer among the written ids */
+    sooc_cogmap_merge(mp->map, ids, c->K, mp->merge_r, mp->rem_ids + mp->n_rem, &n_merged);
+    mp->n_rem += n_merged;
     for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 16) */
         if (ids[i]) {
             int j = mp->n_chg++;
@@ -137,6 +143,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     st->n_registered = rs.n_registered;
     st->n_new = rs.n_new;
     st->n_removed = rs.n_removed;
+    st->n_merged = n_merged;
     st->elapsed_ms = 1e3 * (sooc_seconds() - t0);
     return SOOC_OK;
 }
@@ -215,6 +222,9 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj,
 }
 
 void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) { sooc_cogmap_reserve_ids(mp->map, next_id); }
+void sooc3d_mapper_set_merge_radius(sooc3d_mapper *mp, double radius) {
+    mp->merge_r = radius > 0 ? radius : radius < 0 ? 0 : SOOC3D_MAPPER_MERGE_DEFAULT;
+}
 uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *mp) { return sooc_cogmap_next_id(mp->map); }
 
 sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp) { return mp->m; }

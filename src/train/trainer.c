@@ -183,6 +183,32 @@ static sooc_status run_validation(trainer *tr, int64_t step) {
     return SOOC_OK;
 }
 
+/* Fine-tuning: copy the weights of checkpoint `path` into the fresh model m.
+ * Everything that shapes the parameter slab must agree; the rest (clip depth,
+ * likelihood constants, prior spread at init) is the config's. */
+static sooc_status init_from(sooc_model *m, const sooc_model_config *mc, const char *path) {
+    sooc_model *src;
+    sooc_status s = sooc_model_load(&src, path, NULL, NULL);
+    if (s) return sooc_adderr(s, "train --init");
+    const sooc_model_config *c = sooc_model_get_config(src);
+    const char *bad = c->K != mc->K ? "K" : c->d_what != mc->d_what ? "d_what" : c->d_layout != mc->d_layout ? "d_layout"
+                    : c->img_w != mc->img_w || c->img_h != mc->img_h ? "img_w/img_h"
+                    : c->dec_width != mc->dec_width ? "dec_width" : c->dec_color_width != mc->dec_color_width ? "dec_color_width"
+                    : c->n_freq != mc->n_freq ? "n_freq" : c->n_freq_layout != mc->n_freq_layout ? "n_freq_layout"
+                    : memcmp(c->ref_ch, mc->ref_ch, sizeof c->ref_ch) ? "ref_ch" : c->ref_fc != mc->ref_fc ? "ref_fc"
+                    : c->ref_hidden != mc->ref_hidden ? "ref_hidden" : c->global_frame != mc->global_frame ? "global_frame"
+                    : sooc_model_param_count(src) != sooc_model_param_count(m) ? "parameter count" : NULL;
+    if (bad) {
+        sooc_model_destroy(src);
+        return sooc_seterr(SOOC_EINVAL, "%s: its %s differs from the config's model; --init needs the same network shapes",
+                           path, bad);
+    }
+    memcpy(sooc_model_params(m), sooc_model_params(src), sooc_model_param_count(m) * sizeof(float));
+    sooc_model_destroy(src);
+    sooc_log(SOOC_LOG_INFO, "weights from %s (fine-tuning)", path);
+    return SOOC_OK;
+}
+
 static void trainer_free(trainer *tr) {
     sooc_model_destroy(tr->model);
     sooc_free(tr->m);
@@ -218,6 +244,10 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
                                tr.path_last);
         s = sooc_model_create(&tr.model, mc, cfg->init_seed);
         if (s) return s;
+        if (rp->init_path && (s = init_from(tr.model, mc, rp->init_path))) {
+            sooc_model_destroy(tr.model);
+            return s;
+        }
     }
     sooc_model_set_threads(tr.model, cfg->threads);
     tr.n = sooc_model_param_count(tr.model);

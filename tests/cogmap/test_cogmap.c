@@ -614,6 +614,60 @@ static void test_fault_injection(void) {
     CHECK(failures > 10);
 }
 
+/* Duplicate merge among one view's registered entries: pairs closer than the
+ * radius keep the better-observed entry (tie: smaller id), chains collapse to
+ * one, entries not in the list are bit-identical even when they are close,
+ * radius <= 0 and unknown ids do nothing. */
+static void test_merge(void) {
+    sooc_cogmap *m = new_map(1.0);
+    sooc_rng r;
+    sooc_rng_seed(&r, 11, 0);
+    /* id: 1 (0,0) obs 3 | 2 (0.2,0) obs 5 | 3 (0.1,0.25) obs 5 | 4 (2,2) obs 1 |
+     * 5 (2.3,2) obs 1 | 6 (0.1,-0.1) not in the view's list | 7 (5,5) */
+    const double P[7][2] = {{0, 0}, {0.2, 0}, {0.1, 0.25}, {2, 2}, {2.3, 2}, {0.1, -0.1}, {5, 5}};
+    const uint32_t obs[7] = {3, 5, 5, 1, 1, 9, 2};
+    sooc_cogmap_entry e[7];
+    for (int i = 0; i < 7; i++) {
+        rand_entry(&r, &e[i], P[i][0], P[i][1]);
+        e[i].obs_count = obs[i];
+        uint64_t id;
+        CHECK_OK(sooc_cogmap_insert(m, &e[i], &id));
+        CHECK(id == (uint64_t)i + 1);
+        e[i].id = id;
+    }
+    uint64_t ids[8] = {1, 0, 2, 3, 4, 5, 99, 7}, rem[8];
+    int nr = -1;
+    sooc_cogmap_merge(m, ids, 8, 0.0, rem, &nr);   /* radius 0: nothing */
+    CHECK(nr == 0 && sooc_cogmap_count(m) == 7);
+    sooc_cogmap_merge(m, ids, 8, 0.35, rem, &nr);
+    /* 1-2 (0.2 m): 2 kept (obs 5 > 3); 2-3 (0.27 m): tie on obs, 2 kept (older);
+     * 4-5 (0.3 m): tie, 4 kept; 6 is close to 1 and 2 but not in the list; 7 alone */
+    CHECK_MSG(nr == 3, "removed %d", nr);
+    CHECK(rem[0] == 1 && rem[1] == 3 && rem[2] == 5);
+    CHECK(ids[0] == 0 && ids[2] == 2 && ids[3] == 0 && ids[4] == 4 && ids[5] == 0 && ids[6] == 99 && ids[7] == 7);
+    CHECK(sooc_cogmap_count(m) == 4);
+    sooc_cogmap_entry g;
+    const int kept[4] = {1, 3, 5, 6};   /* indices of ids 2, 4, 6, 7 */
+    for (int i = 0; i < 4; i++) {
+        CHECK_OK(sooc_cogmap_get(m, e[kept[i]].id, &g));
+        CHECK(!memcmp(&g, &e[kept[i]], sizeof g));
+    }
+    CHECK(sooc_cogmap_get(m, 1, &g) == SOOC_ENOTFOUND && sooc_cogmap_get(m, 3, &g) == SOOC_ENOTFOUND);
+    /* the grid still agrees with a brute-force in-view count */
+    sooc_cogmap_camera c;
+    cogmap_test_cam(&c, 0, 1.5, -3, 0, 0.4);
+    sooc_cogmap_slot sl[8];
+    int n, nin;
+    sooc_floor_frame gf;
+    CHECK_OK(sooc_cogmap_query(m, &c, 7, sl, &n, &gf, &nin));
+    int bf = 0;
+    for (int i = 0; i < 4; i++) bf += sooc_cogmap_in_view(&c, &e[kept[i]]);
+    CHECK_MSG(nin == bf && bf >= 1, "in view %d, brute force %d", nin, bf);
+    sooc_cogmap_merge(m, ids, 8, 10.0, NULL, &nr);   /* everything left in the list: one survives */
+    CHECK(nr == 2 && sooc_cogmap_count(m) == 2);
+    sooc_cogmap_destroy(m);
+}
+
 int main(void) {
     test_transforms();
     test_inview();
@@ -621,6 +675,7 @@ int main(void) {
     test_query_vs_bruteforce();
     test_registration_and_ids();
     test_out_of_view_identical();
+    test_merge();
     test_stress();
     test_layout_and_alloc();
     test_fault_injection();

@@ -143,6 +143,8 @@ int main(void) {
     }
     /* mapper: deterministic for a seed, registration and retrieval */
     static sooc_map_entry e1[256], e2[256], e3[256];
+    double T0[16];
+    synth_pose(T0, 0, 1.5, 0, 0, -0.45);
     size_t n1, n2, n3;
     sooc3d_mapper *mp;
     int ret = run_seq(path, 7, e1, 256, &n1, &mp);
@@ -160,6 +162,43 @@ int main(void) {
         CHECK_CLOSE(e3[i].x, e1[i].x, 1e-9, 0);
         CHECK_CLOSE(e3[i].sigma_t, e1[i].sigma_t, 1e-5, 1e-5);
         CHECK(!memcmp(e3[i].what_mu, e1[i].what_mu, sizeof e1[i].what_mu));
+    }
+    /* duplicate merge: two entries 0.11 m apart in front of the camera. The
+     * untrained refinement leaves them where they are (its last layer starts
+     * at zero), so both are retrieved and registered; the better-observed one
+     * stays and the other is reported removed, not changed. Off: both stay. */
+    for (int pass = 0; pass < 2; pass++) {
+        sooc_map_entry dup[2];
+        memcpy(dup, e1, sizeof dup[0]);
+        memcpy(dup + 1, e1, sizeof dup[0]);
+        dup[0].id = 40, dup[0].x = 0.3, dup[0].z = 3.0, dup[0].obs_count = 1;
+        dup[1].id = 41, dup[1].x = 0.4, dup[1].z = 3.05, dup[1].obs_count = 2;
+        dup[0].presence_logit = dup[1].presence_logit = 4.0f;
+        dup[0].presence = dup[1].presence = 1.0f / (1.0f + expf(-4.0f));
+        CHECK_OK(sooc3d_mapper_load_entries(mp, dup, 2));
+        sooc3d_mapper_set_merge_radius(mp, pass ? -1.0 : 0.0);   /* default 0.35 m, then off */
+        synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
+        sooc_frame fr;
+        CHECK_OK(synth_frame(&fr, 32, 32, 60, T0, &sp1, 1));
+        fr.index = 9, fr.t_ns = 9000;
+        sooc3d_update_stats us;
+        CHECK_OK(sooc3d_mapper_update(mp, &fr, &us));
+        sooc_frame_free(&fr);
+        sooc_map_entry chg[SOOC_MAPPER_CHANGED_MAX];
+        uint64_t rm[SOOC_MAPPER_CHANGED_MAX];
+        size_t nc, nrm;
+        CHECK_OK(sooc3d_mapper_changed(mp, chg, SOOC_MAPPER_CHANGED_MAX, &nc, rm, SOOC_MAPPER_CHANGED_MAX, &nrm));
+        CHECK_OK(sooc3d_mapper_entries(mp, e3, 256, &n3));
+        int has40 = 0, has41 = 0, chg40 = 0, rm40 = 0;
+        for (size_t i = 0; i < n3; i++) has40 |= e3[i].id == 40, has41 |= e3[i].id == 41;
+        for (size_t i = 0; i < nc; i++) chg40 |= chg[i].id == 40;
+        for (size_t i = 0; i < nrm; i++) rm40 |= rm[i] == 40;
+        printf("merge %s: retrieved %d, registered %d, merged %d, removed %zu, %zu entries\n", pass ? "off" : "on",
+               us.n_retrieved, us.n_registered, us.n_merged, nrm, n3);
+        CHECK(us.n_retrieved == 2 && has41);
+        CHECK(nrm == (size_t)(us.n_removed + us.n_merged));
+        if (!pass) CHECK(us.n_merged >= 1 && !has40 && rm40 && !chg40 && n3 == (size_t)us.n_registered - us.n_merged);
+        else CHECK(us.n_merged == 0 && has40 && !rm40 && chg40);
     }
     /* field adapter: render the first view from the map */
     double T[16];

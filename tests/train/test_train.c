@@ -5,6 +5,7 @@
 #include "sooc3d/gen.h"
 #include "sooc3d/train.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -155,7 +156,7 @@ static void test_resume(void) {
     sooc_train_config c;
     sooc_model_config mc;
     tiny_config(&c, &mc);
-    sooc_train_run_params rp = {NULL, outa, 0, ds, NULL, NULL, NULL, 0, NULL};
+    sooc_train_run_params rp = {NULL, outa, 0, ds, NULL, NULL, NULL, 0, NULL, NULL};
     CHECK_OK(sooc_train_run(&c, &mc, &rp));
     /* b: stop after 3 steps, then resume */
     sooc_train_config c3 = c;
@@ -193,6 +194,41 @@ static void test_resume(void) {
     for (size_t i = 0; m0 && i < na; i++) moved += sooc_model_params(m0)[i] != wa[i];
     CHECK_MSG(moved > na / 10, "only %zu of %zu parameters changed", moved, na);
     sooc_model_destroy(m0);
+    /* --init (fine-tuning): run a's weights, another clip depth, one step; the
+     * weights move by about one Adam step (<= lr each) from run a's, and the
+     * new config's clip is the checkpoint's. A network-shape mismatch is an
+     * error naming the file and the field, and writes no run. */
+    {
+        char outc[600], outd[600], pc[620];
+        snprintf(outc, sizeof outc, "%s/run_c", g_dir);
+        snprintf(outd, sizeof outd, "%s/run_d", g_dir);
+        sooc_train_config c1 = c;
+        sooc_model_config mc5 = mc;
+        mc5.d_clip = 5.0f;
+        volatile int stop1 = 1;
+        sooc_train_run_params ri = {NULL, outc, 0, ds, NULL, NULL, NULL, 0, &stop1, pa};
+        CHECK_OK(sooc_train_run(&c1, &mc5, &ri));
+        snprintf(pc, sizeof pc, "%s/last.bin", outc);
+        float *wc = NULL;
+        size_t nc = 0;
+        CHECK(read_params(pc, &wc, &nc) == 0);
+        double dmax = 0;
+        for (size_t i = 0; wc && i < nc && nc == na; i++) dmax = fmax(dmax, fabs((double)wc[i] - wa[i]));
+        CHECK_MSG(nc == na && dmax > 0 && dmax <= 1.01 * c.lr, "max |w - w_init| %g after one step (lr %g)", dmax,
+                  (double)c.lr);
+        sooc_model *mm = NULL;
+        CHECK_OK(sooc_model_load(&mm, pc, NULL, NULL));
+        CHECK(mm && sooc_model_get_config(mm)->d_clip == 5.0f);
+        sooc_model_destroy(mm);
+        free(wc);
+        sooc_model_config mk = mc;
+        mk.K = mc.K + 1;
+        ri.out_dir = outd;
+        CHECK(sooc_train_run(&c1, &mk, &ri) == SOOC_EINVAL && strstr(sooc_errmsg(), "run_a/last.bin") &&
+              strstr(sooc_errmsg(), "its K differs"));
+        snprintf(pc, sizeof pc, "%s/last.bin", outd);
+        CHECK(!sooc_file_exists(pc));
+    }
     /* the logs hold one row per step, without duplicates after resume */
     char la[600], lb[600];
     snprintf(la, sizeof la, "%s/log.csv", outa);
