@@ -427,6 +427,18 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     CHECK(run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --help > /dev/null", bin);
     CHECK(run(cmd) == 0);
+    /* --merge: a negative or non-numeric radius is a usage error; 0 (never merge) runs */
+    snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --merge -1 2>/dev/null", bin, model, data,
+             g_tmp);
+    CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --merge 0.3x 2>/dev/null", bin, model,
+             data, g_tmp);
+    CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd,
+             "%s eval --model %s --data %s --json %s/m.json --merge 0 --scenes 1 --max-views 2 --samples 16,4 "
+             "--threads 1 --quiet > /dev/null 2>&1",
+             bin, model, data, g_tmp);
+    CHECK(run(cmd) == 0);
 
     /* render: online run over scene 0, panels with uncertainty, curves */
     snprintf(p, sizeof p, "%s/log.csv", g_tmp);
