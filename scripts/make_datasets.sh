@@ -16,4 +16,6 @@ gen --scale m --scenes 8  --seed 8001 --out "$OUT/val_m"
 for sc in s m l xl; do
   gen --scale $sc --scenes 20 --seed 9001 --out "$OUT/test_$sc"
 done
+# diagnostic (docs/training.md, session 4): the same l rooms walked as densely per m² as m rooms
+gen --scale l --views 180 --scenes 20 --seed 9001 --out "$OUT/test_l_v180"
 echo "datasets in $OUT"
