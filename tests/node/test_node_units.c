@@ -80,6 +80,13 @@ static void test_launch(void) {
     CHECK_CLOSE(c.clip_m, 4.5, 0, 0);
     CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "clip_m: 4.5"));
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  clip_m: -1\n", "t.yaml:3", "model.clip_m");
+    /* model.merge_m: the mapper's duplicate merge radius (0 = default, -1 = never) */
+    const char *mrg = "sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -1\n";
+    CHECK_OK(sooc_node_config_parse(&c, mrg, strlen(mrg), "m.yaml"));
+    CHECK_CLOSE(c.merge_m, -1, 0, 0);
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "merge_m: -1"));
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -2\n", "t.yaml:3", "model.merge_m");
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: wide\n", "t.yaml:3", "model.merge_m");
 
     /* an OpenCV-style header line is tolerated */
     const char *ocv = "%YAML:1.0\n---\nsensor: {driver: replay, path: x}\n";
