@@ -198,10 +198,13 @@ sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int
 /* Merge duplicates among the entries one view registered (ids[0..k), 0 =
  * none): two of them whose floor positions are closer than `radius` metres
  * describe one object split over two slots; the one observed more often is
- * kept (on a tie, the older: smaller id) and the other removed. Only these
- * entries are looked at, so entries outside the view stay untouched. Removed
- * ids are zeroed in ids[] and written to removed_out (may be NULL, room for
- * k), count in *n_removed. radius <= 0 does nothing. Unknown ids are skipped. */
+ * kept (on a tie, the older: smaller id) and the other removed. Then a new
+ * entry (obs_count 1) closer than `radius` to an entry the view did not
+ * register duplicates an object the map already holds (the in-view test
+ * missed it, e.g. at the image edge): the new entry is removed. Entries
+ * outside ids[] are never modified. Removed ids are zeroed in ids[] and
+ * written to removed_out (may be NULL, room for k), count in *n_removed.
+ * radius <= 0 does nothing. Unknown ids are skipped. */
 void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint64_t *removed_out,
                        int *n_removed);
 

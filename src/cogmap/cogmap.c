@@ -784,6 +784,28 @@ sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int
     return SOOC_OK;
 }
 
+/* 1 if an entry outside ids[0..k) lies closer than r to (X, Z) on the floor. */
+static int near_other(const sooc_cogmap *m, double X, double Z, double r, const uint64_t *ids, int k) {
+    int32_t ci0, cj0, ci1, cj1;
+    cell_coords(m, X - r, Z - r, &ci0, &cj0);
+    cell_coords(m, X + r, Z + r, &ci1, &cj1);
+    for (int64_t ci = ci0; ci <= ci1; ci++)
+        for (int64_t cj = cj0; cj <= cj1; cj++) {
+            uint32_t c = hmap_get(&m->cells_h, pack2((int32_t)ci, (int32_t)cj));
+            if (c == SOOC_HEMPTY) continue;
+            const sooc_cell *cl = &m->cells[c];
+            for (uint32_t i = 0; i < cl->n; i++) {
+                const sooc_cell_member *mb = &cl->mem[i];
+                double dx = mb->X - X, dz = mb->Z - Z;
+                if (!(dx * dx + dz * dz < r * r)) continue;
+                int listed = 0;
+                for (int j = 0; j < k && !listed; j++) listed = ids[j] == mb->id;
+                if (!listed) return 1;
+            }
+        }
+    return 0;
+}
+
 void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint64_t *removed_out,
                        int *n_removed) {
     int nr = 0;
@@ -804,6 +826,19 @@ void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint
             if (!keep_a) break;   /* entry i is gone; b may have moved in the dense array */
             a = hmap_get(&m->ids, ids[i]);
         }
+    }
+    /* a new entry (first registration) next to an entry the view did not
+     * register duplicates an object already in the map: drop the new one, so
+     * the other stays untouched */
+    for (int i = 0; radius > 0 && i < k; i++) {
+        uint32_t a = ids[i] ? hmap_get(&m->ids, ids[i]) : SOOC_HEMPTY;
+        if (a == SOOC_HEMPTY || m->ent[a].obs_count != 1) continue;
+        double X = m->ent[a].X, Z = m->ent[a].Z;
+        if (!near_other(m, X, Z, radius, ids, k)) continue;
+        ent_del_at(m, a);
+        if (removed_out) removed_out[nr] = ids[i];
+        nr++;
+        ids[i] = 0;
     }
     if (n_removed) *n_removed = nr;
 }

@@ -666,6 +666,31 @@ static void test_merge(void) {
     sooc_cogmap_merge(m, ids, 8, 10.0, NULL, &nr);   /* everything left in the list: one survives */
     CHECK(nr == 2 && sooc_cogmap_count(m) == 2);
     sooc_cogmap_destroy(m);
+
+    /* a new entry (obs 1) next to an entry the view did not register is a
+     * duplicate of it: the new one goes, the other stays bit-identical; a
+     * re-registered entry (obs > 1) next to it stays too. Grid cells of 1 m:
+     * the neighbour search crosses a cell border. */
+    m = new_map(1.0);
+    const double Q[4][2] = {{-3.0, -3.0}, {-3.2, -3.0}, {-2.75, -3.0}, {-3.0, -1.0}};
+    const uint32_t qobs[4] = {4, 1, 3, 1};   /* old, new, re-registered, new alone */
+    sooc_cogmap_entry q[4];
+    for (int i = 0; i < 4; i++) {
+        rand_entry(&r, &q[i], Q[i][0], Q[i][1]);
+        q[i].obs_count = qobs[i];
+        CHECK_OK(sooc_cogmap_insert(m, &q[i], &q[i].id));
+    }
+    uint64_t vids[3] = {q[1].id, q[2].id, q[3].id};
+    sooc_cogmap_merge(m, vids, 3, 0.35, rem, &nr);
+    CHECK_MSG(nr == 1 && rem[0] == q[1].id && vids[0] == 0 && vids[1] == q[2].id && vids[2] == q[3].id,
+              "removed %d", nr);
+    CHECK(sooc_cogmap_count(m) == 3 && sooc_cogmap_get(m, q[1].id, &g) == SOOC_ENOTFOUND);
+    for (int i = 0; i < 4; i++)
+        if (i != 1) {
+            CHECK_OK(sooc_cogmap_get(m, q[i].id, &g));
+            CHECK(!memcmp(&g, &q[i], sizeof g));
+        }
+    sooc_cogmap_destroy(m);
 }
 
 int main(void) {
