@@ -223,6 +223,12 @@ static void cell_coords(const sooc_cogmap *m, double X, double Z, int32_t *ci, i
     *cj = (int32_t)b;
 }
 
+/* The cell (ci, cj), or NULL if it holds no entry yet. */
+static const sooc_cell *cell_at(const sooc_cogmap *m, int32_t ci, int32_t cj) {
+    uint32_t c = hmap_get(&m->cells_h, pack2(ci, cj));
+    return c == SOOC_HEMPTY ? NULL : &m->cells[c];
+}
+
 /* Find or create the cell (ci, cj); returns its index or SOOC_HEMPTY on ENOMEM. */
 static uint32_t cell_get_or_add(sooc_cogmap *m, int32_t ci, int32_t cj) {
     uint64_t key = pack2(ci, cj);
@@ -674,9 +680,8 @@ sooc_status sooc_cogmap_query(const sooc_cogmap *m, const sooc_cogmap_camera *ca
     int nb = 0, nin = 0;
     for (int64_t ci = ci0; ci <= ci1; ci++)
         for (int64_t cj = cj0; cj <= cj1; cj++) {
-            uint32_t c = hmap_get(&m->cells_h, pack2((int32_t)ci, (int32_t)cj));
-            if (c == SOOC_HEMPTY) continue;
-            const sooc_cell *cl = &m->cells[c];
+            const sooc_cell *cl = cell_at(m, (int32_t)ci, (int32_t)cj);
+            if (!cl) continue;
             for (uint32_t i = 0; i < cl->n; i++) {
                 const sooc_cell_member *mb = &cl->mem[i];
                 if (mb->X < lo[0] || mb->X > hi[0] || mb->Z < lo[1] || mb->Z > hi[1]) continue;
@@ -791,9 +796,8 @@ static int near_other(const sooc_cogmap *m, double X, double Z, double r, const 
     cell_coords(m, X + r, Z + r, &ci1, &cj1);
     for (int64_t ci = ci0; ci <= ci1; ci++)
         for (int64_t cj = cj0; cj <= cj1; cj++) {
-            uint32_t c = hmap_get(&m->cells_h, pack2((int32_t)ci, (int32_t)cj));
-            if (c == SOOC_HEMPTY) continue;
-            const sooc_cell *cl = &m->cells[c];
+            const sooc_cell *cl = cell_at(m, (int32_t)ci, (int32_t)cj);
+            if (!cl) continue;
             for (uint32_t i = 0; i < cl->n; i++) {
                 const sooc_cell_member *mb = &cl->mem[i];
                 double dx = mb->X - X, dz = mb->Z - Z;
