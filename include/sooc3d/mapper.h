@@ -107,9 +107,11 @@ typedef struct sooc3d_mapper_params {
                                   e.g. the depth sensor's usable range (deeper pixels are
                                   "no surface up to d_clip", deeper objects out of view);
                                   0 = the model's                                      */
-    double merge_radius;       /* entries one keyframe registers closer than this on the
-                                  floor (m) are one object split over two slots: the
-                                  better-observed one is kept (sooc_cogmap_merge).
+    double merge_radius;       /* duplicate radius on the floor (m): entries one keyframe
+                                  registers closer than this are merged (the better-
+                                  observed one is kept), and a new entry this close to an
+                                  entry the keyframe did not register is dropped
+                                  (sooc_cogmap_merge).
                                   0 = SOOC3D_MAPPER_MERGE_DEFAULT, < 0 = never merge   */
 } sooc3d_mapper_params;
 
@@ -130,13 +132,13 @@ typedef struct sooc3d_update_stats {
     int n_registered;          /* slots written back (present)            */
     int n_new;                 /* of which new entries                    */
     int n_removed;             /* retrieved entries whose presence fell   */
-    int n_merged;              /* registered entries merged away (removed) */
+    int n_merged;              /* registered entries removed as duplicates */
     double elapsed_ms;
 } sooc3d_update_stats;
 
 /* One keyframe: query in-view entries, pad to K with the slot priors, refine
- * L times, register the present slots, then merge the registered entries that
- * lie closer than the merge radius (sooc_cogmap_merge; removals are reported
+ * L times, register the present slots, then remove the duplicates among them
+ * within the merge radius (sooc_cogmap_merge; removals are reported
  * by sooc3d_mapper_changed like presence removals). `f` must have a pose and the model's
  * resolution; depth is planar metres with 0 = invalid. */
 sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st);

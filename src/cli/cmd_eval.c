@@ -44,8 +44,9 @@ static void usage(FILE *f) {
             "  --max-obj       render at most K in-view objects per view (default: all, up to 63)\n"
             "  --clip          clip depth in metres for inference and scoring (default: the model's\n"
             "                  d_clip): pixels beyond it are masked, objects beyond it are out of view\n"
-            "  --merge         SOOC3D mapper: merge entries one view registers closer than R m\n"
-            "                  (0 = never; default 0.35, docs/model.md \"Merging split objects\")\n"
+            "  --merge         SOOC3D mapper: duplicate radius R m (entries one view registers closer\n"
+            "                  than R are merged; a new entry that close to an older one is dropped)\n"
+            "                  0 = never; default 0.35 (docs/cogmap.md \"Merging split objects\")\n"
             "  --quiet         no progress line\n");
 }
 

@@ -32,8 +32,9 @@ static void usage(FILE *f) {
             "  --max-frames  stop after N frames (default all)\n"
             "  --samples     render samples per ray, coarse (default 96)\n"
             "  --clip        clip depth in m instead of the model's (e.g. the sensor's usable range)\n"
-            "  --merge       entries one frame registers closer than R m are merged (one object\n"
-            "                split over two slots); 0 = never (default 0.35, docs/model.md)\n");
+            "  --merge       duplicate radius R m: entries one frame registers closer than R are\n"
+            "                merged, a new entry that close to an older one is dropped; 0 = never\n"
+            "                (default 0.35, docs/cogmap.md)\n");
 }
 
 static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n) {
