@@ -16,11 +16,13 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
             "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n"
-            "                    [--merge R]\n\n"
+            "                    [--merge R] [--trace]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
             "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
             "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, merged, ms)\n"
+            "  DIR/trace.csv                with --trace: every map change of every update (frame,\n"
+            "                               event reg|del, id, x, z, yaw, presence, obs_count)\n"
             "  DIR/render/%%06d_{rgb,depth,label}.png  renders of every frame from the final map\n"
             "                               (input and query views; 96 coarse + 32 fine samples)\n\n"
             "  --model       model checkpoint (models/<name>/model.bin)\n"
@@ -122,13 +124,30 @@ static sooc_status render_frame(sooc3d_mapper *mp, const sooc_frame *f, const ch
     return st;
 }
 
+/* --trace: the entries the last update registered and the ids it removed.
+ * Ids from `born` on were created by this update; one it merged away again
+ * never was in the map, so it is not a removal here (updates.csv counts it). */
+static sooc_status write_trace(FILE *tc, const sooc3d_mapper *mp, int64_t frame, uint64_t born) {
+    sooc_map_entry ch[SOOC_MAPPER_CHANGED_MAX];
+    uint64_t rm[SOOC_MAPPER_CHANGED_MAX];
+    size_t nc = 0, nr = 0;
+    sooc_status st = sooc3d_mapper_changed(mp, ch, SOOC_MAPPER_CHANGED_MAX, &nc, rm, SOOC_MAPPER_CHANGED_MAX, &nr);
+    if (st) return st;
+    for (size_t j = 0; j < nc; j++)
+        fprintf(tc, "%lld,reg,%llu,%.4f,%.4f,%.4f,%.4f,%u\n", (long long)frame, (unsigned long long)ch[j].id, ch[j].x,
+                ch[j].z, ch[j].yaw, ch[j].presence, ch[j].obs_count);
+    for (size_t j = 0; j < nr; j++)
+        if (rm[j] < born) fprintf(tc, "%lld,del,%llu,,,,,\n", (long long)frame, (unsigned long long)rm[j]);
+    return SOOC_OK;
+}
+
 int sooc_cmd_infer(int argc, char **argv) {
     if (sooc_cli_wants_help(argc, argv)) {
         usage(stdout);
         return 0;
     }
     const char *model = NULL, *seq = NULL, *out = NULL;
-    int iters = 0, threads = 0, every = 1, render = 1, samples = 96;
+    int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0;
     double clip = 0, merge = 0;
     long long maxf = -1;
     uint64_t seed = 1;
@@ -155,6 +174,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
         else if (!strcmp(a, "--samples") && has) samples = atoi(argv[++i]);
         else if (!strcmp(a, "--no-render")) render = 0;
+        else if (!strcmp(a, "--trace")) trace = 1;
         else {
             fprintf(stderr, "sooc3d infer: unknown or incomplete option '%s'\n", a);
             usage(stderr);
@@ -170,7 +190,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     sooc3d_mapper *mp = NULL;
     sooc_frame f;
     memset(&f, 0, sizeof f);
-    FILE *uc = NULL;
+    FILE *uc = NULL, *tc = NULL;
     char path[1024], rdir[1024];
     if ((st = sooc_mkdirs(out))) return sooc_cli_fail("infer", st);
     if ((st = sooc_seq_open(&sq, seq, NULL))) return sooc_cli_fail("infer", st);
@@ -190,6 +210,14 @@ int sooc_cmd_infer(int argc, char **argv) {
         goto fail;
     }
     fprintf(uc, "frame,t_ns,retrieved,registered,new,removed,merged,ms\n");
+    if (trace) {
+        snprintf(path, sizeof path, "%s/trace.csv", out);
+        if (!(tc = fopen(path, "w"))) {
+            st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", path);
+            goto fail;
+        }
+        fprintf(tc, "frame,event,id,x,z,yaw,presence,obs_count\n");
+    }
     sooc_progress pr;
     sooc_progress_begin(&pr, "infer", (uint64_t)n);
     int64_t n_in = 0, mapped = 0;
@@ -204,11 +232,13 @@ int sooc_cmd_infer(int argc, char **argv) {
         }
         if (n_in++ % every) continue;
         sooc3d_update_stats us;
+        uint64_t born = sooc3d_mapper_next_id(mp);
         if ((st = sooc3d_mapper_update(mp, &f, &us))) goto fail;
         mapped++;
         ms_sum += us.elapsed_ms;
         fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%d,%.3f\n", (long long)i, (long long)f.t_ns, us.n_retrieved,
                 us.n_registered, us.n_new, us.n_removed, us.n_merged, us.elapsed_ms);
+        if (tc && (st = write_trace(tc, mp, i, born))) goto fail;
         char extra[96];
         size_t ne = 0;
         sooc3d_mapper_entries(mp, NULL, 0, &ne);
@@ -218,6 +248,12 @@ int sooc_cmd_infer(int argc, char **argv) {
     sooc_progress_end(&pr, NULL);
     fclose(uc);
     uc = NULL;
+    if (tc && fclose(tc)) {
+        tc = NULL;
+        st = sooc_seterr(SOOC_EIO, "%s/trace.csv: write failed", out);
+        goto fail;
+    }
+    tc = NULL;
     size_t ne = 0;
     sooc3d_mapper_entries(mp, NULL, 0, &ne);
     sooc_map_entry *e = calloc(ne ? ne : 1, sizeof *e);
@@ -248,6 +284,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     return 0;
 fail:
     if (uc) fclose(uc);
+    if (tc) fclose(tc);
     sooc_frame_free(&f);
     sooc3d_mapper_destroy(mp);
     sooc_seq_close(sq);

@@ -401,6 +401,128 @@ static int run(const char *cmd) {
     return rc == -1 ? -1 : WEXITSTATUS(rc);
 }
 
+/* `sooc3d infer --trace` with a model whose presence falls by ~0.1 per view
+ * (prior logit 0.15, presence head bias -0.05, L = 2), so that every frame
+ * registers new entries and removes the ones it retrieved: replaying trace.csv (reg = insert or overwrite, del =
+ * remove) must give exactly the final map.csv (ids and positions), and
+ * updates.csv has one row per mapped input frame. */
+#define TR_MAX 4096
+static void test_infer(const char *bin, sooc_model *m0, const char *data) {
+    char cmd[4096], p[1024], model[700];
+    sooc_model *m = NULL;
+    CHECK_OK(sooc_eval_model_copy(m0, &m));
+    if (!m) return;
+    const sooc_model_config *c = sooc_model_get_config(m);
+    int NL = SOOC_LAM_SIZE(c->d_what), ip = SOOC_LAM_PRES(c->d_what);
+    sooc_model_tensor t[128];
+    int nt = sooc_model_tensors(m, t, 128);
+    for (int i = 0; i < nt && i < 128; i++) {
+        if (!strcmp(t[i].name, "prior.slots"))
+            for (int k = 0; k < c->K; k++) sooc_model_params(m)[t[i].offset + (size_t)k * NL + ip] = 0.15f;
+        if (!strcmp(t[i].name, "ref.obj.head.b")) sooc_model_params(m)[t[i].offset + ip] = -0.05f;
+    }
+    snprintf(model, sizeof model, "%s/model_fading.bin", g_tmp);
+    CHECK_OK(sooc_model_save(m, model, NULL, 0));
+    sooc_model_destroy(m);
+    snprintf(cmd, sizeof cmd,
+             "%s infer --model %s --seq %s/scene_0000 --out %s/inf --trace --samples 16 --threads 1 "
+             "> %s/inf.txt 2>&1",
+             bin, model, data, g_tmp, g_tmp);
+    CHECK(run(cmd) == 0);
+    static unsigned long long id[TR_MAX];
+    static double x[TR_MAX], z[TR_MAX];
+    static int live[TR_MAX];
+    int n = 0, nreg = 0, ndel = 0, bad = 0;
+    snprintf(p, sizeof p, "%s/inf/trace.csv", g_tmp);
+    FILE *f = fopen(p, "r");
+    CHECK_MSG(f != NULL, "trace.csv written");
+    char line[512];
+    if (f && fgets(line, sizeof line, f)) CHECK(!strncmp(line, "frame,event,id,x,z,yaw,presence,obs_count", 41));
+    while (f && fgets(line, sizeof line, f)) {
+        long long fr;
+        char ev[8];
+        unsigned long long e;
+        double ex = 0, ez = 0;
+        if (sscanf(line, "%lld,%3[a-z],%llu,%lf,%lf", &fr, ev, &e, &ex, &ez) < 3) {
+            bad++;
+            continue;
+        }
+        int k = 0;
+        while (k < n && id[k] != e) k++;
+        if (!strcmp(ev, "reg")) {
+            nreg++;
+            if (k == n && n < TR_MAX) id[n++] = e;
+            if (k < n) live[k] = 1, x[k] = ex, z[k] = ez;
+        } else if (!strcmp(ev, "del")) {
+            ndel++;
+            if (k == n || !live[k]) bad++;   /* a removal of an entry that is not in the map */
+            else live[k] = 0;
+        } else bad++;
+    }
+    if (f) fclose(f);
+    CHECK_MSG(bad == 0, "trace rows parse and removals name live entries");
+    CHECK_MSG(nreg > 0, "the untrained model registers its priors");
+    CHECK_MSG(ndel > 0, "retrieved entries whose presence fell below 0.5 are removed");
+    int nlive = 0;
+    for (int k = 0; k < n; k++) nlive += live[k];
+    /* the final map */
+    snprintf(p, sizeof p, "%s/inf/map.csv", g_tmp);
+    f = fopen(p, "r");
+    CHECK_MSG(f != NULL, "map.csv written");
+    int nmap = 0, mism = 0;
+    if (f && fgets(line, sizeof line, f)) CHECK(!strncmp(line, "id,x,z,", 7));
+    while (f && fgets(line, sizeof line, f)) {
+        unsigned long long e;
+        double ex, ez;
+        if (sscanf(line, "%llu,%lf,%lf", &e, &ex, &ez) != 3) {
+            mism++;
+            continue;
+        }
+        nmap++;
+        int k = 0;
+        while (k < n && id[k] != e) k++;
+        if (k == n || !live[k] || fabs(x[k] - ex) > 1e-3 || fabs(z[k] - ez) > 1e-3) mism++;
+    }
+    if (f) fclose(f);
+    printf("infer --trace: %d reg, %d del rows; replay %d entries, map.csv %d\n", nreg, ndel, nlive, nmap);
+    CHECK_MSG(mism == 0 && nmap == nlive, "trace replay == final map");
+    /* one updates.csv row per input frame; renders of every frame */
+    snprintf(p, sizeof p, "%s/inf/updates.csv", g_tmp);
+    char *uc = read_text(p);
+    int rows = 0;
+    for (char *c = uc; c && *c; c++) rows += *c == '\n';
+    sooc_seq *sq = NULL;
+    int n_in = 0, n_all = 0;
+    snprintf(p, sizeof p, "%s/scene_0000", data);
+    CHECK_OK(sooc_seq_open(&sq, p, NULL));
+    sooc_frame fr;
+    memset(&fr, 0, sizeof fr);
+    for (int64_t i = 0; sq && i < sooc_seq_count(sq); i++)
+        if (!sooc_seq_read(sq, i, &fr)) n_in += !fr.is_query, n_all++;
+    sooc_frame_free(&fr);
+    sooc_seq_close(sq);
+    CHECK_MSG(uc && rows == n_in + 1, "updates.csv: header + one row per input frame");
+    free(uc);
+    snprintf(p, sizeof p, "%s/inf/render/%06d_label.png", g_tmp, n_all - 1);
+    CHECK_MSG(png_ok(p), "render of the last frame");
+    /* usage errors exit 2 and write nothing */
+    snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --merge -1 2>/dev/null", bin,
+             model, data, g_tmp);
+    CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 2>/dev/null", bin, model, data);
+    CHECK(run(cmd) == 2);
+    snprintf(p, sizeof p, "%s/inf2", g_tmp);
+    CHECK_MSG(access(p, F_OK) != 0, "no output directory after a usage error");
+    /* a sequence that does not exist names it */
+    snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/nope --out %s/inf3 --no-render > %s/inf3.txt 2>&1", bin,
+             model, g_tmp, g_tmp, g_tmp);
+    CHECK(run(cmd) != 0);
+    snprintf(p, sizeof p, "%s/inf3.txt", g_tmp);
+    char *er = read_text(p);
+    CHECK_MSG(er && strstr(er, "nope"), "error names the missing sequence");
+    free(er);
+}
+
 static void test_cli(const char *bin, const char *model, const char *data) {
     char cmd[8192], p[1024];
     snprintf(cmd, sizeof cmd,
@@ -537,12 +659,15 @@ int main(void) {
     sooc_model_destroy(mp);
     test_l2(m, &sd);
     free_scene(&sd);
-    sooc_model_destroy(m);
 
     const char *bin = getenv("SOOC_BIN");
-    if (bin && access(bin, X_OK) == 0) test_cli(bin, model, data);
+    if (bin && access(bin, X_OK) == 0) {
+        test_cli(bin, model, data);
+        test_infer(bin, m, data);
+    }
     else fprintf(stderr, "test_eval_run: SOOC_BIN not set or not executable; CLI part skipped\n");
 
+    sooc_model_destroy(m);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", g_tmp);
     if (!getenv("SOOC_KEEP_TMP") && system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_tmp);
