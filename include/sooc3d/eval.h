@@ -208,8 +208,8 @@ typedef struct sooc_eval_run_opts {
     int threads;               /* model and renderer threads; 0 = OpenMP default        (0) */
     double d_clip;             /* > 0: clip depth for inference and scoring instead of the
                                   model's (sooc_model_set_clip); 0 = the model's         (0) */
-    double merge_radius;       /* SOOC3D mapper's duplicate merge radius (m): 0 = its default
-                                  (SOOC3D_MAPPER_MERGE_DEFAULT), < 0 = off                (0) */
+    double merge_radius;       /* SOOC3D mapper's duplicate merge radius (m); <= 0 = off (0) */
+    int latents;               /* SOOC3D mapper: SOOC3D_LATENTS_MEAN / _SAMPLE          (MEAN) */
     /* extras, only for the views flagged in detail_views (NULL = every view): */
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */

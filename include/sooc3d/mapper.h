@@ -111,12 +111,19 @@ typedef struct sooc3d_mapper_params {
                                   registers closer than this are merged (the better-
                                   observed one is kept), and a new entry this close to an
                                   entry the keyframe did not register is dropped
-                                  (sooc_cogmap_merge).
-                                  0 = SOOC3D_MAPPER_MERGE_DEFAULT, < 0 = never merge   */
+                                  (sooc_cogmap_merge). <= 0 = never merge (the default:
+                                  the paper registers without object matching, model.md
+                                  §2.10); SOOC3D_MAPPER_MERGE_SUGGESTED opts in          */
+    int latents;               /* what the refinement loop decodes: SOOC3D_LATENTS_MEAN
+                                  (posterior means, no sampling noise: the default) or
+                                  SOOC3D_LATENTS_SAMPLE (one posterior sample per
+                                  iteration, as in training; docs/model.md)            */
 } sooc3d_mapper_params;
 
-/* docs/model.md "Merging split objects": 0.35 m measured best of 0.25/0.35/0.5 */
-#define SOOC3D_MAPPER_MERGE_DEFAULT 0.35
+enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
+
+/* docs/model.md "merging split objects": 0.35 m measured best of 0.25/0.35/0.5 */
+#define SOOC3D_MAPPER_MERGE_SUGGESTED 0.35
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
 
@@ -174,6 +181,8 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, 
 
 /* Set the merge radius of a live mapper (same meaning as the parameter). */
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *m, double radius);
+/* Set the latents mode of a live mapper (SOOC3D_LATENTS_*). */
+void sooc3d_mapper_set_latents(sooc3d_mapper *m, int latents);
 
 /* Id counter: new entries get ids >= next_id. reserve_ids raises it (resume:
  * ids of entries removed before the restart are not handed out again). */

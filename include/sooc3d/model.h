@@ -143,6 +143,8 @@ typedef struct sooc_step_opts {
     int L;                 /* 0 = config L                                            (0)  */
     int truncate_views;    /* 1 = detach λ between views (fallback, model.md §6.6)    (0)  */
     float sigma_c;         /* 0 = config sigma_c (for likelihood annealing)           (0)  */
+    int mean_latents;      /* 1 = decode the posterior means in the refinement loop
+                              (no reparameterisation noise; inference only)        (0)  */
 } sooc_step_opts;
 void sooc_step_opts_default(sooc_step_opts *o);
 
@@ -237,6 +239,8 @@ void sooc_global_mapper_destroy(sooc_global_mapper *g);   /* NULL-safe */
  * (n_retrieved = slots carried over, n_registered = present slots, n_new /
  * n_removed = slots whose presence crossed 0.5). */
 sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc3d_update_stats *st);
+/* SOOC3D_LATENTS_MEAN (default) / _SAMPLE, as sooc3d_mapper_set_latents. */
+void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents);
 sooc_model *sooc_global_mapper_model(sooc_global_mapper *g);
 const sooc_cogmap *sooc_global_mapper_cogmap(const sooc_global_mapper *g);
 int sooc_global_mapper_n_slots(const sooc_global_mapper *g);

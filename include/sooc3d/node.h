@@ -76,7 +76,8 @@ typedef struct sooc_node_config {
     sooc_node_depth_resample depth_resample;
     double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
     double merge_m;                          /* duplicate merge radius (sooc3d_mapper_params.
-                                                merge_radius): 0 = default 0.35, -1 = never */
+                                                merge_radius): 0 = never (default) */
+    int latents;                             /* SOOC3D_LATENTS_MEAN (default) / _SAMPLE */
 
     /* keyframe: */
     double kf_translation_m;                 /* default 0.10 */

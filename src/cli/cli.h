@@ -26,6 +26,8 @@ int sooc_cli_wants_help(int argc, char **argv);
 int sooc_cli_parse_samples(const char *s, int *c, int *f);
 /* "--merge R": R >= 0 metres; 0 (never merge) becomes the mapper's "off" (-1). */
 int sooc_cli_parse_merge(const char *s, double *radius);
+/* "mean" | "sample" -> SOOC3D_LATENTS_*; 0 if neither. */
+int sooc_cli_parse_latents(const char *s, int *latents);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */
 void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
 

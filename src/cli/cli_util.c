@@ -1,6 +1,7 @@
 /* Helpers every sooc3d command uses (cli.h); linked into the sooc3d binary and
  * into tests/node's sooc3d_node_fake. */
 #include "cli.h"
+#include "sooc3d/mapper.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -27,7 +28,14 @@ int sooc_cli_parse_merge(const char *s, double *radius) {
     char *e;
     double r = strtod(s, &e);
     if (e == s || *e || !(r >= 0) || !(r < 100)) return 0;
-    *radius = r > 0 ? r : -1;
+    *radius = r;
+    return 1;
+}
+
+int sooc_cli_parse_latents(const char *s, int *latents) {
+    if (!strcmp(s, "mean")) *latents = SOOC3D_LATENTS_MEAN;
+    else if (!strcmp(s, "sample")) *latents = SOOC3D_LATENTS_SAMPLE;
+    else return 0;
     return 1;
 }
 

@@ -20,7 +20,8 @@ static void usage(FILE *f) {
             "usage: sooc3d eval --model M [--model M2 ...] [--name N ...] --data DIR [DIR...] --json OUT\n"
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
-            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R] [--quiet]\n\n"
+            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R]\n"
+            "                   [--latents mean|sample] [--quiet]\n\n"
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
             "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
             "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
@@ -46,7 +47,10 @@ static void usage(FILE *f) {
             "                  d_clip): pixels beyond it are masked, objects beyond it are out of view\n"
             "  --merge         SOOC3D mapper: duplicate radius R m (entries one view registers closer\n"
             "                  than R are merged; a new entry that close to an older one is dropped)\n"
-            "                  0 = never; default 0.35 (docs/cogmap.md \"Merging split objects\")\n"
+            "                  0 = never (default: the paper registers without object matching);\n"
+            "                  0.35 measured best (docs/cogmap.md \"Merging split objects\")\n"
+            "  --latents       SOOC3D mapper: refine on the posterior means (mean, default) or on one\n"
+            "                  posterior sample per iteration as in training (sample); docs/model.md\n"
             "  --quiet         no progress line\n");
 }
 
@@ -166,6 +170,12 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--merge") && has) {
             if (!sooc_cli_parse_merge(argv[++i], &ro.merge_radius)) {
                 fprintf(stderr, "sooc3d eval: --merge wants a radius >= 0 in metres (0 = never merge)\n");
+                return 2;
+            }
+        }
+        else if (!strcmp(a, "--latents") && has) {
+            if (!sooc_cli_parse_latents(argv[++i], &ro.latents)) {
+                fprintf(stderr, "sooc3d eval: --latents wants mean or sample\n");
                 return 2;
             }
         }

@@ -16,7 +16,7 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
             "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n"
-            "                    [--merge R] [--trace]\n\n"
+            "                    [--merge R] [--latents mean|sample] [--trace]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
             "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
@@ -36,7 +36,11 @@ static void usage(FILE *f) {
             "  --clip        clip depth in m instead of the model's (e.g. the sensor's usable range)\n"
             "  --merge       duplicate radius R m: entries one frame registers closer than R are\n"
             "                merged, a new entry that close to an older one is dropped; 0 = never\n"
-            "                (default 0.35, docs/cogmap.md)\n");
+            "                (default: the paper registers without object matching); 0.35 measured\n"
+            "                best (docs/cogmap.md)\n"
+            "  --latents     refine on the posterior means (mean, default) or on one posterior sample\n"
+            "                per iteration as in training (sample); docs/model.md\n"
+            "  --trace       write DIR/trace.csv\n");
 }
 
 static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n) {
@@ -147,7 +151,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         return 0;
     }
     const char *model = NULL, *seq = NULL, *out = NULL;
-    int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0;
+    int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0, latents = SOOC3D_LATENTS_MEAN;
     double clip = 0, merge = 0;
     long long maxf = -1;
     uint64_t seed = 1;
@@ -175,6 +179,12 @@ int sooc_cmd_infer(int argc, char **argv) {
         else if (!strcmp(a, "--samples") && has) samples = atoi(argv[++i]);
         else if (!strcmp(a, "--no-render")) render = 0;
         else if (!strcmp(a, "--trace")) trace = 1;
+        else if (!strcmp(a, "--latents") && has) {
+            if (!sooc_cli_parse_latents(argv[++i], &latents)) {
+                fprintf(stderr, "sooc3d infer: --latents wants mean or sample\n");
+                return 2;
+            }
+        }
         else {
             fprintf(stderr, "sooc3d infer: unknown or incomplete option '%s'\n", a);
             usage(stderr);
@@ -198,6 +208,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     sooc3d_mapper_params_default(&p);
     p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
     p.merge_radius = merge;
+    p.latents = latents;
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
     int mw, mh;
     sooc3d_mapper_input_size(mp, &mw, &mh);

@@ -254,6 +254,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
             sooc_model_destroy(copy);
             goto done;
         }
+        sooc_global_mapper_set_latents(gm, o->latents);
         C.model = sooc_global_mapper_model(gm);
         C.map = sooc_global_mapper_cogmap(gm);
     } else {
@@ -262,6 +263,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
             goto done;
         }
         sooc3d_mapper_set_merge_radius(mp, o->merge_radius);
+        sooc3d_mapper_set_latents(mp, o->latents);
         C.model = sooc3d_mapper_model(mp);
         C.map = sooc3d_mapper_cogmap(mp);
     }

@@ -170,12 +170,15 @@ struct sooc_global_mapper {
     sooc_cogmap *map;          /* the present slots (id = slot + 1) + the layout at block (0, 0) */
     view_rec V;
     int L, n, started, view_idx;
+    int sample;                /* 1 = SOOC3D_LATENTS_SAMPLE */
     sooc_rng rng;
     float *lam, *lay;          /* current posterior: n x NL (world frame), 2 d_l */
     int64_t first_ns[SOOC_MODEL_K_MAX];
     uint32_t obs[SOOC_MODEL_K_MAX];
     uint8_t present[SOOC_MODEL_K_MAX];
 };
+
+void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents) { g->sample = latents == SOOC3D_LATENTS_SAMPLE; }
 
 sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, int n_objects, int iterations,
                                       uint64_t seed, int threads) {
@@ -251,6 +254,7 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
     sooc_step_opts o;
     sooc_step_opts_default(&o);
     o.tau = GLOBAL_TAU;
+    o.mean_latents = !g->sample;
     o.L = g->L;
     double lw;
     if ((s = mdl_view_forward(m, S, V, g->L, &o, 0, &g->rng, &lw, NULL))) return s;

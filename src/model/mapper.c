@@ -17,6 +17,7 @@ struct sooc3d_mapper {
     view_rec V;
     int L, view_idx;
     double merge_r;   /* sooc3d_mapper_params.merge_radius, resolved (0 = off) */
+    int sample;       /* 1 = SOOC3D_LATENTS_SAMPLE */
     sooc_rng rng;
     /* what the last update changed (sooc3d_mapper_changed / _last_layout) */
     uint64_t chg_ids[SOOC_MODEL_K_MAX], rem_ids[SOOC_MODEL_K_MAX];
@@ -37,7 +38,7 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
     if (!mp) return SOOC_ENOMEM;
     mp->m = m;
-    mp->merge_r = SOOC3D_MAPPER_MERGE_DEFAULT;
+    mp->merge_r = 0;
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
     if (mp->L > 16) mp->L = 16;
@@ -71,7 +72,10 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
     }
     st = mdl_mapper_create_from(out, m, p->iterations, p->seed, p->threads);
     if (st) sooc_model_destroy(m);
-    else sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
+    else {
+        sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
+        sooc3d_mapper_set_latents(*out, p->latents);
+    }
     return st;
 }
 
@@ -111,6 +115,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     sooc_step_opts_default(&o);
     o.tau = MAPPER_TAU;
     o.L = mp->L;
+    o.mean_latents = !mp->sample;
     double lw;
     if ((s = mdl_view_forward(m, S, V, mp->L, &o, 0, &mp->rng, &lw, NULL))) return s;
     int NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
@@ -223,8 +228,9 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj,
 
 void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) { sooc_cogmap_reserve_ids(mp->map, next_id); }
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *mp, double radius) {
-    mp->merge_r = radius > 0 ? radius : radius < 0 ? 0 : SOOC3D_MAPPER_MERGE_DEFAULT;
+    mp->merge_r = radius > 0 ? radius : 0;
 }
+void sooc3d_mapper_set_latents(sooc3d_mapper *mp, int latents) { mp->sample = latents == SOOC3D_LATENTS_SAMPLE; }
 uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *mp) { return sooc_cogmap_next_id(mp->map); }
 
 sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp) { return mp->m; }

@@ -283,7 +283,8 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
         float *lam = V->lam + (size_t)l * K * NL, *lay = V->lay + (size_t)l * D2;
         float *glam = V->glam + (size_t)l * K * NL, *glay = V->glay + (size_t)l * D2;
         float wl = L > 0 ? (float)l / (float)L : 1.0f;
-        mdl_sample_noise(m, rng, &V->noise[l]);
+        mdl_sample_noise(m, rng, &V->noise[l]);   /* drawn either way: same RNG stream */
+        if (o->mean_latents) memset(&V->noise[l], 0, sizeof V->noise[l]);
         dec_call dc;
         memset(&dc, 0, sizeof dc);
         dc.rays = &V->vr;

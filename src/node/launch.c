@@ -421,7 +421,8 @@ static const kspec g_keys[] = {
     KV("model", "seed", KV_U64, seed, 0, 2147483647L),
     KV_CH("model", "depth_resample", depth_resample, "min|nearest"),   /* order of sooc_node_depth_resample */
     KV("model", "clip_m", KV_NUM, clip_m, 0, 1000),
-    KV("model", "merge_m", KV_NUM, merge_m, -1, 100),
+    KV("model", "merge_m", KV_NUM, merge_m, 0, 100),
+    KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC3D_LATENTS_* */
     KV("keyframe", "translation_m", KV_NUM, kf_translation_m, 0, 1000),
     KV("keyframe", "rotation_deg", KV_NUM, kf_rotation_deg, 0, 360),
     KV("keyframe", "time_s", KV_NUM, kf_time_s, 0, 86400),
@@ -589,9 +590,10 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     OUT("}\npose: {source: %s, path: '%s', tolerance_ms: %g, frame: %s}\n", pk[c->pose_kind], c->pose_path,
         c->pose_tolerance_s * 1e3, c->pose_is_effector ? "effector" : "camera");
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
-        "depth_resample: %s, clip_m: %g, merge_m: %g}\n",
+        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s}\n",
         c->calib_path, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
-        (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m);
+        (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
+        c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean");
     OUT("keyframe: {translation_m: %g, rotation_deg: %g, time_s: %g}\n", c->kf_translation_m,
         c->kf_rotation_deg, c->kf_time_s);
     OUT("shm: {name: '%s', capacity: %u, unlink_on_exit: %s}\n", c->shm_name, c->shm_capacity,

@@ -511,6 +511,9 @@ static void test_infer(const char *bin, sooc_model *m0, const char *data) {
     CHECK(run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 2>/dev/null", bin, model, data);
     CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --latents x 2>/dev/null", bin,
+             model, data, g_tmp);
+    CHECK(run(cmd) == 2);
     snprintf(p, sizeof p, "%s/inf2", g_tmp);
     CHECK_MSG(access(p, F_OK) != 0, "no output directory after a usage error");
     /* a sequence that does not exist names it */
@@ -556,8 +559,12 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --merge 0.3x 2>/dev/null", bin, model,
              data, g_tmp);
     CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --latents median 2>/dev/null", bin,
+             model, data, g_tmp);
+    CHECK(run(cmd) == 2);
     snprintf(cmd, sizeof cmd,
-             "%s eval --model %s --data %s --json %s/m.json --merge 0 --scenes 1 --max-views 2 --samples 16,4 "
+             "%s eval --model %s --data %s --json %s/m.json --merge 0 --latents sample --scenes 1 --max-views 2 "
+             "--samples 16,4 "
              "--threads 1 --quiet > /dev/null 2>&1",
              bin, model, data, g_tmp);
     CHECK(run(cmd) == 0);

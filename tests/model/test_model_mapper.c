@@ -23,11 +23,13 @@ static void small_cfg(sooc_model_config *c) {
     c->prior_pres_logit = 1.0f;
 }
 
-static int run_seq(const char *path, uint64_t seed, sooc_map_entry *out, size_t cap, size_t *n, sooc3d_mapper **keep) {
+static int run_seq_l(const char *path, uint64_t seed, int latents, sooc_map_entry *out, size_t cap, size_t *n,
+                     sooc3d_mapper **keep) {
     sooc3d_mapper_params p;
     sooc3d_mapper_params_default(&p);
     p.model_path = path;
     p.seed = seed;
+    p.latents = latents;
     p.threads = 2;
     sooc3d_mapper *mp;
     CHECK_OK(sooc3d_mapper_create(&mp, &p));
@@ -53,6 +55,10 @@ static int run_seq(const char *path, uint64_t seed, sooc_map_entry *out, size_t 
     else
         sooc3d_mapper_destroy(mp);
     return retrieved;
+}
+
+static int run_seq(const char *path, uint64_t seed, sooc_map_entry *out, size_t cap, size_t *n, sooc3d_mapper **keep) {
+    return run_seq_l(path, seed, SOOC3D_LATENTS_MEAN, out, cap, n, keep);
 }
 
 /* The shared map entry <-> cogmap entry converters (mapper.h): round trip,
@@ -153,6 +159,18 @@ int main(void) {
     CHECK(n1 >= 1 && ret >= 1);
     CHECK(n1 == n2 && !memcmp(e1, e2, n1 * sizeof e1[0]));
     for (size_t i = 1; i < n1; i++) CHECK(e1[i].id > e1[i - 1].id);
+    /* latents: refining on posterior samples (as in training) is deterministic
+     * for a seed too, and differs from refining on the means (the default) */
+    {
+        static sooc_map_entry s1[256], s2[256];
+        size_t m1, m2;
+        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, s1, 256, &m1, NULL);
+        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, s2, 256, &m2, NULL);
+        CHECK(m1 == m2 && !memcmp(s1, s2, m1 * sizeof s1[0]));
+        int differ = m1 != n1;
+        for (size_t i = 0; i < m1 && i < n1 && !differ; i++) differ = s1[i].x != e1[i].x || s1[i].z != e1[i].z;
+        CHECK_MSG(differ, "sampled and mean refinement give the same map");
+    }
     /* load_entries round trip */
     CHECK_OK(sooc3d_mapper_load_entries(mp, e1, n1));
     CHECK_OK(sooc3d_mapper_entries(mp, e3, 256, &n3));
@@ -176,7 +194,7 @@ int main(void) {
         dup[0].presence_logit = dup[1].presence_logit = 4.0f;
         dup[0].presence = dup[1].presence = 1.0f / (1.0f + expf(-4.0f));
         CHECK_OK(sooc3d_mapper_load_entries(mp, dup, 2));
-        sooc3d_mapper_set_merge_radius(mp, pass ? -1.0 : 0.0);   /* default 0.35 m, then off */
+        sooc3d_mapper_set_merge_radius(mp, pass ? 0.0 : SOOC3D_MAPPER_MERGE_SUGGESTED);   /* 0.35 m, then off */
         synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
         sooc_frame fr;
         CHECK_OK(synth_frame(&fr, 32, 32, 60, T0, &sp1, 1));

@@ -80,12 +80,19 @@ static void test_launch(void) {
     CHECK_CLOSE(c.clip_m, 4.5, 0, 0);
     CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "clip_m: 4.5"));
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  clip_m: -1\n", "t.yaml:3", "model.clip_m");
-    /* model.merge_m: the mapper's duplicate merge radius (0 = default, -1 = never) */
-    const char *mrg = "sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -1\n";
+    /* model.merge_m: the mapper's duplicate merge radius (0 = never, the default) */
+    const char *mrg = "sensor: {driver: replay, path: x}\nmodel:\n  merge_m: 0.35\n";
     CHECK_OK(sooc_node_config_parse(&c, mrg, strlen(mrg), "m.yaml"));
-    CHECK_CLOSE(c.merge_m, -1, 0, 0);
-    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "merge_m: -1"));
-    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -2\n", "t.yaml:3", "model.merge_m");
+    CHECK_CLOSE(c.merge_m, 0.35, 0, 0);
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "merge_m: 0.35"));
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -1\n", "t.yaml:3", "model.merge_m");
+    /* model.latents: mean (default) | sample */
+    CHECK(c.latents == SOOC3D_LATENTS_MEAN && strstr(buf, "latents: mean"));
+    const char *lat = "sensor: {driver: replay, path: x}\nmodel:\n  latents: sample\n";
+    CHECK_OK(sooc_node_config_parse(&c, lat, strlen(lat), "l.yaml"));
+    CHECK(c.latents == SOOC3D_LATENTS_SAMPLE);
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "latents: sample"));
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  latents: median\n", "t.yaml:3", "model.latents");
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: wide\n", "t.yaml:3", "model.merge_m");
 
     /* an OpenCV-style header line is tolerated */
