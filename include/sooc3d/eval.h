@@ -194,7 +194,7 @@ const char *sooc_eval_timing_name(sooc_eval_timing t);
 const char *sooc_eval_timing_note(sooc_eval_timing t);
 
 typedef struct sooc_eval_run_opts {
-    uint64_t seed;             /* mapper posterior sampling seed                        (1) */
+    uint64_t seed;             /* mapper seed (ray offsets, posterior samples)          (1) */
     int iterations;            /* L refinement updates per input view; 0 = model's L    (0) */
     sooc_eval_timing timing;   /* input-view timing                                 (FINAL) */
     int n_coarse, n_fine;      /* render samples per ray                           (96, 32) */

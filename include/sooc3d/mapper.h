@@ -101,7 +101,8 @@ typedef struct sooc3d_mapper sooc3d_mapper;
 typedef struct sooc3d_mapper_params {
     const char *model_path;    /* checkpoint file (models/<name>/model.bin)           */
     int iterations;            /* L refinement updates per keyframe; 0 = model default */
-    uint64_t seed;             /* posterior sampling seed (results are deterministic)  */
+    uint64_t seed;             /* seed of ray offsets and posterior samples (results
+                                  are deterministic for a seed)                        */
     int threads;               /* 0 = OpenMP default                                   */
     double d_clip;             /* > 0: clip depth in m instead of the model's trained one,
                                   e.g. the depth sensor's usable range (deeper pixels are
