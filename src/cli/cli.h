@@ -24,7 +24,7 @@ int sooc_cli_fail(const char *cmd, sooc_status s);
 int sooc_cli_wants_help(int argc, char **argv);
 /* Parse "C" or "C,F" render sample counts (C >= 2, F >= 0); 1 on success. */
 int sooc_cli_parse_samples(const char *s, int *c, int *f);
-/* "--merge R": R >= 0 metres; 0 (never merge) becomes the mapper's "off" (-1). */
+/* "--merge R": R >= 0 metres, below 100; 0 = never merge (the mapper's default). */
 int sooc_cli_parse_merge(const char *s, double *radius);
 /* "mean" | "sample" -> SOOC3D_LATENTS_*; 0 if neither. */
 int sooc_cli_parse_latents(const char *s, int *latents);

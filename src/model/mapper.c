@@ -37,8 +37,7 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     *out = NULL;
     sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
     if (!mp) return SOOC_ENOMEM;
-    mp->m = m;
-    mp->merge_r = 0;
+    mp->m = m;   /* calloc: merge off, latents mean (the defaults) */
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
     if (mp->L > 16) mp->L = 16;
