@@ -119,6 +119,10 @@ typedef struct sooc3d_mapper_params {
                                   (posterior means, no sampling noise: the default) or
                                   SOOC3D_LATENTS_SAMPLE (one posterior sample per
                                   iteration, as in training; docs/model.md)            */
+    int slots;                 /* object slots per keyframe (retrieved + padded): 0 = the
+                                  model's trained K; more pads the extra slots with mirror
+                                  images of the learnt priors (sooc_model_copy_slots,
+                                  docs/model.md "Slots at inference")                   */
 } sooc3d_mapper_params;
 
 enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };

@@ -104,6 +104,13 @@ void sooc_model_set_threads(sooc_model *m, int n);
  * unchanged. SOOC_EINVAL unless t_near < d_clip < 1e4. */
 sooc_status sooc_model_set_clip(sooc_model *m, float d_clip);
 
+/* A copy of m that runs with K object slots per view (K = 0: m's own). The
+ * weights and the K_trained learnt slot priors are m's; each added slot's prior
+ * is the mirror image (x -> -x) of a learnt one, taken middle-out by depth
+ * (docs/model.md "Slots at inference"). SOOC_EINVAL unless m's K <= K <=
+ * SOOC_MODEL_K_MAX (the global-frame baseline: only its own K). */
+sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out);
+
 /* ---- parameters: one flat float slab, with named tensors ---- */
 size_t sooc_model_param_count(const sooc_model *m);
 float *sooc_model_params(sooc_model *m);

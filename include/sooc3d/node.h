@@ -78,6 +78,8 @@ typedef struct sooc_node_config {
     double merge_m;                          /* duplicate merge radius (sooc3d_mapper_params.
                                                 merge_radius): 0 = never (default) */
     int latents;                             /* SOOC3D_LATENTS_MEAN (default) / _SAMPLE */
+    int slots;                               /* object slots per keyframe (sooc3d_mapper_params.
+                                                slots): 0 = the model's K (default) */
 
     /* keyframe: */
     double kf_translation_m;                 /* default 0.10 */

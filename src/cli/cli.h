@@ -28,6 +28,8 @@ int sooc_cli_parse_samples(const char *s, int *c, int *f);
 int sooc_cli_parse_merge(const char *s, double *radius);
 /* "mean" | "sample" -> SOOC3D_LATENTS_*; 0 if neither. */
 int sooc_cli_parse_latents(const char *s, int *latents);
+/* "--slots N": object slots per keyframe, 0 (the model's K) or 1..SOOC_MODEL_K_MAX. */
+int sooc_cli_parse_slots(const char *s, int *slots);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */
 void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
 

@@ -2,6 +2,7 @@
  * into tests/node's sooc3d_node_fake. */
 #include "cli.h"
 #include "sooc3d/mapper.h"
+#include "sooc3d/model.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -36,6 +37,14 @@ int sooc_cli_parse_latents(const char *s, int *latents) {
     if (!strcmp(s, "mean")) *latents = SOOC3D_LATENTS_MEAN;
     else if (!strcmp(s, "sample")) *latents = SOOC3D_LATENTS_SAMPLE;
     else return 0;
+    return 1;
+}
+
+int sooc_cli_parse_slots(const char *s, int *slots) {
+    char *end;
+    long v = strtol(s, &end, 10);
+    if (end == s || *end || v < 0 || v > SOOC_MODEL_K_MAX) return 0;
+    *slots = (int)v;
     return 1;
 }
 

@@ -21,7 +21,7 @@ static void usage(FILE *f) {
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
             "                   [--max-views N] [--max-obj K] [--clip D] [--merge R]\n"
-            "                   [--latents mean|sample] [--quiet]\n\n"
+            "                   [--latents mean|sample] [--slots N] [--quiet]\n\n"
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
             "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
             "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
@@ -51,6 +51,8 @@ static void usage(FILE *f) {
             "                  0.35 measured best (docs/cogmap.md \"Merging split objects\")\n"
             "  --latents       SOOC3D mapper: refine on the posterior means (mean, default) or on one\n"
             "                  posterior sample per iteration as in training (sample); docs/model.md\n"
+            "  --slots         SOOC3D mapper: object slots per view; 0 = the model's K (default); more\n"
+            "                  pads the extra slots with mirrored priors (docs/model.md)\n"
             "  --quiet         no progress line\n");
 }
 
@@ -176,6 +178,12 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--latents") && has) {
             if (!sooc_cli_parse_latents(argv[++i], &ro.latents)) {
                 fprintf(stderr, "sooc3d eval: --latents wants mean or sample\n");
+                return 2;
+            }
+        }
+        else if (!strcmp(a, "--slots") && has) {
+            if (!sooc_cli_parse_slots(argv[++i], &ro.slots)) {
+                fprintf(stderr, "sooc3d eval: --slots wants 0 (the model's) up to %d object slots\n", SOOC_MODEL_K_MAX);
                 return 2;
             }
         }

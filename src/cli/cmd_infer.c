@@ -16,7 +16,7 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
             "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n"
-            "                    [--merge R] [--latents mean|sample] [--trace]\n\n"
+            "                    [--merge R] [--latents mean|sample] [--slots N] [--trace]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
             "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
@@ -41,6 +41,8 @@ static void usage(FILE *f) {
             "                best (docs/cogmap.md)\n"
             "  --latents     refine on the posterior means (mean, default) or on one posterior sample\n"
             "                per iteration as in training (sample); docs/model.md\n"
+            "  --slots       object slots per frame: 0 = the model's K (default); more pads the extra\n"
+            "                slots with mirrored priors (docs/model.md \"Slots at inference\")\n"
             "  --trace       write DIR/trace.csv\n");
 }
 
@@ -153,6 +155,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     }
     const char *model = NULL, *seq = NULL, *out = NULL;
     int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0, latents = SOOC3D_LATENTS_MEAN;
+    int slots = 0;
     double clip = 0, merge = 0;
     long long maxf = -1;
     uint64_t seed = 1;
@@ -186,6 +189,12 @@ int sooc_cmd_infer(int argc, char **argv) {
                 return 2;
             }
         }
+        else if (!strcmp(a, "--slots") && has) {
+            if (!sooc_cli_parse_slots(argv[++i], &slots)) {
+                fprintf(stderr, "sooc3d infer: --slots wants 0 (the model's) up to %d object slots\n", SOOC_MODEL_K_MAX);
+                return 2;
+            }
+        }
         else {
             fprintf(stderr, "sooc3d infer: unknown or incomplete option '%s'\n", a);
             usage(stderr);
@@ -210,6 +219,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
     p.merge_radius = merge;
     p.latents = latents;
+    p.slots = slots;
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
     int mw, mh;
     sooc3d_mapper_input_size(mp, &mw, &mh);

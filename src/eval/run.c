@@ -50,19 +50,8 @@ void sooc_eval_run_opts_default(sooc_eval_run_opts *o) {
 }
 
 sooc_status sooc_eval_model_copy(sooc_model *m, sooc_model **out) {
-    *out = NULL;
-    sooc_model *c = NULL;
-    sooc_status st = sooc_model_create(&c, sooc_model_get_config(m), 0);
-    if (st) return sooc_adderr(st, "eval: model copy");
-    size_t n = sooc_model_param_count(m);
-    if (n != sooc_model_param_count(c)) {
-        sooc_model_destroy(c);
-        return sooc_seterr(SOOC_EINVAL, "eval: model copy has %zu parameters, source %zu",
-                           sooc_model_param_count(c), n);
-    }
-    memcpy(sooc_model_params(c), sooc_model_params(m), n * sizeof(float));
-    *out = c;
-    return SOOC_OK;
+    sooc_status st = sooc_model_copy_slots(m, 0, out);
+    return st ? sooc_adderr(st, "eval: model copy") : SOOC_OK;
 }
 
 /* ---------------------------------------------------- one view from a map */
@@ -243,7 +232,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     size_t ent_cap = 0;
     run_ctx C;
     memset(&C, 0, sizeof C);
-    sooc_status st = sooc_eval_model_copy(m, &copy);
+    sooc_status st = sooc_model_copy_slots(m, sooc_model_is_global(m) ? 0 : o->slots, &copy);
     if (st) goto done;
     if (o->d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->d_clip))) {
         sooc_model_destroy(copy);

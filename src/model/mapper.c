@@ -69,6 +69,13 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
         sooc_model_destroy(m);
         return sooc_adderr(st, "mapper");
     }
+    if (p->slots > 0 && p->slots != sooc_model_get_config(m)->K) {
+        sooc_model *w;
+        st = sooc_model_copy_slots(m, p->slots, &w);
+        sooc_model_destroy(m);
+        if (st) return sooc_adderr(st, "mapper: %s", p->model_path);
+        m = w;
+    }
     st = mdl_mapper_create_from(out, m, p->iterations, p->seed, p->threads);
     if (st) sooc_model_destroy(m);
     else {

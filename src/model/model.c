@@ -255,6 +255,65 @@ sooc_status sooc_model_set_clip(sooc_model *m, float d_clip) {
     m->cfg.d_clip = d_clip;
     return SOOC_OK;
 }
+/* Extra slot priors for a model run with more slots than it was trained with
+ * (docs/model.md "Slots at inference"): mirror images (x -> -x) of the learnt
+ * priors, taken middle-out by depth (the prior whose depth is nearest the
+ * median of the learnt ones first), so the added slots cover the side of the
+ * footprint the alternating learnt priors leave open, where objects are
+ * densest in a view. */
+static void mirror_order(const sooc_model *m, int *order) {
+    int K = m->cfg.K, NL = m->NL;
+    float z[SOOC_MODEL_K_MAX], zs[SOOC_MODEL_K_MAX];
+    for (int k = 0; k < K; k++) zs[k] = z[k] = m->p[m->prior + (size_t)k * NL + 1];
+    for (int i = 1; i < K; i++)   /* insertion sort for the median */
+        for (int j = i; j > 0 && zs[j] < zs[j - 1]; j--) {
+            float t = zs[j];
+            zs[j] = zs[j - 1];
+            zs[j - 1] = t;
+        }
+    float med = zs[(K - 1) / 2];
+    for (int k = 0; k < K; k++) order[k] = k;
+    for (int i = 1; i < K; i++)   /* stable: ties keep slot order */
+        for (int j = i; j > 0 && fabsf(z[order[j]] - med) < fabsf(z[order[j - 1]] - med); j--) {
+            int t = order[j];
+            order[j] = order[j - 1];
+            order[j - 1] = t;
+        }
+}
+
+sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out) {
+    *out = NULL;
+    if (!m) return sooc_seterr(SOOC_EINVAL, "model copy: no model");
+    int K0 = m->cfg.K;
+    if (K <= 0) K = K0;
+    if (K < K0 || K > SOOC_MODEL_K_MAX || (K != K0 && m->cfg.global_frame))
+        return sooc_seterr(SOOC_EINVAL, "model: %d slots requested; this model has %d and runs with %d..%d%s", K, K0,
+                           K0, m->cfg.global_frame ? K0 : SOOC_MODEL_K_MAX,
+                           m->cfg.global_frame ? " (the global-frame baseline's slots are its scene's objects)" : "");
+    sooc_model_config c = m->cfg;
+    c.K = K;
+    sooc_model *w;
+    sooc_status st = sooc_model_create(&w, &c, 0);
+    if (st) return sooc_adderr(st, "model copy with %d slots", K);
+    /* the slab is laid out identically up to the slot priors, which come
+     * last but for the layout prior (sooc_model_create) */
+    int NL = m->NL;
+    memcpy(w->p, m->p, m->prior * sizeof(float));
+    memcpy(w->p + w->prior, m->p + m->prior, (size_t)K0 * NL * sizeof(float));
+    memcpy(w->p + w->prior_lay, m->p + m->prior_lay, (size_t)2 * c.d_layout * sizeof(float));
+    int order[SOOC_MODEL_K_MAX];
+    mirror_order(m, order);
+    for (int k = K0; k < K; k++) {
+        float *dst = w->p + w->prior + (size_t)k * NL;
+        memcpy(dst, m->p + m->prior + (size_t)order[(k - K0) % K0] * NL, NL * sizeof(float));
+        dst[0] = -dst[0];   /* x -> -x, and the heading with it */
+        dst[2] = -dst[2];
+    }
+    w->threads = m->threads;
+    *out = w;
+    return SOOC_OK;
+}
+
 size_t sooc_model_param_count(const sooc_model *m) { return m->np; }
 float *sooc_model_params(sooc_model *m) { return m->p; }
 float *sooc_model_grads(sooc_model *m) { return m->g; }

@@ -2,6 +2,7 @@
  * -> sooc_node_config. Sections are read through key tables (field, type,
  * range). Every error names the file, the line and the key (section.key). */
 #include "sooc3d/node.h"
+#include "sooc3d/model.h"
 #include "data/yaml_doc.h"
 
 #include <ctype.h>
@@ -423,6 +424,7 @@ static const kspec g_keys[] = {
     KV("model", "clip_m", KV_NUM, clip_m, 0, 1000),
     KV("model", "merge_m", KV_NUM, merge_m, 0, 100),
     KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC3D_LATENTS_* */
+    KV("model", "slots", KV_INT, slots, 0, SOOC_MODEL_K_MAX),
     KV("keyframe", "translation_m", KV_NUM, kf_translation_m, 0, 1000),
     KV("keyframe", "rotation_deg", KV_NUM, kf_rotation_deg, 0, 360),
     KV("keyframe", "time_s", KV_NUM, kf_time_s, 0, 86400),
@@ -590,10 +592,10 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     OUT("}\npose: {source: %s, path: '%s', tolerance_ms: %g, frame: %s}\n", pk[c->pose_kind], c->pose_path,
         c->pose_tolerance_s * 1e3, c->pose_is_effector ? "effector" : "camera");
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
-        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s}\n",
+        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d}\n",
         c->calib_path, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
-        c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean");
+        c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean", c->slots);
     OUT("keyframe: {translation_m: %g, rotation_deg: %g, time_s: %g}\n", c->kf_translation_m,
         c->kf_rotation_deg, c->kf_time_s);
     OUT("shm: {name: '%s', capacity: %u, unlink_on_exit: %s}\n", c->shm_name, c->shm_capacity,

@@ -520,6 +520,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.d_clip = c->clip_m;
         mp.merge_radius = c->merge_m;
         mp.latents = c->latents;
+        mp.slots = c->slots;
         if (!c->model_path[0]) {
             st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
             goto fail;

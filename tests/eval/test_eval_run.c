@@ -514,6 +514,9 @@ static void test_infer(const char *bin, sooc_model *m0, const char *data) {
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --latents x 2>/dev/null", bin,
              model, data, g_tmp);
     CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --slots 99 2>/dev/null", bin,
+             model, data, g_tmp);
+    CHECK(run(cmd) == 2);
     snprintf(p, sizeof p, "%s/inf2", g_tmp);
     CHECK_MSG(access(p, F_OK) != 0, "no output directory after a usage error");
     /* a sequence that does not exist names it */
@@ -562,8 +565,19 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --latents median 2>/dev/null", bin,
              model, data, g_tmp);
     CHECK(run(cmd) == 2);
+    snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --slots -1 2>/dev/null", bin, model,
+             data, g_tmp);
+    CHECK(run(cmd) == 2);
+    /* fewer slots than the model was trained with: a clear run-time error */
+    snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --slots 2 --quiet > %s/s2.txt 2>&1", bin,
+             model, data, g_tmp, g_tmp);
+    CHECK(run(cmd) == 1);
+    snprintf(p, sizeof p, "%s/s2.txt", g_tmp);
+    char *s2 = read_text(p);
+    CHECK_MSG(s2 && strstr(s2, "2 slots requested"), "eval --slots 2 names the problem");
+    free(s2);
     snprintf(cmd, sizeof cmd,
-             "%s eval --model %s --data %s --json %s/m.json --merge 0 --latents sample --scenes 1 --max-views 2 "
+             "%s eval --model %s --data %s --json %s/m.json --merge 0 --latents sample --slots 5 --scenes 1 --max-views 2 "
              "--samples 16,4 "
              "--threads 1 --quiet > /dev/null 2>&1",
              bin, model, data, g_tmp);

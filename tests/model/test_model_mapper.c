@@ -23,13 +23,14 @@ static void small_cfg(sooc_model_config *c) {
     c->prior_pres_logit = 1.0f;
 }
 
-static int run_seq_l(const char *path, uint64_t seed, int latents, sooc_map_entry *out, size_t cap, size_t *n,
-                     sooc3d_mapper **keep) {
+static int run_seq_l(const char *path, uint64_t seed, int latents, int slots, sooc_map_entry *out, size_t cap,
+                     size_t *n, sooc3d_mapper **keep) {
     sooc3d_mapper_params p;
     sooc3d_mapper_params_default(&p);
     p.model_path = path;
     p.seed = seed;
     p.latents = latents;
+    p.slots = slots;
     p.threads = 2;
     sooc3d_mapper *mp;
     CHECK_OK(sooc3d_mapper_create(&mp, &p));
@@ -57,8 +58,13 @@ static int run_seq_l(const char *path, uint64_t seed, int latents, sooc_map_entr
     return retrieved;
 }
 
+static int cmp_float(const void *a, const void *b) {
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
 static int run_seq(const char *path, uint64_t seed, sooc_map_entry *out, size_t cap, size_t *n, sooc3d_mapper **keep) {
-    return run_seq_l(path, seed, SOOC3D_LATENTS_MEAN, out, cap, n, keep);
+    return run_seq_l(path, seed, SOOC3D_LATENTS_MEAN, 0, out, cap, n, keep);
 }
 
 /* The shared map entry <-> cogmap entry converters (mapper.h): round trip,
@@ -88,6 +94,99 @@ static void test_entry_convert(void) {
     e.sigma_t = 0; /* floored at 1e-12, never log(0) */
     sooc3d_mapper_entry_to_cogmap(&e, &ce);
     CHECK(isfinite(ce.rho_t));
+}
+
+/* Slots at inference (sooc_model_copy_slots, mapper slots): the copy keeps
+ * every weight and learnt prior, adds mirror images (x -> -x) of learnt
+ * priors middle-out by depth, rejects fewer slots than trained or more than
+ * SOOC_MODEL_K_MAX; a mapper asked for the model's own K maps bit-identically,
+ * and one with more slots retrieves that many in-view entries. */
+static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_ref, size_t n_ref) {
+    const sooc_model_config *c = sooc_model_get_config(m);
+    int K0 = c->K, K = K0 + 2;
+    sooc_model *w = NULL;
+    CHECK(sooc_model_copy_slots(m, K0 - 1, &w) == SOOC_EINVAL && !w);
+    printf("slots %d: %s\n", K0 - 1, sooc_errmsg());
+    CHECK(sooc_model_copy_slots(m, SOOC_MODEL_K_MAX + 1, &w) == SOOC_EINVAL && !w);
+    CHECK_OK(sooc_model_copy_slots(m, 0, &w));
+    CHECK(sooc_model_param_count(w) == sooc_model_param_count(m));
+    CHECK(!memcmp(sooc_model_params(w), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
+    sooc_model_destroy(w);
+    CHECK_OK(sooc_model_copy_slots(m, K, &w));
+    CHECK(sooc_model_get_config(w)->K == K);
+    sooc_model_tensor ta[64], tb[64];
+    int na = sooc_model_tensors(m, ta, 64), nb = sooc_model_tensors(w, tb, 64);
+    CHECK(na == nb);
+    const float *pa = sooc_model_params(m), *pb = sooc_model_params(w);
+    for (int i = 0; i < na && i < nb; i++) {
+        CHECK(!strcmp(ta[i].name, tb[i].name));
+        if (strcmp(ta[i].name, "prior.slots")) {
+            CHECK(ta[i].count == tb[i].count && !memcmp(pa + ta[i].offset, pb + tb[i].offset, ta[i].count * sizeof(float)));
+            continue;
+        }
+        int NL = ta[i].cols;
+        const float *la = pa + ta[i].offset, *lb = pb + tb[i].offset;
+        CHECK(tb[i].rows == K && !memcmp(la, lb, (size_t)K0 * NL * sizeof(float)));
+        /* the learnt priors' depths, and the one nearest their median */
+        float zs[16];
+        for (int k = 0; k < K0; k++) zs[k] = la[k * NL + 1];
+        qsort(zs, (size_t)K0, sizeof zs[0], cmp_float);
+        float med = zs[(K0 - 1) / 2], prev = -1;
+        for (int k = K0; k < K; k++) {
+            int src = -1;
+            for (int j = 0; j < K0 && src < 0; j++)
+                if (lb[k * NL] == -la[j * NL] && lb[k * NL + 2] == -la[j * NL + 2] &&
+                    !memcmp(lb + k * NL + 3, la + j * NL + 3, (size_t)(NL - 3) * sizeof(float)) && lb[k * NL + 1] == la[j * NL + 1])
+                    src = j;
+            CHECK_MSG(src >= 0, "added prior %d is not a mirrored learnt prior", k);
+            if (src < 0) continue;
+            float dz = fabsf(la[src * NL + 1] - med);
+            CHECK_MSG(dz >= prev, "added priors not middle-out: %g after %g", dz, prev);
+            if (k == K0) CHECK(dz == 0.0f);
+            prev = dz;
+            printf("slot %d: mirror of learnt prior %d (x %.2f z %.2f)\n", k, src, lb[k * NL], lb[k * NL + 1]);
+        }
+    }
+    sooc_model_destroy(w);
+    /* the mapper: its own K is the default; more slots retrieve more entries */
+    static sooc_map_entry e[256];
+    size_t n;
+    run_seq_l(path, 7, SOOC3D_LATENTS_MEAN, K0, e, 256, &n, NULL);
+    CHECK(n == n_ref && !memcmp(e, e_ref, n * sizeof e[0]));
+    for (int pass = 0; pass < 2; pass++) {
+        sooc3d_mapper_params p;
+        sooc3d_mapper_params_default(&p);
+        p.model_path = path, p.threads = 2, p.slots = pass ? K : 0;
+        sooc3d_mapper *mp;
+        CHECK_OK(sooc3d_mapper_create(&mp, &p));
+        CHECK(sooc_model_get_config(sooc3d_mapper_model(mp))->K == (pass ? K : K0));
+        sooc_map_entry ent[8];
+        for (int i = 0; i < 8; i++) {   /* 8 entries in front of the camera */
+            memcpy(&ent[i], e_ref, sizeof ent[i]);
+            ent[i].id = 100 + (uint64_t)i, ent[i].x = -0.9 + 0.25 * i, ent[i].z = 2.5 + 0.1 * i;
+            ent[i].presence_logit = 4.0f - 0.1f * (float)i;
+            ent[i].presence = 1.0f / (1.0f + expf(-ent[i].presence_logit));
+        }
+        CHECK_OK(sooc3d_mapper_load_entries(mp, ent, 8));
+        double T[16];
+        synth_pose(T, 0, 1.5, 0, 0, -0.45);
+        synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
+        sooc_frame fr;
+        CHECK_OK(synth_frame(&fr, 32, 32, 60, T, &sp1, 1));
+        fr.index = 1, fr.t_ns = 1000;
+        sooc3d_update_stats us;
+        CHECK_OK(sooc3d_mapper_update(mp, &fr, &us));
+        sooc_frame_free(&fr);
+        printf("mapper with %d slots: retrieved %d of 8 in-view entries\n", pass ? K : K0, us.n_retrieved);
+        CHECK(us.n_retrieved == (pass ? K : K0));
+        sooc3d_mapper_destroy(mp);
+    }
+    sooc3d_mapper_params p;
+    sooc3d_mapper_params_default(&p);
+    p.model_path = path, p.slots = K0 - 1;
+    sooc3d_mapper *bad = NULL;
+    CHECK(sooc3d_mapper_create(&bad, &p) == SOOC_EINVAL && !bad);
+    CHECK_MSG(strstr(sooc_errmsg(), path) != NULL, "error does not name the model file: %s", sooc_errmsg());
 }
 
 int main(void) {
@@ -164,13 +263,14 @@ int main(void) {
     {
         static sooc_map_entry s1[256], s2[256];
         size_t m1, m2;
-        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, s1, 256, &m1, NULL);
-        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, s2, 256, &m2, NULL);
+        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, 0, s1, 256, &m1, NULL);
+        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, 0, s2, 256, &m2, NULL);
         CHECK(m1 == m2 && !memcmp(s1, s2, m1 * sizeof s1[0]));
         int differ = m1 != n1;
         for (size_t i = 0; i < m1 && i < n1 && !differ; i++) differ = s1[i].x != e1[i].x || s1[i].z != e1[i].z;
         CHECK_MSG(differ, "sampled and mean refinement give the same map");
     }
+    test_slots(m, path, e1, n1);
     /* load_entries round trip */
     CHECK_OK(sooc3d_mapper_load_entries(mp, e1, n1));
     CHECK_OK(sooc3d_mapper_entries(mp, e3, 256, &n3));

@@ -94,6 +94,13 @@ static void test_launch(void) {
     CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "latents: sample"));
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  latents: median\n", "t.yaml:3", "model.latents");
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: wide\n", "t.yaml:3", "model.merge_m");
+    /* model.slots: object slots per keyframe (0 = the model's K, the default) */
+    CHECK(c.slots == 0 && strstr(buf, "slots: 0"));
+    const char *sl = "sensor: {driver: replay, path: x}\nmodel:\n  slots: 10\n";
+    CHECK_OK(sooc_node_config_parse(&c, sl, strlen(sl), "s.yaml"));
+    CHECK(c.slots == 10);
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "slots: 10"));
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  slots: 99\n", "t.yaml:3", "model.slots");
 
     /* an OpenCV-style header line is tolerated */
     const char *ocv = "%YAML:1.0\n---\nsensor: {driver: replay, path: x}\n";
