@@ -58,6 +58,18 @@ static int run_seq_l(const char *path, uint64_t seed, int latents, int slots, so
     return retrieved;
 }
 
+/* One update from the first camera pose of a frame showing one sphere 3 m ahead. */
+static void update_one_sphere(sooc3d_mapper *mp, int index, sooc3d_update_stats *us) {
+    double T[16];
+    synth_pose(T, 0, 1.5, 0, 0, -0.45);
+    synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
+    sooc_frame fr;
+    CHECK_OK(synth_frame(&fr, 32, 32, 60, T, &sp1, 1));
+    fr.index = index, fr.t_ns = 1000 * (int64_t)index;
+    CHECK_OK(sooc3d_mapper_update(mp, &fr, us));
+    sooc_frame_free(&fr);
+}
+
 static int cmp_float(const void *a, const void *b) {
     float x = *(const float *)a, y = *(const float *)b;
     return (x > y) - (x < y);
@@ -168,15 +180,8 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
             ent[i].presence = 1.0f / (1.0f + expf(-ent[i].presence_logit));
         }
         CHECK_OK(sooc3d_mapper_load_entries(mp, ent, 8));
-        double T[16];
-        synth_pose(T, 0, 1.5, 0, 0, -0.45);
-        synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
-        sooc_frame fr;
-        CHECK_OK(synth_frame(&fr, 32, 32, 60, T, &sp1, 1));
-        fr.index = 1, fr.t_ns = 1000;
         sooc3d_update_stats us;
-        CHECK_OK(sooc3d_mapper_update(mp, &fr, &us));
-        sooc_frame_free(&fr);
+        update_one_sphere(mp, 1, &us);
         printf("mapper with %d slots: retrieved %d of 8 in-view entries\n", pass ? K : K0, us.n_retrieved);
         CHECK(us.n_retrieved == (pass ? K : K0));
         sooc3d_mapper_destroy(mp);
@@ -248,8 +253,6 @@ int main(void) {
     }
     /* mapper: deterministic for a seed, registration and retrieval */
     static sooc_map_entry e1[256], e2[256], e3[256];
-    double T0[16];
-    synth_pose(T0, 0, 1.5, 0, 0, -0.45);
     size_t n1, n2, n3;
     sooc3d_mapper *mp;
     int ret = run_seq(path, 7, e1, 256, &n1, &mp);
@@ -295,13 +298,8 @@ int main(void) {
         dup[0].presence = dup[1].presence = 1.0f / (1.0f + expf(-4.0f));
         CHECK_OK(sooc3d_mapper_load_entries(mp, dup, 2));
         sooc3d_mapper_set_merge_radius(mp, pass ? 0.0 : SOOC3D_MAPPER_MERGE_SUGGESTED);   /* 0.35 m, then off */
-        synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
-        sooc_frame fr;
-        CHECK_OK(synth_frame(&fr, 32, 32, 60, T0, &sp1, 1));
-        fr.index = 9, fr.t_ns = 9000;
         sooc3d_update_stats us;
-        CHECK_OK(sooc3d_mapper_update(mp, &fr, &us));
-        sooc_frame_free(&fr);
+        update_one_sphere(mp, 9, &us);
         sooc_map_entry chg[SOOC_MAPPER_CHANGED_MAX];
         uint64_t rm[SOOC_MAPPER_CHANGED_MAX];
         size_t nc, nrm;
