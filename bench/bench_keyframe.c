@@ -2,7 +2,7 @@
  * pad -> L refinement iterations -> register) at 64x64, K = 7, L = 3, 2
  * threads, through the public mapper API, and its ratio to the same update in
  * the PyTorch reference (bench/bench_keyframe_torch.py). JSON on the last line.
- *   bench_keyframe [--model M] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]
+ *   bench_keyframe [--model M] [--slots K] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]
  *
  * The ratio is measured in interleaved rounds so that it is robust to the
  * load of other jobs on a shared machine: the PyTorch reference runs as one
@@ -15,7 +15,10 @@
  * cost does not depend on the weights). The camera path repeats every 64
  * frames so that every round sees the same kind of views. --dump F writes
  * the final map entries as text (%.17g, one entry a line) to F, to compare
- * results across builds and thread counts (identical files = bitwise equal). */
+ * results across builds and thread counts (identical files = bitwise equal).
+ * --slots K runs the mapper with K object slots (sooc3d_mapper_params.slots);
+ * the PyTorch reference is written for K = 7, so other K time the C update
+ * alone. */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -146,9 +149,10 @@ int main(int argc, char **argv) {
         execv("/proc/self/exe", argv);
     }
     const char *model = NULL, *dump = NULL;
-    int rounds = 9, n = 12, tn = 6, threads = 2, torch = 1;
+    int rounds = 9, n = 12, tn = 6, threads = 2, torch = 1, slots = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
+        else if (!strcmp(argv[i], "--slots") && i + 1 < argc) slots = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--rounds") && i + 1 < argc) rounds = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--n") && i + 1 < argc) n = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--tn") && i + 1 < argc) tn = atoi(argv[++i]);
@@ -156,7 +160,8 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--no-torch")) torch = 0;
         else if (!strcmp(argv[i], "--dump") && i + 1 < argc) dump = argv[++i];
         else {
-            fprintf(stderr, "usage: bench_keyframe [--model M] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]\n");
+            fprintf(stderr, "usage: bench_keyframe [--model M] [--slots K] [--rounds R] [--n N] [--tn TN] [--threads T] "
+                            "[--no-torch] [--dump F]\n");
             return 2;
         }
     }
@@ -180,9 +185,15 @@ int main(int argc, char **argv) {
     p.model_path = model;
     p.threads = threads;
     p.iterations = 3;
+    p.slots = slots;
     sooc3d_mapper *mp;
     if (sooc3d_mapper_create(&mp, &p)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
     if (model == tmp) remove(tmp);
+    int K = sooc_model_get_config(sooc3d_mapper_model(mp))->K;
+    if (torch && K != 7) {
+        fprintf(stderr, "bench_keyframe: the PyTorch reference has K = 7; timing the C update with K = %d alone\n", K);
+        torch = 0;
+    }
     torch_proc tp = {0};
     char line[1024];
     if (torch) {
@@ -260,8 +271,8 @@ int main(int argc, char **argv) {
     double med = ms[tot / 2], p99 = ms[(int)(0.99 * (tot - 1))];
     size_t ne = 0;
     sooc3d_mapper_entries(mp, NULL, 0, &ne);
-    printf("keyframe update 64x64 K=7 L=3 threads=%d: median %.2f ms, p99 %.2f ms (mean retrieved %.1f, registered %.1f, map %zu)\n",
-           threads, med, p99, (double)nret / tot, (double)nreg / tot, ne);
+    printf("keyframe update 64x64 K=%d L=3 threads=%d: median %.2f ms, p99 %.2f ms (mean retrieved %.1f, registered %.1f, map %zu)\n",
+           K, threads, med, p99, (double)nret / tot, (double)nreg / tot, ne);
 #ifdef MDL_PROFILE
     {
         static const char *nm[MDL_PR_N] = {"dec_prep", "dec_fwd", "dec_comp", "dec_bwd", "dec_red", "aux",
@@ -284,10 +295,10 @@ int main(int argc, char **argv) {
         rmed = median(rsort, rounds);
         rmin = rsort[0];
     }
-    printf("{\"bench\":\"keyframe\",\"omp_wait_policy\":\"%s\",\"width\":64,\"height\":64,\"K\":7,\"L\":3,\"threads\":%d,"
+    printf("{\"bench\":\"keyframe\",\"omp_wait_policy\":\"%s\",\"width\":64,\"height\":64,\"K\":%d,\"L\":3,\"threads\":%d,"
            "\"n\":%d,\"rounds\":%d,\"median_ms\":%.3f,\"p99_ms\":%.3f,\"torch_median_ms\":%.3f,\"speedup_vs_torch\":%.2f,"
            "\"ratio_min\":%.2f,\"ratio_rounds\":[",
-           getenv("OMP_WAIT_POLICY"), threads, tot, rounds, med, p99, tmed, rmed, rmin);
+           getenv("OMP_WAIT_POLICY"), K, threads, tot, rounds, med, p99, tmed, rmed, rmin);
     for (int r = 0; torch && r < rounds; r++) printf("%s%.2f", r ? "," : "", ratio[r]);
     printf("]}\n");
     free(ms);
