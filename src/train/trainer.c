@@ -184,13 +184,24 @@ static sooc_status run_validation(trainer *tr, int64_t step) {
 }
 
 /* Fine-tuning: copy the weights of checkpoint `path` into the fresh model m.
- * Everything that shapes the parameter slab must agree; the rest (clip depth,
- * likelihood constants, prior spread at init) is the config's. */
+ * Everything that shapes the parameter slab must agree, except that a
+ * checkpoint with fewer slots than the config's K is widened first (its added
+ * slot priors are mirrored learnt ones); the rest (clip depth, likelihood
+ * constants, prior spread at init) is the config's. */
 static sooc_status init_from(sooc_model *m, const sooc_model_config *mc, const char *path) {
     sooc_model *src;
     sooc_status s = sooc_model_load(&src, path, NULL, NULL);
     if (s) return sooc_adderr(s, "train --init");
     const sooc_model_config *c = sooc_model_get_config(src);
+    if (c->K < mc->K && !c->global_frame) {   /* more slots: the added priors mirror learnt ones */
+        sooc_model *w;
+        s = sooc_model_copy_slots(src, mc->K, &w);
+        sooc_model_destroy(src);
+        if (s) return sooc_adderr(s, "train --init %s", path);
+        sooc_log(SOOC_LOG_INFO, "%s: %d slots widened to the config's %d (sooc_model_copy_slots)", path, c->K, mc->K);
+        src = w;
+        c = sooc_model_get_config(src);
+    }
     const char *bad = c->K != mc->K ? "K" : c->d_what != mc->d_what ? "d_what" : c->d_layout != mc->d_layout ? "d_layout"
                     : c->img_w != mc->img_w || c->img_h != mc->img_h ? "img_w/img_h"
                     : c->dec_width != mc->dec_width ? "dec_width" : c->dec_color_width != mc->dec_color_width ? "dec_color_width"

@@ -197,7 +197,8 @@ static void test_resume(void) {
     /* --init (fine-tuning): run a's weights, another clip depth, one step; the
      * weights move by about one Adam step (<= lr each) from run a's, and the
      * new config's clip is the checkpoint's. A network-shape mismatch is an
-     * error naming the file and the field, and writes no run. */
+     * error naming the file and the field, and writes no run; more slots than
+     * the checkpoint's are added (widened). */
     {
         char outc[600], outd[600], pc[620];
         snprintf(outc, sizeof outc, "%s/run_c", g_dir);
@@ -222,12 +223,31 @@ static void test_resume(void) {
         sooc_model_destroy(mm);
         free(wc);
         sooc_model_config mk = mc;
-        mk.K = mc.K + 1;
+        mk.d_what = mc.d_what + 1;
         ri.out_dir = outd;
         CHECK(sooc_train_run(&c1, &mk, &ri) == SOOC_EINVAL && strstr(sooc_errmsg(), "run_a/last.bin") &&
-              strstr(sooc_errmsg(), "its K differs"));
+              strstr(sooc_errmsg(), "its d_what differs"));
         snprintf(pc, sizeof pc, "%s/last.bin", outd);
         CHECK(!sooc_file_exists(pc));
+        /* more slots than the checkpoint: widened (sooc_model_copy_slots), then trained */
+        mk = mc;
+        mk.K = mc.K + 1;
+        CHECK_OK(sooc_train_run(&c1, &mk, &ri));
+        CHECK_OK(sooc_model_load(&mm, pc, NULL, NULL));
+        CHECK(mm && sooc_model_get_config(mm)->K == mc.K + 1 &&
+              sooc_model_param_count(mm) > na);
+        if (mm) {
+            const float *w = sooc_model_params(mm);
+            double dm = 0;   /* every weight ahead of the slot priors started at run a's */
+            sooc_model_tensor t[64];
+            int nt = sooc_model_tensors(mm, t, 64);
+            size_t prior_off = na;
+            for (int i = 0; i < nt; i++)
+                if (!strcmp(t[i].name, "prior.slots")) prior_off = t[i].offset;
+            for (size_t i = 0; i < prior_off; i++) dm = fmax(dm, fabs((double)w[i] - wa[i]));
+            CHECK_MSG(prior_off < na && dm > 0 && dm <= 1.01 * c.lr, "widened run: max |w - w_a| %g", dm);
+        }
+        sooc_model_destroy(mm);
     }
     /* the logs hold one row per step, without duplicates after resume */
     char la[600], lb[600];
