@@ -211,7 +211,8 @@ typedef struct sooc_eval_run_opts {
     double merge_radius;       /* SOOC3D mapper's duplicate merge radius (m); <= 0 = off (0) */
     int latents;               /* SOOC3D mapper: SOOC3D_LATENTS_MEAN / _SAMPLE          (MEAN) */
     int slots;                 /* SOOC3D models: object slots per keyframe (sooc_model_copy_slots);
-                                  0 = the model's K; ignored for the global-frame baseline (0) */
+                                  0 = the model's setting (config.slots, else K); ignored
+                                  for the global-frame baseline                        (0) */
     /* extras, only for the views flagged in detail_views (NULL = every view): */
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */

@@ -120,7 +120,8 @@ typedef struct sooc3d_mapper_params {
                                   SOOC3D_LATENTS_SAMPLE (one posterior sample per
                                   iteration, as in training; docs/model.md)            */
     int slots;                 /* object slots per keyframe (retrieved + padded): 0 = the
-                                  model's trained K; more pads the extra slots with mirror
+                                  model's inference setting (its config.slots, else its
+                                  trained K); more than K pads the extra slots with mirror
                                   images of the learnt priors (sooc_model_copy_slots,
                                   docs/model.md "Slots at inference")                   */
 } sooc3d_mapper_params;

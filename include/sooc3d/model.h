@@ -80,6 +80,11 @@ typedef struct sooc_model_config {
     int global_frame;        /* 1 = the baseline: K world-frame slots, no cogmap   (0) */
     float global_radius;     /* slot prior means spread over a disc of this radius
                                 around the world origin, m                    (4.2) */
+    /* appended in checkpoint version 3 (older files load with 0) */
+    int slots;               /* object slots per view at inference (mapper, eval), when
+                                the caller does not choose: 0 = K; more = K plus
+                                mirrored priors (sooc_model_copy_slots). Training
+                                uses K                                          (0) */
 } sooc_model_config;
 
 void sooc_model_config_default(sooc_model_config *c);
@@ -103,8 +108,14 @@ void sooc_model_set_threads(sooc_model *m, int n);
  * up to d_clip", and map entries beyond it are out of view. The weights are
  * unchanged. SOOC_EINVAL unless t_near < d_clip < 1e4. */
 sooc_status sooc_model_set_clip(sooc_model *m, float d_clip);
+/* Set the model's inference slot count (config.slots, saved with it): 0 = K.
+ * SOOC_EINVAL unless 0 or K <= slots <= SOOC_MODEL_K_MAX (0 for the
+ * global-frame baseline). The weights are unchanged. */
+sooc_status sooc_model_set_slots(sooc_model *m, int slots);
 
-/* A copy of m that runs with K object slots per view (K = 0: m's own). The
+/* A copy of m that runs with K object slots per view (K = 0: m's inference
+ * setting, config.slots, or its K when that is 0; the copy's config.slots is
+ * 0, so it runs with exactly its K). The
  * weights and the K_trained learnt slot priors are m's; each added slot's prior
  * is the mirror image (x -> -x) of a learnt one, taken middle-out by depth
  * (docs/model.md "Slots at inference"). SOOC_EINVAL unless m's K <= K <=

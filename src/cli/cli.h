@@ -16,6 +16,7 @@ int sooc_cmd_render(int argc, char **argv);
 int sooc_cmd_finetune(int argc, char **argv);
 int sooc_cmd_mesh(int argc, char **argv);
 int sooc_cmd_map(int argc, char **argv);
+int sooc_cmd_model(int argc, char **argv);
 int sooc_cmd_node(int argc, char **argv);
 
 /* Print "sooc3d <cmd>: <status>: <errmsg>" to stderr and return 1. */

@@ -51,8 +51,9 @@ static void usage(FILE *f) {
             "                  0.35 measured best (docs/cogmap.md \"Merging split objects\")\n"
             "  --latents       SOOC3D mapper: refine on the posterior means (mean, default) or on one\n"
             "                  posterior sample per iteration as in training (sample); docs/model.md\n"
-            "  --slots         SOOC3D mapper: object slots per view; 0 = the model's K (default); more\n"
-            "                  pads the extra slots with mirrored priors (docs/model.md)\n"
+            "  --slots         SOOC3D mapper: object slots per view; 0 = the model's setting (default:\n"
+            "                  its config slots, else K). More than K pads the extra slots with\n"
+            "                  mirrored learnt priors (docs/model.md)\n"
             "  --quiet         no progress line\n");
 }
 

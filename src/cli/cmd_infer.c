@@ -41,8 +41,9 @@ static void usage(FILE *f) {
             "                best (docs/cogmap.md)\n"
             "  --latents     refine on the posterior means (mean, default) or on one posterior sample\n"
             "                per iteration as in training (sample); docs/model.md\n"
-            "  --slots       object slots per frame: 0 = the model's K (default); more pads the extra\n"
-            "                slots with mirrored priors (docs/model.md \"Slots at inference\")\n"
+            "  --slots       object slots per frame; 0 = the model's setting (default: its config slots,\n"
+            "                else its trained K; the shipped model: 10). More than K pads the extra\n"
+            "                slots with mirrored learnt priors (docs/model.md, slots at inference)\n"
             "  --trace       write DIR/trace.csv\n");
 }
 

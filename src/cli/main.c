@@ -17,6 +17,7 @@ static const struct {
     {"finetune", sooc_cmd_finetune, "per-object NeRF finetuning (EM)"},
     {"mesh", sooc_cmd_mesh, "extract object meshes"},
     {"map", sooc_cmd_map, "list, query or export a stored map"},
+    {"model", sooc_cmd_model, "show a checkpoint's configuration, set its inference slots"},
     {"node", sooc_cmd_node, "run the live mapping node from a launch file"},
 };
 #define NCMDS (sizeof g_cmds / sizeof g_cmds[0])

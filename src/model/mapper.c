@@ -69,9 +69,11 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
         sooc_model_destroy(m);
         return sooc_adderr(st, "mapper");
     }
-    if (p->slots > 0 && p->slots != sooc_model_get_config(m)->K) {
+    const sooc_model_config *mc = sooc_model_get_config(m);
+    int slots = p->slots > 0 ? p->slots : mc->slots;   /* the caller's, else the model's inference setting */
+    if (slots > 0 && slots != mc->K) {
         sooc_model *w;
-        st = sooc_model_copy_slots(m, p->slots, &w);
+        st = sooc_model_copy_slots(m, slots, &w);
         sooc_model_destroy(m);
         if (st) return sooc_adderr(st, "mapper: %s", p->model_path);
         m = w;

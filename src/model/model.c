@@ -50,6 +50,9 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
     if (c->d_what < 1 || c->d_what > SOOC_MODEL_D_MAX || c->d_layout < 1 || c->d_layout > SOOC_MODEL_D_MAX)
         return sooc_seterr(SOOC_EINVAL, "model config: d_what/d_layout outside 1..%d", SOOC_MODEL_D_MAX);
     if (c->L < 0 || c->L > 16) return sooc_seterr(SOOC_EINVAL, "model config: L = %d outside 0..16", c->L);
+    if (c->slots != 0 && (c->slots < c->K || c->slots > SOOC_MODEL_K_MAX || c->global_frame))
+        return sooc_seterr(SOOC_EINVAL, "model config: slots = %d; 0 or K (%d) .. %d, and 0 for the global-frame baseline",
+                           c->slots, c->K, SOOC_MODEL_K_MAX);
     if (c->ray_w < 16 || c->ray_h < 16 || c->ray_w % 16 || c->ray_h % 16)
         return sooc_seterr(SOOC_EINVAL, "model config: ray grid %dx%d must be multiples of 16", c->ray_w, c->ray_h);
     if (c->img_w % c->ray_w || c->img_h % c->ray_h)
@@ -285,13 +288,14 @@ sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out) 
     *out = NULL;
     if (!m) return sooc_seterr(SOOC_EINVAL, "model copy: no model");
     int K0 = m->cfg.K;
-    if (K <= 0) K = K0;
+    if (K <= 0) K = m->cfg.slots > 0 ? m->cfg.slots : K0;
     if (K < K0 || K > SOOC_MODEL_K_MAX || (K != K0 && m->cfg.global_frame))
         return sooc_seterr(SOOC_EINVAL, "model: %d slots requested; this model has %d and runs with %d..%d%s", K, K0,
                            K0, m->cfg.global_frame ? K0 : SOOC_MODEL_K_MAX,
                            m->cfg.global_frame ? " (the global-frame baseline's slots are its scene's objects)" : "");
     sooc_model_config c = m->cfg;
     c.K = K;
+    c.slots = 0;
     sooc_model *w;
     sooc_status st = sooc_model_create(&w, &c, 0);
     if (st) return sooc_adderr(st, "model copy with %d slots", K);
@@ -314,6 +318,14 @@ sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out) 
     return SOOC_OK;
 }
 
+sooc_status sooc_model_set_slots(sooc_model *m, int slots) {
+    if (!m) return sooc_seterr(SOOC_EINVAL, "model: no model");
+    sooc_model_config c = m->cfg;
+    c.slots = slots;
+    sooc_status st = sooc_model_config_check(&c);
+    if (!st) m->cfg.slots = slots;
+    return st;
+}
 size_t sooc_model_param_count(const sooc_model *m) { return m->np; }
 float *sooc_model_params(sooc_model *m) { return m->p; }
 float *sooc_model_grads(sooc_model *m) { return m->g; }
@@ -335,9 +347,10 @@ void sooc_step_opts_default(sooc_step_opts *o) {
 /* ------------------------------------------------------------ checkpoint */
 
 #define MDL_MAGIC "SOOCMDL1"
-#define MDL_VERSION 2u   /* 2: config gained global_frame, global_radius (appended) */
-/* version-1 files: the config without the appended baseline fields */
+#define MDL_VERSION 3u   /* 2: config gained global_frame, global_radius; 3: slots (appended) */
+/* older files: the config without the fields appended since */
 #define MDL_V1_CONFIG_SIZE offsetof(sooc_model_config, global_frame)
+#define MDL_V2_CONFIG_SIZE offsetof(sooc_model_config, slots)
 
 sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *blob, size_t blob_size) {
     sooc_afile f;
@@ -388,13 +401,13 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     }
     memcpy(&ver, b + 8, 4);
     memcpy(&csz, b + 12, 4);
-    int v1 = ver == 1u && csz == MDL_V1_CONFIG_SIZE;
+    int v1 = (ver == 1u && csz == MDL_V1_CONFIG_SIZE) || (ver == 2u && csz == MDL_V2_CONFIG_SIZE);
     if (!v1 && (ver != MDL_VERSION || csz != sizeof cfg)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: model file version %u / config size %u, expected %u / %zu", path, ver,
                          csz, MDL_VERSION, sizeof cfg);
         goto done;
     }
-    if (v1) {
+    if (v1) {                              /* version 1 or 2 */
         sooc_model_config_default(&cfg);   /* appended fields keep their defaults */
         if (n < 8 + 4 + 4 + (size_t)csz + 8 + 8 + 4) {
             st = sooc_seterr(SOOC_EFORMAT, "%s: too short", path);

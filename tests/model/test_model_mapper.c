@@ -3,6 +3,7 @@
  * entries/load_entries round trip, registration and retrieval across views,
  * and the render.h field adapter (a dense render from the map is finite and
  * culls: the field's box is honoured). */
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -186,6 +187,27 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
         CHECK(us.n_retrieved == (pass ? K : K0));
         sooc3d_mapper_destroy(mp);
     }
+    /* a checkpoint that carries its inference slot count: the mapper uses it
+     * unless told otherwise */
+    {
+        char ps[160];
+        snprintf(ps, sizeof ps, "%s.slots", path);
+        sooc_model *ms;
+        CHECK_OK(sooc_model_copy_slots(m, 0, &ms));
+        CHECK_OK(sooc_model_set_slots(ms, K));
+        CHECK_OK(sooc_model_save(ms, ps, NULL, 0));
+        sooc_model_destroy(ms);
+        for (int ask = 0; ask <= K0; ask += K0) {
+            sooc3d_mapper_params q;
+            sooc3d_mapper_params_default(&q);
+            q.model_path = ps, q.slots = ask;
+            sooc3d_mapper *mq;
+            CHECK_OK(sooc3d_mapper_create(&mq, &q));
+            CHECK(sooc_model_get_config(sooc3d_mapper_model(mq))->K == (ask ? K0 : K));
+            sooc3d_mapper_destroy(mq);
+        }
+        remove(ps);
+    }
     sooc3d_mapper_params p;
     sooc3d_mapper_params_default(&p);
     p.model_path = path, p.slots = K0 - 1;
@@ -234,6 +256,43 @@ int main(void) {
         CHECK(sooc_model_load(&m2, bad, NULL, NULL) == SOOC_EFORMAT);
         remove(bad);
         sooc_free(buf);
+    }
+    /* a version-2 file (config without the appended slots field: the shipped
+     * models of sessions 1-5) loads, with slots 0 and the same parameters */
+    {
+        sooc_model *m3;
+        CHECK_OK(sooc_model_create(&m3, &c, 3));
+        CHECK_OK(sooc_model_set_slots(m3, c.K + 2));
+        CHECK(sooc_model_set_slots(m3, c.K - 1) == SOOC_EINVAL && sooc_model_get_config(m3)->slots == c.K + 2);
+        memcpy(sooc_model_params(m3), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float));
+        char p3[160];
+        snprintf(p3, sizeof p3, "%s.v3", path);
+        CHECK_OK(sooc_model_save(m3, p3, NULL, 0));
+        void *buf;
+        size_t n;
+        CHECK_OK(sooc_file_read_all(p3, 1 << 28, &buf, &n));
+        uint8_t *b3 = buf;
+        uint32_t csz3, csz2 = (uint32_t)offsetof(sooc_model_config, slots), ver2 = 2;
+        memcpy(&csz3, b3 + 12, 4);
+        CHECK(csz3 == sizeof(sooc_model_config) && csz3 > csz2);
+        size_t n2 = n - (csz3 - csz2);
+        uint8_t *b2 = malloc(n2);
+        memcpy(b2, b3, 16 + csz2);
+        memcpy(b2 + 8, &ver2, 4);
+        memcpy(b2 + 12, &csz2, 4);
+        memcpy(b2 + 16 + csz2, b3 + 16 + csz3, n - 16 - csz3 - 4);
+        uint32_t crc = sooc_crc32(0, b2, n2 - 4);
+        memcpy(b2 + n2 - 4, &crc, 4);
+        CHECK_OK(sooc_file_write_atomic(p3, b2, n2));
+        sooc_model *mv2 = NULL;
+        CHECK_OK(sooc_model_load(&mv2, p3, NULL, NULL));
+        CHECK(mv2 && sooc_model_get_config(mv2)->slots == 0 && sooc_model_get_config(mv2)->K == c.K);
+        CHECK(mv2 && !memcmp(sooc_model_params(mv2), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
+        sooc_model_destroy(mv2);
+        free(b2);
+        sooc_free(buf);
+        remove(p3);
+        sooc_model_destroy(m3);
     }
     /* fuzz reproducers (tests/fuzz/crashes/model_ckpt): every one must fail cleanly */
     {
