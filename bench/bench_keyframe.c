@@ -16,9 +16,8 @@
  * frames so that every round sees the same kind of views. --dump F writes
  * the final map entries as text (%.17g, one entry a line) to F, to compare
  * results across builds and thread counts (identical files = bitwise equal).
- * --slots K runs the mapper with K object slots (sooc3d_mapper_params.slots);
- * the PyTorch reference is written for K = 7, so other K time the C update
- * alone. */
+ * --slots K runs the mapper with K object slots (sooc3d_mapper_params.slots),
+ * the PyTorch reference with the same K. */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -76,7 +75,7 @@ typedef struct torch_proc {
     FILE *in, *out;
 } torch_proc;
 
-static int torch_start(torch_proc *t, int threads) {
+static int torch_start(torch_proc *t, int threads, int K) {
     int pin[2], pout[2];
     if (pipe(pin) || pipe(pout)) return -1;
     fflush(stdout);
@@ -86,10 +85,11 @@ static int torch_start(torch_proc *t, int threads) {
         dup2(pin[0], 0);
         dup2(pout[1], 1);
         close(pin[0]), close(pin[1]), close(pout[0]), close(pout[1]);
-        char script[512], th[16];
+        char script[512], th[16], ks[16];
         snprintf(script, sizeof script, "%s/bench/bench_keyframe_torch.py", SOOC_SOURCE_DIR);
         snprintf(th, sizeof th, "%d", threads);
-        execl("/usr/bin/python3", "python3", script, "--serve", "--threads", th, (char *)NULL);
+        snprintf(ks, sizeof ks, "%d", K);
+        execl("/usr/bin/python3", "python3", script, "--serve", "--threads", th, "--K", ks, (char *)NULL);
         _exit(127);
     }
     close(pin[0]);
@@ -190,15 +190,11 @@ int main(int argc, char **argv) {
     if (sooc3d_mapper_create(&mp, &p)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
     if (model == tmp) remove(tmp);
     int K = sooc_model_get_config(sooc3d_mapper_model(mp))->K;
-    if (torch && K != 7) {
-        fprintf(stderr, "bench_keyframe: the PyTorch reference has K = 7; timing the C update with K = %d alone\n", K);
-        torch = 0;
-    }
     torch_proc tp = {0};
     char line[1024];
     if (torch) {
         signal(SIGPIPE, SIG_IGN);
-        if (torch_start(&tp, threads) || torch_read(&tp, "ready", line, sizeof line)) {
+        if (torch_start(&tp, threads, K) || torch_read(&tp, "ready", line, sizeof line)) {
             fprintf(stderr, "bench_keyframe: the PyTorch reference did not start\n");
             return 1;
         }

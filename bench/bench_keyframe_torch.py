@@ -1,14 +1,14 @@
 #!/usr/bin/python3
 """PyTorch reference of one sooc3d keyframe update (the same work as
 bench_keyframe.c): 64x64 frame, 32x32 rays (surface + air sample each), K = 7
-slots + layout, d = 32, L = 3 refinement iterations. Each iteration: sample,
+(--K) slots + layout, d = 32, L = 3 refinement iterations. Each iteration: sample,
 decode (object rows gathered inside their locality boxes, layout on all
 points), compose, likelihood + KL, one backward for the auxiliary gradients,
 the 26 auxiliary channels, the refinement nets (conv 26->32->32->64->64 stride
 2 SAME + ELU, FC 128, LSTMCell 128, linear head) for all K slots and the
 layout. Prints a JSON object with median_ms last (the faster of --threads
 and 1 thread: see the comment at the end).
-usage: bench_keyframe_torch.py [--threads T] [--n N] [--serve]
+usage: bench_keyframe_torch.py [--threads T] [--n N] [--K K] [--serve]
 --serve: stay up and run one batch of updates per line read on stdin (the
 interleaved rounds of bench_keyframe.c).
 """
@@ -26,7 +26,8 @@ n_iter = int(args[args.index("--n") + 1]) if "--n" in args else 30
 serve = "--serve" in args
 torch.set_num_threads(threads)
 torch.manual_seed(0)
-K, d, dl, L, H, Hc, N = 7, 32, 16, 3, 64, 32, 1024
+K = int(args[args.index("--K") + 1]) if "--K" in args else 7
+d, dl, L, H, Hc, N = 32, 16, 3, 64, 32, 1024
 NL = 6 + 2 * d
 Rh, Hb, s_g, smax, sigc, Bs, h = 0.6, 1.2, 0.3, 30.0, 0.2, 4.0, 1.5
 
@@ -107,8 +108,9 @@ ui = used.nonzero()[:, 0]
 zero_i = torch.zeros_like(ui)
 rows_seen = []
 lam0 = torch.zeros(K, NL)
-lam0[:, 0] = torch.tensor([0.3, -0.8, 1.2, -1.5, 0.0, 2.0, 0.0])
-lam0[:, 1] = torch.tensor([3.5, 2.7, 5.0, 5.5, 2.3, 3.7, 1.3])
+x7, z7 = [0.3, -0.8, 1.2, -1.5, 0.0, 2.0, 0.0], [3.5, 2.7, 5.0, 5.5, 2.3, 3.7, 1.3]
+lam0[:, 0] = torch.tensor([x7[k % 7] * (-1) ** (k // 7) for k in range(K)])   # slots past 7: mirrored
+lam0[:, 1] = torch.tensor([z7[k % 7] for k in range(K)])
 lam0[:, 3] = math.log(0.25)
 lay0 = torch.zeros(2 * dl)
 

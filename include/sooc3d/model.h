@@ -115,11 +115,11 @@ sooc_status sooc_model_set_slots(sooc_model *m, int slots);
 
 /* A copy of m that runs with K object slots per view (K = 0: m's inference
  * setting, config.slots, or its K when that is 0; the copy's config.slots is
- * 0, so it runs with exactly its K). The
- * weights and the K_trained learnt slot priors are m's; each added slot's prior
- * is the mirror image (x -> -x) of a learnt one, taken middle-out by depth
- * (docs/model.md "Slots at inference"). SOOC_EINVAL unless m's K <= K <=
- * SOOC_MODEL_K_MAX (the global-frame baseline: only its own K). */
+ * 0, so it runs with exactly its K). The weights and the K_trained learnt slot
+ * priors are m's; the added slots' priors are mirror images (x -> -x) of the
+ * learnt ones nearest the median prior depth, in slot order (docs/model.md
+ * "slots at inference"). SOOC_EINVAL unless m's K <= K <= SOOC_MODEL_K_MAX
+ * (the global-frame baseline: only its own K). */
 sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out);
 
 /* ---- parameters: one flat float slab, with named tensors ---- */

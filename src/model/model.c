@@ -259,11 +259,11 @@ sooc_status sooc_model_set_clip(sooc_model *m, float d_clip) {
     return SOOC_OK;
 }
 /* Extra slot priors for a model run with more slots than it was trained with
- * (docs/model.md "Slots at inference"): mirror images (x -> -x) of the learnt
- * priors, taken middle-out by depth (the prior whose depth is nearest the
- * median of the learnt ones first), so the added slots cover the side of the
- * footprint the alternating learnt priors leave open, where objects are
- * densest in a view. */
+ * (docs/model.md "slots at inference"): mirror images (x -> -x) of the learnt
+ * priors whose depths are nearest the median of the learnt ones (mirror_order
+ * ranks them middle-out; each round of added slots keeps slot order), so the
+ * added slots cover the side of the footprint the alternating learnt priors
+ * leave open, at the middle distances where a view holds most objects. */
 static void mirror_order(const sooc_model *m, int *order) {
     int K = m->cfg.K, NL = m->NL;
     float z[SOOC_MODEL_K_MAX], zs[SOOC_MODEL_K_MAX];
@@ -307,11 +307,20 @@ sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out) 
     memcpy(w->p + w->prior_lay, m->p + m->prior_lay, (size_t)2 * c.d_layout * sizeof(float));
     int order[SOOC_MODEL_K_MAX];
     mirror_order(m, order);
-    for (int k = K0; k < K; k++) {
-        float *dst = w->p + w->prior + (size_t)k * NL;
-        memcpy(dst, m->p + m->prior + (size_t)order[(k - K0) % K0] * NL, NL * sizeof(float));
-        dst[0] = -dst[0];   /* x -> -x, and the heading with it */
-        dst[2] = -dst[2];
+    for (int k = K0; k < K; k += K0) {   /* rounds of up to K0 added slots */
+        int n = K - k < K0 ? K - k : K0, src[SOOC_MODEL_K_MAX];
+        memcpy(src, order, sizeof(int) * (size_t)n);
+        for (int i = 1; i < n; i++)   /* the chosen priors in slot order, as pick_priors keeps them */
+            for (int j = i; j > 0 && src[j] < src[j - 1]; j--) {
+                int t = src[j];
+                src[j] = src[j - 1];
+                src[j - 1] = t;
+            }
+        for (int i = 0; i < n; i++) {
+            float *dst = w->p + w->prior + (size_t)(k + i) * NL;
+            memcpy(dst, m->p + m->prior + (size_t)src[i] * NL, NL * sizeof(float));
+            dst[0] = -dst[0];   /* x -> -x; the heading prior (mean ~0, std ~pi) is kept */
+        }
     }
     w->threads = m->threads;
     *out = w;

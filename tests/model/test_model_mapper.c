@@ -111,7 +111,7 @@ static void test_entry_convert(void) {
 
 /* Slots at inference (sooc_model_copy_slots, mapper slots): the copy keeps
  * every weight and learnt prior, adds mirror images (x -> -x) of learnt
- * priors middle-out by depth, rejects fewer slots than trained or more than
+ * priors nearest the median depth (in slot order), rejects fewer slots than trained or more than
  * SOOC_MODEL_K_MAX; a mapper asked for the model's own K maps bit-identically,
  * and one with more slots retrieves that many in-view entries. */
 static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_ref, size_t n_ref) {
@@ -144,21 +144,26 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
         float zs[16];
         for (int k = 0; k < K0; k++) zs[k] = la[k * NL + 1];
         qsort(zs, (size_t)K0, sizeof zs[0], cmp_float);
-        float med = zs[(K0 - 1) / 2], prev = -1;
+        float med = zs[(K0 - 1) / 2], dmax = 0;
+        int chosen[16] = {0}, prev = -1;
         for (int k = K0; k < K; k++) {
             int src = -1;
             for (int j = 0; j < K0 && src < 0; j++)
-                if (lb[k * NL] == -la[j * NL] && lb[k * NL + 2] == -la[j * NL + 2] &&
-                    !memcmp(lb + k * NL + 3, la + j * NL + 3, (size_t)(NL - 3) * sizeof(float)) && lb[k * NL + 1] == la[j * NL + 1])
+                if (lb[k * NL] == -la[j * NL] && !memcmp(lb + k * NL + 1, la + j * NL + 1, (size_t)(NL - 1) * sizeof(float)))
                     src = j;
             CHECK_MSG(src >= 0, "added prior %d is not a mirrored learnt prior", k);
             if (src < 0) continue;
-            float dz = fabsf(la[src * NL + 1] - med);
-            CHECK_MSG(dz >= prev, "added priors not middle-out: %g after %g", dz, prev);
-            if (k == K0) CHECK(dz == 0.0f);
-            prev = dz;
+            CHECK_MSG(src > prev, "added priors not distinct and in slot order: %d after %d", src, prev);
+            prev = src;
+            chosen[src] = 1;
+            dmax = fmaxf(dmax, fabsf(la[src * NL + 1] - med));
             printf("slot %d: mirror of learnt prior %d (x %.2f z %.2f)\n", k, src, lb[k * NL], lb[k * NL + 1]);
         }
+        /* middle-out: the mirrored ones are the learnt priors nearest the median depth */
+        for (int j = 0; j < K0; j++)
+            if (!chosen[j]) CHECK_MSG(fabsf(la[j * NL + 1] - med) >= dmax, "prior %d nearer the median, not chosen", j);
+        for (int j = 0; j < K0; j++)
+            if (la[j * NL + 1] == med) CHECK_MSG(chosen[j], "the median-depth prior is not mirrored");
     }
     sooc_model_destroy(w);
     /* the mapper: its own K is the default; more slots retrieve more entries */
