@@ -195,10 +195,11 @@ static sooc_status init_from(sooc_model *m, const sooc_model_config *mc, const c
     const sooc_model_config *c = sooc_model_get_config(src);
     if (c->K < mc->K && !c->global_frame) {   /* more slots: the added priors mirror learnt ones */
         sooc_model *w;
+        int K0 = c->K;
         s = sooc_model_copy_slots(src, mc->K, &w);
-        sooc_model_destroy(src);
+        sooc_model_destroy(src);   /* c pointed into it */
         if (s) return sooc_adderr(s, "train --init %s", path);
-        sooc_log(SOOC_LOG_INFO, "%s: %d slots widened to the config's %d (sooc_model_copy_slots)", path, c->K, mc->K);
+        sooc_log(SOOC_LOG_INFO, "%s: %d slots widened to the config's %d (sooc_model_copy_slots)", path, K0, mc->K);
         src = w;
         c = sooc_model_get_config(src);
     }
