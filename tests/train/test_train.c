@@ -26,9 +26,9 @@ static void test_config(void) {
     sooc_model_config mc;
     sooc_train_config_default(&c);
     sooc_model_config_default(&mc);
-    write_text("good.yaml", "steps: 42\nlr: 1.0e-3\ntau_end: 0.7\nmodel:\n  K: 3\n  d_what: 8\n  ref_ch: [8, 8, 16, 16]\n", path);
+    write_text("good.yaml", "steps: 42\nlr: 1.0e-3\ntau_end: 0.7\nmodel:\n  K: 3\n  d_what: 8\n  ref_ch: [8, 8, 16, 16]\n  slots: 5\n", path);
     CHECK_OK(sooc_train_config_load(path, &c, &mc));
-    CHECK(c.steps == 42 && mc.K == 3 && mc.d_what == 8 && mc.ref_ch[3] == 16);
+    CHECK(c.steps == 42 && mc.K == 3 && mc.d_what == 8 && mc.ref_ch[3] == 16 && mc.slots == 5);
     CHECK_CLOSE(c.lr, 1e-3, 1e-9, 0);
     static const struct { const char *text, *needle; } bad[] = {
         {"steps: 10\nbogus: 1\n", "unknown key 'bogus'"},
@@ -38,6 +38,8 @@ static void test_config(void) {
         {"lr: 5\n", "outside"},
         {"steps: 1.5\n", "integer"},
         {"model:\n  K: 99\n", "K"},
+        {"model:\n  slots: 99\n", "slots"},
+        {"model:\n  K: 7\n  slots: 5\n", "slots = 5"},
         {"model: 3\n", "model"},
         {"model:\n  ref_ch: [1, 2]\n", "ref_ch"},
         {"steps: [\n", "YAML"},
