@@ -307,18 +307,14 @@ sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out) 
     memcpy(w->p + w->prior_lay, m->p + m->prior_lay, (size_t)2 * c.d_layout * sizeof(float));
     int order[SOOC_MODEL_K_MAX];
     mirror_order(m, order);
-    for (int k = K0; k < K; k += K0) {   /* rounds of up to K0 added slots */
-        int n = K - k < K0 ? K - k : K0, src[SOOC_MODEL_K_MAX];
-        memcpy(src, order, sizeof(int) * (size_t)n);
-        for (int i = 1; i < n; i++)   /* the chosen priors in slot order, as pick_priors keeps them */
-            for (int j = i; j > 0 && src[j] < src[j - 1]; j--) {
-                int t = src[j];
-                src[j] = src[j - 1];
-                src[j - 1] = t;
-            }
-        for (int i = 0; i < n; i++) {
-            float *dst = w->p + w->prior + (size_t)(k + i) * NL;
-            memcpy(dst, m->p + m->prior + (size_t)src[i] * NL, NL * sizeof(float));
+    for (int k = K0; k < K;) {   /* rounds of up to K0 added slots */
+        int n = K - k < K0 ? K - k : K0;
+        uint8_t chosen[SOOC_MODEL_K_MAX] = {0};
+        for (int i = 0; i < n; i++) chosen[order[i]] = 1;
+        for (int j = 0; j < K0; j++) {   /* the chosen priors in slot order, as pick_priors keeps them */
+            if (!chosen[j]) continue;
+            float *dst = w->p + w->prior + (size_t)k++ * NL;
+            memcpy(dst, m->p + m->prior + (size_t)j * NL, NL * sizeof(float));
             dst[0] = -dst[0];   /* x -> -x; the heading prior (mean ~0, std ~pi) is kept */
         }
     }
