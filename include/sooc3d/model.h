@@ -47,7 +47,7 @@ typedef struct sooc_model_config {
     int L;                 /* refinement updates per view                    (3)  */
     /* images and rays */
     int img_w, img_h;      /* model input resolution                      (64x64) */
-    int ray_w, ray_h;      /* training ray grid (stratified sub-grid)     (32x32) */
+    int ray_w, ray_h;      /* ray grid per view (stratified sub-grid)     (32x32) */
     /* decoder (both NeRFs) */
     int dec_width;         /* hidden width                                   (64) */
     int dec_color_width;   /* colour head hidden                             (32) */
@@ -112,6 +112,15 @@ sooc_status sooc_model_set_clip(sooc_model *m, float d_clip);
  * SOOC_EINVAL unless 0 or K <= slots <= SOOC_MODEL_K_MAX (0 for the
  * global-frame baseline). The weights are unchanged. */
 sooc_status sooc_model_set_slots(sooc_model *m, int slots);
+/* A copy of m that samples its rays on a ray_w x ray_h grid of each view
+ * instead of its config's (e.g. every pixel of a 64x64 frame: 64x64 instead
+ * of the stratified 32x32 sub-grid). No weight depends on the grid (above
+ * 32 x 32 the refinement nets average-pool their last conv map to the 2 x 2
+ * of a 32 x 32 grid), so the copy's weights are m's bit for bit; the cost of
+ * an update grows with the ray count. SOOC_EINVAL for a grid the config
+ * check rejects (multiples of 16 dividing the image, above 32 multiples of
+ * 32), and between a 16-wide grid and a wider one (their FC sizes differ). */
+sooc_status sooc_model_copy_rays(const sooc_model *m, int ray_w, int ray_h, sooc_model **out);
 
 /* A copy of m that runs with K object slots per view (K = 0: m's inference
  * setting, config.slots, or its K when that is 0; the copy's config.slots is

@@ -1,5 +1,6 @@
 /* sooc3d model: show a checkpoint's configuration, or write a copy with
- * another inference slot count (the weights are copied bit for bit). */
+ * another inference slot count or ray grid (the weights are copied bit for
+ * bit). */
 #include "cli.h"
 #include "sooc3d/model.h"
 
@@ -9,13 +10,17 @@
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d model M [--slots N --out F]\n\n"
+            "usage: sooc3d model M [--slots N] [--rays R] [--out F]\n\n"
             "Print checkpoint M's configuration (resolution, slots, latent sizes, clip depth,\n"
-            "parameter count). With --slots and --out, write a copy of M whose inference slot\n"
-            "count is N: the mapper and `sooc3d eval`/`infer` then run it with N object slots per\n"
-            "view unless told otherwise (0 = its trained K; more pads the extra slots with\n"
-            "mirrored learnt priors, docs/model.md). The weights and any trainer state are copied\n"
-            "unchanged; F is written atomically and may be M itself.\n");
+            "parameter count). With --out, write a copy of M changed by:\n"
+            "  --slots N  inference slot count: the mapper and `sooc3d eval`/`infer` then run it\n"
+            "             with N object slots per view unless told otherwise (0 = its trained K;\n"
+            "             more pads the extra slots with mirrored learnt priors, docs/model.md)\n"
+            "  --rays R   ray grid R x R per view (16, 32, or a multiple of 32 dividing the image\n"
+            "             side; R = the image side uses every pixel). Updates cost about R^2/1024\n"
+            "             times a 32 x 32 grid's (docs/model.md)\n"
+            "The weights and any trainer state are copied unchanged; F is written atomically and\n"
+            "may be M itself.\n");
 }
 
 int sooc_cmd_model(int argc, char **argv) {
@@ -24,7 +29,7 @@ int sooc_cmd_model(int argc, char **argv) {
         return 0;
     }
     const char *path = NULL, *out = NULL;
-    int slots = -1;
+    int slots = -1, rays = -1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--slots") && i + 1 < argc) {
@@ -32,6 +37,14 @@ int sooc_cmd_model(int argc, char **argv) {
                 fprintf(stderr, "sooc3d model: --slots wants 0 (the trained K) up to %d\n", SOOC_MODEL_K_MAX);
                 return 2;
             }
+        } else if (!strcmp(a, "--rays") && i + 1 < argc) {
+            char *end;
+            long v = strtol(argv[++i], &end, 10);
+            if (*argv[i] == '\0' || *end || v < 16 || v > 1024) {
+                fprintf(stderr, "sooc3d model: --rays wants a ray grid side, 16..1024 (got '%s')\n", argv[i]);
+                return 2;
+            }
+            rays = (int)v;
         } else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
         else if (a[0] != '-' && !path) path = a;
         else {
@@ -40,7 +53,7 @@ int sooc_cmd_model(int argc, char **argv) {
             return 2;
         }
     }
-    if (!path || (slots >= 0) != (out != NULL)) {
+    if (!path || (slots >= 0 || rays >= 0) != (out != NULL)) {
         usage(stderr);
         return 2;
     }
@@ -50,7 +63,15 @@ int sooc_cmd_model(int argc, char **argv) {
     sooc_status st = sooc_model_load(&m, path, &blob, &bs);
     if (st) return sooc_cli_fail("model", st);
     if (out) {
-        if (!(st = sooc_model_set_slots(m, slots))) st = sooc_model_save(m, out, blob, bs);
+        if (rays >= 0) {
+            sooc_model *r = NULL;
+            if (!(st = sooc_model_copy_rays(m, rays, rays, &r))) {
+                sooc_model_destroy(m);
+                m = r;
+            }
+        }
+        if (!st && slots >= 0) st = sooc_model_set_slots(m, slots);
+        if (!st) st = sooc_model_save(m, out, blob, bs);
         if (st) sooc_adderr(st, "%s", out);
     }
     if (!st) {

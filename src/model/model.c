@@ -55,6 +55,9 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
                            c->slots, c->K, SOOC_MODEL_K_MAX);
     if (c->ray_w < 16 || c->ray_h < 16 || c->ray_w % 16 || c->ray_h % 16)
         return sooc_seterr(SOOC_EINVAL, "model config: ray grid %dx%d must be multiples of 16", c->ray_w, c->ray_h);
+    if ((c->ray_w > 32 && c->ray_w % 32) || (c->ray_h > 32 && c->ray_h % 32))
+        return sooc_seterr(SOOC_EINVAL, "model config: ray grid %dx%d: above 32 a side must be a multiple of 32",
+                           c->ray_w, c->ray_h);
     if (c->img_w % c->ray_w || c->img_h % c->ray_h)
         return sooc_seterr(SOOC_EINVAL, "model config: image %dx%d not divisible by ray grid %dx%d", c->img_w,
                            c->img_h, c->ray_w, c->ray_h);
@@ -134,7 +137,7 @@ static void layout_ref(sooc_model *m, size_t *off, ref_net *n, int obj) {
         n->cb[i] = add_t(m, off, cbn[obj][i], n->ch[i], 1, 1);
         prev = n->ch[i];
     }
-    n->nflat = prev * (c->ray_w / 16) * (c->ray_h / 16);
+    n->nflat = prev * (c->ray_w > 32 ? 2 : c->ray_w / 16) * (c->ray_h > 32 ? 2 : c->ray_h / 16);   /* mdl_ref_flatten */
     n->fc = c->ref_fc;
     n->hid = c->ref_hidden;
     int NL = MDL_NL(c->d_what);
@@ -318,6 +321,29 @@ sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out) 
             dst[0] = -dst[0];   /* x -> -x; the heading prior (mean ~0, std ~pi) is kept */
         }
     }
+    w->threads = m->threads;
+    *out = w;
+    return SOOC_OK;
+}
+
+sooc_status sooc_model_copy_rays(const sooc_model *m, int ray_w, int ray_h, sooc_model **out) {
+    *out = NULL;
+    if (!m) return sooc_seterr(SOOC_EINVAL, "model copy: no model");
+    sooc_model_config c = m->cfg;
+    c.ray_w = ray_w;
+    c.ray_h = ray_h;
+    sooc_status st = sooc_model_config_check(&c);
+    if (st) return sooc_adderr(st, "model copy with a %dx%d ray grid", ray_w, ray_h);
+    sooc_model *w;
+    if ((st = sooc_model_create(&w, &c, 0))) return sooc_adderr(st, "model copy with a %dx%d ray grid", ray_w, ray_h);
+    if (w->np != m->np) {   /* below 32 x 32 the grid sets the refinement FC size (mdl_ref_flatten) */
+        sooc_model_destroy(w);
+        return sooc_seterr(SOOC_EINVAL,
+                           "model copy: its %dx%d ray grid and %dx%d give the refinement nets different FC sizes "
+                           "(grids of 32 and more per side share them)",
+                           m->cfg.ray_w, m->cfg.ray_h, ray_w, ray_h);
+    }
+    memcpy(w->p, m->p, m->np * sizeof(float));
     w->threads = m->threads;
     *out = w;
     return SOOC_OK;

@@ -467,14 +467,49 @@ static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const
     }
 }
 
+/* The conv stack's last map (C x B x fh x fw, fh = gh / 16) flattened per item
+ * for the FC layer. Ray grids up to 32 x 32 are flattened as they are; a
+ * larger grid (a multiple of 32) is average-pooled to the 2 x 2 map of a
+ * 32 x 32 grid, so the FC weights (and every other weight) do not depend on
+ * the ray grid and a model trained on one grid runs on another
+ * (sooc_model_copy_rays). */
+void mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
+    int C = n->ch[3], fh = gh >> 4, fw = gw >> 4;
+    int ph = fh > 2 ? 2 : fh, pw = fw > 2 ? 2 : fw, sh = fh / ph, sw = fw / pw;
+    float inv = 1.0f / (float)(sh * sw);
+    for (int b = 0; b < B; b++)
+        for (int c = 0; c < C; c++) {
+            const float *src = y3 + ((size_t)c * B + b) * fh * fw;
+            float *dst = flat + (size_t)b * n->nflat + (size_t)c * ph * pw;
+            for (int i = 0; i < ph; i++)
+                for (int j = 0; j < pw; j++) {
+                    float acc = 0;
+                    for (int u = 0; u < sh; u++)
+                        for (int v = 0; v < sw; v++) acc += src[(i * sh + u) * fw + j * sw + v];
+                    dst[i * pw + j] = acc * inv;
+                }
+        }
+}
+
+/* Backward of mdl_ref_flatten: writes (not adds) the gradient w.r.t. y3. */
+void mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
+    int C = n->ch[3], fh = gh >> 4, fw = gw >> 4;
+    int ph = fh > 2 ? 2 : fh, pw = fw > 2 ? 2 : fw, sh = fh / ph, sw = fw / pw;
+    float inv = 1.0f / (float)(sh * sw);
+    for (int b = 0; b < B; b++)
+        for (int c = 0; c < C; c++) {
+            float *dst = gy3 + ((size_t)c * B + b) * fh * fw;
+            const float *src = gflat + (size_t)b * n->nflat + (size_t)c * ph * pw;
+            for (int y = 0; y < fh; y++)
+                for (int x = 0; x < fw; x++) dst[y * fw + x] = src[(y / sh) * pw + x / sw] * inv;
+        }
+}
+
 /* FC + ELU, LSTM cell and linear head of every item of a (serial). */
 static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int gh, float *out, int prof) {
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
     MDL_PT(tprof);
-    int Ci = n->ch[3], HW4 = (gh >> 4) * (gw >> 4);
-    for (int b = 0; b < B; b++)
-        for (int c = 0; c < Ci; c++)
-            for (int i = 0; i < HW4; i++) a->flat[(size_t)b * n->nflat + c * HW4 + i] = a->y[3][((size_t)c * B + b) * HW4 + i];
+    mdl_ref_flatten(n, a->y[3], B, gw, gh, a->flat);
     mdl_gemm(B, n->fc, n->nflat, a->flat, n->nflat, p + n->fcW, n->fc, a->f, n->fc, NULL, 0, MDL_EP_NONE, NULL, 0);
     for (int b = 0; b < B; b++)
         for (int j = 0; j < n->fc; j++) {
@@ -641,11 +676,8 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
     int Hs[5], Ws[5], Cs[5];
     Hs[0] = gh, Ws[0] = gw, Cs[0] = n->cin;
     for (int i = 0; i < 4; i++) Hs[i + 1] = Hs[i] / 2, Ws[i + 1] = Ws[i] / 2, Cs[i + 1] = n->ch[i];
-    int HW4 = Hs[4] * Ws[4];
     size_t HW = (size_t)gw * gh;
-    for (int b = 0; b < B; b++)
-        for (int c = 0; c < Cs[4]; c++)
-            for (int i = 0; i < HW4; i++) s->gy[3][((size_t)c * B + b) * HW4 + i] = gflat[(size_t)b * n->nflat + c * HW4 + i];
+    mdl_ref_flatten_backward(n, gflat, B, gw, gh, s->gy[3]);
     for (int i = 3; i >= 0; i--) {
         int Co = Cs[i + 1], Ci = Cs[i], No = B * Hs[i + 1] * Ws[i + 1];
         float *gy = s->gy[i];

@@ -706,6 +706,24 @@ static void test_model_cmd(const char *bin, const char *model, const char *data)
     tx = read_text(p);
     CHECK_MSG(tx && strstr(tx, "nope.bin"), "a missing model file is named");
     free(tx);
+    /* --rays: this model's 16 x 16 grid can be kept but not widened (another FC
+     * size; test_model_mapper runs a 32 -> 64 copy); bad values are usage errors */
+    snprintf(cmd, sizeof cmd, "%s model %s --rays 16 --slots 4 --out %s/r16.bin > %s/r16.txt", bin, model, g_tmp, g_tmp);
+    CHECK(run(cmd) == 0);
+    snprintf(p, sizeof p, "%s/r16.txt", g_tmp);
+    tx = read_text(p);
+    CHECK_MSG(tx && strstr(tx, "rays 16x16") && strstr(tx, "4 at inference"), "model --rays 16 --slots 4 info");
+    free(tx);
+    snprintf(cmd, sizeof cmd, "%s model %s --rays 32 --out %s/r32.bin > %s/r32.txt 2>&1", bin, model, g_tmp, g_tmp);
+    CHECK(run(cmd) == 1);
+    snprintf(p, sizeof p, "%s/r32.txt", g_tmp);
+    tx = read_text(p);
+    CHECK_MSG(tx && strstr(tx, "FC sizes"), "model --rays 32 names the problem");
+    free(tx);
+    snprintf(p, sizeof p, "%s/r32.bin", g_tmp);
+    CHECK_MSG(access(p, F_OK) != 0, "nothing written after a --rays error");
+    snprintf(cmd, sizeof cmd, "%s model %s --rays 8x --out %s/r8.bin 2>/dev/null", bin, model, g_tmp);
+    CHECK(run(cmd) == 2);
 }
 
 int main(void) {

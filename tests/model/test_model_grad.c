@@ -257,9 +257,12 @@ static double ref_run(sooc_model *m, const ref_net *n, ref_act a[2], const float
     return f;
 }
 
-static void test_refine(void) {
+/* pooled = 1: a 64 x 64 ray grid, whose last conv map (4 x 4) is average-pooled
+ * to the 2 x 2 of a 32 x 32 grid before the FC layer (mdl_ref_flatten). */
+static void test_refine(int pooled) {
     sooc_model_config c;
     synth_tiny_cfg(&c, 2, 1);
+    if (pooled) c.img_w = c.img_h = c.ray_w = c.ray_h = 64;
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 11));
     sooc_rng r;
@@ -310,7 +313,8 @@ static void test_refine(void) {
                     *v = keep;
                     cmp(&w, "vec", j, gvec[(s * B + b) * n->nvec + j], (fp - fm) / (2 * e), 1e-2, 2e-2);
                 }
-        report(&w, which ? "refinement net (layout)" : "refinement net (objects)");
+        report(&w, which ? (pooled ? "refinement net (layout, 64x64 rays, pooled)" : "refinement net (layout)")
+                         : (pooled ? "refinement net (objects, 64x64 rays, pooled)" : "refinement net (objects)"));
         mdl_ref_act_free(&a[0]);
         mdl_ref_act_free(&a[1]);
     }
@@ -322,6 +326,7 @@ int main(void) {
     test_kl();
     test_decode(0);
     test_decode(1);
-    test_refine();
+    test_refine(0);
+    test_refine(1);
     return check_report("test_model_grad");
 }

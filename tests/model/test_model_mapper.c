@@ -221,6 +221,74 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
     CHECK_MSG(strstr(sooc_errmsg(), path) != NULL, "error does not name the model file: %s", sooc_errmsg());
 }
 
+/* Five views of the two-sphere scene at w x h through a mapper around model m
+ * (owned by the mapper); the final entries. */
+static void run_seq_model(sooc_model *m, int w, int h, sooc_map_entry *out, size_t cap, size_t *n) {
+    sooc3d_mapper *mp;
+    CHECK_OK(sooc3d_mapper_create_with_model(&mp, m, 0, 7, 2));
+    synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
+    for (int i = 0; i < 5; i++) {
+        double T[16];
+        synth_pose(T, 0.1 * i, 1.5, 0.1 * i, 0.05 * i, -0.45);
+        sooc_frame f;
+        CHECK_OK(synth_frame(&f, w, h, 60, T, sp, 2));
+        f.index = i, f.t_ns = 1000 * i;
+        sooc3d_update_stats st;
+        CHECK_OK(sooc3d_mapper_update(mp, &f, &st));
+        sooc_frame_free(&f);
+    }
+    *n = 0;
+    CHECK_OK(sooc3d_mapper_entries(mp, out, cap, n));
+    sooc3d_mapper_destroy(mp);
+}
+
+/* Ray grid (sooc_model_copy_rays): above 32 x 32 the refinement nets pool
+ * their last conv map to a 32 x 32 grid's 2 x 2, so a model trained on the
+ * 32 x 32 sub-grid of 64 x 64 frames runs on every pixel with the same
+ * weights, deterministically, and maps differently. Grids of 16 and 32 have
+ * different FC sizes: that copy is refused. */
+static void test_rays(const sooc_model *m) {
+    sooc_model *w = NULL;
+    CHECK(sooc_model_copy_rays(m, 24, 24, &w) == SOOC_EINVAL && !w);   /* not a multiple of 16 */
+    printf("rays 24: %s\n", sooc_errmsg());
+    CHECK(sooc_model_copy_rays(m, 32, 32, &w) == SOOC_EINVAL && !w);   /* 16 -> 32: another FC size */
+    printf("rays 16 -> 32: %s\n", sooc_errmsg());
+    sooc_model_config c = *sooc_model_get_config(m);
+    c.img_w = c.img_h = 64, c.ray_w = c.ray_h = 32;
+    sooc_model *b;
+    CHECK_OK(sooc_model_create(&b, &c, 3));
+    /* the FC of both refinement nets (objects, layout) reads a 2 x 2 map instead of 1 x 1 */
+    CHECK(sooc_model_param_count(b) == sooc_model_param_count(m) + (size_t)2 * 3 * c.ref_ch[3] * c.ref_fc);
+    sooc_model_tensor t[64];
+    int nt = sooc_model_tensors(b, t, 64);
+    sooc_rng r;
+    sooc_rng_seed(&r, 1, 0);
+    for (int i = 0; i < nt; i++)
+        if (strstr(t[i].name, "head.W"))
+            for (size_t j = 0; j < t[i].count; j++) sooc_model_params(b)[t[i].offset + j] = 0.01f * (float)sooc_rng_normal(&r);
+    CHECK(sooc_model_copy_rays(b, 48, 48, &w) == SOOC_EINVAL && !w);   /* above 32: multiples of 32 */
+    printf("rays 48: %s\n", sooc_errmsg());
+    CHECK(sooc_model_copy_rays(b, 128, 128, &w) == SOOC_EINVAL && !w);  /* does not divide 64 */
+    sooc_model *w1 = NULL, *w2 = NULL, *b2 = NULL;
+    CHECK_OK(sooc_model_copy_rays(b, 64, 64, &w1));
+    CHECK_OK(sooc_model_copy_rays(b, 64, 64, &w2));
+    CHECK_OK(sooc_model_copy_rays(b, 32, 32, &b2));
+    const sooc_model_config *cw = sooc_model_get_config(w1);
+    CHECK(cw->ray_w == 64 && cw->ray_h == 64 && cw->K == c.K && cw->img_w == 64);
+    CHECK(sooc_model_param_count(w1) == sooc_model_param_count(b));
+    CHECK(!memcmp(sooc_model_params(w1), sooc_model_params(b), sooc_model_param_count(b) * sizeof(float)));
+    static sooc_map_entry e32[256], e64[256], e64b[256];
+    size_t n32 = 0, n64 = 0, n64b = 0;
+    run_seq_model(b2, 64, 64, e32, 256, &n32);
+    run_seq_model(w1, 64, 64, e64, 256, &n64);
+    run_seq_model(w2, 64, 64, e64b, 256, &n64b);
+    printf("64x64 frames: %zu entries on the 32x32 sub-grid, %zu on every pixel\n", n32, n64);
+    CHECK(n64 >= 1 && n64 == n64b && !memcmp(e64, e64b, n64 * sizeof e64[0]));
+    CHECK(n64 != n32 || memcmp(e64, e32, n64 * sizeof e64[0]));
+    for (size_t i = 0; i < n64; i++) CHECK(isfinite(e64[i].x) && isfinite(e64[i].z) && isfinite(e64[i].presence));
+    sooc_model_destroy(b);
+}
+
 int main(void) {
     test_entry_convert();
     sooc_model_config c;
@@ -338,6 +406,7 @@ int main(void) {
         CHECK_MSG(differ, "sampled and mean refinement give the same map");
     }
     test_slots(m, path, e1, n1);
+    test_rays(m);
     /* load_entries round trip */
     CHECK_OK(sooc3d_mapper_load_entries(mp, e1, n1));
     CHECK_OK(sooc3d_mapper_entries(mp, e3, 256, &n3));
