@@ -2,7 +2,7 @@
  * pad -> L refinement iterations -> register) at 64x64, K = 7, L = 3, 2
  * threads, through the public mapper API, and its ratio to the same update in
  * the PyTorch reference (bench/bench_keyframe_torch.py). JSON on the last line.
- *   bench_keyframe [--model M] [--slots K] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]
+ *   bench_keyframe [--model M] [--slots K] [--rays G] [--rounds R] [--n N] [--tn TN] [--threads T] [--no-torch] [--dump F]
  *
  * The ratio is measured in interleaved rounds so that it is robust to the
  * load of other jobs on a shared machine: the PyTorch reference runs as one
@@ -17,7 +17,9 @@
  * the final map entries as text (%.17g, one entry a line) to F, to compare
  * results across builds and thread counts (identical files = bitwise equal).
  * --slots K runs the mapper with K object slots (sooc3d_mapper_params.slots),
- * the PyTorch reference with the same K. */
+ * the PyTorch reference with the same K. --rays G samples a G x G ray grid per
+ * view (the default model's config; with --model, the model's own grid, e.g.
+ * a `sooc3d model --rays 64` copy); the PyTorch reference runs the same grid. */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -75,7 +77,7 @@ typedef struct torch_proc {
     FILE *in, *out;
 } torch_proc;
 
-static int torch_start(torch_proc *t, int threads, int K) {
+static int torch_start(torch_proc *t, int threads, int K, int rays) {
     int pin[2], pout[2];
     if (pipe(pin) || pipe(pout)) return -1;
     fflush(stdout);
@@ -85,11 +87,12 @@ static int torch_start(torch_proc *t, int threads, int K) {
         dup2(pin[0], 0);
         dup2(pout[1], 1);
         close(pin[0]), close(pin[1]), close(pout[0]), close(pout[1]);
-        char script[512], th[16], ks[16];
+        char script[512], th[16], ks[16], rs[16];
         snprintf(script, sizeof script, "%s/bench/bench_keyframe_torch.py", SOOC_SOURCE_DIR);
         snprintf(th, sizeof th, "%d", threads);
         snprintf(ks, sizeof ks, "%d", K);
-        execl("/usr/bin/python3", "python3", script, "--serve", "--threads", th, "--K", ks, (char *)NULL);
+        snprintf(rs, sizeof rs, "%d", rays);
+        execl("/usr/bin/python3", "python3", script, "--serve", "--threads", th, "--K", ks, "--rays", rs, (char *)NULL);
         _exit(127);
     }
     close(pin[0]);
@@ -149,10 +152,11 @@ int main(int argc, char **argv) {
         execv("/proc/self/exe", argv);
     }
     const char *model = NULL, *dump = NULL;
-    int rounds = 9, n = 12, tn = 6, threads = 2, torch = 1, slots = 0;
+    int rounds = 9, n = 12, tn = 6, threads = 2, torch = 1, slots = 0, rays = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
         else if (!strcmp(argv[i], "--slots") && i + 1 < argc) slots = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--rays") && i + 1 < argc) rays = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--rounds") && i + 1 < argc) rounds = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--n") && i + 1 < argc) n = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--tn") && i + 1 < argc) tn = atoi(argv[++i]);
@@ -160,7 +164,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--no-torch")) torch = 0;
         else if (!strcmp(argv[i], "--dump") && i + 1 < argc) dump = argv[++i];
         else {
-            fprintf(stderr, "usage: bench_keyframe [--model M] [--slots K] [--rounds R] [--n N] [--tn TN] [--threads T] "
+            fprintf(stderr, "usage: bench_keyframe [--model M] [--slots K] [--rays G] [--rounds R] [--n N] [--tn TN] [--threads T] "
                             "[--no-torch] [--dump F]\n");
             return 2;
         }
@@ -169,10 +173,16 @@ int main(int argc, char **argv) {
         fprintf(stderr, "bench_keyframe: rounds 1..200, n 1..1000, tn 1..4096\n");
         return 2;
     }
+    if (rays && model) {
+        fprintf(stderr, "bench_keyframe: --rays sets the default model's grid; for --model M write a copy with "
+                        "`sooc3d model M --rays G --out F`\n");
+        return 2;
+    }
     char tmp[256];
     if (!model) {
         sooc_model_config c;
         sooc_model_config_default(&c);
+        if (rays) c.ray_w = c.ray_h = rays;
         sooc_model *m;
         if (sooc_model_create(&m, &c, 1)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
         snprintf(tmp, sizeof tmp, "/tmp/bench_keyframe_model.%d.bin", (int)getpid());
@@ -190,11 +200,12 @@ int main(int argc, char **argv) {
     if (sooc3d_mapper_create(&mp, &p)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
     if (model == tmp) remove(tmp);
     int K = sooc_model_get_config(sooc3d_mapper_model(mp))->K;
+    rays = sooc_model_get_config(sooc3d_mapper_model(mp))->ray_w;
     torch_proc tp = {0};
     char line[1024];
     if (torch) {
         signal(SIGPIPE, SIG_IGN);
-        if (torch_start(&tp, threads, K) || torch_read(&tp, "ready", line, sizeof line)) {
+        if (torch_start(&tp, threads, K, rays) || torch_read(&tp, "ready", line, sizeof line)) {
             fprintf(stderr, "bench_keyframe: the PyTorch reference did not start\n");
             return 1;
         }
@@ -291,10 +302,10 @@ int main(int argc, char **argv) {
         rmed = median(rsort, rounds);
         rmin = rsort[0];
     }
-    printf("{\"bench\":\"keyframe\",\"omp_wait_policy\":\"%s\",\"width\":64,\"height\":64,\"K\":%d,\"L\":3,\"threads\":%d,"
-           "\"n\":%d,\"rounds\":%d,\"median_ms\":%.3f,\"p99_ms\":%.3f,\"torch_median_ms\":%.3f,\"speedup_vs_torch\":%.2f,"
+    printf("{\"bench\":\"keyframe\",\"omp_wait_policy\":\"%s\",\"width\":64,\"height\":64,\"K\":%d,\"rays\":%d,\"L\":3,"
+           "\"threads\":%d,\"n\":%d,\"rounds\":%d,\"median_ms\":%.3f,\"p99_ms\":%.3f,\"torch_median_ms\":%.3f,\"speedup_vs_torch\":%.2f,"
            "\"ratio_min\":%.2f,\"ratio_rounds\":[",
-           getenv("OMP_WAIT_POLICY"), K, threads, tot, rounds, med, p99, tmed, rmed, rmin);
+           getenv("OMP_WAIT_POLICY"), K, rays, threads, tot, rounds, med, p99, tmed, rmed, rmin);
     for (int r = 0; torch && r < rounds; r++) printf("%s%.2f", r ? "," : "", ratio[r]);
     printf("]}\n");
     free(ms);

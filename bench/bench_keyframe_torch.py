@@ -1,14 +1,14 @@
 #!/usr/bin/python3
 """PyTorch reference of one sooc3d keyframe update (the same work as
-bench_keyframe.c): 64x64 frame, 32x32 rays (surface + air sample each), K = 7
+bench_keyframe.c): 64x64 frame, 32x32 rays (--rays G: G x G; surface + air sample each), K = 7
 (--K) slots + layout, d = 32, L = 3 refinement iterations. Each iteration: sample,
 decode (object rows gathered inside their locality boxes, layout on all
 points), compose, likelihood + KL, one backward for the auxiliary gradients,
 the 26 auxiliary channels, the refinement nets (conv 26->32->32->64->64 stride
 2 SAME + ELU, FC 128, LSTMCell 128, linear head) for all K slots and the
-layout. Prints a JSON object with median_ms last (the faster of --threads
+layout (above 32x32 rays the last conv map is average-pooled to 2x2, as in C). Prints a JSON object with median_ms last (the faster of --threads
 and 1 thread: see the comment at the end).
-usage: bench_keyframe_torch.py [--threads T] [--n N] [--K K] [--serve]
+usage: bench_keyframe_torch.py [--threads T] [--n N] [--K K] [--rays G] [--serve]
 --serve: stay up and run one batch of updates per line read on stdin (the
 interleaved rounds of bench_keyframe.c).
 """
@@ -27,7 +27,8 @@ serve = "--serve" in args
 torch.set_num_threads(threads)
 torch.manual_seed(0)
 K = int(args[args.index("--K") + 1]) if "--K" in args else 7
-d, dl, L, H, Hc, N = 32, 16, 3, 64, 32, 1024
+G = int(args[args.index("--rays") + 1]) if "--rays" in args else 32
+d, dl, L, H, Hc, N = 32, 16, 3, 64, 32, G * G
 NL = 6 + 2 * d
 Rh, Hb, s_g, smax, sigc, Bs, h = 0.6, 1.2, 0.3, 30.0, 0.2, 4.0, 1.5
 
@@ -53,6 +54,8 @@ class Refine(torch.nn.Module):
         x = img
         for c in self.convs:
             x = F.elu(c(F.pad(x, (0, 1, 0, 1))))
+        if x.shape[-1] > 2:
+            x = F.avg_pool2d(x, x.shape[-1] // 2)
         f = F.elu(self.fc(x.flatten(1)))
         h_, c_ = self.lstm(torch.cat([f, vec], 1), hc)
         return self.head(h_), (h_, c_)
@@ -81,9 +84,9 @@ def mlp(p, pe_in, bias):
 # field of view, pitched down 0.45 rad, 1.5 m above the floor (y = -h), rays on the 32x32 stratified
 # grid; the slots sit where that bench's spheres are (so a similar number of object rows is decoded).
 fx = 0.5 * 64 / math.tan(math.radians(30.0))
-jj, ii = torch.meshgrid(torch.arange(32), torch.arange(32), indexing="xy")
-xc = ((2 * jj.flatten() + 1).float() - 32.0) / fx
-yc = ((2 * ii.flatten() + 1).float() - 32.0) / fx
+jj, ii = torch.meshgrid(torch.arange(G), torch.arange(G), indexing="xy")
+xc = (((jj.flatten() + 0.5) * (64 / G)).float() - 32.0) / fx
+yc = (((ii.flatten() + 0.5) * (64 / G)).float() - 32.0) / fx
 p_ = -0.45
 dirs = torch.stack([xc, -yc * math.cos(p_) + math.sin(p_), yc * math.sin(p_) + math.cos(p_)], 1)
 dirs = dirs / dirs.norm(dim=1, keepdim=True)
@@ -152,7 +155,7 @@ def update():
         ll = torch.where(surf, torch.log(smax * Sb[:N] + 3e-3) - ((rgb - colc[:N]) ** 2).sum(1) / (2 * sigc ** 2),
                          torch.zeros(N)) - W * smax * Sb[N:]
         kl = 0.5 * (torch.exp(lam_[:, 3:]) - lam_[:, 3:] - 1).sum() + 0.5 * ((lam_ - lam0) ** 2).sum()
-        loss = -4.0 * ll.sum() + kl
+        loss = -(4096.0 / N) * ll.sum() + kl
         loss.backward()
         with torch.no_grad():
             gl = (lam_.grad - lam_.grad.mean(1, keepdim=True)) / (lam_.grad.std(1, keepdim=True) + 1e-5)
@@ -165,7 +168,7 @@ def update():
                 (SH[N:, 1:] ** 2 / S[N:, None]).T[:, None], torch.softmax(SH[:N, 1:], 1).T[:, None],
                 ln(ll)[None, None].expand(K, 1, -1), ln(ll)[None, None].expand(K, 1, -1),
                 ln(SH.grad[:N, 1:]).T[:, None], ln(SH.grad[N:, 1:]).T[:, None], ln(CT.grad[:N, 1:]).permute(1, 2, 0)],
-                1).reshape(K, 26, 32, 32)
+                1).reshape(K, 26, G, G)
             vec = torch.cat([lam, gl, torch.stack([px, pz, th, zp], 1), torch.full((K, 2), 1.0)], 1)
             dlam, hco = ref_o(img, vec, hco)
             imgl = img[:1, :25]
