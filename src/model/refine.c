@@ -473,35 +473,47 @@ static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const
  * 32 x 32 grid, so the FC weights (and every other weight) do not depend on
  * the ray grid and a model trained on one grid runs on another
  * (sooc_model_copy_rays). */
+typedef struct pool_geom {
+    int fh, fw;   /* last conv map            */
+    int ph, pw;   /* FC input map (<= 2 x 2)  */
+    int sh, sw;   /* pooling window           */
+    float inv;    /* 1 / window size          */
+} pool_geom;
+
+static pool_geom pool_of(int gw, int gh) {
+    pool_geom g;
+    g.fh = gh >> 4, g.fw = gw >> 4;
+    g.ph = g.fh > 2 ? 2 : g.fh, g.pw = g.fw > 2 ? 2 : g.fw;
+    g.sh = g.fh / g.ph, g.sw = g.fw / g.pw;
+    g.inv = 1.0f / (float)(g.sh * g.sw);
+    return g;
+}
+
 void mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
-    int C = n->ch[3], fh = gh >> 4, fw = gw >> 4;
-    int ph = fh > 2 ? 2 : fh, pw = fw > 2 ? 2 : fw, sh = fh / ph, sw = fw / pw;
-    float inv = 1.0f / (float)(sh * sw);
+    pool_geom g = pool_of(gw, gh);
     for (int b = 0; b < B; b++)
-        for (int c = 0; c < C; c++) {
-            const float *src = y3 + ((size_t)c * B + b) * fh * fw;
-            float *dst = flat + (size_t)b * n->nflat + (size_t)c * ph * pw;
-            for (int i = 0; i < ph; i++)
-                for (int j = 0; j < pw; j++) {
+        for (int c = 0; c < n->ch[3]; c++) {
+            const float *src = y3 + ((size_t)c * B + b) * g.fh * g.fw;
+            float *dst = flat + (size_t)b * n->nflat + (size_t)c * g.ph * g.pw;
+            for (int i = 0; i < g.ph; i++)
+                for (int j = 0; j < g.pw; j++) {
                     float acc = 0;
-                    for (int u = 0; u < sh; u++)
-                        for (int v = 0; v < sw; v++) acc += src[(i * sh + u) * fw + j * sw + v];
-                    dst[i * pw + j] = acc * inv;
+                    for (int u = 0; u < g.sh; u++)
+                        for (int v = 0; v < g.sw; v++) acc += src[(i * g.sh + u) * g.fw + j * g.sw + v];
+                    dst[i * g.pw + j] = acc * g.inv;
                 }
         }
 }
 
 /* Backward of mdl_ref_flatten: writes (not adds) the gradient w.r.t. y3. */
 void mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
-    int C = n->ch[3], fh = gh >> 4, fw = gw >> 4;
-    int ph = fh > 2 ? 2 : fh, pw = fw > 2 ? 2 : fw, sh = fh / ph, sw = fw / pw;
-    float inv = 1.0f / (float)(sh * sw);
+    pool_geom g = pool_of(gw, gh);
     for (int b = 0; b < B; b++)
-        for (int c = 0; c < C; c++) {
-            float *dst = gy3 + ((size_t)c * B + b) * fh * fw;
-            const float *src = gflat + (size_t)b * n->nflat + (size_t)c * ph * pw;
-            for (int y = 0; y < fh; y++)
-                for (int x = 0; x < fw; x++) dst[y * fw + x] = src[(y / sh) * pw + x / sw] * inv;
+        for (int c = 0; c < n->ch[3]; c++) {
+            float *dst = gy3 + ((size_t)c * B + b) * g.fh * g.fw;
+            const float *src = gflat + (size_t)b * n->nflat + (size_t)c * g.ph * g.pw;
+            for (int y = 0; y < g.fh; y++)
+                for (int x = 0; x < g.fw; x++) dst[y * g.fw + x] = src[(y / g.sh) * g.pw + x / g.sw] * g.inv;
         }
 }
 

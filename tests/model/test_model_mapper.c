@@ -221,6 +221,17 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
     CHECK_MSG(strstr(sooc_errmsg(), path) != NULL, "error does not name the model file: %s", sooc_errmsg());
 }
 
+/* Non-zero refinement heads (they start at zero), so that updates move the slots. */
+static void nonzero_heads(sooc_model *m) {
+    sooc_model_tensor t[64];
+    int nt = sooc_model_tensors(m, t, 64);
+    sooc_rng r;
+    sooc_rng_seed(&r, 1, 0);
+    for (int i = 0; i < nt; i++)
+        if (strstr(t[i].name, "head.W"))
+            for (size_t j = 0; j < t[i].count; j++) sooc_model_params(m)[t[i].offset + j] = 0.01f * (float)sooc_rng_normal(&r);
+}
+
 /* Five views of the two-sphere scene at w x h through a mapper around model m
  * (owned by the mapper); the final entries. */
 static void run_seq_model(sooc_model *m, int w, int h, sooc_map_entry *out, size_t cap, size_t *n) {
@@ -259,13 +270,7 @@ static void test_rays(const sooc_model *m) {
     CHECK_OK(sooc_model_create(&b, &c, 3));
     /* the FC of both refinement nets (objects, layout) reads a 2 x 2 map instead of 1 x 1 */
     CHECK(sooc_model_param_count(b) == sooc_model_param_count(m) + (size_t)2 * 3 * c.ref_ch[3] * c.ref_fc);
-    sooc_model_tensor t[64];
-    int nt = sooc_model_tensors(b, t, 64);
-    sooc_rng r;
-    sooc_rng_seed(&r, 1, 0);
-    for (int i = 0; i < nt; i++)
-        if (strstr(t[i].name, "head.W"))
-            for (size_t j = 0; j < t[i].count; j++) sooc_model_params(b)[t[i].offset + j] = 0.01f * (float)sooc_rng_normal(&r);
+    nonzero_heads(b);
     CHECK(sooc_model_copy_rays(b, 48, 48, &w) == SOOC_EINVAL && !w);   /* above 32: multiples of 32 */
     printf("rays 48: %s\n", sooc_errmsg());
     CHECK(sooc_model_copy_rays(b, 128, 128, &w) == SOOC_EINVAL && !w);  /* does not divide 64 */
@@ -295,14 +300,7 @@ int main(void) {
     small_cfg(&c);
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 3));
-    /* non-zero refinement heads so that updates move the slots */
-    sooc_model_tensor t[64];
-    int nt = sooc_model_tensors(m, t, 64);
-    sooc_rng r;
-    sooc_rng_seed(&r, 1, 0);
-    for (int i = 0; i < nt; i++)
-        if (strstr(t[i].name, "head.W"))
-            for (size_t j = 0; j < t[i].count; j++) sooc_model_params(m)[t[i].offset + j] = 0.01f * (float)sooc_rng_normal(&r);
+    nonzero_heads(m);
     char path[128];
     snprintf(path, sizeof path, "/tmp/test_model_mapper.%d.bin", (int)getpid());
     const char blob[] = "trainer-state";
