@@ -17,8 +17,9 @@ static void usage(FILE *f) {
             "             with N object slots per view unless told otherwise (0 = its trained K;\n"
             "             more pads the extra slots with mirrored learnt priors, docs/model.md)\n"
             "  --rays R   ray grid R x R per view (16, 32, or a multiple of 32 dividing the image\n"
-            "             side; R = the image side uses every pixel). Updates cost about R^2/1024\n"
-            "             times a 32 x 32 grid's (docs/model.md)\n"
+            "             side; R = the image side uses every pixel; a model of a 16 x 16 grid\n"
+            "             stays at 16). Updates cost about R^2/1024 times a 32 x 32 grid's\n"
+            "             (docs/model.md)\n"
             "The weights and any trainer state are copied unchanged; F is written atomically and\n"
             "may be M itself.\n");
 }

@@ -214,12 +214,12 @@ sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *
 void mdl_ref_act_free(ref_act *a);
 /* forward: a->x0 (and a->nsh) and the vector part of a->xin must be filled; h_prev/c_prev too. out: B x nout */
 void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out);
-/* Two nets' forwards in one parallel pass (the object and the layout refinement: their
- * items split across the threads together). n1 / a1 / out1 NULL: one net. */
 /* The conv stack's last map flattened (average-pooled to 2 x 2 above a 32 x 32
  * ray grid) for the FC layer, and its backward (writes gy3). */
 void mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat);
 void mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3);
+/* Two nets' forwards in one parallel pass (the object and the layout refinement: their
+ * items split across the threads together). n1 / a1 / out1 NULL: one net. */
 void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
                       float *out1, int gw, int gh);
 /* Leading object-image aux channels that are the same for every slot (colour, depth,
