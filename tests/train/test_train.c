@@ -250,6 +250,25 @@ static void test_resume(void) {
             CHECK_MSG(prior_off < na && dm > 0 && dm <= 1.01 * c.lr, "widened run: max |w - w_a| %g", dm);
         }
         sooc_model_destroy(mm);
+        /* every pixel (64 x 64 rays) from the 32 x 32 checkpoint: the same weights
+         * (mdl_ref_flatten pools), one step on the new grid */
+        char oute[600];
+        snprintf(oute, sizeof oute, "%s/run_e", g_dir);
+        mk = mc;
+        mk.ray_w = mk.ray_h = 64;
+        ri.out_dir = oute;
+        CHECK(mc.ray_w == 32 && mc.img_w == 64);
+        CHECK_OK(sooc_train_run(&c1, &mk, &ri));
+        snprintf(pc, sizeof pc, "%s/last.bin", oute);
+        CHECK_OK(sooc_model_load(&mm, pc, NULL, NULL));
+        CHECK(mm && sooc_model_get_config(mm)->ray_w == 64 && sooc_model_param_count(mm) == na);
+        if (mm) {
+            const float *w = sooc_model_params(mm);
+            double dm = 0;
+            for (size_t i = 0; i < na; i++) dm = fmax(dm, fabs((double)w[i] - wa[i]));
+            CHECK_MSG(dm > 0 && dm <= 1.01 * c.lr, "64 x 64 ray run: max |w - w_a| %g", dm);
+        }
+        sooc_model_destroy(mm);
     }
     /* the logs hold one row per step, without duplicates after resume */
     char la[600], lb[600];
