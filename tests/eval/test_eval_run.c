@@ -645,6 +645,21 @@ static void test_cli(const char *bin, const char *model, const char *data) {
  * the same weights whose inference slot count is N, which eval then uses
  * unasked (bit-identical to --slots N on the original); bad values and a
  * missing file fail with a message and write nothing. */
+/* `sooc3d model M <opts> --out <tmp>/<name>.bin` fails (exit 1) with a message
+ * holding `needle`, and writes nothing. */
+static void model_cmd_fails(const char *bin, const char *model, const char *opts, const char *name, const char *needle) {
+    char cmd[4096], p[1024];
+    snprintf(cmd, sizeof cmd, "%s model %s %s --out %s/%s.bin > %s/%s.txt 2>&1", bin, model, opts, g_tmp, name, g_tmp,
+             name);
+    CHECK_MSG(run(cmd) == 1, "model %s: exit status", opts);
+    snprintf(p, sizeof p, "%s/%s.txt", g_tmp, name);
+    char *tx = read_text(p);
+    CHECK_MSG(tx && strstr(tx, needle), "model %s names the problem ('%s')", opts, needle);
+    free(tx);
+    snprintf(p, sizeof p, "%s/%s.bin", g_tmp, name);
+    CHECK_MSG(access(p, F_OK) != 0, "model %s: nothing written after an error", opts);
+}
+
 static void test_model_cmd(const char *bin, const char *model, const char *data) {
     char cmd[4096], p[1024], m5[1024];
     snprintf(cmd, sizeof cmd, "%s model %s > %s/mi.txt", bin, model, g_tmp);
@@ -690,14 +705,7 @@ static void test_model_cmd(const char *bin, const char *model, const char *data)
     free(jb);
     free(j3);
     /* errors */
-    snprintf(cmd, sizeof cmd, "%s model %s --slots 2 --out %s/m2.bin > %s/m2.txt 2>&1", bin, model, g_tmp, g_tmp);
-    CHECK(run(cmd) == 1);
-    snprintf(p, sizeof p, "%s/m2.txt", g_tmp);
-    tx = read_text(p);
-    CHECK_MSG(tx && strstr(tx, "slots = 2"), "model --slots 2 names the problem");
-    free(tx);
-    snprintf(p, sizeof p, "%s/m2.bin", g_tmp);
-    CHECK_MSG(access(p, F_OK) != 0, "nothing written after an error");
+    model_cmd_fails(bin, model, "--slots 2", "m2", "slots = 2");
     snprintf(cmd, sizeof cmd, "%s model %s --slots 5 2>/dev/null", bin, model);
     CHECK(run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s model %s/nope.bin > %s/nope.txt 2>&1", bin, g_tmp, g_tmp);
@@ -714,14 +722,7 @@ static void test_model_cmd(const char *bin, const char *model, const char *data)
     tx = read_text(p);
     CHECK_MSG(tx && strstr(tx, "rays 16x16") && strstr(tx, "4 at inference"), "model --rays 16 --slots 4 info");
     free(tx);
-    snprintf(cmd, sizeof cmd, "%s model %s --rays 32 --out %s/r32.bin > %s/r32.txt 2>&1", bin, model, g_tmp, g_tmp);
-    CHECK(run(cmd) == 1);
-    snprintf(p, sizeof p, "%s/r32.txt", g_tmp);
-    tx = read_text(p);
-    CHECK_MSG(tx && strstr(tx, "FC sizes"), "model --rays 32 names the problem");
-    free(tx);
-    snprintf(p, sizeof p, "%s/r32.bin", g_tmp);
-    CHECK_MSG(access(p, F_OK) != 0, "nothing written after a --rays error");
+    model_cmd_fails(bin, model, "--rays 32", "r32", "FC sizes");
     snprintf(cmd, sizeof cmd, "%s model %s --rays 8x --out %s/r8.bin 2>/dev/null", bin, model, g_tmp);
     CHECK(run(cmd) == 2);
 }
