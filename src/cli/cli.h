@@ -29,6 +29,8 @@ int sooc_cli_parse_samples(const char *s, int *c, int *f);
 int sooc_cli_parse_merge(const char *s, double *radius);
 /* "mean" | "sample" -> SOOC3D_LATENTS_*; 0 if neither. */
 int sooc_cli_parse_latents(const char *s, int *latents);
+/* A whole decimal integer in lo..hi (nothing after it); 1 on success, *out untouched otherwise. */
+int sooc_cli_parse_int(const char *s, int lo, int hi, int *out);
 /* "--slots N": object slots per keyframe, 0 (the model's K) or 1..SOOC_MODEL_K_MAX. */
 int sooc_cli_parse_slots(const char *s, int *slots);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */

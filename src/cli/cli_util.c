@@ -40,13 +40,15 @@ int sooc_cli_parse_latents(const char *s, int *latents) {
     return 1;
 }
 
-int sooc_cli_parse_slots(const char *s, int *slots) {
+int sooc_cli_parse_int(const char *s, int lo, int hi, int *out) {
     char *end;
     long v = strtol(s, &end, 10);
-    if (end == s || *end || v < 0 || v > SOOC_MODEL_K_MAX) return 0;
-    *slots = (int)v;
+    if (end == s || *end || v < lo || v > hi) return 0;
+    *out = (int)v;
     return 1;
 }
+
+int sooc_cli_parse_slots(const char *s, int *slots) { return sooc_cli_parse_int(s, 0, SOOC_MODEL_K_MAX, slots); }
 
 /* "C" or "C,F": coarse and fine render samples per ray (C >= 2, F >= 0). */
 int sooc_cli_parse_samples(const char *s, int *c, int *f) {

@@ -39,13 +39,10 @@ int sooc_cmd_model(int argc, char **argv) {
                 return 2;
             }
         } else if (!strcmp(a, "--rays") && i + 1 < argc) {
-            char *end;
-            long v = strtol(argv[++i], &end, 10);
-            if (*argv[i] == '\0' || *end || v < 16 || v > 1024) {
+            if (!sooc_cli_parse_int(argv[++i], 16, 1024, &rays)) {
                 fprintf(stderr, "sooc3d model: --rays wants a ray grid side, 16..1024 (got '%s')\n", argv[i]);
                 return 2;
             }
-            rays = (int)v;
         } else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
         else if (a[0] != '-' && !path) path = a;
         else {
