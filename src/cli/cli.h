@@ -31,6 +31,11 @@ int sooc_cli_parse_merge(const char *s, double *radius);
 int sooc_cli_parse_latents(const char *s, int *latents);
 /* A whole decimal integer in lo..hi (nothing after it); 1 on success, *out untouched otherwise. */
 int sooc_cli_parse_int(const char *s, int lo, int hi, int *out);
+/* A whole number strtod reads (not NaN) in lo..hi; 1 on success, *out untouched otherwise. */
+int sooc_cli_parse_double(const char *s, double lo, double hi, double *out);
+/* Option opt of command cmd: as above, else "sooc3d <cmd>: <opt>: expected ... in [lo, hi], got 's'" on stderr, 0. */
+int sooc_cli_int_opt(const char *cmd, const char *opt, const char *s, int lo, int hi, int *out);
+int sooc_cli_double_opt(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 /* "--slots N": object slots per keyframe, 0 (the model's K) or 1..SOOC_MODEL_K_MAX. */
 int sooc_cli_parse_slots(const char *s, int *slots);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */

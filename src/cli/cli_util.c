@@ -48,6 +48,27 @@ int sooc_cli_parse_int(const char *s, int lo, int hi, int *out) {
     return 1;
 }
 
+int sooc_cli_parse_double(const char *s, double lo, double hi, double *out) {
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v >= lo && v <= hi)) return 0; /* NaN fails the range */
+    *out = v;
+    return 1;
+}
+
+static int bad_value(const char *cmd, const char *opt, const char *s, const char *what, double lo, double hi) {
+    fprintf(stderr, "sooc3d %s: %s: expected %s in [%.15g, %.15g], got '%s'\n", cmd, opt, what, lo, hi, s);
+    return 0;
+}
+
+int sooc_cli_int_opt(const char *cmd, const char *opt, const char *s, int lo, int hi, int *out) {
+    return sooc_cli_parse_int(s, lo, hi, out) || bad_value(cmd, opt, s, "an integer", lo, hi);
+}
+
+int sooc_cli_double_opt(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out) {
+    return sooc_cli_parse_double(s, lo, hi, out) || bad_value(cmd, opt, s, "a number", lo, hi);
+}
+
 int sooc_cli_parse_slots(const char *s, int *slots) { return sooc_cli_parse_int(s, 0, SOOC_MODEL_K_MAX, slots); }
 
 /* "C" or "C,F": coarse and fine render samples per ray (C >= 2, F >= 0). */

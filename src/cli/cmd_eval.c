@@ -138,6 +138,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         int has = i + 1 < argc;
+#define INTV(lo, hi, x) do { if (!sooc_cli_int_opt("eval", a, argv[++i], lo, hi, x)) return 2; } while (0)
         if (!strcmp(a, "--model") && has) {
             if (n_models == MAX_MODELS) { fprintf(stderr, "sooc3d eval: at most %d models\n", MAX_MODELS); return 2; }
             models[n_models++] = argv[++i];
@@ -151,24 +152,23 @@ int sooc_cmd_eval(int argc, char **argv) {
             }
         } else if (!strcmp(a, "--json") && has) json = argv[++i];
         else if (!strcmp(a, "--md") && has) md = argv[++i];
-        else if (!strcmp(a, "--runs") && has) runs = atoi(argv[++i]);
+        else if (!strcmp(a, "--runs") && has) INTV(1, 1000, &runs);
         else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
         else if (!strcmp(a, "--input-timing") && has) {
             timing = sooc_eval_timing_parse(argv[++i]);
             if (timing < 0) { fprintf(stderr, "sooc3d eval: --input-timing must be final, online or both\n"); return 2; }
-        } else if (!strcmp(a, "--scenes") && has) max_scenes = atoi(argv[++i]);
+        } else if (!strcmp(a, "--scenes") && has) INTV(1, 1000000, &max_scenes);
         else if (!strcmp(a, "--samples") && has) {
             if (!sooc_cli_parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
                 fprintf(stderr, "sooc3d eval: --samples wants C[,F] with C >= 2, F >= 0\n");
                 return 2;
             }
-        } else if (!strcmp(a, "--threads") && has) ro.threads = atoi(argv[++i]);
-        else if (!strcmp(a, "--iterations") && has) ro.iterations = atoi(argv[++i]);
-        else if (!strcmp(a, "--max-views") && has) ro.max_views = atoi(argv[++i]);
-        else if (!strcmp(a, "--max-obj") && has) ro.max_obj = atoi(argv[++i]);
+        } else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
+        else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
+        else if (!strcmp(a, "--max-views") && has) INTV(0, 1000000, &ro.max_views);
+        else if (!strcmp(a, "--max-obj") && has) INTV(0, SOOC_RENDER_MAX_COMP - 1, &ro.max_obj);
         else if (!strcmp(a, "--clip") && has) {
-            ro.d_clip = atof(argv[++i]);
-            if (!(ro.d_clip > 0)) { fprintf(stderr, "sooc3d eval: --clip wants a depth > 0 in metres\n"); return 2; }
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0.01, 1000, &ro.d_clip)) return 2;
         }
         else if (!strcmp(a, "--merge") && has) {
             if (!sooc_cli_parse_merge(argv[++i], &ro.merge_radius)) {
@@ -194,8 +194,9 @@ int sooc_cmd_eval(int argc, char **argv) {
             usage(stderr);
             return 2;
         }
+#undef INTV
     }
-    if (!n_models || !n_dirs || !json || runs < 1 || (n_names && n_names != n_models)) {
+    if (!n_models || !n_dirs || !json || (n_names && n_names != n_models)) {
         if (n_names && n_names != n_models) fprintf(stderr, "sooc3d eval: give one --name per --model\n");
         usage(stderr);
         return 2;

@@ -77,32 +77,32 @@ int sooc_cmd_gen(int argc, char **argv) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
 #define NEEDV() do { if (!v) { fprintf(stderr, "sooc3d gen: %s needs a value\n", a); return 2; } i++; } while (0)
+#define INTV(lo, hi, x) do { NEEDV(); if (!sooc_cli_int_opt("gen", a, v, lo, hi, x)) return 2; } while (0)
+#define DBLV(lo, hi, x) do { NEEDV(); if (!sooc_cli_double_opt("gen", a, v, lo, hi, x)) return 2; } while (0)
         sooc_status s = SOOC_OK;
         if (!strcmp(a, "--preset")) { NEEDV(); s = sooc_gen_preset_parse(v, &p.preset); }
         else if (!strcmp(a, "--scale")) { NEEDV(); s = sooc_gen_scale_parse(v, &p.scale); }
-        else if (!strcmp(a, "--scenes")) { NEEDV(); p.n_scenes = atoi(v); }
-        else if (!strcmp(a, "--first")) { NEEDV(); p.first_scene = atoi(v); }
+        else if (!strcmp(a, "--scenes")) INTV(1, 1000000, &p.n_scenes);
+        else if (!strcmp(a, "--first")) INTV(0, 1000000, &p.first_scene);
         else if (!strcmp(a, "--seed")) { NEEDV(); p.seed = strtoull(v, NULL, 10); }
         else if (!strcmp(a, "--out")) { NEEDV(); out = v; }
-        else if (!strcmp(a, "--width")) { NEEDV(); p.width = atoi(v); }
-        else if (!strcmp(a, "--height")) { NEEDV(); p.height = atoi(v); }
-        else if (!strcmp(a, "--views")) { NEEDV(); p.n_views = atoi(v); }
-        else if (!strcmp(a, "--query")) { NEEDV(); p.n_query = atoi(v); }
-        else if (!strcmp(a, "--threads")) { NEEDV(); p.threads = atoi(v); }
-        else if (!strcmp(a, "--density")) { NEEDV(); p.density = atof(v); }
-        else if (!strcmp(a, "--clip")) { NEEDV(); p.clip_depth = atof(v); }
+        else if (!strcmp(a, "--width")) INTV(1, 16384, &p.width);
+        else if (!strcmp(a, "--height")) INTV(1, 16384, &p.height);
+        else if (!strcmp(a, "--views")) INTV(0, 10000, &p.n_views);
+        else if (!strcmp(a, "--query")) INTV(0, 10000, &p.n_query);
+        else if (!strcmp(a, "--threads")) INTV(0, 256, &p.threads);
+        else if (!strcmp(a, "--density")) DBLV(0.001, 4.99, &p.density);
+        else if (!strcmp(a, "--clip")) DBLV(0.01, 65535 * p.depth_scale, &p.clip_depth); /* 16-bit depth PNGs */
         else if (!strcmp(a, "--no-meshes")) p.write_meshes = 0;
         else if (!strcmp(a, "--no-sheet")) p.contact_sheet = 0;
         else if (!strcmp(a, "--stats")) stats = 1;
         else { fprintf(stderr, "sooc3d gen: unknown option '%s'\n", a); usage(stderr); return 2; }
         if (s) return sooc_cli_fail("gen", s);
 #undef NEEDV
+#undef INTV
+#undef DBLV
     }
     if (!out) { fprintf(stderr, "sooc3d gen: --out DIR is required\n"); usage(stderr); return 2; }
-    if (p.n_scenes < 1 || p.width < 1 || p.height < 1 || p.n_views < 0 || p.first_scene < 0) {
-        fprintf(stderr, "sooc3d gen: --scenes, --width, --height must be >= 1\n");
-        return 2;
-    }
     int V = p.n_views > 0 ? p.n_views : sooc_gen_default_views(p.scale);
     int Q = p.n_query >= 0 ? p.n_query : (V / 5 > 2 ? V / 5 : 2);
     prog_ctx pc;

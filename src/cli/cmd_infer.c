@@ -163,13 +163,13 @@ int sooc_cmd_infer(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         int has = i + 1 < argc;
+#define INTV(lo, hi, x) do { if (!sooc_cli_int_opt("infer", a, argv[++i], lo, hi, x)) return 2; } while (0)
         if (!strcmp(a, "--model") && has) model = argv[++i];
         else if (!strcmp(a, "--seq") && has) seq = argv[++i];
         else if (!strcmp(a, "--out") && has) out = argv[++i];
-        else if (!strcmp(a, "--iterations") && has) iters = atoi(argv[++i]);
+        else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &iters);
         else if (!strcmp(a, "--clip") && has) {
-            clip = atof(argv[++i]);
-            if (!(clip > 0)) { fprintf(stderr, "sooc3d infer: --clip wants a depth > 0 in metres\n"); return 2; }
+            if (!sooc_cli_double_opt("infer", a, argv[++i], 0.01, 1000, &clip)) return 2;
         }
         else if (!strcmp(a, "--merge") && has) {
             if (!sooc_cli_parse_merge(argv[++i], &merge)) {
@@ -177,11 +177,11 @@ int sooc_cmd_infer(int argc, char **argv) {
                 return 2;
             }
         }
-        else if (!strcmp(a, "--threads") && has) threads = atoi(argv[++i]);
+        else if (!strcmp(a, "--threads") && has) INTV(0, 256, &threads);
         else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
-        else if (!strcmp(a, "--every") && has) every = atoi(argv[++i]);
+        else if (!strcmp(a, "--every") && has) INTV(1, 1000000, &every);
         else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
-        else if (!strcmp(a, "--samples") && has) samples = atoi(argv[++i]);
+        else if (!strcmp(a, "--samples") && has) INTV(2, 4064, &samples); /* + 32 fine <= the renderer's 4096 */
         else if (!strcmp(a, "--no-render")) render = 0;
         else if (!strcmp(a, "--trace")) trace = 1;
         else if (!strcmp(a, "--latents") && has) {
@@ -201,8 +201,9 @@ int sooc_cmd_infer(int argc, char **argv) {
             usage(stderr);
             return 2;
         }
+#undef INTV
     }
-    if (!model || !seq || !out || every < 1 || samples < 2) {
+    if (!model || !seq || !out) {
         usage(stderr);
         return 2;
     }

@@ -175,24 +175,23 @@ int sooc_cmd_render(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         int has = i + 1 < argc;
+#define INTV(lo, hi, x) do { if (!sooc_cli_int_opt("render", a, argv[++i], lo, hi, x)) return 2; } while (0)
         if (!strcmp(a, "--model") && has) model = argv[++i];
         else if (!strcmp(a, "--seq") && has) seqdir = argv[++i];
         else if (!strcmp(a, "--out") && has) out = argv[++i];
         else if (!strcmp(a, "--map") && has) mappath = argv[++i];
         else if (!strcmp(a, "--calib") && has) calib = argv[++i];
         else if (!strcmp(a, "--log") && has) logpath = argv[++i];
-        else if (!strcmp(a, "--views") && has) views = atoi(argv[++i]);
-        else if (!strcmp(a, "--uncertainty") && has) ro.uncertainty = atoi(argv[++i]);
+        else if (!strcmp(a, "--views") && has) INTV(0, 1000000, &views);
+        else if (!strcmp(a, "--uncertainty") && has) INTV(0, 1000, &ro.uncertainty);
         else if (!strcmp(a, "--seed") && has) ro.seed = strtoull(argv[++i], NULL, 10);
-        else if (!strcmp(a, "--threads") && has) ro.threads = atoi(argv[++i]);
-        else if (!strcmp(a, "--iterations") && has) ro.iterations = atoi(argv[++i]);
+        else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
+        else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
-        else if (!strcmp(a, "--max-obj") && has) ro.max_obj = atoi(argv[++i]);
+        else if (!strcmp(a, "--max-obj") && has) INTV(0, SOOC_RENDER_MAX_COMP - 1, &ro.max_obj);
         else if (!strcmp(a, "--clip") && has) {
-            clip = atof(argv[++i]);
-            if (!(clip > 0)) { fprintf(stderr, "sooc3d render: --clip wants a depth > 0 in metres\n"); return 2; }
-        }
-        else if (!strcmp(a, "--samples") && has) {
+            if (!sooc_cli_double_opt("render", a, argv[++i], 0.01, 1000, &clip)) return 2;
+        } else if (!strcmp(a, "--samples") && has) {
             if (!sooc_cli_parse_samples(argv[++i], &ro.n_coarse, &ro.n_fine)) {
                 fprintf(stderr, "sooc3d render: --samples wants C[,F] with C >= 2, F >= 0\n");
                 return 2;
@@ -208,8 +207,9 @@ int sooc_cmd_render(int argc, char **argv) {
             usage(stderr);
             return 2;
         }
+#undef INTV
     }
-    if (!model || !seqdir || !out || views < 0 || ro.uncertainty < 0 || ro.uncertainty == 1) {
+    if (!model || !seqdir || !out || ro.uncertainty == 1) {
         if (ro.uncertainty == 1) fprintf(stderr, "sooc3d render: --uncertainty needs M >= 2 samples\n");
         usage(stderr);
         return 2;

@@ -50,8 +50,11 @@ int sooc_cmd_train(int argc, char **argv) {
         else if (!strcmp(a, "--resume")) resume = 1;
         else if (!strcmp(a, "--init") && i + 1 < argc) init = argv[++i];
         else if (!strcmp(a, "--steps") && i + 1 < argc) steps = atoll(argv[++i]);
-        else if (!strcmp(a, "--threads") && i + 1 < argc) threads = atoi(argv[++i]);
-        else if (!strcmp(a, "--max-seconds") && i + 1 < argc) max_s = atof(argv[++i]);
+        else if (!strcmp(a, "--threads") && i + 1 < argc) {
+            if (!sooc_cli_int_opt("train", a, argv[++i], 0, 256, &threads)) return 2;
+        } else if (!strcmp(a, "--max-seconds") && i + 1 < argc) {
+            if (!sooc_cli_double_opt("train", a, argv[++i], 0, 1e7, &max_s)) return 2;
+        }
         else if (!strcmp(a, "--data") || !strcmp(a, "--val")) {
             int is_val = !strcmp(a, "--val");
             while (i + 1 < argc && argv[i + 1][0] != '-') {

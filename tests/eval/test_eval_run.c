@@ -5,7 +5,8 @@
  *  - input-view timings final / online / both agree with each other;
  *  - L2 from the mIoU match and the matched entries' world positions on a
  *    crafted map (layout switched off, solid object boxes);
- *  - the CLI writes JSON / Markdown / PNGs that parse. */
+ *  - the CLI writes JSON / Markdown / PNGs that parse;
+ *  - numeric options reject junk and out-of-range values with a usage error. */
 #include "check.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
@@ -660,6 +661,46 @@ static void model_cmd_fails(const char *bin, const char *model, const char *opts
     CHECK_MSG(access(p, F_OK) != 0, "model %s: nothing written after an error", opts);
 }
 
+/* Numeric options of gen / train / render / infer / eval: junk, trailing junk
+ * and out-of-range values are usage errors (exit 2) naming the option, the
+ * value and the range, before anything is written; valid values still work. */
+static void test_bad_values(const char *bin) {
+    static const char *bad[][3] = {
+        {"gen", "--scenes", "abc"},      {"gen", "--width", "5x"},       {"gen", "--clip", "-3"},
+        {"gen", "--density", "nan"},     {"gen", "--threads", "2.5"},    {"train", "--threads", "abc"},
+        {"train", "--max-seconds", "5x"}, {"train", "--threads", "-3"},  {"render", "--views", "abc"},
+        {"render", "--max-obj", "64"},   {"render", "--clip", "-3"},     {"render", "--iterations", "5x"},
+        {"infer", "--samples", "abc"},   {"infer", "--every", "0"},      {"infer", "--clip", "1e9"},
+        {"infer", "--threads", "-3"},    {"eval", "--scenes", "abc"},    {"eval", "--runs", "5x"},
+        {"eval", "--clip", "-3"},        {"eval", "--max-views", "-1"},
+    };
+    char cmd[4096], p[1024], want[2][160];
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        const char *c = bad[k][0], *o = bad[k][1], *v = bad[k][2];
+        snprintf(cmd, sizeof cmd, "%s %s %s '%s' --out %s/bad > %s/bad.txt 2>&1", bin, c, o, v, g_tmp, g_tmp);
+        CHECK_MSG(run(cmd) == 2, "%s %s %s: exit status", c, o, v);
+        snprintf(p, sizeof p, "%s/bad.txt", g_tmp);
+        char *tx = read_text(p);
+        snprintf(want[0], sizeof want[0], "sooc3d %s: %s: expected ", c, o);
+        snprintf(want[1], sizeof want[1], "], got '%s'", v);
+        CHECK_MSG(tx && strstr(tx, want[0]) && strstr(tx, want[1]), "%s %s %s names the option and value", c, o, v);
+        free(tx);
+        snprintf(p, sizeof p, "%s/bad", g_tmp);
+        CHECK_MSG(access(p, F_OK) != 0, "%s %s %s: nothing written", c, o, v);
+    }
+    snprintf(cmd, sizeof cmd,
+             "%s gen --scenes 1 --width 16 --height 24 --views 2 --query 1 --threads 1 --density 0.5 --clip 6.5 "
+             "--no-meshes --no-sheet --out %s/g16 > /dev/null 2>&1",
+             bin, g_tmp);
+    CHECK(run(cmd) == 0);
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    snprintf(p, sizeof p, "%s/g16/scene_0000/scene.yaml", g_tmp);
+    CHECK_OK(sooc_scene_load(p, &sc));
+    CHECK_MSG(sc.width == 16 && sc.height == 24 && sc.clip_depth == 6.5, "gen: valid values are kept");
+    sooc_scene_free(&sc);
+}
+
 static void test_model_cmd(const char *bin, const char *model, const char *data) {
     char cmd[4096], p[1024], m5[1024];
     snprintf(cmd, sizeof cmd, "%s model %s > %s/mi.txt", bin, model, g_tmp);
@@ -772,6 +813,7 @@ int main(void) {
         test_cli(bin, model, data);
         test_infer(bin, m, data);
         test_model_cmd(bin, model, data);
+        test_bad_values(bin);
     }
     else fprintf(stderr, "test_eval_run: SOOC_BIN not set or not executable; CLI part skipped\n");
 
