@@ -4,6 +4,8 @@
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
 
+#include <errno.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -67,6 +69,19 @@ int sooc_cli_int_opt(const char *cmd, const char *opt, const char *s, int lo, in
 
 int sooc_cli_double_opt(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out) {
     return sooc_cli_parse_double(s, lo, hi, out) || bad_value(cmd, opt, s, "a number", lo, hi);
+}
+
+int sooc_cli_u64_opt(const char *cmd, const char *opt, const char *s, uint64_t hi, uint64_t *out) {
+    char *end;
+    errno = 0;
+    unsigned long long v = s[0] >= '0' && s[0] <= '9' ? strtoull(s, &end, 10) : 0;
+    if (s[0] < '0' || s[0] > '9' || *end || errno || v > hi) {
+        fprintf(stderr, "sooc3d %s: %s: expected an integer in [0, %llu], got '%s'\n", cmd, opt,
+                (unsigned long long)hi, s);
+        return 0;
+    }
+    *out = v;
+    return 1;
 }
 
 int sooc_cli_parse_slots(const char *s, int *slots) { return sooc_cli_parse_int(s, 0, SOOC_MODEL_K_MAX, slots); }

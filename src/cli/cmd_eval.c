@@ -153,7 +153,7 @@ int sooc_cmd_eval(int argc, char **argv) {
         } else if (!strcmp(a, "--json") && has) json = argv[++i];
         else if (!strcmp(a, "--md") && has) md = argv[++i];
         else if (!strcmp(a, "--runs") && has) INTV(1, 1000, &runs);
-        else if (!strcmp(a, "--seed") && has) seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(a, "--seed") && has) { if (!sooc_cli_u64_opt("eval", a, argv[++i], UINT64_MAX, &seed)) return 2; }
         else if (!strcmp(a, "--input-timing") && has) {
             timing = sooc_eval_timing_parse(argv[++i]);
             if (timing < 0) { fprintf(stderr, "sooc3d eval: --input-timing must be final, online or both\n"); return 2; }

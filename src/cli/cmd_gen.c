@@ -84,7 +84,7 @@ int sooc_cmd_gen(int argc, char **argv) {
         else if (!strcmp(a, "--scale")) { NEEDV(); s = sooc_gen_scale_parse(v, &p.scale); }
         else if (!strcmp(a, "--scenes")) INTV(1, 1000000, &p.n_scenes);
         else if (!strcmp(a, "--first")) INTV(0, 1000000, &p.first_scene);
-        else if (!strcmp(a, "--seed")) { NEEDV(); p.seed = strtoull(v, NULL, 10); }
+        else if (!strcmp(a, "--seed")) { NEEDV(); if (!sooc_cli_u64_opt("gen", a, v, UINT64_MAX, &p.seed)) return 2; }
         else if (!strcmp(a, "--out")) { NEEDV(); out = v; }
         else if (!strcmp(a, "--width")) INTV(1, 16384, &p.width);
         else if (!strcmp(a, "--height")) INTV(1, 16384, &p.height);

@@ -184,10 +184,14 @@ int sooc_cmd_render(int argc, char **argv) {
         else if (!strcmp(a, "--log") && has) logpath = argv[++i];
         else if (!strcmp(a, "--views") && has) INTV(0, 1000000, &views);
         else if (!strcmp(a, "--uncertainty") && has) INTV(0, 1000, &ro.uncertainty);
-        else if (!strcmp(a, "--seed") && has) ro.seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(a, "--seed") && has) { if (!sooc_cli_u64_opt("render", a, argv[++i], UINT64_MAX, &ro.seed)) return 2; }
         else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
-        else if (!strcmp(a, "--max-frames") && has) maxf = atoll(argv[++i]);
+        else if (!strcmp(a, "--max-frames") && has) {
+            uint64_t v;
+            if (!sooc_cli_u64_opt("render", a, argv[++i], INT64_MAX, &v)) return 2;
+            maxf = (long long)v;
+        }
         else if (!strcmp(a, "--max-obj") && has) INTV(0, SOOC_RENDER_MAX_COMP - 1, &ro.max_obj);
         else if (!strcmp(a, "--clip") && has) {
             if (!sooc_cli_double_opt("render", a, argv[++i], 0.01, 1000, &clip)) return 2;

@@ -672,7 +672,9 @@ static void test_bad_values(const char *bin) {
         {"render", "--max-obj", "64"},   {"render", "--clip", "-3"},     {"render", "--iterations", "5x"},
         {"infer", "--samples", "abc"},   {"infer", "--every", "0"},      {"infer", "--clip", "1e9"},
         {"infer", "--threads", "-3"},    {"eval", "--scenes", "abc"},    {"eval", "--runs", "5x"},
-        {"eval", "--clip", "-3"},        {"eval", "--max-views", "-1"},
+        {"eval", "--clip", "-3"},        {"eval", "--max-views", "-1"},  {"eval", "--seed", "-1"},
+        {"gen", "--seed", "12abc"},      {"train", "--steps", "1e5"},    {"infer", "--max-frames", "-2"},
+        {"render", "--seed", "99999999999999999999"},
     };
     char cmd[4096], p[1024], want[2][160];
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
