@@ -8,7 +8,7 @@
  * model x {I, Q}, column groups mIoU (best-match), RGB RMSE, depth RMSE, L2,
  * each with the scales present (s, m, l, xl). L2 is shown for query views
  * only, as in the paper (opts). A second table gives the Hungarian mIoU, the
- * matched fraction and recall by distance. Outputs: plain text, Markdown,
+ * matched fraction, recall by distance and the RGB RMSE over object pixels. Outputs: plain text, Markdown,
  * JSON (all cells, all statistics).
  *
  * Pictures (PNG via image.h):
@@ -59,6 +59,7 @@ sooc_status sooc_eval_table_add_acc(sooc_eval_table *t, const char *model, int r
 typedef struct sooc_eval_stat { double mean, std; int n_runs; } sooc_eval_stat;
 typedef struct sooc_eval_cell {
     sooc_eval_stat miou_best, miou_hung, rgb_rmse, depth_rmse, l2, matched_frac;
+    sooc_eval_stat rgb_rmse_obj;       /* RGB RMSE over object pixels (GT id != 0) */
     sooc_eval_stat recall[SOOC_METRIC_N_DBINS];
     sooc_eval_stat mesh_acc_cm, mesh_comp_cm;
     long n_views;                      /* summed over runs */

@@ -81,6 +81,8 @@ typedef struct sooc_view_metrics {
     int is_query;
     double miou_best, miou_hung;   /* NaN if no GT instance visible            */
     double rgb_rmse, depth_rmse;   /* NaN if |M| = 0                           */
+    double rgb_rmse_obj;           /* RGB RMSE over M & GT id != 0 (objects); NaN
+                                      without an instance map or such pixels   */
     int n_gt_visible;              /* GT instances incl. background            */
     int n_obj_visible;             /* GT objects (id != 0) visible             */
     int n_obj_matched;             /* of which matched (best-match IoU >= 0.05) with a position */
@@ -98,7 +100,7 @@ typedef struct sooc_view_eval_in {
                                       e.g. the layout); NULL = no L2                                  */
     const sooc_gt_object *gt_obj;  /* GT objects of the scene (may include invisible ones)           */
     int n_gt_obj;
-    uint8_t *mask_scratch;         /* optional W*H scratch (else allocated per call)                  */
+    uint8_t *mask_scratch;         /* optional W*H scratch (else allocated per call); overwritten     */
 } sooc_view_eval_in;
 
 /* All per-view metrics. Recall bins use the floor distance from the camera
@@ -126,6 +128,7 @@ typedef struct sooc_metric_sums {
     long n_views;
     double miou_best, miou_hung; long n_miou;
     double rgb_rmse; long n_rgb;
+    double rgb_rmse_obj; long n_rgb_obj;
     double depth_rmse; long n_depth;
     double l2_sum; long n_obj_matched, n_obj_visible;
     long recall_hit[SOOC_METRIC_N_DBINS], recall_tot[SOOC_METRIC_N_DBINS];
@@ -140,6 +143,7 @@ void sooc_metric_sums_merge(sooc_metric_sums *dst, const sooc_metric_sums *src);
 /* Means of a cell (NaN where the count is 0). */
 typedef struct sooc_metric_means {
     double miou_best, miou_hung, rgb_rmse, depth_rmse;
+    double rgb_rmse_obj;           /* mean over views with object pixels        */
     double l2;                     /* mean over matched (object, view) pairs    */
     double matched_frac;           /* n_obj_matched / n_obj_visible             */
     double recall[SOOC_METRIC_N_DBINS];

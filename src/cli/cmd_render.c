@@ -92,9 +92,10 @@ static sooc_status on_view(void *user, const sooc_eval_view_info *v) {
     render_ctx *R = user;
     const sooc_view_metrics *m = v->metrics;
     if (R->csv)
-        fprintf(R->csv, "%lld,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%d,%d,%.6f\n", (long long)v->gt->index, v->gt->is_query,
-                v->online, v->n_comp - 1, m->miou_best, m->miou_hung, m->rgb_rmse, m->depth_rmse, m->n_obj_visible,
-                m->n_obj_matched, m->n_obj_matched ? m->l2_sum / m->n_obj_matched : NAN);
+        fprintf(R->csv, "%lld,%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%d,%d,%.6f,%.6f\n", (long long)v->gt->index,
+                v->gt->is_query, v->online, v->n_comp - 1, m->miou_best, m->miou_hung, m->rgb_rmse, m->depth_rmse,
+                m->n_obj_visible, m->n_obj_matched, m->n_obj_matched ? m->l2_sum / m->n_obj_matched : NAN,
+                m->rgb_rmse_obj);
     R->n_done++;
     sooc_progress_update(&R->pr, (uint64_t)R->n_done, NULL);
     /* a panel for the flagged views; input views at the chosen timing only */
@@ -281,7 +282,7 @@ int sooc_cmd_render(int argc, char **argv) {
     R.csv = fopen(path, "w");
     if (!R.csv) { st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", path); goto fail; }
     fprintf(R.csv, "frame,is_query,online,n_objects,miou_best,miou_hung,rgb_rmse,depth_rmse,n_obj_visible,"
-                   "n_obj_matched,l2\n");
+                   "n_obj_matched,l2,rgb_rmse_obj\n");
     R.out = out, R.mc = mc, R.detail = detail, R.timing = timing;
     R.steps = calloc((size_t)nf, sizeof *R.steps);
     if (!R.steps) { st = SOOC_ENOMEM; goto fail; }

@@ -220,7 +220,7 @@ static int dist_bin(double d) { return d < 3.0 ? 0 : d < 5.0 ? 1 : 2; }
 sooc_status sooc_metric_view(const sooc_view_eval_in *in, sooc_view_metrics *out,
                              sooc_iou_match *match_out) {
     memset(out, 0, sizeof *out);
-    out->miou_best = out->miou_hung = out->rgb_rmse = out->depth_rmse = NAN;
+    out->miou_best = out->miou_hung = out->rgb_rmse = out->depth_rmse = out->rgb_rmse_obj = NAN;
     const sooc_frame *g = in->gt;
     const sooc_render_out *pr = in->pred;
     if (!g || !pr || !g->depth || !g->rgb || !pr->rgb || !pr->depth || !pr->label)
@@ -262,6 +262,9 @@ sooc_status sooc_metric_view(const sooc_view_eval_in *in, sooc_view_metrics *out
             out->recall_hit[b]++;
             out->l2_sum += hypot(px - o->x, pz - o->z);
         }
+        /* object pixels: narrow M in place to GT id != 0 (M is not needed after this) */
+        for (size_t p = 0; p < n; p++) mask[p] &= (uint8_t)(g->instance[p] != 0);
+        out->rgb_rmse_obj = sooc_metric_rgb_rmse(pr->rgb, g->rgb, mask, n);
     }
 done:
     if (mask != in->mask_scratch) sooc_free(mask);
@@ -295,6 +298,7 @@ void sooc_metric_sums_add_view(sooc_metric_sums *s, const sooc_view_metrics *v) 
         s->n_by_nobj[b]++;
     }
     if (isfinite(v->rgb_rmse)) { s->rgb_rmse += v->rgb_rmse; s->n_rgb++; }
+    if (isfinite(v->rgb_rmse_obj)) { s->rgb_rmse_obj += v->rgb_rmse_obj; s->n_rgb_obj++; }
     if (isfinite(v->depth_rmse)) { s->depth_rmse += v->depth_rmse; s->n_depth++; }
     s->l2_sum += v->l2_sum;
     s->n_obj_matched += v->n_obj_matched;
@@ -309,6 +313,7 @@ void sooc_metric_sums_merge(sooc_metric_sums *d, const sooc_metric_sums *s) {
     d->n_views += s->n_views;
     d->miou_best += s->miou_best; d->miou_hung += s->miou_hung; d->n_miou += s->n_miou;
     d->rgb_rmse += s->rgb_rmse; d->n_rgb += s->n_rgb;
+    d->rgb_rmse_obj += s->rgb_rmse_obj; d->n_rgb_obj += s->n_rgb_obj;
     d->depth_rmse += s->depth_rmse; d->n_depth += s->n_depth;
     d->l2_sum += s->l2_sum; d->n_obj_matched += s->n_obj_matched; d->n_obj_visible += s->n_obj_visible;
     for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) {
@@ -332,6 +337,7 @@ void sooc_metric_sums_means(const sooc_metric_sums *s, sooc_metric_means *m) {
     m->miou_best = ratio(s->miou_best, s->n_miou);
     m->miou_hung = ratio(s->miou_hung, s->n_miou);
     m->rgb_rmse = ratio(s->rgb_rmse, s->n_rgb);
+    m->rgb_rmse_obj = ratio(s->rgb_rmse_obj, s->n_rgb_obj);
     m->depth_rmse = ratio(s->depth_rmse, s->n_depth);
     m->l2 = ratio(s->l2_sum, s->n_obj_matched);
     m->matched_frac = ratio((double)s->n_obj_matched, s->n_obj_visible);

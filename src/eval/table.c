@@ -112,7 +112,7 @@ static void stat_of(const double *v, int n, sooc_eval_stat *s) {
 sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, int scale, int is_query,
                                  sooc_eval_cell *out) {
     memset(out, 0, sizeof *out);
-    enum { NM = 8 + SOOC_METRIC_N_DBINS };
+    enum { NM = 9 + SOOC_METRIC_N_DBINS };
     static _Thread_local double vals[NM][MAX_RUNS];
     double by_sum[SOOC_METRIC_N_OBINS] = {0};
     int n = 0;
@@ -126,8 +126,8 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
         sooc_metric_sums_means(s, &m);
         vals[0][n] = m.miou_best; vals[1][n] = m.miou_hung; vals[2][n] = m.rgb_rmse;
         vals[3][n] = m.depth_rmse; vals[4][n] = m.l2; vals[5][n] = m.matched_frac;
-        vals[6][n] = m.mesh_acc_cm; vals[7][n] = m.mesh_comp_cm;
-        for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) vals[8 + b][n] = m.recall[b];
+        vals[6][n] = m.mesh_acc_cm; vals[7][n] = m.mesh_comp_cm; vals[8][n] = m.rgb_rmse_obj;
+        for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) vals[9 + b][n] = m.recall[b];
         for (int b = 0; b < SOOC_METRIC_N_OBINS; b++) {
             by_sum[b] += s->miou_by_nobj[b];
             out->n_by_nobj[b] += s->n_by_nobj[b];
@@ -140,7 +140,8 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
     stat_of(vals[2], n, &out->rgb_rmse); stat_of(vals[3], n, &out->depth_rmse);
     stat_of(vals[4], n, &out->l2); stat_of(vals[5], n, &out->matched_frac);
     stat_of(vals[6], n, &out->mesh_acc_cm); stat_of(vals[7], n, &out->mesh_comp_cm);
-    for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) stat_of(vals[8 + b], n, &out->recall[b]);
+    stat_of(vals[8], n, &out->rgb_rmse_obj);
+    for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) stat_of(vals[9 + b], n, &out->recall[b]);
     for (int b = 0; b < SOOC_METRIC_N_OBINS; b++)
         out->miou_by_nobj[b] = out->n_by_nobj[b] ? by_sum[b] / (double)out->n_by_nobj[b] : NAN;
     return SOOC_OK;
@@ -357,24 +358,26 @@ sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
             sb_printf(&b, "\n");
         }
     sb_printf(&b, "\nSupplementary: one-to-one (Hungarian) mIoU, fraction of visible GT objects matched, "
-                  "recall by camera distance.\n\n| model | view | scale | views | mIoU Hungarian | matched | "
-                  "recall <3 m | recall 3-5 m | recall >5 m |\n|---|---|---|---:|---:|---:|---:|---:|---:|\n");
+                  "recall by camera distance, RGB RMSE over object pixels (GT instance != 0).\n\n"
+                  "| model | view | scale | views | mIoU Hungarian | matched | recall <3 m | recall 3-5 m | "
+                  "recall >5 m | RGB RMSE objects |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
     for (int m = 0; m < nm; m++)
         for (int q = 0; q < 2; q++)
             for (int s = 0; s < ns; s++) {
                 sooc_eval_cell c;
                 if (sooc_eval_table_cell(t, models[m], sc[s], q, &c)) continue;
-                char h[64], mf[64], r[3][64];
+                char h[64], mf[64], r[3][64], ro[64];
                 fmt_stat(h, sizeof h, &c.miou_hung, 3);
                 fmt_stat(mf, sizeof mf, &c.matched_frac, 3);
                 for (int k = 0; k < 3; k++) fmt_stat(r[k], sizeof r[k], &c.recall[k], 3);
-                sb_printf(&b, "| %s | %s | %s | %ld | %s | %s | %s | %s | %s |\n", models[m], q ? "Q" : "I",
-                          sooc_scale_name(sc[s]), c.n_views, h, mf, r[0], r[1], r[2]);
+                fmt_stat(ro, sizeof ro, &c.rgb_rmse_obj, 3);
+                sb_printf(&b, "| %s | %s | %s | %ld | %s | %s | %s | %s | %s | %s |\n", models[m], q ? "Q" : "I",
+                          sooc_scale_name(sc[s]), c.n_views, h, mf, r[0], r[1], r[2], ro);
             }
     md_by_nobj(&b, t, models, nm, sc, ns);
     sb_printf(&b, "\nmIoU: MulMON best-match per GT instance (background included, IoU < 0.05 -> 0); "
                   "RGB RMSE: sqrt of the per-pixel channel SUM of squared errors (divide by sqrt(3) for "
-                  "the per-channel mean); depth RMSE in m over GT depth <= d_clip; L2: floor-plane error "
+                  "the per-channel mean), over all pixels or (objects) GT instance != 0 only; depth RMSE in m over GT depth <= d_clip; L2: floor-plane error "
                   "of best-matched objects, query views. Values: mean±std over runs. See docs/metrics.md.\n");
     if (t->note) sb_printf(&b, "\n%s\n", t->note);
     return sb_finish(&b, out);
@@ -408,7 +411,8 @@ sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
     int sc[SOOC_N_SCALES];
     int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
     sb_printf(&b, "{\"conventions\": {\"miou\": \"MulMON best-match, background included, IoU<0.05->0\", "
-                  "\"rgb_rmse\": \"channel sum\", \"depth_rmse\": \"m, GT depth <= d_clip\", "
+                  "\"rgb_rmse\": \"channel sum\", \"rgb_rmse_obj\": \"channel sum, GT instance != 0 pixels\", "
+                  "\"depth_rmse\": \"m, GT depth <= d_clip\", "
                   "\"std\": \"sample std over runs\"}, ");
     sb_printf(&b, "\"note\": ");
     if (t->note) json_str(&b, t->note);
@@ -428,6 +432,7 @@ sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
                 json_stat(&b, "miou", &c.miou_best, 1);
                 json_stat(&b, "miou_hungarian", &c.miou_hung, 1);
                 json_stat(&b, "rgb_rmse", &c.rgb_rmse, 1);
+                json_stat(&b, "rgb_rmse_obj", &c.rgb_rmse_obj, 1);
                 json_stat(&b, "depth_rmse", &c.depth_rmse, 1);
                 json_stat(&b, "l2", &c.l2, 1);
                 json_stat(&b, "matched_frac", &c.matched_frac, 1);

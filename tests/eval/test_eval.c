@@ -69,6 +69,7 @@ static void test_table(const char *dir) {
             vm.miou_best = run ? 0.8 : 0.6;
             vm.miou_hung = vm.miou_best - 0.1;
             vm.rgb_rmse = 0.1 + 0.01 * v;   /* mean 0.11 per run */
+            vm.rgb_rmse_obj = v == 2 ? NAN : 0.3 + 0.1 * run;   /* runs: 0.3, 0.4 (NaN view left out) */
             vm.depth_rmse = 0.5;
             vm.n_obj_visible = 2; vm.n_obj_matched = 1; vm.l2_sum = 0.2 * (run + 1);
             vm.recall_tot[0] = 2; vm.recall_hit[0] = 1;
@@ -86,6 +87,9 @@ static void test_table(const char *dir) {
     CHECK_CLOSE(c.miou_best.std, sqrt(0.02), 1e-12, 0);
     CHECK_CLOSE(c.rgb_rmse.mean, 0.11, 1e-12, 0);
     CHECK_CLOSE(c.rgb_rmse.std, 0.0, 1e-12, 0);
+    CHECK(c.rgb_rmse_obj.n_runs == 2);
+    CHECK_CLOSE(c.rgb_rmse_obj.mean, 0.35, 1e-12, 0);
+    CHECK_CLOSE(c.rgb_rmse_obj.std, sqrt(0.005), 1e-12, 0);
     CHECK_CLOSE(c.l2.mean, 0.3, 1e-12, 0);   /* runs: 0.2, 0.4 */
     CHECK_CLOSE(c.matched_frac.mean, 0.5, 1e-12, 0);
     CHECK(sooc_eval_table_cell(t, "ours", SOOC_SCALE_S, 1, &c) == SOOC_ENOTFOUND);
@@ -101,7 +105,13 @@ static void test_table(const char *dir) {
         CHECK(strstr(txt, "n/a") != NULL);   /* L2 of input views */
     }
     if (md) CHECK(strstr(md, "| ours | I |") != NULL && strstr(md, "Hungarian") != NULL);
+    /* object-pixel RGB RMSE: a supplementary column, not in the main table */
+    if (md) CHECK(strstr(md, "| recall >5 m | RGB RMSE objects |") != NULL);
+    if (md) CHECK(strstr(md, " 0.350±0.071 |\n") != NULL);
+    if (txt) CHECK(strstr(txt, "objects") == NULL);
     if (js) CHECK(strstr(js, "\"model\": \"baseline\", \"scale\": \"l\", \"view\": \"Q\"") != NULL);
+    if (js) CHECK(strstr(js, "\"rgb_rmse_obj\": {\"mean\": 0.35, ") != NULL &&
+                  strstr(js, "\"rgb_rmse_obj\": \"channel sum") != NULL);
     sooc_free(txt); sooc_free(md); sooc_free(js);
     char jp[1024], mp[1024];
     snprintf(jp, sizeof jp, "%s/table.json", dir);

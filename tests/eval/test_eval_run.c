@@ -541,10 +541,11 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     char *js = read_text(p);
     CHECK_MSG(js && json_valid(js), "eval JSON parses");
     CHECK(js && strstr(js, "\"a\"") && strstr(js, "\"b online\"") && strstr(js, "final map"));
+    CHECK(js && strstr(js, "\"rgb_rmse_obj\": {\"mean\": "));
     free(js);
     snprintf(p, sizeof p, "%s/e.md", g_tmp);
     char *md = read_text(p);
-    CHECK(md && strstr(md, "| a ") && strstr(md, "mIoU"));
+    CHECK(md && strstr(md, "| a ") && strstr(md, "mIoU") && strstr(md, "RGB RMSE objects"));
     free(md);
     snprintf(p, sizeof p, "%s/eval.txt", g_tmp);
     char *tx = read_text(p);
@@ -623,7 +624,7 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     }
     snprintf(p, sizeof p, "%s/r/views.csv", g_tmp);
     char *vc = read_text(p);
-    CHECK(vc && strstr(vc, "miou_best"));
+    CHECK(vc && strstr(vc, "miou_best") && strstr(vc, ",l2,rgb_rmse_obj\n"));
     free(vc);
 
     /* render from a stored map (no updates) */

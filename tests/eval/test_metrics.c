@@ -214,11 +214,86 @@ static void test_view(void) {
     sooc_frame_free(&f);
 }
 
+/* Object-pixel RGB RMSE: a 4x2 frame, GT ids [0 0 1 1 / 2 2 0 0], pixel 5
+ * beyond d_clip. The prediction's floor is exact; object 1 is off by
+ * (0.5, 0, 0) (sum sq 0.25 per pixel), object 2 by (0.1, 0.2, 0.2) (0.09). */
+static void test_view_obj(void) {
+    sooc_frame f;
+    CHECK_OK(sooc_frame_alloc(&f, 4, 2, 1));
+    sooc_se3_identity(f.T_wc);
+    uint16_t ids[8] = {0, 0, 1, 1, 2, 2, 0, 0};
+    float rgb[24], dep[8];
+    int16_t lab[8] = {0};
+    for (int p = 0; p < 8; p++) {
+        f.instance[p] = ids[p];
+        f.depth[p] = p == 5 ? 9.0f : 2.0f;
+        f.valid[p] = 1;
+        const uint8_t c[3] = {128, 64, 32};
+        for (int ch = 0; ch < 3; ch++) {
+            f.rgb[3 * p + ch] = c[ch];
+            rgb[3 * p + ch] = (float)(c[ch] / 255.0);
+        }
+        dep[p] = 2.0f;
+    }
+    const float e1[3] = {0.5f, 0, 0}, e2[3] = {0.1f, 0.2f, 0.2f};
+    for (int p = 2; p < 6; p++)
+        for (int ch = 0; ch < 3; ch++) rgb[3 * p + ch] += p < 4 ? e1[ch] : p == 4 ? e2[ch] : 1.0f;
+    sooc_render_out pr;
+    memset(&pr, 0, sizeof pr);
+    pr.width = 4; pr.height = 2; pr.n_comp = 1;
+    pr.rgb = rgb; pr.depth = dep; pr.label = lab;
+    uint8_t scratch[8];
+    sooc_view_eval_in in = {&f, &pr, 8.0, 1, NULL, NULL, 0, scratch};
+    sooc_view_metrics vm;
+    CHECK_OK(sooc_metric_view(&in, &vm, NULL));
+    /* M = 7 pixels (5 is beyond d_clip); object pixels in M: 2, 3 (0.25 each) and 4 (0.09) */
+    CHECK(vm.n_valid_pixels == 7);
+    CHECK_CLOSE(vm.rgb_rmse, sqrt(0.59 / 7), 1e-6, 0);
+    CHECK_CLOSE(vm.rgb_rmse_obj, sqrt(0.59 / 3), 1e-6, 0);
+    CHECK_CLOSE(vm.depth_rmse, 0.0, 1e-12, 0);
+    /* the same without a caller scratch */
+    in.mask_scratch = NULL;
+    sooc_view_metrics v2;
+    CHECK_OK(sooc_metric_view(&in, &v2, NULL));
+    CHECK(v2.rgb_rmse == vm.rgb_rmse && v2.rgb_rmse_obj == vm.rgb_rmse_obj);
+    /* no object pixel in M (the only object pixel is beyond d_clip): NaN */
+    uint16_t *inst = f.instance;
+    for (int p = 0; p < 8; p++) inst[p] = p == 5 ? 3 : 0;
+    sooc_view_metrics vn;
+    CHECK_OK(sooc_metric_view(&in, &vn, NULL));
+    CHECK(isnan(vn.rgb_rmse_obj) && isfinite(vn.rgb_rmse));
+    CHECK_CLOSE(vn.rgb_rmse, vm.rgb_rmse, 1e-12, 0);
+    /* no instance map: NaN, the all-pixel RMSE unchanged */
+    f.instance = NULL;
+    CHECK_OK(sooc_metric_view(&in, &vn, NULL));
+    CHECK(isnan(vn.rgb_rmse_obj) && isnan(vn.miou_best));
+    CHECK_CLOSE(vn.rgb_rmse, vm.rgb_rmse, 1e-12, 0);
+    f.instance = inst;
+    /* accumulation: the view-mean over views where it is finite */
+    sooc_metric_sums a, b;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    sooc_metric_sums_add_view(&a, &vm);
+    sooc_metric_sums_add_view(&a, &vn);   /* NaN: not counted */
+    vm.rgb_rmse_obj = 0.5;
+    sooc_metric_sums_add_view(&b, &vm);
+    sooc_metric_sums_merge(&a, &b);
+    sooc_metric_means mm;
+    sooc_metric_sums_means(&a, &mm);
+    CHECK(a.n_views == 3 && a.n_rgb_obj == 2 && a.n_rgb == 3);
+    CHECK_CLOSE(mm.rgb_rmse_obj, (sqrt(0.59 / 3) + 0.5) / 2, 1e-6, 0);
+    memset(&b, 0, sizeof b);
+    sooc_metric_sums_means(&b, &mm);
+    CHECK(isnan(mm.rgb_rmse_obj));
+    sooc_frame_free(&f);
+}
+
 int main(void) {
     test_hungarian();
     test_miou();
     test_rmse();
     test_view();
+    test_view_obj();
     sooc_alloc_stats st;
     sooc_alloc_get_stats(&st);
     CHECK_MSG(st.live_bytes == 0, "leak: %llu bytes", (unsigned long long)st.live_bytes);
