@@ -5,9 +5,9 @@
  * gradient descent on z_what alone (decoder weights fixed) minimises the colour
  * error along the box's central column, and the reached colour must lie within
  * COL_TOL of the target in every channel. The sessions 6-7 model (commit
- * a46bc87) drew every object grey: its best red was (0.51, 0.38, 0.34) at
- * |z| ~ 7 and this test fails on it; the session-8 model reaches (0.78, 0.23,
- * 0.17) (docs/training.md "Session 8"). */
+ * a46bc87) drew every object grey and fails here (max channel error
+ * 0.31-0.43); the session-8 model passes (0.06-0.11; docs/training.md
+ * "Session 8"). About 1 s in Release, well under a minute under ASan. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -16,8 +16,8 @@
 #include "model/model_internal.h"
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
-#define NPT 32          /* points on the box's central column, 0 .. 0.5 m */
-#define ITERS 400
+#define NPT 16          /* points on the box's central column, 0 .. 0.5 m */
+#define ITERS 200
 #define COL_TOL 0.2f
 
 static float pe[NPT * 256], a1[NPT * 256], a2[NPT * 256], a3[NPT * 256], ac[NPT * 256], sig[NPT], rgb[NPT * 3];
@@ -67,7 +67,7 @@ static void test_colour_code(const sooc_model *m) {
                 g[i] = (column_colour(m, z, tgt, col) - f0) / 1e-2f;
                 z[i] -= 1e-2f;
             }
-            for (int i = 0; i < d; i++) z[i] -= 2.0f * g[i];
+            for (int i = 0; i < d; i++) z[i] -= 3.0f * g[i];
         }
         column_colour(m, z, tgt, col);
         float err = 0;
