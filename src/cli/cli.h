@@ -38,6 +38,8 @@ int sooc_cli_int_opt(const char *cmd, const char *opt, const char *s, int lo, in
 int sooc_cli_double_opt(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out);
 /* A whole unsigned decimal integer in 0..hi (seeds, step and frame counts), with the same message. */
 int sooc_cli_u64_opt(const char *cmd, const char *opt, const char *s, uint64_t hi, uint64_t *out);
+/* A count in 0..INT64_MAX (train --steps, --max-frames), with the same message. */
+int sooc_cli_count_opt(const char *cmd, const char *opt, const char *s, long long *out);
 /* "--slots N": object slots per keyframe, 0 (the model's K) or 1..SOOC_MODEL_K_MAX. */
 int sooc_cli_parse_slots(const char *s, int *slots);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */

@@ -58,17 +58,24 @@ int sooc_cli_parse_double(const char *s, double lo, double hi, double *out) {
     return 1;
 }
 
-static int bad_value(const char *cmd, const char *opt, const char *s, const char *what, double lo, double hi) {
-    fprintf(stderr, "sooc3d %s: %s: expected %s in [%.15g, %.15g], got '%s'\n", cmd, opt, what, lo, hi, s);
+/* The one usage message of a bad option value; range is "[lo, hi]". */
+static int bad_value(const char *cmd, const char *opt, const char *s, const char *what, const char *range) {
+    fprintf(stderr, "sooc3d %s: %s: expected %s in %s, got '%s'\n", cmd, opt, what, range, s);
     return 0;
 }
 
+static int bad_number(const char *cmd, const char *opt, const char *s, const char *what, double lo, double hi) {
+    char range[80];
+    snprintf(range, sizeof range, "[%.15g, %.15g]", lo, hi);
+    return bad_value(cmd, opt, s, what, range);
+}
+
 int sooc_cli_int_opt(const char *cmd, const char *opt, const char *s, int lo, int hi, int *out) {
-    return sooc_cli_parse_int(s, lo, hi, out) || bad_value(cmd, opt, s, "an integer", lo, hi);
+    return sooc_cli_parse_int(s, lo, hi, out) || bad_number(cmd, opt, s, "an integer", lo, hi);
 }
 
 int sooc_cli_double_opt(const char *cmd, const char *opt, const char *s, double lo, double hi, double *out) {
-    return sooc_cli_parse_double(s, lo, hi, out) || bad_value(cmd, opt, s, "a number", lo, hi);
+    return sooc_cli_parse_double(s, lo, hi, out) || bad_number(cmd, opt, s, "a number", lo, hi);
 }
 
 int sooc_cli_u64_opt(const char *cmd, const char *opt, const char *s, uint64_t hi, uint64_t *out) {
@@ -76,11 +83,18 @@ int sooc_cli_u64_opt(const char *cmd, const char *opt, const char *s, uint64_t h
     errno = 0;
     unsigned long long v = s[0] >= '0' && s[0] <= '9' ? strtoull(s, &end, 10) : 0;
     if (s[0] < '0' || s[0] > '9' || *end || errno || v > hi) {
-        fprintf(stderr, "sooc3d %s: %s: expected an integer in [0, %llu], got '%s'\n", cmd, opt,
-                (unsigned long long)hi, s);
-        return 0;
+        char range[48];   /* exact: a double would round 2^64 - 1 */
+        snprintf(range, sizeof range, "[0, %llu]", (unsigned long long)hi);
+        return bad_value(cmd, opt, s, "an integer", range);
     }
     *out = v;
+    return 1;
+}
+
+int sooc_cli_count_opt(const char *cmd, const char *opt, const char *s, long long *out) {
+    uint64_t v;
+    if (!sooc_cli_u64_opt(cmd, opt, s, INT64_MAX, &v)) return 0;
+    *out = (long long)v;
     return 1;
 }
 

@@ -181,9 +181,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         else if (!strcmp(a, "--seed") && has) { if (!sooc_cli_u64_opt("infer", a, argv[++i], UINT64_MAX, &seed)) return 2; }
         else if (!strcmp(a, "--every") && has) INTV(1, 1000000, &every);
         else if (!strcmp(a, "--max-frames") && has) {
-            uint64_t v;
-            if (!sooc_cli_u64_opt("infer", a, argv[++i], INT64_MAX, &v)) return 2;
-            maxf = (long long)v;
+            if (!sooc_cli_count_opt("infer", a, argv[++i], &maxf)) return 2;
         }
         else if (!strcmp(a, "--samples") && has) INTV(2, 4064, &samples); /* + 32 fine <= the renderer's 4096 */
         else if (!strcmp(a, "--no-render")) render = 0;

@@ -189,9 +189,7 @@ int sooc_cmd_render(int argc, char **argv) {
         else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--max-frames") && has) {
-            uint64_t v;
-            if (!sooc_cli_u64_opt("render", a, argv[++i], INT64_MAX, &v)) return 2;
-            maxf = (long long)v;
+            if (!sooc_cli_count_opt("render", a, argv[++i], &maxf)) return 2;
         }
         else if (!strcmp(a, "--max-obj") && has) INTV(0, SOOC_RENDER_MAX_COMP - 1, &ro.max_obj);
         else if (!strcmp(a, "--clip") && has) {

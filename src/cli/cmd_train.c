@@ -50,9 +50,7 @@ int sooc_cmd_train(int argc, char **argv) {
         else if (!strcmp(a, "--resume")) resume = 1;
         else if (!strcmp(a, "--init") && i + 1 < argc) init = argv[++i];
         else if (!strcmp(a, "--steps") && i + 1 < argc) {
-            uint64_t v;
-            if (!sooc_cli_u64_opt("train", a, argv[++i], INT64_MAX, &v)) return 2;
-            steps = (long long)v;
+            if (!sooc_cli_count_opt("train", a, argv[++i], &steps)) return 2;
         }
         else if (!strcmp(a, "--threads") && i + 1 < argc) {
             if (!sooc_cli_int_opt("train", a, argv[++i], 0, 256, &threads)) return 2;
