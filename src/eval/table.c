@@ -377,8 +377,9 @@ sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
     md_by_nobj(&b, t, models, nm, sc, ns);
     sb_printf(&b, "\nmIoU: MulMON best-match per GT instance (background included, IoU < 0.05 -> 0); "
                   "RGB RMSE: sqrt of the per-pixel channel SUM of squared errors (divide by sqrt(3) for "
-                  "the per-channel mean), over all pixels or (objects) GT instance != 0 only; depth RMSE in m over GT depth <= d_clip; L2: floor-plane error "
-                  "of best-matched objects, query views. Values: mean±std over runs. See docs/metrics.md.\n");
+                  "the per-channel mean), over all pixels or (objects) GT instance != 0 only; depth RMSE in m "
+                  "over GT depth <= d_clip; L2: floor-plane error of best-matched objects, query views. "
+                  "Values: mean±std over runs. See docs/metrics.md.\n");
     if (t->note) sb_printf(&b, "\n%s\n", t->note);
     return sb_finish(&b, out);
 }
