@@ -81,6 +81,12 @@ sooc_seq_format sooc_seq_get_format(const sooc_seq *s);
 const sooc_calib *sooc_seq_calib(const sooc_seq *s);
 /* Number of rgb entries dropped because no depth matched (TUM). */
 int64_t sooc_seq_dropped(const sooc_seq *s);
+/* Gravity direction in the world frame (the frame of T_wc), from
+ * <dir>/gravity-direction.txt (7-Scenes: three numbers, one per line or on
+ * one line). Returns 1 and g normalised to unit length when the sequence has
+ * one, 0 (g untouched) otherwise. A malformed or zero-length file fails
+ * sooc_seq_open (EFORMAT/EINVAL naming the file). */
+int sooc_seq_gravity(const sooc_seq *s, double g[3]);
 void sooc_seq_close(sooc_seq *s);   /* NULL-safe */
 
 /* ------------------------------------------------------------- writer */

@@ -29,6 +29,8 @@ struct sooc_seq {
     double depth_scale, max_depth;
     int depth_shift;
     int flip_y;
+    int has_gravity;
+    double gravity[3];            /* unit vector in the world frame */
     seq_entry *e;
     int64_t n, cap, dropped;
     sooc_image img_rgb, img_depth, img_inst;
@@ -606,6 +608,52 @@ static sooc_status open_replica(sooc_seq *s, const sooc_seq_open_params *p) {
     return st;
 }
 
+/* gravity-direction.txt (7-Scenes): three numbers, the direction of gravity
+ * in the world frame. Absent -> no gravity; malformed -> error. */
+typedef struct grav_ctx {
+    double v[3];
+    int n;
+    const char *file;
+} grav_ctx;
+
+static sooc_status grav_line(void *user, int lineno, char *line) {
+    grav_ctx *g = user;
+    char *tok[4];
+    int nt = tokenize(line, tok, 3);
+    for (int k = 0; k < nt; k++) {
+        if (g->n >= 3 || nt > 3)
+            return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 3 numbers (gravity x y z), got more", g->file, lineno);
+        if (!parse_double(tok[k], &g->v[g->n]))
+            return sooc_seterr(SOOC_EFORMAT, "%s:%d: '%s' is not a finite number", g->file, lineno, tok[k]);
+        g->n++;
+    }
+    return SOOC_OK;
+}
+
+static sooc_status load_gravity(sooc_seq *s) {
+    char path[4096];
+    sooc_status st = sooc_path_join(path, sizeof path, s->dir, "gravity-direction.txt");
+    if (st || !sooc_file_exists(path)) return st;
+    grav_ctx g;
+    memset(&g, 0, sizeof g);
+    g.file = path;
+    st = for_lines(path, grav_line, &g);
+    if (st) return st;
+    if (g.n != 3) return sooc_seterr(SOOC_EFORMAT, "%s: expected 3 numbers (gravity x y z), got %d", path, g.n);
+    double nrm = sqrt(g.v[0] * g.v[0] + g.v[1] * g.v[1] + g.v[2] * g.v[2]);
+    if (!(nrm > 1e-9)) return sooc_seterr(SOOC_EINVAL, "%s: gravity direction has zero length", path);
+    for (int k = 0; k < 3; k++) s->gravity[k] = g.v[k] / nrm;
+    s->has_gravity = 1;
+    return SOOC_OK;
+}
+
+int sooc_seq_gravity(const sooc_seq *s, double g[3]) {
+    if (!s || !s->has_gravity) return 0;
+    for (int k = 0; k < 3; k++) g[k] = s->gravity[k];
+    if (s->flip_y) g[1] = -g[1]; /* the world y axis was mirrored with the poses */
+    return 1;
+}
+
 /* ----------------------------------------------------------------- open */
 
 static sooc_seq_format detect(const char *dir) {
@@ -649,6 +697,7 @@ sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_p
         st = sooc_seterr(SOOC_ENOTFOUND, "%s: no sequence found (need rgb.txt, traj.txt, pose.txt or "
                          "frame-%%06d.color.png)", dir);
     }
+    if (!st) st = load_gravity(s);
     if (!st) {
         s->depth_scale = p.depth_scale > 0 ? p.depth_scale : s->calib.depth_scale;
         if (!(s->depth_scale > 0))

@@ -146,9 +146,32 @@ static void test_7scenes(void) {
         CHECK_CLOSE(f.depth[0], 1.0, 1e-6, 0);
         CHECK_CLOSE(f.T_wc[3], 0.5, 1e-12, 0);
         CHECK(f.K.fx == 20 && f.K.cy == 6);
+        double g[3] = {7, 7, 7};
+        CHECK(sooc_seq_gravity(s, g) == 0 && g[0] == 7); /* no gravity-direction.txt */
         sooc_seq_close(s);
         s = NULL;
     }
+    /* gravity-direction.txt: normalised; malformed files fail the open */
+    tu_write(d, "gravity-direction.txt", "0\n3\n4\n");
+    CHECK_OK(sooc_seq_open(&s, d, NULL));
+    if (s) {
+        double g[3] = {0};
+        CHECK(sooc_seq_gravity(s, g) == 1);
+        CHECK_CLOSE(g[0], 0, 1e-12, 0);
+        CHECK_CLOSE(g[1], 0.6, 1e-12, 0);
+        CHECK_CLOSE(g[2], 0.8, 1e-12, 0);
+        sooc_seq_close(s);
+        s = NULL;
+    }
+    tu_write(d, "gravity-direction.txt", "0 1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "gravity-direction.txt", "expected 3 numbers");
+    tu_write(d, "gravity-direction.txt", "0\n0\n0\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "gravity-direction.txt", "zero length");
+    tu_write(d, "gravity-direction.txt", "0\nx\n1\n");
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "gravity-direction.txt:2", "'x'");
+    char gp[900];
+    snprintf(gp, sizeof gp, "%s/gravity-direction.txt", d);
+    remove(gp);
     tu_write(d, "frame-000001.pose.txt", "1 0 0 0.5\n0 1 0 0 q\n0 0 1 0\n0 0 0 1\n");
     CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "frame-000001.pose.txt:2");
     tu_write(d, "frame-000001.pose.txt", "1 0 0 0.5\n0 1 0 zz\n0 0 1 0\n0 0 0 1\n");
