@@ -142,6 +142,30 @@ sooc_status sooc_mapstore_meta_get(sooc_mapstore *s, const char *key, char *buf,
 /* Fetch one entry by id (SOOC_ENOTFOUND if absent). */
 sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *out);
 
+/* ------------------------------------------------------- world frame */
+
+/* The map's world frame (support plane, include/sooc3d/support.h): how the
+ * pose source's frame maps into the gravity-aligned world the map lives in.
+ * Stored as meta key "world_frame" (text: "v1" then the values with %.17g,
+ * so a round trip is exact). The node writes it when it first estimates (or
+ * is given) the frame; resume, render, eval and map export read it back. */
+typedef struct sooc_map_frame {
+    double T_world_src[16];  /* p_world = T_world_src * p_src, row-major, rigid      */
+    double up_src[3];        /* unit up direction in the source frame                */
+    double plane_src[4];     /* support plane n . p + d = 0 in the source frame      */
+    double cam_height_m;     /* mean camera height over the plane when estimated     */
+    int up_source;           /* sooc_up_source (support.h): 0 given, 1 gravity file,
+                                2 camera mean; -1 = world.floor: given (no estimate) */
+} sooc_map_frame;
+
+/* Store (replace) the world frame. Fails on a non-finite value or a
+ * T_world_src that is not rigid (rotation part off orthonormal by > 1e-6). */
+sooc_status sooc_mapstore_frame_put(sooc_mapstore *s, const sooc_map_frame *f);
+/* Read the world frame: *found = 1 and *f filled, or *found = 0 (f untouched)
+ * when the map has none. A malformed stored value is SOOC_EFORMAT naming the
+ * database. */
+sooc_status sooc_mapstore_frame_get(sooc_mapstore *s, sooc_map_frame *f, int *found);
+
 #ifdef __cplusplus
 }
 #endif

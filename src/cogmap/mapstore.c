@@ -715,3 +715,80 @@ done:
     sooc_free(c.e);
     return st;
 }
+
+/* ------------------------------------------------------- world frame */
+
+#define FRAME_NVAL 24   /* T[16], up[3], plane[4], cam_height */
+
+static void frame_pack(const sooc_map_frame *f, double v[FRAME_NVAL]) {
+    memcpy(v, f->T_world_src, 16 * sizeof(double));
+    memcpy(v + 16, f->up_src, 3 * sizeof(double));
+    memcpy(v + 19, f->plane_src, 4 * sizeof(double));
+    v[23] = f->cam_height_m;
+}
+
+/* Empty string if f is a valid frame, else what is wrong. */
+static const char *frame_check(const sooc_map_frame *f) {
+    double v[FRAME_NVAL];
+    frame_pack(f, v);
+    for (int i = 0; i < FRAME_NVAL; i++)
+        if (!isfinite(v[i])) return "a value is not finite";
+    if (f->up_source < -1 || f->up_source > 2) return "up_source is not -1, 0, 1 or 2";
+    const double *T = f->T_world_src;
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double d = T[4 * a] * T[4 * b] + T[4 * a + 1] * T[4 * b + 1] + T[4 * a + 2] * T[4 * b + 2];
+            if (fabs(d - (a == b)) > 1e-6) return "T_world_src is not a rigid transform";
+        }
+    if (T[12] != 0 || T[13] != 0 || T[14] != 0 || T[15] != 1) return "T_world_src's last row is not 0 0 0 1";
+    return "";
+}
+
+sooc_status sooc_mapstore_frame_put(sooc_mapstore *s, const sooc_map_frame *f) {
+    const char *bad = frame_check(f);
+    if (*bad) return sooc_seterr(SOOC_EINVAL, "%s: world frame: %s", s->path, bad);
+    double v[FRAME_NVAL];
+    frame_pack(f, v);
+    char b[FRAME_NVAL * 26 + 32];
+    int k = snprintf(b, sizeof b, "v1 %d", f->up_source);
+    for (int i = 0; i < FRAME_NVAL; i++) k += snprintf(b + k, sizeof b - (size_t)k, " %.17g", v[i]);
+    return meta_put(s, "world_frame", b);
+}
+
+sooc_status sooc_mapstore_frame_get(sooc_mapstore *s, sooc_map_frame *f, int *found) {
+    char b[1024];
+    sooc_status err = SOOC_OK;
+    *found = 0;
+    int r = meta_get(s, "world_frame", b, sizeof b, &err);
+    if (r < 0) return err;
+    if (!r) return SOOC_OK;
+    sooc_map_frame g;
+    double v[FRAME_NVAL];
+    const char *p = b;
+    char *end;
+    if (strncmp(p, "v1 ", 3)) goto bad;
+    p += 3;
+    long us = strtol(p, &end, 10);
+    if (end == p) goto bad;
+    g.up_source = (int)us;
+    p = end;
+    for (int i = 0; i < FRAME_NVAL; i++) {
+        v[i] = strtod(p, &end);
+        if (end == p) goto bad;
+        p = end;
+    }
+    while (*p == ' ') p++;
+    if (*p) goto bad;
+    memcpy(g.T_world_src, v, 16 * sizeof(double));
+    memcpy(g.up_src, v + 16, 3 * sizeof(double));
+    memcpy(g.plane_src, v + 19, 4 * sizeof(double));
+    g.cam_height_m = v[23];
+    const char *why = frame_check(&g);
+    if (*why) return sooc_seterr(SOOC_EFORMAT, "%s: meta 'world_frame': %s", s->path, why);
+    *f = g;
+    *found = 1;
+    return SOOC_OK;
+bad:
+    return sooc_seterr(SOOC_EFORMAT, "%s: meta 'world_frame' is malformed (want 'v1 <up_source> <24 numbers>')",
+                       s->path);
+}
