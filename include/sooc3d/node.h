@@ -146,14 +146,19 @@ void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0,
  * target pixel takes the min of the valid samples in its footprint
  * (SOOC_NODE_DEPTH_MIN) or the sample nearest the footprint centre
  * (SOOC_NODE_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
- * invalid (0). */
+ * invalid (0); dmax <= 0 means no upper limit. */
 void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
                             float *dst, int tw, int th, sooc_node_depth_resample mode,
                             double dmin, double dmax);
+/* Resize a crop of an id image (row stride w) to tw x th: the sample nearest
+ * each footprint's centre (ids are never mixed). */
+void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
+                          int th);
 
 /* Full preprocessing of one frame to the model's resolution: crop to the
  * target aspect, resize RGB (area) and depth (min/nearest), set `valid`,
- * adjust the intrinsics, copy t_ns/index/pose. `dst` is (re)allocated. */
+ * adjust the intrinsics, copy t_ns/index/pose; instance ids (when src has
+ * them) by nearest sampling. `dst` is (re)allocated. */
 sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
                                  sooc_node_depth_resample mode, double dmin, double dmax);
 
@@ -169,6 +174,7 @@ typedef struct sooc_floor_fit_params {
     int iterations;          /* RANSAC hypotheses, default 200 */
     double min_inlier_frac;  /* of the points, default 0.15 */
     uint64_t seed;
+    double max_tilt_deg;     /* with hint_up: normal within this angle of it, default 30 */
 } sooc_floor_fit_params;
 
 void sooc_floor_fit_params_default(sooc_floor_fit_params *p);
@@ -176,8 +182,8 @@ void sooc_floor_fit_params_default(sooc_floor_fit_params *p);
 /* RANSAC plane fit on n points (xyz, row-major), refined by a total least
  * squares fit on the inliers (LAPACKE SVD of the centred inlier matrix), then
  * a second inlier pass. Plane: n . p + d = 0, |n| = 1. When `hint_up` is given
- * the normal is oriented along it and planes more than 30 deg away from it are
- * rejected; otherwise n points to `viewpoint` (may be NULL). */
+ * the normal is oriented along it and planes more than max_tilt_deg away from it
+ * are rejected; otherwise n points to `viewpoint` (may be NULL). */
 sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_params *p,
                            const double *hint_up, const double *viewpoint, double plane[4],
                            size_t *n_inliers, double *rms);

@@ -1,6 +1,7 @@
 /* sooc3d infer: run the online mapper over a sequence, write the final map
  * (JSON + CSV) and per-view renders from the final map. */
 #include "cli.h"
+#include "sooc3d/framepath.h"
 #include "sooc3d/image.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
@@ -16,18 +17,21 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
             "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n"
-            "                    [--merge R] [--latents mean|sample] [--slots N] [--trace]\n\n"
+            "                    [--merge R] [--latents mean|sample] [--slots N] [--trace]\n"
+            "                    [--calib F] [--format NAME] [--depth-scale S] [--depth-shift N]\n"
+            "                    [--min-depth M] [--max-depth M] [--up X,Y,Z] [--world W]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
-            "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id)\n"
+            "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id; map.json\n"
+            "                               also holds the world frame: T_world_src and its source)\n"
             "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, merged, ms)\n"
             "  DIR/trace.csv                with --trace: every map change of every update (frame,\n"
             "                               event reg|del, id, x, z, yaw, presence, obs_count)\n"
             "  DIR/render/%%06d_{rgb,depth,label}.png  renders of every frame from the final map\n"
             "                               (input and query views; 96 coarse + 32 fine samples)\n\n"
             "  --model       model checkpoint (models/<name>/model.bin)\n"
-            "  --seq         sequence directory (any format sooc3d reads); frames must have poses and\n"
-            "                the model's resolution (64x64); query frames (scene.yaml) are not mapped\n"
+            "  --seq         sequence directory (any format sooc3d reads, any resolution); frames without\n"
+            "                a pose and query frames (scene.yaml) are not mapped\n"
             "  --iterations  refinement updates per frame (default: the model's L)\n"
             "  --seed        seed of the ray offsets (and posterior samples with --latents sample);\n"
             "                results are deterministic for a seed (default 1)\n"
@@ -44,17 +48,24 @@ static void usage(FILE *f) {
             "  --slots       object slots per frame; 0 = the model's setting (default: its config slots,\n"
             "                else its trained K; the shipped model: 10). More than K pads the extra\n"
             "                slots with mirrored learnt priors (docs/model.md, slots at inference)\n"
-            "  --trace       write DIR/trace.csv\n");
+            "  --trace       write DIR/trace.csv\n\n"
+            "%s",
+            sooc_cli_framepath_help);
 }
 
-static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n) {
+static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n, const sooc_framepath *fp) {
     char path[1024];
     sooc_status st = sooc_path_join(path, sizeof path, dir, "map.json");
     if (st) return st;
     size_t cap = 4096 + n * 2048, len = 0;
     char *b = malloc(cap);
     if (!b) return SOOC_ENOMEM;
-    len += (size_t)snprintf(b + len, cap - len, "{\n  \"entries\": [\n");
+    double T[16];
+    sooc_framepath_world w = sooc_framepath_world_get(fp, T);
+    len += (size_t)snprintf(b + len, cap - len, "{\n  \"world\": {\"source\": \"%s\", \"T_world_src\": [",
+                            sooc_framepath_world_name(w));
+    for (int k = 0; k < 16; k++) len += (size_t)snprintf(b + len, cap - len, "%s%.9g", k ? ", " : "", T[k]);
+    len += (size_t)snprintf(b + len, cap - len, "]},\n  \"entries\": [\n");
     for (size_t i = 0; i < n; i++) {
         len += (size_t)snprintf(b + len, cap - len,
                                 "    {\"id\": %llu, \"x\": %.6f, \"z\": %.6f, \"yaw\": %.6f, \"sigma_t\": %.6f, "
@@ -160,6 +171,9 @@ int sooc_cmd_infer(int argc, char **argv) {
     double clip = 0, merge = 0;
     long long maxf = -1;
     uint64_t seed = 1;
+    sooc_framepath_params fpp;
+    sooc_framepath_params_default(&fpp);
+    int fo;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         int has = i + 1 < argc;
@@ -192,6 +206,9 @@ int sooc_cmd_infer(int argc, char **argv) {
                 return 2;
             }
         }
+        else if ((fo = sooc_cli_framepath_opt("infer", argc, argv, &i, &fpp)) != 0) {
+            if (fo < 0) return 2;
+        }
         else if (!strcmp(a, "--slots") && has) {
             if (!sooc_cli_parse_slots(argv[++i], &slots)) {
                 fprintf(stderr, "sooc3d infer: --slots wants 0 (the model's) up to %d object slots\n", SOOC_MODEL_K_MAX);
@@ -209,15 +226,15 @@ int sooc_cmd_infer(int argc, char **argv) {
         usage(stderr);
         return 2;
     }
+    if (!sooc_cli_framepath_check("infer", &fpp)) return 2;
     sooc_status st;
-    sooc_seq *sq = NULL;
+    sooc_framepath *sq = NULL;
     sooc3d_mapper *mp = NULL;
     sooc_frame f;
     memset(&f, 0, sizeof f);
     FILE *uc = NULL, *tc = NULL;
     char path[1024], rdir[1024];
     if ((st = sooc_mkdirs(out))) return sooc_cli_fail("infer", st);
-    if ((st = sooc_seq_open(&sq, seq, NULL))) return sooc_cli_fail("infer", st);
     sooc3d_mapper_params p;
     sooc3d_mapper_params_default(&p);
     p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
@@ -227,7 +244,9 @@ int sooc_cmd_infer(int argc, char **argv) {
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
     int mw, mh;
     sooc3d_mapper_input_size(mp, &mw, &mh);
-    int64_t n = sooc_seq_count(sq);
+    fpp.width = mw, fpp.height = mh;
+    if ((st = sooc_framepath_open(&sq, seq, &fpp))) goto fail;
+    int64_t n = sooc_framepath_count(sq);
     if (maxf >= 0 && maxf < n) n = maxf;
     snprintf(path, sizeof path, "%s/updates.csv", out);
     uc = fopen(path, "w");
@@ -249,13 +268,8 @@ int sooc_cmd_infer(int argc, char **argv) {
     int64_t n_in = 0, mapped = 0;
     double ms_sum = 0;
     for (int64_t i = 0; i < n; i++) {
-        if ((st = sooc_seq_read(sq, i, &f))) goto fail;
+        if ((st = sooc_framepath_read(sq, i, &f))) goto fail;
         if (f.is_query || !f.has_pose) continue;
-        if (f.width != mw || f.height != mh) {
-            st = sooc_seterr(SOOC_EINVAL, "%s: frame %lld is %dx%d, the model needs %dx%d (resize the sequence)", seq,
-                             (long long)i, f.width, f.height, mw, mh);
-            goto fail;
-        }
         if (n_in++ % every) continue;
         sooc3d_update_stats us;
         uint64_t born = sooc3d_mapper_next_id(mp);
@@ -287,17 +301,21 @@ int sooc_cmd_infer(int argc, char **argv) {
         st = SOOC_ENOMEM;
         goto fail;
     }
-    if (!(st = sooc3d_mapper_entries(mp, e, ne, &ne))) st = write_map(out, e, ne);
+    if (!(st = sooc3d_mapper_entries(mp, e, ne, &ne))) st = write_map(out, e, ne, sq);
     free(e);
     if (st) goto fail;
     printf("infer: %lld frames mapped (%.1f ms/update mean), %zu map entries -> %s/map.json\n", (long long)mapped,
            mapped ? ms_sum / (double)mapped : 0.0, ne, out);
+    if (sooc_framepath_empty_depth(sq) > 0)
+        fprintf(stderr, "sooc3d infer: warning: %lld frames had no valid depth in [%g, %g] m after preprocessing "
+                        "(check the depth scale: --calib, --depth-scale, --depth-shift)\n",
+                (long long)sooc_framepath_empty_depth(sq), fpp.min_depth_m, fpp.max_depth_m);
     if (render) {
         snprintf(rdir, sizeof rdir, "%s/render", out);
         if ((st = sooc_mkdirs(rdir))) goto fail;
         int nr = 0;
         for (int64_t i = 0; i < n; i++) {
-            if ((st = sooc_seq_read(sq, i, &f))) goto fail;
+            if ((st = sooc_framepath_read(sq, i, &f))) goto fail;
             if (!f.has_pose) continue;
             if ((st = render_frame(mp, &f, rdir, samples, threads))) goto fail;
             nr++;
@@ -306,13 +324,13 @@ int sooc_cmd_infer(int argc, char **argv) {
     }
     sooc_frame_free(&f);
     sooc3d_mapper_destroy(mp);
-    sooc_seq_close(sq);
+    sooc_framepath_close(sq);
     return 0;
 fail:
     if (uc) fclose(uc);
     if (tc) fclose(tc);
     sooc_frame_free(&f);
     sooc3d_mapper_destroy(mp);
-    sooc_seq_close(sq);
+    sooc_framepath_close(sq);
     return sooc_cli_fail("infer", st);
 }

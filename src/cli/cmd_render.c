@@ -4,6 +4,7 @@
 #include "cli.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
+#include "sooc3d/framepath.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
 #include "sooc3d/node.h"
@@ -21,7 +22,9 @@ static void usage(FILE *f) {
             "usage: sooc3d render --model M --seq DIR --out DIR [--map map.sqlite] [--views N]\n"
             "                     [--uncertainty M] [--log train_dir/log.csv] [--seed S] [--threads T]\n"
             "                     [--samples C,F] [--iterations L] [--input-timing final|online]\n"
-            "                     [--max-frames N] [--max-obj K] [--clip D] [--calib calib.yaml]\n\n"
+            "                     [--max-frames N] [--max-obj K] [--clip D]\n"
+            "                     [--calib F] [--format NAME] [--depth-scale S] [--depth-shift N]\n"
+            "                     [--min-depth M] [--max-depth M] [--up X,Y,Z] [--world W]\n\n"
             "Runs online inference over the sequence's input views (or, with --map, renders from a map\n"
             "stored by `sooc3d node` / the map store, without updating it) and writes\n"
             "  OUT/panels/view_%%06d.png  one panel per selected view: GT | reconstruction |\n"
@@ -30,8 +33,9 @@ static void usage(FILE *f) {
             "                            the sequence has instance ids)\n"
             "  OUT/cogmap/cogmap_%%04d.png, OUT/cogmap/cogmap_sheet.png\n"
             "                            the cognitive map from above after each input view: camera\n"
-            "                            frustums, entries coloured by id, out-of-view entries grey,\n"
-            "                            GT objects (scene.yaml) as outlines\n"
+            "                            frustums and the camera path in the map's world frame,\n"
+            "                            entries coloured by id, out-of-view entries grey, GT\n"
+            "                            objects (scene.yaml) as outlines\n"
             "  OUT/views.csv             per-view metrics of every rendered view\n"
             "  OUT/curves.png            training curves (with --log)\n\n"
             "  --views         panels for N views spread evenly over the sequence (8; 0 = all)\n"
@@ -43,9 +47,9 @@ static void usage(FILE *f) {
             "  --max-obj       render at most K in-view objects per view (default: all, up to 63)\n"
             "  --clip          clip depth in metres instead of the model's d_clip (e.g. the sensor's\n"
             "                  usable range): deeper pixels are unscored, deeper objects out of view\n"
-            "  --calib         calibration YAML for sequences without DIR/calib.yaml\n"
-            "Frames of another size are cropped/resized to the model's resolution; poses must be in a\n"
-            "gravity-aligned world (+y up, floor at y = 0), as for `sooc3d infer`.\n");
+            "With --map, the world frame stored in the map (by `sooc3d node`) places the camera.\n\n"
+            "%s",
+            sooc_cli_framepath_help);
 }
 
 typedef struct render_ctx {
@@ -59,6 +63,7 @@ typedef struct render_ctx {
     int timing;
     sooc_progress pr;
     int n_done, n_total;
+    int n_nan;                 /* views whose RGB or depth RMSE is not finite */
 } render_ctx;
 
 static sooc_status write_panel(render_ctx *R, const sooc_eval_view_info *v) {
@@ -97,6 +102,7 @@ static sooc_status on_view(void *user, const sooc_eval_view_info *v) {
                 m->n_obj_visible, m->n_obj_matched, m->n_obj_matched ? m->l2_sum / m->n_obj_matched : NAN,
                 m->rgb_rmse_obj);
     R->n_done++;
+    if (!isfinite(m->rgb_rmse) || !isfinite(m->depth_rmse)) R->n_nan++;
     sooc_progress_update(&R->pr, (uint64_t)R->n_done, NULL);
     /* a panel for the flagged views; input views at the chosen timing only */
     if (!R->detail[v->frame]) return SOOC_OK;
@@ -117,46 +123,42 @@ static sooc_status on_step(void *user, const sooc_eval_step_info *s) {
     return SOOC_OK;
 }
 
-/* Every frame with a pose, at the model's resolution. */
-static sooc_status read_frames(const char *dir, const char *calib, int W, int H, long long maxf, sooc_frame **out,
-                               int *n_out, int *resized) {
-    sooc_seq *sq = NULL;
+/* Every frame with a pose, through the frame path at the model's resolution,
+ * poses in the map's world frame. *n_empty: frames without valid depth. */
+static sooc_status read_frames(const char *dir, const sooc_framepath_params *fpp, long long maxf, sooc_frame **out,
+                               int *n_out, int *resized, int64_t *n_empty) {
+    sooc_framepath *fp = NULL;
     *out = NULL;
     *n_out = 0;
     *resized = 0;
-    sooc_seq_open_params sp;
-    sooc_seq_open_params_default(&sp);
-    sp.calib_path = calib;
-    sooc_status st = sooc_seq_open(&sq, dir, &sp);
+    sooc_status st = sooc_framepath_open(&fp, dir, fpp);
     if (st) return st;
-    int64_t n = sooc_seq_count(sq);
+    int64_t n = sooc_framepath_count(fp);
     if (maxf >= 0 && maxf < n) n = maxf;
     sooc_frame *fr = calloc(n ? (size_t)n : 1, sizeof *fr);
-    sooc_frame tmp;
-    memset(&tmp, 0, sizeof tmp);
     if (!fr) {
-        sooc_seq_close(sq);
+        sooc_framepath_close(fp);
         return SOOC_ENOMEM;
     }
     int k = 0;
     for (int64_t i = 0; i < n && !st; i++) {
-        if ((st = sooc_seq_read(sq, i, &tmp))) break;
-        if (!tmp.has_pose) continue;
-        if (tmp.width == W && tmp.height == H) {
-            st = sooc_frame_copy(&fr[k], &tmp);
-        } else {
-            st = sooc_node_preprocess(&tmp, &fr[k], W, H, SOOC_NODE_DEPTH_NEAREST, 0.0, 0.0);
-            *resized = 1;
-        }
-        if (!st) k++;
+        if ((st = sooc_framepath_read(fp, i, &fr[k]))) break;
+        if (!fr[k].has_pose) continue;
+        k++;
     }
-    sooc_frame_free(&tmp);
-    sooc_seq_close(sq);
+    if (!st) {
+        const sooc_calib *c = sooc_seq_calib(sooc_framepath_seq(fp));
+        *resized = c && c->K.width > 0 && (c->K.width != fpp->width || c->K.height != fpp->height);
+        *n_empty = sooc_framepath_empty_depth(fp);
+    }
+    sooc_framepath_close(fp);
     if (st) {
-        for (int i = 0; i < k; i++) sooc_frame_free(&fr[i]);
+        for (int i = 0; i <= k && i < n; i++) sooc_frame_free(&fr[i]);
         free(fr);
         return st;
     }
+    /* a frame read past the last kept one (no pose) */
+    if (k < n) sooc_frame_free(&fr[k]);
     *out = fr;
     *n_out = k;
     return SOOC_OK;
@@ -167,7 +169,10 @@ int sooc_cmd_render(int argc, char **argv) {
         usage(stdout);
         return 0;
     }
-    const char *model = NULL, *seqdir = NULL, *out = NULL, *mappath = NULL, *logpath = NULL, *calib = NULL;
+    const char *model = NULL, *seqdir = NULL, *out = NULL, *mappath = NULL, *logpath = NULL;
+    sooc_framepath_params fpp;
+    sooc_framepath_params_default(&fpp);
+    int fo;
     double clip = 0;
     int views = 8, timing = SOOC_EVAL_FINAL;
     long long maxf = -1;
@@ -181,7 +186,9 @@ int sooc_cmd_render(int argc, char **argv) {
         else if (!strcmp(a, "--seq") && has) seqdir = argv[++i];
         else if (!strcmp(a, "--out") && has) out = argv[++i];
         else if (!strcmp(a, "--map") && has) mappath = argv[++i];
-        else if (!strcmp(a, "--calib") && has) calib = argv[++i];
+        else if ((fo = sooc_cli_framepath_opt("render", argc, argv, &i, &fpp)) != 0) {
+            if (fo < 0) return 2;
+        }
         else if (!strcmp(a, "--log") && has) logpath = argv[++i];
         else if (!strcmp(a, "--views") && has) INTV(0, 1000000, &views);
         else if (!strcmp(a, "--uncertainty") && has) INTV(0, 1000, &ro.uncertainty);
@@ -217,6 +224,7 @@ int sooc_cmd_render(int argc, char **argv) {
         usage(stderr);
         return 2;
     }
+    if (!sooc_cli_framepath_check("render", &fpp)) return 2;
     ro.timing = (sooc_eval_timing)timing;
     ro.components = 1;
 
@@ -242,8 +250,16 @@ int sooc_cmd_render(int argc, char **argv) {
     if ((st = sooc_model_load(&m, model, NULL, NULL))) goto fail;
     if (clip > 0 && (st = sooc_model_set_clip(m, (float)clip))) goto fail;
     const sooc_model_config *mc = sooc_model_get_config(m);
-    if ((st = read_frames(seqdir, calib, mc->img_w, mc->img_h, maxf, &fr, &nf, &resized))) goto fail;
+    fpp.width = mc->img_w, fpp.height = mc->img_h;
+    fpp.map_db = mappath;
+    int64_t n_empty = 0;
+    if ((st = read_frames(seqdir, &fpp, maxf, &fr, &nf, &resized, &n_empty))) goto fail;
     if (resized) printf("render: frames cropped/resized to the model's %dx%d\n", mc->img_w, mc->img_h);
+    if (n_empty > 0)
+        fprintf(stderr, "sooc3d render: warning: %lld frames have no valid depth in [%g, %g] m after preprocessing "
+                        "(check the depth scale: --calib, --depth-scale, --depth-shift); their depth tiles are "
+                        "black and their depth RMSE is nan\n",
+                (long long)n_empty, fpp.min_depth_m, fpp.max_depth_m);
     if (nf == 0) {
         st = sooc_seterr(SOOC_EINVAL, "%s: no frame with a pose", seqdir);
         goto fail;
@@ -365,6 +381,10 @@ int sooc_cmd_render(int argc, char **argv) {
     }
     printf("render: per-view metrics -> %s/views.csv%s\n", out,
            have_scene ? "" : " (no scene.yaml: no GT segmentation, no mIoU / L2)");
+    if (R.n_nan)
+        fprintf(stderr, "sooc3d render: warning: %d of %d views have a non-finite RGB or depth RMSE (no valid "
+                        "depth to score: check the depth scale and --min-depth/--max-depth)\n",
+                R.n_nan, R.n_done);
 
 fail:
     if (R.csv) fclose(R.csv);

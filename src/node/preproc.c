@@ -82,8 +82,23 @@ void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0,
     }
 }
 
+/* dmax <= 0 means no upper limit (a range of [0, 0] never empties a frame) */
 static inline int depth_ok(float z, double dmin, double dmax) {
-    return isfinite(z) && z > 0.0f && z >= dmin && z <= dmax;
+    return isfinite(z) && z > 0.0f && z >= dmin && (dmax <= 0 || z <= dmax);
+}
+
+void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
+                          int th) {
+    double sx = (double)cw / tw, sy = (double)ch / th;
+    for (int ty = 0; ty < th; ty++) {
+        int y = (int)floor((ty + 0.5) * sy);
+        if (y >= ch) y = ch - 1;
+        for (int tx = 0; tx < tw; tx++) {
+            int x = (int)floor((tx + 0.5) * sx);
+            if (x >= cw) x = cw - 1;
+            dst[(size_t)ty * tw + tx] = src[(size_t)(y0 + y) * w + x0 + x];
+        }
+    }
 }
 
 void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch, float *dst,
@@ -128,9 +143,10 @@ sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw,
                                  sooc_node_depth_resample mode, double dmin, double dmax) {
     if (!src->rgb || !src->depth || tw <= 0 || th <= 0 || src->width <= 0 || src->height <= 0)
         return sooc_seterr(SOOC_EINVAL, "preprocess: empty frame or bad target size %dx%d", tw, th);
-    if (dst->width != tw || dst->height != th || !dst->rgb) {
+    int with_ids = src->instance != NULL;
+    if (dst->width != tw || dst->height != th || !dst->rgb || with_ids != (dst->instance != NULL)) {
         sooc_frame_free(dst);
-        sooc_status st = sooc_frame_alloc(dst, tw, th, 0);
+        sooc_status st = sooc_frame_alloc(dst, tw, th, with_ids);
         if (st) return st;
     }
     int x0, y0, cw, ch;
@@ -139,6 +155,7 @@ sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw,
     sooc_node_resize_depth(src->depth, src->width, src->height, x0, y0, cw, ch, dst->depth, tw, th, mode,
                            dmin, dmax);
     for (int i = 0; i < tw * th; i++) dst->valid[i] = dst->depth[i] > 0.0f;
+    if (with_ids) sooc_node_resize_ids(src->instance, src->width, x0, y0, cw, ch, dst->instance, tw, th);
     sooc_intrinsics K = src->K;
     if (K.width <= 0 || K.height <= 0) {
         K.width = src->width;
