@@ -9,6 +9,17 @@
  * never prints and never installs signal handlers: the CLI (`sooc3d node`)
  * blocks SIGINT/SIGTERM before any thread exists, waits for them on a
  * dedicated thread and calls sooc_node_request_stop().
+ *
+ * Threads and locks: the capture thread (driver reads, ring push), the mapping
+ * thread (the caller of sooc_node_run: everything after the ring), the shm
+ * table's heartbeat thread, and any thread of the caller's that reads
+ * sooc_node_get_stats or calls sooc_node_request_stop. The node's mutex guards
+ * the stats, the latency windows, the run's start time and every write of the
+ * world frame (T_world_src: set once by the floor estimate, read by stats).
+ * Lock order: node -> ring. get_stats holds the node's mutex while it reads the
+ * ring's counters (the ring's mutex), so no code may take the node's mutex
+ * while it holds the ring's; the ring calls back into nothing. The mapper and
+ * the publisher run on the mapping thread only and take no lock of their own.
  */
 #ifndef SOOC3D_NODE_H
 #define SOOC3D_NODE_H

@@ -59,7 +59,7 @@ struct sooc_node {
     char cap_err[512];
 
     sooc_kf_policy kf;
-    double T_world_src[16];
+    double T_world_src[16];        /* written by the mapping thread under mu (stats read it) */
     int world_ready;
     uint64_t floor_attempts;
     double *floor_pts;
@@ -82,7 +82,8 @@ struct sooc_node {
     uint64_t removed[SOOC_MAPPER_CHANGED_MAX];
     uint64_t kf_seq;               /* keyframe rows written */
 
-    pthread_mutex_t mu;            /* guards st, lat_* */
+    pthread_mutex_t mu;            /* guards st, lat_*, t_start and writes of T_world_src;
+                                      lock order node -> ring (node.h) */
     sooc_node_stats st;
     sooc_latency lat_upd, lat_c2t, lat_pub;
     double t_start, t_last_stats;
@@ -705,9 +706,11 @@ static int try_floor(sooc_node *n, const sooc_frame *f, const double T_src_c[16]
                      sooc_errmsg());
         return 0;
     }
-    sooc_node_world_from_up(plane, -plane[3], n->T_world_src);
+    double T_ws[16];
+    sooc_node_world_from_up(plane, -plane[3], T_ws);
     n->world_ready = 1;
-    pthread_mutex_lock(&n->mu);
+    pthread_mutex_lock(&n->mu);   /* stats_refresh reads T_world_src on other threads */
+    memcpy(n->T_world_src, T_ws, sizeof T_ws);
     n->st.floor_estimated = 1;
     pthread_mutex_unlock(&n->mu);
     sooc_log(SOOC_LOG_INFO, "node: floor estimated: n = (%.4f %.4f %.4f) d = %.4f, %zu/%zu inliers, rms %.4f m",
@@ -764,7 +767,9 @@ static void log_stats(sooc_node *n) {
 
 sooc_status sooc_node_run(sooc_node *n) {
     if (!n->have_src) return sooc_seterr(SOOC_EINVAL, "node: no frame source");
+    pthread_mutex_lock(&n->mu);   /* sooc_node_get_stats may run on another thread already */
     n->t_start = n->t_last_stats = sooc_seconds();
+    pthread_mutex_unlock(&n->mu);
     if (pthread_create(&n->cap_thread, NULL, capture_main, n))
         return sooc_seterr(SOOC_ERR, "node: cannot start the capture thread");
     n->cap_started = 1;
