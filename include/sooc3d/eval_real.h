@@ -1,0 +1,182 @@
+/*
+ * sooc3d metrics for real recorded sequences (issue 17 items 5 and 6;
+ * docs/metrics.md "Real sequences").
+ *
+ * A recorded sequence has no scene.yaml: no GT objects, no designated query
+ * views, often no labels. The runner (sooc_eval_real_run) holds out query
+ * frames by a fixed rule (sooc_eval_real_is_query: every N-th frame, never
+ * mapped), maps the others in order with a fresh SOOC3D mapper, renders the
+ * query frames from the final map and scores them (depth and RGB RMSE, and
+ * mIoU plus the IoU of each labelled object when the frames carry labels),
+ * then measures what needs no labels:
+ *   - churn: entries at the end and entries ever created;
+ *   - growth: the same input frames mapped a second time into the same map;
+ *   - spread: the RMS position and circular yaw spread of persistent entries
+ *     over the keyframes that registered them;
+ *   - seen: whether each final entry's centre lies where the sensor saw free
+ *     space, a surface, or never looked (sooc_eval_point_seen).
+ *
+ * Every building block is a plain function testable on hand-made frames.
+ * No function prints or exits; errors are sooc_status codes with messages.
+ */
+#ifndef SOOC3D_EVAL_REAL_H
+#define SOOC3D_EVAL_REAL_H
+
+#include "sooc3d/core.h"
+#include "sooc3d/eval.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/metrics.h"
+#include "sooc3d/model.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------- query rule */
+
+/* Default N of the query rule: label-fusion (15 frames) gets 3 query frames,
+ * the 7-Scenes excerpt (300 frames) 60. */
+#define SOOC_REAL_QUERY_EVERY 5
+
+/* The query rule: the frame at position `pos` (0-based, sequence order) is a
+ * held-out query frame iff every >= 2 and pos % every == every / 2 (the
+ * middle of each block of N frames, so the first frame is always mapped and
+ * every query frame has mapped neighbours on both sides). every <= 1: no
+ * query frames. */
+int sooc_eval_real_is_query(int pos, int every);
+
+/* ------------------------------------------------------ free / surface / never */
+
+typedef enum sooc_seen_class {
+    SOOC_SEEN_NEVER = 0,     /* no frame saw the point (outside every view, behind every
+                                surface the frames measured, or invalid depth there)     */
+    SOOC_SEEN_FREE = 1,      /* more frames saw through it (free space) than on a surface */
+    SOOC_SEEN_SURFACE = 2    /* at least as many frames saw a surface at it as saw free   */
+} sooc_seen_class;
+const char *sooc_seen_class_name(sooc_seen_class c);   /* "never", "free", "surface" */
+
+typedef struct sooc_seen_votes {
+    int n_in_view;           /* frames whose image holds the point (in front, >= 0.1 m)   */
+    int n_free;              /* ... with valid depth d there and z < d - tol              */
+    int n_surface;           /* ... with |z - d| <= tol                                   */
+    int n_behind;            /* ... with z > d + tol (occluded: no evidence)              */
+    sooc_seen_class cls;
+} sooc_seen_votes;
+
+/* Test a world point p_w against n posed depth frames: project it with each
+ * frame's T_wc and K (nearest pixel), compare its camera z with the frame's
+ * planar depth d there (valid pixels only). tol in metres (> 0). Frames
+ * without a pose are skipped. */
+sooc_status sooc_eval_point_seen(const double p_w[3], const sooc_frame *frames, int n, double tol,
+                                 sooc_seen_votes *out);
+
+/* ------------------------------------------------------------- spread */
+
+/* Position / yaw track of one entry over the keyframes that registered it
+ * (Welford for position; unit vectors for yaw). Zero-initialise. */
+typedef struct sooc_track {
+    long n;
+    double mx, mz, m2;        /* running mean of x, z; summed squared distance to it */
+    double sc, ss;            /* sums of cos(yaw), sin(yaw)                          */
+} sooc_track;
+void sooc_track_add(sooc_track *t, double x, double z, double yaw);
+/* pos_rms: sqrt(mean |p - mean p|^2) on the floor (m); yaw_std: circular
+ * std sqrt(-2 ln R), R = |mean of exp(i yaw)| (rad). Both NaN if n == 0. */
+void sooc_track_spread(const sooc_track *t, double *pos_rms, double *yaw_std);
+
+/* --------------------------------------------------------------- churn */
+
+typedef struct sooc_churn {
+    long updates;
+    long created;             /* entries created that were still in the map after their update */
+    long removed;             /* entries removed that an earlier update had created            */
+} sooc_churn;
+/* Account one update: `born` = the mapper's next id before it, reg_ids the
+ * entries it registered, rem_ids the ids it removed (sooc3d_mapper_changed).
+ * An id >= born that is also removed was merged away within the update: it
+ * never was in the map and counts as neither. */
+void sooc_churn_update(sooc_churn *c, uint64_t born, const uint64_t *reg_ids, size_t n_reg,
+                       const uint64_t *rem_ids, size_t n_rem);
+
+/* ------------------------------------------------------- per-object IoU */
+
+/* Per labelled object (GT id != 0): the best-match IoU (sooc_metric_miou,
+ * IoU < 0.05 -> 0) summed over the views where the object is visible.
+ * Zero-initialise. Ids kept ascending. */
+typedef struct sooc_obj_iou_acc {
+    int n;
+    uint16_t id[SOOC_METRIC_MAX_GT];
+    double sum[SOOC_METRIC_MAX_GT];
+    long views[SOOC_METRIC_MAX_GT];
+} sooc_obj_iou_acc;
+sooc_status sooc_obj_iou_add(sooc_obj_iou_acc *a, const sooc_iou_match *m);
+/* Mean IoU of object k (0 <= k < a->n); NaN if it was never visible. */
+double sooc_obj_iou_mean(const sooc_obj_iou_acc *a, int k);
+
+/* ------------------------------------------------------------- labels */
+
+/* Read a label image: an 8-bit PNG (label-fusion segm.png, object ids 1..255)
+ * or a 16-bit PNG (the generic instance/ layout); 0 = background. *ids is
+ * (re)allocated with sooc_realloc (pass NULL or an earlier buffer). RGB
+ * images are refused with a message naming the file. */
+sooc_status sooc_eval_labels_read(const char *path, uint16_t **ids, int *w, int *h);
+/* Nearest-neighbour resample of a label map: destination pixel (u, v) of a
+ * dw x dh image takes source pixel (x0 + floor((u + 0.5) cw / dw),
+ * y0 + floor((v + 0.5) ch / dh)), i.e. the crop [x0, x0+cw) x [y0, y0+ch)
+ * scaled to dw x dh like the frame. The crop must lie inside the source. */
+sooc_status sooc_eval_labels_resample(const uint16_t *src, int sw, int sh, int x0, int y0, int cw, int ch,
+                                      uint16_t *dst, int dw, int dh);
+
+/* -------------------------------------------------------------- the runner */
+
+typedef struct sooc_eval_real_opts {
+    sooc_eval_run_opts run;    /* seed, iterations, samples, clip, merge, latents, slots, threads,
+                                  max_obj (timing and max_views are not used)                 */
+    int query_every;           /* the query rule's N (>= 2)                (SOOC_REAL_QUERY_EVERY) */
+    int second_pass;           /* 1 = map the input frames again (growth)                  (1) */
+    double seen_tol;           /* depth band of a surface (m)                            (0.25) */
+    double seen_height;        /* height above the support plane of the tested entry centre
+                                  (m; the world frame has y up, support plane y = 0)     (0.1) */
+    int persist_min;           /* entries registered by at least this many keyframes (and in
+                                  the final map) are persistent                            (3) */
+} sooc_eval_real_opts;
+void sooc_eval_real_opts_default(sooc_eval_real_opts *o);
+
+typedef struct sooc_eval_real_result {
+    int n_frames, n_mapped, n_query;
+    int has_labels;                /* every query frame carried labels                   */
+    sooc_metric_sums query;        /* query frames from the pass-1 map (means = sum/count) */
+    sooc_obj_iou_acc obj;          /* labelled objects over the query frames             */
+    size_t entries_final;          /* entries after pass 1                               */
+    sooc_churn churn;              /* pass 1                                             */
+    size_t entries_pass2;          /* entries after pass 2 (= entries_final without it)  */
+    sooc_churn churn2;             /* pass 2                                             */
+    int n_persistent;
+    double pos_spread_m;           /* mean over persistent entries (NaN if none)         */
+    double yaw_spread_deg;
+    int n_seen[3];                 /* final entries by sooc_seen_class                   */
+    double update_s, render_s;
+} sooc_eval_real_result;
+
+/* Run one recorded sequence. frames[0..n_frames): sequence order, all posed,
+ * at the model's resolution (img_w x img_h), in the map's world frame (y up,
+ * support plane y = 0); instance = labels (0 = background) or NULL. The
+ * frames' is_query flags are ignored: the query rule decides. Only SOOC3D
+ * models (a global-frame baseline has no cognitive map: EINVAL). view_cb
+ * (may be NULL) gets each scored query frame. `m` is not modified. */
+sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_frames,
+                               const sooc_eval_real_opts *o, sooc_eval_view_fn view_cb, void *user,
+                               sooc_eval_real_result *res);
+
+/* One JSON object (no trailing newline) for cell (model, sequence): the
+ * contract keys "scale": "real", "view": "Q", depth_rmse, rgb_rmse,
+ * entries_final, entries_created, plus miou and obj_iou (list, with obj_ids
+ * and obj_views) when labelled, and the churn, growth, spread and seen
+ * figures. *out is sooc_malloc'd (caller frees). */
+sooc_status sooc_eval_real_json(const char *model, const char *sequence, const char *path,
+                                const sooc_eval_real_opts *o, const sooc_eval_real_result *r, char **out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_EVAL_REAL_H */

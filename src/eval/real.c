@@ -1,0 +1,485 @@
+/* Metrics for real recorded sequences (eval_real.h, docs/metrics.md "Real
+ * sequences"): the query rule, the free-space test, yaw/position spread,
+ * churn, per-object IoU, label images, and the runner that puts them
+ * together around the SOOC3D mapper. */
+#include "sooc3d/eval_real.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/image.h"
+#include "sooc3d/mapper.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+/* ---------------------------------------------------------------- query rule */
+
+int sooc_eval_real_is_query(int pos, int every) {
+    if (every < 2 || pos < 0) return 0;
+    return pos % every == every / 2;
+}
+
+/* ------------------------------------------------------ free / surface / never */
+
+const char *sooc_seen_class_name(sooc_seen_class c) {
+    switch (c) {
+    case SOOC_SEEN_NEVER: return "never";
+    case SOOC_SEEN_FREE: return "free";
+    case SOOC_SEEN_SURFACE: return "surface";
+    }
+    return "?";
+}
+
+sooc_status sooc_eval_point_seen(const double p_w[3], const sooc_frame *frames, int n, double tol,
+                                 sooc_seen_votes *out) {
+    if (!p_w || !out || n < 0 || (n && !frames) || !(tol > 0))
+        return sooc_seterr(SOOC_EINVAL, "point_seen: bad arguments (n %d, tol %g)", n, tol);
+    memset(out, 0, sizeof *out);
+    for (int i = 0; i < n; i++) {
+        const sooc_frame *f = &frames[i];
+        if (!f->has_pose || !f->depth || !f->valid) continue;
+        double T_cw[16], pc[3], u, v;
+        sooc_se3_inverse(T_cw, f->T_wc);
+        sooc_se3_apply(pc, T_cw, p_w);
+        if (pc[2] < 0.1) continue;
+        sooc_intrinsics K = f->K;
+        K.width = f->width, K.height = f->height;
+        if (!sooc_cam_project(&K, pc, &u, &v)) continue;
+        if (!(u >= 0 && v >= 0 && u < f->width && v < f->height)) continue;
+        out->n_in_view++;
+        size_t k = (size_t)(int)v * (size_t)f->width + (size_t)(int)u;
+        if (!f->valid[k]) continue;
+        double d = f->depth[k];
+        if (!(d > 0) || !isfinite(d)) continue;
+        if (pc[2] < d - tol) out->n_free++;
+        else if (pc[2] > d + tol) out->n_behind++;
+        else out->n_surface++;
+    }
+    if (out->n_free + out->n_surface == 0) out->cls = SOOC_SEEN_NEVER;
+    else out->cls = out->n_free > out->n_surface ? SOOC_SEEN_FREE : SOOC_SEEN_SURFACE;
+    return SOOC_OK;
+}
+
+/* ------------------------------------------------------------- spread */
+
+void sooc_track_add(sooc_track *t, double x, double z, double yaw) {
+    t->n++;
+    double dx = x - t->mx, dz = z - t->mz;
+    t->mx += dx / (double)t->n;
+    t->mz += dz / (double)t->n;
+    t->m2 += dx * (x - t->mx) + dz * (z - t->mz);
+    t->sc += cos(yaw);
+    t->ss += sin(yaw);
+}
+
+void sooc_track_spread(const sooc_track *t, double *pos_rms, double *yaw_std) {
+    if (t->n <= 0) {
+        if (pos_rms) *pos_rms = NAN;
+        if (yaw_std) *yaw_std = NAN;
+        return;
+    }
+    if (pos_rms) *pos_rms = sqrt(t->m2 > 0 ? t->m2 / (double)t->n : 0.0);
+    if (yaw_std) {
+        double R = hypot(t->sc, t->ss) / (double)t->n;
+        if (R > 1) R = 1;
+        *yaw_std = R > 0 ? sqrt(-2.0 * log(R)) : INFINITY;
+    }
+}
+
+/* --------------------------------------------------------------- churn */
+
+static int has_id(const uint64_t *ids, size_t n, uint64_t id) {
+    for (size_t i = 0; i < n; i++)
+        if (ids[i] == id) return 1;
+    return 0;
+}
+
+void sooc_churn_update(sooc_churn *c, uint64_t born, const uint64_t *reg_ids, size_t n_reg,
+                       const uint64_t *rem_ids, size_t n_rem) {
+    c->updates++;
+    for (size_t i = 0; i < n_reg; i++)
+        if (reg_ids[i] >= born && !has_id(rem_ids, n_rem, reg_ids[i])) c->created++;
+    for (size_t i = 0; i < n_rem; i++)
+        if (rem_ids[i] < born) c->removed++;
+}
+
+/* ------------------------------------------------------- per-object IoU */
+
+sooc_status sooc_obj_iou_add(sooc_obj_iou_acc *a, const sooc_iou_match *m) {
+    if (!a || !m) return sooc_seterr(SOOC_EINVAL, "obj_iou_add: missing argument");
+    for (int g = 0; g < m->n_gt; g++) {
+        uint16_t id = m->gt_id[g];
+        if (!id) continue;
+        int k = 0;
+        while (k < a->n && a->id[k] < id) k++;
+        if (k == a->n || a->id[k] != id) {
+            if (a->n == SOOC_METRIC_MAX_GT)
+                return sooc_seterr(SOOC_EINVAL, "obj_iou: more than %d labelled objects", SOOC_METRIC_MAX_GT);
+            memmove(&a->id[k + 1], &a->id[k], (size_t)(a->n - k) * sizeof a->id[0]);
+            memmove(&a->sum[k + 1], &a->sum[k], (size_t)(a->n - k) * sizeof a->sum[0]);
+            memmove(&a->views[k + 1], &a->views[k], (size_t)(a->n - k) * sizeof a->views[0]);
+            a->id[k] = id, a->sum[k] = 0, a->views[k] = 0;
+            a->n++;
+        }
+        a->sum[k] += m->best_iou[g];
+        a->views[k]++;
+    }
+    return SOOC_OK;
+}
+
+double sooc_obj_iou_mean(const sooc_obj_iou_acc *a, int k) {
+    if (!a || k < 0 || k >= a->n || a->views[k] <= 0) return NAN;
+    return a->sum[k] / (double)a->views[k];
+}
+
+/* ------------------------------------------------------------- labels */
+
+sooc_status sooc_eval_labels_read(const char *path, uint16_t **ids, int *w, int *h) {
+    if (!path || !ids || !w || !h) return sooc_seterr(SOOC_EINVAL, "labels_read: missing argument");
+    sooc_image img;
+    memset(&img, 0, sizeof img);
+    sooc_status st = sooc_png_read(path, &img);
+    if (st) return sooc_adderr(st, "labels");
+    if (img.fmt != SOOC_PIX_GRAY8 && img.fmt != SOOC_PIX_GRAY16) {
+        st = sooc_seterr(SOOC_EFORMAT, "%s: label image is %s, expected an 8- or 16-bit single-channel PNG of ids",
+                         path, sooc_pixfmt_name(img.fmt));
+        sooc_image_free(&img);
+        return st;
+    }
+    size_t np = (size_t)img.width * (size_t)img.height;
+    uint16_t *b = sooc_realloc(*ids, (np ? np : 1) * sizeof *b);
+    if (!b) {
+        sooc_image_free(&img);
+        return sooc_seterr(SOOC_ENOMEM, "%s: out of memory for %dx%d labels", path, img.width, img.height);
+    }
+    *ids = b;
+    if (img.fmt == SOOC_PIX_GRAY8) {
+        const uint8_t *s = img.data;
+        for (size_t i = 0; i < np; i++) b[i] = s[i];
+    } else {
+        memcpy(b, img.data, np * sizeof *b);
+    }
+    *w = img.width, *h = img.height;
+    sooc_image_free(&img);
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_labels_resample(const uint16_t *src, int sw, int sh, int x0, int y0, int cw, int ch,
+                                      uint16_t *dst, int dw, int dh) {
+    if (!src || !dst || sw <= 0 || sh <= 0 || dw <= 0 || dh <= 0 || cw <= 0 || ch <= 0 || x0 < 0 || y0 < 0 ||
+        x0 + cw > sw || y0 + ch > sh)
+        return sooc_seterr(SOOC_EINVAL, "labels_resample: crop (%d, %d, %d x %d) not inside %dx%d, or bad size %dx%d",
+                           x0, y0, cw, ch, sw, sh, dw, dh);
+    for (int v = 0; v < dh; v++) {
+        int sy = y0 + (int)floor((v + 0.5) * ch / (double)dh);
+        if (sy >= y0 + ch) sy = y0 + ch - 1;
+        for (int u = 0; u < dw; u++) {
+            int sx = x0 + (int)floor((u + 0.5) * cw / (double)dw);
+            if (sx >= x0 + cw) sx = x0 + cw - 1;
+            dst[(size_t)v * dw + u] = src[(size_t)sy * sw + sx];
+        }
+    }
+    return SOOC_OK;
+}
+
+/* -------------------------------------------------------------- the runner */
+
+void sooc_eval_real_opts_default(sooc_eval_real_opts *o) {
+    memset(o, 0, sizeof *o);
+    sooc_eval_run_opts_default(&o->run);
+    o->query_every = SOOC_REAL_QUERY_EVERY;
+    o->second_pass = 1;
+    o->seen_tol = 0.25;
+    o->seen_height = 0.1;
+    o->persist_min = 3;
+}
+
+typedef struct real_ctx {
+    sooc3d_mapper *mp;
+    sooc_track *tr;            /* indexed by entry id */
+    size_t tr_cap;
+    sooc_map_entry chg[SOOC_MAPPER_CHANGED_MAX];
+} real_ctx;
+
+/* Grow the per-id track table to hold id `need` (amortised, once per update). */
+static sooc_status tracks_reserve(real_ctx *C, uint64_t need) {
+    if (need < C->tr_cap) return SOOC_OK;
+    size_t cap = C->tr_cap ? C->tr_cap : 64;
+    while (cap <= need) cap *= 2;
+    sooc_track *t = sooc_realloc(C->tr, cap * sizeof *t);
+    if (!t) return sooc_seterr(SOOC_ENOMEM, "eval real: out of memory for %zu tracks", cap);
+    memset(t + C->tr_cap, 0, (cap - C->tr_cap) * sizeof *t);
+    C->tr = t, C->tr_cap = cap;
+    return SOOC_OK;
+}
+
+/* Map every input frame once; track=1 records positions for the spread. */
+static sooc_status map_pass(real_ctx *C, const sooc_frame *frames, int n, int every, int track, sooc_churn *ch,
+                            sooc_eval_real_result *res) {
+    for (int i = 0; i < n; i++) {
+        if (sooc_eval_real_is_query(i, every)) continue;
+        uint64_t born = sooc3d_mapper_next_id(C->mp);
+        sooc3d_update_stats us;
+        double t0 = sooc_seconds();
+        sooc_status st = sooc3d_mapper_update(C->mp, &frames[i], &us);
+        res->update_s += sooc_seconds() - t0;
+        if (st) return sooc_adderr(st, "eval real: frame %d (index %lld)", i, (long long)frames[i].index);
+        uint64_t reg[SOOC_MAPPER_CHANGED_MAX], rem[SOOC_MAPPER_CHANGED_MAX];
+        size_t nc = 0, nr = 0;
+        if ((st = sooc3d_mapper_changed(C->mp, C->chg, SOOC_MAPPER_CHANGED_MAX, &nc, rem, SOOC_MAPPER_CHANGED_MAX, &nr)))
+            return st;
+        for (size_t k = 0; k < nc; k++) reg[k] = C->chg[k].id;
+        sooc_churn_update(ch, born, reg, nc, rem, nr);
+        if (!track) continue;
+        for (size_t k = 0; k < nc; k++) {
+            if (has_id(rem, nr, reg[k])) continue;
+            if ((st = tracks_reserve(C, reg[k]))) return st;
+            sooc_track_add(&C->tr[reg[k]], C->chg[k].x, C->chg[k].z, C->chg[k].yaw);
+        }
+    }
+    return SOOC_OK;
+}
+
+sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_frames,
+                               const sooc_eval_real_opts *o, sooc_eval_view_fn view_cb, void *user,
+                               sooc_eval_real_result *res) {
+    sooc_eval_real_opts od;
+    if (!o) {
+        sooc_eval_real_opts_default(&od);
+        o = &od;
+    }
+    if (!m || !res || n_frames < 0 || (n_frames && !frames))
+        return sooc_seterr(SOOC_EINVAL, "eval real: bad arguments");
+    memset(res, 0, sizeof *res);
+    res->pos_spread_m = res->yaw_spread_deg = NAN;
+    if (sooc_model_is_global(m))
+        return sooc_seterr(SOOC_EINVAL, "eval real: the global-frame baseline keeps no cognitive map; the real-sequence "
+                                        "metrics (churn, growth, spread, free space) need a SOOC3D model");
+    if (o->query_every < 2)
+        return sooc_seterr(SOOC_EINVAL, "eval real: query rule N = %d, must be >= 2", o->query_every);
+    if (!(o->seen_tol > 0) || !isfinite(o->seen_height) || o->persist_min < 1)
+        return sooc_seterr(SOOC_EINVAL, "eval real: bad options (seen_tol %g, seen_height %g, persist_min %d)",
+                           o->seen_tol, o->seen_height, o->persist_min);
+    const sooc_model_config *cfg = sooc_model_get_config(m);
+    int n_lab = 0;
+    for (int i = 0; i < n_frames; i++) {
+        const sooc_frame *f = &frames[i];
+        if (!f->has_pose)
+            return sooc_seterr(SOOC_EINVAL, "eval real: frame %d (index %lld) has no pose", i, (long long)f->index);
+        if (f->width != cfg->img_w || f->height != cfg->img_h)
+            return sooc_seterr(SOOC_EINVAL, "eval real: frame %d (index %lld) is %dx%d, the model needs %dx%d", i,
+                               (long long)f->index, f->width, f->height, cfg->img_w, cfg->img_h);
+        if (sooc_eval_real_is_query(i, o->query_every)) {
+            res->n_query++;
+            n_lab += f->instance != NULL;
+        } else {
+            res->n_mapped++;
+        }
+    }
+    res->n_frames = n_frames;
+    if (!res->n_mapped || !res->n_query)
+        return sooc_seterr(SOOC_EINVAL, "eval real: %d frames give %d mapped and %d query frames with N = %d (need "
+                                        "at least one of each)", n_frames, res->n_mapped, res->n_query, o->query_every);
+    res->has_labels = n_lab == res->n_query;
+
+    real_ctx C;
+    memset(&C, 0, sizeof C);
+    sooc_model *copy = NULL;
+    sooc_map_entry *ent = NULL;
+    sooc_render_out rout;
+    memset(&rout, 0, sizeof rout);
+    sooc_status st = sooc_model_copy_slots(m, o->run.slots, &copy);
+    if (st) return sooc_adderr(st, "eval real: model copy");
+    if (o->run.d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->run.d_clip))) {
+        sooc_model_destroy(copy);
+        return st;
+    }
+    if ((st = sooc3d_mapper_create_with_model(&C.mp, copy, o->run.iterations, o->run.seed, o->run.threads))) {
+        sooc_model_destroy(copy);
+        return st;
+    }
+    sooc3d_mapper_set_merge_radius(C.mp, o->run.merge_radius);
+    sooc3d_mapper_set_latents(C.mp, o->run.latents);
+
+    /* pass 1 */
+    if ((st = map_pass(&C, frames, n_frames, o->query_every, 1, &res->churn, res))) goto done;
+    res->entries_final = sooc_cogmap_count(sooc3d_mapper_cogmap(C.mp));
+
+    /* query frames from the pass-1 map */
+    for (int i = 0; i < n_frames && !st; i++) {
+        if (!sooc_eval_real_is_query(i, o->query_every)) continue;
+        sooc_view_metrics vm;
+        sooc_iou_match match;
+        uint64_t ids[SOOC_RENDER_MAX_COMP];
+        double xz[2 * SOOC_RENDER_MAX_COMP];
+        int nc = 0;
+        double t0 = sooc_seconds();
+        st = sooc_eval_map_view(sooc3d_mapper_model(C.mp), sooc3d_mapper_cogmap(C.mp), &frames[i], NULL, 0, &o->run,
+                                0, &rout, &vm, &match, ids, xz, &nc);
+        res->render_s += sooc_seconds() - t0;
+        if (st) break;
+        vm.is_query = 1;
+        sooc_metric_sums_add_view(&res->query, &vm);
+        if (frames[i].instance && (st = sooc_obj_iou_add(&res->obj, &match))) break;
+        if (view_cb) {
+            sooc_eval_view_info vi = {i, &frames[i], 0, res->n_mapped, &rout, &vm,
+                                      frames[i].instance ? &match : NULL, nc, ids, xz};
+            st = view_cb(user, &vi);
+        }
+    }
+    if (st) goto done;
+
+    /* persistent entries and the free-space test on the pass-1 map */
+    {
+        size_t ne = 0;
+        if ((st = sooc3d_mapper_entries(C.mp, NULL, 0, &ne))) goto done;
+        if (!(ent = sooc_calloc(ne ? ne : 1, sizeof *ent))) {
+            st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory for %zu entries", ne);
+            goto done;
+        }
+        if ((st = sooc3d_mapper_entries(C.mp, ent, ne, &ne))) goto done;
+        double ps = 0, ys = 0;
+        for (size_t k = 0; k < ne; k++) {
+            uint64_t id = ent[k].id;
+            if (id < C.tr_cap && C.tr[id].n >= o->persist_min) {
+                double pr, yr;
+                sooc_track_spread(&C.tr[id], &pr, &yr);
+                ps += pr, ys += yr;
+                res->n_persistent++;
+            }
+            double p[3] = {ent[k].x, o->seen_height, ent[k].z};
+            sooc_seen_votes sv;
+            if ((st = sooc_eval_point_seen(p, frames, n_frames, o->seen_tol, &sv))) goto done;
+            res->n_seen[sv.cls]++;
+        }
+        if (res->n_persistent) {
+            res->pos_spread_m = ps / res->n_persistent;
+            res->yaw_spread_deg = ys / res->n_persistent * 180.0 / M_PI;
+        }
+    }
+
+    /* pass 2: the same input frames again, into the same map */
+    if (o->second_pass && (st = map_pass(&C, frames, n_frames, o->query_every, 0, &res->churn2, res))) goto done;
+    res->entries_pass2 = sooc_cogmap_count(sooc3d_mapper_cogmap(C.mp));
+
+done:
+    sooc_render_out_free(&rout);
+    sooc_free(ent);
+    sooc_free(C.tr);
+    sooc3d_mapper_destroy(C.mp);
+    return st;
+}
+
+/* ---------------------------------------------------------------- JSON */
+
+typedef struct jbuf {
+    char *p;
+    size_t n, cap;
+    int oom;
+} jbuf;
+
+#if defined(__GNUC__)
+__attribute__((format(printf, 2, 3)))
+#endif
+static void jb_printf(jbuf *b, const char *fmt, ...) {
+    if (b->oom) return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int k = vsnprintf(b->p ? b->p + b->n : NULL, b->p ? b->cap - b->n : 0, fmt, ap);
+        va_end(ap);
+        if (k < 0) {
+            b->oom = 1;
+            return;
+        }
+        if (b->p && b->n + (size_t)k < b->cap) {
+            b->n += (size_t)k;
+            return;
+        }
+        size_t cap = (b->cap ? b->cap * 2 : 1024) + (size_t)k;
+        char *q = sooc_realloc(b->p, cap);
+        if (!q) {
+            b->oom = 1;
+            return;
+        }
+        b->p = q, b->cap = cap;
+    }
+}
+
+static void jb_num(jbuf *b, const char *key, double v) {
+    if (isfinite(v)) jb_printf(b, ", \"%s\": %.6g", key, v);
+    else jb_printf(b, ", \"%s\": null", key);
+}
+
+static void jb_str(jbuf *b, const char *s) {
+    jb_printf(b, "\"");
+    for (; s && *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\') jb_printf(b, "\\%c", c);
+        else if (c < 0x20) jb_printf(b, "\\u%04x", c);
+        else jb_printf(b, "%c", c);
+    }
+    jb_printf(b, "\"");
+}
+
+sooc_status sooc_eval_real_json(const char *model, const char *sequence, const char *path,
+                                const sooc_eval_real_opts *o, const sooc_eval_real_result *r, char **out) {
+    if (!model || !sequence || !o || !r || !out) return sooc_seterr(SOOC_EINVAL, "eval real json: missing argument");
+    jbuf b = {0};
+    sooc_metric_means mm;
+    sooc_metric_sums_means(&r->query, &mm);
+    jb_printf(&b, "{\"model\": ");
+    jb_str(&b, model);
+    jb_printf(&b, ", \"sequence\": ");
+    jb_str(&b, sequence);
+    jb_printf(&b, ", \"path\": ");
+    jb_str(&b, path ? path : "");
+    jb_printf(&b, ", \"scale\": \"real\", \"view\": \"Q\"");
+    jb_num(&b, "depth_rmse", mm.depth_rmse);
+    jb_num(&b, "rgb_rmse", mm.rgb_rmse);
+    jb_printf(&b, ", \"entries_final\": %zu, \"entries_created\": %ld", r->entries_final, r->churn.created);
+    if (r->has_labels) {
+        jb_num(&b, "miou", mm.miou_best);
+        jb_num(&b, "miou_hungarian", mm.miou_hung);
+        jb_printf(&b, ", \"obj_ids\": [");
+        for (int k = 0; k < r->obj.n; k++) jb_printf(&b, "%s%u", k ? ", " : "", (unsigned)r->obj.id[k]);
+        jb_printf(&b, "], \"obj_iou\": [");
+        for (int k = 0; k < r->obj.n; k++) {
+            double v = sooc_obj_iou_mean(&r->obj, k);
+            if (isfinite(v)) jb_printf(&b, "%s%.6g", k ? ", " : "", v);
+            else jb_printf(&b, "%snull", k ? ", " : "");
+        }
+        jb_printf(&b, "], \"obj_views\": [");
+        for (int k = 0; k < r->obj.n; k++) jb_printf(&b, "%s%ld", k ? ", " : "", r->obj.views[k]);
+        jb_printf(&b, "]");
+        jb_num(&b, "rgb_rmse_obj", mm.rgb_rmse_obj);
+    }
+    jb_printf(&b, ", \"entries_removed\": %ld", r->churn.removed);
+    jb_num(&b, "churn", r->churn.created ? (double)r->churn.removed / (double)r->churn.created : NAN);
+    jb_printf(&b, ", \"second_pass\": %d, \"entries_pass2\": %zu, \"entries_created_pass2\": %ld, "
+                  "\"entries_removed_pass2\": %ld",
+              o->second_pass, r->entries_pass2, r->churn2.created, r->churn2.removed);
+    jb_num(&b, "growth", o->second_pass && r->entries_final
+                             ? ((double)r->entries_pass2 - (double)r->entries_final) / (double)r->entries_final
+                             : NAN);
+    jb_printf(&b, ", \"persistent\": %d, \"persist_min\": %d", r->n_persistent, o->persist_min);
+    jb_num(&b, "pos_spread_m", r->pos_spread_m);
+    jb_num(&b, "yaw_spread_deg", r->yaw_spread_deg);
+    double ne = (double)(r->n_seen[0] + r->n_seen[1] + r->n_seen[2]);
+    jb_num(&b, "free_frac", ne > 0 ? r->n_seen[SOOC_SEEN_FREE] / ne : NAN);
+    jb_num(&b, "never_seen_frac", ne > 0 ? r->n_seen[SOOC_SEEN_NEVER] / ne : NAN);
+    jb_num(&b, "surface_frac", ne > 0 ? r->n_seen[SOOC_SEEN_SURFACE] / ne : NAN);
+    jb_num(&b, "seen_tol_m", o->seen_tol);
+    jb_num(&b, "seen_height_m", o->seen_height);
+    jb_printf(&b, ", \"frames\": %d, \"frames_mapped\": %d, \"frames_query\": %d, \"query_every\": %d", r->n_frames,
+              r->n_mapped, r->n_query, o->query_every);
+    jb_printf(&b, ", \"views_depth\": %ld, \"views_rgb\": %ld", r->query.n_depth, r->query.n_rgb);
+    jb_num(&b, "update_ms", r->n_mapped ? 1e3 * r->update_s / (double)(r->n_mapped * (o->second_pass ? 2 : 1)) : NAN);
+    jb_printf(&b, "}");
+    if (b.oom) {
+        sooc_free(b.p);
+        return sooc_seterr(SOOC_ENOMEM, "eval real json: out of memory");
+    }
+    *out = b.p;
+    return SOOC_OK;
+}
