@@ -10,6 +10,11 @@
  *   distortion_coefficients {rows: 1, cols: N, data: [N]},
  *   rectification_matrix {3x3}, projection_matrix {3x4},
  *   depth_scale        metres per depth unit (TUM 0.0002, mm 0.001),
+ *   depth_shift        bits to drop from each raw depth sample before scaling:
+ *                      metres = (raw >> depth_shift) * depth_scale (0..15;
+ *                      label-fusion 3),
+ *   depth_invalid      a raw depth value (before the shift) that means "no
+ *                      depth" besides 0 (0..65535; 7-Scenes 65535; 0 = none),
  *   depth_registered   true if depth is already in the colour camera frame,
  *   T_color_depth      {rows: 4, cols: 4, data: [16]}  (p_color = T * p_depth),
  *   T_effector_camera  {rows: 4, cols: 4, data: [16], parent: ..., child: ...}.
@@ -36,6 +41,9 @@ typedef struct sooc_calib {
     double R_rect[9];             /* rectification (identity if absent)                */
     double P[12];                 /* projection 3x4 ([K|0] if absent)                  */
     double depth_scale;           /* metres per depth unit; 0 = not given              */
+    int depth_shift;              /* raw >> depth_shift before scaling; -1 = not given */
+    int depth_invalid;            /* raw value meaning "no depth" (besides 0), 0 = none;
+                                     -1 = not given                                    */
     int depth_registered;         /* 1 yes, 0 no, -1 not given                         */
     int has_T_color_depth;
     double T_color_depth[16];
@@ -45,7 +53,7 @@ typedef struct sooc_calib {
 } sooc_calib;
 
 /* Defaults: everything absent (width = height = 0), R = I, depth_scale 0,
- * depth_registered -1, camera_name "unknown". */
+ * depth_registered, depth_shift and depth_invalid -1, camera_name "unknown". */
 void sooc_calib_init(sooc_calib *c);
 /* A pinhole calib with no distortion: fx = fy = f, principal point given. */
 void sooc_calib_pinhole(sooc_calib *c, int w, int h, double fx, double fy, double cx, double cy);

@@ -1,5 +1,5 @@
 /*
- * sooc3d images: PNG / PGM input and output, and simple drawing for pictures
+ * sooc3d images: PNG / PGM / JPEG input and output, and simple drawing for pictures
  * (filled/outlined rectangles, lines, circles, a built-in 5x7 bitmap font,
  * colour maps for depth and ids, contact sheets).
  *
@@ -76,8 +76,28 @@ sooc_status sooc_pgm_read(const char *path, sooc_image *out);
 /* Write a binary PGM from GRAY8 or GRAY16 (maxval 255 or 65535). */
 sooc_status sooc_pgm_write(const char *path, const sooc_image *img);
 
-/* Read any supported image by content (PNG signature, "P5"/"P2"). */
+/* JPEG through libjpeg-turbo (baseline, progressive, any chroma
+ * subsampling, Motion-JPEG frames without Huffman tables). 3-component
+ * (YCbCr/RGB) -> RGB8, 1-component -> GRAY8; CMYK is EUNSUPPORTED. Same size
+ * limits as PNG. A truncated or corrupt stream (premature end, bad Huffman
+ * code, lost sync, bad progression) is EFORMAT "<name>: corrupt JPEG: ..."
+ * and `out` holds no partial image that could be mistaken for a good one
+ * (its buffer may have been reallocated). libjpeg never prints. */
+sooc_status sooc_jpeg_read(const char *path, sooc_image *out);
+/* Decode n bytes in memory (V4L2 MJPEG buffers); `name` (may be NULL) is used
+ * in messages in place of a path. */
+sooc_status sooc_jpeg_decode(const void *buf, size_t n, const char *name, sooc_image *out);
+/* Encode RGB8 or GRAY8 at `quality` 1..100 (else 90), 4:2:0, to a sooc_malloc'd
+ * buffer; and write a file atomically (temp + rename). */
+sooc_status sooc_jpeg_encode(const sooc_image *img, int quality, void **out, size_t *n);
+sooc_status sooc_jpeg_write(const char *path, const sooc_image *img, int quality);
+
+/* Read any supported image by content, whatever its extension: PNG
+ * signature, "P5"/"P2" (PGM), FF D8 FF (JPEG). */
 sooc_status sooc_image_read(const char *path, sooc_image *out);
+/* Size and format `path` would decode to, by content (PNG and JPEG read only
+ * the header). */
+sooc_status sooc_image_info(const char *path, int *w, int *h, sooc_pixfmt *fmt);
 
 /* ------------------------------------------------------------- drawing */
 /* All drawing functions work on RGB8 images, clip to the image, and never

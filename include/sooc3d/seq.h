@@ -9,14 +9,28 @@
  *    scene.yaml (query views). Streams are associated by nearest timestamp
  *    within max_dt; rgb frames without a depth match are dropped, frames
  *    without a pose match get has_pose = 0.
- *  - 7-Scenes / label-fusion: frame-%06d.{color.png, depth.png, pose.txt},
- *    camera-intrinsics.color.txt (3x3) or calib.yaml.
+ *  - 7-Scenes / label-fusion: frame-NNNNNN.{color.jpg | color.png, depth.png,
+ *    pose.txt}, camera-intrinsics.color.txt or camera-intrinsics.txt (3x3),
+ *    or calib.yaml. The directory is scanned for frame-NNNNNN.color.*: the
+ *    numbers may start anywhere and have gaps (trimmed or subsampled
+ *    recordings); frames are read in numeric order and sooc_frame.index is
+ *    the file's number. Optional gravity-direction.txt (sooc_seq_gravity).
  *  - slambook2: pose.txt (`tx ty tz qx qy qz qw` per line, line i = frame
  *    i+1), color/N.png, depth/N.{pgm,png}; intrinsics and depth_scale must
  *    come from p->calib_path or <dir>/calib.yaml.
  *  - Replica (NICE-SLAM): traj.txt (16 floats per line, row-major c2w),
- *    results/frame%06d.png, results/depth%06d.png (JPEG colour is not
- *    supported: convert to PNG).
+ *    results/frame%06d.jpg (or .png), results/depth%06d.png.
+ *  slambook2 and Replica name frame i after line i of their pose list; a
+ *  line whose colour and depth files are both absent is skipped (a trimmed
+ *  copy), one with only one of them is an error.
+ *
+ * Colour may be PNG or JPEG whatever the extension (read by content).
+ * Depth: metres = (raw >> depth_shift) * depth_scale; raw 0 and raw ==
+ * depth_invalid (before the shift) are invalid. Each of the three comes from
+ * the open parameters, else the calibration YAML, else the format's default
+ * (sooc_seq_formats(): 7-Scenes mm with 65535 invalid, label-fusion
+ * (raw >> 3) * 1e-4 m, Replica 1/6553.5 m), else it is an error (scale) or
+ * 0 / 65535 (shift / invalid).
  *
  * Every reader validates at open: missing files, unparsable numbers,
  * non-monotonic timestamps, non-orthonormal rotations; and at read: image
@@ -45,20 +59,48 @@ extern "C" {
 typedef enum sooc_seq_format {
     SOOC_SEQ_AUTO = 0,
     SOOC_SEQ_TUM,        /* TUM RGB-D and the sooc3d synthetic layout */
-    SOOC_SEQ_7SCENES,    /* frame-%06d.* (7-Scenes, label-fusion)    */
+    SOOC_SEQ_7SCENES,    /* frame-%06d.* (7-Scenes)                  */
     SOOC_SEQ_SLAMBOOK,   /* pose.txt + color/ + depth/               */
-    SOOC_SEQ_REPLICA     /* NICE-SLAM Replica traj.txt + results/    */
+    SOOC_SEQ_REPLICA,    /* NICE-SLAM Replica traj.txt + results/    */
+    SOOC_SEQ_LABELFUSION /* the 7-Scenes layout, label-fusion depth  */
 } sooc_seq_format;
+#define SOOC_SEQ_FORMAT_COUNT 6
 
+/* One row of the format-name table: the only place format names live. The
+ * launch parser, the CLI and the replay driver use the functions below. */
+typedef struct sooc_seq_format_info {
+    sooc_seq_format format;
+    const char *name;         /* canonical name, e.g. "7scenes"                      */
+    const char *aliases;      /* other accepted names, '|'-separated ("" = none)     */
+    const char *layout;       /* one line for help texts                             */
+    double depth_scale;       /* default metres per (shifted) unit; 0 = from calib   */
+    int depth_shift;          /* default right shift of raw depth                    */
+    int depth_invalid;        /* default raw "no depth" value besides 0 (0 = none)   */
+} sooc_seq_format_info;
+
+/* The table (SOOC_SEQ_FORMAT_COUNT rows, row i = enum value i). */
+const sooc_seq_format_info *sooc_seq_formats(int *n);
+/* The row of f, or NULL when f is out of range. */
+const sooc_seq_format_info *sooc_seq_format_info_of(sooc_seq_format f);
+/* Canonical name: "auto", "tum", "7scenes", "slambook", "replica",
+ * "label-fusion" ("?" when out of range). */
 const char *sooc_seq_format_name(sooc_seq_format f);
-/* "auto", "tum", "7scenes", "slambook", "replica" */
+/* Any name or alias, case-insensitive: auto; tum, sooc, tum-rgbd; 7scenes,
+ * sevenscenes, 7-scenes; slambook, slambook2; replica, nice-slam;
+ * label-fusion, labelfusion, label_fusion. Unknown -> EINVAL listing them. */
 sooc_status sooc_seq_format_parse(const char *s, sooc_seq_format *out);
+/* Writes "auto, tum (sooc, tum-rgbd), 7scenes (...), ..." for messages and
+ * help texts; returns the full length (like snprintf). */
+size_t sooc_seq_format_list(char *buf, size_t cap);
 
 typedef struct sooc_seq_open_params {
     sooc_seq_format format;   /* AUTO = detect                                         */
     const char *calib_path;   /* calib YAML overriding <dir>/calib.yaml (may be NULL)  */
     double depth_scale;       /* > 0 overrides the calibration's depth_scale (m/unit)  */
-    int depth_shift;          /* right-shift raw depth before scaling (label-fusion: 3) */
+    int depth_shift;          /* >= 0: right-shift raw depth before scaling; -1 (the
+                                 default) = calibration, else the format's default    */
+    int depth_invalid;        /* >= 0: raw value that means "no depth" besides 0 (0 =
+                                 none); -1 (the default) = calibration, else format   */
     double max_dt;            /* TUM association tolerance in seconds (default 0.02)   */
     double rot_tol;           /* orthonormality tolerance (default 1e-3)               */
     double max_depth;         /* depths beyond this are invalid (0 = no limit)         */
@@ -75,9 +117,21 @@ int64_t sooc_seq_count(const sooc_seq *s);
 /* Read frame i (0 <= i < count) into f. f must be zero-initialised or hold a
  * frame from an earlier call (its buffers are reused when the size matches).
  * Fills rgb, depth (planar metres, 0 = invalid), valid, instance (synthetic
- * layout only, else NULL), t_ns, has_pose/T_wc, K, index, is_query. */
+ * layout only, else NULL), t_ns, has_pose/T_wc, K, index (the frame's number
+ * in its file names, = i for TUM), is_query. On error (a missing, truncated
+ * or corrupt image, named in the message) f may hold a partial frame: do not
+ * use it; nothing else changes and later frames can still be read. */
 sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f);
+/* The format actually read (never AUTO once open). */
 sooc_seq_format sooc_seq_get_format(const sooc_seq *s);
+/* Frame i's number in its file names (7-Scenes frame-000042.* -> 42; TUM:
+ * i), and its colour and depth image paths; -1 / NULL when i is out of range. */
+int64_t sooc_seq_frame_number(const sooc_seq *s, int64_t i);
+const char *sooc_seq_color_path(const sooc_seq *s, int64_t i);
+const char *sooc_seq_depth_path(const sooc_seq *s, int64_t i);
+/* The depth decoding in use: metres = (raw >> shift) * scale, raw 0 and raw ==
+ * invalid (when > 0) are invalid. */
+void sooc_seq_depth_decoding(const sooc_seq *s, double *scale, int *shift, int *invalid);
 const sooc_calib *sooc_seq_calib(const sooc_seq *s);
 /* Number of rgb entries dropped because no depth matched (TUM). */
 int64_t sooc_seq_dropped(const sooc_seq *s);

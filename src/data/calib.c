@@ -12,6 +12,8 @@ void sooc_calib_init(sooc_calib *c) {
     snprintf(c->camera_name, sizeof c->camera_name, "unknown");
     sooc_m3_identity(c->R_rect);
     c->depth_registered = -1;
+    c->depth_shift = -1;
+    c->depth_invalid = -1;
     sooc_se3_identity(c->T_color_depth);
     sooc_se3_identity(c->T_effector_camera);
 }
@@ -198,6 +200,16 @@ static sooc_status parse_doc(sooc_ydoc *c, sooc_calib *out) {
             s = parse_num(c, v, ks, &out->depth_scale);
             if (!s && !(out->depth_scale > 0))
                 s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be > 0 (metres per depth unit)", c->name, sooc_yline(v), ks);
+        } else if (!strcmp(ks, "depth_shift")) {
+            s = parse_int(c, v, ks, &out->depth_shift);
+            if (!s && (out->depth_shift < 0 || out->depth_shift > 15))
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be in [0, 15] (bits to drop from raw depth)", c->name,
+                                sooc_yline(v), ks);
+        } else if (!strcmp(ks, "depth_invalid")) {
+            s = parse_int(c, v, ks, &out->depth_invalid);
+            if (!s && (out->depth_invalid < 0 || out->depth_invalid > 65535))
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: must be a raw 16-bit value in [0, 65535]", c->name,
+                                sooc_yline(v), ks);
         } else if (!strcmp(ks, "depth_registered")) {
             s = parse_bool(c, v, ks, &out->depth_registered);
         } else if (!strcmp(ks, "T_color_depth")) {
@@ -279,6 +291,8 @@ sooc_status sooc_calib_save(const char *path, const sooc_calib *c) {
     n += put_mat(b + n, cap - n, "rectification_matrix", c->R_rect, 3, 3);
     n += put_mat(b + n, cap - n, "projection_matrix", c->P, 3, 4);
     if (c->depth_scale > 0) n += snprintf(b + n, cap - n, "depth_scale: %.17g\n", c->depth_scale);
+    if (c->depth_shift >= 0) n += snprintf(b + n, cap - n, "depth_shift: %d\n", c->depth_shift);
+    if (c->depth_invalid >= 0) n += snprintf(b + n, cap - n, "depth_invalid: %d\n", c->depth_invalid);
     if (c->depth_registered >= 0)
         n += snprintf(b + n, cap - n, "depth_registered: %s\n", c->depth_registered ? "true" : "false");
     if (c->has_T_color_depth) n += put_mat(b + n, cap - n, "T_color_depth", c->T_color_depth, 4, 4);

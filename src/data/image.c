@@ -1,11 +1,14 @@
-/* Image buffers and the PNG / PGM codecs (libpng classic API; 16-bit samples
- * are big-endian in both formats and host order in memory). */
+/* Image buffers and the PNG / PGM / JPEG codecs (libpng classic API,
+ * libjpeg-turbo's libjpeg API; 16-bit samples are big-endian in PNG and PGM
+ * and host order in memory). */
 #include "sooc3d/image.h"
 #include "data_impl.h"
 
 #include <png.h>
 #include <setjmp.h>
 #include <stdio.h>
+#include <jpeglib.h>
+#include <jerror.h>
 #include <stdlib.h>
 #include <string.h>
 #include <errno.h>
@@ -411,17 +414,269 @@ sooc_status sooc_pgm_write(const char *path, const sooc_image *img) {
     return s;
 }
 
-sooc_status sooc_image_read(const char *path, sooc_image *out) {
+/* ----------------------------------------------------------------- JPEG */
+
+/* libjpeg reports errors through error_exit (must not return) and messages
+ * through emit_message/output_message, which print to stderr by default. We
+ * keep the text, never print, and longjmp back. Corrupt-data warnings
+ * (truncation, bad Huffman codes, lost sync, bad progression) are errors too:
+ * libjpeg would otherwise pad the image with grey and report success.
+ * "Extraneous bytes before marker" (padding many webcams put before EOI in
+ * MJPEG frames) is tolerated: the pixels are complete. */
+typedef struct jpeg_err_ctx {
+    struct jpeg_error_mgr pub;
+    jmp_buf jb;
+    char msg[JMSG_LENGTH_MAX];
+    unsigned char *mem;      /* encoder: jpeg_mem_dest's buffer (libjpeg malloc), kept here across a longjmp */
+    unsigned long msize;
+} jpeg_err_ctx;
+
+static void jpeg_err_exit(j_common_ptr c) {
+    jpeg_err_ctx *e = (jpeg_err_ctx *)c->err;
+    if (!e->msg[0]) (*c->err->format_message)(c, e->msg);
+    longjmp(e->jb, 1);
+}
+
+static void jpeg_out_msg(j_common_ptr c) { (void)c; }
+
+static void jpeg_emit(j_common_ptr c, int level) {
+    if (level >= 0) return; /* trace messages */
+    int code = c->err->msg_code;
+    if (code == JWRN_JPEG_EOF || code == JWRN_HIT_MARKER || code == JWRN_MUST_RESYNC || code == JWRN_HUFF_BAD_CODE ||
+        code == JWRN_NOT_SEQUENTIAL || code == JWRN_BOGUS_PROGRESSION || code == JWRN_TOO_MUCH_DATA)
+        jpeg_err_exit(c);
+    c->err->num_warnings++;
+}
+
+/* Progressive files can hold thousands of tiny scans (a CPU sink on hostile
+ * input, libjpeg-turbo's advice for untrusted data): cap the scan count. */
+#define JPEG_MAX_SCANS 500
+static void jpeg_progress(j_common_ptr c) {
+    if (c->is_decompressor && ((j_decompress_ptr)c)->input_scan_number > JPEG_MAX_SCANS) {
+        jpeg_err_ctx *e = (jpeg_err_ctx *)c->err;
+        snprintf(e->msg, sizeof e->msg, "more than %d progressive scans", JPEG_MAX_SCANS);
+        longjmp(e->jb, 1);
+    }
+}
+
+static void jpeg_err_init(jpeg_err_ctx *e) {
+    memset(e, 0, sizeof *e);
+    jpeg_std_error(&e->pub);
+    e->pub.error_exit = jpeg_err_exit;
+    e->pub.output_message = jpeg_out_msg;
+    e->pub.emit_message = jpeg_emit;
+}
+
+/* Decode (or, with header_only, only size the image of) n bytes of JPEG. */
+static sooc_status jpeg_decode_impl(const void *buf, size_t n, const char *name, sooc_image *out, int header_only,
+                                    int *pw, int *ph, sooc_pixfmt *pfmt) {
+    const unsigned char *b = buf;
+    if (!buf || n < 4 || b[0] != 0xFF || b[1] != 0xD8 || b[2] != 0xFF)
+        return sooc_seterr(SOOC_EFORMAT, "%s: not a JPEG file (no SOI marker)", name);
+    if (n > (size_t)0xFFFFFFFFu) return sooc_seterr(SOOC_EFORMAT, "%s: JPEG larger than 4 GiB", name);
+    struct jpeg_decompress_struct ci;
+    jpeg_err_ctx err;
+    struct jpeg_progress_mgr prog;
+    jpeg_err_init(&err);
+    memset(&ci, 0, sizeof ci);
+    ci.err = &err.pub;
+    volatile int created = 0;
+    sooc_status st = SOOC_OK;
+    if (setjmp(err.jb)) {
+        if (created) jpeg_destroy_decompress(&ci);
+        return sooc_seterr(SOOC_EFORMAT, "%s: corrupt JPEG: %s", name, err.msg[0] ? err.msg : "decoder error");
+    }
+    jpeg_create_decompress(&ci);
+    created = 1;
+    memset(&prog, 0, sizeof prog);
+    prog.progress_monitor = jpeg_progress;
+    ci.progress = &prog;
+    ci.mem->max_memory_to_use = (long)(SOOC_IMAGE_READ_MAX_BYTES * 2); /* coefficient buffers of progressive files */
+    jpeg_mem_src(&ci, b, (unsigned long)n);
+    jpeg_read_header(&ci, TRUE);
+    sooc_pixfmt fmt;
+    if (ci.num_components == 1) {
+        fmt = SOOC_PIX_GRAY8;
+        ci.out_color_space = JCS_GRAYSCALE;
+    } else if (ci.num_components == 3) {
+        fmt = SOOC_PIX_RGB8;
+        ci.out_color_space = JCS_RGB;
+    } else {
+        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: JPEG with %d colour components (CMYK?) is not supported", name,
+                         ci.num_components);
+        jpeg_destroy_decompress(&ci);
+        return st;
+    }
+    st = check_read_size(name, "JPEG", ci.image_width, ci.image_height, (size_t)sooc_pixfmt_bytes(fmt));
+    if (st || header_only) {
+        jpeg_destroy_decompress(&ci);
+        if (!st) {
+            if (pw) *pw = (int)ci.image_width;
+            if (ph) *ph = (int)ci.image_height;
+            if (pfmt) *pfmt = fmt;
+        }
+        return st;
+    }
+    ci.dct_method = JDCT_ISLOW; /* accurate and the same on every machine */
+    jpeg_start_decompress(&ci);
+    int w = (int)ci.output_width, h = (int)ci.output_height;
+    if (ci.output_components != sooc_pixfmt_bytes(fmt)) {
+        jpeg_destroy_decompress(&ci);
+        return sooc_seterr(SOOC_EFORMAT, "%s: JPEG decodes to %d components, expected %d", name,
+                           ci.output_components, sooc_pixfmt_bytes(fmt));
+    }
+    st = sooc_image_alloc(out, w, h, fmt);
+    if (st) {
+        jpeg_destroy_decompress(&ci);
+        return sooc_adderr(st, "%s", name);
+    }
+    size_t stride = (size_t)w * (size_t)sooc_pixfmt_bytes(fmt);
+    while (ci.output_scanline < ci.output_height) {
+        JSAMPROW row = (JSAMPROW)((unsigned char *)out->data + (size_t)ci.output_scanline * stride);
+        if (jpeg_read_scanlines(&ci, &row, 1) != 1) break; /* suspension cannot happen with a memory source */
+    }
+    if (ci.output_scanline < ci.output_height) {
+        jpeg_destroy_decompress(&ci);
+        return sooc_seterr(SOOC_EFORMAT, "%s: corrupt JPEG: %u of %d rows decoded", name, ci.output_scanline, h);
+    }
+    jpeg_finish_decompress(&ci);
+    jpeg_destroy_decompress(&ci);
+    if (pw) *pw = w;
+    if (ph) *ph = h;
+    if (pfmt) *pfmt = fmt;
+    return SOOC_OK;
+}
+
+sooc_status sooc_jpeg_decode(const void *buf, size_t n, const char *name, sooc_image *out) {
+    return jpeg_decode_impl(buf, n, name ? name : "JPEG", out, 0, NULL, NULL, NULL);
+}
+
+sooc_status sooc_jpeg_read(const char *path, sooc_image *out) {
+    void *buf;
+    size_t n;
+    sooc_status s = sooc_file_read_all(path, (size_t)1 << 30, &buf, &n);
+    if (s) return s;
+    s = jpeg_decode_impl(buf, n, path, out, 0, NULL, NULL, NULL);
+    sooc_free(buf);
+    return s;
+}
+
+static sooc_status jpeg_encode_impl(const sooc_image *img, int quality, void **out, size_t *n);
+
+sooc_status sooc_jpeg_encode(const sooc_image *img, int quality, void **out, size_t *n) {
+    return jpeg_encode_impl(img, quality < 1 || quality > 100 ? 90 : quality, out, n);
+}
+
+static sooc_status jpeg_encode_impl(const sooc_image *img, int quality, void **out, size_t *n) {
+    *out = NULL;
+    *n = 0;
+    if (!img || !img->data || (img->fmt != SOOC_PIX_RGB8 && img->fmt != SOOC_PIX_GRAY8))
+        return sooc_seterr(SOOC_EINVAL, "JPEG encode: needs an rgb8 or gray8 image");
+    struct jpeg_compress_struct ci;
+    jpeg_err_ctx err;
+    jpeg_err_init(&err);
+    memset(&ci, 0, sizeof ci);
+    ci.err = &err.pub;
+    volatile int created = 0;
+    if (setjmp(err.jb)) {
+        if (created) jpeg_destroy_compress(&ci);
+        free(err.mem);
+        return sooc_seterr(SOOC_EINVAL, "JPEG encode: %s", err.msg);
+    }
+    jpeg_create_compress(&ci);
+    created = 1;
+    jpeg_mem_dest(&ci, &err.mem, &err.msize);
+    ci.image_width = (JDIMENSION)img->width;
+    ci.image_height = (JDIMENSION)img->height;
+    ci.input_components = img->fmt == SOOC_PIX_RGB8 ? 3 : 1;
+    ci.in_color_space = img->fmt == SOOC_PIX_RGB8 ? JCS_RGB : JCS_GRAYSCALE;
+    jpeg_set_defaults(&ci);
+    jpeg_set_quality(&ci, quality, TRUE);
+    ci.dct_method = JDCT_ISLOW;
+    jpeg_start_compress(&ci, TRUE);
+    size_t stride = (size_t)img->width * (size_t)ci.input_components;
+    while (ci.next_scanline < ci.image_height) {
+        JSAMPROW row = (JSAMPROW)((unsigned char *)img->data + (size_t)ci.next_scanline * stride);
+        jpeg_write_scanlines(&ci, &row, 1);
+    }
+    jpeg_finish_compress(&ci);
+    jpeg_destroy_compress(&ci);
+    void *copy = sooc_malloc(err.msize ? err.msize : 1);
+    if (!copy) { free(err.mem); return SOOC_ENOMEM; }
+    memcpy(copy, err.mem, err.msize);
+    free(err.mem);
+    *out = copy;
+    *n = err.msize;
+    return SOOC_OK;
+}
+
+sooc_status sooc_jpeg_write(const char *path, const sooc_image *img, int quality) {
+    void *buf;
+    size_t n;
+    sooc_status s = sooc_jpeg_encode(img, quality, &buf, &n);
+    if (s) return sooc_adderr(s, "%s", path);
+    s = sooc_data_write_file(path, buf, n);
+    sooc_free(buf);
+    return s;
+}
+
+/* ------------------------------------------------------- by content */
+
+/* Which codec a file's first bytes belong to: 1 PNG, 2 PGM, 3 JPEG, 0 none. */
+static int sniff(const char *path, sooc_status *st) {
     FILE *fp = fopen(path, "rb");
-    if (!fp)
-        return sooc_seterr(errno == ENOENT ? SOOC_ENOTFOUND : SOOC_EIO, "%s: cannot open: %s", path,
-                           strerror(errno));
+    if (!fp) {
+        *st = sooc_seterr(errno == ENOENT ? SOOC_ENOTFOUND : SOOC_EIO, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
     unsigned char sig[8] = {0};
     size_t got = fread(sig, 1, 8, fp);
     fclose(fp);
-    if (got >= 8 && !png_sig_cmp(sig, 0, 8)) return sooc_png_read(path, out);
-    if (got >= 2 && sig[0] == 'P' && (sig[1] == '5' || sig[1] == '2')) return sooc_pgm_read(path, out);
-    if (got >= 3 && sig[0] == 0xFF && sig[1] == 0xD8 && sig[2] == 0xFF)
-        return sooc_seterr(SOOC_EUNSUPPORTED, "%s: JPEG is not supported; convert to PNG", path);
-    return sooc_seterr(SOOC_EFORMAT, "%s: unknown image format (expected PNG or PGM)", path);
+    if (got >= 8 && !png_sig_cmp(sig, 0, 8)) return 1;
+    if (got >= 2 && sig[0] == 'P' && (sig[1] == '5' || sig[1] == '2')) return 2;
+    if (got >= 3 && sig[0] == 0xFF && sig[1] == 0xD8 && sig[2] == 0xFF) return 3;
+    *st = sooc_seterr(SOOC_EFORMAT, "%s: unknown image format (expected PNG, PGM or JPEG)", path);
+    return 0;
+}
+
+sooc_status sooc_image_read(const char *path, sooc_image *out) {
+    sooc_status st = SOOC_OK;
+    switch (sniff(path, &st)) {
+    case 1: return sooc_png_read(path, out);
+    case 2: return sooc_pgm_read(path, out);
+    case 3: return sooc_jpeg_read(path, out);
+    default: return st;
+    }
+}
+
+sooc_status sooc_image_info(const char *path, int *w, int *h, sooc_pixfmt *fmt) {
+    sooc_status st = SOOC_OK;
+    int k = sniff(path, &st);
+    if (k == 1) return sooc_png_info(path, w, h, fmt);
+    if (k == 3) {
+        /* the header is near the start, but EXIF thumbnails can push it back: read up to 1 MiB */
+        FILE *fp = fopen(path, "rb");
+        if (!fp) return sooc_seterr(SOOC_EIO, "%s: cannot open: %s", path, strerror(errno));
+        size_t cap = (size_t)1 << 20;
+        unsigned char *b = sooc_malloc(cap);
+        if (!b) { fclose(fp); return SOOC_ENOMEM; }
+        size_t n = fread(b, 1, cap, fp);
+        fclose(fp);
+        /* a truncated stream is fine for the header: silence EOF by decoding only the header */
+        st = jpeg_decode_impl(b, n, path, NULL, 1, w, h, fmt);
+        sooc_free(b);
+        return st;
+    }
+    if (k == 2) {
+        sooc_image tmp = {0};
+        st = sooc_pgm_read(path, &tmp);
+        if (!st) {
+            if (w) *w = tmp.width;
+            if (h) *h = tmp.height;
+            if (fmt) *fmt = tmp.fmt;
+        }
+        sooc_image_free(&tmp);
+        return st;
+    }
+    return st;
 }

@@ -17,6 +17,7 @@ typedef struct seq_entry {
     int has_pose;
     double T[16];
     int line;                     /* line in `src` that listed this frame (0 = none) */
+    int64_t number;               /* the frame's number in its file names (TUM: list order) */
     const char *src;              /* file that listed it (points into seq->srcnames) */
     int is_query;
 } seq_entry;
@@ -27,7 +28,7 @@ struct sooc_seq {
     char srcname[2][4096];        /* list files named in messages */
     sooc_calib calib;
     double depth_scale, max_depth;
-    int depth_shift;
+    int depth_shift, depth_invalid;
     int flip_y;
     int has_gravity;
     double gravity[3];            /* unit vector in the world frame */
@@ -36,25 +37,99 @@ struct sooc_seq {
     sooc_image img_rgb, img_depth, img_inst;
 };
 
+/* The one table of sequence format names (docs/formats.md §Format names).
+ * The launch parser, the CLI and the replay driver read names only through
+ * sooc_seq_format_parse / sooc_seq_format_name / sooc_seq_formats. Row i
+ * holds the enum value i. Depth defaults apply when neither the open
+ * parameters nor the calibration give a value. */
+static const sooc_seq_format_info g_formats[SOOC_SEQ_FORMAT_COUNT] = {
+    {SOOC_SEQ_AUTO, "auto", "", "detect the layout (and the label-fusion depth encoding) from the files", 0, 0, 65535},
+    {SOOC_SEQ_TUM, "tum", "sooc|tum-rgbd",
+     "TUM RGB-D and the sooc3d synthetic layout: rgb.txt, depth.txt, groundtruth.txt, calib.yaml", 0, 0, 65535},
+    {SOOC_SEQ_7SCENES, "7scenes", "sevenscenes|7-scenes",
+     "Microsoft 7-Scenes: frame-NNNNNN.{color.jpg|color.png, depth.png, pose.txt}; depth mm, 65535 invalid",
+     0.001, 0, 65535},
+    {SOOC_SEQ_SLAMBOOK, "slambook", "slambook2", "slambook2: pose.txt, color/N.png, depth/N.pgm; needs a calib YAML",
+     0, 0, 65535},
+    {SOOC_SEQ_REPLICA, "replica", "nice-slam", "Replica (NICE-SLAM): traj.txt, results/frameNNNNNN.jpg, depthNNNNNN.png",
+     1.0 / 6553.5, 0, 65535},
+    {SOOC_SEQ_LABELFUSION, "label-fusion", "labelfusion|label_fusion",
+     "label-fusion: the 7-Scenes layout with depth (raw >> 3) * 1e-4 m", 1e-4, 3, 0},
+};
+
+const sooc_seq_format_info *sooc_seq_formats(int *n) {
+    if (n) *n = SOOC_SEQ_FORMAT_COUNT;
+    return g_formats;
+}
+
+const sooc_seq_format_info *sooc_seq_format_info_of(sooc_seq_format f) {
+    return (unsigned)f < SOOC_SEQ_FORMAT_COUNT ? &g_formats[f] : NULL;
+}
+
 const char *sooc_seq_format_name(sooc_seq_format f) {
-    static const char *n[] = {"auto", "tum", "7scenes", "slambook", "replica"};
-    return (unsigned)f < 5 ? n[f] : "?";
+    return (unsigned)f < SOOC_SEQ_FORMAT_COUNT ? g_formats[f].name : "?";
+}
+
+/* Case-insensitive equality of a and the `|`-separated item [q, q+m). */
+static int name_eq(const char *a, const char *q, size_t m) {
+    if (strlen(a) != m) return 0;
+    for (size_t i = 0; i < m; i++) {
+        char x = a[i], y = q[i];
+        if (x >= 'A' && x <= 'Z') x = (char)(x - 'A' + 'a');
+        if (x != y) return 0;
+    }
+    return 1;
+}
+
+static int in_names(const char *s, const char *list) {
+    while (*list) {
+        const char *e = strchr(list, '|');
+        size_t m = e ? (size_t)(e - list) : strlen(list);
+        if (m && name_eq(s, list, m)) return 1;
+        if (!e) break;
+        list = e + 1;
+    }
+    return 0;
+}
+
+size_t sooc_seq_format_list(char *buf, size_t cap) {
+    size_t n = 0;
+    char tmp[1024] = "";
+    for (int i = 0; i < SOOC_SEQ_FORMAT_COUNT; i++) {
+        const sooc_seq_format_info *f = &g_formats[i];
+        char al[256] = "";
+        size_t m = 0;
+        for (const char *c = f->aliases; *c && m + 3 < sizeof al; c++) {
+            if (*c == '|') { al[m++] = ','; al[m++] = ' '; }
+            else al[m++] = *c;
+        }
+        al[m] = 0;
+        int k = snprintf(tmp + n, sizeof tmp - n, "%s%s%s%s%s", i ? ", " : "", f->name, al[0] ? " (" : "", al,
+                         al[0] ? ")" : "");
+        if (k < 0 || (size_t)k >= sizeof tmp - n) break;
+        n += (size_t)k;
+    }
+    if (buf && cap) snprintf(buf, cap, "%s", tmp);
+    return n;
 }
 
 sooc_status sooc_seq_format_parse(const char *s, sooc_seq_format *out) {
-    for (int i = 0; i < 5; i++)
-        if (s && !strcmp(s, sooc_seq_format_name((sooc_seq_format)i))) {
-            *out = (sooc_seq_format)i;
+    for (int i = 0; s && i < SOOC_SEQ_FORMAT_COUNT; i++)
+        if (name_eq(s, g_formats[i].name, strlen(g_formats[i].name)) || in_names(s, g_formats[i].aliases)) {
+            *out = g_formats[i].format;
             return SOOC_OK;
         }
-    return sooc_seterr(SOOC_EINVAL, "unknown sequence format '%s' (auto, tum, 7scenes, slambook, replica)",
-                       s ? s : "");
+    char list[1024];
+    sooc_seq_format_list(list, sizeof list);
+    return sooc_seterr(SOOC_EINVAL, "unknown sequence format '%s' (one of %s)", s ? s : "", list);
 }
 
 void sooc_seq_open_params_default(sooc_seq_open_params *p) {
     memset(p, 0, sizeof *p);
     p->max_dt = 0.02;
     p->rot_tol = 1e-3;
+    p->depth_shift = -1;
+    p->depth_invalid = -1;
 }
 
 /* ------------------------------------------------------------ helpers */
@@ -202,17 +277,22 @@ static sooc_status need_file(const char *list, int line, const char *path) {
 }
 
 /* <dir>/<prefix><i zero-padded to width digits><ext>; when that file does
- * not exist and alt_ext is given, the same name with alt_ext instead (need_file
- * then reports it if it is missing too). NULL if out of memory or too long. */
+ * not exist and alt_ext is given, the same name with alt_ext instead if that
+ * one exists (else the first name, which need_file then reports). NULL if
+ * out of memory or too long. */
 static char *frame_path(const char *dir, const char *prefix, int width, int64_t i, const char *ext,
                         const char *alt_ext) {
     char name[128];
     snprintf(name, sizeof name, "%s%0*lld%s", prefix, width, (long long)i, ext);
     char *path = join_dup(dir, name);
     if (path && alt_ext && !sooc_file_exists(path)) {
-        sooc_free(path);
         snprintf(name, sizeof name, "%s%0*lld%s", prefix, width, (long long)i, alt_ext);
-        path = join_dup(dir, name);
+        char *alt = join_dup(dir, name);
+        if (alt && sooc_file_exists(alt)) {
+            sooc_free(path);
+            return alt;
+        }
+        sooc_free(alt);
     }
     return path;
 }
@@ -357,6 +437,7 @@ static sooc_status open_tum(sooc_seq *s, const sooc_seq_open_params *p) {
         L[0].path[i] = NULL;
         e->depth = sooc_strdup(L[1].path[jd]);
         e->t_ns = L[0].t[i];
+        e->number = s->n - 1;
         e->line = L[0].line[i];
         e->src = s->srcname[0];
         int jp = nearest(L[2].t, L[2].n, L[0].t[i]);
@@ -432,79 +513,163 @@ static sooc_status read_pose4(const char *file, double T[16], double tol) {
     return SOOC_OK;
 }
 
-static int cmp_i64(const void *a, const void *b) {
-    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-    return x < y ? -1 : x > y;
+/* A 7-Scenes colour file name: frame-<digits>.color.{png,jpg,jpeg} (any
+ * case of the extension). Returns the number, or -1. */
+static int64_t scenes_color_number(const char *name, int *ext) {
+    if (strncmp(name, "frame-", 6)) return -1;
+    const char *p = name + 6;
+    int64_t k = 0;
+    int nd = 0;
+    while (*p >= '0' && *p <= '9') {
+        if (nd >= 12) return -1;
+        k = k * 10 + (*p++ - '0');
+        nd++;
+    }
+    if (nd == 0 || strncmp(p, ".color.", 7)) return -1;
+    p += 7;
+    static const char *exts[] = {"png", "jpg", "jpeg"};
+    for (int e = 0; e < 3; e++) {
+        size_t m = strlen(exts[e]);
+        if (strlen(p) != m) continue;
+        int eq = 1;
+        for (size_t i = 0; i < m; i++) {
+            char c = p[i];
+            if (c >= 'A' && c <= 'Z') c = (char)(c - 'A' + 'a');
+            if (c != exts[e][i]) eq = 0;
+        }
+        if (eq) {
+            *ext = e;
+            return k;
+        }
+    }
+    return -1;
 }
 
-static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
-    DIR *d = opendir(s->dir);
-    if (!d) return sooc_seterr(SOOC_ENOTFOUND, "%s: cannot open directory", s->dir);
-    int64_t *idx = NULL;
+typedef struct scenes_file {
+    int64_t number;
+    int ext;
+    char name[256];
+} scenes_file;
+
+static int cmp_scenes(const void *a, const void *b) {
+    const scenes_file *x = a, *y = b;
+    if (x->number != y->number) return x->number < y->number ? -1 : 1;
+    return x->ext - y->ext; /* png before jpg for the same number */
+}
+
+/* Scan dir for frame-NNNNNN.color.*: a sorted list (caller frees). */
+static sooc_status scenes_scan(const char *dir, scenes_file **out, int *nout) {
+    *out = NULL;
+    *nout = 0;
+    DIR *d = opendir(dir);
+    if (!d) return sooc_seterr(SOOC_ENOTFOUND, "%s: cannot open directory", dir);
+    scenes_file *f = NULL;
     int n = 0, cap = 0;
     struct dirent *de;
     sooc_status st = SOOC_OK;
     while ((de = readdir(d))) {
-        int k, len = 0;
-        if (sscanf(de->d_name, "frame-%d.color.png%n", &k, &len) == 1 && len > 0 &&
-            de->d_name[len] == 0 && k >= 0) {
-            if (n == cap) {
-                cap = cap ? cap * 2 : 256;
-                int64_t *ni = sooc_realloc(idx, sizeof(int64_t) * (size_t)cap);
-                if (!ni) { st = SOOC_ENOMEM; break; }
-                idx = ni;
-            }
-            idx[n++] = k;
+        int ext = 0;
+        int64_t k = scenes_color_number(de->d_name, &ext);
+        if (k < 0 || strlen(de->d_name) >= sizeof f->name) continue;
+        if (n == cap) {
+            cap = cap ? cap * 2 : 256;
+            scenes_file *nf = sooc_realloc(f, sizeof *f * (size_t)cap);
+            if (!nf) { st = SOOC_ENOMEM; break; }
+            f = nf;
         }
+        f[n].number = k;
+        f[n].ext = ext;
+        snprintf(f[n].name, sizeof f[n].name, "%s", de->d_name);
+        n++;
     }
     closedir(d);
-    if (!st && n == 0) st = sooc_seterr(SOOC_ENOTFOUND, "%s/frame-000000.color.png: missing file (no frames)", s->dir);
-    if (!st) qsort(idx, (size_t)n, sizeof *idx, cmp_i64);
+    if (st) { sooc_free(f); return st; }
+    if (n) qsort(f, (size_t)n, sizeof *f, cmp_scenes);
+    /* the same number twice (frame-7.color.png and frame-000007.color.jpg):
+     * keep the first after sorting, drop the rest */
+    int m = 0;
+    for (int i = 0; i < n; i++)
+        if (m == 0 || f[m - 1].number != f[i].number) f[m++] = f[i];
+    *out = f;
+    *nout = m;
+    return SOOC_OK;
+}
+
+/* Label-fusion stores depth << 3: nearly every nonzero sample is a multiple
+ * of 8 (99.1% on the shipped frames), against ~1/8 for millimetre data. */
+static int depth_looks_shifted(const char *path) {
+    sooc_image img = {0};
+    if (sooc_image_read(path, &img) || img.fmt != SOOC_PIX_GRAY16) { sooc_image_free(&img); return 0; }
+    const uint16_t *d = img.data;
+    size_t np = (size_t)img.width * (size_t)img.height, nz = 0, m8 = 0;
+    for (size_t k = 0; k < np; k++)
+        if (d[k]) { nz++; m8 += (d[k] & 7) == 0; }
+    sooc_image_free(&img);
+    return nz >= 64 && m8 >= nz * 95 / 100;
+}
+
+/* A 3x3 intrinsics text file -> a pinhole calib of size w x h. */
+static sooc_status read_intrinsics_txt(sooc_seq *s, const char *kpath, int w, int h) {
+    mat_ctx m;
+    memset(&m, 0, sizeof m);
+    m.file = kpath;
+    m.ncols = 3;
+    sooc_status st = for_lines(kpath, mat_line, &m);
+    if (st) return st;
+    if (m.rows != 3) return sooc_seterr(SOOC_EFORMAT, "%s: expected a 3x3 matrix, got %d rows", kpath, m.rows);
+    if (m.v[0] == 0 || m.v[4] == 0 || m.v[1] != 0 || m.v[3] != 0 || m.v[6] != 0 || m.v[7] != 0 || m.v[8] != 1)
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: expected [fx 0 cx; 0 fy cy; 0 0 1]", kpath, m.lines[0]);
+    sooc_calib_pinhole(&s->calib, w, h, m.v[0], m.v[4], m.v[2], m.v[5]);
+    return SOOC_OK;
+}
+
+static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
+    scenes_file *fl = NULL;
+    int n = 0;
+    sooc_status st = scenes_scan(s->dir, &fl, &n);
+    if (!st && n == 0)
+        st = sooc_seterr(SOOC_ENOTFOUND, "%s: no frames (expected frame-NNNNNN.color.jpg or .color.png)", s->dir);
     for (int i = 0; i < n && !st; i++) {
         seq_entry *e;
         st = push_entry(s, &e);
         if (st) break;
-        e->rgb = frame_path(s->dir, "frame-", 6, idx[i], ".color.png", NULL);
-        e->depth = frame_path(s->dir, "frame-", 6, idx[i], ".depth.png", NULL);
-        char *pose = frame_path(s->dir, "frame-", 6, idx[i], ".pose.txt", NULL);
+        e->rgb = join_dup(s->dir, fl[i].name);
+        e->depth = frame_path(s->dir, "frame-", 6, fl[i].number, ".depth.png", NULL);
+        char *pose = frame_path(s->dir, "frame-", 6, fl[i].number, ".pose.txt", NULL);
         if (!e->rgb || !e->depth || !pose) { sooc_free(pose); st = SOOC_ENOMEM; break; }
         st = need_file(NULL, 0, e->depth);
         if (!st) st = need_file(NULL, 0, pose);
         if (!st) st = read_pose4(pose, e->T, p->rot_tol);
         sooc_free(pose);
         e->has_pose = 1;
-        e->t_ns = idx[i] * 33333333LL; /* no timestamps in this layout: 30 Hz by index */
+        e->number = fl[i].number;
+        e->t_ns = fl[i].number * 33333333LL; /* no timestamps in this layout: 30 Hz by frame number */
     }
-    sooc_free(idx);
+    sooc_free(fl);
     if (st) return st;
-    st = load_calib(s, p, 0);
-    if (st == SOOC_ENOTFOUND) {
-        char kpath[4096];
-        st = sooc_path_join(kpath, sizeof kpath, s->dir, "camera-intrinsics.color.txt");
-        if (st) return st;
-        int w, h;
-        sooc_pixfmt fmt;
-        st = sooc_png_info(s->e[0].rgb, &w, &h, &fmt);
-        if (st) return st;
-        if (sooc_file_exists(kpath)) {
-            mat_ctx m;
-            memset(&m, 0, sizeof m);
-            m.file = kpath;
-            m.ncols = 3;
-            st = for_lines(kpath, mat_line, &m);
-            if (st) return st;
-            if (m.rows != 3) return sooc_seterr(SOOC_EFORMAT, "%s: expected a 3x3 matrix", kpath);
-            if (m.v[0] == 0 || m.v[4] == 0 || m.v[1] != 0 || m.v[3] != 0 || m.v[6] != 0 || m.v[7] != 0 || m.v[8] != 1)
-                return sooc_seterr(SOOC_EINVAL, "%s:%d: expected [fx 0 cx; 0 fy cy; 0 0 1]", kpath, m.lines[0]);
-            sooc_calib_pinhole(&s->calib, w, h, m.v[0], m.v[4], m.v[2], m.v[5]);
-        } else {
-            /* 7-Scenes published intrinsics (Kinect v1, 640x480) */
-            sooc_calib_pinhole(&s->calib, w, h, 585.0 * w / 640.0, 585.0 * h / 480.0, w / 2.0, h / 2.0);
-            sooc_log(SOOC_LOG_WARN, "%s: no calibration, using 7-Scenes intrinsics f=585", s->dir);
-        }
-        s->calib.depth_scale = 0.001; /* 7-Scenes: millimetres */
+    if (p->format == SOOC_SEQ_AUTO && depth_looks_shifted(s->e[0].depth)) {
+        s->fmt = SOOC_SEQ_LABELFUSION;
+        sooc_log(SOOC_LOG_INFO, "%s: depth samples are multiples of 8: reading as label-fusion "
+                 "((raw >> 3) * 1e-4 m; give format 7scenes to override)", s->dir);
     }
-    return st;
+    st = load_calib(s, p, 0);
+    if (st != SOOC_ENOTFOUND) return st;
+    int w, h;
+    sooc_pixfmt fmt;
+    st = sooc_image_info(s->e[0].rgb, &w, &h, &fmt);
+    if (st) return st;
+    static const char *knames[] = {"camera-intrinsics.color.txt", "camera-intrinsics.txt"};
+    for (int k = 0; k < 2; k++) {
+        char kpath[4096];
+        st = sooc_path_join(kpath, sizeof kpath, s->dir, knames[k]);
+        if (st) return st;
+        if (sooc_file_exists(kpath)) return read_intrinsics_txt(s, kpath, w, h);
+    }
+    /* 7-Scenes published intrinsics (Kinect v1, 640x480) */
+    sooc_calib_pinhole(&s->calib, w, h, 585.0 * w / 640.0, 585.0 * h / 480.0, w / 2.0, h / 2.0);
+    sooc_log(SOOC_LOG_WARN, "%s: no calib.yaml or camera-intrinsics(.color).txt: using the 7-Scenes intrinsics f=585",
+             s->dir);
+    return SOOC_OK;
 }
 
 /* ------------------------------------------- pose lists: slambook, Replica */
@@ -515,16 +680,28 @@ typedef struct list_ctx {
     sooc_seq *s;
     const char *file;
     double tol;
+    int64_t lines;    /* pose lines read so far (frame number of the next = lines + first) */
+    int64_t skipped;  /* lines whose colour and depth files are both absent */
 } list_ctx;
 
 /* Fills the fields every listed frame shares (its pose has been read) and
- * checks that both images exist; rgb and depth are set by the caller. */
-static sooc_status list_entry_done(const list_ctx *c, int lineno, seq_entry *e) {
+ * checks that both images exist; rgb and depth are set by the caller. A line
+ * whose colour and depth files are both missing is dropped (a trimmed or
+ * subsampled copy); only one of them missing is an error. */
+static sooc_status list_entry_done(list_ctx *c, int lineno, seq_entry *e, int64_t number) {
     e->has_pose = 1;
     e->line = lineno;
     e->src = c->s->srcname[0];
-    e->t_ns = (c->s->n - 1) * 33333333LL;
+    e->number = number;
+    e->t_ns = number * 33333333LL;
     if (!e->rgb || !e->depth) return SOOC_ENOMEM;
+    if (!sooc_file_exists(e->rgb) && !sooc_file_exists(e->depth)) {
+        sooc_free(e->rgb);
+        sooc_free(e->depth);
+        c->s->n--;
+        c->skipped++;
+        return SOOC_OK;
+    }
     sooc_status st = need_file(c->file, lineno, e->rgb);
     if (!st) st = need_file(c->file, lineno, e->depth);
     return st;
@@ -542,9 +719,14 @@ static sooc_status read_pose_list(sooc_seq *s, const sooc_seq_open_params *p, co
         if (st) return st;
     }
     snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
-    list_ctx c = {s, s->srcname[0], p->rot_tol};
+    list_ctx c = {s, s->srcname[0], p->rot_tol, 0, 0};
     st = for_lines(path, fn, &c);
-    if (!st && s->n == 0) st = sooc_seterr(SOOC_EFORMAT, "%s: no poses", path);
+    if (!st && s->n == 0)
+        st = sooc_seterr(SOOC_EFORMAT, c.lines ? "%s: none of its %lld frames has its images" : "%s: no poses", path,
+                         (long long)c.lines);
+    if (!st && c.skipped)
+        sooc_log(SOOC_LOG_INFO, "%s: %lld of %lld listed frames have no images (trimmed copy): skipped", path,
+                 (long long)c.skipped, (long long)c.lines);
     return st;
 }
 
@@ -562,9 +744,10 @@ static sooc_status sb_line(void *user, int lineno, char *line) {
     if (st) return st;
     st = quat_pose(c->file, lineno, tok, e->T, c->tol);
     if (st) return st;
-    e->rgb = frame_path(c->s->dir, "color/", 0, c->s->n, ".png", NULL);
-    e->depth = frame_path(c->s->dir, "depth/", 0, c->s->n, ".pgm", ".png");
-    return list_entry_done(c, lineno, e);
+    int64_t k = ++c->lines; /* numbered from 1 */
+    e->rgb = frame_path(c->s->dir, "color/", 0, k, ".png", ".jpg");
+    e->depth = frame_path(c->s->dir, "depth/", 0, k, ".pgm", ".png");
+    return list_entry_done(c, lineno, e, k);
 }
 
 static sooc_status open_slambook(sooc_seq *s, const sooc_seq_open_params *p) {
@@ -589,10 +772,10 @@ static sooc_status rp_line(void *user, int lineno, char *line) {
             return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a finite number", c->file, lineno, tok[k]);
     st = check_pose4(c->file, lineno, lineno, e->T, c->tol);
     if (st) return st;
-    int64_t i = c->s->n - 1;
-    e->rgb = frame_path(c->s->dir, "results/frame", 6, i, ".png", ".jpg");
+    int64_t i = c->lines++; /* numbered from 0 */
+    e->rgb = frame_path(c->s->dir, "results/frame", 6, i, ".jpg", ".png");
     e->depth = frame_path(c->s->dir, "results/depth", 6, i, ".png", NULL);
-    return list_entry_done(c, lineno, e);
+    return list_entry_done(c, lineno, e, i);
 }
 
 static sooc_status open_replica(sooc_seq *s, const sooc_seq_open_params *p) {
@@ -602,8 +785,7 @@ static sooc_status open_replica(sooc_seq *s, const sooc_seq_open_params *p) {
     if (st == SOOC_ENOTFOUND) {
         /* NICE-SLAM Replica camera (configs/Replica/replica.yaml) */
         sooc_calib_pinhole(&s->calib, 1200, 680, 600, 600, 599.5, 339.5);
-        s->calib.depth_scale = 1.0 / 6553.5;
-        st = SOOC_OK;
+        st = SOOC_OK; /* depth: the format default, 1 / 6553.5 m */
     }
     return st;
 }
@@ -661,13 +843,12 @@ static sooc_seq_format detect(const char *dir) {
     if (!sooc_path_join(p, sizeof p, dir, "rgb.txt") && sooc_file_exists(p)) return SOOC_SEQ_TUM;
     if (!sooc_path_join(p, sizeof p, dir, "traj.txt") && sooc_file_exists(p)) return SOOC_SEQ_REPLICA;
     if (!sooc_path_join(p, sizeof p, dir, "pose.txt") && sooc_file_exists(p)) return SOOC_SEQ_SLAMBOOK;
-    if (!sooc_path_join(p, sizeof p, dir, "frame-000000.color.png") && sooc_file_exists(p)) return SOOC_SEQ_7SCENES;
     DIR *d = opendir(dir);
     if (d) {
         struct dirent *de;
-        int k;
+        int ext;
         while ((de = readdir(d)))
-            if (sscanf(de->d_name, "frame-%d.color.png", &k) == 1) { closedir(d); return SOOC_SEQ_7SCENES; }
+            if (scenes_color_number(de->d_name, &ext) >= 0) { closedir(d); return SOOC_SEQ_7SCENES; }
         closedir(d);
     }
     return SOOC_SEQ_AUTO;
@@ -690,20 +871,30 @@ sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_p
     sooc_status st;
     switch (s->fmt) {
     case SOOC_SEQ_TUM: st = open_tum(s, &p); break;
-    case SOOC_SEQ_7SCENES: st = open_7scenes(s, &p); break;
+    case SOOC_SEQ_7SCENES:
+    case SOOC_SEQ_LABELFUSION: st = open_7scenes(s, &p); break;
     case SOOC_SEQ_SLAMBOOK: st = open_slambook(s, &p); break;
     case SOOC_SEQ_REPLICA: st = open_replica(s, &p); break;
     default:
         st = sooc_seterr(SOOC_ENOTFOUND, "%s: no sequence found (need rgb.txt, traj.txt, pose.txt or "
-                         "frame-%%06d.color.png)", dir);
+                         "frame-NNNNNN.color.jpg/.png)", dir);
     }
     if (!st) st = load_gravity(s);
     if (!st) {
-        s->depth_scale = p.depth_scale > 0 ? p.depth_scale : s->calib.depth_scale;
+        /* depth decoding: open parameters, else calibration, else the format's default */
+        const sooc_seq_format_info *fi = sooc_seq_format_info_of(s->fmt);
+        s->depth_scale = p.depth_scale > 0 ? p.depth_scale
+                         : s->calib.depth_scale > 0 ? s->calib.depth_scale : fi->depth_scale;
         if (!(s->depth_scale > 0))
             st = sooc_seterr(SOOC_EINVAL, "%s: depth_scale: missing in the calibration (metres per depth unit)",
                              p.calib_path ? p.calib_path : dir);
-        s->depth_shift = p.depth_shift;
+        s->depth_shift = p.depth_shift >= 0 ? p.depth_shift
+                         : s->calib.depth_shift >= 0 ? s->calib.depth_shift : fi->depth_shift;
+        s->depth_invalid = p.depth_invalid >= 0 ? p.depth_invalid
+                           : s->calib.depth_invalid >= 0 ? s->calib.depth_invalid : fi->depth_invalid;
+        if (!st && (s->depth_shift > 15 || s->depth_invalid > 65535))
+            st = sooc_seterr(SOOC_EINVAL, "%s: depth_shift %d / depth_invalid %d out of range ([0, 15] / [0, 65535])",
+                             dir, s->depth_shift, s->depth_invalid);
         s->max_depth = p.max_depth;
         if (s->calib.K.fy < 0) {
             s->flip_y = 1;
@@ -719,6 +910,24 @@ sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_p
 
 int64_t sooc_seq_count(const sooc_seq *s) { return s ? s->n : 0; }
 sooc_seq_format sooc_seq_get_format(const sooc_seq *s) { return s->fmt; }
+
+int64_t sooc_seq_frame_number(const sooc_seq *s, int64_t i) {
+    return s && i >= 0 && i < s->n ? s->e[i].number : -1;
+}
+
+const char *sooc_seq_color_path(const sooc_seq *s, int64_t i) {
+    return s && i >= 0 && i < s->n ? s->e[i].rgb : NULL;
+}
+
+const char *sooc_seq_depth_path(const sooc_seq *s, int64_t i) {
+    return s && i >= 0 && i < s->n ? s->e[i].depth : NULL;
+}
+
+void sooc_seq_depth_decoding(const sooc_seq *s, double *scale, int *shift, int *invalid) {
+    if (scale) *scale = s->depth_scale;
+    if (shift) *shift = s->depth_shift;
+    if (invalid) *invalid = s->depth_invalid;
+}
 const sooc_calib *sooc_seq_calib(const sooc_seq *s) { return &s->calib; }
 int64_t sooc_seq_dropped(const sooc_seq *s) { return s->dropped; }
 
@@ -781,9 +990,10 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
     size_t np = (size_t)W * (size_t)H;
     memcpy(f->rgb, s->img_rgb.data, np * 3);
     const uint16_t *dr = s->img_depth.data;
+    const int inv = s->depth_invalid > 0 ? s->depth_invalid : -1;
     for (size_t k = 0; k < np; k++) {
         uint16_t raw = dr[k];
-        float z = raw == 0 || raw == 65535 ? 0.0f : (float)((double)(raw >> s->depth_shift) * s->depth_scale);
+        float z = raw == 0 || raw == inv ? 0.0f : (float)((double)(raw >> s->depth_shift) * s->depth_scale);
         if (s->max_depth > 0 && z > s->max_depth) z = 0;
         f->depth[k] = z;
         f->valid[k] = z > 0;
@@ -799,7 +1009,7 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
                 if ((r == 1) != (c == 1)) f->T_wc[4 * r + c] = -f->T_wc[4 * r + c];
     }
     f->K = s->calib.K;
-    f->index = i;
+    f->index = e->number;
     f->is_query = e->is_query;
     return SOOC_OK;
 }
