@@ -47,6 +47,15 @@ typedef struct sooc_support_params {
     double cam_height_min_m;     /* the range of camera heights the model was trained on:  */
     double cam_height_max_m;     /* outside it the result's height_warning is set          */
     uint64_t seed;
+    /* extensions (defaults from sooc_support_params_default) */
+    double max_tilt_camera_deg;  /* tilt limit when up comes from the cameras (45)          */
+    double min_support_frac;     /* a candidate plane holds at least this share of points   */
+    double lower_support_ratio;  /* the lowest candidate with >= this share of the largest's
+                                    inliers is chosen (0.15)                                */
+    double min_clearance_m;      /* "below a camera": at least this far below its centre    */
+    int max_points;              /* depth points used at most, over all frames (60000)      */
+    double max_depth_m;          /* depth beyond this is not used (8 m)                     */
+    double parallel_deg;         /* stage 2: planes within this of the level direction (5)  */
 } sooc_support_params;
 
 void sooc_support_params_default(sooc_support_params *p);
@@ -62,16 +71,37 @@ typedef struct sooc_support {
     size_t n_inliers, n_points;
     double rms_m;
     int frames_used;
+    int n_candidates;            /* level planes found (the chosen one among them)         */
 } sooc_support;
 
 /* Estimate the support plane from n posed frames (metric depth, has_pose;
- * frames without a pose are skipped). Candidate planes are fitted in turn
- * (RANSAC, then a least squares refit); the chosen one is the largest plane
- * below every camera whose normal lies within max_tilt_deg of up. Fails with
- * a message that names the reason (no pose, no depth, no plane within the
- * tilt, ...). */
+ * frames without a pose are skipped; at most max_frames, spread evenly).
+ * The rule (docs/node.md "Support plane"):
+ *  1. RANSAC finds up to 6 planes in turn within max_tilt_deg of up
+ *     (max_tilt_camera_deg when up comes from the cameras); none: failure
+ *     that names the up direction, its source and the inlier counts.
+ *  2. The level direction is up itself (given, gravity file, or cameras that
+ *     turned with under 2 deg rms roll), else the normal of the step-1 plane
+ *     with the most support from planes parallel to it (parallel_deg).
+ *  3. The level planes are the peaks of the point heights along it, each
+ *     refitted by total least squares (normal within parallel_deg).
+ *  4. Chosen: among level planes below every camera (min_clearance_m) with
+ *     at least lower_support_ratio of the largest one's inliers, the lowest.
+ *     So a floor in view wins over a larger table top; a table, shelf or bin
+ *     bottom is taken when no floor is in view. */
 sooc_status sooc_support_estimate(const sooc_frame *const *frames, int n, const sooc_support_params *p,
                                   sooc_support *out);
+
+/* The same estimate from depth points already in the source frame (xyz,
+ * row-major) and the cameras' poses T_src_c (n_cams row-major 4x4, camera to
+ * source). For callers that gather points frame by frame (the node). */
+sooc_status sooc_support_estimate_points(const double *pts, size_t n_pts, const double *T_src_c, int n_cams,
+                                         const sooc_support_params *p, sooc_support *out);
+
+/* Read a gravity file (7-Scenes gravity-direction.txt: three numbers, gravity
+ * in the pose source's frame) into g, normalised. SOOC_ENOTFOUND when the file
+ * is absent; SOOC_EFORMAT / SOOC_EINVAL naming the file when malformed. */
+sooc_status sooc_support_read_gravity(const char *path, double g[3]);
 
 #ifdef __cplusplus
 }
