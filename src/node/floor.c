@@ -12,15 +12,16 @@ void sooc_floor_fit_params_default(sooc_floor_fit_params *p) {
     p->iterations = 200;
     p->min_inlier_frac = 0.15;
     p->seed = 1;
+    p->max_tilt_deg = 30.0;
 }
 
-static int orient_ok(double nrm[3], double *d, const double *hint, const double *view) {
+static int orient_ok(double nrm[3], double *d, const double *hint, const double *view, double max_tilt_deg) {
     if (hint) {
         double h[3] = {hint[0], hint[1], hint[2]};
         sooc_v3_normalize(h);
         double c = sooc_v3_dot(nrm, h);
         if (c < 0) { sooc_v3_scale(nrm, nrm, -1); *d = -*d; c = -c; }
-        return c >= cos(30.0 * 3.14159265358979323846 / 180.0);
+        return c >= cos(max_tilt_deg * 3.14159265358979323846 / 180.0);
     }
     if (view) {
         if (sooc_v3_dot(nrm, view) + *d < 0) { sooc_v3_scale(nrm, nrm, -1); *d = -*d; }
@@ -92,7 +93,7 @@ sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_par
         sooc_v3_cross(nrm, ab, ac);
         if (sooc_v3_normalize(nrm) < 1e-9) continue;
         double d = -sooc_v3_dot(nrm, a);
-        if (!orient_ok(nrm, &d, hint_up, viewpoint)) continue;
+        if (!orient_ok(nrm, &d, hint_up, viewpoint, p.max_tilt_deg)) continue;
         double sse;
         size_t cnt = count_inliers(pts, n, nrm, d, p.threshold_m, &sse);
         /* prefer more inliers; on ties, the tighter fit (MSAC-like) */
@@ -111,8 +112,9 @@ sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_par
         sooc_status st = refit(pts, n, p.threshold_m, bn, &bd);
         if (st) return st;
     }
-    if (!orient_ok(bn, &bd, hint_up, viewpoint))
-        return sooc_seterr(SOOC_ENOTFOUND, "floor fit: refined plane is more than 30 deg from the up hint");
+    if (!orient_ok(bn, &bd, hint_up, viewpoint, p.max_tilt_deg))
+        return sooc_seterr(SOOC_ENOTFOUND, "floor fit: refined plane is more than %g deg from the up hint",
+                           p.max_tilt_deg);
     double sse;
     size_t cnt = count_inliers(pts, n, bn, bd, p.threshold_m, &sse);
     plane[0] = bn[0];
