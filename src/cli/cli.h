@@ -18,6 +18,10 @@ int sooc_cmd_mesh(int argc, char **argv);
 int sooc_cmd_map(int argc, char **argv);
 int sooc_cmd_model(int argc, char **argv);
 int sooc_cmd_node(int argc, char **argv);
+int sooc_cmd_odometry(int argc, char **argv);
+int sooc_cmd_calib(int argc, char **argv);
+/* `sooc3d gen --board ...`: board views for calibration (cmd_calib.c). */
+int sooc_cmd_gen_board(int argc, char **argv);
 
 /* Print "sooc3d <cmd>: <status>: <errmsg>" to stderr and return 1. */
 int sooc_cli_fail(const char *cmd, sooc_status s);

@@ -69,6 +69,8 @@ static void print_stats(const sooc_gen_params *p, const sooc_gen_stats *st) {
 
 int sooc_cmd_gen(int argc, char **argv) {
     if (sooc_cli_wants_help(argc, argv)) { usage(stdout); return 0; }
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "--board")) return sooc_cmd_gen_board(argc, argv);   /* calibration boards */
     sooc_gen_params p;
     sooc_gen_params_default(&p);
     const char *out = NULL;

@@ -19,6 +19,8 @@ static const struct {
     {"map", sooc_cmd_map, "list, query or export a stored map"},
     {"model", sooc_cmd_model, "show a checkpoint's configuration, set its inference slots"},
     {"node", sooc_cmd_node, "run the live mapping node from a launch file"},
+    {"odometry", sooc_cmd_odometry, "RGB-D odometry over a sequence (TUM trajectory, ATE/RPE)"},
+    {"calib", sooc_cmd_calib, "camera intrinsics and hand-eye from board images"},
 };
 #define NCMDS (sizeof g_cmds / sizeof g_cmds[0])
 
