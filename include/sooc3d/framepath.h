@@ -36,6 +36,10 @@
  * step the live node runs on every keyframe, with the same defaults as a
  * launch file (depth 0.1 .. 10 m, min-of-valid depth resampling).
  *
+ * This header does not include support.h (so that it can be used next to
+ * headers with a `sooc_support` tag of their own); the estimate's figures
+ * come back as sooc_framepath_support_info.
+ *
  * Thread safety: one thread at a time per sooc_framepath.
  */
 #ifndef SOOC3D_FRAMEPATH_H
@@ -45,7 +49,6 @@
 #include "sooc3d/frame.h"
 #include "sooc3d/node.h"
 #include "sooc3d/seq.h"
-#include "sooc3d/support.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -81,7 +84,9 @@ typedef struct sooc_framepath_params {
     double T_world_src[16];   /* with world = GIVEN                                                */
     const char *map_db;       /* map database to read a stored frame from (NULL: none)            */
     int support_frames;       /* frames handed to sooc_support_estimate (default 30)              */
-    sooc_support_params support; /* the estimate's parameters (sooc_support_params_default)       */
+    double max_tilt_deg;      /* support plane within this angle of up (0 = the estimate's default) */
+    double cam_height_min_m;  /* trained camera-height range for the warning (0 = the estimate's   */
+    double cam_height_max_m;  /*   defaults, sooc_support_params_default)                          */
 } sooc_framepath_params;
 
 void sooc_framepath_params_default(sooc_framepath_params *p);
@@ -115,8 +120,18 @@ sooc_status sooc_framepath_resize_ids(const sooc_framepath *fp, const uint16_t *
 /* The world frame in use: T_world_src (p_world = T * p_src) and where it came
  * from (returned). */
 sooc_framepath_world sooc_framepath_world_get(const sooc_framepath *fp, double T_world_src[16]);
-/* The support estimate when the world came from one (else NULL). */
-const sooc_support *sooc_framepath_support(const sooc_framepath *fp);
+/* The support estimate's figures (a copy of sooc_support's, support.h). */
+typedef struct sooc_framepath_support_info {
+    double T_world_src[16];
+    double up_src[3];         /* unit up in the source frame                    */
+    double plane_src[4];      /* n . p + d = 0 in the source frame              */
+    int up_source;            /* sooc_up_source: 0 given, 1 gravity file, 2 camera mean */
+    double tilt_deg, cam_height_m, rms_m;
+    int height_warning, frames_used;
+    size_t n_inliers, n_points;
+} sooc_framepath_support_info;
+/* 1 and *out filled when the world came from a support estimate, else 0. */
+int sooc_framepath_support(const sooc_framepath *fp, sooc_framepath_support_info *out);
 /* Fill a sooc_map_frame-compatible record (mapstore.h) for storing. Fields:
  * T_world_src, up_src, plane_src, cam_height_m, up_source (-1 when the
  * frame was given / identity). Declared with plain arrays so this header

@@ -36,10 +36,21 @@ extern "C" {
 typedef struct sooc_dataset sooc_dataset;
 
 /* Load scenes from each directory in dirs: a directory holding scene.yaml is
- * one scene; otherwise every scene_* subdirectory is loaded. All views must
- * have size (width, height). Fails naming the offending file. */
+ * one scene; otherwise every scene_* subdirectory is loaded; a directory with
+ * neither that opens as a recorded sequence (7-Scenes, label-fusion, TUM, ...)
+ * is one scene without objects whose posed frames are query views when their
+ * position p (0-based) has p % SOOC_DATASET_QUERY_EVERY == SOOC_DATASET_QUERY_EVERY / 2
+ * (the rule `sooc3d eval` holds real frames out by). Frames go through the
+ * frame path (include/sooc3d/framepath.h): any resolution is cropped/resized
+ * to (width, height). Fails naming the offending file. */
+#define SOOC_DATASET_QUERY_EVERY 5
 sooc_status sooc_dataset_open(sooc_dataset **out, const char *const *dirs, int n_dirs, int width,
                               int height);
+/* The same with the frame-path options (--calib, --depth-scale, --up, ...);
+ * fpp->width/height are the model's resolution (required). */
+struct sooc_framepath_params;
+sooc_status sooc_dataset_open_fp(sooc_dataset **out, const char *const *dirs, int n_dirs,
+                                 const struct sooc_framepath_params *fpp);
 void sooc_dataset_destroy(sooc_dataset *d);   /* NULL-safe */
 int sooc_dataset_n_scenes(const sooc_dataset *d);
 const char *sooc_dataset_scene_path(const sooc_dataset *d, int scene);

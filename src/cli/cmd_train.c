@@ -16,10 +16,11 @@ static void on_signal(int sig) {
 static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d train --config F --data DIR [DIR...] --out DIR [--val DIR...] [--resume]\n"
-            "                    [--init M] [--steps N] [--threads N] [--max-seconds S]\n\n"
+            "                    [--init M] [--steps N] [--threads N] [--max-seconds S]\n"
+            "                    [--calib F] [--format NAME] [--depth-scale S] [--depth-shift N] ...\n\n"
             "Train SOOC3D (ELBO + query objective) on scenes written by `sooc3d gen`.\n"
             "  --config F       training YAML (training keys + a `model:` mapping); see models/*/config.yaml\n"
-            "  --data DIR...    scene folders (or folders of scene_* folders) to train on\n"
+            "  --data DIR...    scene folders (or folders of scene_* folders, or recorded sequences) to train on\n"
             "  --val DIR...     held-out scenes for periodic validation (best.bin keeps the best mIoU)\n"
             "  --out DIR        checkpoints (last.bin, best.bin), log.csv, val.csv, curves.png\n"
             "  --resume         continue from DIR/last.bin with the same data order and RNG\n"
@@ -29,7 +30,8 @@ static void usage(FILE *f) {
             "  --steps N        override the config's total steps\n"
             "  --threads N      decoder threads (default: all cores)\n"
             "  --max-seconds S  checkpoint and stop after S seconds (for time-sliced runs)\n"
-            "Ctrl-C checkpoints and stops; --resume continues exactly.\n");
+            "Ctrl-C checkpoints and stops; --resume continues exactly.\n\n%s",
+            sooc_cli_framepath_help);
 }
 
 /* Validation: provided by the evaluation path (src/train/validate.c). */
@@ -40,7 +42,9 @@ int sooc_cmd_train(int argc, char **argv) {
     if (sooc_cli_wants_help(argc, argv)) { usage(stdout); return 0; }
     const char *config = NULL, *out = NULL, *init = NULL;
     const char *data[256], *val[256];
-    int n_data = 0, n_val = 0, resume = 0, threads = -1;
+    int n_data = 0, n_val = 0, resume = 0, threads = -1, fo;
+    sooc_framepath_params fpp;
+    sooc_framepath_params_default(&fpp);
     long long steps = 0;
     double max_s = 0;
     for (int i = 1; i < argc; i++) {
@@ -57,6 +61,9 @@ int sooc_cmd_train(int argc, char **argv) {
         } else if (!strcmp(a, "--max-seconds") && i + 1 < argc) {
             if (!sooc_cli_double_opt("train", a, argv[++i], 0, 1e7, &max_s)) return 2;
         }
+        else if ((fo = sooc_cli_framepath_opt("train", argc, argv, &i, &fpp)) != 0) {
+            if (fo < 0) return 2;
+        }
         else if (!strcmp(a, "--data") || !strcmp(a, "--val")) {
             int is_val = !strcmp(a, "--val");
             while (i + 1 < argc && argv[i + 1][0] != '-') {
@@ -71,6 +78,7 @@ int sooc_cmd_train(int argc, char **argv) {
         }
     }
     if (!config || !out || n_data == 0) { usage(stderr); return 2; }
+    if (!sooc_cli_framepath_check("train", &fpp)) return 2;
     sooc_train_config cfg;
     sooc_model_config mc;
     sooc_train_config_default(&cfg);
@@ -82,10 +90,11 @@ int sooc_cmd_train(int argc, char **argv) {
     if (max_s > 0) cfg.val_max_seconds = (float)max_s;
     sooc_dataset *train = NULL, *valset = NULL;
     fprintf(stderr, "loading %d training folder(s)...\n", n_data);
-    s = sooc_dataset_open(&train, data, n_data, mc.img_w, mc.img_h);
+    fpp.width = mc.img_w, fpp.height = mc.img_h;
+    s = sooc_dataset_open_fp(&train, data, n_data, &fpp);
     if (s) return sooc_cli_fail("train", s);
     if (n_val) {
-        s = sooc_dataset_open(&valset, val, n_val, mc.img_w, mc.img_h);
+        s = sooc_dataset_open_fp(&valset, val, n_val, &fpp);
         if (s) { sooc_dataset_destroy(train); return sooc_cli_fail("train", s); }
     }
     fprintf(stderr, "%d training scenes, %d validation scenes; %lld steps -> %s\n",

@@ -1,6 +1,7 @@
 /* The one frame path (include/sooc3d/framepath.h): sequence reader +
  * sooc_node_preprocess + the map's world frame, for every command. */
 #include "sooc3d/framepath.h"
+#include "sooc3d/support.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -19,6 +20,7 @@ struct sooc_framepath {
     double T_world_src[16];
     int has_support;
     sooc_support sup;
+    double hmin, hmax;                /* the estimate's trained camera-height range */
     int has_record;                   /* a stored frame's extra fields */
     double up_src[3], plane_src[4], cam_h;
     int up_source;
@@ -52,7 +54,6 @@ void sooc_framepath_params_default(sooc_framepath_params *p) {
     p->world = SOOC_WORLD_AUTO;
     sooc_se3_identity(p->T_world_src);
     p->support_frames = 30;
-    sooc_support_params_default(&p->support);
 }
 
 void sooc_framepath_close(sooc_framepath *fp) {
@@ -67,7 +68,18 @@ int sooc_framepath_synthetic(const sooc_framepath *fp) { return fp->synthetic; }
 sooc_seq *sooc_framepath_seq(sooc_framepath *fp) { return fp->seq; }
 const char *sooc_framepath_dir(const sooc_framepath *fp) { return fp->dir; }
 int64_t sooc_framepath_empty_depth(const sooc_framepath *fp) { return fp->n_empty; }
-const sooc_support *sooc_framepath_support(const sooc_framepath *fp) { return fp->has_support ? &fp->sup : NULL; }
+int sooc_framepath_support(const sooc_framepath *fp, sooc_framepath_support_info *o) {
+    if (!fp->has_support) return 0;
+    const sooc_support *s = &fp->sup;
+    memcpy(o->T_world_src, s->T_world_src, sizeof o->T_world_src);
+    memcpy(o->up_src, s->up_src, sizeof o->up_src);
+    memcpy(o->plane_src, s->plane_src, sizeof o->plane_src);
+    o->up_source = (int)s->up_source;
+    o->tilt_deg = s->tilt_deg, o->cam_height_m = s->cam_height_m, o->rms_m = s->rms_m;
+    o->height_warning = s->height_warning, o->frames_used = s->frames_used;
+    o->n_inliers = s->n_inliers, o->n_points = s->n_points;
+    return 1;
+}
 
 sooc_framepath_world sooc_framepath_world_get(const sooc_framepath *fp, double T_world_src[16]) {
     if (T_world_src) memcpy(T_world_src, fp->T_world_src, sizeof fp->T_world_src);
@@ -140,7 +152,11 @@ static sooc_status world_estimate(sooc_framepath *fp) {
     }
     if (!st && k == 0) st = sooc_seterr(SOOC_EINVAL, "%s: no frame with a pose for the support-plane estimate", fp->dir);
     if (!st) {
-        sooc_support_params sp = fp->p.support;
+        sooc_support_params sp;
+        sooc_support_params_default(&sp);
+        if (fp->p.max_tilt_deg > 0) sp.max_tilt_deg = fp->p.max_tilt_deg;
+        if (fp->p.cam_height_min_m > 0) sp.cam_height_min_m = fp->p.cam_height_min_m;
+        if (fp->p.cam_height_max_m > 0) sp.cam_height_max_m = fp->p.cam_height_max_m;
         if (fp->p.has_up) {
             sp.has_up_hint = 1;
             memcpy(sp.up_hint, fp->p.up, sizeof sp.up_hint);
@@ -150,6 +166,7 @@ static sooc_status world_estimate(sooc_framepath *fp) {
             sp.has_gravity = 1;
             memcpy(sp.gravity, g, sizeof g);
         }
+        fp->hmin = sp.cam_height_min_m, fp->hmax = sp.cam_height_max_m;
         st = sooc_support_estimate(pf, k, &sp, &fp->sup);
         if (st)
             sooc_adderr(st, "%s: support-plane estimate for the map's world frame (give --up x,y,z, or "
@@ -170,7 +187,7 @@ static sooc_status world_estimate(sooc_framepath *fp) {
     if (fp->sup.height_warning)
         sooc_log(SOOC_LOG_WARN, "%s: the camera is %.2f m above the support plane, outside the range the model "
                                 "was trained for (%.2f .. %.2f m)",
-                 fp->dir, fp->sup.cam_height_m, fp->p.support.cam_height_min_m, fp->p.support.cam_height_max_m);
+                 fp->dir, fp->sup.cam_height_m, fp->hmin, fp->hmax);
     return SOOC_OK;
 }
 

@@ -1,5 +1,8 @@
-/* In-memory scene datasets for training and validation. */
+/* In-memory scene datasets for training and validation. Frames are read
+ * through the one frame path (include/sooc3d/framepath.h): any resolution,
+ * cropped/resized to the model's, poses in the map's world frame. */
 #include "sooc3d/train.h"
+#include "sooc3d/framepath.h"
 #include "sooc3d/scene.h"
 #include "sooc3d/seq.h"
 
@@ -40,20 +43,22 @@ void sooc_dataset_destroy(sooc_dataset *d) {
     sooc_free(d);
 }
 
-/* Load one scene directory (scene.yaml + TUM layout). */
-static sooc_status load_scene(ds_scene *out, const char *dir, int width, int height) {
+/* Load one scene directory: a synthetic scene (scene.yaml + TUM layout) or a
+ * recorded sequence (no scene.yaml: no objects, query views by the rule of
+ * SOOC_DATASET_QUERY_EVERY, frames without a pose skipped). */
+static sooc_status load_scene(ds_scene *out, const char *dir, const sooc_framepath_params *fpp) {
     memset(out, 0, sizeof *out);
     char path[4096];
     sooc_status s = sooc_path_join(path, sizeof path, dir, "scene.yaml");
     if (s) return s;
+    int synthetic = sooc_file_exists(path);
     sooc_scene sc;
     sooc_scene_init(&sc);
-    s = sooc_scene_load(path, &sc);
-    if (s) return s;
-    sooc_seq *seq = NULL;
-    s = sooc_seq_open(&seq, dir, NULL);
+    if (synthetic && (s = sooc_scene_load(path, &sc))) return s;
+    sooc_framepath *fp = NULL;
+    s = sooc_framepath_open(&fp, dir, fpp);
     if (s) { sooc_scene_free(&sc); return s; }
-    int64_t n = sooc_seq_count(seq);
+    int64_t n = sooc_framepath_count(fp);
     if (n <= 0 || n > 100000) {
         s = sooc_seterr(SOOC_EFORMAT, "%s: %lld views", dir, (long long)n);
         goto done;
@@ -68,21 +73,26 @@ static sooc_status load_scene(ds_scene *out, const char *dir, int width, int hei
         goto done;
     }
     for (int64_t i = 0; i < n; i++) {
-        sooc_frame *f = &out->views[i];
-        s = sooc_seq_read(seq, i, f);
-        out->n_views = (int)i + 1;
+        int v = out->n_views;
+        sooc_frame *f = &out->views[v];
+        s = sooc_framepath_read(fp, i, f);
+        out->n_views = v + 1;
         if (s) goto done;
-        if (f->width != width || f->height != height) {
-            s = sooc_seterr(SOOC_EINVAL, "%s: view %lld is %dx%d, the model needs %dx%d", dir, (long long)i,
-                            f->width, f->height, width, height);
-            goto done;
-        }
         if (!f->has_pose) {
-            s = sooc_seterr(SOOC_EFORMAT, "%s: view %lld has no pose", dir, (long long)i);
-            goto done;
+            if (synthetic) {
+                s = sooc_seterr(SOOC_EFORMAT, "%s: view %lld has no pose", dir, (long long)i);
+                goto done;
+            }
+            sooc_frame_free(f);
+            out->n_views = v;
+            continue;
         }
-        if (sc.view_is_query && i < sc.n_views) f->is_query = sc.view_is_query[i];
-        if (!f->is_query) out->input_idx[out->n_inputs++] = (int)i;
+        if (synthetic) {
+            if (sc.view_is_query && i < sc.n_views) f->is_query = sc.view_is_query[i];
+        } else {
+            f->is_query = v % SOOC_DATASET_QUERY_EVERY == SOOC_DATASET_QUERY_EVERY / 2;
+        }
+        if (!f->is_query) out->input_idx[out->n_inputs++] = v;
     }
     if (out->n_inputs == 0) {
         s = sooc_seterr(SOOC_EFORMAT, "%s: no input views", dir);
@@ -97,7 +107,7 @@ static sooc_status load_scene(ds_scene *out, const char *dir, int width, int hei
         out->obj_xz[2 * i + 1] = c[2];
     }
 done:
-    sooc_seq_close(seq);
+    sooc_framepath_close(fp);
     sooc_scene_free(&sc);
     if (s) scene_free(out);
     return s;
@@ -105,7 +115,7 @@ done:
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
-static sooc_status push_scene(sooc_dataset *d, const char *dir, int w, int h) {
+static sooc_status push_scene(sooc_dataset *d, const char *dir, const sooc_framepath_params *fpp) {
     if (d->n == d->cap) {
         int cap = d->cap ? 2 * d->cap : 16;
         ds_scene *ns = sooc_realloc(d->scenes, (size_t)cap * sizeof(ds_scene));
@@ -113,17 +123,17 @@ static sooc_status push_scene(sooc_dataset *d, const char *dir, int w, int h) {
         d->scenes = ns;
         d->cap = cap;
     }
-    sooc_status s = load_scene(&d->scenes[d->n], dir, w, h);
+    sooc_status s = load_scene(&d->scenes[d->n], dir, fpp);
     if (s) return s;
     d->n++;
     return SOOC_OK;
 }
 
-static sooc_status add_dir(sooc_dataset *d, const char *dir, int w, int h) {
+static sooc_status add_dir(sooc_dataset *d, const char *dir, const sooc_framepath_params *fpp) {
     char path[4096];
     sooc_status s = sooc_path_join(path, sizeof path, dir, "scene.yaml");
     if (s) return s;
-    if (sooc_file_exists(path)) return push_scene(d, dir, w, h);
+    if (sooc_file_exists(path)) return push_scene(d, dir, fpp);
     DIR *dp = opendir(dir);
     if (!dp) return sooc_seterr(SOOC_ENOTFOUND, "%s: not a scene or a directory of scenes", dir);
     char **names = NULL;
@@ -147,9 +157,13 @@ static sooc_status add_dir(sooc_dataset *d, const char *dir, int w, int h) {
         qsort(names, (size_t)n, sizeof(char *), cmp_str);
         for (int i = 0; i < n && !s; i++) {
             if ((s = sooc_path_join(path, sizeof path, dir, names[i]))) break;
-            s = push_scene(d, path, w, h);
+            s = push_scene(d, path, fpp);
         }
-        if (!s && n == 0) s = sooc_seterr(SOOC_ENOTFOUND, "%s: no scene.yaml and no scene_* folders", dir);
+        if (!s && n == 0) {
+            /* a recorded sequence (7-Scenes, label-fusion, TUM, ...) is one scene */
+            s = push_scene(d, dir, fpp);
+            if (s) sooc_adderr(s, "%s: no scene.yaml, no scene_* folders, and not a readable sequence", dir);
+        }
     }
     for (int i = 0; i < n; i++) sooc_free(names[i]);
     sooc_free(names);
@@ -158,11 +172,21 @@ static sooc_status add_dir(sooc_dataset *d, const char *dir, int w, int h) {
 
 sooc_status sooc_dataset_open(sooc_dataset **out, const char *const *dirs, int n_dirs, int width,
                               int height) {
+    sooc_framepath_params fpp;
+    sooc_framepath_params_default(&fpp);
+    fpp.width = width, fpp.height = height;
+    return sooc_dataset_open_fp(out, dirs, n_dirs, &fpp);
+}
+
+sooc_status sooc_dataset_open_fp(sooc_dataset **out, const char *const *dirs, int n_dirs,
+                                 const sooc_framepath_params *fpp) {
     *out = NULL;
+    if (!fpp || fpp->width <= 0 || fpp->height <= 0)
+        return sooc_seterr(SOOC_EINVAL, "dataset: the frame path needs the model's resolution");
     sooc_dataset *d = sooc_calloc(1, sizeof *d);
     if (!d) return SOOC_ENOMEM;
     for (int i = 0; i < n_dirs; i++) {
-        sooc_status s = add_dir(d, dirs[i], width, height);
+        sooc_status s = add_dir(d, dirs[i], fpp);
         if (s) { sooc_dataset_destroy(d); return s; }
     }
     if (d->n == 0) {
