@@ -113,6 +113,13 @@ typedef struct sooc_node_config {
     double floor_height;                     /* floor coordinate along `up` */
     double floor_ransac_threshold_m;         /* default 0.02 */
     int floor_ransac_iterations;             /* default 200 */
+    /* support plane (floor: estimate; include/sooc3d/support.h, docs/node.md "Support plane") */
+    char gravity_path[SOOC_NODE_PATH_MAX];   /* world.gravity: "" = auto (replay: <sensor.path>/
+                                                gravity-direction.txt when present), "none", or a file */
+    double max_tilt_deg;                     /* world.max_tilt_deg, default 30 */
+    int support_frames;                      /* world.support_frames: frames the estimate uses (8) */
+    double cam_height_min_m, cam_height_max_m; /* world.camera_height_min_m / _max_m: the heights the
+                                                model was trained for (1.2 / 2.0: the unity generator) */
 
     /* pipeline: */
     int ring_capacity;                       /* default 8 */

@@ -26,6 +26,10 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->floor_mode = SOOC_NODE_FLOOR_GIVEN;
     c->floor_ransac_threshold_m = 0.02;
     c->floor_ransac_iterations = 200;
+    c->max_tilt_deg = 30.0;
+    c->support_frames = 8;
+    c->cam_height_min_m = 1.2;   /* src/data/gen.c: cameras 1.2-2.0 m above the floor */
+    c->cam_height_max_m = 2.0;
     c->ring_capacity = 8;
     c->stats_period_s = 5.0;
     c->min_depth_m = 0.1;
@@ -437,6 +441,11 @@ static const kspec g_keys[] = {
     KV_F("world", "floor", f_world_floor),
     KV("world", "ransac_threshold_m", KV_NUM, floor_ransac_threshold_m, 1e-4, 1.0),
     KV("world", "ransac_iterations", KV_INT, floor_ransac_iterations, 1, 100000),
+    KV("world", "gravity", KV_STR, gravity_path, 0, 0),
+    KV("world", "max_tilt_deg", KV_NUM, max_tilt_deg, 1, 60),
+    KV("world", "support_frames", KV_INT, support_frames, 1, 32),
+    KV("world", "camera_height_min_m", KV_NUM, cam_height_min_m, 0, 100),
+    KV("world", "camera_height_max_m", KV_NUM, cam_height_max_m, 0, 100),
     KV("pipeline", "ring_capacity", KV_INT, ring_capacity, 1, 1024),
     KV("pipeline", "block_when_full", KV_BOOL, block_when_full, 0, 0),
     KV("pipeline", "stats_period_s", KV_NUM, stats_period_s, 0, 86400),
@@ -602,7 +611,10 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
         c->shm_unlink_on_exit ? "true" : "false");
     OUT("map: {db: '%s', resume: %s}\n", c->map_db, c->map_resume ? "true" : "false");
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE)
-        OUT("world: {up: [%g, %g, %g], floor: estimate}\n", c->up[0], c->up[1], c->up[2]);
+        OUT("world: {up: [%g, %g, %g], floor: estimate, gravity: '%s', max_tilt_deg: %g, support_frames: %d, "
+            "camera_height_min_m: %g, camera_height_max_m: %g}\n",
+            c->up[0], c->up[1], c->up[2], c->gravity_path[0] ? c->gravity_path : "auto",
+            c->max_tilt_deg, c->support_frames, c->cam_height_min_m, c->cam_height_max_m);
     else
         OUT("world: {up: [%g, %g, %g], floor: %g}\n", c->up[0], c->up[1], c->up[2], c->floor_height);
     OUT("pipeline: {ring_capacity: %d, block_when_full: %s, stats_period_s: %g, min_depth_m: %g, "

@@ -3,6 +3,7 @@
  * sooc3d_mapper_update, publisher (shm table batch + SQLite transaction per
  * keyframe) and periodic stats. */
 #include "sooc3d/node.h"
+#include "sooc3d/support.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -62,7 +63,14 @@ struct sooc_node {
     double T_world_src[16];        /* written by the mapping thread under mu (stats read it) */
     int world_ready;
     uint64_t floor_attempts;
-    double *floor_pts;
+    /* world.floor: estimate: the first posed frames wait here for the support
+     * plane, then are mapped (start-up only; no allocation once mapping runs) */
+    sooc_frame *sup_f;
+    double *sup_T;                 /* their T_src_c */
+    int64_t *sup_tcap;
+    int n_sup, cap_sup;
+    int has_gravity;
+    double gravity[3];             /* world.gravity (source frame, pointing down) */
 
 #if SOOC_NODE_HAVE_TABLE
     sooc_table_writer *table;
@@ -489,6 +497,115 @@ static sooc_status load_calib(sooc_node *n) {
 #endif
 }
 
+
+/* ---------------------------------------------------------- world frame */
+
+static void support_free(sooc_node *n);
+
+static void set_world(sooc_node *n, const double T[16]) {
+    pthread_mutex_lock(&n->mu);   /* stats_refresh reads T_world_src on other threads */
+    memcpy(n->T_world_src, T, 16 * sizeof(double));
+    n->st.floor_estimated = n->cfg.floor_mode == SOOC_NODE_FLOOR_ESTIMATE;
+    pthread_mutex_unlock(&n->mu);
+    n->world_ready = 1;
+}
+
+#if SOOC_NODE_HAVE_MAPSTORE
+static sooc_status store_world(sooc_node *n, const sooc_map_frame *mf) {
+    if (!n->store) return SOOC_OK;
+    sooc_status st = sooc_mapstore_frame_put(n->store, mf);
+    return st ? sooc_adderr(st, "%s: map.db: storing the world frame", n->cfg.path) : SOOC_OK;
+}
+#endif
+
+/* The map's world frame at start-up. A database that holds one (written when
+ * the frame was first estimated or given) fixes it on resume: the estimate
+ * is skipped, and a given world.up/floor that disagrees is overridden with a
+ * warning (the stored entries live in the stored frame). Otherwise a given
+ * frame is stored now; an estimated one when it is made. */
+static sooc_status world_from_store(sooc_node *n, int resumed) {
+    const sooc_node_config *c = &n->cfg;
+#if SOOC_NODE_HAVE_MAPSTORE
+    if (n->store) {
+        sooc_map_frame mf;
+        int found = 0;
+        sooc_status st = sooc_mapstore_frame_get(n->store, &mf, &found);
+        if (st) return sooc_adderr(st, "%s: map.db", c->path);
+        if (found && resumed) {
+            if (n->world_ready) {
+                double d = 0;
+                for (int i = 0; i < 12; i++) d = fmax(d, fabs(mf.T_world_src[i] - n->T_world_src[i]));
+                if (d > 1e-3)
+                    sooc_log(SOOC_LOG_WARN,
+                             "%s: world.up/floor differ from the world frame stored in %s (max element difference "
+                             "%.3g); using the stored one, which the resumed map was built in",
+                             c->path, c->map_db, d);
+            }
+            set_world(n, mf.T_world_src);
+            sooc_log(SOOC_LOG_INFO,
+                     "node: world frame from %s: up (%.3f %.3f %.3f) from %s, camera %.2f m above the support plane "
+                     "when estimated",
+                     c->map_db, mf.up_src[0], mf.up_src[1], mf.up_src[2],
+                     mf.up_source >= 0 ? sooc_up_source_name((sooc_up_source)mf.up_source) : "world.floor (given)",
+                     mf.cam_height_m);
+            support_free(n);
+            return SOOC_OK;
+        }
+        if (n->world_ready && !found) {   /* world.floor given: store it */
+            memset(&mf, 0, sizeof mf);
+            memcpy(mf.T_world_src, n->T_world_src, sizeof mf.T_world_src);
+            memcpy(mf.up_src, c->up, sizeof mf.up_src);
+            memcpy(mf.plane_src, c->up, 3 * sizeof(double));
+            mf.plane_src[3] = -c->floor_height;
+            mf.up_source = -1;
+            return store_world(n, &mf);
+        }
+    }
+#else
+    (void)resumed;
+    (void)c;
+#endif
+    return SOOC_OK;
+}
+
+/* Buffers for world.floor: estimate, and the gravity hint. */
+static sooc_status support_init(sooc_node *n) {
+    const sooc_node_config *c = &n->cfg;
+    n->cap_sup = c->support_frames > 0 ? (c->support_frames < 32 ? c->support_frames : 32) : 8;
+    n->sup_f = sooc_calloc((size_t)n->cap_sup, sizeof *n->sup_f);
+    n->sup_T = sooc_malloc(16 * sizeof(double) * (size_t)n->cap_sup);
+    n->sup_tcap = sooc_malloc(sizeof(int64_t) * (size_t)n->cap_sup);
+    if (!n->sup_f || !n->sup_T || !n->sup_tcap) return sooc_seterr(SOOC_ENOMEM, "node: out of memory");
+    char path[SOOC_NODE_PATH_MAX + 32];
+    const char *rp = sooc_node_param_get(c, "path");
+    int auto_g = !c->gravity_path[0] || !strcmp(c->gravity_path, "auto");
+    if (!strcmp(c->gravity_path, "none")) return SOOC_OK;
+    if (auto_g) {
+        if (strcmp(c->driver, "replay") || !rp) return SOOC_OK;
+        snprintf(path, sizeof path, "%s/gravity-direction.txt", rp);
+        if (!sooc_file_exists(path)) return SOOC_OK;
+    } else {
+        snprintf(path, sizeof path, "%s", c->gravity_path);
+    }
+    sooc_status st = sooc_support_read_gravity(path, n->gravity);
+    if (st) return sooc_adderr(st, "%s: world.gravity", c->path);
+    n->has_gravity = 1;
+    sooc_log(SOOC_LOG_INFO, "node: gravity (%.4f %.4f %.4f) from %s", n->gravity[0], n->gravity[1], n->gravity[2],
+             path);
+    return SOOC_OK;
+}
+
+static void support_free(sooc_node *n) {
+    for (int i = 0; i < n->cap_sup; i++) sooc_frame_free(&n->sup_f[i]);
+    sooc_free(n->sup_f);
+    sooc_free(n->sup_T);
+    sooc_free(n->sup_tcap);
+    n->sup_f = NULL;
+    n->sup_T = NULL;
+    n->sup_tcap = NULL;
+    n->n_sup = n->cap_sup = 0;
+}
+
 sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const sooc_node_options *o) {
     *out = NULL;
     sooc_node *n = sooc_calloc(1, sizeof *n);
@@ -568,10 +685,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     }
     if ((st = sooc_frame_ring_create(&n->ring, c->ring_capacity))) goto fail;
     sooc_frame_ring_set_blocking(n->ring, c->block_when_full);
-    if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE) {
-        n->floor_pts = sooc_malloc(3 * sizeof(double) * 20000);
-        if (!n->floor_pts) { st = SOOC_ENOMEM; goto fail; }
-    }
+    if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE && (st = support_init(n))) goto fail;
 
     /* persistent map: resume */
     n->db_exists = c->map_db[0] && sooc_file_exists(c->map_db);
@@ -615,6 +729,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         sooc_log(SOOC_LOG_WARN, "%s: map.db set but the SQLite map store is not built in; not persisting",
                  c->path);
 #endif
+    if ((st = world_from_store(n, resumed))) goto fail;
     /* what the mapper holds now (resumed, or preloaded by the caller) is republished at start */
     {
         size_t cnt = 0;
@@ -687,34 +802,93 @@ static void *capture_main(void *arg) {
 
 /* ------------------------------------------------------------- mapping */
 
-static int try_floor(sooc_node *n, const sooc_frame *f, const double T_src_c[16]) {
-    size_t npts = sooc_node_depth_points(f, T_src_c, f->width > 160 ? 4 : 1, n->floor_pts, 20000);
-    sooc_floor_fit_params fp;
-    sooc_floor_fit_params_default(&fp);
-    fp.threshold_m = n->cfg.floor_ransac_threshold_m;
-    fp.iterations = n->cfg.floor_ransac_iterations;
-    fp.seed = n->cfg.seed + 1;
-    double plane[4], rms;
-    size_t ninl;
-    double cam[3] = {T_src_c[3], T_src_c[7], T_src_c[11]};
+/* world.floor: estimate. The frame (pose known) waits in the support
+ * buffer; when it is full (or the stream ended: final = 1) the support plane
+ * is estimated from the buffered frames. Returns 1 when the world frame is
+ * ready (the buffered frames are then to be mapped), 0 to keep waiting (on a
+ * failed estimate the older half of the buffer is dropped), < 0 on error. */
+static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[16], int64_t t_cap, int final,
+                       sooc_status *err) {
+    if (f) {
+        if (n->n_sup == n->cap_sup || sooc_frame_copy(&n->sup_f[n->n_sup], f)) {
+            *err = sooc_seterr(SOOC_ENOMEM, "node: support-plane frame buffer");
+            return -1;
+        }
+        n->sup_f[n->n_sup].has_pose = 1;
+        memcpy(n->sup_f[n->n_sup].T_wc, T_src_c, 16 * sizeof(double));
+        memcpy(n->sup_T + 16 * n->n_sup, T_src_c, 16 * sizeof(double));
+        n->sup_tcap[n->n_sup] = t_cap;
+        n->n_sup++;
+    }
+    if (n->n_sup == 0 || (n->n_sup < n->cap_sup && !final)) return 0;
+    const sooc_node_config *c = &n->cfg;
+    sooc_support_params sp;
+    sooc_support_params_default(&sp);
+    if (c->up_given) {
+        sp.has_up_hint = 1;
+        memcpy(sp.up_hint, c->up, sizeof sp.up_hint);
+    }
+    if (n->has_gravity) {
+        sp.has_gravity = 1;
+        memcpy(sp.gravity, n->gravity, sizeof sp.gravity);
+    }
+    sp.max_tilt_deg = c->max_tilt_deg;
+    sp.threshold_m = c->floor_ransac_threshold_m;
+    sp.iterations = c->floor_ransac_iterations;
+    sp.max_frames = n->n_sup;
+    sp.cam_height_min_m = c->cam_height_min_m;
+    sp.cam_height_max_m = c->cam_height_max_m;
+    sp.seed = c->seed + 1;
+    const sooc_frame *fp[32];
+    for (int i = 0; i < n->n_sup; i++) fp[i] = &n->sup_f[i];
+    sooc_support sup;
     n->floor_attempts++;
-    sooc_status st = sooc_floor_fit(n->floor_pts, npts, &fp, n->cfg.up_given ? n->cfg.up : NULL, cam, plane,
-                                    &ninl, &rms);
+    sooc_status st = sooc_support_estimate(fp, n->n_sup, &sp, &sup);
     if (st) {
-        if (n->floor_attempts % 30 == 1)
-            sooc_log(SOOC_LOG_WARN, "node: floor estimate failed on frame %lld: %s", (long long)f->index,
-                     sooc_errmsg());
+        if (n->floor_attempts % 10 == 1 || final)
+            sooc_log(SOOC_LOG_WARN, "node: support plane (world.floor: estimate) failed on frames %lld-%lld: %s",
+                     (long long)n->sup_f[0].index, (long long)n->sup_f[n->n_sup - 1].index, sooc_errmsg());
+        int drop = final ? n->n_sup : (n->n_sup + 1) / 2;
+        for (int i = 0; i < n->n_sup; i++) {   /* keep the newer frames, swapping buffers */
+            if (i + drop < n->n_sup) {
+                sooc_frame t = n->sup_f[i];
+                n->sup_f[i] = n->sup_f[i + drop];
+                n->sup_f[i + drop] = t;
+                memcpy(n->sup_T + 16 * i, n->sup_T + 16 * (i + drop), 16 * sizeof(double));
+                n->sup_tcap[i] = n->sup_tcap[i + drop];
+            }
+        }
+        n->n_sup -= drop;
+        pthread_mutex_lock(&n->mu);
+        n->st.frames_floor_wait += (uint64_t)drop;
+        pthread_mutex_unlock(&n->mu);
         return 0;
     }
-    double T_ws[16];
-    sooc_node_world_from_up(plane, -plane[3], T_ws);
-    n->world_ready = 1;
-    pthread_mutex_lock(&n->mu);   /* stats_refresh reads T_world_src on other threads */
-    memcpy(n->T_world_src, T_ws, sizeof T_ws);
-    n->st.floor_estimated = 1;
-    pthread_mutex_unlock(&n->mu);
-    sooc_log(SOOC_LOG_INFO, "node: floor estimated: n = (%.4f %.4f %.4f) d = %.4f, %zu/%zu inliers, rms %.4f m",
-             plane[0], plane[1], plane[2], plane[3], ninl, npts, rms);
+    set_world(n, sup.T_world_src);
+    sooc_log(SOOC_LOG_INFO,
+             "node: support plane from %d frames: n = (%.4f %.4f %.4f) d = %.4f, up from %s, tilt %.1f deg from it, "
+             "%zu/%zu inliers, rms %.4f m, %d level planes; camera %.2f m above it",
+             sup.frames_used, sup.plane_src[0], sup.plane_src[1], sup.plane_src[2], sup.plane_src[3],
+             sooc_up_source_name(sup.up_source), sup.tilt_deg, sup.n_inliers, sup.n_points, sup.rms_m,
+             sup.n_candidates, sup.cam_height_m);
+    if (sup.height_warning)
+        sooc_log(SOOC_LOG_WARN,
+                 "node: the camera is %.2f m above the support plane, outside the %.2f-%.2f m the model was trained "
+                 "for (world.camera_height_min_m / _max_m); objects may be mapped at the wrong scale",
+                 sup.cam_height_m, c->cam_height_min_m, c->cam_height_max_m);
+#if SOOC_NODE_HAVE_MAPSTORE
+    sooc_map_frame mf;
+    memset(&mf, 0, sizeof mf);
+    memcpy(mf.T_world_src, sup.T_world_src, sizeof mf.T_world_src);
+    memcpy(mf.up_src, sup.up_src, sizeof mf.up_src);
+    memcpy(mf.plane_src, sup.plane_src, sizeof mf.plane_src);
+    mf.cam_height_m = sup.cam_height_m;
+    mf.up_source = (int)sup.up_source;
+    if ((st = store_world(n, &mf))) {
+        *err = st;
+        return -1;
+    }
+#endif
     return 1;
 }
 
@@ -765,6 +939,69 @@ static void log_stats(sooc_node *n) {
     sooc_log(SOOC_LOG_INFO, "node: %s", line);
 }
 
+/* Keyframe policy, preprocessing, mapper update and publishing of one frame
+ * whose pose in the source frame is known. Returns 1 when the run must stop
+ * (*result: an error, or SOOC_OK after max_keyframes), else 0. */
+static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int64_t t_cap, sooc_status *result) {
+    sooc_status st;
+    double T_wc[16];
+    sooc_se3_mul(T_wc, n->T_world_src, T_src_c);
+    if (!sooc_kf_policy_check(&n->kf, T_wc, f->t_ns)) {
+        pthread_mutex_lock(&n->mu);
+        n->st.frames_not_kf++;
+        pthread_mutex_unlock(&n->mu);
+        return 0;
+    }
+    if ((st = sooc_node_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
+                                   n->cfg.max_depth_m))) {
+        *result = st;
+        return 1;
+    }
+    memcpy(n->pre.T_wc, T_wc, sizeof T_wc);
+    n->pre.has_pose = 1;
+    sooc3d_update_stats us;
+    memset(&us, 0, sizeof us);
+    double t0 = sooc_seconds();
+    st = sooc3d_mapper_update(n->mapper, &n->pre, &us);
+    double ms = (sooc_seconds() - t0) * 1e3;
+    if (st) {
+        pthread_mutex_lock(&n->mu);
+        n->st.update_errors++;
+        pthread_mutex_unlock(&n->mu);
+        sooc_log(SOOC_LOG_WARN, "node: mapper update failed on frame %lld: %s", (long long)f->index,
+                 sooc_errmsg());
+        /* a late failure may have changed the map already: keep table and database in step */
+        size_t pc = 0, pr = 0;
+        if (!sooc3d_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
+            sooc_status s2 = publish_keyframe(n, f->t_ns, T_wc, t_cap);
+            if (s2) { *result = s2; return 1; }
+        }
+        if (st == SOOC_ENOMEM) { *result = st; return 1; }
+        return 0;
+    }
+    sooc_kf_policy_accept(&n->kf, T_wc, f->t_ns);
+    pthread_mutex_lock(&n->mu);
+    sooc_latency_add(&n->lat_upd, ms);
+    pthread_mutex_unlock(&n->mu);
+    if ((st = publish_keyframe(n, f->t_ns, T_wc, t_cap))) { *result = st; return 1; }
+    pthread_mutex_lock(&n->mu);
+    n->st.keyframes++;
+    uint64_t k = n->st.keyframes;
+    pthread_mutex_unlock(&n->mu);
+    sooc_log(SOOC_LOG_DEBUG, "node: keyframe %llu (frame %lld): %d retrieved, %d new, %d removed, %.1f ms",
+             (unsigned long long)k, (long long)f->index, us.n_retrieved, us.n_new, us.n_removed, ms);
+    if (n->opt.max_keyframes && k >= n->opt.max_keyframes) return 1;
+    return 0;
+}
+
+/* Map the frames that waited for the support plane, in order, then free them. */
+static int map_buffered(sooc_node *n, sooc_status *result) {
+    int stop = 0;
+    for (int i = 0; i < n->n_sup && !stop; i++) stop = map_frame(n, &n->sup_f[i], n->sup_T + 16 * i, n->sup_tcap[i], result);
+    support_free(n);
+    return stop;
+}
+
 sooc_status sooc_node_run(sooc_node *n) {
     if (!n->have_src) return sooc_seterr(SOOC_EINVAL, "node: no frame source");
     pthread_mutex_lock(&n->mu);   /* sooc_node_get_stats may run on another thread already */
@@ -774,6 +1011,7 @@ sooc_status sooc_node_run(sooc_node *n) {
         return sooc_seterr(SOOC_ERR, "node: cannot start the capture thread");
     n->cap_started = 1;
     sooc_status result = SOOC_OK;
+    int eof = 0;
     const int64_t tol_ns = (int64_t)llround(n->cfg.pose_tolerance_s * 1e9);
     while (!atomic_load(&n->stop)) {
         if (n->cfg.stats_period_s > 0 && sooc_seconds() - n->t_last_stats >= n->cfg.stats_period_s) {
@@ -783,7 +1021,7 @@ sooc_status sooc_node_run(sooc_node *n) {
         int64_t t_cap = 0;
         sooc_status st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
         if (st == SOOC_ETIMEOUT) continue;
-        if (st == SOOC_EEOF) break;
+        if (st == SOOC_EEOF) { eof = 1; break; }
         if (st) { result = st; break; }
         sooc_frame *f = &n->work;
         /* pose association */
@@ -803,59 +1041,19 @@ sooc_status sooc_node_run(sooc_node *n) {
             continue;
         }
         if ((st = fix_intrinsics_and_register(n, f))) { result = st; break; }
-        if (!n->world_ready && !try_floor(n, f, T_src_c)) {
-            pthread_mutex_lock(&n->mu);
-            n->st.frames_floor_wait++;
-            pthread_mutex_unlock(&n->mu);
+        if (!n->world_ready) {
+            int r = try_support(n, f, T_src_c, t_cap, 0, &result);
+            if (r < 0) break;
+            if (r == 0) continue;
+            if (map_buffered(n, &result)) break;
             continue;
         }
-        double T_wc[16];
-        sooc_se3_mul(T_wc, n->T_world_src, T_src_c);
-        if (!sooc_kf_policy_check(&n->kf, T_wc, f->t_ns)) {
-            pthread_mutex_lock(&n->mu);
-            n->st.frames_not_kf++;
-            pthread_mutex_unlock(&n->mu);
-            continue;
-        }
-        if ((st = sooc_node_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
-                                       n->cfg.max_depth_m))) {
-            result = st;
-            break;
-        }
-        memcpy(n->pre.T_wc, T_wc, sizeof T_wc);
-        n->pre.has_pose = 1;
-        sooc3d_update_stats us;
-        memset(&us, 0, sizeof us);
-        double t0 = sooc_seconds();
-        st = sooc3d_mapper_update(n->mapper, &n->pre, &us);
-        double ms = (sooc_seconds() - t0) * 1e3;
-        if (st) {
-            pthread_mutex_lock(&n->mu);
-            n->st.update_errors++;
-            pthread_mutex_unlock(&n->mu);
-            sooc_log(SOOC_LOG_WARN, "node: mapper update failed on frame %lld: %s", (long long)f->index,
-                     sooc_errmsg());
-            /* a late failure may have changed the map already: keep table and database in step */
-            size_t pc = 0, pr = 0;
-            if (!sooc3d_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
-                sooc_status s2 = publish_keyframe(n, f->t_ns, T_wc, t_cap);
-                if (s2) { result = s2; break; }
-            }
-            if (st == SOOC_ENOMEM) { result = st; break; }
-            continue;
-        }
-        sooc_kf_policy_accept(&n->kf, T_wc, f->t_ns);
-        pthread_mutex_lock(&n->mu);
-        sooc_latency_add(&n->lat_upd, ms);
-        pthread_mutex_unlock(&n->mu);
-        if ((st = publish_keyframe(n, f->t_ns, T_wc, t_cap))) { result = st; break; }
-        pthread_mutex_lock(&n->mu);
-        n->st.keyframes++;
-        uint64_t k = n->st.keyframes;
-        pthread_mutex_unlock(&n->mu);
-        sooc_log(SOOC_LOG_DEBUG, "node: keyframe %llu (frame %lld): %d retrieved, %d new, %d removed, %.1f ms",
-                 (unsigned long long)k, (long long)f->index, us.n_retrieved, us.n_new, us.n_removed, ms);
-        if (n->opt.max_keyframes && k >= n->opt.max_keyframes) break;
+        if (map_frame(n, f, T_src_c, t_cap, &result)) break;
+    }
+    /* a stream that ended while frames waited for the support plane: estimate from those */
+    if (!result && eof && !n->world_ready && n->n_sup > 0) {
+        int r = try_support(n, NULL, NULL, 0, 1, &result);
+        if (r > 0) map_buffered(n, &result);
     }
     /* shutdown: stop capture, join */
     atomic_store(&n->stop, 1);
@@ -900,7 +1098,7 @@ void sooc_node_destroy(sooc_node *n) {
     sooc_frame_free(&n->work);
     sooc_frame_free(&n->pre);
     sooc_free(n->reg_buf);
-    sooc_free(n->floor_pts);
+    support_free(n);
     sooc_free(n->prev);
     pthread_mutex_destroy(&n->mu);
     sooc_free(n);
