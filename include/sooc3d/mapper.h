@@ -124,12 +124,38 @@ typedef struct sooc3d_mapper_params {
                                   trained K); more than K pads the extra slots with mirror
                                   images of the learnt priors (sooc_model_copy_slots,
                                   docs/model.md "Slots at inference")                   */
+    double same_pose;          /* same-pose radius as a fraction of the object box's
+                                  floor side (2 R_h, sooc_model_box_extent): two present
+                                  slots of one keyframe closer than this never both
+                                  register (sooc3d_mapper_same_pose). 0 = the default
+                                  SOOC3D_MAPPER_SAME_POSE_FRAC; < 0 = off              */
 } sooc3d_mapper_params;
 
 enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
 
 /* docs/model.md "merging split objects": 0.35 m measured best of 0.25/0.35/0.5 */
 #define SOOC3D_MAPPER_MERGE_SUGGESTED 0.35
+/* docs/cogmap.md "Same-pose slots": the default same-pose radius, a fraction of
+ * the box's floor side (shipped model: 2 R_h = 1.2 m -> 1.2 mm). Measured:
+ * same-keyframe pairs of registered entries are either < 1e-5 m apart
+ * (converged to one pose) or >= 2 mm, and >= 4.5 mm at 10 and 16 slots */
+#define SOOC3D_MAPPER_SAME_POSE_FRAC 1e-3
+
+/* The same-pose rule (docs/cogmap.md "Same-pose slots"), applied by every
+ * update between refinement and registration: present slots (presence logit
+ * a >= 0) of one keyframe whose floor positions lie closer than `radius`
+ * metres are one object reached by several slots (e.g. mirrored slot priors
+ * converging to it) and must not all register. Slots are visited by presence
+ * logit, highest first (tie: lower index); a slot still on turns off the later
+ * ones within `radius`: their presence logit is set to -1, so registration
+ * drops them. When a turned-off slot came from a map entry (src_ids[j] != 0)
+ * and the slot that turned it off did not, the kept slot takes that entry's id
+ * (src_ids[i] = src_ids[j], src_ids[j] = 0), so the object keeps its id and
+ * history; otherwise the turned-off slot's entry is removed by registration as
+ * for any slot that is off. lam: k rows of stride SOOC_LAM_SIZE(d) in one
+ * floor frame; src_ids may be NULL. Returns the number of slots turned off.
+ * radius <= 0 or k > SOOC_MAPPER_CHANGED_MAX does nothing. */
+int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius);
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
 
@@ -146,6 +172,9 @@ typedef struct sooc3d_update_stats {
     int n_new;                 /* of which new entries                    */
     int n_removed;             /* retrieved entries whose presence fell   */
     int n_merged;              /* registered entries removed as duplicates */
+    int n_same_pose;           /* present slots not registered: another slot of
+                                  this keyframe with a higher presence landed at
+                                  the same pose (sooc3d_mapper_same_pose)     */
     double elapsed_ms;
 } sooc3d_update_stats;
 
@@ -166,11 +195,13 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e
 
 /* What the last sooc3d_mapper_update changed, so a publisher's cost does not
  * depend on the map size: the entries it registered (new or overwritten),
- * ordered by id, and the ids it removed. At most SOOC_MAPPER_CHANGED_MAX of
- * each (the model's K). out / removed_ids may be NULL (counts only). EINVAL if
- * a non-NULL array is too small (*n / *n_removed still give the counts). Empty
- * after create, after load_entries and after an update that failed early. */
-#define SOOC_MAPPER_CHANGED_MAX 16
+ * ordered by id, and the ids it removed. At most K of each (the slots the
+ * mapper runs with), and K <= SOOC_MODEL_K_MAX whatever the slot setting, so
+ * arrays of SOOC_MAPPER_CHANGED_MAX always fit. out / removed_ids may be NULL
+ * (counts only). EINVAL if a non-NULL array is too small (*n / *n_removed
+ * still give the counts). Empty after create, after load_entries and after an
+ * update that failed early. */
+#define SOOC_MAPPER_CHANGED_MAX 32   /* = SOOC_MODEL_K_MAX (model.h includes this header; mapper.c asserts it) */
 sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
                                   uint64_t *removed_ids, size_t cap_r, size_t *n_removed);
 

@@ -11,16 +11,25 @@
 
 #define MAPPER_TAU 0.7f   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
 
+/* The change set holds every slot of an update: arrays of SOOC_MAPPER_CHANGED_MAX
+ * must fit the largest K a model (or a widened slot setting) can have. */
+_Static_assert(SOOC_MAPPER_CHANGED_MAX >= SOOC_MODEL_K_MAX, "SOOC_MAPPER_CHANGED_MAX below SOOC_MODEL_K_MAX");
+_Static_assert(SOOC_MODEL_D_MAX <= SOOC_COGMAP_DIM_MAX, "λ rows of the same-pose copy");
+
 struct sooc3d_mapper {
     sooc_model *m;
     sooc_cogmap *map;
     view_rec V;
     int L, view_idx;
     double merge_r;   /* sooc3d_mapper_params.merge_radius, resolved (0 = off) */
+    double same_r;    /* same-pose radius in m, resolved (0 = off) */
     int sample;       /* 1 = SOOC3D_LATENTS_SAMPLE */
     sooc_rng rng;
     /* what the last update changed (sooc3d_mapper_changed / _last_layout) */
     uint64_t chg_ids[SOOC_MODEL_K_MAX], rem_ids[SOOC_MODEL_K_MAX];
+    /* the final λ and source ids after the same-pose rule (registered from here) */
+    float lam_reg[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
+    uint64_t src_reg[SOOC_MODEL_K_MAX];
     int n_chg, n_rem, has_block;
     int32_t bi, bj;
 };
@@ -40,6 +49,7 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     mp->m = m;   /* calloc: merge off, latents mean (the defaults) */
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
+    mp->same_r = SOOC3D_MAPPER_SAME_POSE_FRAC * 2.0 * c->box_rh;
     if (mp->L > 16) mp->L = 16;
     sooc_model_set_threads(m, threads);
     sooc_cogmap_params cp;
@@ -83,6 +93,8 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
     else {
         sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
         sooc3d_mapper_set_latents(*out, p->latents);
+        if (p->same_pose != 0)
+            (*out)->same_r = p->same_pose > 0 ? p->same_pose * 2.0 * sooc_model_get_config(m)->box_rh : 0.0;
     }
     return st;
 }
@@ -129,16 +141,19 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     int NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
     const float *lamL = V->lam + (size_t)mp->L * c->K * NL;
     const float *layL = V->lay + (size_t)mp->L * D2;
+    memcpy(mp->lam_reg, lamL, sizeof(float) * (size_t)c->K * NL);
+    memcpy(mp->src_reg, V->src_id, sizeof(uint64_t) * (size_t)c->K);
+    int n_same = sooc3d_mapper_same_pose(mp->lam_reg, mp->src_reg, c->K, c->d_what, mp->same_r);
     sooc_cogmap_reg_stats rs;
     uint64_t ids[SOOC_MODEL_K_MAX];
-    if ((s = sooc_cogmap_register(mp->map, &V->gf, c->K, lamL, V->src_id, f->t_ns, mp->view_idx, ids, mp->rem_ids,
-                                  &rs)))
+    if ((s = sooc_cogmap_register(mp->map, &V->gf, c->K, mp->lam_reg, mp->src_reg, f->t_ns, mp->view_idx, ids,
+                                  mp->rem_ids, &rs)))
         return s;
     mp->n_rem = rs.n_removed;
     int n_merged = 0;   /* merged-away entries: removed, and no longer among the written ids */
     sooc_cogmap_merge(mp->map, ids, c->K, mp->merge_r, mp->rem_ids + mp->n_rem, &n_merged);
     mp->n_rem += n_merged;
-    for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 16) */
+    for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 32) */
         if (ids[i]) {
             int j = mp->n_chg++;
             while (j > 0 && mp->chg_ids[j - 1] > ids[i]) {
@@ -157,8 +172,45 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     st->n_new = rs.n_new;
     st->n_removed = rs.n_removed;
     st->n_merged = n_merged;
+    st->n_same_pose = n_same;
     st->elapsed_ms = 1e3 * (sooc_seconds() - t0);
     return SOOC_OK;
+}
+
+int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius) {
+    if (!(radius > 0) || k < 2 || k > SOOC_MAPPER_CHANGED_MAX) return 0;
+    const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
+    int order[SOOC_MAPPER_CHANGED_MAX], n = 0;
+    for (int i = 0; i < k; i++) {   /* present slots by presence logit, highest first (stable: ties by index) */
+        if (!(lam[(size_t)i * NL + PA] >= 0.0f)) continue;
+        int j = n++;
+        while (j > 0 && lam[(size_t)order[j - 1] * NL + PA] < lam[(size_t)i * NL + PA]) {
+            order[j] = order[j - 1];
+            j--;
+        }
+        order[j] = i;
+    }
+    const double r2 = radius * radius;
+    int off = 0;
+    for (int a = 0; a < n; a++) {
+        int i = order[a];
+        float *li = lam + (size_t)i * NL;
+        if (!(li[PA] >= 0.0f)) continue;   /* turned off by an earlier slot */
+        for (int b = a + 1; b < n; b++) {
+            int j = order[b];
+            float *lj = lam + (size_t)j * NL;
+            if (!(lj[PA] >= 0.0f)) continue;
+            double dx = (double)li[SOOC_LAM_X] - lj[SOOC_LAM_X], dz = (double)li[SOOC_LAM_Z] - lj[SOOC_LAM_Z];
+            if (dx * dx + dz * dz >= r2) continue;
+            lj[PA] = -1.0f;
+            off++;
+            if (src_ids && src_ids[j] && !src_ids[i]) {   /* the kept posterior continues the entry */
+                src_ids[i] = src_ids[j];
+                src_ids[j] = 0;
+            }
+        }
+    }
+    return off;
 }
 
 sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
