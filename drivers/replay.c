@@ -2,9 +2,10 @@
  * with loop and start/stop times.
  *
  * Frames come from the data module's sequence readers (sooc3d/seq.h, every
- * format it reads) when it is built (SOOC_HAVE_SEQ). Without it, a built-in
- * TUM RGB-D reader (rgb.txt, depth.txt, optional groundtruth.txt, PNGs) is
- * used, so the driver works on its own. */
+ * format it reads, named by sooc_seq_format_parse) when it is built
+ * (SOOC_HAVE_SEQ). Without it, a built-in TUM RGB-D reader (rgb.txt,
+ * depth.txt, optional groundtruth.txt, PNGs; no depth_shift/depth_invalid)
+ * is used, so the driver works on its own. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -288,6 +289,8 @@ static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
     if (p->format && *p->format && (st = sooc_seq_format_parse(p->format, &sp.format)))
         goto fail;
     if (p->depth_scale > 0) sp.depth_scale = p->depth_scale;
+    sp.depth_shift = p->depth_shift;      /* -1 = calib, else the format's default */
+    sp.depth_invalid = p->depth_invalid;
     if (p->calib && *p->calib) sp.calib_path = p->calib;
     st = sooc_seq_open(&r->seq, p->uri, &sp);
     if (st) goto fail;

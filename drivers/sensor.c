@@ -58,6 +58,8 @@ void sooc_sensor_params_default(sooc_sensor_params *p) {
     p->depth_min = 0.1f;
     p->depth_max = 10.0f;
     p->registration = 1;
+    p->depth_shift = -1;
+    p->depth_invalid = -1;
 }
 
 static sooc_status parse_int(const char *key, const char *v, int lo, int hi, int *out) {
@@ -108,6 +110,8 @@ sooc_status sooc_sensor_params_set(sooc_sensor_params *p, const char *key, const
     if (!strcmp(key, "start") || !strcmp(key, "start_s")) return parse_dbl(key, v, 0, 1e9, &p->start_s);
     if (!strcmp(key, "stop") || !strcmp(key, "stop_s")) return parse_dbl(key, v, -1, 1e9, &p->stop_s);
     if (!strcmp(key, "depth_scale")) return parse_dbl(key, v, 0, 100, &p->depth_scale);
+    if (!strcmp(key, "depth_shift")) return parse_int(key, v, 0, 15, &p->depth_shift);
+    if (!strcmp(key, "depth_invalid")) return parse_int(key, v, 0, 65535, &p->depth_invalid);
     if (!strcmp(key, "depth_min")) {
         sooc_status st = parse_dbl(key, v, 0, 1000, &d);
         if (!st) p->depth_min = (float)d;

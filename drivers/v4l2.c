@@ -1,6 +1,9 @@
 /* V4L2 driver: raw mmap streaming from a depth node (Z16, or Y16 when
- * configured) paired by timestamp with an optional colour node (RGB24, BGR24
- * or YUYV), node.md §3.3. All syscalls go through a sooc_v4l2_ops table so
+ * configured) paired by timestamp with an optional colour node (RGB24, BGR24,
+ * YUYV, or MJPEG decoded with libjpeg-turbo through sooc_jpeg_decode when the
+ * data module is built: SOOC_V4L2_MJPEG), node.md §3.3. A corrupt or
+ * truncated MJPEG frame is counted in stats.errors and dropped; the stream
+ * goes on. All syscalls go through a sooc_v4l2_ops table so
  * tests can replace the device with a fake (tests/drivers/test_v4l2.c).
  *
  * Pairing: the newest image of each node is kept; a pair is emitted when the
@@ -20,6 +23,9 @@
 #include <unistd.h>
 
 #include "drivers_internal.h"
+#ifdef SOOC_V4L2_MJPEG
+#include "sooc3d/image.h"
+#endif
 
 #define V4L_MAX_BUFS 8
 
@@ -59,6 +65,10 @@ typedef struct v4l {
     int nn;
     uint16_t *dbuf;     /* depth w*h */
     uint8_t *cbuf;      /* colour resampled to depth size */
+#ifdef SOOC_V4L2_MJPEG
+    sooc_image jimg;    /* decoded MJPEG frame (buffer reused while the size stays) */
+    int64_t jpeg_errors;
+#endif
     int64_t tol_ns;
     double depth_scale;
     int64_t index;
@@ -107,7 +117,7 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
     if (!(caps & V4L2_CAP_VIDEO_CAPTURE) || !(caps & V4L2_CAP_STREAMING))
         return sooc_seterr(SOOC_EUNSUPPORTED, "v4l2: %s: no video capture with streaming I/O", path);
     /* Pick the pixel format. */
-    uint32_t want[3];
+    uint32_t want[4];
     int nwant = 0;
     if (is_depth) {
         const char *df = p->depth_format && *p->depth_format ? p->depth_format : "Z16";
@@ -118,6 +128,9 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
         want[nwant++] = V4L2_PIX_FMT_RGB24;
         want[nwant++] = V4L2_PIX_FMT_BGR24;
         want[nwant++] = V4L2_PIX_FMT_YUYV;
+#ifdef SOOC_V4L2_MJPEG
+        want[nwant++] = V4L2_PIX_FMT_MJPEG; /* last: uncompressed needs no decode */
+#endif
     }
     uint32_t offered[64];
     int noff = 0;
@@ -140,7 +153,12 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
             if (i + 1 < noff) strcat(list, ",");
         }
         return sooc_seterr(SOOC_EUNSUPPORTED, "v4l2: %s offers [%s], none of the %s formats we read (%s)", path, list,
-                           is_depth ? "depth" : "colour", is_depth ? "Z16, or Y16 with depth_format=Y16" : "RGB3,BGR3,YUYV");
+                           is_depth ? "depth" : "colour", is_depth ? "Z16, or Y16 with depth_format=Y16"
+#ifdef SOOC_V4L2_MJPEG
+                           : "RGB3,BGR3,YUYV,MJPG");
+#else
+                           : "RGB3,BGR3,YUYV (MJPG needs the data module)");
+#endif
     }
     struct v4l2_format fmt;
     memset(&fmt, 0, sizeof fmt);
@@ -159,8 +177,9 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
     nd->w = (int)fmt.fmt.pix.width;
     nd->h = (int)fmt.fmt.pix.height;
     int bpp = nd->fourcc == V4L2_PIX_FMT_RGB24 || nd->fourcc == V4L2_PIX_FMT_BGR24 ? 3 : 2;
-    nd->bpl = fmt.fmt.pix.bytesperline ? (int)fmt.fmt.pix.bytesperline : nd->w * bpp;
-    if (nd->w <= 0 || nd->h <= 0 || nd->bpl < nd->w * bpp)
+    int compressed = nd->fourcc == V4L2_PIX_FMT_MJPEG;
+    nd->bpl = compressed ? 0 : fmt.fmt.pix.bytesperline ? (int)fmt.fmt.pix.bytesperline : nd->w * bpp;
+    if (nd->w <= 0 || nd->h <= 0 || (!compressed && nd->bpl < nd->w * bpp))
         return sooc_seterr(SOOC_EFORMAT, "v4l2: %s: bad format %dx%d bytesperline %d", path, nd->w, nd->h, nd->bpl);
     if (p->fps > 0) {
         struct v4l2_streamparm parm;
@@ -287,13 +306,43 @@ static sooc_status drain(sooc_sensor *s, v4l *v, int k) {
         if (nd->have_seq && b.sequence > nd->last_seq + 1) s->st.dropped += b.sequence - nd->last_seq - 1;
         nd->have_seq = 1;
         nd->last_seq = b.sequence;
-        int ok = !(b.flags & V4L2_BUF_FLAG_ERROR) && b.bytesused >= (uint32_t)(nd->bpl * (nd->h - 1)) && b.bytesused > 0;
+        int ok = !(b.flags & V4L2_BUF_FLAG_ERROR) && b.bytesused >= (uint32_t)(nd->bpl * (nd->h - 1)) &&
+                 b.bytesused > 0 && b.bytesused <= nd->len[b.index];
+        const uint8_t *src = nd->start[b.index];
+        int W = v->n[0].w, H = v->n[0].h;
+#ifdef SOOC_V4L2_MJPEG
+        if (ok && nd->fourcc == V4L2_PIX_FMT_MJPEG) {
+            sooc_status js = sooc_jpeg_decode(src, b.bytesused, nd->path, &v->jimg);
+            if (!js && (v->jimg.width != nd->w || v->jimg.height != nd->h))
+                js = sooc_seterr(SOOC_EFORMAT, "%s: MJPEG frame is %dx%d, the format says %dx%d", nd->path,
+                                 v->jimg.width, v->jimg.height, nd->w, nd->h);
+            if (js) {
+                if (v->jpeg_errors++ < 3) sooc_log(SOOC_LOG_WARN, "v4l2: frame %u dropped: %s", b.sequence, sooc_errmsg());
+                ok = 0;
+            }
+        }
+#endif
         if (!ok) {
             s->st.errors++;
         } else {
             if (nd->have) s->st.unpaired++;   /* the previous image was never paired */
-            const uint8_t *src = nd->start[b.index];
-            int W = v->n[0].w, H = v->n[0].h;
+#ifdef SOOC_V4L2_MJPEG
+            if (nd->fourcc == V4L2_PIX_FMT_MJPEG) {
+                /* decoded RGB8 (or GRAY8) -> colour at the depth size, nearest neighbour */
+                const uint8_t *img = v->jimg.data;
+                int gray = v->jimg.fmt == SOOC_PIX_GRAY8, bp = gray ? 1 : 3;
+                for (int y = 0; y < H; y++) {
+                    const uint8_t *row = img + (size_t)((int64_t)y * nd->h / H) * (size_t)nd->w * (size_t)bp;
+                    uint8_t *d = v->cbuf + (size_t)y * (size_t)W * 3;
+                    for (int x = 0; x < W; x++) {
+                        const uint8_t *px = row + (size_t)((int64_t)x * nd->w / W) * (size_t)bp;
+                        d[3 * x] = px[0];
+                        d[3 * x + 1] = px[gray ? 0 : 1];
+                        d[3 * x + 2] = px[gray ? 0 : 2];
+                    }
+                }
+            } else
+#endif
             if (k == 0) {
                 for (int y = 0; y < H; y++) memcpy(v->dbuf + (size_t)y * (size_t)W, src + (size_t)y * (size_t)nd->bpl, (size_t)W * 2);
             } else if (nd->w == W && nd->h == H) {
@@ -393,6 +442,9 @@ static void v4l_close(sooc_sensor *s) {
     for (int k = 0; k < 2; k++) node_close(v, &v->n[k]);
     sooc_free(v->dbuf);
     sooc_free(v->cbuf);
+#ifdef SOOC_V4L2_MJPEG
+    sooc_image_free(&v->jimg);
+#endif
     sooc_free(v);
     s->impl = NULL;
 }

@@ -72,7 +72,8 @@ typedef struct sooc_sensor_params {
      * libcamera: camera index ("0") or libcamera camera id. */
     const char *uri;
     const char *uri2;          /* v4l2: the colour node (NULL = depth only)               */
-    const char *format;        /* replay: format name for the data module (NULL = auto)   */
+    const char *format;        /* replay: a format name or alias of sooc_seq_format_parse
+                                  (seq.h, docs/formats.md §Format names; NULL = auto)     */
     const char *calib;         /* replay: calib YAML overriding <dir>/calib.yaml (NULL)    */
     int width, height;         /* requested mode (0 = driver default, usually 640x480)    */
     int fps;                   /* requested rate (0 = driver default, 30)                 */
@@ -88,6 +89,10 @@ typedef struct sooc_sensor_params {
     double depth_scale;        /* metres per raw depth unit; 0 = the driver/format default
                                   (OpenNI2/freenect mm: 0.001, V4L2 Z16: 0.001)           */
     float depth_min, depth_max;/* metres; outside -> invalid (defaults 0.1 and 10)        */
+    int depth_shift;           /* replay: raw >> depth_shift before depth_scale; -1 (the
+                                  default) = the calib YAML's, else the format's          */
+    int depth_invalid;         /* replay: raw value meaning "no depth" besides 0 (0 =
+                                  none); -1 (the default) = calib YAML, else the format's */
     /* device options */
     int registration;          /* 1 = register depth to colour when the device can (default) */
     int mirror;                /* 0 = mirroring off (default)                             */
@@ -101,13 +106,14 @@ typedef struct sooc_sensor_params {
 } sooc_sensor_params;
 
 /* Defaults: everything 0/NULL except speed 1.0, stop_s -1, depth_min 0.1,
- * depth_max 10, registration 1. */
+ * depth_max 10, registration 1, depth_shift and depth_invalid -1. */
 void sooc_sensor_params_default(sooc_sensor_params *p);
 
 /* Set one parameter from text, for launch files. Keys: uri (aliases device,
  * path), uri2 (alias color_device), format, calib, width, height, fps, speed, loop,
- * start (alias start_s), stop (alias stop_s), depth_scale, depth_min,
- * depth_max, registration, mirror, depth_format, timebase ("sensor" |
+ * start (alias start_s), stop (alias stop_s), depth_scale, depth_shift (0..15),
+ * depth_invalid (0..65535), depth_min, depth_max, registration, mirror,
+ * depth_format, timebase ("sensor" |
  * "realtime"), pair_tol_ms. String values are NOT copied: they must outlive
  * the sensor's open call. Unknown key or bad value -> SOOC_EINVAL naming it. */
 sooc_status sooc_sensor_params_set(sooc_sensor_params *p, const char *key, const char *value);

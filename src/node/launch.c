@@ -3,6 +3,7 @@
  * range). Every error names the file, the line and the key (section.key). */
 #include "sooc3d/node.h"
 #include "sooc3d/model.h"
+#include "sooc3d/seq.h"
 #include "data/yaml_doc.h"
 
 #include <ctype.h>
@@ -164,7 +165,7 @@ static sooc_status unknown(pctx *p, const yaml_node_t *kn, const char *key, cons
 
 /* ------------------------------------------------------------ sensor keys */
 
-typedef enum { PT_STR, PT_INT, PT_NUM, PT_POS, PT_BOOL, PT_ENUM, PT_SPEED } ptype;
+typedef enum { PT_STR, PT_INT, PT_NUM, PT_POS, PT_BOOL, PT_ENUM, PT_SPEED, PT_FORMAT, PT_U16, PT_SHIFT } ptype;
 typedef struct pspec {
     const char *driver, *key;
     ptype type;
@@ -173,12 +174,14 @@ typedef struct pspec {
 
 static const pspec g_pspecs[] = {
     {"replay", "path", PT_STR, NULL},
-    {"replay", "format", PT_ENUM, "auto|sooc|tum|replica|scannet|klg|fakenect|sevenscenes"},
+    {"replay", "format", PT_FORMAT, NULL},          /* names: sooc_seq_format_parse (seq.h) */
     {"replay", "speed", PT_SPEED, NULL},
     {"replay", "loop", PT_BOOL, NULL},
     {"replay", "start_s", PT_NUM, NULL},
     {"replay", "stop_s", PT_NUM, NULL},
     {"replay", "depth_scale", PT_POS, NULL},
+    {"replay", "depth_shift", PT_SHIFT, NULL},
+    {"replay", "depth_invalid", PT_U16, NULL},
     {"openni2", "uri", PT_STR, NULL},
     {"openni2", "width", PT_INT, NULL},
     {"openni2", "height", PT_INT, NULL},
@@ -268,6 +271,22 @@ static sooc_status sensor_param(pctx *p, const char *key, yaml_node_t *kn, yaml_
     case PT_SPEED:
         if (strcmp(s, "realtime") && strcmp(s, "fast") && (!parse_num(s, &x) || x <= 0))
             return bad(p, vn, key, "expected realtime, fast or a factor > 0", s);
+        break;
+    case PT_FORMAT: {
+        sooc_seq_format f;
+        if (sooc_seq_format_parse(s, &f)) {
+            char what[1100], list[1024];
+            sooc_seq_format_list(list, sizeof list);
+            snprintf(what, sizeof what, "unknown sequence format (one of %s)", list);
+            return bad(p, vn, key, what, s);
+        }
+        break;
+    }
+    case PT_U16:
+        if ((st = get_int(p, vn, key, 0, 65535, &li))) return st;
+        break;
+    case PT_SHIFT:
+        if ((st = get_int(p, vn, key, 0, 15, &li))) return st;
         break;
     }
     if (c->n_params >= SOOC_NODE_PARAMS_MAX) return bad(p, kn, key, "too many sensor parameters", NULL);

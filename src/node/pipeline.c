@@ -210,6 +210,11 @@ static sooc_status open_sensor(sooc_node *n) {
 #if SOOC_NODE_HAVE_CALIB
     if (n->have_calib && n->calib.depth_scale > 0 && !sooc_node_param_get(c, "depth_scale"))
         sp.depth_scale = n->calib.depth_scale;
+    /* the calib's depth decoding keys, like depth_scale (replay; seq.h) */
+    if (n->have_calib && n->calib.depth_shift >= 0 && !sooc_node_param_get(c, "depth_shift"))
+        sp.depth_shift = n->calib.depth_shift;
+    if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
+        sp.depth_invalid = n->calib.depth_invalid;
 #endif
     sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
     if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);

@@ -12,6 +12,12 @@
 
 #include "check.h"
 #include "sooc3d/driver.h"
+#ifdef SOOC_V4L2_MJPEG
+#include "sooc3d/image.h"
+/* MJPEG frames by sequence number, made by the test (hand-made JPEGs in memory) */
+static void *g_jpg[32];
+static size_t g_jpgn[32];
+#endif
 
 #define MAXEV 64
 #define PERIOD_NS 33333333LL
@@ -98,6 +104,11 @@ static void fill(fnode *n, uint8_t *dst, uint32_t seq) {
                 uint16_t v = (uint16_t)(1000 + seq);
                 if (x == 0 && y == 0) v = 0;
                 memcpy(row + 2 * x, &v, 2);
+#ifdef SOOC_V4L2_MJPEG
+            } else if (n->cur_fmt == V4L2_PIX_FMT_MJPEG) {
+                if (x == 0 && y == 0 && seq < 32 && g_jpg[seq]) memcpy(dst, g_jpg[seq], g_jpgn[seq]);
+                x = n->w; /* compressed: the whole frame is written once */
+#endif
             } else if (n->cur_fmt == V4L2_PIX_FMT_YUYV) {
                 row[2 * x] = (uint8_t)(16 + 5 * seq);     /* Y  */
                 row[2 * x + 1] = 128;                      /* U or V */
@@ -133,12 +144,14 @@ static int f_ioctl(void *u, int fd, unsigned long req, void *arg) {
         int ok = 0;
         for (int i = 0; i < n->nfmt; i++) ok |= n->fmts[i] == f->fmt.pix.pixelformat;
         n->cur_fmt = ok ? f->fmt.pix.pixelformat : n->fmts[0];
-        n->bpp = n->cur_fmt == V4L2_PIX_FMT_RGB24 || n->cur_fmt == V4L2_PIX_FMT_BGR24 ? 3 : 2;
+        n->bpp = n->cur_fmt == V4L2_PIX_FMT_RGB24 || n->cur_fmt == V4L2_PIX_FMT_BGR24 ||
+                 n->cur_fmt == V4L2_PIX_FMT_MJPEG ? 3 : 2;
         n->bpl = n->w * n->bpp + 16;   /* padded rows */
         f->fmt.pix.pixelformat = n->cur_fmt;
         f->fmt.pix.width = (uint32_t)n->w;    /* the device has one size */
         f->fmt.pix.height = (uint32_t)n->h;
-        f->fmt.pix.bytesperline = (uint32_t)n->bpl;
+        /* compressed formats report bytesperline 0 and a worst-case sizeimage */
+        f->fmt.pix.bytesperline = n->cur_fmt == V4L2_PIX_FMT_MJPEG ? 0 : (uint32_t)n->bpl;
         f->fmt.pix.sizeimage = (uint32_t)(n->bpl * n->h);
         return 0;
     }
@@ -177,6 +190,9 @@ static int f_ioctl(void *u, int fd, unsigned long req, void *arg) {
         fill(n, n->buf[idx], e->seq);
         b->index = (uint32_t)idx;
         b->bytesused = (uint32_t)n->len;
+#ifdef SOOC_V4L2_MJPEG
+        if (n->cur_fmt == V4L2_PIX_FMT_MJPEG) b->bytesused = e->seq < 32 ? (uint32_t)g_jpgn[e->seq] : 0;
+#endif
         b->sequence = e->seq;
         b->flags = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
         b->timestamp.tv_sec = e->t_ns / 1000000000;
@@ -344,8 +360,84 @@ static void test_errors(void) {
     CHECK(s == NULL);
 }
 
+#ifdef SOOC_V4L2_MJPEG
+/* Remove the DHT segments (before SOS), as Motion-JPEG cameras send frames. */
+static size_t strip_dht(uint8_t *b, size_t n) {
+    size_t i = 2, o = 2;
+    while (i + 4 <= n && b[i] == 0xFF && b[i + 1] != 0xDA) {
+        size_t len = 2 + ((size_t)b[i + 2] << 8 | b[i + 3]);
+        if (i + len > n) break;
+        if (b[i + 1] != 0xC4) { memmove(b + o, b + i, len); o += len; }
+        i += len;
+    }
+    memmove(b + o, b + i, n - i);
+    return o + (n - i);
+}
+
+/* A depth node and an MJPEG-only colour node (64x48 colour, like a USB camera
+ * at the depth size; and 128x96, resampled). Frame s is a flat colour
+ * (8 s, 100, 200); frame 3 has no Huffman tables; frame 8 is truncated
+ * (dropped, counted in errors); frame 9 is not a JPEG at all. */
+static void run_mjpeg(int cw, int ch) {
+    for (uint32_t s = 0; s < 20; s++) {
+        sooc_image img = {0};
+        if (sooc_image_alloc(&img, cw, ch, SOOC_PIX_RGB8)) exit(1);
+        uint8_t *p = img.data;
+        for (int i = 0; i < cw * ch; i++) { p[3 * i] = (uint8_t)(8 * s); p[3 * i + 1] = 100; p[3 * i + 2] = 200; }
+        CHECK_OK(sooc_jpeg_encode(&img, 90, &g_jpg[s], &g_jpgn[s]));
+        sooc_image_free(&img);
+    }
+    size_t with_dht = g_jpgn[3];
+    g_jpgn[3] = strip_dht(g_jpg[3], g_jpgn[3]);
+    CHECK_MSG(g_jpgn[3] + 400 < with_dht, "DHT not stripped: %zu -> %zu bytes", with_dht, g_jpgn[3]);
+    g_jpgn[8] /= 2;
+    memset(g_jpg[9], 0x55, g_jpgn[9]);
+    fake fk;
+    setup(&fk, V4L2_PIX_FMT_Z16, V4L2_PIX_FMT_MJPEG, cw, ch);
+    sooc_sensor_params p;
+    sooc_sensor_params_default(&p);
+    p.uri = "/dev/video0";
+    p.uri2 = "/dev/video2";
+    p.v4l2_ops = ops_for(&fk);
+    sooc_sensor *s = NULL;
+    CHECK_OK(sooc_sensor_open(&s, "v4l2", &p));
+    if (s) {
+        CHECK(fk.n[1].cur_fmt == V4L2_PIX_FMT_MJPEG);
+        CHECK_OK(sooc_sensor_start(s));
+        sooc_frame f = {0};
+        int n = 0, ok_rgb = 1, has8 = 0, has9 = 0, has3 = 0;
+        while (sooc_sensor_read(s, &f, 30) == SOOC_OK && n < 32) {
+            uint32_t dseq = (uint32_t)(f.depth[1] * 1000.0f + 0.5f) - 1000;
+            for (int k = 0; k < 64 * 48; k += 97)
+                if (abs(f.rgb[3 * k] - (int)(8 * dseq)) > 3 || abs(f.rgb[3 * k + 1] - 100) > 3 ||
+                    abs(f.rgb[3 * k + 2] - 200) > 3)
+                    ok_rgb = 0;
+            has8 |= dseq == 8;
+            has9 |= dseq == 9;
+            has3 |= dseq == 3;
+            n++;
+        }
+        sooc_sensor_stats ss;
+        sooc_sensor_get_stats(s, &ss);
+        CHECK_MSG(ok_rgb, "MJPEG colour differs from the encoded frame");
+        CHECK_MSG(n == 15 && has3 && !has8 && !has9, "MJPEG %dx%d: %d pairs (expected 15: 17 less the corrupt 8 and 9)",
+                  cw, ch, n);
+        CHECK_MSG(ss.errors >= 2, "corrupt MJPEG frames not counted: errors %lld", (long long)ss.errors);
+        printf("  v4l2 fake (Z16 depth, %dx%d MJPEG colour): %d pairs, errors %lld (a truncated frame and a "
+               "non-JPEG frame dropped; a frame without DHT decoded)\n", cw, ch, n, (long long)ss.errors);
+        sooc_sensor_close(s);
+        sooc_frame_free(&f);
+    }
+    for (int i = 0; i < 20; i++) { sooc_free(g_jpg[i]); g_jpg[i] = NULL; }
+}
+#endif
+
 int main(void) {
     test_errors();
+#ifdef SOOC_V4L2_MJPEG
+    run_mjpeg(64, 48);
+    run_mjpeg(128, 96);
+#endif
     run_pairing(V4L2_PIX_FMT_Z16, NULL, V4L2_PIX_FMT_YUYV, 64, 48);
     run_pairing(v4l2_fourcc('Y', '1', '6', ' '), "Y16", V4L2_PIX_FMT_RGB24, 64, 48);
     run_pairing(V4L2_PIX_FMT_Z16, "Z16", V4L2_PIX_FMT_RGB24, 32, 24);   /* colour resampled */
