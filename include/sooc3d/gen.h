@@ -24,7 +24,10 @@
 extern "C" {
 #endif
 
-typedef enum sooc_gen_preset { SOOC_GEN_UNITY = 0, SOOC_GEN_BLENDER = 1 } sooc_gen_preset;
+typedef enum sooc_gen_preset { SOOC_GEN_UNITY = 0, SOOC_GEN_BLENDER = 1, SOOC_GEN_TABLETOP = 2 } sooc_gen_preset;
+/* Sensor noise on the written depth and colour (sensor_noise.h): AUTO =
+ * KINECT for the tabletop preset, NONE for unity and blender. */
+typedef enum sooc_gen_noise { SOOC_GEN_NOISE_AUTO = 0, SOOC_GEN_NOISE_NONE, SOOC_GEN_NOISE_KINECT } sooc_gen_noise;
 typedef enum sooc_gen_scale { SOOC_GEN_S = 0, SOOC_GEN_M, SOOC_GEN_L, SOOC_GEN_XL } sooc_gen_scale;
 
 typedef struct sooc_gen_params {
@@ -43,6 +46,8 @@ typedef struct sooc_gen_params {
     int threads;          /* OpenMP threads for sooc_gen_run (0 = runtime default)     */
     int write_meshes;     /* write meshes/ (default 1)                                 */
     int contact_sheet;    /* write <out>/contact_sheet.png (default 1)                 */
+    sooc_gen_noise noise; /* sensor noise (default AUTO); with noise, depth_gt/ keeps
+                             the exact depth                                            */
 } sooc_gen_params;
 
 void sooc_gen_params_default(sooc_gen_params *p);
@@ -52,6 +57,18 @@ const char *sooc_gen_preset_name(sooc_gen_preset p);
 const char *sooc_gen_scale_name(sooc_gen_scale s);
 double sooc_gen_scale_side(sooc_gen_scale s);       /* 4, 8, 24, 48 m   */
 int sooc_gen_default_views(sooc_gen_scale s);       /* 10, 20, 60, 120  */
+/* Input views per scene for p (p->n_views, else the preset's default:
+ * unity/blender as above, tabletop 10, 20, 30 for s, m, l). */
+int sooc_gen_views(const sooc_gen_params *p);
+/* 1 when p's scenes carry sensor noise (p->noise, AUTO by preset). */
+int sooc_gen_noisy(const sooc_gen_params *p);
+
+/* Tabletop preset (gen_tabletop.c, docs/formats.md 5.1). Table top size
+ * (x, z) in m for a scale: s 0.9 x 0.7, m 1.5 x 1.0, l 2.2 x 1.5; xl is not
+ * a tabletop scale (SOOC_EINVAL). */
+sooc_status sooc_gen_tabletop_size(sooc_gen_scale s, double wd[2]);
+/* Sample tabletop scene `index` (called by sooc_gen_scene). */
+sooc_status sooc_gen_tabletop_scene(sooc_scene *sc, const sooc_gen_params *p, int index);
 
 /* Sample scene `index` (objects, lighting, camera walk + query views, with
  * poses in sc->view_T_wc). `sc` must be initialised (sooc_scene_init) or

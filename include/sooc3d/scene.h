@@ -21,6 +21,15 @@
  *                 height, board thickness, leg side)  legs + seat + back at -z
  *   shelf         w d h n t (width, depth, height, number of boards,
  *                 board thickness)               two sides + n boards + back
+ * Tabletop shapes (gen_tabletop.c; docs/formats.md 4.1):
+ *   frustum       rb rt h (bottom, top radius, height)  solid truncated cone,
+ *                 base disc at y = 0
+ *   cup           rt rb h t (top, bottom radius, height, wall thickness)
+ *                 open vessel + half-torus handle on +x
+ *   bowl          rt rb h t                      open vessel
+ *   bottle        r h rn hn (body radius, total height, neck radius, neck
+ *                 length)                        body + shoulder + neck + cap
+ *   can           r h                            cylinder + tapered top rim
  * size[] = the object's axis-aligned extent (x, y, z) in its own frame.
  * Composite shapes are unions of parts (sooc_scene_object_parts).
  *
@@ -46,12 +55,25 @@ typedef enum sooc_shape {
     SOOC_SHAPE_TABLE,
     SOOC_SHAPE_CHAIR,
     SOOC_SHAPE_SHELF,
+    SOOC_SHAPE_FRUSTUM,
+    SOOC_SHAPE_CUP,
+    SOOC_SHAPE_BOWL,
+    SOOC_SHAPE_BOTTLE,
+    SOOC_SHAPE_CAN,
     SOOC_SHAPE_COUNT
 } sooc_shape;
 
 const char *sooc_shape_name(sooc_shape s);
 /* Parse a shape name; returns SOOC_EINVAL for unknown names. */
 sooc_status sooc_shape_parse(const char *name, sooc_shape *out);
+
+/* Object textures, evaluated in the object frame (y up from the base):
+ * STRIPES: color2 where floor(y / tex_scale) is odd; CHECKS: a 3-D checker
+ * of period tex_scale; LABEL: a color2 band over 30-75% of the height with
+ * text-like dashes of `color` in it. */
+typedef enum sooc_obj_tex {
+    SOOC_TEX_PLAIN = 0, SOOC_TEX_STRIPES, SOOC_TEX_CHECKS, SOOC_TEX_LABEL
+} sooc_obj_tex;
 
 typedef struct sooc_scene_object {
     int id;                 /* instance id, >= 1                               */
@@ -60,12 +82,19 @@ typedef struct sooc_scene_object {
     double size[3];         /* extent (x, y, z) in the object frame             */
     double params[6];       /* shape parameters, see above                      */
     float color[3];         /* albedo, sRGB in [0, 1]                            */
+    sooc_obj_tex tex;       /* procedural texture (PLAIN = uniform `color`)      */
+    float color2[3];        /* second texture colour                             */
+    double tex_scale;       /* stripe / check period (m)                         */
 } sooc_scene_object;
 
 /* Primitive parts of an object (object frame, yaw already excluded):
- * prim uses the first six shapes (SPHERE..SUPERQUADRIC), c is the
- * primitive's reference point (centre; base centre for cones), d its
- * dimensions as in the params table. */
+ * prim uses the first six shapes (SPHERE..SUPERQUADRIC) or FRUSTUM, c is the
+ * primitive's reference point (centre; base centre for cones and frusta), d
+ * its dimensions as in the params table, with two part-only extensions:
+ *   FRUSTUM d = rb rt h t b: t > 0 makes it an open vessel (wall thickness
+ *     t measured horizontally, bottom thickness b); t = 0 is solid.
+ *   TORUS d = R r axis half: axis 1 stands the ring in the x-y plane (axis
+ *     +z; 0 = lying flat), half 1 keeps only the x >= 0 half (a handle). */
 typedef struct sooc_scene_part {
     sooc_shape prim;
     double c[3];
@@ -77,8 +106,24 @@ typedef enum sooc_floor_tex {
     SOOC_FLOOR_UNIFORM = 0, SOOC_FLOOR_CHECKER, SOOC_FLOOR_WOOD, SOOC_FLOOR_NOISE
 } sooc_floor_tex;
 
+/* What the objects stand on (the layout plane y = 0):
+ * FLOOR: an unbounded floor (unity, blender).
+ * TABLE: a table top support_size[0] (x) x support_size[1] (z) centred at
+ *   the origin, support_thick thick, over a room floor ("ground") at
+ *   y = -support_height.
+ * BIN:   a bin floor of support_size at y = 0 inside four walls of
+ *   thickness support_thick rising rim_height above it, standing on a
+ *   ground plane at y = -support_height.
+ * Only the upward faces at y = 0 are the layout (floor colour/texture);
+ * table edges and bin walls take support_color, the ground ground_color.
+ * With TABLE/BIN, room walls (walls = 1) stand on the ground and are
+ * wall_height tall. */
+typedef enum sooc_support {
+    SOOC_SUPPORT_FLOOR = 0, SOOC_SUPPORT_TABLE, SOOC_SUPPORT_BIN
+} sooc_support;
+
 typedef struct sooc_scene {
-    char preset[16];        /* "unity" | "blender"                              */
+    char preset[16];        /* "unity" | "blender" | "tabletop"                 */
     char scale[4];          /* "s" | "m" | "l" | "xl"                           */
     uint64_t seed;          /* generator seed                                   */
     int index;              /* scene number under that seed                    */
@@ -90,7 +135,16 @@ typedef struct sooc_scene {
     sooc_floor_tex floor_tex;
     float floor_color[3], floor_color2[3];
     double tex_scale;       /* texture period (m)                               */
+    sooc_support support;   /* FLOOR (default), TABLE or BIN                    */
+    double support_size[2]; /* table top / bin floor: x and z extent (m)         */
+    double support_height;  /* ground at y = -support_height                     */
+    double support_thick;   /* table top thickness / bin wall thickness          */
+    double rim_height;      /* bin walls above y = 0                             */
+    float support_color[3]; /* table edges, bin walls                            */
+    float ground_color[3];
     float sky_color[3];
+    char sensor_noise[16];  /* "" (exact depth) | "kinect": depth/ and rgb/ carry
+                               sensor noise, depth_gt/ the exact depth        */
     double light_dir[3];    /* unit vector towards the light                    */
     double ambient;         /* ambient fraction in [0, 1]                        */
     int shadows;            /* cast shadows (blender)                           */

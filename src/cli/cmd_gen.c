@@ -8,22 +8,30 @@
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d gen --preset unity|blender --scale s|m|l|xl --scenes N --seed S --out DIR\n"
+            "usage: sooc3d gen --preset unity|blender|tabletop --scale s|m|l|xl --scenes N --seed S --out DIR\n"
             "                  [--width 64 --height 64 --views V --query Q --threads T --first K\n"
-            "                   --density D --clip D --no-meshes --no-sheet --stats]\n\n"
+            "                   --density D --clip D --noise none|kinect --no-meshes --no-sheet --stats]\n\n"
             "Renders N scenes with an exact CPU ray tracer into DIR/scene_%%04d/ (TUM layout +\n"
             "calib.yaml + scene.yaml + instance/ + meshes/) and DIR/contact_sheet.png.\n\n"
             "  --preset     unity: spheres/boxes/cylinders/cones, uniform colours, Lambertian + ambient\n"
             "               blender: + tori, superquadrics, tables/chairs/shelves, textured floors,\n"
             "               cast shadows, specular highlights                      (default unity)\n"
+            "               tabletop: cups, bowls, boxes, bottles, cans (textured) on a table or in\n"
+            "               a bin, arm-mounted camera 0.35-1 m away pitched 25-70 deg down, circling\n"
+            "               the table; kinect sensor noise by default; scales s/m/l = table\n"
+            "               0.9x0.7 / 1.5x1.0 / 2.2x1.5 m (docs/formats.md 5.1)\n"
             "  --scale      room side s = 4 m, m = 8 m, l = 24 m, xl = 48 m; constant object density;\n"
             "               the camera walks through the room at every scale        (default s)\n"
             "  --scenes     number of scenes (default 1);  --first: index of the first (default 0)\n"
             "  --seed       seed; scene k uses RNG stream (seed, k)                 (default 1)\n"
-            "  --views      input views per scene (default 10/20/60/120 for s/m/l/xl)\n"
+            "  --views      input views per scene (default 10/20/60/120 for s/m/l/xl; tabletop 10/20/30)\n"
             "  --query      held-out query views per scene (default max(2, views/5))\n"
             "  --width/--height  image size (default 64x64), 60 degree horizontal FOV\n"
-            "  --density    objects per square metre (default 0.2)\n"
+            "  --density    objects per square metre (default 0.2; unity and blender only)\n"
+            "  --noise      sensor noise on depth and colour: none | kinect (axial sigma\n"
+            "               0.0012 + 0.0019 (z - 0.4)^2 m, disparity quantisation, shadows, edge\n"
+            "               dropout, exposure, colour noise); exact depth kept in depth_gt/\n"
+            "               (default kinect for tabletop, none otherwise)\n"
             "  --clip       camera clipping depth in m: depth beyond it is stored as 0 (default 8)\n"
             "  --threads    OpenMP threads (default: all); output does not depend on it\n"
             "  --stats      print objects per view, distance and pixel-size histograms\n");
@@ -40,8 +48,14 @@ static void on_progress(void *user, int64_t done, int64_t total) {
 }
 
 static void print_stats(const sooc_gen_params *p, const sooc_gen_stats *st) {
-    printf("stats: preset %s, scale %s (%.0f m room), %lld scenes, %.1f objects per scene\n",
-           sooc_gen_preset_name(p->preset), sooc_gen_scale_name(p->scale), sooc_gen_scale_side(p->scale),
+    double wd[2];
+    char where[48];
+    if (p->preset == SOOC_GEN_TABLETOP && !sooc_gen_tabletop_size(p->scale, wd))
+        snprintf(where, sizeof where, "%.1f x %.1f m table", wd[0], wd[1]);
+    else
+        snprintf(where, sizeof where, "%.0f m room", sooc_gen_scale_side(p->scale));
+    printf("stats: preset %s, scale %s (%s), %lld scenes, %.1f objects per scene\n",
+           sooc_gen_preset_name(p->preset), sooc_gen_scale_name(p->scale), where,
            (long long)st->n_scenes, st->n_scenes ? (double)st->n_objects_total / st->n_scenes : 0);
     double nv = st->n_views ? (double)st->n_views : 1, no = st->n_objects_in_view ? (double)st->n_objects_in_view : 1;
     printf("  objects per view (>= 4 valid pixels): mean %.2f over %lld views\n",
@@ -95,7 +109,12 @@ int sooc_cmd_gen(int argc, char **argv) {
         else if (!strcmp(a, "--threads")) INTV(0, 256, &p.threads);
         else if (!strcmp(a, "--density")) DBLV(0.001, 4.99, &p.density);
         else if (!strcmp(a, "--clip")) DBLV(0.01, 65535 * p.depth_scale, &p.clip_depth); /* 16-bit depth PNGs */
-        else if (!strcmp(a, "--no-meshes")) p.write_meshes = 0;
+        else if (!strcmp(a, "--noise")) {
+            NEEDV();
+            if (!strcmp(v, "none")) p.noise = SOOC_GEN_NOISE_NONE;
+            else if (!strcmp(v, "kinect")) p.noise = SOOC_GEN_NOISE_KINECT;
+            else { fprintf(stderr, "sooc3d gen: --noise: expected none or kinect, got '%s'\n", v); return 2; }
+        } else if (!strcmp(a, "--no-meshes")) p.write_meshes = 0;
         else if (!strcmp(a, "--no-sheet")) p.contact_sheet = 0;
         else if (!strcmp(a, "--stats")) stats = 1;
         else { fprintf(stderr, "sooc3d gen: unknown option '%s'\n", a); usage(stderr); return 2; }
@@ -105,7 +124,7 @@ int sooc_cmd_gen(int argc, char **argv) {
 #undef DBLV
     }
     if (!out) { fprintf(stderr, "sooc3d gen: --out DIR is required\n"); usage(stderr); return 2; }
-    int V = p.n_views > 0 ? p.n_views : sooc_gen_default_views(p.scale);
+    int V = sooc_gen_views(&p);
     int Q = p.n_query >= 0 ? p.n_query : (V / 5 > 2 ? V / 5 : 2);
     prog_ctx pc;
     sooc_progress_begin(&pc.pr, "gen views", (uint64_t)p.n_scenes * (uint64_t)(V + Q));

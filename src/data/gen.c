@@ -2,6 +2,7 @@
  * query views), statistics, contact sheets, and the dataset writer loop. */
 #include "sooc3d/gen.h"
 #include "sooc3d/seq.h"
+#include "data_impl.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -29,20 +30,20 @@ void sooc_gen_params_default(sooc_gen_params *p) {
     p->contact_sheet = 1;
 }
 
-static const char *g_presets[] = {"unity", "blender"};
+static const char *g_presets[] = {"unity", "blender", "tabletop"};
 static const char *g_scales[] = {"s", "m", "l", "xl"};
 
 sooc_status sooc_gen_preset_parse(const char *s, sooc_gen_preset *out) {
-    for (int i = 0; i < 2; i++)
+    for (int i = 0; i < 3; i++)
         if (s && !strcmp(s, g_presets[i])) { *out = (sooc_gen_preset)i; return SOOC_OK; }
-    return sooc_seterr(SOOC_EINVAL, "unknown preset '%s' (unity, blender)", s ? s : "");
+    return sooc_seterr(SOOC_EINVAL, "unknown preset '%s' (unity, blender, tabletop)", s ? s : "");
 }
 sooc_status sooc_gen_scale_parse(const char *s, sooc_gen_scale *out) {
     for (int i = 0; i < 4; i++)
         if (s && !strcmp(s, g_scales[i])) { *out = (sooc_gen_scale)i; return SOOC_OK; }
     return sooc_seterr(SOOC_EINVAL, "unknown scale '%s' (s, m, l, xl)", s ? s : "");
 }
-const char *sooc_gen_preset_name(sooc_gen_preset p) { return (unsigned)p < 2 ? g_presets[p] : "?"; }
+const char *sooc_gen_preset_name(sooc_gen_preset p) { return (unsigned)p < 3 ? g_presets[p] : "?"; }
 const char *sooc_gen_scale_name(sooc_gen_scale s) { return (unsigned)s < 4 ? g_scales[s] : "?"; }
 double sooc_gen_scale_side(sooc_gen_scale s) {
     static const double side[] = {4, 8, 24, 48};
@@ -51,6 +52,16 @@ double sooc_gen_scale_side(sooc_gen_scale s) {
 int sooc_gen_default_views(sooc_gen_scale s) {
     static const int v[] = {10, 20, 60, 120};
     return (unsigned)s < 4 ? v[s] : 10;
+}
+
+int sooc_gen_views(const sooc_gen_params *p) {
+    static const int tt[] = {10, 20, 30};
+    if (p->n_views > 0) return p->n_views;
+    if (p->preset == SOOC_GEN_TABLETOP) return (unsigned)p->scale < 3 ? tt[p->scale] : 30;
+    return sooc_gen_default_views(p->scale);
+}
+int sooc_gen_noisy(const sooc_gen_params *p) {
+    return p->noise == SOOC_GEN_NOISE_KINECT || (p->noise == SOOC_GEN_NOISE_AUTO && p->preset == SOOC_GEN_TABLETOP);
 }
 
 static void hsv2rgb(double h, double s, double v, float out[3]) {
@@ -176,6 +187,7 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
         return sooc_seterr(SOOC_EINVAL, "gen: fov %g out of range", p->fov_deg);
     if (!(p->density > 0 && p->density < 5))
         return sooc_seterr(SOOC_EINVAL, "gen: density %g out of range (0, 5)", p->density);
+    if (p->preset == SOOC_GEN_TABLETOP) return sooc_gen_tabletop_scene(sc, p, index);
     sooc_rng rng;
     sooc_rng_seed(&rng, p->seed, (uint64_t)index);
     sooc_rng *r = &rng;
@@ -409,8 +421,9 @@ sooc_status sooc_gen_run(const sooc_gen_params *p, const char *out_dir, sooc_gen
     sooc_status s = sooc_mkdirs(out_dir);
     if (s) return s;
     if (stats) memset(stats, 0, sizeof *stats);
-    int V = p->n_views > 0 ? p->n_views : sooc_gen_default_views(p->scale);
+    int V = sooc_gen_views(p);
     int Q = p->n_query >= 0 ? p->n_query : (V / 5 > 2 ? V / 5 : 2);
+    int noisy = sooc_gen_noisy(p);
     int64_t total = (int64_t)p->n_scenes * (V + Q), done = 0;
     sooc_frame sheet[SHEET_SCENES * SHEET_VIEWS];
     char sheet_lab[SHEET_SCENES * SHEET_VIEWS][48];
@@ -428,6 +441,12 @@ sooc_status sooc_gen_run(const sooc_gen_params *p, const char *out_dir, sooc_gen
         snprintf(name, sizeof name, "scene_%04d", idx);
         s = sooc_path_join(dir, sizeof dir, out_dir, name);
         if (s) break;
+        if (noisy) { /* sensor noise: depth_gt/ keeps the exact depth (gen_tabletop.c) */
+            snprintf(sc.sensor_noise, sizeof sc.sensor_noise, "kinect");
+            s = sooc_path_join(path, sizeof path, dir, "depth_gt");
+            if (!s) s = sooc_mkdirs(path);
+            if (s) break;
+        }
         sooc_calib cal;
         sooc_calib_pinhole(&cal, K.width, K.height, K.fx, K.fy, K.cx, K.cy);
         snprintf(cal.camera_name, sizeof cal.camera_name, "sooc3d_synthetic");
@@ -447,6 +466,7 @@ sooc_status sooc_gen_run(const sooc_gen_params *p, const char *out_dir, sooc_gen
 #endif
         for (int v = 0; v < nv; v++) {
             sooc_status e = sooc_gen_render_view(&sc, sc.view_T_wc + 16 * v, &K, &fr[v]);
+            if (!e && noisy) e = sooc_gen_noise_view(&fr[v], dir, v, p->depth_scale, p->seed, idx);
             if (!e) {
                 fr[v].t_ns = (int64_t)v * 100000000;  /* 10 Hz */
                 fr[v].index = v;
@@ -500,12 +520,20 @@ sooc_status sooc_gen_run(const sooc_gen_params *p, const char *out_dir, sooc_gen
         const char *lp[SHEET_SCENES * SHEET_VIEWS];
         for (int i = 0; i < n_sheet; i++) { fp[i] = &sheet[i]; lp[i] = sheet_lab[i]; }
         char title[160], path[4096];
-        snprintf(title, sizeof title, "sooc3d gen: preset %s, scale %s (%.0f m room), seed %llu, %dx%d",
-                 sooc_gen_preset_name(p->preset), sooc_gen_scale_name(p->scale),
-                 sooc_gen_scale_side(p->scale), (unsigned long long)p->seed, p->width, p->height);
+        char where[48];
+        double wd[2], dmax = p->clip_depth;
+        if (p->preset == SOOC_GEN_TABLETOP && !sooc_gen_tabletop_size(p->scale, wd)) {
+            snprintf(where, sizeof where, "%.1f x %.1f m table", wd[0], wd[1]);
+            dmax = 2.5; /* arm's reach: colour the depth over 0-2.5 m */
+        } else {
+            snprintf(where, sizeof where, "%.0f m room", sooc_gen_scale_side(p->scale));
+        }
+        snprintf(title, sizeof title, "sooc3d gen: preset %s, scale %s (%s), seed %llu, %dx%d%s",
+                 sooc_gen_preset_name(p->preset), sooc_gen_scale_name(p->scale), where,
+                 (unsigned long long)p->seed, p->width, p->height, noisy ? ", kinect noise" : "");
         sooc_image img = {0};
         int scale = p->width <= 96 ? 2 : 1;
-        s = sooc_gen_contact_sheet(&img, fp, lp, n_sheet, SHEET_VIEWS, scale, p->clip_depth, title);
+        s = sooc_gen_contact_sheet(&img, fp, lp, n_sheet, SHEET_VIEWS, scale, dmax, title);
         if (!s) s = sooc_path_join(path, sizeof path, out_dir, "contact_sheet.png");
         if (!s) s = sooc_png_write(path, &img, 6);
         sooc_image_free(&img);

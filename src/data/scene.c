@@ -10,8 +10,9 @@
 #include <string.h>
 
 static const char *g_shape_names[SOOC_SHAPE_COUNT] = {
-    "sphere", "box", "cylinder", "cone", "torus", "superquadric", "table", "chair", "shelf"};
-static const int g_shape_nparams[SOOC_SHAPE_COUNT] = {1, 3, 2, 2, 2, 5, 5, 6, 5};
+    "sphere", "box", "cylinder", "cone", "torus", "superquadric", "table", "chair", "shelf",
+    "frustum", "cup", "bowl", "bottle", "can"};
+static const int g_shape_nparams[SOOC_SHAPE_COUNT] = {1, 3, 2, 2, 2, 5, 5, 6, 5, 3, 4, 4, 4, 2};
 
 const char *sooc_shape_name(sooc_shape s) {
     return (s >= 0 && s < SOOC_SHAPE_COUNT) ? g_shape_names[s] : "unknown";
@@ -85,6 +86,27 @@ static int add_box(sooc_scene_part *p, int n, int cap, double cx, double cy, dou
     return n + 1;
 }
 
+static int add_part(sooc_scene_part *p, int n, int cap, sooc_shape prim, double cx, double cy, double cz,
+                    double d0, double d1, double d2, double d3, double d4) {
+    if (n >= cap) return n;
+    p[n].prim = prim;
+    p[n].c[0] = cx; p[n].c[1] = cy; p[n].c[2] = cz;
+    p[n].d[0] = d0; p[n].d[1] = d1; p[n].d[2] = d2; p[n].d[3] = d3; p[n].d[4] = d4;
+    return n + 1;
+}
+
+/* The cup's handle: a standing half torus on +x, its cut ends inside the
+ * wall (centre half a wall thickness inside the outer surface at 55% of the
+ * height). Shared with the generator's size computation. */
+void sooc_scene_cup_handle(const double *q, double c[3], double *R, double *r) {
+    double rt = q[0], rb = q[1], h = q[2], t = q[3], yc = 0.55 * h;
+    *R = 0.28 * h;
+    *r = fmax(0.05 * h, 0.003);
+    c[0] = rb + (rt - rb) * 0.55 - t / 2;
+    c[1] = yc;
+    c[2] = 0;
+}
+
 int sooc_scene_object_parts(const sooc_scene_object *o, sooc_scene_part *p, int cap) {
     const double *q = o->params;
     int n = 0;
@@ -129,6 +151,29 @@ int sooc_scene_object_parts(const sooc_scene_object *o, sooc_scene_part *p, int 
             n = add_box(p, n, cap, 0, t / 2 + i * (h - t) / (nb - 1), 0, w / 2 - t, t / 2, d / 2);
         n = add_box(p, n, cap, 0, h / 2, -(d / 2 - t / 4), w / 2 - t, h / 2, t / 4);
         return n;
+    }
+    case SOOC_SHAPE_FRUSTUM:
+        return add_part(p, 0, cap, SOOC_SHAPE_FRUSTUM, 0, 0, 0, q[0], q[1], q[2], 0, 0);
+    case SOOC_SHAPE_CUP: {
+        double c[3], R, r;
+        sooc_scene_cup_handle(q, c, &R, &r);
+        n = add_part(p, 0, cap, SOOC_SHAPE_FRUSTUM, 0, 0, 0, q[1], q[0], q[2], q[3], q[3]);
+        return add_part(p, n, cap, SOOC_SHAPE_TORUS, c[0], c[1], c[2], R, r, 1, 1, 0);
+    }
+    case SOOC_SHAPE_BOWL:
+        return add_part(p, 0, cap, SOOC_SHAPE_FRUSTUM, 0, 0, 0, q[1], q[0], q[2], q[3], q[3]);
+    case SOOC_SHAPE_BOTTLE: {
+        double r = q[0], h = q[1], rn = q[2], hn = q[3];
+        double hc = 0.06 * h, hs = 0.16 * h, hb = h - hn - hs - hc;
+        n = add_part(p, 0, cap, SOOC_SHAPE_CYLINDER, 0, hb / 2, 0, r, hb / 2, 0, 0, 0);
+        n = add_part(p, n, cap, SOOC_SHAPE_FRUSTUM, 0, hb, 0, r, rn, hs, 0, 0);
+        n = add_part(p, n, cap, SOOC_SHAPE_CYLINDER, 0, hb + hs + hn / 2, 0, rn, hn / 2, 0, 0, 0);
+        return add_part(p, n, cap, SOOC_SHAPE_CYLINDER, 0, h - hc / 2, 0, 1.15 * rn, hc / 2, 0, 0, 0);
+    }
+    case SOOC_SHAPE_CAN: {
+        double r = q[0], h = q[1], hr = 0.07 * h;
+        n = add_part(p, 0, cap, SOOC_SHAPE_CYLINDER, 0, (h - hr) / 2, 0, r, (h - hr) / 2, 0, 0, 0);
+        return add_part(p, n, cap, SOOC_SHAPE_FRUSTUM, 0, h - hr, 0, r, 0.88 * r, hr, 0, 0);
     }
     default: return 0;
     }
@@ -195,7 +240,36 @@ static double part_distance(const sooc_scene_part *p, const double qo[3]) {
         double d1 = seg_dist2(rho, q[1], 0, 0, d[0], 0), d2 = seg_dist2(rho, q[1], d[0], 0, 0, d[1]);
         return sqrt(d1 < d2 ? d1 : d2);
     }
-    case SOOC_SHAPE_TORUS: return fabs(hypot(hypot(q[0], q[2]) - d[0], q[1]) - d[1]);
+    case SOOC_SHAPE_TORUS: {
+        /* d[2] = 1: ring in the x-y plane (swap y and z); d[3] = 1: x >= 0 half */
+        double a = q[0], b = d[2] > 0.5 ? q[2] : q[1], c = d[2] > 0.5 ? q[1] : q[2];
+        if (d[3] > 0.5 && a < 0) {
+            /* nearest point on one of the two cut discs at x = 0, centres (0, +-R) in the ring plane */
+            double e1 = hypot(c - d[0], b), e2 = hypot(c + d[0], b);
+            double e = fmax(fmin(e1, e2) - d[1], 0);
+            return hypot(a, e);
+        }
+        return fabs(hypot(hypot(a, c) - d[0], b) - d[1]);
+    }
+    case SOOC_SHAPE_FRUSTUM: {
+        /* distance to the profile polyline in the (rho, y) half plane */
+        double rho = hypot(q[0], q[2]), y = q[1], rb = d[0], rt = d[1], h = d[2], t = d[3], b = d[4];
+        double P[6][2] = {{0, 0}, {rb, 0}, {rt, h}, {0, h}};
+        int np = 4;
+        if (t > 0) {
+            double k = (rt - rb) / h;
+            P[3][0] = rt - t; P[3][1] = h;
+            P[4][0] = rb - t + k * b; P[4][1] = b;
+            P[5][0] = 0; P[5][1] = b;
+            np = 6;
+        }
+        double best = 1e30;
+        for (int i = 0; i + 1 < np; i++) {
+            double e = seg_dist2(rho, y, P[i][0], P[i][1], P[i + 1][0], P[i + 1][1]);
+            if (e < best) best = e;
+        }
+        return sqrt(best);
+    }
     case SOOC_SHAPE_SUPERQUADRIC: {
         double g = sq_gauge(d, q), n = sooc_v3_norm(q);
         if (!(g > 0)) return fmin(fmin(d[0], d[1]), d[2]);
@@ -288,8 +362,10 @@ static void pf_sq(const sooc_scene_part *p, double u, double v, double o[3]) {
     o[2] = d[2] * cp * sgnpow(sin(th), d[4]);
 }
 static void pf_torus(const sooc_scene_part *p, double u, double v, double o[3]) {
-    double th = 2 * M_PI * u, ph = 2 * M_PI * v, R = p->d[0], r = p->d[1];
-    o[0] = (R + r * cos(ph)) * cos(th); o[1] = r * sin(ph); o[2] = (R + r * cos(ph)) * sin(th);
+    /* half tori (d[3]) sweep theta over [-pi/2, pi/2] (x >= 0); standing ones (d[2]) swap y and z */
+    double th = p->d[3] > 0.5 ? M_PI * (u - 0.5) : 2 * M_PI * u, ph = 2 * M_PI * v, R = p->d[0], r = p->d[1];
+    double a = (R + r * cos(ph)) * cos(th), b = r * sin(ph), c = (R + r * cos(ph)) * sin(th);
+    o[0] = a; o[1] = p->d[2] > 0.5 ? c : b; o[2] = p->d[2] > 0.5 ? b : c;
 }
 /* Lathe profiles: v in [0,1] walks a polyline (rho, y) from the axis and back. */
 static void lathe(double rho, double y, double u, double o[3]) {
@@ -308,6 +384,26 @@ static void pf_cone(const sooc_scene_part *p, double u, double v, double o[3]) {
     double r = p->d[0], h = p->d[1], s = v * 2;
     if (s < 1) lathe(r * s, 0, u, o);
     else lathe(r * (2 - s), h * (s - 1), u, o);
+}
+
+/* Frustum profile: bottom, outer side, top (solid) or rim, inner side, inner
+ * bottom (vessel); v walks the segments, one per grid row. */
+static void pf_frustum(const sooc_scene_part *p, double u, double v, double o[3]) {
+    double rb = p->d[0], rt = p->d[1], h = p->d[2], t = p->d[3], b = p->d[4];
+    double P[6][2] = {{0, 0}, {rb, 0}, {rt, h}, {0, h}};
+    int ns = 3;
+    if (t > 0) {
+        double k = (rt - rb) / h;
+        P[3][0] = rt - t; P[3][1] = h;
+        P[4][0] = rb - t + k * b; P[4][1] = b;
+        P[5][0] = 0; P[5][1] = b;
+        ns = 5;
+    }
+    double s = v * ns;
+    int i = (int)s;
+    if (i >= ns) i = ns - 1;
+    double f = s - i;
+    lathe(P[i][0] + f * (P[i + 1][0] - P[i][0]), P[i][1] + f * (P[i + 1][1] - P[i][1]), u, o);
 }
 
 static void mesh_box(mesh *m, const sooc_scene_part *p, const sooc_scene_object *o) {
@@ -385,6 +481,7 @@ sooc_status sooc_scene_write_meshes(const char *dir, const sooc_scene *sc) {
             case SOOC_SHAPE_TORUS: mesh_grid(&m, &parts[k], pf_torus, 32, 16, o); break;
             case SOOC_SHAPE_CYLINDER: mesh_grid(&m, &parts[k], pf_cyl, 24, 3, o); break;
             case SOOC_SHAPE_CONE: mesh_grid(&m, &parts[k], pf_cone, 24, 2, o); break;
+            case SOOC_SHAPE_FRUSTUM: mesh_grid(&m, &parts[k], pf_frustum, 24, parts[k].d[3] > 0 ? 5 : 3, o); break;
             default: mesh_box(&m, &parts[k], o); break;
             }
         }
@@ -402,6 +499,8 @@ sooc_status sooc_scene_write_meshes(const char *dir, const sooc_scene *sc) {
 /* ------------------------------------------------------------ scene.yaml */
 
 static const char *g_tex_names[] = {"uniform", "checker", "wood", "noise"};
+static const char *g_support_names[] = {"floor", "table", "bin"};
+static const char *g_otex_names[] = {"plain", "stripes", "checks", "label"};
 
 typedef struct sbuf {
     char *p;
@@ -445,6 +544,14 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
     sb_f3(&b, "floor_color", sc->floor_color);
     sb_f3(&b, "floor_color2", sc->floor_color2);
     sb_printf(&b, "texture_scale: %.12g\n", sc->tex_scale);
+    if (sc->support != SOOC_SUPPORT_FLOOR) {
+        sb_printf(&b, "support: %s\nsupport_size: [%.12g, %.12g]\nsupport_height: %.12g\n"
+                      "support_thickness: %.12g\nrim_height: %.12g\n", g_support_names[sc->support],
+                  sc->support_size[0], sc->support_size[1], sc->support_height, sc->support_thick, sc->rim_height);
+        sb_f3(&b, "support_color", sc->support_color);
+        sb_f3(&b, "ground_color", sc->ground_color);
+    }
+    if (sc->sensor_noise[0]) sb_printf(&b, "sensor_noise: %s\n", sc->sensor_noise);
     sb_f3(&b, "sky_color", sc->sky_color);
     sb_printf(&b, "light_dir: [%.12g, %.12g, %.12g]\nambient: %.12g\nshadows: %s\nspecular: %.12g\nshininess: %.12g\n",
               sc->light_dir[0], sc->light_dir[1], sc->light_dir[2], sc->ambient,
@@ -466,7 +573,11 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
         sb_printf(&b, "  - {id: %d, shape: %s, x: %.12g, z: %.12g, yaw: %.12g, size: [%.12g, %.12g, %.12g], params: [",
                   o->id, sooc_shape_name(o->shape), o->x, o->z, o->yaw, o->size[0], o->size[1], o->size[2]);
         for (int k = 0; k < g_shape_nparams[o->shape]; k++) sb_printf(&b, k ? ", %.12g" : "%.12g", o->params[k]);
-        sb_printf(&b, "], color: [%.6g, %.6g, %.6g]}\n", o->color[0], o->color[1], o->color[2]);
+        sb_printf(&b, "], color: [%.6g, %.6g, %.6g]", o->color[0], o->color[1], o->color[2]);
+        if (o->tex != SOOC_TEX_PLAIN)
+            sb_printf(&b, ", texture: %s, color2: [%.6g, %.6g, %.6g], texture_scale: %.12g", g_otex_names[o->tex],
+                      o->color2[0], o->color2[1], o->color2[2], o->tex_scale);
+        sb_printf(&b, "}\n");
     }
     if (b.oom) { sooc_free(b.p); return SOOC_ENOMEM; }
     sooc_status s = sooc_data_write_file(path, b.p, b.n);
@@ -556,6 +667,17 @@ static sooc_status parse_object(sooc_ydoc *c, yaml_node_t *n, sooc_scene_object 
         else if (!strcmp(ks, "size")) { s = ylist(c, v, "objects.size", o->size, 3, 3, NULL); seen |= 32; }
         else if (!strcmp(ks, "params")) { params_node = v; s = ylist(c, v, "objects.params", o->params, 6, -1, &nparams); seen |= 64; }
         else if (!strcmp(ks, "color")) { s = yf3(c, v, "objects.color", o->color); seen |= 128; }
+        else if (!strcmp(ks, "texture")) {
+            const char *ts = sooc_yscalar(v);
+            int f = -1;
+            for (int i = 0; i < 4; i++) if (ts && !strcmp(ts, g_otex_names[i])) f = i;
+            if (f < 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects.texture: expected plain, stripes, checks or label", c->name, sooc_yline(v));
+            else o->tex = (sooc_obj_tex)f;
+        } else if (!strcmp(ks, "color2")) s = yf3(c, v, "objects.color2", o->color2);
+        else if (!strcmp(ks, "texture_scale")) {
+            s = ynum(c, v, "objects.texture_scale", &o->tex_scale);
+            if (!s && !(o->tex_scale > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects.texture_scale: must be > 0", c->name, sooc_yline(v));
+        }
         else s = sooc_seterr(SOOC_EINVAL, "%s:%d: objects: unknown key '%s'", c->name, sooc_yline(k), ks);
         if (s) return s;
     }
@@ -566,6 +688,9 @@ static sooc_status parse_object(sooc_ydoc *c, yaml_node_t *n, sooc_scene_object 
     if (nparams != g_shape_nparams[o->shape])
         return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.params: shape %s needs %d params, got %d", c->name,
                            sooc_yline(params_node), sooc_shape_name(o->shape), g_shape_nparams[o->shape], nparams);
+    if (o->tex != SOOC_TEX_PLAIN && !(o->tex_scale > 0))
+        return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.texture_scale: missing (needed by texture %s)", c->name,
+                           sooc_yline(n), g_otex_names[o->tex]);
     for (int i = 0; i < nparams; i++)
         if (!(o->params[i] > 0))
             return sooc_seterr(SOOC_EINVAL, "%s:%d: objects.params: values must be > 0", c->name, sooc_yline(params_node));
@@ -612,8 +737,8 @@ static sooc_status parse_scene(sooc_ydoc *c, sooc_scene *sc) {
             if (!s && iv != 1)
                 s = sooc_seterr(SOOC_EVERSION, "%s:%d: version: %lld is not supported (this build reads 1)", c->name, sooc_yline(v), iv);
         } else if (!strcmp(ks, "preset")) {
-            if (!vs || (strcmp(vs, "unity") && strcmp(vs, "blender")))
-                s = sooc_seterr(SOOC_EINVAL, "%s:%d: preset: expected unity or blender", c->name, sooc_yline(v));
+            if (!vs || (strcmp(vs, "unity") && strcmp(vs, "blender") && strcmp(vs, "tabletop")))
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: preset: expected unity, blender or tabletop", c->name, sooc_yline(v));
             else snprintf(sc->preset, sizeof sc->preset, "%s", vs);
         } else if (!strcmp(ks, "scale")) {
             if (!vs || (strcmp(vs, "s") && strcmp(vs, "m") && strcmp(vs, "l") && strcmp(vs, "xl")))
@@ -640,7 +765,28 @@ static sooc_status parse_scene(sooc_ydoc *c, sooc_scene *sc) {
         } else if (!strcmp(ks, "floor_color")) s = yf3(c, v, ks, sc->floor_color);
         else if (!strcmp(ks, "floor_color2")) s = yf3(c, v, ks, sc->floor_color2);
         else if (!strcmp(ks, "texture_scale")) s = ynum(c, v, ks, &sc->tex_scale);
-        else if (!strcmp(ks, "sky_color")) s = yf3(c, v, ks, sc->sky_color);
+        else if (!strcmp(ks, "support")) {
+            int f = -1;
+            for (int i = 0; i < 3; i++) if (vs && !strcmp(vs, g_support_names[i])) f = i;
+            if (f < 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: support: expected floor, table or bin", c->name, sooc_yline(v));
+            else sc->support = (sooc_support)f;
+        } else if (!strcmp(ks, "support_size")) {
+            s = ylist(c, v, ks, dv, 2, 2, NULL);
+            if (!s && !(dv[0] > 0 && dv[1] > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: support_size: must be > 0", c->name, sooc_yline(v));
+            sc->support_size[0] = dv[0]; sc->support_size[1] = dv[1];
+        } else if (!strcmp(ks, "support_height")) { s = ynum(c, v, ks, &sc->support_height);
+            if (!s && !(sc->support_height >= 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: support_height: must be >= 0", c->name, sooc_yline(v)); }
+        else if (!strcmp(ks, "support_thickness")) { s = ynum(c, v, ks, &sc->support_thick);
+            if (!s && !(sc->support_thick >= 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: support_thickness: must be >= 0", c->name, sooc_yline(v)); }
+        else if (!strcmp(ks, "rim_height")) { s = ynum(c, v, ks, &sc->rim_height);
+            if (!s && !(sc->rim_height >= 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: rim_height: must be >= 0", c->name, sooc_yline(v)); }
+        else if (!strcmp(ks, "support_color")) s = yf3(c, v, ks, sc->support_color);
+        else if (!strcmp(ks, "ground_color")) s = yf3(c, v, ks, sc->ground_color);
+        else if (!strcmp(ks, "sensor_noise")) {
+            if (!vs || (strcmp(vs, "none") && strcmp(vs, "kinect")))
+                s = sooc_seterr(SOOC_EINVAL, "%s:%d: sensor_noise: expected none or kinect", c->name, sooc_yline(v));
+            else snprintf(sc->sensor_noise, sizeof sc->sensor_noise, "%s", strcmp(vs, "none") ? vs : "");
+        } else if (!strcmp(ks, "sky_color")) s = yf3(c, v, ks, sc->sky_color);
         else if (!strcmp(ks, "light_dir")) {
             s = ylist(c, v, ks, dv, 3, 3, NULL);
             if (!s && sooc_v3_normalize(dv) == 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: light_dir: zero vector", c->name, sooc_yline(v));
@@ -671,6 +817,9 @@ static sooc_status parse_scene(sooc_ydoc *c, sooc_scene *sc) {
             }
         } else s = sooc_seterr(SOOC_EINVAL, "%s:%d: unknown key '%s'", c->name, sooc_yline(k), ks);
     }
+    if (!s && sc->support != SOOC_SUPPORT_FLOOR && !(sc->support_size[0] > 0 && sc->support_size[1] > 0))
+        s = sooc_seterr(SOOC_EINVAL, "%s:%d: support_size: missing (needed by support %s)", c->name, sooc_yline(root),
+                        g_support_names[sc->support]);
     if (!s && !have_fmt) s = sooc_seterr(SOOC_EFORMAT, "%s:%d: format: missing (expected sooc3d-scene)", c->name, sooc_yline(root));
     if (!s && (!have_in || !have_q))
         s = sooc_seterr(SOOC_EINVAL, "%s:%d: %s: missing", c->name, sooc_yline(root), have_in ? "query_views" : "input_views");

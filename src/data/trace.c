@@ -22,7 +22,9 @@ typedef struct tobj {
     double x, z, cs, sn;       /* position and cos/sin of yaw */
     double bc[3], br;          /* world bounding sphere */
     int p0, np;
-    float col[3];
+    float col[3], col2[3];
+    sooc_obj_tex tex;
+    double tex_scale, height;
 } tobj;
 
 typedef struct tworld {
@@ -35,7 +37,7 @@ typedef struct tworld {
 typedef struct thit {
     double t;
     double n[3];               /* world normal (unnormalised ok) */
-    int kind;                  /* 0 none, 1 floor, 2 wall, 3 object */
+    int kind;                  /* 0 none, 1 floor (layout), 2 wall, 3 object, 4 ground, 5 support side */
     int obj;                   /* index into objs */
 } thit;
 
@@ -58,10 +60,19 @@ static void part_aabb(tpart *p) {
         p->bmin[0] = p->bmin[2] = -d[0]; p->bmax[0] = p->bmax[2] = d[0];
         p->bmin[1] = 0; p->bmax[1] = d[1];
         break;
-    case SOOC_SHAPE_TORUS:
-        p->bmin[0] = p->bmin[2] = -(d[0] + d[1]); p->bmax[0] = p->bmax[2] = d[0] + d[1];
-        p->bmin[1] = -d[1]; p->bmax[1] = d[1];
+    case SOOC_SHAPE_TORUS: {
+        int ax = d[2] > 0.5 ? 2 : 1, ring = 3 - ax; /* the axis of the ring; the other in-plane axis */
+        p->bmin[0] = p->bmin[ring] = -(d[0] + d[1]); p->bmax[0] = p->bmax[ring] = d[0] + d[1];
+        p->bmin[ax] = -d[1]; p->bmax[ax] = d[1];
+        if (d[3] > 0.5) p->bmin[0] = 0;
         break;
+    }
+    case SOOC_SHAPE_FRUSTUM: {
+        double rm = d[0] > d[1] ? d[0] : d[1];
+        p->bmin[0] = p->bmin[2] = -rm; p->bmax[0] = p->bmax[2] = rm;
+        p->bmin[1] = 0; p->bmax[1] = d[2];
+        break;
+    }
     default:
         for (int k = 0; k < 3; k++) { p->bmin[k] = 0; p->bmax[k] = 0; }
     }
@@ -96,6 +107,37 @@ static double sq_g(const double *d, double x, double y, double z) {
 
 static double torus_sdf(const double *d, const double p[3]) {
     return hypot(hypot(p[0], p[2]) - d[0], p[1]) - d[1];
+}
+
+/* Solve x^2 + z^2 = (a + k y)^2 along o + t r; fills up to two roots. */
+static int cone_roots(const double o[3], const double r[3], double a, double k, double ts[2]) {
+    double w0 = a + k * o[1];
+    double A = r[0] * r[0] + r[2] * r[2] - k * k * r[1] * r[1];
+    double B = o[0] * r[0] + o[2] * r[2] - k * w0 * r[1];
+    double C = o[0] * o[0] + o[2] * o[2] - w0 * w0;
+    if (fabs(A) > 1e-14) {
+        double disc = B * B - A * C;
+        if (disc < 0) return 0;
+        double sq = sqrt(disc);
+        ts[0] = (-B - sq) / A;
+        ts[1] = (-B + sq) / A;
+        return 2;
+    }
+    if (fabs(B) > 1e-14) { ts[0] = -C / (2 * B); return 1; }
+    return 0;
+}
+
+/* Horizontal disc or annulus rmin <= rho <= rmax at height y. */
+static void disc_hit(const double o[3], const double r[3], double y, double rmin, double rmax, double tmin,
+                     double *best, int *hit, double n[3]) {
+    if (fabs(r[1]) < 1e-18) return;
+    double t = (y - o[1]) / r[1];
+    if (!(t > tmin && t < *best)) return;
+    double x = o[0] + t * r[0], z = o[2] + t * r[2], rho2 = x * x + z * z;
+    if (rho2 > rmax * rmax || rho2 < rmin * rmin) return;
+    *best = t;
+    *hit = 1;
+    n[0] = 0; n[1] = 1; n[2] = 0;
 }
 
 /* Intersect a ray (part-relative origin o, unit direction r) with a part.
@@ -203,20 +245,56 @@ static int part_hit(const tpart *p, const double o[3], const double r[3], double
         return hit;
     }
     case SOOC_SHAPE_TORUS: {
+        /* standing tori (d[2]) trace with y and z swapped; half tori (d[3])
+         * trace max(torus, -x), a lower bound of the distance, so the march
+         * stays safe */
+        int sw = d[2] > 0.5, half = d[3] > 0.5;
         double t = t0 > tmin ? t0 : tmin, end = t1 < tmax ? t1 : tmax;
         for (int it = 0; it < 400 && t <= end; it++) {
             double q[3] = {o[0] + t * r[0], o[1] + t * r[1], o[2] + t * r[2]};
+            if (sw) { double tmp = q[1]; q[1] = q[2]; q[2] = tmp; }
             double s = torus_sdf(d, q);
+            if (half && -q[0] > s) s = -q[0];
             if (s < 1e-7) {
+                if (half && -q[0] >= torus_sdf(d, q)) { n[0] = -1; n[1] = n[2] = 0; *tout = t; return 1; }
                 double rho = hypot(q[0], q[2]);
                 double f = rho > 1e-12 ? (rho - d[0]) / rho : 0;
                 n[0] = q[0] * f; n[1] = q[1]; n[2] = q[2] * f;
+                if (sw) { double tmp = n[1]; n[1] = n[2]; n[2] = tmp; }
                 *tout = t;
                 return 1;
             }
             t += s;
         }
         return 0;
+    }
+    case SOOC_SHAPE_FRUSTUM: {
+        /* lateral surfaces rho = a + k y: the outer one (a = rb, 0 <= y <= h)
+         * and, for vessels, the inner one (a = rb - tw, bb <= y <= h); then
+         * the bottom disc, and the top disc (solid) or rim + inner bottom */
+        double rb = d[0], rt = d[1], h = d[2], tw = d[3], bb = d[4], k = (rt - rb) / h;
+        double best = tmax;
+        int hit = 0;
+        for (int side = 0; side < (tw > 0 ? 2 : 1); side++) {
+            double a = side ? rb - tw : rb, ylo = side ? bb : 0, ts[2];
+            int nt = cone_roots(o, r, a, k, ts);
+            for (int i = 0; i < nt; i++) {
+                double t = ts[i], y = o[1] + t * r[1];
+                if (!(t > tmin && t < best && y >= ylo && y <= h)) continue;
+                best = t;
+                hit = 1;
+                n[0] = o[0] + t * r[0]; n[1] = -k * (a + k * y); n[2] = o[2] + t * r[2];
+            }
+        }
+        disc_hit(o, r, 0, 0, rb, tmin, &best, &hit, n);
+        if (tw > 0) {
+            disc_hit(o, r, h, rt - tw, rt, tmin, &best, &hit, n);
+            disc_hit(o, r, bb, 0, rb - tw + k * bb, tmin, &best, &hit, n);
+        } else {
+            disc_hit(o, r, h, 0, rt, tmin, &best, &hit, n);
+        }
+        if (hit) *tout = best;
+        return hit;
     }
     case SOOC_SHAPE_SUPERQUADRIC: {
         double ta = t0 > tmin ? t0 : tmin, tb = t1 < tmax ? t1 : tmax;
@@ -290,12 +368,55 @@ static int objects_hit(const tworld *w, const double o[3], const double r[3], do
     return found;
 }
 
+/* A table top or a bin (scene.h, sooc_support) as up to five boxes over a
+ * ground plane. An upward face at y = 0 is the layout (kind 1); the other
+ * faces are support sides (kind 5); the ground is kind 4. */
+static void support_hit(const sooc_scene *sc, const double o[3], const double r[3], double *tmax, thit *h) {
+    double W = sc->support_size[0] / 2, D = sc->support_size[1] / 2, th = sc->support_thick;
+    double g = -sc->support_height, rim = sc->rim_height;
+    double box[5][6];
+    int nb = 0;
+    if (sc->support == SOOC_SUPPORT_TABLE) {
+        double b[6] = {-W, -th, -D, W, 0, D};
+        memcpy(box[nb++], b, sizeof b);
+    } else {
+        double b0[6] = {-W - th, g, -D - th, W + th, 0, D + th};
+        double b1[6] = {W, g, -D - th, W + th, rim, D + th}, b2[6] = {-W - th, g, -D - th, -W, rim, D + th};
+        double b3[6] = {-W, g, D, W, rim, D + th}, b4[6] = {-W, g, -D - th, W, rim, -D};
+        memcpy(box[nb++], b0, sizeof b0);
+        memcpy(box[nb++], b1, sizeof b1);
+        memcpy(box[nb++], b2, sizeof b2);
+        memcpy(box[nb++], b3, sizeof b3);
+        memcpy(box[nb++], b4, sizeof b4);
+    }
+    for (int i = 0; i < nb; i++) {
+        double t0, t1;
+        int ax;
+        if (!slab(o, r, box[i], box[i] + 3, &t0, &t1, &ax)) continue;
+        if (t0 <= 1e-9 || t0 >= *tmax) continue;
+        *tmax = t0;
+        h->t = t0;
+        h->n[0] = h->n[1] = h->n[2] = 0;
+        h->n[ax] = r[ax] > 0 ? -1 : 1;
+        h->kind = (ax == 1 && r[1] < 0 && box[i][4] == 0) ? 1 : 5;
+    }
+    if (r[1] < -1e-12 && o[1] > g) {
+        double t = (g - o[1]) / r[1];
+        if (t < *tmax) {
+            *tmax = t; h->t = t; h->kind = 4;
+            h->n[0] = 0; h->n[1] = 1; h->n[2] = 0;
+        }
+    }
+}
+
 static void trace(const tworld *w, const double o[3], const double r[3], thit *h) {
     const sooc_scene *sc = w->sc;
     double tmax = 1e30;
     h->kind = 0;
     h->t = tmax;
-    if (r[1] < -1e-12 && o[1] > 0) {
+    if (sc->support != SOOC_SUPPORT_FLOOR) {
+        support_hit(sc, o, r, &tmax, h);
+    } else if (r[1] < -1e-12 && o[1] > 0) {
         double t = -o[1] / r[1];
         if (t < tmax) {
             tmax = t; h->t = t; h->kind = 1;
@@ -303,14 +424,14 @@ static void trace(const tworld *w, const double o[3], const double r[3], thit *h
         }
     }
     if (sc->walls) {
-        double half = sc->room_size / 2;
+        double half = sc->room_size / 2, y0 = sc->support != SOOC_SUPPORT_FLOOR ? -sc->support_height : 0;
         for (int ax = 0; ax < 3; ax += 2)
             for (int s = -1; s <= 1; s += 2) {
                 if (r[ax] * s <= 1e-12) continue;
                 double t = (s * half - o[ax]) / r[ax];
                 if (t <= 1e-9 || t >= tmax) continue;
                 double y = o[1] + t * r[1], other = o[2 - ax] + t * r[2 - ax];
-                if (y < 0 || y > sc->wall_height || fabs(other) > half) continue;
+                if (y < y0 || y > y0 + sc->wall_height || fabs(other) > half) continue;
                 tmax = t; h->t = t; h->kind = 2;
                 h->n[0] = h->n[1] = h->n[2] = 0;
                 h->n[ax] = -s;
@@ -364,6 +485,35 @@ static void floor_albedo(const sooc_scene *sc, double x, double z, double out[3]
     for (int k = 0; k < 3; k++) out[k] = sc->floor_color[k] * (1 - t) + sc->floor_color2[k] * t;
 }
 
+/* Procedural object texture (scene.h, sooc_obj_tex) at world point p. */
+static void object_albedo(const tobj *ob, const double p[3], double out[3]) {
+    const float *c = ob->col;
+    int second = 0;
+    double dark = 0;
+    if (ob->tex != SOOC_TEX_PLAIN) {
+        double dx = p[0] - ob->x, dz = p[2] - ob->z, s = ob->tex_scale > 1e-6 ? ob->tex_scale : 1e-6;
+        double qx = ob->cs * dx - ob->sn * dz, qy = p[1], qz = ob->sn * dx + ob->cs * dz;
+        if (ob->tex == SOOC_TEX_STRIPES) {
+            second = ((int64_t)floor(qy / s)) & 1;
+        } else if (ob->tex == SOOC_TEX_CHECKS) {
+            second = ((int64_t)floor(qx / s) + (int64_t)floor(qy / s) + (int64_t)floor(qz / s)) & 1;
+        } else {
+            double y0 = 0.3 * ob->height, y1 = 0.75 * ob->height;
+            if (qy >= y0 && qy <= y1) {
+                second = 1;
+                /* text-like dashes: rows 1, 3, 5 of 7, 24 cells around the axis */
+                double fy = (qy - y0) / (y1 - y0) * 7, fu = (atan2(qz, qx) / (2 * M_PI) + 0.5) * 24;
+                int row = (int)fy, cell = (int)fu;
+                if ((row & 1) && fy - row > 0.2 && fy - row < 0.8 && fu - cell < 0.75 &&
+                    hash2(row, cell, (uint64_t)ob->id * 77) < 0.6)
+                    dark = 0.7;
+            }
+        }
+    }
+    const float *a = second ? ob->col2 : c;
+    for (int k = 0; k < 3; k++) out[k] = a[k] * (1 - dark) + c[k] * dark * 0.4;
+}
+
 static uint8_t to8(double v) {
     if (!(v > 0)) return 0;
     if (v >= 1) return 255;
@@ -409,13 +559,22 @@ static void render_pixel(const tworld *w, const double T[16], const sooc_intrins
         *inst = h.kind == 3 ? (uint16_t)w->objs[h.obj].id : 0;
         if (h.kind == 1) floor_albedo(sc, p[0], p[2], alb);
         else if (h.kind == 2) for (int k = 0; k < 3; k++) alb[k] = sc->wall_color[k];
-        else for (int k = 0; k < 3; k++) alb[k] = w->objs[h.obj].col[k];
+        else if (h.kind == 4) for (int k = 0; k < 3; k++) alb[k] = sc->ground_color[k];
+        else if (h.kind == 5) for (int k = 0; k < 3; k++) alb[k] = sc->support_color[k];
+        else object_albedo(&w->objs[h.obj], p, alb);
         const double *L = sc->light_dir;
         double lam = sooc_v3_dot(n, L);
         double vis = lam > 0 ? 1 : 0;
         if (sc->shadows && lam > 0) {
             double ps[3] = {p[0] + 1e-6 * n[0], p[1] + 1e-6 * n[1], p[2] + 1e-6 * n[2]};
             if (objects_hit(w, ps, L, 1e-6, 1e30, NULL, 1)) vis = 0;
+            if (vis > 0 && sc->support != SOOC_SUPPORT_FLOOR) { /* table tops and bin walls cast shadows too */
+                thit sh;
+                double tm = 1e30;
+                sh.kind = 0;
+                support_hit(sc, ps, L, &tm, &sh);
+                if (sh.kind) vis = 0;
+            }
         }
         double diff = sc->ambient + (1 - sc->ambient) * (lam > 0 ? lam : 0) * vis, spec = 0;
         if (sc->specular > 0 && vis > 0 && h.kind == 3) {
@@ -487,6 +646,10 @@ sooc_status sooc_gen_render_view(const sooc_scene *sc, const double T_wc[16], co
         memcpy(ob->bc, bc, sizeof bc);
         ob->br = br;
         memcpy(ob->col, o->color, sizeof ob->col);
+        memcpy(ob->col2, o->color2, sizeof ob->col2);
+        ob->tex = o->tex;
+        ob->tex_scale = o->tex_scale;
+        ob->height = o->size[1];
         sooc_scene_part parts[SOOC_SCENE_MAX_PARTS];
         int k = sooc_scene_object_parts(o, parts, SOOC_SCENE_MAX_PARTS);
         ob->p0 = np;

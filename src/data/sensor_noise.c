@@ -1,0 +1,133 @@
+/* Structured-light sensor noise on rendered RGB-D frames (sensor_noise.h):
+ * range limits, projector shadows, edge and speckle dropout, axial noise
+ * that grows with z^2 (Nguyen et al. 2012), disparity quantisation, white
+ * balance, exposure drift and colour noise. One scratch buffer per frame. */
+#include "sooc3d/sensor_noise.h"
+
+#include <math.h>
+#include <string.h>
+
+void sooc_noise_params_kinect(sooc_noise_params *p) {
+    memset(p, 0, sizeof *p);
+    p->sigma0 = 0.0012;
+    p->sigma_k = 0.0019;
+    p->z0 = 0.4;
+    p->quantise = 1;
+    p->baseline = 0.075;
+    p->f_ref = 580;
+    p->subpixel_inv = 8;
+    p->z_min = 0.2;
+    p->z_max = 3.5;
+    p->shadow = 1;
+    p->edge_rel = 0.03;
+    p->edge_drop = 0.5;
+    p->speckle_drop = 0.002;
+    p->wb_sigma = 0.04;
+    p->exposure_sigma = 0.15;
+    p->rgb_read = 0.006;
+    p->rgb_shot = 0.0004;
+}
+
+double sooc_noise_sigma_z(const sooc_noise_params *p, double z) {
+    double e = z - p->z0;
+    return p->sigma0 + p->sigma_k * e * e;
+}
+
+/* Second difference of 1/z along one axis, relative: zero on any plane
+ * (1/z is affine in the pixel coordinates of a plane), large at a depth
+ * discontinuity. Returns 1 for an edge (also when a neighbour is invalid). */
+static int edge_axis(const float *z, size_t i, size_t step, int has_lo, int has_hi, double rel) {
+    if (!has_lo || !has_hi) {
+        /* image border: only an invalid neighbour on the inside marks an edge */
+        if (has_lo && !(z[i - step] > 0)) return 1;
+        if (has_hi && !(z[i + step] > 0)) return 1;
+        return 0;
+    }
+    double za = z[i - step], zb = z[i + step], zc = z[i];
+    if (!(za > 0) || !(zb > 0)) return 1;
+    return fabs(1 / za - 2 / zc + 1 / zb) * zc > rel;
+}
+
+static double clamp01(double v) { return v < 0 ? 0 : v > 1 ? 1 : v; }
+
+sooc_status sooc_noise_apply(sooc_frame *f, const sooc_noise_params *p, uint64_t seed, uint64_t scene, int view) {
+    if (!f || !f->depth || !f->valid || !f->rgb || f->width <= 0 || f->height <= 0)
+        return sooc_seterr(SOOC_EINVAL, "sensor noise: empty frame");
+    if (!(p->sigma0 >= 0 && p->sigma_k >= 0 && p->baseline > 0 && p->f_ref > 0 && p->subpixel_inv > 0 &&
+          p->z_max > p->z_min && p->edge_drop >= 0 && p->edge_drop <= 1 && p->speckle_drop >= 0 &&
+          p->speckle_drop <= 1))
+        return sooc_seterr(SOOC_EINVAL, "sensor noise: bad parameters");
+    int W = f->width, H = f->height;
+    size_t np = (size_t)W * (size_t)H;
+    float *z0 = sooc_malloc(sizeof(float) * np);
+    if (!z0) return SOOC_ENOMEM;
+    memcpy(z0, f->depth, sizeof(float) * np);
+    /* every (seed, scene, view) has its own stream; the per-scene colour
+     * terms come from stream (seed, scene) so they are shared by the views */
+    sooc_rng rs, rv;
+    sooc_rng_seed(&rs, seed ^ 0x5e4503a1c0ffee11ull, scene);
+    sooc_rng_seed(&rv, seed ^ 0x5e4503a1c0ffee11ull, (scene << 20) ^ (uint64_t)(uint32_t)view ^ 0x8000000000000000ull);
+    double fx = fabs(f->K.fx) > 0 ? fabs(f->K.fx) : W / (2 * tan(M_PI / 6));
+    double F = p->f_ref * p->baseline;
+
+    /* 1-4: invalid pixels, decided on the exact depth */
+    for (size_t i = 0; i < np; i++)
+        if (z0[i] > 0 && (z0[i] < p->z_min || z0[i] > p->z_max)) f->depth[i] = 0;
+    if (p->shadow) {
+        for (int v = 0; v < H; v++) {
+            const float *zr = z0 + (size_t)v * (size_t)W;
+            float *dr = f->depth + (size_t)v * (size_t)W;
+            double m = -1e300; /* max over pixels to the right of d(u) - u */
+            for (int u = W - 1; u >= 0; u--) {
+                if (zr[u] > 0) {
+                    double d = fx * p->baseline / zr[u];
+                    if (m > d - u) dr[u] = 0;
+                    if (d - u > m) m = d - u;
+                }
+            }
+        }
+    }
+    for (int v = 0; v < H; v++)
+        for (int u = 0; u < W; u++) {
+            size_t i = (size_t)v * (size_t)W + (size_t)u;
+            /* draw both numbers for every pixel so the stream does not depend on the scene content */
+            double a = sooc_rng_uniform(&rv), b = sooc_rng_uniform(&rv);
+            if (!(z0[i] > 0)) continue;
+            int edge = edge_axis(z0, i, 1, u > 0, u < W - 1, p->edge_rel) ||
+                       edge_axis(z0, i, (size_t)W, v > 0, v < H - 1, p->edge_rel);
+            if ((edge && a < p->edge_drop) || b < p->speckle_drop) f->depth[i] = 0;
+        }
+    /* 5-6: axial noise and disparity quantisation */
+    for (size_t i = 0; i < np; i++) {
+        double g = sooc_rng_normal(&rv);
+        double z = f->depth[i];
+        if (!(z > 0)) continue;
+        double sz = sooc_noise_sigma_z(p, z), var = sz * sz;
+        if (p->quantise) {
+            double q = z * z / (F * p->subpixel_inv);
+            var -= q * q / 12;
+            if (var < 0) var = 0;
+        }
+        double zn = z + sqrt(var) * g;
+        if (p->quantise && zn > 0) {
+            double k = floor(F * p->subpixel_inv / zn + 0.5);
+            zn = k > 0 ? F * p->subpixel_inv / k : 0;
+        }
+        f->depth[i] = zn > 0 && zn <= p->z_max * 1.5 ? (float)zn : 0;
+    }
+    for (size_t i = 0; i < np; i++) f->valid[i] = f->depth[i] > 0;
+
+    /* colour: white balance (per scene), exposure (per view), pixel noise */
+    double wb[3], ph1 = sooc_rng_range(&rs, 0, 2 * M_PI), ph2 = sooc_rng_range(&rs, 0, 2 * M_PI);
+    for (int k = 0; k < 3; k++) wb[k] = exp(p->wb_sigma * sooc_rng_normal(&rs));
+    double e = p->exposure_sigma * (sin(2 * M_PI * view / 23.0 + ph1) + sin(2 * M_PI * view / 9.0 + ph2));
+    double gain = exp(e);
+    for (size_t i = 0; i < np * 3; i++) {
+        double I = clamp01(f->rgb[i] / 255.0 * gain * wb[i % 3]);
+        double s = sqrt(p->rgb_read * p->rgb_read + p->rgb_shot * I);
+        double o = clamp01(I + s * sooc_rng_normal(&rv));
+        f->rgb[i] = (uint8_t)floor(o * 255 + 0.5);
+    }
+    sooc_free(z0);
+    return SOOC_OK;
+}
