@@ -137,6 +137,46 @@ int main(int argc, char **argv) {
         OK(sooc_file_write_atomic(path("pgm", "ascii.pgm"), p2, sizeof p2 - 1));
     }
 
+    /* JPEG: colour 4:2:0, grey, a Motion-JPEG frame without Huffman tables,
+     * a truncated file, and a header claiming 65500x65500 pixels */
+    {
+        sooc_image img = {0};
+        OK(sooc_image_alloc(&img, 24, 16, SOOC_PIX_RGB8));
+        for (int i = 0; i < 24 * 16 * 3; i++) ((uint8_t *)img.data)[i] = (uint8_t)(7 * i);
+        void *j;
+        size_t n;
+        OK(sooc_jpeg_encode(&img, 75, &j, &n));
+        OK(sooc_file_write_atomic(path("jpeg", "rgb8_420.jpg"), j, n));
+        OK(sooc_file_write_atomic(path("jpeg", "truncated.jpg"), j, n / 2));
+        /* drop the DHT segments before SOS */
+        uint8_t *b = j;
+        size_t i = 2, o = 2;
+        while (i + 4 <= n && b[i] == 0xFF && b[i + 1] != 0xDA) {
+            size_t len = 2 + ((size_t)b[i + 2] << 8 | b[i + 3]);
+            if (b[i + 1] != 0xC4) { memmove(b + o, b + i, len); o += len; }
+            i += len;
+        }
+        memmove(b + o, b + i, n - i);
+        OK(sooc_file_write_atomic(path("jpeg", "mjpeg_no_dht.jpg"), b, o + (n - i)));
+        /* SOF0 height/width -> 65500 x 65500 */
+        OK(sooc_jpeg_encode(&img, 75, &j, &n));
+        b = j;
+        for (size_t k = 2; k + 9 < n; k++)
+            if (b[k] == 0xFF && b[k + 1] == 0xC0) {
+                b[k + 5] = b[k + 7] = 0xFF;
+                b[k + 6] = b[k + 8] = 0xDC;
+                break;
+            }
+        OK(sooc_file_write_atomic(path("jpeg", "huge_header.jpg"), j, n));
+        sooc_free(j);
+        OK(sooc_image_alloc(&img, 9, 7, SOOC_PIX_GRAY8));
+        for (int k = 0; k < 63; k++) ((uint8_t *)img.data)[k] = (uint8_t)(4 * k);
+        OK(sooc_jpeg_encode(&img, 90, &j, &n));
+        OK(sooc_file_write_atomic(path("jpeg", "gray8.jpg"), j, n));
+        sooc_free(j);
+        sooc_image_free(&img);
+    }
+
     /* a generated scene.yaml (small scale) */
     {
         sooc_gen_params gp;

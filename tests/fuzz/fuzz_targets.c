@@ -393,6 +393,22 @@ static int fz_pgm(const uint8_t *d, size_t n) {
     return ok;
 }
 
+/* JPEG from memory (the V4L2 MJPEG path), then as a file by content. */
+static int fz_jpeg(const uint8_t *d, size_t n) {
+    sooc_image img = {0};
+    int ok = sooc_jpeg_decode(d, n, "fuzz.jpg", &img) == SOOC_OK;
+    if (ok) touch_image(&img);
+    sooc_image_free(&img);
+    const char *p = tmp_file("img.jpg", d, n);
+    int w, h;
+    sooc_pixfmt fmt;
+    sooc_image_info(p, &w, &h, &fmt);
+    if (sooc_image_read(p, &img) == SOOC_OK) touch_image(&img);
+    sooc_image_free(&img);
+    tmp_remove(p);
+    return ok;
+}
+
 const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"calib", fz_calib},
     {"scene", fz_scene},
@@ -406,6 +422,7 @@ const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"tum", fz_tum},
     {"png", fz_png},
     {"pgm", fz_pgm},
+    {"jpeg", fz_jpeg},
     {NULL, NULL},
 };
 
