@@ -64,7 +64,7 @@ int sooc_gen_views(const sooc_gen_params *p);
 int sooc_gen_noisy(const sooc_gen_params *p);
 
 /* Tabletop preset (gen_tabletop.c, docs/formats.md 5.1). Table top size
- * (x, z) in m for a scale: s 0.9 x 0.7, m 1.5 x 1.0, l 2.2 x 1.5; xl is not
+ * (x, z) in m for a scale: s 1.1 x 0.8, m 1.8 x 1.1, l 2.4 x 1.6; xl is not
  * a tabletop scale (SOOC_EINVAL). */
 sooc_status sooc_gen_tabletop_size(sooc_gen_scale s, double wd[2]);
 /* Sample tabletop scene `index` (called by sooc_gen_scene). */

@@ -19,7 +19,7 @@ static void usage(FILE *f) {
             "               tabletop: cups, bowls, boxes, bottles, cans (textured) on a table or in\n"
             "               a bin, arm-mounted camera 0.35-1 m away pitched 25-70 deg down, circling\n"
             "               the table; kinect sensor noise by default; scales s/m/l = table\n"
-            "               0.9x0.7 / 1.5x1.0 / 2.2x1.5 m (docs/formats.md 5.1)\n"
+            "               1.1x0.8 / 1.8x1.1 / 2.4x1.6 m (docs/formats.md 5.1)\n"
             "  --scale      room side s = 4 m, m = 8 m, l = 24 m, xl = 48 m; constant object density;\n"
             "               the camera walks through the room at every scale        (default s)\n"
             "  --scenes     number of scenes (default 1);  --first: index of the first (default 0)\n"

@@ -16,8 +16,8 @@
 #define DEG (M_PI / 180.0)
 
 /* table top (x, z) per scale and objects per m^2 of table */
-static const double g_tt_size[3][2] = {{0.9, 0.7}, {1.5, 1.0}, {2.2, 1.5}};
-#define TT_DENSITY 3.5
+static const double g_tt_size[3][2] = {{1.1, 0.8}, {1.8, 1.1}, {2.4, 1.6}};
+#define TT_DENSITY 3.0
 #define TT_MIN_OBJECTS 2
 #define TT_MAX_OBJECTS 12
 /* camera: distance to the look-at point on the support plane, pitch */
