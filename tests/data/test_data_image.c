@@ -1,4 +1,5 @@
-/* Images: PNG/PGM round trips (16-bit byte order), drawing, colour maps, sheets. */
+/* Images: PNG/PGM round trips (16-bit byte order), JPEG (libjpeg-turbo),
+ * reading by content, drawing, colour maps, sheets. */
 #include "util.h"
 #include "sooc3d/image.h"
 
@@ -182,9 +183,118 @@ static void test_drawing(const char *dir) {
     sooc_image_free(&sheet);
 }
 
+/* JPEG: encode/decode within the codec's error, grey, reading by content
+ * whatever the extension, header-only info, and every way a stream can be
+ * broken giving EFORMAT "<name>: corrupt JPEG" (never a grey-padded image). */
+static void test_jpeg(const char *dir) {
+    sooc_image a = {0}, b = {0};
+    CHECK_OK(sooc_image_alloc(&a, 64, 40, SOOC_PIX_RGB8));
+    uint8_t *p = a.data;
+    for (int y = 0; y < 40; y++)
+        for (int x = 0; x < 64; x++) {
+            uint8_t *q = p + 3 * (y * 64 + x);
+            q[0] = (uint8_t)(4 * x); q[1] = (uint8_t)(6 * y); q[2] = 128;
+        }
+    void *buf = NULL;
+    size_t n = 0;
+    CHECK_OK(sooc_jpeg_encode(&a, 95, &buf, &n));
+    CHECK(n > 100 && ((uint8_t *)buf)[0] == 0xFF && ((uint8_t *)buf)[1] == 0xD8);
+    CHECK_OK(sooc_jpeg_decode(buf, n, "mem.jpg", &b));
+    CHECK(b.width == 64 && b.height == 40 && b.fmt == SOOC_PIX_RGB8);
+    double err = 0;
+    for (int i = 0; i < 64 * 40 * 3; i++) err += fabs((double)((uint8_t *)b.data)[i] - p[i]);
+    err /= 64 * 40 * 3;
+    printf("  JPEG q95 64x40 gradient: %zu bytes, mean abs error %.2f\n", n, err);
+    CHECK_MSG(err < 3.0, "JPEG round trip error %.2f", err);
+    /* by content: a JPEG named .png, and info without decoding */
+    char path[700];
+    snprintf(path, sizeof path, "%s/looks_like.png", dir);
+    write_bytes(path, buf, n);
+    sooc_image c = {0};
+    CHECK_OK(sooc_image_read(path, &c));
+    CHECK(c.width == 64 && c.fmt == SOOC_PIX_RGB8 && !memcmp(c.data, b.data, 64 * 40 * 3));
+    int w = 0, h = 0;
+    sooc_pixfmt fmt = SOOC_PIX_NONE;
+    CHECK_OK(sooc_image_info(path, &w, &h, &fmt));
+    CHECK(w == 64 && h == 40 && fmt == SOOC_PIX_RGB8);
+    snprintf(path, sizeof path, "%s/img.jpg", dir);
+    CHECK_OK(sooc_jpeg_write(path, &a, 90));
+    CHECK_OK(sooc_jpeg_read(path, &c));
+    CHECK(c.width == 64 && c.height == 40);
+    /* a PNG named .jpg reads as PNG */
+    snprintf(path, sizeof path, "%s/png_named.jpg", dir);
+    CHECK_OK(sooc_png_write(path, &a, 1));
+    CHECK_OK(sooc_image_read(path, &c));
+    CHECK(!memcmp(c.data, a.data, 64 * 40 * 3));
+    CHECK_ERR_HAS(sooc_jpeg_read(path, &c), "png_named.jpg", "not a JPEG");
+    /* grey */
+    sooc_image g = {0};
+    CHECK_OK(sooc_image_alloc(&g, 17, 9, SOOC_PIX_GRAY8));
+    memset(g.data, 77, 17 * 9);
+    void *gb;
+    size_t gn;
+    CHECK_OK(sooc_jpeg_encode(&g, 100, &gb, &gn));
+    CHECK_OK(sooc_jpeg_decode(gb, gn, NULL, &c));
+    CHECK(c.fmt == SOOC_PIX_GRAY8 && c.width == 17 && abs(((uint8_t *)c.data)[5] - 77) <= 1);
+    sooc_free(gb);
+    CHECK(sooc_jpeg_encode(&(sooc_image){4, 4, SOOC_PIX_GRAY16, g.data}, 90, &gb, &gn) == SOOC_EINVAL);
+    sooc_image_free(&g);
+
+    /* broken streams: every cut point that loses image data, and damaged headers */
+    uint8_t *jb = buf;
+    size_t sos = 0;
+    for (size_t i = 2; i + 1 < n; i++)
+        if (jb[i] == 0xFF && jb[i + 1] == 0xDA) { sos = i; break; }
+    CHECK(sos > 0);
+    int cuts = 0, cut_ok = 1;
+    for (size_t cut = 3; cut < n - 2; cut += 7) {
+        sooc_status st = sooc_jpeg_decode(jb, cut, "cut.jpg", &c);
+        if (st != SOOC_EFORMAT || !strstr(sooc_errmsg(), "cut.jpg")) cut_ok = 0;
+        cuts++;
+    }
+    CHECK_MSG(cut_ok, "a truncated JPEG decoded or gave another error: %s", sooc_errmsg());
+    printf("  JPEG: %d truncations all EFORMAT naming the stream\n", cuts);
+    snprintf(path, sizeof path, "%s/trunc.jpg", dir);
+    write_bytes(path, buf, n - 40);
+    CHECK_ERR_HAS(sooc_image_read(path, &c), "trunc.jpg", "corrupt JPEG", "Premature end");
+    uint8_t *bad = malloc(n);
+    if (bad) {
+        memcpy(bad, buf, n);
+        for (size_t i = sos + 20; i < sos + 60 && i < n - 2; i++) bad[i] = 0xFF; /* markers inside the scan */
+        CHECK_ERR_HAS(sooc_jpeg_decode(bad, n, "garbled.jpg", &c), "garbled.jpg", "corrupt JPEG");
+        memcpy(bad, buf, n);
+        bad[2] = 0x00; /* no marker after SOI */
+        CHECK_ERR_HAS(sooc_jpeg_decode(bad, n, "nosoi.jpg", &c), "nosoi.jpg");
+        memcpy(bad, buf, n);
+        for (size_t i = 2; i + 9 < sos; i++)
+            if (bad[i] == 0xFF && bad[i + 1] == 0xC0) { bad[i + 5] = bad[i + 6] = 0; break; } /* height 0 */
+        CHECK_ERR_HAS(sooc_jpeg_decode(bad, n, "h0.jpg", &c), "h0.jpg", "corrupt JPEG");
+        memcpy(bad, buf, n);
+        for (size_t i = 2; i + 9 < sos; i++)
+            if (bad[i] == 0xFF && bad[i + 1] == 0xC0) { bad[i + 5] = bad[i + 7] = 0x7F; break; } /* 32k x 32k */
+        CHECK_ERR_HAS(sooc_jpeg_decode(bad, n, "big.jpg", &c), "big.jpg", "larger than");
+        free(bad);
+    }
+    CHECK_ERR_HAS(sooc_jpeg_decode(buf, 3, "tiny.jpg", &c), "tiny.jpg", "not a JPEG");
+    CHECK(sooc_jpeg_decode(NULL, 0, "null.jpg", &c) == SOOC_EFORMAT);
+    snprintf(path, sizeof path, "%s/absent.jpg", dir);
+    CHECK(sooc_image_read(path, &c) == SOOC_ENOTFOUND && strstr(sooc_errmsg(), "absent.jpg"));
+    snprintf(path, sizeof path, "%s/text.jpg", dir);
+    write_bytes(path, "hello", 5);
+    CHECK_ERR_HAS(sooc_image_read(path, &c), "text.jpg", "unknown image format");
+    /* after all that, the codec still decodes a good stream into the same buffer */
+    CHECK_OK(sooc_jpeg_decode(buf, n, "again.jpg", &c));
+    CHECK(!memcmp(c.data, b.data, 64 * 40 * 3));
+    sooc_free(buf);
+    sooc_image_free(&a);
+    sooc_image_free(&b);
+    sooc_image_free(&c);
+}
+
 int main(void) {
     char *dir = tu_tmpdir("img");
     test_png_roundtrip(dir);
+    test_jpeg(dir);
     test_hostile(dir);
     test_drawing(dir);
     tu_rm_rf(dir);
