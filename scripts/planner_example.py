@@ -6,7 +6,10 @@
 Reads /dev/shm/sooc3d.v1.<name> directly with mmap and the seqlock protocol of
 docs/shm.md (no compiled extension, no sooc3d library). Prints the table
 whenever its epoch changes: id, flags, x, z, yaw (deg), presence, observations,
-age. Exits with 0 when the writer is gone (dead, hung or closed) or on Ctrl-C.
+age. Exit status: 0 when the writer closed cleanly, on Ctrl-C or after --once
+printed a snapshot; 1 if the table cannot be opened; 3 when the writer died or
+hung, or the table stays busy (left mid-batch by a writer killed inside a
+keyframe, or inside one batch for more than 2 s), with a message on stderr.
 
 Memory-order note: the table-level seqlock copy below (load table_seq, copy
 the records with one memcpy, load table_seq again) is correct on x86-64, whose
@@ -48,6 +51,7 @@ OFF_STAMP_NS = 272
 FLAG_VALID, FLAG_TENTATIVE, FLAG_REMOVED, FLAG_STATIC = 1, 2, 4, 8
 HFLAG_WRITER_EXITED = 1
 READ_RETRIES = 100
+BUSY_MAX_S = 2.0  # a live writer inside one batch for longer: report "busy"
 HEARTBEAT_STALE_NS = 1_000_000_000
 # record: seq, object_id, flags, obs_count, presence, x, z, yaw, cov[6], y,
 #         extent[3], first_seen_ns, last_seen_ns, latent_dim, reserved0, 24 pad, latent[32]
@@ -131,6 +135,9 @@ class Table:
             return s0 // 2, recs, n_objects, stamp_ns
         raise TableError("table busy (seqlock retries exhausted)")
 
+    def writer_pid(self):
+        return self.i64(OFF_WRITER_PID)
+
     def writer_alive(self):
         """(alive, reason): flock probe + WRITER_EXITED + heartbeat age."""
         if self.u64(OFF_HFLAGS) & HFLAG_WRITER_EXITED:
@@ -195,8 +202,11 @@ def main():
                 return 1
             time.sleep(0.1)
     last = None
+    busy_since = None  # monotonic time of the first busy snapshot in a row
+    status = 0
     try:
         while not stop:
+            busy = False
             try:
                 epoch, recs, n_obj, stamp = table.snapshot()
                 if epoch != last or args.once:
@@ -205,15 +215,38 @@ def main():
                 if args.once:
                     break
             except TableError:
-                pass  # busy: try again next period (or find the writer dead)
+                busy = True  # try again next period, unless the writer is gone
+            busy_since = (busy_since or time.monotonic()) if busy else None
             alive, why = table.writer_alive()
             if not alive:
+                if busy:
+                    print("planner_example.py: table %r is stuck mid-batch: its writer (pid %d) "
+                          "%s inside a batch; no consistent copy can be read until a new writer "
+                          "takes the table over" % (args.name, table.writer_pid(),
+                                                    {"closed cleanly": "closed",
+                                                     "heartbeat stale": "hung",
+                                                     "process died": "died"}[why]),
+                          file=sys.stderr)
+                    status = 3
+                    break
                 print("writer gone (%s)" % why)
+                if why != "closed cleanly":
+                    print("planner_example.py: table %r: writer (pid %d) %s" % (
+                        args.name, table.writer_pid(),
+                        "died" if why == "process died" else "hung (heartbeat stale)"),
+                        file=sys.stderr)
+                    status = 3
+                break
+            if busy_since is not None and time.monotonic() - busy_since > BUSY_MAX_S:
+                print("planner_example.py: table %r busy: its writer (pid %d) is alive but has "
+                      "been inside one batch for more than %.0f s" % (
+                          args.name, table.writer_pid(), BUSY_MAX_S), file=sys.stderr)
+                status = 3
                 break
             time.sleep(args.interval / 1000.0)
     finally:
         table.close()
-    return 0
+    return status
 
 
 if __name__ == "__main__":

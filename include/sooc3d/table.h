@@ -39,15 +39,31 @@
 
 #include <stddef.h> /* offsetof, for the asserts only */
 #include <stdint.h>
+#ifdef __cplusplus
+#include <atomic> /* ATOMIC_LLONG_LOCK_FREE, for the asserts only */
+#else
 #include <stdatomic.h>
+#endif
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#if defined(__cplusplus) && !defined(_Static_assert)
-#define _Static_assert static_assert /* C++23 <stdatomic.h> provides _Atomic(T) */
-#define _Alignof alignof
+/* C (C11 and later): the seqlock and header words are _Atomic(T). C++ (C++11
+ * to C++23): the same words are plain T, so records and headers stay
+ * trivially copyable (a std::atomic member would delete the copy) and the
+ * header compiles without C++23's <stdatomic.h>. The layout is identical (the
+ * asserts below check it in both languages). A C++ planner reads through the
+ * library functions, which do the atomic loads; one that reads the mapping
+ * directly must use std::atomic_ref (C++20) or __atomic_load_n on those words. */
+#ifdef __cplusplus
+#define SOOC_TABLE_ATOMIC(T) T
+#define SOOC_TABLE_STATIC_ASSERT_(c, m) static_assert(c, m)
+#define SOOC_TABLE_ALIGNOF_(T) alignof(T)
+#else
+#define SOOC_TABLE_ATOMIC(T) _Atomic(T)
+#define SOOC_TABLE_STATIC_ASSERT_(c, m) _Static_assert(c, m)
+#define SOOC_TABLE_ALIGNOF_(T) _Alignof(T)
 #endif
 #if defined(__GNUC__)
 #define SOOC_TABLE_API __attribute__((visibility("default")))
@@ -116,7 +132,7 @@ extern "C" {
 
 /* One object, 256 bytes. The writer fills everything except `seq`. */
 typedef struct sooc_table_record {
-    _Atomic(uint64_t) seq;   /*   0 per-record seqlock: odd = being written      */
+    SOOC_TABLE_ATOMIC(uint64_t) seq;   /*   0 per-record seqlock: odd = being written      */
     uint64_t object_id;      /*   8 stable, never reused; 0 = empty slot          */
     uint32_t flags;          /*  16 SOOC_TABLE_FLAG_*                             */
     uint32_t obs_count;      /*  20 keyframes that observed the object            */
@@ -138,7 +154,7 @@ typedef struct sooc_table_record {
  * while readers run. The "batch block" (from latent_dim) is written only inside
  * a batch, so readers copy it under table_seq (sooc_table_get_info). */
 typedef struct sooc_table_header {
-    _Atomic(uint64_t) magic;          /*   0 SOOC_TABLE_MAGIC, stored last            */
+    SOOC_TABLE_ATOMIC(uint64_t) magic;          /*   0 SOOC_TABLE_MAGIC, stored last            */
     uint16_t abi_major;               /*   8 SOOC_TABLE_ABI_MAJOR                     */
     uint16_t abi_minor;               /*  10 SOOC_TABLE_ABI_MINOR                     */
     uint32_t header_size;             /*  12 4096                                     */
@@ -149,13 +165,13 @@ typedef struct sooc_table_header {
     char frame_id[32];                /*  40 NUL-terminated, e.g. "map"               */
     uint32_t latent_max;              /*  72 SOOC_TABLE_LATENT_MAX                    */
     uint32_t reserved_a;              /*  76 zero                                     */
-    _Atomic(uint64_t) instance_id;    /*  80 random per writer start (detects restarts) */
-    _Atomic(int64_t) writer_pid;      /*  88 pid of the current/last writer           */
-    _Atomic(uint64_t) hflags;         /*  96 SOOC_TABLE_HFLAG_*                       */
-    _Atomic(uint64_t) table_seq;      /* 104 table seqlock; epoch = table_seq / 2     */
-    _Atomic(int64_t) heartbeat_mono_ns; /* 112 CLOCK_MONOTONIC of the last heartbeat  */
-    _Atomic(uint64_t) high_water;     /* 120 slots [0, high_water) may be in use      */
-    _Atomic(uint64_t) n_objects;      /* 128 occupied, not-removed slots              */
+    SOOC_TABLE_ATOMIC(uint64_t) instance_id;    /*  80 random per writer start (detects restarts) */
+    SOOC_TABLE_ATOMIC(int64_t) writer_pid;      /*  88 pid of the current/last writer           */
+    SOOC_TABLE_ATOMIC(uint64_t) hflags;         /*  96 SOOC_TABLE_HFLAG_*                       */
+    SOOC_TABLE_ATOMIC(uint64_t) table_seq;      /* 104 table seqlock; epoch = table_seq / 2     */
+    SOOC_TABLE_ATOMIC(int64_t) heartbeat_mono_ns; /* 112 CLOCK_MONOTONIC of the last heartbeat  */
+    SOOC_TABLE_ATOMIC(uint64_t) high_water;     /* 120 slots [0, high_water) may be in use      */
+    SOOC_TABLE_ATOMIC(uint64_t) n_objects;      /* 128 occupied, not-removed slots              */
     int64_t created_real_ns;          /* 136 CLOCK_REALTIME at creation               */
     uint8_t reserved_c[112];          /* 144 zero                                     */
     /* batch block */
@@ -170,19 +186,26 @@ typedef struct sooc_table_header {
 } sooc_table_header;
 
 /* ABI stability: sizes, offsets, lock-free address-free 64-bit atomics, byte order. */
-_Static_assert(sizeof(sooc_table_record) == 256, "record must be 256 bytes");
-_Static_assert(sizeof(sooc_table_header) == 4096, "header must be 4096 bytes");
-_Static_assert(ATOMIC_LLONG_LOCK_FREE == 2, "64-bit atomics must be lock-free");
-_Static_assert(sizeof(_Atomic(uint64_t)) == 8 && _Alignof(_Atomic(uint64_t)) == 8,
-               "atomic u64 must be a plain 8-byte word");
-_Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE-754 float/double");
+SOOC_TABLE_STATIC_ASSERT_(sizeof(sooc_table_record) == 256, "record must be 256 bytes");
+SOOC_TABLE_STATIC_ASSERT_(sizeof(sooc_table_header) == 4096, "header must be 4096 bytes");
+SOOC_TABLE_STATIC_ASSERT_(ATOMIC_LLONG_LOCK_FREE == 2, "64-bit atomics must be lock-free");
+#ifdef __cplusplus
+SOOC_TABLE_STATIC_ASSERT_(sizeof(std::atomic<uint64_t>) == 8 &&
+                              SOOC_TABLE_ALIGNOF_(std::atomic<uint64_t>) == 8 &&
+                              SOOC_TABLE_ALIGNOF_(uint64_t) == 8,
+                          "atomic u64 must be a plain 8-byte word");
+#else
+SOOC_TABLE_STATIC_ASSERT_(sizeof(_Atomic(uint64_t)) == 8 && _Alignof(_Atomic(uint64_t)) == 8,
+                          "atomic u64 must be a plain 8-byte word");
+#endif
+SOOC_TABLE_STATIC_ASSERT_(sizeof(float) == 4 && sizeof(double) == 8, "IEEE-754 float/double");
 #if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "sooc3d table ABI is little-endian"
 #endif
 #define SOOC_TABLE_REC_AT_(f, o) \
-    _Static_assert(offsetof(sooc_table_record, f) == (o), "record." #f)
+    SOOC_TABLE_STATIC_ASSERT_(offsetof(sooc_table_record, f) == (o), "record." #f)
 #define SOOC_TABLE_HDR_AT_(f, o) \
-    _Static_assert(offsetof(sooc_table_header, f) == (o), "header." #f)
+    SOOC_TABLE_STATIC_ASSERT_(offsetof(sooc_table_header, f) == (o), "header." #f)
 SOOC_TABLE_REC_AT_(seq, 0);
 SOOC_TABLE_REC_AT_(object_id, 8);
 SOOC_TABLE_REC_AT_(flags, 16);

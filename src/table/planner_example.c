@@ -5,9 +5,12 @@
  *
  * It opens /dev/shm/sooc3d.v1.<name> read-only, takes a consistent snapshot
  * every --interval ms (default 100) and prints the table whenever the epoch
- * changes: id, x, z, yaw (deg), presence, age. It exits with 0 when the
- * writer is gone (dead, hung or closed) or on SIGINT/SIGTERM; --once prints
- * one snapshot and exits. This file uses only <sooc3d/table.h>, so it is also
+ * changes: id, x, z, yaw (deg), presence, age. Exit status: 0 when the writer
+ * closed cleanly, on SIGINT/SIGTERM, or after --once printed a snapshot; 1 if
+ * the table cannot be opened; 3 when the writer died or hung (message on
+ * stderr), or when the table stays busy: left mid-batch by a writer killed
+ * inside a keyframe, or in one batch for more than 2 s (BUSY_MAX_MS). This
+ * file uses only <sooc3d/table.h>, so it is also
  * a template for planners outside the sooc3d tree:
  *   cc planner.c $(pkg-config --cflags --libs sooc3d_table)
  */
@@ -18,6 +21,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#define BUSY_MAX_MS 2000 /* a live writer inside one batch for longer: report "busy" */
 
 static volatile sig_atomic_t g_stop = 0;
 static void on_signal(int sig) {
@@ -31,6 +36,12 @@ static int64_t now_real_ns(void) {
     return (int64_t)ts.tv_sec * 1000000000ll + ts.tv_nsec;
 }
 
+static int64_t now_mono_ms(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
 static void sleep_ms(long ms) {
     struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
     nanosleep(&ts, NULL); /* EINTR is fine: the loop re-checks g_stop */
@@ -40,7 +51,9 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d-planner-example <name> [--once] [--wait S] [--interval MS] [--rep103]\n"
             "  Follow the sooc3d object table /dev/shm/sooc3d.v1.<name> and print it when it\n"
-            "  changes. Exits when the writer is gone or on Ctrl-C.\n"
+            "  changes. Exits when the writer is gone or on Ctrl-C: status 0 after a clean\n"
+            "  close (or --once), 1 if the table cannot be opened, 3 if the writer died or\n"
+            "  hung or the table stays busy (e.g. left mid-batch by a killed writer).\n"
             "  --once         print one snapshot and exit\n"
             "  --wait S       wait up to S seconds for the table to appear (default 0)\n"
             "  --interval MS  polling period (default 100)\n"
@@ -127,6 +140,7 @@ int main(int argc, char **argv) {
     }
     uint64_t last_epoch = UINT64_MAX;
     int status = 0;
+    int64_t busy_since = -1; /* CLOCK_MONOTONIC ms of the first busy snapshot in a row */
     while (!g_stop) {
         uint32_t n = 0;
         uint64_t epoch = 0;
@@ -137,17 +151,44 @@ int main(int argc, char **argv) {
             print_table(&info, recs, n, epoch, rep103);
             last_epoch = epoch;
         } else if (rc != 0 && rc != SOOC_TABLE_EBUSY) {
-            fprintf(stderr, "sooc3d-planner-example: %s\n", sooc_table_strerror(rc));
+            fprintf(stderr, "sooc3d-planner-example: table '%s': %s\n", name,
+                    sooc_table_strerror(rc));
             status = 1;
             break;
         }
         if (once && rc == 0) break;
+        if (rc != SOOC_TABLE_EBUSY) busy_since = -1;
+        else if (busy_since < 0) busy_since = now_mono_ms();
         sooc_table_liveness live;
         if (sooc_table_writer_alive(r, &live) != 1) {
-            printf("writer gone (%s)\n",
-                   live.exited      ? "closed cleanly"
-                   : live.lock_held ? "heartbeat stale"
-                                    : "process died");
+            const char *why = live.exited      ? "closed cleanly"
+                              : live.lock_held ? "heartbeat stale"
+                                               : "process died";
+            if (rc == SOOC_TABLE_EBUSY) {
+                fprintf(stderr,
+                        "sooc3d-planner-example: table '%s' is stuck mid-batch: its writer (pid "
+                        "%lld) %s inside a batch; no consistent copy can be read until a new "
+                        "writer takes the table over\n",
+                        name, (long long)live.writer_pid,
+                        live.exited ? "closed" : live.lock_held ? "hung" : "died");
+                status = 3;
+                break;
+            }
+            printf("writer gone (%s)\n", why);
+            if (!live.exited) {
+                fprintf(stderr, "sooc3d-planner-example: table '%s': writer (pid %lld) %s\n",
+                        name, (long long)live.writer_pid,
+                        live.lock_held ? "hung (heartbeat stale)" : "died");
+                status = 3;
+            }
+            break;
+        }
+        if (busy_since >= 0 && now_mono_ms() - busy_since > BUSY_MAX_MS) {
+            fprintf(stderr,
+                    "sooc3d-planner-example: table '%s' busy: its writer (pid %lld) is alive "
+                    "but has been inside one batch for more than %d ms\n",
+                    name, (long long)live.writer_pid, BUSY_MAX_MS);
+            status = 3;
             break;
         }
         sleep_ms(interval_ms);

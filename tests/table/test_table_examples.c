@@ -4,6 +4,10 @@
  * 1. --once prints the current objects.
  * 2. Follow mode prints each new epoch (an added and a removed object) and
  *    exits by itself when the writer closes.
+ * 3. A table left mid-batch by a writer SIGKILLed inside a batch: --once and
+ *    follow mode say it is stuck mid-batch and exit 3 (issue 22: they printed
+ *    nothing and exited 0).
+ * 4. A live writer that stays inside one batch: --once says "busy", exits 3.
  * Skips (77) the Python part if python3 is missing. */
 #include "check.h"
 #include "table_test_util.h"
@@ -88,6 +92,98 @@ static void check_once(const char *what, const char *cmd) {
     }
 }
 
+/* Writer child for parts 3 and 4: objects 201..202 published, then a batch is
+ * opened (an upsert half done). kill_in_batch: SIGKILL itself there; else
+ * keep the batch open with the heartbeat running until the pipe closes. */
+static pid_t spawn_batch_writer(int kill_in_batch, int *hold_fd) {
+    int ready[2], hold[2];
+    if (pipe(ready) != 0 || pipe(hold) != 0) return -1;
+    pid_t pid = fork();
+    if (pid != 0) {
+        close(ready[1]);
+        close(hold[0]);
+        char c = 0;
+        if (read(ready[0], &c, 1) != 1) pid = -1;
+        close(ready[0]);
+        *hold_fd = hold[1];
+        return pid;
+    }
+    close(ready[0]);
+    close(hold[1]);
+    sooc_table_writer *w = NULL;
+    if (sooc_table_create_writer(g_name, 32, 0, "map", &w) != 0) _exit(3);
+    sooc_table_start_heartbeat(w, 20);
+    sooc_table_record rec;
+    sooc_table_begin_batch(w);
+    for (uint64_t id = 201; id <= 202; id++) {
+        tt_make(&rec, id, (uint32_t)id);
+        sooc_table_upsert(w, &rec);
+    }
+    sooc_table_end_batch(w);
+    sooc_table_begin_batch(w);
+    tt_make(&rec, 203, 203);
+    sooc_table_upsert(w, &rec);
+    char c = 'R';
+    if (write(ready[1], &c, 1) != 1) _exit(4);
+    if (kill_in_batch) raise(SIGKILL);
+    if (read(hold[0], &c, 1) < 0) _exit(5);
+    sooc_table_close_writer(w, 1);
+    _exit(0);
+}
+
+/* Run `cmd` (stderr folded into stdout); expect exit status `want` and `needle`. */
+static void check_exit(const char *what, const char *cmd, int want, const char *needle) {
+    static char out[16384];
+    char full[1200];
+    snprintf(full, sizeof full, "%s 2>&1", cmd);
+    FILE *f = popen(full, "r");
+    CHECK(f != NULL);
+    if (!f) return;
+    int st = slurp(f, out, sizeof out);
+    printf("---- %s:\n%s", what, out);
+    CHECK_MSG(WIFEXITED(st) && WEXITSTATUS(st) == want, "%s: exit status %d, want %d", what,
+              WIFEXITED(st) ? WEXITSTATUS(st) : -1, want);
+    CHECK_MSG(strstr(out, needle) != NULL, "%s: no '%s' in the output", what, needle);
+}
+
+static void check_stuck(const char *cbin, const char *py, const char *src) {
+    char cmd[1024], what[128];
+    /* 3. writer killed inside a batch */
+    int hold = -1;
+    pid_t wpid = spawn_batch_writer(1, &hold);
+    CHECK(wpid > 0);
+    if (wpid <= 0) return;
+    int status = 0;
+    waitpid(wpid, &status, 0);
+    CHECK(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+    close(hold);
+    for (int follow = 0; follow < 2; follow++) {
+        snprintf(cmd, sizeof cmd, "%s %s %s", cbin, g_name, follow ? "--interval 20" : "--once");
+        snprintf(what, sizeof what, "C example, dead mid-batch, %s", follow ? "follow" : "--once");
+        check_exit(what, cmd, 3, "stuck mid-batch: its writer");
+        if (!py) continue;
+        snprintf(cmd, sizeof cmd, "%s %s/scripts/planner_example.py %s %s", py, src, g_name,
+                 follow ? "--interval 20" : "--once");
+        snprintf(what, sizeof what, "Python example, dead mid-batch, %s",
+                 follow ? "follow" : "--once");
+        check_exit(what, cmd, 3, "stuck mid-batch: its writer");
+    }
+    /* 4. live writer inside one batch */
+    wpid = spawn_batch_writer(0, &hold);
+    CHECK(wpid > 0);
+    if (wpid <= 0) return;
+    snprintf(cmd, sizeof cmd, "%s %s --once --interval 50", cbin, g_name);
+    check_exit("C example, live writer inside a batch", cmd, 3, "busy: its writer");
+    if (py) {
+        snprintf(cmd, sizeof cmd, "%s %s/scripts/planner_example.py %s --once --interval 50", py,
+                 src, g_name);
+        check_exit("Python example, live writer inside a batch", cmd, 3, "busy: its writer");
+    }
+    close(hold);
+    waitpid(wpid, &status, 0);
+    CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+}
+
 int main(void) {
     tt_name(g_name, sizeof g_name, "examples");
     const char *cbin = getenv("SOOC_PLANNER_EXAMPLE");
@@ -140,6 +236,7 @@ int main(void) {
     int status = 0;
     waitpid(wpid, &status, 0);
     CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    check_stuck(cbin, py, src);
     char shm[128];
     sooc_table_shm_name(g_name, shm, sizeof shm);
     shm_unlink(shm);
