@@ -54,6 +54,18 @@ int main(void) {
     CHECK(d.K.width == c.K.width && d.K.fx == c.K.fx && d.K.cx == c.K.cx && d.depth_scale == c.depth_scale);
     CHECK(d.n_dist == 5 && d.K.dist[1] == c.K.dist[1] && d.has_T_effector_camera);
     CHECK(memcmp(d.T_color_depth, c.T_color_depth, sizeof d.T_color_depth) == 0);
+    CHECK(c.depth_shift == -1 && c.depth_invalid == -1 && d.depth_shift == -1 && d.depth_invalid == -1);
+    /* depth decoding keys (label-fusion as a calibration): load, save, load */
+    c.depth_shift = 3;
+    c.depth_invalid = 0;
+    CHECK_OK(sooc_calib_save(path2, &c));
+    CHECK_OK(sooc_calib_load(path2, &d));
+    CHECK(d.depth_shift == 3 && d.depth_invalid == 0);
+    c.depth_shift = 0;
+    c.depth_invalid = 65535;
+    CHECK_OK(sooc_calib_save(path2, &c));
+    CHECK_OK(sooc_calib_load(path2, &d));
+    CHECK(d.depth_shift == 0 && d.depth_invalid == 65535);
     FILE *fp = fopen(path2, "r");
     char head[32] = {0};
     if (fp) { if (!fgets(head, sizeof head, fp)) head[0] = 0; fclose(fp); }
@@ -85,6 +97,12 @@ int main(void) {
         {"syntax.yaml", "%%YAML 1.2\n---\nimage_width: 64\n  image_height: [64\n", "syntax.yaml:", "YAML error"},
         {"scale.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, data: [50, 0, 32, 0, 50, 32, 0, 0, 1]}\ndepth_scale: -1\n",
          "scale.yaml:6", "depth_scale"},
+        {"shift.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, data: [50, 0, 32, 0, 50, 32, 0, 0, 1]}\ndepth_shift: 16\n",
+         "shift.yaml:6", "depth_shift: must be in [0, 15]"},
+        {"shift2.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, data: [50, 0, 32, 0, 50, 32, 0, 0, 1]}\ndepth_shift: 2.5\n",
+         "shift2.yaml:6", "depth_shift"},
+        {"inval.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, data: [50, 0, 32, 0, 50, 32, 0, 0, 1]}\ndepth_invalid: 65536\n",
+         "inval.yaml:6", "depth_invalid: must be a raw 16-bit value"},
         {"skew.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, data: [50, 1, 32, 0, 50, 32, 0, 0, 1]}\n",
          "skew.yaml:5", "camera_matrix"},
         {"sub.yaml", "%%YAML 1.2\n---\nimage_width: 64\nimage_height: 64\ncamera_matrix: {rows: 3, cols: 3, typ: x, data: [50, 0, 32, 0, 50, 32, 0, 0, 1]}\n",
