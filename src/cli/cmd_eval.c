@@ -2,6 +2,7 @@
  * more models on `sooc3d gen` datasets, through the one evaluation path
  * (sooc_eval_run_scene), averaged over runs with different seeds. */
 #include "cli.h"
+#include "cmd_eval_real.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/model.h"
 #include "sooc3d/scene.h"
@@ -21,7 +22,9 @@ static void usage(FILE *f) {
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
             "                   [--max-views N] [--max-obj K] [--clip D] [--merge R]\n"
-            "                   [--latents mean|sample] [--slots N] [--quiet]\n\n"
+            "                   [--latents mean|sample] [--slots N] [--quiet]\n"
+            "                   recorded sequences: [--query-every N] [--no-second-pass] [--seen-tol M]\n"
+            "                   [--seen-height M] [--persist-min K] [--panels DIR]\n\n"
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
             "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
             "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
@@ -54,7 +57,8 @@ static void usage(FILE *f) {
             "  --slots         SOOC3D mapper: object slots per view; 0 = the model's setting (default:\n"
             "                  its config slots, else K). More than K pads the extra slots with\n"
             "                  mirrored learnt priors (docs/model.md)\n"
-            "  --quiet         no progress line\n");
+            "  --quiet         no progress line\n\n%s\n%s",
+            sooc_cli_framepath_help, sooc_eval_real_cli_help);
 }
 
 static void model_name(const char *path, char *out, size_t cap) {
@@ -137,11 +141,19 @@ int sooc_cmd_eval(int argc, char **argv) {
     uint64_t seed = 1;
     sooc_eval_run_opts ro;
     sooc_eval_run_opts_default(&ro);
+    sooc_eval_real_opts rel;   /* recorded sequences (cmd_eval_real.c) */
+    sooc_eval_real_opts_default(&rel);
+    const char *panels = NULL;
+    sooc_framepath_params fpp;   /* the frame path (--calib, --depth-scale, --up, ...) */
+    sooc_framepath_params_default(&fpp);
+    int fo;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         int has = i + 1 < argc;
 #define INTV(lo, hi, x) do { if (!sooc_cli_int_opt("eval", a, argv[++i], lo, hi, x)) return 2; } while (0)
-        if (!strcmp(a, "--model") && has) {
+        if ((fo = sooc_cli_framepath_opt("eval", argc, argv, &i, &fpp)) != 0) {
+            if (fo < 0) return 2;
+        } else if (!strcmp(a, "--model") && has) {
             if (n_models == MAX_MODELS) { fprintf(stderr, "sooc3d eval: at most %d models\n", MAX_MODELS); return 2; }
             models[n_models++] = argv[++i];
         } else if (!strcmp(a, "--name") && has) {
@@ -191,6 +203,14 @@ int sooc_cmd_eval(int argc, char **argv) {
             }
         }
         else if (!strcmp(a, "--quiet")) quiet = 1;
+        else if (!strcmp(a, "--query-every") && has) INTV(2, 1000000, &rel.query_every);
+        else if (!strcmp(a, "--no-second-pass")) rel.second_pass = 0;
+        else if (!strcmp(a, "--seen-tol") && has) {
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0.001, 100, &rel.seen_tol)) return 2;
+        } else if (!strcmp(a, "--seen-height") && has) {
+            if (!sooc_cli_double_opt("eval", a, argv[++i], -100, 100, &rel.seen_height)) return 2;
+        } else if (!strcmp(a, "--persist-min") && has) INTV(1, 1000000, &rel.persist_min);
+        else if (!strcmp(a, "--panels") && has) panels = argv[++i];
         else {
             fprintf(stderr, "sooc3d eval: unknown or incomplete option '%s'\n", a);
             usage(stderr);
@@ -203,7 +223,34 @@ int sooc_cmd_eval(int argc, char **argv) {
         usage(stderr);
         return 2;
     }
+    if (!sooc_cli_framepath_check("eval", &fpp)) return 2;
     ro.timing = (sooc_eval_timing)timing;
+    {   /* recorded sequences: cmd_eval_real.c, docs/metrics.md "Real sequences" */
+        int n_rec = 0;
+        for (int d = 0; d < n_dirs; d++) n_rec += sooc_eval_dir_is_recorded(dirs[d]);
+        if (n_rec && n_rec != n_dirs) {
+            fprintf(stderr, "sooc3d eval: --data mixes recorded sequences and `sooc3d gen` datasets; run them apart\n");
+            return 2;
+        }
+        if (!n_rec && panels) {
+            fprintf(stderr, "sooc3d eval: --panels applies to recorded sequences (use sooc3d render for gen scenes)\n");
+            return 2;
+        }
+        if (n_rec) {
+            if (runs != 1) { fprintf(stderr, "sooc3d eval: --runs applies to gen datasets only\n"); return 2; }
+            char rn[MAX_MODELS][128];
+            const char *rnp[MAX_MODELS];
+            for (int i = 0; i < n_models; i++) {
+                if (n_names) snprintf(rn[i], sizeof rn[i], "%s", names[i]);
+                else model_name(models[i], rn[i], sizeof rn[i]);
+                rnp[i] = rn[i];
+            }
+            rel.run = ro;
+            rel.run.seed = seed;
+            sooc_eval_real_cli rc = {models, rnp, n_models, dirs, n_dirs, json, md, rel, fpp, panels, quiet};
+            return sooc_cmd_eval_real(&rc);
+        }
+    }
 
     sooc_status st = SOOC_OK;
     sooc_model *mdl[MAX_MODELS] = {0};
@@ -239,7 +286,8 @@ int sooc_cmd_eval(int argc, char **argv) {
     uint64_t total = 0;
     int total_scenes = 0;
     for (int d = 0; d < n_dirs; d++) {
-        if ((st = sooc_dataset_open(&ds[d], &dirs[d], 1, W, H))) goto fail;
+        fpp.width = W, fpp.height = H;
+        if ((st = sooc_dataset_open_fp(&ds[d], &dirs[d], 1, &fpp))) goto fail;
         n_sc[d] = sooc_dataset_n_scenes(ds[d]);
         if (max_scenes >= 0 && max_scenes < n_sc[d]) n_sc[d] = max_scenes;
         scale_of[d] = calloc(n_sc[d] ? (size_t)n_sc[d] : 1, sizeof(int));

@@ -1,0 +1,335 @@
+/* `sooc3d eval` on recorded sequences: read each sequence through the one
+ * frame path (framepath.h) at the model's resolution, attach labels
+ * (label-fusion segm.png or the generic instance/ layout, resized with the
+ * frames' crop), run sooc_eval_real_run per (model, sequence), and write one
+ * JSON cell per pair (docs/metrics.md "Real sequences"). */
+#include "cli.h"
+#include "cmd_eval_real.h"
+#include "sooc3d/image.h"
+#include "sooc3d/model.h"
+#include "sooc3d/seq.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *const sooc_eval_real_cli_help =
+    "Recorded sequences (a DIR with no scene.yaml and no scene_* folders: 7-Scenes, label-fusion, TUM,\n"
+    "...; docs/metrics.md \"Real sequences\"): every N-th frame is a held-out query frame (position\n"
+    "% N == N/2; never mapped), the others are mapped in order with a fresh map; the query frames are\n"
+    "rendered from the map and scored (depth / RGB RMSE; mIoU and per-object IoU when the sequence has\n"
+    "labels: frame-NNNNNN.segm.png or instance/, docs/formats.md); then churn, growth on a second pass\n"
+    "over the same frames, yaw / position spread of persistent entries and the free-space / never-seen\n"
+    "fractions. One JSON cell per (model, sequence) with \"scale\": \"real\", \"view\": \"Q\".\n"
+    "  --query-every N   N of the query rule (default 5)\n"
+    "  --no-second-pass  skip the growth pass\n"
+    "  --seen-tol M      surface band of the free-space test in m (default 0.25)\n"
+    "  --seen-height M   height of the tested entry centre above the support plane in m (default 0.1)\n"
+    "  --persist-min K   registrations that make an entry persistent for the spread (default 3)\n"
+    "  --panels DIR      DIR/<sequence>/<model>/: a panel PNG (GT | reconstruction | segmentation |\n"
+    "                    ... ) and a views.csv row (per-view metrics) per query frame\n";
+
+int sooc_eval_dir_is_recorded(const char *dir) {
+    char p[4096];
+    if (sooc_path_join(p, sizeof p, dir, "scene.yaml") == SOOC_OK && sooc_file_exists(p)) return 0;
+    sooc_clearerr();
+    DIR *d = opendir(dir);
+    if (!d) return 1;   /* the frame path names the problem */
+    struct dirent *de;
+    int rec = 1;
+    while ((de = readdir(d)))
+        if (!strncmp(de->d_name, "scene_", 6)) rec = 0;
+    closedir(d);
+    return rec;
+}
+
+typedef enum { LAB_NONE = 0, LAB_READER, LAB_SEGM, LAB_INSTANCE } lab_src;
+static const char *lab_name(lab_src s) {
+    switch (s) {
+    case LAB_READER: return "instance/ (sequence reader)";
+    case LAB_SEGM: return "frame-NNNNNN.segm.png (label-fusion)";
+    case LAB_INSTANCE: return "instance/frame-NNNNNN.png";
+    default: return "none";
+    }
+}
+
+/* Read every frame of dir at w x h into *frames (count *n) with labels on the
+ * query frames of the rule when the sequence has them. */
+static sooc_status load_sequence(const char *dir, const sooc_framepath_params *fpp0, int w, int h, int every,
+                                 sooc_frame **frames, int *n_out, lab_src *lab) {
+    sooc_framepath_params fpp = *fpp0;
+    fpp.width = w, fpp.height = h;
+    sooc_framepath *fp = NULL;
+    sooc_frame *fr = NULL;
+    int n = 0;
+    uint16_t *ids = NULL;
+    *lab = LAB_NONE;
+    sooc_status st = sooc_framepath_open(&fp, dir, &fpp);
+    if (st) return st;
+    int64_t cnt = sooc_framepath_count(fp);
+    if (cnt > 1000000) {
+        st = sooc_seterr(SOOC_EINVAL, "%s: %lld frames, at most 1000000", dir, (long long)cnt);
+        goto done;
+    }
+    n = (int)cnt;
+    if (!(fr = sooc_calloc(n ? (size_t)n : 1, sizeof *fr))) { st = SOOC_ENOMEM; goto done; }
+    int fmt = sooc_seq_get_format(sooc_framepath_seq(fp));
+    char p[4096];
+    /* the 7-Scenes layout (label-fusion too): frame.index is the file's number */
+    int seven = fmt == SOOC_SEQ_7SCENES || fmt == SOOC_SEQ_LABELFUSION;
+    for (int i = 0; i < n; i++) {
+        if ((st = sooc_framepath_read(fp, i, &fr[i]))) goto done;
+        if (seven && i == 0) {
+            if (sooc_path_join(p, sizeof p, dir, "instance") == SOOC_OK && sooc_dir_exists(p)) *lab = LAB_INSTANCE;
+            else {
+                snprintf(p, sizeof p, "%s/frame-%06lld.segm.png", dir, (long long)fr[0].index);
+                if (sooc_file_exists(p)) *lab = LAB_SEGM;
+            }
+        }
+        if (fr[i].instance && i == 0) *lab = LAB_READER;
+        if (*lab == LAB_READER && !fr[i].instance) {
+            st = sooc_seterr(SOOC_EFORMAT, "%s: frame %d has no instance image while frame 0 has one", dir, i);
+            goto done;
+        }
+        if ((*lab != LAB_SEGM && *lab != LAB_INSTANCE) || !sooc_eval_real_is_query(i, every)) continue;
+        if (*lab == LAB_SEGM) snprintf(p, sizeof p, "%s/frame-%06lld.segm.png", dir, (long long)fr[i].index);
+        else snprintf(p, sizeof p, "%s/instance/frame-%06lld.png", dir, (long long)fr[i].index);
+        int lw = 0, lh = 0;
+        if ((st = sooc_eval_labels_read(p, &ids, &lw, &lh))) goto done;
+        if (!(fr[i].instance = sooc_malloc((size_t)w * (size_t)h * sizeof *fr[i].instance))) {
+            st = SOOC_ENOMEM;
+            goto done;
+        }
+        /* the same crop and nearest sampling as the frame; fails unless the
+         * labels have the frame's own size */
+        if ((st = sooc_framepath_resize_ids(fp, ids, lw, lh, fr[i].instance))) {
+            sooc_adderr(st, "%s", p);
+            goto done;
+        }
+    }
+    if (sooc_framepath_empty_depth(fp) > 0)
+        sooc_log(SOOC_LOG_WARN, "%s: %lld frames have no valid depth after preprocessing (depth scale or range?)", dir,
+                 (long long)sooc_framepath_empty_depth(fp));
+done:
+    sooc_free(ids);
+    sooc_framepath_close(fp);
+    if (st) {
+        for (int i = 0; fr && i < n; i++) sooc_frame_free(&fr[i]);
+        sooc_free(fr);
+        return st;
+    }
+    *frames = fr, *n_out = n;
+    return SOOC_OK;
+}
+
+/* --panels: one panel and one CSV row per scored query frame. */
+typedef struct panel_ctx {
+    const char *dir;
+    FILE *csv;
+    double d_clip;
+} panel_ctx;
+
+static sooc_status on_query(void *user, const sooc_eval_view_info *v) {
+    panel_ctx *P = user;
+    const sooc_view_metrics *m = v->metrics;
+    fprintf(P->csv, "%lld,%d,%d,%.6f,%.6f,%.6f,%.6f,%zu\n", (long long)v->gt->index, v->frame, v->n_comp,
+            m->miou_best, m->miou_hung, m->rgb_rmse, m->depth_rmse, m->n_valid_pixels);
+    sooc_panel_opts po;
+    sooc_panel_opts_default(&po);
+    uint32_t ids[SOOC_RENDER_MAX_COMP];
+    for (int k = 0; k < v->n_comp && k < SOOC_RENDER_MAX_COMP; k++) ids[k] = (uint32_t)v->comp_ids[k];
+    po.comp_ids = ids;
+    po.d_clip = P->d_clip;
+    char title[160], path[4096];
+    if (isfinite(m->miou_best))
+        snprintf(title, sizeof title, "frame %lld (query) mIoU %.2f rgb %.3f depth %.2f m", (long long)v->gt->index,
+                 m->miou_best, m->rgb_rmse, m->depth_rmse);
+    else
+        snprintf(title, sizeof title, "frame %lld (query) rgb %.3f depth %.2f m", (long long)v->gt->index, m->rgb_rmse,
+                 m->depth_rmse);
+    po.title = title;
+    sooc_image img;
+    memset(&img, 0, sizeof img);
+    sooc_status st = sooc_eval_panel(&img, v->gt, v->render, &po);
+    snprintf(path, sizeof path, "%s/query_%06lld.png", P->dir, (long long)v->gt->index);
+    if (!st) st = sooc_png_write(path, &img, 6);
+    sooc_image_free(&img);
+    return st;
+}
+
+static const char *seq_name(const char *dir, char *buf, size_t cap) {
+    size_t n = strlen(dir);
+    while (n > 1 && dir[n - 1] == '/') n--;
+    size_t s = n;
+    while (s > 0 && dir[s - 1] != '/') s--;
+    snprintf(buf, cap, "%.*s", (int)(n - s), dir + s);
+    return buf;
+}
+
+static void fmt_num(char *b, size_t cap, double v, int dec) {
+    if (isfinite(v)) snprintf(b, cap, "%.*f", dec, v);
+    else snprintf(b, cap, "-");
+}
+
+/* One row of the text / Markdown table. */
+static void row_cells(const sooc_eval_real_result *r, const sooc_eval_real_opts *o, char c[10][48]) {
+    sooc_metric_means mm;
+    sooc_metric_sums_means(&r->query, &mm);
+    double ne = (double)(r->n_seen[0] + r->n_seen[1] + r->n_seen[2]);
+    snprintf(c[0], 48, "%d/%d", r->n_mapped, r->n_query);
+    fmt_num(c[1], 48, mm.depth_rmse, 3);
+    fmt_num(c[2], 48, mm.rgb_rmse, 3);
+    fmt_num(c[3], 48, r->has_labels ? mm.miou_best : NAN, 3);
+    snprintf(c[4], 48, "%zu/%ld", r->entries_final, r->churn.created);
+    if (o->second_pass && r->entries_final)
+        snprintf(c[5], 48, "%+.2f", ((double)r->entries_pass2 - (double)r->entries_final) / (double)r->entries_final);
+    else snprintf(c[5], 48, "-");
+    fmt_num(c[6], 48, r->pos_spread_m, 3);
+    fmt_num(c[7], 48, r->yaw_spread_deg, 1);
+    fmt_num(c[8], 48, ne > 0 ? r->n_seen[SOOC_SEEN_FREE] / ne : NAN, 2);
+    fmt_num(c[9], 48, ne > 0 ? r->n_seen[SOOC_SEEN_NEVER] / ne : NAN, 2);
+}
+
+static const char *const k_cols[10] = {"mapped/query", "depth RMSE", "RGB RMSE", "mIoU",     "entries end/created",
+                                       "growth",       "pos spread", "yaw spread", "free", "never seen"};
+
+int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
+    sooc_status st = SOOC_OK;
+    sooc_model *m = NULL;
+    sooc_frame *fr = NULL;
+    int nfr = 0;
+    char **cells = NULL;
+    int n_cells = 0;
+    char *md = NULL;
+    size_t md_len = 0, md_cap = 0;
+    sooc_eval_real_result *res = NULL;
+    if (!(cells = calloc((size_t)a->n_models * (size_t)a->n_dirs, sizeof *cells))) return sooc_cli_fail("eval", SOOC_ENOMEM);
+    if (!(res = calloc((size_t)a->n_models * (size_t)a->n_dirs, sizeof *res))) {
+        free(cells);
+        return sooc_cli_fail("eval", SOOC_ENOMEM);
+    }
+    double t0 = sooc_seconds();
+    for (int mi = 0; mi < a->n_models && !st; mi++) {
+        if ((st = sooc_model_load(&m, a->models[mi], NULL, NULL))) break;
+        const sooc_model_config *c = sooc_model_get_config(m);
+        for (int d = 0; d < a->n_dirs && !st; d++) {
+            lab_src lab;
+            if ((st = load_sequence(a->dirs[d], &a->fp, c->img_w, c->img_h, a->opts.query_every, &fr, &nfr, &lab))) {
+                sooc_adderr(st, "%s", a->dirs[d]);
+                break;
+            }
+            if (!a->quiet)
+                fprintf(stderr, "eval: %s on %s: %d frames at %dx%d, labels: %s\n", a->names[mi], a->dirs[d], nfr,
+                        c->img_w, c->img_h, lab_name(lab));
+            sooc_eval_real_result *r = &res[n_cells];
+            char sn[256], pdir[4096];
+            seq_name(a->dirs[d], sn, sizeof sn);
+            panel_ctx pc = {pdir, NULL, a->opts.run.d_clip > 0 ? a->opts.run.d_clip : c->d_clip};
+            if (a->panels) {
+                snprintf(pdir, sizeof pdir, "%s/%s/%s", a->panels, sn, a->names[mi]);
+                char cp[4200];
+                snprintf(cp, sizeof cp, "%s/views.csv", pdir);
+                if ((st = sooc_mkdirs(pdir))) break;
+                if (!(pc.csv = fopen(cp, "w"))) {
+                    st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", cp);
+                    break;
+                }
+                fprintf(pc.csv, "frame,position,n_comp,miou_best,miou_hung,rgb_rmse,depth_rmse,valid_pixels\n");
+            }
+            st = sooc_eval_real_run(m, fr, nfr, &a->opts, pc.csv ? on_query : NULL, &pc, r);
+            if (pc.csv && fclose(pc.csv) && !st) st = sooc_seterr(SOOC_EIO, "%s/views.csv: write failed", pdir);
+            for (int i = 0; i < nfr; i++) sooc_frame_free(&fr[i]);
+            sooc_free(fr);
+            fr = NULL;
+            if (st) {
+                sooc_adderr(st, "%s", a->dirs[d]);
+                break;
+            }
+            if ((st = sooc_eval_real_json(a->names[mi], sn, a->dirs[d], &a->opts, r,
+                                          &cells[n_cells])))
+                break;
+            n_cells++;
+            if (!a->quiet)
+                fprintf(stderr, "eval: %s on %s: %d mapped, %d query frames, %.1f s mapping (%s), %.1f s rendering\n",
+                        a->names[mi], sn, r->n_mapped, r->n_query, r->update_s,
+                        a->opts.second_pass ? "two passes" : "one pass", r->render_s);
+        }
+        sooc_model_destroy(m);
+        m = NULL;
+    }
+    if (st) goto fail;
+
+    /* text table on stdout, Markdown alongside */
+    {
+        size_t need = 4096 + (size_t)n_cells * 512;
+        if (!(md = malloc(need))) { st = SOOC_ENOMEM; goto fail; }
+        md_cap = need;
+        md_len += (size_t)snprintf(md + md_len, md_cap - md_len,
+                                   "| model | sequence | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n"
+                                   "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+                                   k_cols[0], k_cols[1], k_cols[2], k_cols[3], k_cols[4], k_cols[5], k_cols[6],
+                                   k_cols[7], k_cols[8], k_cols[9]);
+        printf("%-16s %-20s %12s %10s %9s %6s %19s %7s %10s %10s %5s %10s\n", "model", "sequence", k_cols[0], k_cols[1],
+               k_cols[2], k_cols[3], k_cols[4], k_cols[5], k_cols[6], k_cols[7], k_cols[8], k_cols[9]);
+        int k = 0;
+        for (int mi = 0; mi < a->n_models; mi++)
+            for (int d = 0; d < a->n_dirs; d++, k++) {
+                char cc[10][48], sn[256];
+                row_cells(&res[k], &a->opts, cc);
+                seq_name(a->dirs[d], sn, sizeof sn);
+                printf("%-16s %-20s %12s %10s %9s %6s %19s %7s %10s %10s %5s %10s\n", a->names[mi], sn, cc[0], cc[1],
+                       cc[2], cc[3], cc[4], cc[5], cc[6], cc[7], cc[8], cc[9]);
+                md_len += (size_t)snprintf(md + md_len, md_cap - md_len,
+                                           "| %.60s | %.60s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n",
+                                           a->names[mi], sn, cc[0], cc[1], cc[2], cc[3], cc[4], cc[5], cc[6], cc[7],
+                                           cc[8], cc[9]);
+            }
+        char note[1024];
+        snprintf(note, sizeof note,
+                 "Recorded sequences: query frames = every %d-th frame (position %% %d == %d), never mapped, rendered "
+                 "from the map after one pass over the other frames; RGB RMSE sums the channels; depth RMSE in m over "
+                 "valid depth <= the clip; mIoU best-match with background (labelled sequences only); growth = "
+                 "entries after a second pass over the same frames / entries after the first - 1; spread: RMS floor "
+                 "position (m) and circular yaw std (deg) of entries registered by >= %d keyframes; free / never "
+                 "seen: fraction of final entries whose centre (%.2f m above the support plane) the frames saw as "
+                 "free space / never saw (surface band +-%.2f m). Seed %llu. docs/metrics.md \"Real sequences\".",
+                 a->opts.query_every, a->opts.query_every, a->opts.query_every / 2, a->opts.persist_min,
+                 a->opts.seen_height, a->opts.seen_tol, (unsigned long long)a->opts.run.seed);
+        md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n*%s*\n", note);
+        printf("\n%s\n", note);
+        printf("\neval: %d cell%s in %.1f s\n", n_cells, n_cells == 1 ? "" : "s", sooc_seconds() - t0);
+
+        size_t jl = 0;
+        for (int i = 0; i < n_cells; i++) jl += strlen(cells[i]) + 8;
+        size_t jcap = jl + strlen(note) * 2 + 1024;
+        char *js = malloc(jcap);
+        if (!js) { st = SOOC_ENOMEM; goto fail; }
+        size_t n = 0;
+        n += (size_t)snprintf(js + n, jcap - n,
+                              "{\"conventions\": {\"rgb_rmse\": \"channel sum\", \"depth_rmse\": \"m, valid depth <= "
+                              "d_clip\", \"miou\": \"MulMON best-match, background included, IoU<0.05->0\", "
+                              "\"obj_iou\": \"best-match IoU per labelled object id (obj_ids), mean over the query "
+                              "frames where it is visible (obj_views)\"}, \"note\": \"");
+        for (const char *s = note; *s; s++) {
+            if (*s == '"' || *s == '\\') js[n++] = '\\';
+            js[n++] = *s;
+        }
+        n += (size_t)snprintf(js + n, jcap - n, "\", \"cells\": [");
+        for (int i = 0; i < n_cells; i++) n += (size_t)snprintf(js + n, jcap - n, "%s\n  %s", i ? "," : "", cells[i]);
+        n += (size_t)snprintf(js + n, jcap - n, "\n]}\n");
+        st = sooc_file_write_atomic(a->json, js, n);
+        free(js);
+        if (st) { sooc_adderr(st, "%s", a->json); goto fail; }
+        if (a->md && (st = sooc_file_write_atomic(a->md, md, md_len))) { sooc_adderr(st, "%s", a->md); goto fail; }
+        printf("eval: wrote %s%s%s\n", a->json, a->md ? " and " : "", a->md ? a->md : "");
+    }
+fail:
+    for (int i = 0; i < a->n_models * a->n_dirs; i++) sooc_free(cells[i]);
+    free(cells);
+    free(res);
+    free(md);
+    sooc_model_destroy(m);
+    return st ? sooc_cli_fail("eval", st) : 0;
+}
