@@ -127,6 +127,9 @@ sooc_seq_format sooc_seq_get_format(const sooc_seq *s);
 /* Frame i's number in its file names (7-Scenes frame-000042.* -> 42; TUM:
  * i), and its colour and depth image paths; -1 / NULL when i is out of range. */
 int64_t sooc_seq_frame_number(const sooc_seq *s, int64_t i);
+/* Frame i's t_ns as sooc_seq_read would give it, without reading any image
+ * (known at open); INT64_MIN when i is out of range. */
+int64_t sooc_seq_frame_time(const sooc_seq *s, int64_t i);
 const char *sooc_seq_color_path(const sooc_seq *s, int64_t i);
 const char *sooc_seq_depth_path(const sooc_seq *s, int64_t i);
 /* The depth decoding in use: metres = (raw >> shift) * scale, raw 0 and raw ==

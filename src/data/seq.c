@@ -915,6 +915,10 @@ int64_t sooc_seq_frame_number(const sooc_seq *s, int64_t i) {
     return s && i >= 0 && i < s->n ? s->e[i].number : -1;
 }
 
+int64_t sooc_seq_frame_time(const sooc_seq *s, int64_t i) {
+    return s && i >= 0 && i < s->n ? s->e[i].t_ns : INT64_MIN;
+}
+
 const char *sooc_seq_color_path(const sooc_seq *s, int64_t i) {
     return s && i >= 0 && i < s->n ? s->e[i].rgb : NULL;
 }
