@@ -18,4 +18,15 @@ for sc in s m l xl; do
 done
 # diagnostic (docs/training.md, session 4): the same l rooms walked as densely per m² as m rooms
 gen --scale l --views 180 --scenes 20 --seed 9001 --out "$OUT/test_l_v180"
+# Tabletop sets (issue 18): TABLETOP=1 bash scripts/make_datasets.sh also writes train/val/test
+# tabletop scenes with Kinect sensor noise (docs/formats.md 5.1-5.2); no model is trained on them yet.
+if [ "${TABLETOP:-0}" = 1 ]; then
+  tt() { "$BIN" gen --preset tabletop --no-sheet "$@"; }
+  tt --scale s --scenes 800 --seed 2001 --out "$OUT/tabletop_train_s"
+  tt --scale m --scenes 400 --seed 2002 --out "$OUT/tabletop_train_m"
+  tt --scale m --scenes 8   --seed 8002 --out "$OUT/tabletop_val_m"
+  for sc in s m l; do
+    tt --scale $sc --scenes 20 --seed 9002 --out "$OUT/tabletop_test_$sc"
+  done
+fi
 echo "datasets in $OUT"

@@ -9,7 +9,7 @@ static const struct {
     sooc_cmd_fn fn;
     const char *help;
 } g_cmds[] = {
-    {"gen", sooc_cmd_gen, "render synthetic RGB-D datasets (unity/blender presets, s/m/l/xl scales)"},
+    {"gen", sooc_cmd_gen, "render synthetic RGB-D datasets (unity/blender/tabletop presets, s/m/l/xl scales)"},
     {"train", sooc_cmd_train, "train a SOOC3D model"},
     {"infer", sooc_cmd_infer, "run online inference over a sequence and write the map"},
     {"eval", sooc_cmd_eval, "compute the paper's metrics and tables"},

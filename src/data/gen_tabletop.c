@@ -229,9 +229,10 @@ sooc_status sooc_gen_tabletop_scene(sooc_scene *sc, const sooc_gen_params *p, in
         } else if (t < 0.85) {
             sc->floor_tex = SOOC_FLOOR_NOISE; /* laminate / stone */
             double h = sooc_rng_uniform(r);
-            tt_hsv(h, U(r, 0.0, 0.2), U(r, 0.7, 0.9), sc->floor_color);
-            tt_hsv(h, U(r, 0.0, 0.2), U(r, 0.4, 0.6), sc->floor_color2);
-            sc->tex_scale = U(r, 0.05, 0.2);
+            double val = U(r, 0.6, 0.9);
+            tt_hsv(h, U(r, 0.0, 0.2), val, sc->floor_color);
+            tt_hsv(h, U(r, 0.0, 0.2), val * U(r, 0.7, 0.85), sc->floor_color2);
+            sc->tex_scale = U(r, 0.02, 0.06);
         } else {
             sc->floor_tex = SOOC_FLOOR_CHECKER; /* table cloth */
             double h = sooc_rng_uniform(r);

@@ -6,6 +6,7 @@
 #include "util.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/sensor_noise.h"
+#include "sooc3d/seq.h"
 
 #include <math.h>
 
@@ -296,6 +297,7 @@ static void test_noise_invalid(void) {
     sooc_intrinsics K;
     sooc_gen_intrinsics(&K, p.width, p.height, p.fov_deg);
     sooc_frame f = {0}, g = {0}, h = {0};
+    int64_t n_all = 0, inv_exact = 0, inv_noisy = 0;
     int64_t edge = 0, edge_drop = 0, flat = 0, flat_drop = 0, shadow_left = 0, shadow_right = 0;
     for (int k = 0; k < 4; k++) {
         sooc_scene sc;
@@ -307,6 +309,11 @@ static void test_noise_invalid(void) {
             CHECK_OK(sooc_noise_apply(&g, &np, p.seed, (uint64_t)k, v));
             CHECK(memcmp(f.instance, g.instance, sizeof(uint16_t) * (size_t)(f.width * f.height)) == 0);
             int W = f.width;
+            for (int i = 0; i < W * f.height; i++) {
+                n_all++;
+                inv_exact += !f.valid[i];
+                inv_noisy += !g.valid[i];
+            }
             for (int y = 1; y < f.height - 1; y++)
                 for (int x = 1; x < W - 1; x++) {
                     size_t i = (size_t)y * (size_t)W + (size_t)x;
@@ -340,6 +347,9 @@ static void test_noise_invalid(void) {
     printf("invalid pixels: %.1f%% of %lld edge pixels, %.2f%% of %lld flat pixels; background pixels left of a "
            "nearer one dropped %lld, right of one %lld\n", 100 * fe, (long long)edge, 100 * ff, (long long)flat,
            (long long)shadow_left, (long long)shadow_right);
+    printf("invalid pixels over %lld: %.1f%% exact (beyond the clip), %.1f%% with sensor noise\n", (long long)n_all,
+           100.0 * (double)inv_exact / (double)n_all, 100.0 * (double)inv_noisy / (double)n_all);
+    CHECK(inv_noisy > inv_exact);
     CHECK(edge > 500 && flat > 10000);
     CHECK(fe > 0.4 && ff < 0.03 && fe > 10 * ff);
     CHECK(shadow_left > shadow_right);
@@ -391,6 +401,22 @@ static void test_run(void) {
     snprintf(a, sizeof a, "%s/scene_0000/depth/000000.png", dirs[0]);
     snprintf(b, sizeof b, "%s/scene_0000/depth_gt/000000.png", dirs[0]);
     CHECK(file_crc(a) != file_crc(b));
+    /* the sequence reader sees the noisy depth, exact ids and the query flags */
+    char sd[800];
+    snprintf(sd, sizeof sd, "%s/scene_0000", dirs[0]);
+    sooc_seq *seq = NULL;
+    CHECK_OK(sooc_seq_open(&seq, sd, NULL));
+    if (seq) {
+        sooc_frame f = {0};
+        CHECK(sooc_seq_count(seq) == 7);
+        CHECK_OK(sooc_seq_read(seq, 6, &f));
+        CHECK(f.is_query == 1 && f.instance != NULL);
+        int nvalid = 0;
+        for (int i = 0; i < f.width * f.height; i++) nvalid += f.valid[i];
+        CHECK(nvalid > f.width * f.height / 2 && nvalid < f.width * f.height);
+        sooc_frame_free(&f);
+        sooc_seq_close(seq);
+    }
     /* scene.yaml: load, save, load again: identical text */
     sooc_scene sc, sc2;
     sooc_scene_init(&sc);
