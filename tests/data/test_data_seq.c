@@ -242,7 +242,7 @@ static void test_7scenes_shipped(void) {
             CHECK_OK(sooc_seq_read(s, i, &f));
             CHECK_MSG(f.index == nums[i] && sooc_seq_frame_number(s, i) == nums[i], "frame %d: index %lld", i,
                       (long long)f.index);
-            CHECK(f.t_ns == nums[i] * 33333333LL);
+            CHECK(f.t_ns == nums[i] * 33333333LL && sooc_seq_frame_time(s, i) == f.t_ns);
             CHECK(abs(f.rgb[0] - (100 + 20 * i)) <= 2);          /* JPEG of a flat colour */
         }
         CHECK(f.K.fx == 30 && f.K.width == W && f.K.height == H);
@@ -253,6 +253,7 @@ static void test_7scenes_shipped(void) {
         CHECK(sc == 0.001 && sh == 0 && inv == 65535);
         CHECK(strstr(sooc_seq_color_path(s, 2), "frame-000047.color.jpg") != NULL);
         CHECK(sooc_seq_color_path(s, 3) == NULL && sooc_seq_frame_number(s, -1) == -1);
+        CHECK(sooc_seq_frame_time(s, 3) == INT64_MIN && sooc_seq_depth_path(s, -1) == NULL);
         sooc_seq_close(s);
         s = NULL;
     }
