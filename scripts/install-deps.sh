@@ -13,6 +13,7 @@ PKGS=(
   libcamera-dev
   libopenmpi-dev openmpi-bin
   python3 python3-numpy python3-torch
+  python3-yaml python3-opencv
   clang libclang-rt-14-dev
 )
 
