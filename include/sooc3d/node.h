@@ -49,7 +49,8 @@ typedef struct sooc_node_param {
 typedef enum sooc_node_pose_kind {
     SOOC_NODE_POSE_SENSOR = 0,     /* the sensor's frames carry poses (replay of a posed sequence) */
     SOOC_NODE_POSE_FILE = 1,       /* a trajectory file (TUM groundtruth format) */
-    SOOC_NODE_POSE_SOCKET = 2      /* live stream: unix:/path or udp:host:port */
+    SOOC_NODE_POSE_SOCKET = 2,     /* live stream: unix:/path or udp:host:port */
+    SOOC_NODE_POSE_ODOMETRY = 3    /* RGB-D odometry on the frames (OpenCV rgbd, include/sooc3d/cv.h) */
 } sooc_node_pose_kind;
 
 typedef enum sooc_node_floor_mode {
@@ -75,6 +76,15 @@ typedef struct sooc_node_config {
     char pose_path[SOOC_NODE_PATH_MAX];      /* file path, or socket address "unix:/p" | "udp:h:p" */
     double pose_tolerance_s;                 /* default 0.02 */
     int pose_is_effector;                    /* pose.frame: effector -> apply T_effector_camera */
+
+    /* odometry: (pose.source: odometry; sooc_odom_params) */
+    int odom_variant;                        /* 0 rgbd, 1 icp, 2 rgbd_icp (default 2) */
+    int odom_width, odom_height;             /* working resolution (default 320x240) */
+    double odom_kf_translation_m;            /* odometry keyframe rule (default 0.10 m, 10 deg, */
+    double odom_kf_rotation_deg;             /* no frame count)                                  */
+    int odom_kf_frames;
+    int odom_max_failures;                   /* re-anchor after this many failures (default 10) */
+    double odom_min_depth_m, odom_max_depth_m;   /* depths used (default 0.3 .. 4) */
 
     /* calib: (optional for sources that carry intrinsics) */
     char calib_path[SOOC_NODE_PATH_MAX];
@@ -285,6 +295,7 @@ typedef struct sooc_node_stats {
     uint64_t frames_in;          /* frames read from the sensor */
     uint64_t frames_dropped;     /* dropped by the ring (drop-oldest) */
     uint64_t frames_no_pose;     /* skipped: no pose within tolerance */
+    uint64_t frames_untracked;   /* skipped: odometry failed on them (pose.source: odometry) */
     uint64_t frames_not_kf;      /* rejected by the keyframe policy */
     uint64_t frames_floor_wait;  /* consumed while estimating the floor */
     uint64_t keyframes;          /* mapper updates done */

@@ -37,6 +37,14 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->max_depth_m = 10.0;
     c->log_level = SOOC_LOG_INFO;
     c->depth_resample = SOOC_NODE_DEPTH_MIN;
+    c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/cv.h) */
+    c->odom_width = 320;
+    c->odom_height = 240;
+    c->odom_kf_translation_m = 0.10;
+    c->odom_kf_rotation_deg = 10.0;
+    c->odom_max_failures = 10;
+    c->odom_min_depth_m = 0.3;
+    c->odom_max_depth_m = 4.0;
 }
 
 const char *sooc_node_param_get(const sooc_node_config *c, const char *key) {
@@ -432,11 +440,20 @@ _Static_assert(sizeof(sooc_node_pose_kind) == sizeof(int) && sizeof(sooc_node_de
 /* Every key of every section but sensor (g_pspecs) and the top-level calib;
  * "unknown key (known: ...)" lists a section's keys in this order. */
 static const kspec g_keys[] = {
-    KV_CH("pose", "source", pose_kind, "sensor|file|socket"),   /* order of sooc_node_pose_kind */
+    KV_CH("pose", "source", pose_kind, "sensor|file|socket|odometry"),   /* order of sooc_node_pose_kind */
     KV("pose", "path", KV_STR, pose_path, 0, 0),
     KV("pose", "address", KV_STR, pose_path, 0, 0),
     KV("pose", "tolerance_ms", KV_MS, pose_tolerance_s, 0, 10000),
     KV_CH("pose", "frame", pose_is_effector, "camera|effector"),
+    KV_CH("odometry", "variant", odom_variant, "rgbd|icp|rgbd_icp"),   /* order of sooc_odom_variant */
+    KV("odometry", "width", KV_INT, odom_width, 0, 8192),
+    KV("odometry", "height", KV_INT, odom_height, 0, 8192),
+    KV("odometry", "keyframe_translation_m", KV_NUM, odom_kf_translation_m, 0, 10),
+    KV("odometry", "keyframe_rotation_deg", KV_NUM, odom_kf_rotation_deg, 0, 180),
+    KV("odometry", "keyframe_frames", KV_INT, odom_kf_frames, 0, 1000000),
+    KV("odometry", "max_failures", KV_INT, odom_max_failures, 0, 1000000),
+    KV("odometry", "min_depth_m", KV_NUM, odom_min_depth_m, 0, 100),
+    KV("odometry", "max_depth_m", KV_NUM, odom_max_depth_m, 0.01, 100),
     KV("model", "path", KV_STR, model_path, 0, 0),
     KV("model", "width", KV_INT, input_width, 0, 8192),
     KV("model", "height", KV_INT, input_height, 0, 8192),
@@ -559,7 +576,7 @@ static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t
     q.section = NULL;
     if (!strcmp(key, "calib")) return get_str(&q, vn, key, c->calib_path, sizeof c->calib_path, 1);
     return unknown(&q, kn, key,
-                   "unknown key (known: sensor, pose, calib, model, keyframe, shm, map, world, pipeline, log)");
+                   "unknown key (known: sensor, pose, odometry, calib, model, keyframe, shm, map, world, pipeline, log)");
 }
 
 sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t n, const char *name) {
@@ -574,7 +591,7 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
     else st = walk_map(&p, root, "launch file", k_root, c);
     if (!st && !c->driver[0])
         st = sooc_seterr(SOOC_EINVAL, "%s: sensor: missing section (sensor.driver is required)", name);
-    if (!st && c->pose_kind != SOOC_NODE_POSE_SENSOR && !c->pose_path[0])
+    if (!st && c->pose_kind != SOOC_NODE_POSE_SENSOR && c->pose_kind != SOOC_NODE_POSE_ODOMETRY && !c->pose_path[0])
         st = sooc_seterr(SOOC_EINVAL, "%s: pose.path: missing (needed for pose.source %s)", name,
                          c->pose_kind == SOOC_NODE_POSE_FILE ? "file" : "socket");
     if (!st && c->pose_kind == SOOC_NODE_POSE_SOCKET && strncmp(c->pose_path, "unix:", 5) &&
@@ -583,12 +600,16 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
                          name, c->pose_path);
     if (!st && c->pose_is_effector && !c->calib_path[0])
         st = sooc_seterr(SOOC_EINVAL, "%s: pose.frame: effector poses need calib (T_effector_camera)", name);
+    if (!st && (c->odom_width > 0) != (c->odom_height > 0))
+        st = sooc_seterr(SOOC_EINVAL, "%s: odometry.width/height: give both or neither", name);
+    if (!st && c->odom_min_depth_m >= c->odom_max_depth_m)
+        st = sooc_seterr(SOOC_EINVAL, "%s: odometry.min_depth_m: must be below max_depth_m", name);
     if (!st && c->min_depth_m >= c->max_depth_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: pipeline.min_depth_m: must be below max_depth_m", name);
     if (!st && (c->input_width > 0) != (c->input_height > 0))
         st = sooc_seterr(SOOC_EINVAL, "%s: model.width/height: give both or neither", name);
     if (!st && strcmp(c->driver, "replay") && c->pose_kind == SOOC_NODE_POSE_SENSOR)
-        st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: live driver '%s' carries no poses; use file or socket",
+        st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: live driver '%s' carries no poses; use file, socket or odometry",
                          name, c->driver);
     sooc_ydoc_free(&d);
     return st;
@@ -608,7 +629,7 @@ sooc_status sooc_node_config_load(sooc_node_config *c, const char *path) {
 }
 
 size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap) {
-    static const char *pk[] = {"sensor", "file", "socket"};
+    static const char *pk[] = {"sensor", "file", "socket", "odometry"};
     size_t k = 0;
 #define OUT(...)                                                                    \
     do {                                                                            \
@@ -619,6 +640,13 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     for (int i = 0; i < c->n_params; i++) OUT(", %s: %s", c->params[i].key, c->params[i].value);
     OUT("}\npose: {source: %s, path: '%s', tolerance_ms: %g, frame: %s}\n", pk[c->pose_kind], c->pose_path,
         c->pose_tolerance_s * 1e3, c->pose_is_effector ? "effector" : "camera");
+    if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY) {
+        static const char *ov[] = {"rgbd", "icp", "rgbd_icp"};
+        OUT("odometry: {variant: %s, width: %d, height: %d, keyframe_translation_m: %g, keyframe_rotation_deg: %g, "
+            "keyframe_frames: %d, max_failures: %d, min_depth_m: %g, max_depth_m: %g}\n",
+            ov[c->odom_variant], c->odom_width, c->odom_height, c->odom_kf_translation_m, c->odom_kf_rotation_deg,
+            c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m);
+    }
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d}\n",
         c->calib_path, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,

@@ -24,6 +24,9 @@
 #if SOOC_NODE_HAVE_CALIB
 #include "sooc3d/calib.h"
 #endif
+#if SOOC_NODE_HAVE_CV
+#include "sooc3d/cv.h"
+#endif
 
 struct sooc_node {
     sooc_node_config cfg;
@@ -36,6 +39,10 @@ struct sooc_node {
     int have_src;
     sooc_node_pose_source pose;
     int have_pose;
+#if SOOC_NODE_HAVE_CV
+    sooc_odom *odom;               /* pose.source: odometry */
+    int odom_lost;                 /* frames failed in a row (for the log) */
+#endif
 #if SOOC_NODE_HAVE_DRIVERS
     sooc_sensor *sensor;
     sooc_pose_src *psrc;
@@ -131,11 +138,12 @@ static void stats_refresh(sooc_node *n) {
 
 size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap) {
     int w = snprintf(buf, cap,
-                     "frames %llu dropped %llu no_pose %llu keyframes %llu (%.2f/s) objects %llu "
+                     "frames %llu dropped %llu no_pose %llu (untracked %llu) keyframes %llu (%.2f/s) objects %llu "
                      "update p50 %.1f ms p99 %.1f ms capture->table p50 %.1f ms p99 %.1f ms "
                      "publish p50 %.2f ms p99 %.2f ms",
                      (unsigned long long)s->frames_in, (unsigned long long)s->frames_dropped,
-                     (unsigned long long)s->frames_no_pose, (unsigned long long)s->keyframes,
+                     (unsigned long long)s->frames_no_pose, (unsigned long long)s->frames_untracked,
+                     (unsigned long long)s->keyframes,
                      s->elapsed_s > 0 ? (double)s->keyframes / s->elapsed_s : 0.0,
                      (unsigned long long)s->n_objects, s->update_p50_ms, s->update_p99_ms, s->c2t_p50_ms,
                      s->c2t_p99_ms, s->publish_p50_ms, s->publish_p99_ms);
@@ -229,7 +237,7 @@ static sooc_status open_sensor(sooc_node *n) {
 
 static sooc_status open_pose(sooc_node *n) {
     const sooc_node_config *c = &n->cfg;
-    if (c->pose_kind == SOOC_NODE_POSE_SENSOR) return SOOC_OK;
+    if (c->pose_kind == SOOC_NODE_POSE_SENSOR || c->pose_kind == SOOC_NODE_POSE_ODOMETRY) return SOOC_OK;
     sooc_pose_params pp;
     sooc_pose_params_default(&pp);
     if (n->have_T_eff) {
@@ -684,7 +692,28 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         goto fail;
     }
 #endif
-    if (c->pose_kind != SOOC_NODE_POSE_SENSOR && !n->have_pose) {
+    if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->have_pose) {
+#if SOOC_NODE_HAVE_CV
+        sooc_odom_params op;
+        sooc_odom_params_default(&op);
+        op.variant = (sooc_odom_variant)c->odom_variant;
+        op.width = c->odom_width;
+        op.height = c->odom_height;
+        op.kf_translation_m = c->odom_kf_translation_m;
+        op.kf_rotation_deg = c->odom_kf_rotation_deg;
+        op.kf_max_frames = c->odom_kf_frames;
+        op.max_failures = c->odom_max_failures;
+        op.min_depth_m = c->odom_min_depth_m;
+        op.max_depth_m = c->odom_max_depth_m;
+        if ((st = sooc_odom_create(&n->odom, &op))) {
+            sooc_adderr(st, "%s: pose.source: odometry", c->path);
+            goto fail;
+        }
+#else
+        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose.source: odometry: the cv module is not built in", c->path);
+        goto fail;
+#endif
+    } else if (c->pose_kind != SOOC_NODE_POSE_SENSOR && !n->have_pose) {
         st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose: no pose source available", c->path);
         goto fail;
     }
@@ -936,6 +965,42 @@ static sooc_status fix_intrinsics_and_register(sooc_node *n, sooc_frame *f) {
     return SOOC_OK;
 }
 
+/* pose.source: odometry. 1: T_src_c holds the frame's pose; 0: untracked
+ * (counted and skipped: the mapper never sees a frame without a trusted
+ * pose); -1: error (message set). */
+static int odom_pose(sooc_node *n, sooc_frame *f, double T_src_c[16]) {
+#if SOOC_NODE_HAVE_CV
+    sooc_odom_result r;
+    if (sooc_odom_track(n->odom, f, &r)) return -1;
+    if (r.state == SOOC_ODOM_FIRST || r.state == SOOC_ODOM_TRACKED) {
+        if (n->odom_lost)
+            sooc_log(SOOC_LOG_INFO, "node: odometry tracking again at frame %lld after %d untracked frames",
+                     (long long)f->index, n->odom_lost);
+        n->odom_lost = 0;
+        memcpy(T_src_c, r.T_wc, 16 * sizeof(double));
+        return 1;
+    }
+    if (!n->odom_lost)
+        sooc_log(SOOC_LOG_WARN, "node: odometry lost tracking at frame %lld: frames are skipped until it recovers",
+                 (long long)f->index);
+    n->odom_lost++;
+    if (r.state == SOOC_ODOM_REANCHORED)
+        sooc_log(SOOC_LOG_WARN,
+                 "node: odometry re-anchored at frame %lld after %d failures: poses continue from the last tracked "
+                 "one (the map may be offset from here)",
+                 (long long)f->index, n->odom_lost);
+    pthread_mutex_lock(&n->mu);
+    n->st.frames_untracked++;
+    n->st.frames_no_pose++;
+    pthread_mutex_unlock(&n->mu);
+    return 0;
+#else
+    (void)n; (void)f; (void)T_src_c;
+    sooc_seterr(SOOC_EUNSUPPORTED, "node: odometry is not built in");
+    return -1;
+#endif
+}
+
 static void log_stats(sooc_node *n) {
     sooc_node_stats s;
     sooc_node_get_stats(n, &s);
@@ -1031,7 +1096,15 @@ sooc_status sooc_node_run(sooc_node *n) {
         sooc_frame *f = &n->work;
         /* pose association */
         double T_src_c[16];
-        if (n->cfg.pose_kind == SOOC_NODE_POSE_SENSOR && !n->opt.pose) {
+        int fixed = 0;
+        if (n->cfg.pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose) {
+            /* odometry tracks the colour-registered frame */
+            if ((st = fix_intrinsics_and_register(n, f))) { result = st; break; }
+            fixed = 1;
+            int r = odom_pose(n, f, T_src_c);
+            if (r < 0) { result = sooc_adderr(SOOC_ERR, "node: odometry"); break; }
+            if (r == 0) continue;
+        } else if (n->cfg.pose_kind == SOOC_NODE_POSE_SENSOR && !n->opt.pose) {
             if (!f->has_pose) {
                 pthread_mutex_lock(&n->mu);
                 n->st.frames_no_pose++;
@@ -1045,7 +1118,7 @@ sooc_status sooc_node_run(sooc_node *n) {
             pthread_mutex_unlock(&n->mu);
             continue;
         }
-        if ((st = fix_intrinsics_and_register(n, f))) { result = st; break; }
+        if (!fixed && (st = fix_intrinsics_and_register(n, f))) { result = st; break; }
         if (!n->world_ready) {
             int r = try_support(n, f, T_src_c, t_cap, 0, &result);
             if (r < 0) break;
@@ -1092,6 +1165,9 @@ void sooc_node_destroy(sooc_node *n) {
     sooc_sensor_close(n->sensor);
 #endif
     if (n->have_pose && n->pose.close) n->pose.close(n->pose.ctx);
+#if SOOC_NODE_HAVE_CV
+    sooc_odom_destroy(n->odom);
+#endif
 #if SOOC_NODE_HAVE_TABLE
     if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
 #endif
