@@ -452,6 +452,48 @@ static void test_run(void) {
     for (int run = 0; run < 2; run++) tu_rm_rf(dirs[run]);
 }
 
+/* The PLY meshes of the tabletop shapes lie on the analytic surfaces. */
+static void test_meshes(void) {
+    sooc_gen_params p;
+    sooc_gen_params_default(&p);
+    p.preset = SOOC_GEN_TABLETOP;
+    p.scale = SOOC_GEN_L;
+    char *dir = tu_tmpdir("ttmesh");
+    int seen[SOOC_SHAPE_COUNT] = {0};
+    double worst = 0;
+    for (int k = 0; k < 3; k++) {
+        sooc_scene sc;
+        sooc_scene_init(&sc);
+        CHECK_OK(sooc_gen_scene(&sc, &p, k));
+        CHECK_OK(sooc_scene_write_meshes(dir, &sc));
+        for (int i = 0; i < sc.n_objects; i++) {
+            char path[800];
+            snprintf(path, sizeof path, "%s/object_%04d.ply", dir, sc.objects[i].id);
+            void *buf = NULL;
+            size_t n = 0;
+            CHECK_OK(sooc_file_read_all(path, 1 << 24, &buf, &n));
+            if (!buf) continue;
+            const char *b = buf, *end = strstr(b, "end_header\n"), *ev = strstr(b, "element vertex ");
+            int nv = ev ? atoi(ev + 15) : 0;
+            CHECK(end && nv > 0 && (size_t)(end - b) + 11 + (size_t)nv * 15 <= n);
+            for (int v = 0; end && v < nv && (size_t)(end - b) + 11 + (size_t)(v + 1) * 15 <= n; v++) {
+                float xyz[3];
+                memcpy(xyz, end + 11 + (size_t)v * 15, sizeof xyz);
+                double pw[3] = {xyz[0], xyz[1], xyz[2]};
+                double d = sooc_scene_object_distance(&sc.objects[i], pw);
+                if (d > worst) worst = d;
+            }
+            seen[sc.objects[i].shape] = 1;
+            sooc_free(buf);
+        }
+        sooc_scene_free(&sc);
+    }
+    printf("meshes: worst vertex distance to the surface %.3g m\n", worst);
+    CHECK(worst < 1e-5);
+    CHECK(seen[SOOC_SHAPE_CUP] && seen[SOOC_SHAPE_BOWL] && seen[SOOC_SHAPE_BOTTLE] && seen[SOOC_SHAPE_CAN]);
+    tu_rm_rf(dir);
+}
+
 int main(void) {
     test_geometry();
     test_textures();
@@ -459,5 +501,6 @@ int main(void) {
     test_noise_sigma();
     test_noise_invalid();
     test_run();
+    test_meshes();
     return check_report("test_data_tabletop");
 }
