@@ -13,8 +13,11 @@
  *   3. edge dropout: a pixel whose 4-neighbour depth differs by more than
  *      edge_rel * z (or is invalid) is dropped with probability edge_drop;
  *   4. speckle dropout: any pixel with probability speckle_drop;
- *   5. axial noise: z' = z + N(0, s^2) with s^2 = sigma_z(z)^2 - q(z)^2 / 12,
- *      sigma_z(z) = sigma0 + sigma_k (z - z0)^2 (Nguyen et al. 2012), then
+ *   5. axial noise: z' = z + N(0, s^2) with s^2 = sigma_z(z, theta)^2 - q(z)^2 / 12,
+ *      sigma_z = sigma0 + sigma_k (z - z0)^2 + sigma_a / sqrt(z) theta^2 /
+ *      (pi/2 - theta)^2 (Nguyen et al. 2012), theta the angle between the
+ *      optical axis and the surface normal (from the exact depth's
+ *      neighbours, at most theta_max; 0 where they are missing), then
  *   6. disparity quantisation: z'' = F / (round(F * subpixel_inv / z') /
  *      subpixel_inv), F = f_ref * baseline (the sensor's own focal length, not
  *      the frame's); its step is q(z) = z^2 / (F * subpixel_inv), so the total
@@ -41,6 +44,7 @@ extern "C" {
 
 typedef struct sooc_noise_params {
     double sigma0, sigma_k, z0;    /* sigma_z = sigma0 + sigma_k (z - z0)^2: 0.0012, 0.0019, 0.4 m */
+    double sigma_a, theta_max;     /* + sigma_a / sqrt(z) theta^2 / (pi/2 - theta)^2: 0.0001, 80 deg */
     int quantise;                  /* disparity quantisation on (1)                                */
     double baseline;               /* projector-camera baseline (m): 0.075                         */
     double f_ref;                  /* sensor focal length (px) of its disparity image: 580          */
@@ -57,8 +61,11 @@ typedef struct sooc_noise_params {
 /* Kinect-class defaults (above). */
 void sooc_noise_params_kinect(sooc_noise_params *p);
 
-/* Axial standard deviation sigma_z(z) in m (the formula of step 5). */
+/* Axial standard deviation in m (the formula of step 5): sooc_noise_sigma_z
+ * at normal incidence, sooc_noise_sigma_zt at angle theta (radians; clamped
+ * to theta_max). */
 double sooc_noise_sigma_z(const sooc_noise_params *p, double z);
+double sooc_noise_sigma_zt(const sooc_noise_params *p, double z, double theta);
 
 /* Apply the noise to f in place (rgb, depth, valid; instance untouched).
  * Allocates one scratch buffer per call. Errors: SOOC_EINVAL on an empty

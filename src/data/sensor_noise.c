@@ -1,6 +1,7 @@
 /* Structured-light sensor noise on rendered RGB-D frames (sensor_noise.h):
  * range limits, projector shadows, edge and speckle dropout, axial noise
- * that grows with z^2 (Nguyen et al. 2012), disparity quantisation, white
+ * that grows with z^2 and with the incidence angle (Nguyen et al. 2012),
+ * disparity quantisation, white
  * balance, exposure drift and colour noise. One scratch buffer per frame. */
 #include "sooc3d/sensor_noise.h"
 
@@ -12,6 +13,8 @@ void sooc_noise_params_kinect(sooc_noise_params *p) {
     p->sigma0 = 0.0012;
     p->sigma_k = 0.0019;
     p->z0 = 0.4;
+    p->sigma_a = 0.0001;
+    p->theta_max = 80 * M_PI / 180;
     p->quantise = 1;
     p->baseline = 0.075;
     p->f_ref = 580;
@@ -31,6 +34,42 @@ void sooc_noise_params_kinect(sooc_noise_params *p) {
 double sooc_noise_sigma_z(const sooc_noise_params *p, double z) {
     double e = z - p->z0;
     return p->sigma0 + p->sigma_k * e * e;
+}
+
+double sooc_noise_sigma_zt(const sooc_noise_params *p, double z, double theta) {
+    double t = theta < 0 ? 0 : theta > p->theta_max ? p->theta_max : theta, g = M_PI / 2 - t;
+    return sooc_noise_sigma_z(p, z) + (z > 0 ? p->sigma_a / sqrt(z) * t * t / (g * g) : 0);
+}
+
+/* Camera-frame point of pixel (u, v) at planar depth z (pixel centres). */
+static void backproject(const sooc_intrinsics *K, double fx, double fy, int u, int v, double z, double P[3]) {
+    P[0] = (u + 0.5 - K->cx) / fx * z;
+    P[1] = (v + 0.5 - K->cy) / fy * z;
+    P[2] = z;
+}
+
+/* Angle between the optical axis and the surface normal (the plane angle of
+ * Nguyen et al.'s experiment), the normal from the exact depth's neighbours
+ * (central differences, one-sided at borders or next to an invalid pixel);
+ * 0 when a direction has no valid neighbour. */
+static double incidence(const float *z, const sooc_intrinsics *K, double fx, double fy, int W, int H, int u, int v) {
+    size_t i = (size_t)v * (size_t)W + (size_t)u;
+    double P[3], A[3], B[3], du[3], dv[3];
+    backproject(K, fx, fy, u, v, z[i], P);
+    int ul = u > 0 && z[i - 1] > 0, ur = u < W - 1 && z[i + 1] > 0;
+    int vu = v > 0 && z[i - (size_t)W] > 0, vd = v < H - 1 && z[i + (size_t)W] > 0;
+    if (!(ul || ur) || !(vu || vd)) return 0;
+    if (ur) backproject(K, fx, fy, u + 1, v, z[i + 1], A); else memcpy(A, P, sizeof P);
+    if (ul) backproject(K, fx, fy, u - 1, v, z[i - 1], B); else memcpy(B, P, sizeof P);
+    for (int k = 0; k < 3; k++) du[k] = A[k] - B[k];
+    if (vd) backproject(K, fx, fy, u, v + 1, z[i + (size_t)W], A); else memcpy(A, P, sizeof P);
+    if (vu) backproject(K, fx, fy, u, v - 1, z[i - (size_t)W], B); else memcpy(B, P, sizeof P);
+    for (int k = 0; k < 3; k++) dv[k] = A[k] - B[k];
+    double n[3] = {du[1] * dv[2] - du[2] * dv[1], du[2] * dv[0] - du[0] * dv[2], du[0] * dv[1] - du[1] * dv[0]};
+    double nn = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(nn > 0)) return 0;
+    double c = fabs(n[2]) / nn;
+    return acos(c > 1 ? 1 : c);
 }
 
 /* Second difference of 1/z along one axis, relative: zero on any plane
@@ -98,11 +137,13 @@ sooc_status sooc_noise_apply(sooc_frame *f, const sooc_noise_params *p, uint64_t
             if ((edge && a < p->edge_drop) || b < p->speckle_drop) f->depth[i] = 0;
         }
     /* 5-6: axial noise and disparity quantisation */
+    double fy = fabs(f->K.fy) > 0 ? fabs(f->K.fy) : fx;
     for (size_t i = 0; i < np; i++) {
         double g = sooc_rng_normal(&rv);
         double z = f->depth[i];
         if (!(z > 0)) continue;
-        double sz = sooc_noise_sigma_z(p, z), var = sz * sz;
+        double th = p->sigma_a > 0 ? incidence(z0, &f->K, fx, fy, W, H, (int)(i % (size_t)W), (int)(i / (size_t)W)) : 0;
+        double sz = sooc_noise_sigma_zt(p, z, th), var = sz * sz;
         if (p->quantise) {
             double q = z * z / (F * p->subpixel_inv);
             var -= q * q / 12;

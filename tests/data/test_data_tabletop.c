@@ -258,6 +258,41 @@ static void test_noise_sigma(void) {
     }
     CHECK_CLOSE(sooc_noise_sigma_z(&(sooc_noise_params){.sigma0 = 0.0012, .sigma_k = 0.0019, .z0 = 0.4}, 1.4),
                 0.0012 + 0.0019, 1e-12, 0);
+    /* a plane turned 70 degrees about the camera's y axis: sigma grows with
+     * the angle term, 0.0001 / sqrt(z) x 12.2 at 70 degrees */
+    {
+        sooc_noise_params np;
+        sooc_noise_params_kinect(&np);
+        int W = 512;
+        plane_frame(&f, W, 1, 0);
+        double th = 70 * DEG, nx = sin(th), nz = cos(th);
+        for (int i = 0; i < W * W; i++) {
+            double rx = ((i % W) + 0.5 - f.K.cx) / f.K.fx, den = nx * rx + nz;
+            f.depth[i] = den > 0.1 ? (float)(nz / den) : 0; /* n . P = n . (0, 0, 1) */
+            f.valid[i] = f.depth[i] > 0;
+        }
+        sooc_frame ex = {0};
+        CHECK_OK(sooc_frame_copy(&ex, &f));
+        CHECK_OK(sooc_noise_apply(&f, &np, 9, 2, 0));
+        double s1 = 0, s2 = 0, ratio = 0;
+        int64_t n = 0;
+        int W2 = W / 2;
+        for (int i = 0; i < W * W; i++) {
+            double z = ex.depth[i];
+            if (!f.valid[i] || !(z > 0.5 && z < 2.5)) continue;
+            double e = (f.depth[i] - z) / sooc_noise_sigma_zt(&np, z, th);
+            s1 += e;
+            s2 += e * e;
+            n++;
+            if (i == W2 * W + W2) ratio = sooc_noise_sigma_zt(&np, z, th) / sooc_noise_sigma_z(&np, z);
+        }
+        double sd = sqrt(s2 / (double)n - (s1 / (double)n) * (s1 / (double)n));
+        printf("noise at 70 degrees: normalised sigma %.4f over %lld pixels (angle term x%.2f at the centre)\n", sd,
+               (long long)n, ratio);
+        CHECK_MSG(fabs(sd - 1) < 0.03 && n > 50000, "70 degrees: normalised sigma %.4f", sd);
+        CHECK(ratio > 1.5);
+        sooc_frame_free(&ex);
+    }
     /* quantisation alone: every depth lies on the disparity grid F * 8 / k */
     sooc_noise_params np;
     sooc_noise_params_kinect(&np);
