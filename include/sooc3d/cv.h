@@ -205,6 +205,10 @@ sooc_status sooc_calib_intrinsics(const sooc_board *b, const char *const *paths,
 sooc_status sooc_calib_handeye(const sooc_board *b, const char *const *paths, const double *T_base_ee, int n,
                                int min_views, int method, sooc_calib *calib, double *rms_px, int *views_used);
 
+/* Load a calibration YAML with OpenCV's FileStorage (the node reads it with
+ * libyaml, sooc_calib_load): image size and the 3x3 camera matrix. */
+sooc_status sooc_cv_calib_yaml_read(const char *path, int *width, int *height, double K[9]);
+
 #ifdef __cplusplus
 }
 #endif

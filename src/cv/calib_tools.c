@@ -642,7 +642,17 @@ out:
     return st;
 }
 
+sooc_status sooc_cv_calib_yaml_read(const char *path, int *width, int *height, double K[9]) {
+    char err[1024] = "";
+    if (sooc_cv_yaml_read(path, width, height, K, err, sizeof err)) return sooc_seterr(SOOC_EFORMAT, "%s", err);
+    return SOOC_OK;
+}
+
 #else /* !SOOC_HAVE_OPENCV */
+
+sooc_status sooc_cv_calib_yaml_read(const char *path, int *width, int *height, double K[9]) {
+    return sooc_seterr(SOOC_EUNSUPPORTED, "%s: %s", path, NO_OPENCV_MSG);
+}
 
 sooc_status sooc_board_render(const sooc_board *b, const sooc_intrinsics *K, const double T_cam_board[16], int ss,
                               double noise, uint64_t seed, sooc_image *out) {

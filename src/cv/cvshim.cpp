@@ -366,3 +366,41 @@ extern "C" int sooc_cv_handeye(int n, const double *T_base_ee, const double *T_c
         return -1;
     }
 }
+
+extern "C" int sooc_cv_yaml_read(const char *path, int *w, int *h, double K[9], char *err, size_t errcap) {
+    try {
+        cv::FileStorage fs(path, cv::FileStorage::READ);
+        if (!fs.isOpened()) {
+            set_err(err, errcap, std::string(path) + ": OpenCV FileStorage cannot open it");
+            return -1;
+        }
+        *w = (int)fs["image_width"];
+        *h = (int)fs["image_height"];
+        cv::FileNode cm = fs["camera_matrix"];
+        if (cm.empty()) {
+            set_err(err, errcap, std::string(path) + ": OpenCV finds no camera_matrix");
+            return -1;
+        }
+        if (cm.isMap() && !cm["data"].empty() && cm["dt"].empty()) {
+            cv::FileNode d = cm["data"];
+            if (d.size() != 9) {
+                set_err(err, errcap, std::string(path) + ": camera_matrix.data does not hold 9 numbers");
+                return -1;
+            }
+            for (int i = 0; i < 9; i++) K[i] = (double)d[i];
+        } else {
+            cv::Mat m;
+            cm >> m;
+            if (m.rows != 3 || m.cols != 3) {
+                set_err(err, errcap, std::string(path) + ": camera_matrix is not 3x3");
+                return -1;
+            }
+            m.convertTo(m, CV_64F);
+            for (int i = 0; i < 9; i++) K[i] = m.at<double>(i / 3, i % 3);
+        }
+        return 0;
+    } catch (const std::exception &e) {
+        set_err(err, errcap, std::string(path) + ": OpenCV: " + e.what());
+        return -1;
+    }
+}

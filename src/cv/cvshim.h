@@ -75,6 +75,11 @@ int sooc_cv_pnp(int n, const double *obj, const double *img, const double K[4], 
 int sooc_cv_handeye(int n, const double *T_base_ee, const double *T_cam_board, int method, double T_ee_cam[16],
                     char *err, size_t errcap);
 
+/* Read a calibration YAML with OpenCV's FileStorage (the check that files
+ * the node reads also load in OpenCV): image_width/height and
+ * camera_matrix (ROS {rows, cols, data} or !!opencv-matrix). */
+int sooc_cv_yaml_read(const char *path, int *w, int *h, double K[9], char *err, size_t errcap);
+
 #ifdef __cplusplus
 }
 #endif
