@@ -97,7 +97,8 @@ typedef struct sooc_node_config {
     sooc_node_depth_resample depth_resample;
     double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
     double merge_m;                          /* duplicate merge radius (sooc3d_mapper_params.
-                                                merge_radius): 0 = never (default) */
+                                                merge_radius): default 0.35 m (revisits refine
+                                                the mapped entry, docs/cogmap.md); 0 = never */
     int latents;                             /* SOOC3D_LATENTS_MEAN (default) / _SAMPLE */
     int slots;                               /* object slots per keyframe (sooc3d_mapper_params.
                                                 slots): 0 = the model's K (default) */

@@ -28,6 +28,9 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->floor_ransac_threshold_m = 0.02;
     c->floor_ransac_iterations = 200;
     c->max_tilt_deg = 30.0;
+    /* revisits refine instead of duplicating: the mapper's duplicate merge at the measured radius
+     * (docs/cogmap.md "Revisits"; 0 turns it off as in `sooc3d infer/eval`) */
+    c->merge_m = 0.35;
     c->support_frames = 8;
     c->cam_height_min_m = 1.2;   /* src/data/gen.c: cameras 1.2-2.0 m above the floor */
     c->cam_height_max_m = 2.0;

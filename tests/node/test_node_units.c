@@ -80,11 +80,14 @@ static void test_launch(void) {
     CHECK_CLOSE(c.clip_m, 4.5, 0, 0);
     CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "clip_m: 4.5"));
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  clip_m: -1\n", "t.yaml:3", "model.clip_m");
-    /* model.merge_m: the mapper's duplicate merge radius (0 = never, the default) */
-    const char *mrg = "sensor: {driver: replay, path: x}\nmodel:\n  merge_m: 0.35\n";
+    /* model.merge_m: the mapper's duplicate merge radius (0 = never; the node default 0.35) */
+    const char *mrg = "sensor: {driver: replay, path: x}\nmodel:\n  merge_m: 0.2\n";
     CHECK_OK(sooc_node_config_parse(&c, mrg, strlen(mrg), "m.yaml"));
-    CHECK_CLOSE(c.merge_m, 0.35, 0, 0);
-    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "merge_m: 0.35"));
+    CHECK_CLOSE(c.merge_m, 0.2, 0, 0);
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "merge_m: 0.2"));
+    sooc_node_config dflt;
+    sooc_node_config_default(&dflt);
+    CHECK_CLOSE(dflt.merge_m, 0.35, 0, 0);
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -1\n", "t.yaml:3", "model.merge_m");
     /* model.latents: mean (default) | sample */
     CHECK(c.latents == SOOC3D_LATENTS_MEAN && strstr(buf, "latents: mean"));

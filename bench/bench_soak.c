@@ -1,0 +1,195 @@
+/* Soak: one generated unity scene replayed in a loop through the node with
+ * the shipped model (`replay loop: true`, block_when_full) for N keyframes
+ * (default 10,000), a persistent map.db and the node's default settings
+ * (model.merge_m). A monitor thread samples the node's stats: the map size
+ * after the first pass over the scene, at the end and its maximum, resident
+ * memory (VmRSS) and open file descriptors after the first pass, after 10% of
+ * the keyframes and at the end. Prints a JSON object as its last line.
+ *
+ *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--model PATH] [--out DIR]
+ *
+ * Run from the repository root (the default model path is relative to it). */
+#include "sooc3d/gen.h"
+#include "sooc3d/node.h"
+
+#include <dirent.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static long rss_kb(void) {
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    char line[256];
+    long kb = -1;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "VmRSS:", 6)) kb = strtol(line + 6, NULL, 10);
+    fclose(f);
+    return kb;
+}
+
+static int open_fds(void) {
+    DIR *d = opendir("/proc/self/fd");
+    if (!d) return -1;
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)))
+        if (e->d_name[0] != '.') n++;
+    closedir(d);
+    return n - 1;   /* the directory stream itself */
+}
+
+typedef struct mon {
+    sooc_node *node;
+    atomic_int done;
+    uint64_t first_pass_kf, tenth_kf;
+    uint64_t entries_first, entries_max, entries_tenth;
+    long rss_first, rss_tenth;
+    int fds_first, fds_tenth;
+    int have_first, have_tenth;
+} mon;
+
+static void *monitor(void *arg) {
+    mon *m = arg;
+    while (!atomic_load(&m->done)) {
+        sooc_node_stats s;
+        sooc_node_get_stats(m->node, &s);
+        if (s.n_objects > m->entries_max) m->entries_max = s.n_objects;
+        if (!m->have_first && s.keyframes >= m->first_pass_kf) {
+            m->entries_first = s.n_objects;
+            m->rss_first = rss_kb();
+            m->fds_first = open_fds();
+            m->have_first = 1;
+        }
+        if (!m->have_tenth && s.keyframes >= m->tenth_kf) {
+            m->entries_tenth = s.n_objects;
+            m->rss_tenth = rss_kb();
+            m->fds_tenth = open_fds();
+            m->have_tenth = 1;
+        }
+        usleep(20000);
+    }
+    return NULL;
+}
+
+int main(int argc, char **argv) {
+    long long keyframes = 10000;
+    const char *scale = "m", *model = "models/sooc3d_unity/model.bin", *out = NULL;
+    uint64_t seed = 7;
+    double merge = -1;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--keyframes") && i + 1 < argc) keyframes = atoll(argv[++i]);
+        else if (!strcmp(argv[i], "--scale") && i + 1 < argc) scale = argv[++i];
+        else if (!strcmp(argv[i], "--seed") && i + 1 < argc) seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--merge") && i + 1 < argc) merge = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
+        else if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
+        else {
+            fprintf(stderr, "usage: bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--model P] "
+                            "[--out DIR]\n");
+            return 2;
+        }
+    }
+    if (keyframes < 1) keyframes = 1;
+    if (access(model, R_OK)) {
+        fprintf(stderr, "bench_soak: no model at %s (run from the repository root)\n", model);
+        return 2;
+    }
+    char dir[512];
+    if (out) snprintf(dir, sizeof dir, "%s", out);
+    else {
+        snprintf(dir, sizeof dir, "/tmp/bench_soak_XXXXXX");
+        if (!mkdtemp(dir)) return 1;
+    }
+    sooc_gen_params gp;
+    sooc_gen_params_default(&gp);
+    gp.preset = SOOC_GEN_UNITY;
+    gp.scale = !strcmp(scale, "s") ? SOOC_GEN_S : !strcmp(scale, "l") ? SOOC_GEN_L : SOOC_GEN_M;
+    gp.seed = seed;
+    gp.n_scenes = 1;
+    gp.threads = 1;
+    gp.write_meshes = 0;
+    gp.contact_sheet = 0;
+    char gen_dir[600], db[700];
+    snprintf(gen_dir, sizeof gen_dir, "%s/gen", dir);
+    if (sooc_gen_run(&gp, gen_dir, NULL, NULL, NULL)) {
+        fprintf(stderr, "bench_soak: gen: %s\n", sooc_errmsg());
+        return 1;
+    }
+    snprintf(db, sizeof db, "%s/map.sqlite", dir);
+    char text[2048];
+    int len = snprintf(text, sizeof text,
+                       "sensor: {driver: replay, path: '%s/scene_0000', speed: fast, loop: true}\n"
+                       "pose: {source: sensor}\n"
+                       "model: {path: '%s'}\n"
+                       "keyframe: {translation_m: 0.25, rotation_deg: 15, time_s: 0}\n"
+                       "map: {db: '%s', resume: true}\n"
+                       "world: {up: +y, floor: 0.0}\n"
+                       "pipeline: {block_when_full: true, stats_period_s: 0}\n"
+                       "log: {level: warn}\n",
+                       gen_dir, model, db);
+    sooc_node_config c;
+    if (sooc_node_config_parse(&c, text, (size_t)len, "bench_soak.yaml")) {
+        fprintf(stderr, "bench_soak: %s\n", sooc_errmsg());
+        return 1;
+    }
+    if (merge >= 0) c.merge_m = merge;
+    sooc_log_set_level(SOOC_LOG_WARN);
+    long rss0 = rss_kb();
+    int fds0 = open_fds();
+    sooc_node_options o;
+    memset(&o, 0, sizeof o);
+    o.max_keyframes = (uint64_t)keyframes;
+    sooc_node *n = NULL;
+    if (sooc_node_create(&n, &c, &o)) {
+        fprintf(stderr, "bench_soak: %s\n", sooc_errmsg());
+        return 1;
+    }
+    mon m;
+    memset(&m, 0, sizeof m);
+    m.node = n;
+    atomic_init(&m.done, 0);
+    int views = sooc_gen_views(&gp);
+    m.first_pass_kf = (uint64_t)views;
+    m.tenth_kf = (uint64_t)(keyframes / 10 > views ? keyframes / 10 : views);
+    pthread_t th;
+    pthread_create(&th, NULL, monitor, &m);
+    double t0 = sooc_seconds();
+    sooc_status st = sooc_node_run(n);
+    double secs = sooc_seconds() - t0;
+    atomic_store(&m.done, 1);
+    pthread_join(th, NULL);
+    sooc_node_stats s;
+    sooc_node_get_stats(n, &s);
+    long rss_end = rss_kb();
+    int fds_end = open_fds();
+    if (st) fprintf(stderr, "bench_soak: run: %s\n", sooc_errmsg());
+    sooc_node_destroy(n);
+    int fds_after = open_fds();
+    double growth = m.entries_first ? (double)s.n_objects / (double)m.entries_first - 1.0 : 0.0;
+    fprintf(stderr,
+            "bench_soak: %llu keyframes in %.0f s, entries %llu after the first pass (%d views), %llu at the end "
+            "(%+.1f%%), max %llu; RSS %ld -> %ld -> %ld kB; fds %d -> %d -> %d (%d after destroy)\n",
+            (unsigned long long)s.keyframes, secs, (unsigned long long)m.entries_first, views,
+            (unsigned long long)s.n_objects, 100 * growth, (unsigned long long)m.entries_max, m.rss_first,
+            m.rss_tenth, rss_end, m.fds_first, m.fds_tenth, fds_end, fds_after);
+    printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"views_per_pass\": %d, \"merge_m\": %g, "
+           "\"keyframes\": %llu, \"seconds\": %.1f, \"entries_first_pass\": %llu, \"entries_tenth\": %llu, "
+           "\"entries_end\": %llu, \"entries_max\": %llu, \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
+           "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
+           "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
+           "\"status\": \"%s\"}\n",
+           scale, (unsigned long long)seed, views, c.merge_m, (unsigned long long)s.keyframes, secs,
+           (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
+           (unsigned long long)m.entries_max, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
+           m.fds_tenth, fds_end, fds_after, sooc_status_str(st));
+    if (!out) {
+        char cmd[600];
+        snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+        if (system(cmd)) fprintf(stderr, "bench_soak: could not remove %s\n", dir);
+    }
+    return st ? 1 : 0;
+}
