@@ -370,7 +370,10 @@ static sooc_status replay_read(sooc_sensor *s, sooc_frame *f, int timeout_ms) {
             if ((st = sooc__sleep_until(s, due))) return st;
         }
     }
-    if ((st = src_read(r, r->next, f, &s->p))) return st;
+    if ((st = src_read(r, r->next, f, &s->p))) {
+        r->next++; /* a frame that cannot be read (corrupt JPEG, ...) is skipped if the caller reads on */
+        return st;
+    }
     f->t_ns = sooc__timebase(s, f->t_ns + r->pass * r->pass_shift_ns);
     f->index = r->delivered++;
     r->next++;

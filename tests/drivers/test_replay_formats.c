@@ -243,6 +243,7 @@ int main(void) {
 
     /* launch keys depth_shift / depth_invalid reach the reader */
     double z;
+    sooc_sensor_params sp;
     const char *lf = make_seq(SOOC_SEQ_LABELFUSION, &z);
     char err[1200];
     double got = via_launch(lf, "7scenes", ", depth_shift: 3, depth_scale: 0.0001", err, sizeof err);
@@ -259,11 +260,55 @@ int main(void) {
     got = via_launch(lf, "label-fusion", ", depth_invalid: 40001", err, sizeof err);
     CHECK_MSG(fabs(got - 0.5) < 1e-3, "label-fusion with another invalid value: %.4f %s", got, err);
 
+    /* a truncated JPEG in the middle: that read names the file, the next read goes on */
+    {
+        const char *d7 = make_seq(SOOC_SEQ_7SCENES, &z);
+        char jp[1200];
+        snprintf(jp, sizeof jp, "%s/frame-000003.color.jpg", d7);
+        void *jb;
+        size_t jn;
+        CHECK_OK(sooc_file_read_all(jp, 1 << 20, &jb, &jn));
+        FILE *fp = fopen(jp, "wb");
+        if (fp) { fwrite(jb, 1, jn / 2, fp); fclose(fp); }
+        sooc_sensor_params_default(&sp);
+        sp.uri = d7;
+        sp.speed = 0;
+        sooc_sensor *s7 = NULL;
+        /* frame 3 is the first: open reads it for the size, so it fails naming the file */
+        CHECK(sooc_sensor_open(&s7, "replay", &sp) == SOOC_EFORMAT && strstr(sooc_errmsg(), "frame-000003.color.jpg"));
+        fp = fopen(jp, "wb");
+        if (fp) { fwrite(jb, 1, jn, fp); fclose(fp); }
+        snprintf(jp, sizeof jp, "%s/frame-000005.color.jpg", d7);
+        fp = fopen(jp, "wb");
+        if (fp) { fwrite(jb, 1, jn / 3, fp); fclose(fp); }
+        snprintf(jp, sizeof jp, "%s/frame-000007.color.jpg", d7);
+        fp = fopen(jp, "wb");
+        if (fp) { fwrite(jb, 1, jn, fp); fclose(fp); }
+        snprintf(jp, sizeof jp, "%s/frame-000007.depth.png", d7);
+        put_depth(jp, 1500, 0);
+        snprintf(jp, sizeof jp, "%s/frame-000007.pose.txt", d7);
+        wtext(jp, "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+        sooc_free(jb);
+        CHECK_OK(sooc_sensor_open(&s7, "replay", &sp));
+        if (s7) {
+            sooc_frame f7 = {0};
+            CHECK_OK(sooc_sensor_start(s7));
+            CHECK_OK(sooc_sensor_read(s7, &f7, 100));                 /* frame 3 */
+            sooc_status st7 = sooc_sensor_read(s7, &f7, 100);        /* frame 5: truncated */
+            CHECK_MSG(st7 == SOOC_EFORMAT && strstr(sooc_errmsg(), "frame-000005.color.jpg") &&
+                      strstr(sooc_errmsg(), "corrupt JPEG"), "%s", sooc_errmsg());
+            CHECK_OK(sooc_sensor_read(s7, &f7, 100));                 /* frame 7 */
+            CHECK(fabs(f7.depth[5] - 1.5) < 1e-6);
+            CHECK(sooc_sensor_read(s7, &f7, 100) == SOOC_EEOF);
+            sooc_sensor_close(s7);
+            sooc_frame_free(&f7);
+        }
+    }
+
     /* unknown names: the launch parser and the driver both list the valid ones */
     got = via_launch(lf, "scannet", "", err, sizeof err);
     CHECK_MSG(got == -1 && strstr(err, "formats.yaml:1") && strstr(err, "sensor.format") &&
               strstr(err, "sevenscenes") && strstr(err, "label-fusion"), "%s", err);
-    sooc_sensor_params sp;
     sooc_sensor_params_default(&sp);
     sp.uri = lf;
     sp.format = "klg";
