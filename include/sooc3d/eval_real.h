@@ -60,6 +60,8 @@ typedef struct sooc_seen_votes {
     int n_free;              /* ... with valid depth d there and z < d - tol              */
     int n_surface;           /* ... with |z - d| <= tol                                   */
     int n_behind;            /* ... with z > d + tol (occluded: no evidence)              */
+    double min_behind;       /* smallest z - d over the frames with valid depth there (m;
+                                > tol when every such frame saw it occluded); NaN if none */
     sooc_seen_class cls;
 } sooc_seen_votes;
 
@@ -155,6 +157,9 @@ typedef struct sooc_eval_real_result {
     double pos_spread_m;           /* mean over persistent entries (NaN if none)         */
     double yaw_spread_deg;
     int n_seen[3];                 /* final entries by sooc_seen_class                   */
+    double never_behind_med_m;     /* median min_behind of the never-seen entries that some
+                                      frame measured a surface in front of (NaN if none)  */
+    int n_never_behind;            /* their number                                       */
     double update_s, render_s;
 } sooc_eval_real_result;
 

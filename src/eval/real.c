@@ -10,6 +10,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* ---------------------------------------------------------------- query rule */
@@ -35,6 +36,7 @@ sooc_status sooc_eval_point_seen(const double p_w[3], const sooc_frame *frames, 
     if (!p_w || !out || n < 0 || (n && !frames) || !(tol > 0))
         return sooc_seterr(SOOC_EINVAL, "point_seen: bad arguments (n %d, tol %g)", n, tol);
     memset(out, 0, sizeof *out);
+    out->min_behind = NAN;
     for (int i = 0; i < n; i++) {
         const sooc_frame *f = &frames[i];
         if (!f->has_pose || !f->depth || !f->valid) continue;
@@ -51,6 +53,7 @@ sooc_status sooc_eval_point_seen(const double p_w[3], const sooc_frame *frames, 
         if (!f->valid[k]) continue;
         double d = f->depth[k];
         if (!(d > 0) || !isfinite(d)) continue;
+        if (!(pc[2] - d >= out->min_behind)) out->min_behind = pc[2] - d;   /* also replaces NaN */
         if (pc[2] < d - tol) out->n_free++;
         else if (pc[2] > d + tol) out->n_behind++;
         else out->n_surface++;
@@ -240,6 +243,18 @@ static sooc_status map_pass(real_ctx *C, const sooc_frame *frames, int n, int ev
     return SOOC_OK;
 }
 
+static int cmp_dbl(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median of v[0..n) (sorted in place); NaN if n == 0. */
+static double median_inplace(double *v, int n) {
+    if (n <= 0) return NAN;
+    qsort(v, (size_t)n, sizeof *v, cmp_dbl);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_frames,
                                const sooc_eval_real_opts *o, sooc_eval_view_fn view_cb, void *user,
                                sooc_eval_real_result *res) {
@@ -251,7 +266,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     if (!m || !res || n_frames < 0 || (n_frames && !frames))
         return sooc_seterr(SOOC_EINVAL, "eval real: bad arguments");
     memset(res, 0, sizeof *res);
-    res->pos_spread_m = res->yaw_spread_deg = NAN;
+    res->pos_spread_m = res->yaw_spread_deg = res->never_behind_med_m = NAN;
     if (sooc_model_is_global(m))
         return sooc_seterr(SOOC_EINVAL, "eval real: the global-frame baseline keeps no cognitive map; the real-sequence "
                                         "metrics (churn, growth, spread, free space) need a SOOC3D model");
@@ -338,7 +353,12 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
             goto done;
         }
         if ((st = sooc3d_mapper_entries(C.mp, ent, ne, &ne))) goto done;
-        double ps = 0, ys = 0;
+        double ps = 0, ys = 0, *beh = sooc_calloc(ne ? ne : 1, sizeof *beh);
+        if (!beh) {
+            st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory for %zu entries", ne);
+            goto done;
+        }
+        int nb = 0;
         for (size_t k = 0; k < ne; k++) {
             uint64_t id = ent[k].id;
             if (id < C.tr_cap && C.tr[id].n >= o->persist_min) {
@@ -349,9 +369,16 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
             }
             double p[3] = {ent[k].x, o->seen_height, ent[k].z};
             sooc_seen_votes sv;
-            if ((st = sooc_eval_point_seen(p, frames, n_frames, o->seen_tol, &sv))) goto done;
+            if ((st = sooc_eval_point_seen(p, frames, n_frames, o->seen_tol, &sv))) {
+                sooc_free(beh);
+                goto done;
+            }
             res->n_seen[sv.cls]++;
+            if (sv.cls == SOOC_SEEN_NEVER && isfinite(sv.min_behind)) beh[nb++] = sv.min_behind;
         }
+        res->n_never_behind = nb;
+        res->never_behind_med_m = median_inplace(beh, nb);
+        sooc_free(beh);
         if (res->n_persistent) {
             res->pos_spread_m = ps / res->n_persistent;
             res->yaw_spread_deg = ys / res->n_persistent * 180.0 / M_PI;
@@ -469,6 +496,8 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     jb_num(&b, "free_frac", ne > 0 ? r->n_seen[SOOC_SEEN_FREE] / ne : NAN);
     jb_num(&b, "never_seen_frac", ne > 0 ? r->n_seen[SOOC_SEEN_NEVER] / ne : NAN);
     jb_num(&b, "surface_frac", ne > 0 ? r->n_seen[SOOC_SEEN_SURFACE] / ne : NAN);
+    jb_printf(&b, ", \"never_seen_behind_n\": %d", r->n_never_behind);
+    jb_num(&b, "never_seen_behind_median_m", r->never_behind_med_m);
     jb_num(&b, "seen_tol_m", o->seen_tol);
     jb_num(&b, "seen_height_m", o->seen_height);
     jb_printf(&b, ", \"frames\": %d, \"frames_mapped\": %d, \"frames_query\": %d, \"query_every\": %d", r->n_frames,

@@ -57,8 +57,9 @@ static void test_point_seen(void) {
     CHECK(v.cls == SOOC_SEEN_SURFACE && v.n_surface == 1);
     CHECK_OK(sooc_eval_point_seen(p_behind, f, 1, 0.25, &v));
     CHECK(v.cls == SOOC_SEEN_NEVER && v.n_behind == 1 && v.n_in_view == 1);   /* occluded: never looked */
+    CHECK_CLOSE(v.min_behind, 1.0, 1e-6, 0);                                  /* 1 m behind the wall */
     CHECK_OK(sooc_eval_point_seen(p_back, f, 1, 0.25, &v));
-    CHECK(v.cls == SOOC_SEEN_NEVER && v.n_in_view == 0);
+    CHECK(v.cls == SOOC_SEEN_NEVER && v.n_in_view == 0 && isnan(v.min_behind));
     CHECK_OK(sooc_eval_point_seen(p_side, f, 1, 0.25, &v));                   /* outside the image */
     CHECK(v.cls == SOOC_SEEN_NEVER && v.n_in_view == 0);
     /* invalid depth where the point projects: no evidence */
@@ -79,6 +80,7 @@ static void test_point_seen(void) {
     double p1[3] = {0, 0, 1.8};   /* f0: 1.8 vs 2.0 surface; f1: 2.8 vs 3.1 -> free (tol 0.25); f2: behind 1.5 */
     CHECK_OK(sooc_eval_point_seen(p1, f, 3, 0.25, &v));
     CHECK(v.n_free == 1 && v.n_surface == 1 && v.n_behind == 1 && v.cls == SOOC_SEEN_SURFACE);
+    CHECK_CLOSE(v.min_behind, -0.3, 1e-6, 0);   /* f1: 2.8 - 3.1 (float depth) */
     CHECK_OK(sooc_eval_point_seen(p1, f, 3, 0.1, &v));   /* tighter band: free in f0 and f1 */
     CHECK(v.n_free == 2 && v.n_surface == 0 && v.cls == SOOC_SEEN_FREE);
     /* a frame without a pose is skipped */
@@ -324,6 +326,8 @@ static void test_runner(void) {
     CHECK((long)ra.entries_pass2 == (long)ra.entries_final + ra.churn2.created - ra.churn2.removed);
     CHECK(ra.churn.updates == 9 && ra.churn2.updates == 9);
     CHECK((size_t)(ra.n_seen[0] + ra.n_seen[1] + ra.n_seen[2]) == ra.entries_final);
+    CHECK(ra.n_never_behind <= ra.n_seen[SOOC_SEEN_NEVER]);
+    CHECK(ra.n_never_behind == 0 ? isnan(ra.never_behind_med_m) : ra.never_behind_med_m > o.seen_tol);
     CHECK(ra.n_persistent >= 0 && (size_t)ra.n_persistent <= ra.entries_final);
     if (ra.n_persistent) CHECK(isfinite(ra.pos_spread_m) && isfinite(ra.yaw_spread_deg));
     printf("runner: %zu entries (%ld created, %ld removed), pass 2: %zu, persistent %d, seen never/free/surface "
