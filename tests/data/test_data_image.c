@@ -3,6 +3,36 @@
 #include "util.h"
 #include "sooc3d/image.h"
 
+#include <jpeglib.h>
+
+/* A progressive or CMYK JPEG written with libjpeg directly (the codec's own
+ * encoder writes baseline RGB/grey only). Returns a malloc'd buffer. */
+static unsigned char *libjpeg_encode(const uint8_t *px, int w, int h, int comps, int progressive,
+                                     unsigned long *n) {
+    struct jpeg_compress_struct ci;
+    struct jpeg_error_mgr em;
+    ci.err = jpeg_std_error(&em);
+    jpeg_create_compress(&ci);
+    unsigned char *out = NULL;
+    *n = 0;
+    jpeg_mem_dest(&ci, &out, n);
+    ci.image_width = (JDIMENSION)w;
+    ci.image_height = (JDIMENSION)h;
+    ci.input_components = comps;
+    ci.in_color_space = comps == 4 ? JCS_CMYK : JCS_RGB;
+    jpeg_set_defaults(&ci);
+    jpeg_set_quality(&ci, 90, TRUE);
+    if (progressive) jpeg_simple_progression(&ci);
+    jpeg_start_compress(&ci, TRUE);
+    while (ci.next_scanline < ci.image_height) {
+        JSAMPROW row = (JSAMPROW)(px + (size_t)ci.next_scanline * (size_t)w * (size_t)comps);
+        jpeg_write_scanlines(&ci, &row, 1);
+    }
+    jpeg_finish_compress(&ci);
+    jpeg_destroy_compress(&ci);
+    return out;
+}
+
 static void test_png_roundtrip(const char *dir) {
     sooc_pixfmt fmts[3] = {SOOC_PIX_RGB8, SOOC_PIX_GRAY8, SOOC_PIX_GRAY16};
     for (int f = 0; f < 3; f++) {
@@ -282,6 +312,27 @@ static void test_jpeg(const char *dir) {
     snprintf(path, sizeof path, "%s/text.jpg", dir);
     write_bytes(path, "hello", 5);
     CHECK_ERR_HAS(sooc_image_read(path, &c), "text.jpg", "unknown image format");
+    /* progressive: decodes like baseline; truncated progressive: EFORMAT */
+    unsigned long pn = 0;
+    unsigned char *pj = libjpeg_encode(p, 64, 40, 3, 1, &pn);
+    CHECK(pj && pn > 100);
+    if (pj) {
+        CHECK_OK(sooc_jpeg_decode(pj, pn, "prog.jpg", &c));
+        double perr = 0;
+        for (int i = 0; i < 64 * 40 * 3; i++) perr += fabs((double)((uint8_t *)c.data)[i] - p[i]);
+        perr /= 64 * 40 * 3;
+        CHECK_MSG(c.width == 64 && perr < 3.0, "progressive error %.2f", perr);
+        CHECK_ERR_HAS(sooc_jpeg_decode(pj, pn * 2 / 3, "prog_cut.jpg", &c), "prog_cut.jpg", "corrupt JPEG");
+        free(pj);
+    }
+    /* CMYK: not supported, said so with the name */
+    uint8_t cmyk[8 * 8 * 4];
+    memset(cmyk, 100, sizeof cmyk);
+    unsigned char *cj = libjpeg_encode(cmyk, 8, 8, 4, 0, &pn);
+    if (cj) {
+        CHECK(sooc_jpeg_decode(cj, pn, "cmyk.jpg", &c) == SOOC_EUNSUPPORTED && strstr(sooc_errmsg(), "cmyk.jpg"));
+        free(cj);
+    }
     /* after all that, the codec still decodes a good stream into the same buffer */
     CHECK_OK(sooc_jpeg_decode(buf, n, "again.jpg", &c));
     CHECK(!memcmp(c.data, b.data, 64 * 40 * 3));
