@@ -50,9 +50,13 @@ typedef struct sooc_mapstore sooc_mapstore;
 
 typedef struct sooc_mapstore_params {
     int create;            /* create the file if missing                          (1) */
-    int readonly;          /* open read-only (the file must exist)                 (0) */
+    int readonly;          /* open read-only (the file must exist); needs only read
+                              permission on the file: with no un-checkpointed -wal
+                              left it opens immutable, so a folder the reader
+                              cannot write is fine                              (0) */
     const char *model_id;  /* stored on creation; on open a non-empty stored id must
-                              match (NULL = no check)                           (NULL) */
+                              match (SOOC_EVERSION), an empty stored id is set to it
+                              (read-write opens); NULL = no check              (NULL) */
     int dim, layout_dim;   /* 0 = take from the file; else stored / must match   (0) */
     double block_size;     /* layout block side stored on creation; 0 = not set  (0) */
 } sooc_mapstore_params;

@@ -115,7 +115,7 @@ static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc,
     if (!nc && !nr) return;
     printf("keyframe %llu: %zu changed, %zu removed, %llu objects\n", (unsigned long long)kf, nc, nr,
            (unsigned long long)st->n_objects);
-    if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x", "z", "yaw", "pres", "obs", "sigma");
+    if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x_m", "z_m", "yaw_deg", "pres", "obs", "sigma_m");
     for (size_t i = 0; i < nc; i++)
         printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %6.3f\n", (unsigned long long)chg[i].id, chg[i].x, chg[i].z,
                chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count, chg[i].sigma_t);

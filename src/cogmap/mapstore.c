@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 enum {
     ST_PUT_ENTRY, ST_DEL_ENTRY, ST_PUT_LAYOUT, ST_PUT_META, ST_ADD_KF, ST_GET_ENTRY, ST_COUNT
@@ -199,6 +200,76 @@ fail:
     return st;
 }
 
+/* "file:<path>?mode=ro[&immutable=1]" with the path percent-encoded (URI
+ * filenames, https://sqlite.org/uri.html). 0 or -1 if it does not fit. */
+static int ro_uri(char *buf, size_t cap, const char *path, int immutable) {
+    static const char hex[] = "0123456789ABCDEF";
+    size_t n = 0;
+    const char *pre = "file:";
+    for (const char *c = pre; *c; c++) buf[n++] = *c;
+    for (const unsigned char *c = (const unsigned char *)path; *c; c++) {
+        if (n + 4 >= cap) return -1;
+        if ((*c >= 'A' && *c <= 'Z') || (*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9') ||
+            strchr("/._-~", *c)) {
+            buf[n++] = (char)*c;
+        } else {
+            buf[n++] = '%';
+            buf[n++] = hex[*c >> 4];
+            buf[n++] = hex[*c & 15];
+        }
+    }
+    const char *q = immutable ? "?mode=ro&immutable=1" : "?mode=ro";
+    if (n + strlen(q) + 1 > cap) return -1;
+    memcpy(buf + n, q, strlen(q) + 1);
+    return 0;
+}
+
+/* Read-only open that needs only read permission. A WAL database opened
+ * read-only needs its -shm file, which SQLite must create (or write) when the
+ * writer has gone: in a folder the reader cannot write that fails with
+ * SQLITE_READONLY/CANTOPEN ("attempt to write a readonly database"). When no
+ * -wal file with content is left (the writer checkpointed it on close), every
+ * committed row is in the main file, so it is reopened as immutable (no
+ * locking, no -shm). With a non-empty -wal (a writer is running or died
+ * before checkpointing) the caller gets the error, naming the cause. */
+static sooc_status open_readonly(sooc_mapstore *s, const char *path) {
+    size_t cap = 3 * strlen(path) + 64;
+    char *uri = sooc_malloc(cap);
+    if (!uri) return SOOC_ENOMEM;
+    sooc_status st = SOOC_OK;
+    int flags = SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_NOMUTEX;
+    for (int immutable = 0; immutable < 2; immutable++) {
+        if (ro_uri(uri, cap, path, immutable)) { st = sooc_seterr(SOOC_EINVAL, "%s: path too long", path); break; }
+        if (s->db) { sqlite3_close_v2(s->db); s->db = NULL; }
+        int rc = sqlite3_open_v2(uri, &s->db, flags, NULL);
+        if (rc != SQLITE_OK) { st = dberr(s, rc, "cannot open read-only"); break; }
+        sqlite3_extended_result_codes(s->db, 1);
+        sqlite3_busy_timeout(s->db, 5000);
+        rc = sqlite3_exec(s->db, "SELECT count(*) FROM sqlite_master", NULL, NULL, NULL);
+        if (rc == SQLITE_OK) break;
+        int prim = rc & 0xff;
+        char wal[4096];
+        snprintf(wal, sizeof wal, "%s-wal", path);
+        struct stat sb;
+        int wal_has_data = stat(wal, &sb) == 0 && sb.st_size > 0;
+        if (immutable || (prim != SQLITE_READONLY && prim != SQLITE_CANTOPEN)) {
+            st = dberr(s, rc, "reading the schema");
+            break;
+        }
+        if (wal_has_data) {
+            st = sooc_seterr(SOOC_EIO,
+                             "%s: cannot read it without write access to its folder: %s holds "
+                             "transactions not yet checkpointed (a writer is running or died), and "
+                             "reading them needs the -shm file (%s)",
+                             path, wal, sqlite3_errmsg(s->db));
+            break;
+        }
+        sooc_log(SOOC_LOG_DEBUG, "%s: %s; no -wal left, reopening immutable", path, sqlite3_errmsg(s->db));
+    }
+    sooc_free(uri);
+    return st;
+}
+
 sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc_mapstore_params *pp) {
     *out = NULL;
     sooc_mapstore_params p;
@@ -217,11 +288,16 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
     if (!s->path) { sooc_free(s); return SOOC_ENOMEM; }
     s->readonly = p.readonly;
     sooc_status st = SOOC_OK;
-    int flags = p.readonly ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | (p.create ? SQLITE_OPEN_CREATE : 0));
-    int rc = sqlite3_open_v2(path, &s->db, flags | SQLITE_OPEN_NOMUTEX, NULL);
-    if (rc != SQLITE_OK) { st = dberr(s, rc, "cannot open"); goto fail; }
-    sqlite3_extended_result_codes(s->db, 1);
-    sqlite3_busy_timeout(s->db, 5000);
+    int rc;
+    if (p.readonly) {
+        if ((st = open_readonly(s, path))) goto fail;
+    } else {
+        int flags = SQLITE_OPEN_READWRITE | (p.create ? SQLITE_OPEN_CREATE : 0);
+        rc = sqlite3_open_v2(path, &s->db, flags | SQLITE_OPEN_NOMUTEX, NULL);
+        if (rc != SQLITE_OK) { st = dberr(s, rc, "cannot open"); goto fail; }
+        sqlite3_extended_result_codes(s->db, 1);
+        sqlite3_busy_timeout(s->db, 5000);
+    }
 
     /* touches the file header: a non-database fails here with SQLITE_NOTADB */
     int n_tables = 0, has_meta = 0;
@@ -297,6 +373,12 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
             rc = sqlite3_prepare_v2(s->db, k_sql[i], -1, &s->st[i], NULL);
             if (rc != SQLITE_OK) { st = dberr(s, rc, "preparing statements (schema mismatch?)"); goto fail; }
         }
+    /* a map written without a model id (before ids were stored) takes this one */
+    if (p.model_id && p.model_id[0] && !p.readonly) {
+        r = meta_get(s, "model_id", b, sizeof b, &st);
+        if (r < 0) goto fail;
+        if ((!r || !b[0]) && (st = meta_put(s, "model_id", p.model_id))) goto fail;
+    }
     *out = s;
     return SOOC_OK;
 fail:

@@ -89,7 +89,8 @@ struct sooc_node {
 #endif
     float extent[3];               /* box extent from the database (resume of a mapper without one) */
     int db_exists;
-    uint64_t model_id;
+    uint64_t model_id;       /* table latent_model_id: FNV-1a 64 of the checkpoint file */
+    char model_id_str[64];   /* map.db model_id: "fnv1a64:<16 hex> bytes:<n>" ("" = injected mapper) */
 
     sooc_map_entry *prev;          /* start-up only: the map republished at create */
     size_t n_prev, cap_prev;
@@ -328,7 +329,7 @@ static sooc_status store_open(sooc_node *n, int create) {
     mp.create = create;
     mp.dim = create ? sooc3d_mapper_latent_dim(n->mapper) : 0;
     mp.layout_dim = create ? sooc3d_mapper_layout_dim(n->mapper) : 0;
-    mp.model_id = NULL;
+    mp.model_id = n->model_id_str[0] ? n->model_id_str : NULL; /* stored, and checked on resume */
     if (create && mp.dim <= 0)
         return sooc_seterr(SOOC_EINVAL, "%s: map.db: the mapper reports latent dim %d", n->cfg.path, mp.dim);
     sooc_status st = sooc_mapstore_open(&n->store, n->cfg.map_db, &mp);
@@ -378,7 +379,11 @@ static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, c
         uint32_t ld = (uint32_t)sooc3d_mapper_latent_dim(n->mapper);
         double T_src_map[16];
         sooc_se3_inverse(T_src_map, n->T_world_src);
-        if (!rc) rc = sooc_table_set_meta(n->table, ld, n->model_id, kf ? kf->stamp_ns : 0, T_src_map);
+        /* T_src_map (and HFLAG_FLOOR_SET) only once the world frame is known:
+         * given, stored, or estimated; not the identity placeholder before an estimate */
+        if (!rc)
+            rc = sooc_table_set_meta(n->table, ld, n->model_id, kf ? kf->stamp_ns : 0,
+                                     n->world_ready ? T_src_map : NULL);
         for (size_t i = 0; i < nc && !rc; i++) {
             sooc_table_record r;
             to_record(&chg[i], &r);
@@ -661,6 +666,22 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             goto fail;
         }
         n->own_mapper = 1;
+        /* the model's identity is its checkpoint's content, not its path */
+        void *buf = NULL;
+        size_t nb = 0;
+        if (sooc_file_read_all(c->model_path, (size_t)1 << 31, &buf, &nb) == SOOC_OK) {
+            /* 64-bit FNV-1a of every byte. Not a CRC32 of the file: a checkpoint
+             * ends with its own CRC32, which makes that of the whole file a constant */
+            uint64_t h = 0xcbf29ce484222325ull;
+            for (size_t i = 0; i < nb; i++) h = (h ^ ((const unsigned char *)buf)[i]) * 0x100000001b3ull;
+            sooc_free(buf);
+            n->model_id = h;
+            snprintf(n->model_id_str, sizeof n->model_id_str, "fnv1a64:%016llx bytes:%zu",
+                     (unsigned long long)h, nb);
+        } else { /* a mapper that does not read model.path as a file (tests): no model check */
+            sooc_log(SOOC_LOG_DEBUG, "%s: model.path %s: %s: map.db model_id not set", c->path, c->model_path,
+                     sooc_errmsg());
+        }
     }
     sooc3d_mapper_input_size(n->mapper, &n->tw, &n->th);
     if (c->input_width > 0 && (c->input_width != n->tw || c->input_height != n->th)) {
