@@ -62,6 +62,10 @@ typedef struct sooc_odom_params {
     /* after this many consecutive failures the tracker re-anchors: the next
      * frame becomes a keyframe at the last tracked pose (default 10; 0 = never) */
     int max_failures;
+    /* a result is also a failure when less than this fraction of the
+     * frame's depth pixels, moved into the keyframe, agree with its depth
+     * within max_depth_diff_m (default 0.3; 0 = no check) */
+    double min_agreement;
 } sooc_odom_params;
 
 void sooc_odom_params_default(sooc_odom_params *p);
@@ -79,6 +83,7 @@ typedef struct sooc_odom_result {
     int new_keyframe;          /* this frame became the keyframe                 */
     double T_wc[16];           /* valid when state is FIRST or TRACKED           */
     double ms;                 /* time spent in this call                        */
+    double agreement;          /* depth agreement with the keyframe (see params) */
 } sooc_odom_result;
 
 typedef struct sooc_odom_stats {

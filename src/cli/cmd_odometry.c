@@ -25,6 +25,7 @@ static void usage(FILE *f) {
             "  --kf-trans M         new keyframe after M metres (default 0.10)\n"
             "  --kf-rot D           ... or D degrees (default 10)\n"
             "  --kf-frames N        ... or N frames (default 0 = off)\n"
+            "  --min-agree A        failure when under this fraction of the depth agrees with the keyframe's (default 0.3)\n"
             "  --points P           fraction of the pixels OpenCV uses (default 0.07)\n"
             "  --depth-diff M       correspondence depth gate in metres (default 0.07)\n"
             "  --max-failures N     re-anchor after N failed frames in a row (default 10)\n"
@@ -99,6 +100,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
         } else if (!strcmp(a, "--kf-trans")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 0, 10, &op.kf_translation_m)) return 2; }
         else if (!strcmp(a, "--kf-rot")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 0, 180, &op.kf_rotation_deg)) return 2; }
         else if (!strcmp(a, "--kf-frames")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 1000000, &op.kf_max_frames)) return 2; }
+        else if (!strcmp(a, "--min-agree")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 0, 1, &op.min_agreement)) return 2; }
         else if (!strcmp(a, "--points")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 1e-3, 1, &op.max_points_part)) return 2; }
         else if (!strcmp(a, "--depth-diff")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 1e-3, 1, &op.max_depth_diff_m)) return 2; }
         else if (!strcmp(a, "--max-failures")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 1000000, &op.max_failures)) return 2; }

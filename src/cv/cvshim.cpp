@@ -68,6 +68,7 @@ cv::Mat camera_matrix(const double K[4]) {
 struct sooc_cvodo {
     cv::Ptr<cv::rgbd::Odometry> odo;
     int w = 0, h = 0, variant = 0;
+    double K[4] = {0, 0, 0, 0}, min_depth = 0, max_depth = 0;
     cv::Mat rgb_full, gray_full, gray, depth;   // reused buffers
     cv::Ptr<cv::rgbd::OdometryFrame> cur, kf;
 };
@@ -103,6 +104,9 @@ extern "C" int sooc_cvodo_create(sooc_cvodo **out, int variant, const double K[4
         o->w = w;
         o->h = h;
         o->variant = variant;
+        for (int i = 0; i < 4; i++) o->K[i] = K[i];
+        o->min_depth = min_depth;
+        o->max_depth = max_depth;
         *out = o;
         return 0;
     } catch (const std::exception &e) {
@@ -170,6 +174,35 @@ extern "C" int sooc_cvodo_track(sooc_cvodo *o, const double init[16], double T_k
         set_err(err, errcap, std::string("OpenCV odometry: ") + e.what());
         return -1;
     }
+}
+
+extern "C" int sooc_cvodo_check(sooc_cvodo *o, const double T[16], double max_diff, int step, double *agree,
+                                char *err, size_t errcap) {
+    *agree = 0;
+    if (!o->cur || !o->kf || o->cur->depth.empty() || o->kf->depth.empty()) {
+        set_err(err, errcap, "odometry: no keyframe or no frame loaded");
+        return -1;
+    }
+    const cv::Mat &dc = o->cur->depth, &dk = o->kf->depth;
+    const double fx = o->K[0], fy = o->K[1], cx = o->K[2], cy = o->K[3];
+    long n = 0, ok = 0;
+    for (int y = 0; y < dc.rows; y += step)
+        for (int x = 0; x < dc.cols; x += step) {
+            float z = dc.at<float>(y, x);
+            if (!(z > o->min_depth && z < o->max_depth)) continue;
+            n++;
+            double X = (x - cx) / fx * z, Y = (y - cy) / fy * z;
+            double px = T[0] * X + T[1] * Y + T[2] * z + T[3];
+            double py = T[4] * X + T[5] * Y + T[6] * z + T[7];
+            double pz = T[8] * X + T[9] * Y + T[10] * z + T[11];
+            if (pz <= 1e-6) continue;
+            int u = (int)std::lround(fx * px / pz + cx), v = (int)std::lround(fy * py / pz + cy);
+            if (u < 0 || v < 0 || u >= dk.cols || v >= dk.rows) continue;
+            float zk = dk.at<float>(v, u);
+            if (zk > o->min_depth && zk < o->max_depth && std::fabs(zk - pz) <= max_diff) ok++;
+        }
+    *agree = n ? (double)ok / (double)n : 0;
+    return 0;
 }
 
 // ------------------------------------------------------------ calibration

@@ -40,6 +40,13 @@ int sooc_cvodo_set_keyframe(sooc_cvodo *o, char *err, size_t errcap);
  * fails, < 0 on an error. */
 int sooc_cvodo_track(sooc_cvodo *o, const double init[16], double T_kf_cur[16], char *err, size_t errcap);
 
+/* Geometric check of a result: the loaded frame's valid depth pixels
+ * (every `step`-th) are moved by T_kf_cur into the keyframe; *agree = the
+ * fraction of them that land on a valid keyframe depth within max_diff
+ * metres (z in the keyframe's camera). */
+int sooc_cvodo_check(sooc_cvodo *o, const double T_kf_cur[16], double max_diff, int step, double *agree,
+                     char *err, size_t errcap);
+
 /* ----------------------------------------------------------- calibration */
 
 typedef struct sooc_cvboard sooc_cvboard;

@@ -50,6 +50,7 @@ void sooc_odom_params_default(sooc_odom_params *p) {
     p->kf_rotation_deg = 10;
     p->kf_max_frames = 0;
     p->max_failures = 10;
+    p->min_agreement = 0.3;
 }
 
 struct sooc_odom {
@@ -77,6 +78,8 @@ static sooc_status check_params(const sooc_odom_params *p) {
         return sooc_seterr(SOOC_EINVAL, "odometry: max_points_part %g not in (0, 1]", p->max_points_part);
     if (!(p->max_translation_m > 0 && p->max_rotation_deg > 0))
         return sooc_seterr(SOOC_EINVAL, "odometry: failure bounds must be > 0");
+    if (!(p->min_agreement >= 0 && p->min_agreement <= 1))
+        return sooc_seterr(SOOC_EINVAL, "odometry: min_agreement %g not in [0, 1]", p->min_agreement);
     if (p->kf_translation_m < 0 || p->kf_rotation_deg < 0 || p->kf_max_frames < 0 || p->max_failures < 0)
         return sooc_seterr(SOOC_EINVAL, "odometry: keyframe rule values must be >= 0");
     return SOOC_OK;
@@ -191,6 +194,15 @@ sooc_status sooc_odom_track(sooc_odom *o, const sooc_frame *f, sooc_odom_result 
     if (ok < 0) return sooc_seterr(SOOC_ERR, "odometry: frame %lld: %s", (long long)f->index, err);
     if (ok && (trans_norm(T_kf_cur) > o->p.max_translation_m || rot_angle_deg(T_kf_cur) > o->p.max_rotation_deg))
         ok = 0;
+    if (ok && o->p.min_agreement > 0) {
+        /* OpenCV accepts some wrong solutions: the frame's depth moved into
+         * the keyframe must agree with the keyframe's depth */
+        double agree = 0;
+        if (sooc_cvodo_check(o->cv, T_kf_cur, o->p.max_depth_diff_m, 2, &agree, err, sizeof err))
+            return sooc_seterr(SOOC_ERR, "odometry: frame %lld: %s", (long long)f->index, err);
+        r->agreement = agree;
+        if (agree < o->p.min_agreement) ok = 0;
+    }
     if (!ok) {
         o->st.failed++;
         o->failures++;
