@@ -369,6 +369,20 @@ int sooc_cmd_render(int argc, char **argv) {
         to.K = &K;
         to.d_clip = mc->d_clip;
         to.title = mappath ? "stored cognitive map" : "cognitive map (online run)";
+        {   /* small worlds (a shelf bin, a desk) get more pixels per metre: at least 480 px across */
+            double b[4] = {INFINITY, -INFINITY, INFINITY, -INFINITY};
+            for (int i = 0; i < R.n_steps; i++) {
+                const sooc_topdown_step *t = &R.steps[i];
+                double xs[2] = {t->T_wc[3], t->T_wc[11]};
+                b[0] = fmin(b[0], xs[0]), b[1] = fmax(b[1], xs[0]), b[2] = fmin(b[2], xs[1]), b[3] = fmax(b[3], xs[1]);
+                for (size_t j = 0; j < t->n_entries; j++) {
+                    const sooc_map_entry *e = &t->entries[j];
+                    b[0] = fmin(b[0], e->x), b[1] = fmax(b[1], e->x), b[2] = fmin(b[2], e->z), b[3] = fmax(b[3], e->z);
+                }
+            }
+            double span = fmax(b[1] - b[0], b[3] - b[2]) + 3.0;   /* the figure's 1.5 m margins */
+            if (isfinite(span) && span * to.px_per_m < 480) to.px_per_m = 480 / span;
+        }
         if ((st = sooc_path_join(sub, sizeof sub, out, "cogmap"))) goto fail;
         if ((st = sooc_eval_topdown_sequence(sub, R.steps, R.n_steps, fgt, have_scene ? sc.n_objects : 0, &to)))
             goto fail;
