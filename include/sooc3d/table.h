@@ -112,7 +112,8 @@ extern "C" {
 
 /* Header flags (sooc_table_header.hflags). */
 #define SOOC_TABLE_HFLAG_WRITER_EXITED 0x1u /* writer closed cleanly (table is final) */
-#define SOOC_TABLE_HFLAG_FLOOR_SET 0x2u     /* T_src_map holds an estimated floor */
+#define SOOC_TABLE_HFLAG_FLOOR_SET 0x2u     /* T_src_map holds the floor alignment, configured
+                                               (world.up/floor) or estimated, once known */
 
 /* Return codes. */
 #define SOOC_TABLE_OK 0
@@ -133,7 +134,10 @@ extern "C" {
 /* One object, 256 bytes. The writer fills everything except `seq`. */
 typedef struct sooc_table_record {
     SOOC_TABLE_ATOMIC(uint64_t) seq;   /*   0 per-record seqlock: odd = being written      */
-    uint64_t object_id;      /*   8 stable, never reused; 0 = empty slot          */
+    uint64_t object_id;      /*   8 unique within one map; 0 = empty slot. A writer
+                                    restart that does not resume its map starts
+                                    ids at 1 again: key by (instance_id, object_id),
+                                    reset when instance_id changes (docs/shm.md) */
     uint32_t flags;          /*  16 SOOC_TABLE_FLAG_*                             */
     uint32_t obs_count;      /*  20 keyframes that observed the object            */
     float presence;          /*  24 p(exists) in [0, 1]                           */
@@ -141,7 +145,11 @@ typedef struct sooc_table_record {
     float cov_xzyaw[6];      /*  40 upper triangle: xx xz xyaw zz zyaw yawyaw     */
     float y;                 /*  64 box-centre height above the floor (m)         */
     float extent[3];         /*  68 full box size along object axes x, y, z (m)   */
-    int64_t first_seen_ns;   /*  80 sensor clock (CLOCK_REALTIME ns), first seen  */
+    int64_t first_seen_ns;   /*  80 sensor clock (ns), first seen: the frame stamps,
+                                    CLOCK_REALTIME only with timebase: realtime or
+                                    host-stamped drivers; replays keep the recording's
+                                    stamps (synthetic scenes start at 0). Compare with
+                                    the header's stamp_ns, not with your clock. */
     int64_t last_seen_ns;    /*  88 sensor clock of the latest observation        */
     uint32_t latent_dim;     /*  96 <= SOOC_TABLE_LATENT_MAX                      */
     uint32_t reserved0;      /* 100 zero                                          */
