@@ -14,6 +14,8 @@ Checks, for README.md, docs/*.md and the READMEs under models/ and tests/:
   3. Section references written with the repository path, `docs/X.md §N`:
      the section number starts a heading of that file. (A bare `model.md §N`
      cites the design notes, which are not part of the repository.)
+  4. Named references `docs/X.md "Title"`: a heading of that file contains
+     the title, or a table row starts with it, or a bold run does.
   check_links.py <repo root>    exit 0 ok, 1 broken links (each listed)
   check_links.py --selftest     the checker finds each kind of break in a
                                 scratch tree (so the test can fail)
@@ -27,6 +29,7 @@ TOP = ("docs/", "src/", "include/", "scripts/", "tests/", "calib/", "launch/", "
        "bench/", "drivers/")
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 CODE = re.compile(r"`([^`\s]+)`")
+NAMED = re.compile(r"docs/([A-Za-z_]+\.md) \"([^\"]+)\"")
 SECTION = re.compile(r"(?:docs/)?([A-Za-z_]+\.md)\s+§\s*([0-9]+(?:\.[0-9]+)*)")
 
 
@@ -45,6 +48,14 @@ def headings(path):
             elif not in_code and line.startswith("#"):
                 out.append(line.lstrip("#").strip())
     return out
+
+
+def named_target(doc, title):
+    t = title.lower()
+    if any(t in h.lower() for h in headings(doc)):
+        return True
+    text = open(doc, encoding="utf-8").read().lower()
+    return ("**" + t) in text or ("\n| " + t) in text
 
 
 def main():
@@ -95,6 +106,14 @@ def main():
                 elif not any(re.match(r"^%s[ .]" % re.escape(num), h) for h in headings(doc)):
                     bad.append("%s:%d: %s: docs/%s has no section %s" % (rel, lineno, m.group(0),
                                                                          m.group(1), num))
+            for m in NAMED.finditer(line):
+                doc = os.path.join(root, "docs", m.group(1))
+                n_sections += 1
+                if not os.path.exists(doc):
+                    bad.append("%s:%d: %s: no docs/%s" % (rel, lineno, m.group(0), m.group(1)))
+                elif not named_target(doc, m.group(2)):
+                    bad.append("%s:%d: %s: no heading, table row or bold text '%s' in docs/%s"
+                               % (rel, lineno, m.group(0), m.group(2), m.group(1)))
     for b in bad:
         print("BROKEN: " + b)
     print("%d files: %d links, %d repository paths, %d section references checked, %d broken"
@@ -111,15 +130,15 @@ def selftest():
             f.write("# A\n## 1. One\n")
         cases = {"[x](docs/missing.md)": "does not exist", "[x](docs/a.md#nope)": "no heading",
                  "`src/missing.c`": "does not exist in the repository",
-                 "docs/a.md §2": "has no section 2"}
+                 "docs/a.md §2": "has no section 2", 'docs/a.md "Two"': "no heading, table row"}
         for text, want in cases.items():
             with open(os.path.join(d, "README.md"), "w") as f:
-                f.write("ok: [a](docs/a.md#1-one), `docs/a.md`, docs/a.md §1\n" + text + "\n")
+                f.write('ok: [a](docs/a.md#1-one), `docs/a.md`, docs/a.md §1, docs/a.md "One"\n' + text + "\n")
             r = subprocess.run([sys.executable, __file__, d], capture_output=True, text=True)
             if r.returncode != 1 or want not in r.stdout or r.stdout.count("BROKEN") != 1:
                 print("selftest FAILED on %r:\n%s" % (text, r.stdout))
                 return 1
-    print("selftest: 4 kinds of broken reference found, 0 false alarms")
+    print("selftest: %d kinds of broken reference found, 0 false alarms" % len(cases))
     return 0
 
 
