@@ -2,7 +2,10 @@
  * sooc3d camera calibration: the calib YAML (docs/formats.md §Calibration).
  *
  * The file is a ROS camera_info YAML that starts with `%YAML 1.2` then `---`
- * (so that OpenCV FileStorage reads it too), plus sooc3d extensions:
+ * (so that OpenCV FileStorage reads it too: no comment after a value, booleans
+ * come back as the strings "true"/"false", matrices are {rows, cols, data}
+ * maps read element by element, not .mat(); docs/formats.md "Reading the
+ * files elsewhere"), plus sooc3d extensions:
  *
  *   camera_name, image_width, image_height,
  *   camera_matrix {rows: 3, cols: 3, data: [9]},
