@@ -118,9 +118,9 @@ typedef enum sooc_floor_tex {
  * table edges and bin walls take support_color, the ground ground_color.
  * With TABLE/BIN, room walls (walls = 1) stand on the ground and are
  * wall_height tall. */
-typedef enum sooc_support {
+typedef enum sooc_support_kind {
     SOOC_SUPPORT_FLOOR = 0, SOOC_SUPPORT_TABLE, SOOC_SUPPORT_BIN
-} sooc_support;
+} sooc_support_kind;
 
 typedef struct sooc_scene {
     char preset[16];        /* "unity" | "blender" | "tabletop"                 */
@@ -135,7 +135,7 @@ typedef struct sooc_scene {
     sooc_floor_tex floor_tex;
     float floor_color[3], floor_color2[3];
     double tex_scale;       /* texture period (m)                               */
-    sooc_support support;   /* FLOOR (default), TABLE or BIN                    */
+    sooc_support_kind support; /* FLOOR (default), TABLE or BIN                    */
     double support_size[2]; /* table top / bin floor: x and z extent (m)         */
     double support_height;  /* ground at y = -support_height                     */
     double support_thick;   /* table top thickness / bin wall thickness          */

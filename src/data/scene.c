@@ -769,7 +769,7 @@ static sooc_status parse_scene(sooc_ydoc *c, sooc_scene *sc) {
             int f = -1;
             for (int i = 0; i < 3; i++) if (vs && !strcmp(vs, g_support_names[i])) f = i;
             if (f < 0) s = sooc_seterr(SOOC_EINVAL, "%s:%d: support: expected floor, table or bin", c->name, sooc_yline(v));
-            else sc->support = (sooc_support)f;
+            else sc->support = (sooc_support_kind)f;
         } else if (!strcmp(ks, "support_size")) {
             s = ylist(c, v, ks, dv, 2, 2, NULL);
             if (!s && !(dv[0] > 0 && dv[1] > 0)) s = sooc_seterr(SOOC_EINVAL, "%s:%d: support_size: must be > 0", c->name, sooc_yline(v));

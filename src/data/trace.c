@@ -368,7 +368,7 @@ static int objects_hit(const tworld *w, const double o[3], const double r[3], do
     return found;
 }
 
-/* A table top or a bin (scene.h, sooc_support) as up to five boxes over a
+/* A table top or a bin (scene.h, sooc_support_kind) as up to five boxes over a
  * ground plane. An upward face at y = 0 is the layout (kind 1); the other
  * faces are support sides (kind 5); the ground is kind 4. */
 static void support_hit(const sooc_scene *sc, const double o[3], const double r[3], double *tmax, thit *h) {
