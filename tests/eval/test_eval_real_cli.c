@@ -12,6 +12,7 @@
 #include "sooc3d/geom.h"
 #include "sooc3d/image.h"
 #include "sooc3d/model.h"
+#include "sooc3d/seq.h"
 
 #include <math.h>
 #include <sys/wait.h>
@@ -174,6 +175,44 @@ int main(void) {
     CHECK(run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/x.json --runs 2 2>/dev/null", bin, model, seq, tmp);
     CHECK(run(cmd) == 2);
+
+    /* the TUM layout with instance/ on every frame (read by the sequence
+     * reader): the walk rewritten by sooc_seq_writer, ids 5 on the left third */
+    {
+        char tum[700];
+        snprintf(tum, sizeof tum, "%s/tumwalk", tmp);
+        sooc_seq *sq = NULL;
+        sooc_seq_writer *w = NULL;
+        sooc_frame f;
+        memset(&f, 0, sizeof f);
+        CHECK_OK(sooc_seq_open(&sq, seq, NULL));
+        sooc_calib cal;
+        sooc_calib_pinhole(&cal, 64, 48, 50, 50, 32, 24);
+        cal.depth_scale = 0.001;
+        if (sq) CHECK_OK(sooc_seq_writer_create(&w, tum, &cal, sooc_seq_count(sq)));
+        for (int64_t i = 0; sq && w && i < sooc_seq_count(sq); i++) {
+            CHECK_OK(sooc_seq_read(sq, i, &f));
+            if (!f.instance) f.instance = sooc_calloc((size_t)f.width * f.height, sizeof *f.instance);
+            for (int k = 0; f.instance && k < f.width * f.height; k++) f.instance[k] = (uint16_t)(k % f.width < 21 ? 5 : 0);
+            f.t_ns = i * 100000000LL;
+            CHECK_OK(sooc_seq_writer_put(w, i, &f));
+        }
+        if (w) CHECK_OK(sooc_seq_writer_finish(w));
+        sooc_seq_writer_destroy(w);
+        sooc_seq_close(sq);
+        sooc_frame_free(&f);
+        snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/tum.json --world identity "
+                 "--samples 16,0 --quiet", bin, model, tum, tmp);
+        rc = run(cmd);
+        CHECK_MSG(rc == 0, "eval on a TUM-layout sequence: exit %d", rc);
+        snprintf(p, sizeof p, "%s/tum.json", tmp);
+        js = slurp(p);
+        check_keys(js, "tum");
+        CHECK_MSG(js && strstr(js, "\"obj_ids\": [5]") && strstr(js, "\"obj_views\": [2]") &&
+                      strstr(js, "\"sequence\": \"tumwalk\""),
+                  "tum.json: %s", js ? js : "(missing)");
+        sooc_free(js);
+    }
 
     /* label-fusion */
     const char *real = tu_real_dir();
