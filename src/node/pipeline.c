@@ -600,6 +600,8 @@ static sooc_status support_init(sooc_node *n) {
     if (!strcmp(c->gravity_path, "none")) return SOOC_OK;
     if (auto_g) {
         if (strcmp(c->driver, "replay") || !rp) return SOOC_OK;
+        /* the file is in the recording's pose frame, not the odometry's */
+        if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY) return SOOC_OK;
         snprintf(path, sizeof path, "%s/gravity-direction.txt", rp);
         if (!sooc_file_exists(path)) return SOOC_OK;
     } else {
