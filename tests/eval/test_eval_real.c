@@ -283,11 +283,27 @@ static void floor_frame(sooc_frame *f, int W, int i, int alt, int labels) {
         }
 }
 
-typedef struct cb_ctx { int n, bad; int mapped; } cb_ctx;
+typedef struct cb_ctx { int n, bad; int mapped; double d_sum, c_sum; } cb_ctx;
+/* Recomputes each query frame's depth and RGB RMSE from the render and the
+ * frame (valid pixels; all are within the 8 m clip) to check the runner's means. */
 static sooc_status on_view(void *user, const sooc_eval_view_info *v) {
     cb_ctx *c = user;
     c->n++;
     if (!sooc_eval_real_is_query(v->frame, 4) || v->n_mapped != c->mapped) c->bad++;
+    double sd = 0, sc = 0;
+    long n = 0;
+    for (int k = 0; k < v->gt->width * v->gt->height; k++) {
+        if (!v->gt->valid[k]) continue;
+        double e = v->render->depth[k] - v->gt->depth[k];
+        sd += e * e;
+        for (int ch = 0; ch < 3; ch++) {
+            double ec = v->render->rgb[3 * k + ch] - v->gt->rgb[3 * k + ch] / 255.0;
+            sc += ec * ec;
+        }
+        n++;
+    }
+    c->d_sum += sqrt(sd / (double)n);
+    c->c_sum += sqrt(sc / (double)n);
     return SOOC_OK;
 }
 
@@ -311,7 +327,7 @@ static void test_runner(void) {
     o.query_every = 4;
     o.run.n_coarse = 16, o.run.n_fine = 0, o.run.threads = 1;
     sooc_eval_real_result ra, rb;
-    cb_ctx cb = {0, 0, 9};
+    cb_ctx cb = {0, 0, 9, 0, 0};
     CHECK_OK(sooc_eval_real_run(m, fa, N, &o, on_view, &cb, &ra));
     CHECK_OK(sooc_eval_real_run(m, fb, N, &o, NULL, NULL, &rb));
     CHECK(ra.n_frames == N && ra.n_mapped == 9 && ra.n_query == 3);
@@ -321,6 +337,8 @@ static void test_runner(void) {
     sooc_metric_means mm;
     sooc_metric_sums_means(&ra.query, &mm);
     CHECK(isfinite(mm.depth_rmse) && mm.depth_rmse >= 0 && isfinite(mm.rgb_rmse) && isfinite(mm.miou_best));
+    CHECK_CLOSE(mm.depth_rmse, cb.d_sum / 3, 1e-9, 1e-6);   /* mean over the query frames of per-frame RMSE */
+    CHECK_CLOSE(mm.rgb_rmse, cb.c_sum / 3, 1e-9, 1e-6);
     /* counts: the map holds what was created minus what was removed, in both passes */
     CHECK((long)ra.entries_final == ra.churn.created - ra.churn.removed);
     CHECK((long)ra.entries_pass2 == (long)ra.entries_final + ra.churn2.created - ra.churn2.removed);
