@@ -166,9 +166,13 @@ typedef struct sooc_eval_real_result {
 /* Run one recorded sequence. frames[0..n_frames): sequence order, all posed,
  * at the model's resolution (img_w x img_h), in the map's world frame (y up,
  * support plane y = 0); instance = labels (0 = background) or NULL. The
- * frames' is_query flags are ignored: the query rule decides. Only SOOC3D
- * models (a global-frame baseline has no cognitive map: EINVAL). view_cb
- * (may be NULL) gets each scored query frame. `m` is not modified. */
+ * frames' is_query flags are ignored: the query rule decides. A
+ * global-frame baseline (sooc_model_is_global) is run with its global mapper
+ * over all K slots; its "entries" are its present slots (id = slot + 1):
+ * churn diffs the present set after each update (a slot that turns present
+ * again counts as created again), and every present slot is tracked at every
+ * update. view_cb (may be NULL) gets each scored query frame. `m` is not
+ * modified. */
 sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_frames,
                                const sooc_eval_real_opts *o, sooc_eval_view_fn view_cb, void *user,
                                sooc_eval_real_result *res);

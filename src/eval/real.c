@@ -198,7 +198,10 @@ void sooc_eval_real_opts_default(sooc_eval_real_opts *o) {
 }
 
 typedef struct real_ctx {
-    sooc3d_mapper *mp;
+    sooc3d_mapper *mp;         /* SOOC3D, or                                        */
+    sooc_global_mapper *gm;    /* the global-frame baseline (its present slots)     */
+    sooc_map_entry gent[2][SOOC_MODEL_K_MAX];   /* baseline: slots before / after an update */
+    size_t n_gent;
     sooc_track *tr;            /* indexed by entry id */
     size_t tr_cap;
     sooc_map_entry chg[SOOC_MAPPER_CHANGED_MAX];
@@ -216,11 +219,54 @@ static sooc_status tracks_reserve(real_ctx *C, uint64_t need) {
     return SOOC_OK;
 }
 
+/* The baseline has no changed-list: diff its present slots (ids = slot + 1)
+ * before and after the update; every present slot was refined, so every one
+ * is tracked. A slot that turns present again counts as created again. */
+static sooc_status global_update(real_ctx *C, const sooc_frame *f, int track, sooc_churn *ch) {
+    sooc3d_update_stats us;
+    sooc_status st = sooc_global_mapper_update(C->gm, f, &us);
+    if (st) return st;
+    size_t n = 0;
+    if ((st = sooc_global_mapper_entries(C->gm, C->gent[1], SOOC_MODEL_K_MAX, &n))) return st;
+    ch->updates++;
+    for (size_t k = 0; k < n; k++) {
+        int was = 0;
+        for (size_t j = 0; j < C->n_gent; j++) was |= C->gent[0][j].id == C->gent[1][k].id;
+        ch->created += !was;
+        if (track) {
+            if ((st = tracks_reserve(C, C->gent[1][k].id))) return st;
+            sooc_track_add(&C->tr[C->gent[1][k].id], C->gent[1][k].x, C->gent[1][k].z, C->gent[1][k].yaw);
+        }
+    }
+    for (size_t j = 0; j < C->n_gent; j++) {
+        int is = 0;
+        for (size_t k = 0; k < n; k++) is |= C->gent[0][j].id == C->gent[1][k].id;
+        ch->removed += !is;
+    }
+    memcpy(C->gent[0], C->gent[1], n * sizeof C->gent[0][0]);
+    C->n_gent = n;
+    return SOOC_OK;
+}
+
+static sooc_model *ctx_model(real_ctx *C) {
+    return C->gm ? sooc_global_mapper_model(C->gm) : sooc3d_mapper_model(C->mp);
+}
+static const sooc_cogmap *ctx_map(const real_ctx *C) {
+    return C->gm ? sooc_global_mapper_cogmap(C->gm) : sooc3d_mapper_cogmap(C->mp);
+}
+
 /* Map every input frame once; track=1 records positions for the spread. */
 static sooc_status map_pass(real_ctx *C, const sooc_frame *frames, int n, int every, int track, sooc_churn *ch,
                             sooc_eval_real_result *res) {
     for (int i = 0; i < n; i++) {
         if (sooc_eval_real_is_query(i, every)) continue;
+        if (C->gm) {
+            double t0 = sooc_seconds();
+            sooc_status st = global_update(C, &frames[i], track, ch);
+            res->update_s += sooc_seconds() - t0;
+            if (st) return sooc_adderr(st, "eval real: frame %d (index %lld)", i, (long long)frames[i].index);
+            continue;
+        }
         uint64_t born = sooc3d_mapper_next_id(C->mp);
         sooc3d_update_stats us;
         double t0 = sooc_seconds();
@@ -267,9 +313,6 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         return sooc_seterr(SOOC_EINVAL, "eval real: bad arguments");
     memset(res, 0, sizeof *res);
     res->pos_spread_m = res->yaw_spread_deg = res->never_behind_med_m = NAN;
-    if (sooc_model_is_global(m))
-        return sooc_seterr(SOOC_EINVAL, "eval real: the global-frame baseline keeps no cognitive map; the real-sequence "
-                                        "metrics (churn, growth, spread, free space) need a SOOC3D model");
     if (o->query_every < 2)
         return sooc_seterr(SOOC_EINVAL, "eval real: query rule N = %d, must be >= 2", o->query_every);
     if (!(o->seen_tol > 0) || !isfinite(o->seen_height) || o->persist_min < 1)
@@ -303,22 +346,31 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     sooc_map_entry *ent = NULL;
     sooc_render_out rout;
     memset(&rout, 0, sizeof rout);
-    sooc_status st = sooc_model_copy_slots(m, o->run.slots, &copy);
+    int global = sooc_model_is_global(m);
+    sooc_status st = sooc_model_copy_slots(m, global ? 0 : o->run.slots, &copy);
     if (st) return sooc_adderr(st, "eval real: model copy");
     if (o->run.d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->run.d_clip))) {
         sooc_model_destroy(copy);
         return st;
     }
-    if ((st = sooc3d_mapper_create_with_model(&C.mp, copy, o->run.iterations, o->run.seed, o->run.threads))) {
-        sooc_model_destroy(copy);
-        return st;
+    if (global) {   /* every slot of the fixed set (n_objects unknown: K) */
+        if ((st = sooc_global_mapper_create(&C.gm, copy, 0, o->run.iterations, o->run.seed, o->run.threads))) {
+            sooc_model_destroy(copy);
+            return st;
+        }
+        sooc_global_mapper_set_latents(C.gm, o->run.latents);
+    } else {
+        if ((st = sooc3d_mapper_create_with_model(&C.mp, copy, o->run.iterations, o->run.seed, o->run.threads))) {
+            sooc_model_destroy(copy);
+            return st;
+        }
+        sooc3d_mapper_set_merge_radius(C.mp, o->run.merge_radius);
+        sooc3d_mapper_set_latents(C.mp, o->run.latents);
     }
-    sooc3d_mapper_set_merge_radius(C.mp, o->run.merge_radius);
-    sooc3d_mapper_set_latents(C.mp, o->run.latents);
 
     /* pass 1 */
     if ((st = map_pass(&C, frames, n_frames, o->query_every, 1, &res->churn, res))) goto done;
-    res->entries_final = sooc_cogmap_count(sooc3d_mapper_cogmap(C.mp));
+    res->entries_final = sooc_cogmap_count(ctx_map(&C));
 
     /* query frames from the pass-1 map */
     for (int i = 0; i < n_frames && !st; i++) {
@@ -329,7 +381,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         double xz[2 * SOOC_RENDER_MAX_COMP];
         int nc = 0;
         double t0 = sooc_seconds();
-        st = sooc_eval_map_view(sooc3d_mapper_model(C.mp), sooc3d_mapper_cogmap(C.mp), &frames[i], NULL, 0, &o->run,
+        st = sooc_eval_map_view(ctx_model(&C), ctx_map(&C), &frames[i], NULL, 0, &o->run,
                                 0, &rout, &vm, &match, ids, xz, &nc);
         res->render_s += sooc_seconds() - t0;
         if (st) break;
@@ -347,12 +399,14 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     /* persistent entries and the free-space test on the pass-1 map */
     {
         size_t ne = 0;
-        if ((st = sooc3d_mapper_entries(C.mp, NULL, 0, &ne))) goto done;
+        if ((st = C.gm ? sooc_global_mapper_entries(C.gm, NULL, 0, &ne) : sooc3d_mapper_entries(C.mp, NULL, 0, &ne)))
+            goto done;
         if (!(ent = sooc_calloc(ne ? ne : 1, sizeof *ent))) {
             st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory for %zu entries", ne);
             goto done;
         }
-        if ((st = sooc3d_mapper_entries(C.mp, ent, ne, &ne))) goto done;
+        if ((st = C.gm ? sooc_global_mapper_entries(C.gm, ent, ne, &ne) : sooc3d_mapper_entries(C.mp, ent, ne, &ne)))
+            goto done;
         double ps = 0, ys = 0, *beh = sooc_calloc(ne ? ne : 1, sizeof *beh);
         if (!beh) {
             st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory for %zu entries", ne);
@@ -387,13 +441,14 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
 
     /* pass 2: the same input frames again, into the same map */
     if (o->second_pass && (st = map_pass(&C, frames, n_frames, o->query_every, 0, &res->churn2, res))) goto done;
-    res->entries_pass2 = sooc_cogmap_count(sooc3d_mapper_cogmap(C.mp));
+    res->entries_pass2 = sooc_cogmap_count(ctx_map(&C));
 
 done:
     sooc_render_out_free(&rout);
     sooc_free(ent);
     sooc_free(C.tr);
     sooc3d_mapper_destroy(C.mp);
+    sooc_global_mapper_destroy(C.gm);
     return st;
 }
 

@@ -389,6 +389,30 @@ static void test_runner(void) {
         sooc_free(js);
     }
 
+    /* the global-frame baseline: its present slots are the entries */
+    {
+        sooc_model_config gc;
+        small_cfg(&gc);
+        gc.global_frame = 1;
+        gc.global_radius = 2.5f;
+        sooc_model *g = NULL;
+        CHECK_OK(sooc_model_create(&g, &gc, 7));
+        sooc_eval_real_result rg;
+        o.second_pass = 1;
+        if (g) CHECK_OK(sooc_eval_real_run(g, fa, N, &o, NULL, NULL, &rg));
+        if (g) {
+            CHECK(rg.n_mapped == 9 && rg.n_query == 3 && rg.churn.updates == 9 && rg.churn2.updates == 9);
+            CHECK(rg.entries_final <= (size_t)gc.K && rg.entries_pass2 <= (size_t)gc.K);
+            CHECK((long)rg.entries_final == rg.churn.created - rg.churn.removed);
+            CHECK((long)rg.entries_pass2 == (long)rg.entries_final + rg.churn2.created - rg.churn2.removed);
+            CHECK((size_t)(rg.n_seen[0] + rg.n_seen[1] + rg.n_seen[2]) == rg.entries_final);
+            CHECK(rg.query.n_depth == 3 && rg.obj.n == 1);
+            printf("baseline: %zu slots present (%ld created, %ld removed), pass 2: %zu, persistent %d\n",
+                   rg.entries_final, rg.churn.created, rg.churn.removed, rg.entries_pass2, rg.n_persistent);
+        }
+        sooc_model_destroy(g);
+    }
+
     /* errors name the problem */
     o.query_every = 1;
     CHECK_ERR_HAS(sooc_eval_real_run(m, fa, N, &o, NULL, NULL, &rb), "query rule", ">= 2");
