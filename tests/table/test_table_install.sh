@@ -73,6 +73,12 @@ flags=$(pkg-config --cflags --libs sooc3d_table)
 echo "pkg-config --cflags --libs sooc3d_table: $flags"
 "$cc" -std=c11 -Wall -Wextra -Werror -pedantic "$here/planner_c11.c" -o "$tmp/c11_pc" $flags
 "$cxx" -std=c++17 -Wall -Wextra -Werror -pedantic "$here/planner_cxx17.cc" -o "$tmp/cxx17_pc" $flags
+# What a planner meets before `ldconfig` (docs/shm.md §8): the loader cannot find the library.
+set +e
+env -u LD_LIBRARY_PATH "$tmp/c11_pc" "$name" >/dev/null 2>"$tmp/noldconfig.err"
+rc=$?
+set -e
+echo "without ldconfig or LD_LIBRARY_PATH: exit $rc $(head -c 120 "$tmp/noldconfig.err")"
 LD_LIBRARY_PATH=$libdir "$tmp/c11_pc" "$name" || fail "C11 planner (pkg-config)"
 LD_LIBRARY_PATH=$libdir "$tmp/cxx17_pc" "$name" || fail "C++17 planner (pkg-config)"
 # ---- consumers: find_package
