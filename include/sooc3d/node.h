@@ -19,7 +19,10 @@
  * Lock order: node -> ring. get_stats holds the node's mutex while it reads the
  * ring's counters (the ring's mutex), so no code may take the node's mutex
  * while it holds the ring's; the ring calls back into nothing. The mapper and
- * the publisher run on the mapping thread only and take no lock of their own.
+ * the publisher run on the mapping thread only; the publisher takes the node's
+ * mutex only to update the stats (never while holding another lock). The
+ * table's writer lock and the SQLite connection are the mapping thread's.
+ * scripts/test.sh runs the node and table tests under ThreadSanitizer.
  */
 #ifndef SOOC3D_NODE_H
 #define SOOC3D_NODE_H
@@ -85,6 +88,7 @@ typedef struct sooc_node_config {
     int odom_kf_frames;
     int odom_max_failures;                   /* re-anchor after this many failures (default 10) */
     double odom_min_depth_m, odom_max_depth_m;   /* depths used (default 0.3 .. 4) */
+    double odom_min_agreement;               /* depth agreement below this = failure (0.3) */
 
     /* calib: (optional for sources that carry intrinsics) */
     char calib_path[SOOC_NODE_PATH_MAX];
