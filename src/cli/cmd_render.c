@@ -116,7 +116,7 @@ static sooc_status on_step(void *user, const sooc_eval_step_info *s) {
     memcpy(t->T_wc, s->gt->T_wc, sizeof t->T_wc);
     sooc_map_entry *e = malloc((s->n_entries ? s->n_entries : 1) * sizeof *e);
     if (!e) return SOOC_ENOMEM;
-    memcpy(e, s->entries, s->n_entries * sizeof *e);
+    if (s->n_entries) memcpy(e, s->entries, s->n_entries * sizeof *e);   /* entries may be NULL when empty */
     t->entries = e;
     t->n_entries = s->n_entries;
     R->n_steps++;
