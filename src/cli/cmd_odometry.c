@@ -33,6 +33,8 @@ static void usage(FILE *f) {
             "  --max-frames N       stop after N frames\n"
             "  --start-gt           start at the sequence's first pose instead of the identity\n"
             "  --gt-out FILE        also write the sequence's poses (TUM)\n"
+            "  --write-seq DIR      also write the tracked frames with the odometry poses as a sooc3d\n"
+            "                       sequence (TUM layout), e.g. for `sooc3d eval` without recorded poses\n"
             "  --delta S            RPE delta in seconds (default 1.0); --delta-frames N uses frames\n"
             "  --max-dt S           timestamp association tolerance (default 0.02)\n"
             "The last line printed is a JSON object with the figures.\n");
@@ -52,7 +54,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
         usage(stdout);
         return 0;
     }
-    const char *seq_dir = NULL, *out = NULL, *gt_out = NULL, *eval_est = NULL, *eval_gt = NULL;
+    const char *seq_dir = NULL, *out = NULL, *gt_out = NULL, *eval_est = NULL, *eval_gt = NULL, *write_seq = NULL;
     sooc_seq_open_params sp;
     sooc_seq_open_params_default(&sp);
     sooc_odom_params op;
@@ -74,6 +76,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
         if (!strcmp(a, "--seq")) { NEEDV(); seq_dir = v; }
         else if (!strcmp(a, "--out")) { NEEDV(); out = v; }
         else if (!strcmp(a, "--gt-out")) { NEEDV(); gt_out = v; }
+        else if (!strcmp(a, "--write-seq")) { NEEDV(); write_seq = v; }
         else if (!strcmp(a, "--eval")) { NEEDV(); eval_est = v; }
         else if (!strcmp(a, "--gt")) { NEEDV(); eval_gt = v; }
         else if (!strcmp(a, "--format")) {
@@ -160,12 +163,15 @@ int sooc_cmd_odometry(int argc, char **argv) {
     sooc_frame f;
     memset(&f, 0, sizeof f);
     sooc_traj est = {0}, gt = {0};
+    int64_t *kept = NULL;
     int rc = 1;
     if ((st = sooc_seq_open(&seq, seq_dir, &sp))) goto fail;
     if ((st = sooc_odom_create(&odo, &op))) goto fail;
     int64_t n = sooc_seq_count(seq);
     if (max_frames && max_frames < n) n = max_frames;
     int64_t failed = 0, reanchor = 0;
+    kept = sooc_malloc((size_t)(n > 0 ? n : 1) * sizeof(int64_t));
+    if (!kept) { st = sooc_seterr(SOOC_ENOMEM, "odometry: out of memory"); goto fail; }
     double t0 = sooc_seconds();
     for (int64_t i = 0; i < n; i++) {
         if ((st = sooc_seq_read(seq, i, &f))) goto fail;
@@ -175,6 +181,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
         sooc_odom_result r;
         if ((st = sooc_odom_track(odo, &f, &r))) goto fail;
         if (r.state == SOOC_ODOM_FIRST || r.state == SOOC_ODOM_TRACKED) {
+            kept[est.n] = i;
             if ((st = sooc_traj_push(&est, t, r.T_wc))) goto fail;
         } else {
             failed++;
@@ -189,6 +196,23 @@ int sooc_cmd_odometry(int argc, char **argv) {
     sooc_odom_get_stats(odo, &os);
     if ((st = sooc_traj_save_tum(out, &est))) goto fail;
     if (gt_out && gt.n && (st = sooc_traj_save_tum(gt_out, &gt))) goto fail;
+    if (write_seq) {
+        /* second pass: the tracked frames again, with their odometry poses */
+        sooc_calib wc = *sooc_seq_calib(seq);
+        if (!(wc.depth_scale > 0)) wc.depth_scale = 0.001;
+        sooc_seq_writer *w = NULL;
+        if ((st = sooc_seq_writer_create(&w, write_seq, &wc, est.n))) goto fail;
+        for (int64_t k = 0; k < est.n && !st; k++) {
+            if ((st = sooc_seq_read(seq, kept[k], &f))) break;
+            memcpy(f.T_wc, est.T + 16 * k, sizeof f.T_wc);
+            f.has_pose = 1;
+            st = sooc_seq_writer_put(w, k, &f);
+        }
+        if (!st) st = sooc_seq_writer_finish(w);
+        sooc_seq_writer_destroy(w);
+        if (st) goto fail;
+        printf("wrote the %lld tracked frames with odometry poses to %s\n", (long long)est.n, write_seq);
+    }
     printf("odometry (%s, %dx%d): %lld frames, %lld tracked, %lld failed, %lld keyframes, %lld re-anchors; "
            "%.1f ms/frame in odometry (%.1f frames/s end to end)\n",
            sooc_odom_variant_name(op.variant), op.width, op.height, (long long)os.frames, (long long)os.tracked,
@@ -219,6 +243,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
 fail:
     rc = sooc_cli_fail(cmd, st);
 done:
+    sooc_free(kept);
     sooc_frame_free(&f);
     sooc_traj_free(&est);
     sooc_traj_free(&gt);

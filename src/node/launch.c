@@ -48,6 +48,7 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->odom_max_failures = 10;
     c->odom_min_depth_m = 0.3;
     c->odom_max_depth_m = 4.0;
+    c->odom_min_agreement = 0.3;
 }
 
 const char *sooc_node_param_get(const sooc_node_config *c, const char *key) {
@@ -457,6 +458,7 @@ static const kspec g_keys[] = {
     KV("odometry", "max_failures", KV_INT, odom_max_failures, 0, 1000000),
     KV("odometry", "min_depth_m", KV_NUM, odom_min_depth_m, 0, 100),
     KV("odometry", "max_depth_m", KV_NUM, odom_max_depth_m, 0.01, 100),
+    KV("odometry", "min_agreement", KV_NUM, odom_min_agreement, 0, 1),
     KV("model", "path", KV_STR, model_path, 0, 0),
     KV("model", "width", KV_INT, input_width, 0, 8192),
     KV("model", "height", KV_INT, input_height, 0, 8192),
@@ -646,9 +648,9 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY) {
         static const char *ov[] = {"rgbd", "icp", "rgbd_icp"};
         OUT("odometry: {variant: %s, width: %d, height: %d, keyframe_translation_m: %g, keyframe_rotation_deg: %g, "
-            "keyframe_frames: %d, max_failures: %d, min_depth_m: %g, max_depth_m: %g}\n",
+            "keyframe_frames: %d, max_failures: %d, min_depth_m: %g, max_depth_m: %g, min_agreement: %g}\n",
             ov[c->odom_variant], c->odom_width, c->odom_height, c->odom_kf_translation_m, c->odom_kf_rotation_deg,
-            c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m);
+            c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m, c->odom_min_agreement);
     }
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d}\n",

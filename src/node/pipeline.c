@@ -728,6 +728,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         op.max_failures = c->odom_max_failures;
         op.min_depth_m = c->odom_min_depth_m;
         op.max_depth_m = c->odom_max_depth_m;
+        op.min_agreement = c->odom_min_agreement;
         if ((st = sooc_odom_create(&n->odom, &op))) {
             sooc_adderr(st, "%s: pose.source: odometry", c->path);
             goto fail;
