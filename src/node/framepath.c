@@ -157,6 +157,10 @@ static sooc_status world_estimate(sooc_framepath *fp) {
         if (fp->p.max_tilt_deg > 0) sp.max_tilt_deg = fp->p.max_tilt_deg;
         if (fp->p.cam_height_min_m > 0) sp.cam_height_min_m = fp->p.cam_height_min_m;
         if (fp->p.cam_height_max_m > 0) sp.cam_height_max_m = fp->p.cam_height_max_m;
+        /* the frames are already at <= 160 columns: every pixel is a sample (the
+         * default stride of 4 is meant for 640-column frames and leaves a
+         * 80x60 frame 300 points, too few for the height-histogram refit) */
+        sp.pixel_step = 1;
         if (fp->p.has_up) {
             sp.has_up_hint = 1;
             memcpy(sp.up_hint, fp->p.up, sizeof sp.up_hint);
