@@ -109,9 +109,20 @@ static void test_resume(void) {
     CHECK_OK(sooc_dataset_open(&ds, dirs, 1, 64, 64));
     if (!ds) return;
     CHECK(sooc_dataset_n_scenes(ds) == 3);
-    /* wrong size is an error naming the scene */
-    sooc_dataset *bad = NULL;
-    CHECK(sooc_dataset_open(&bad, dirs, 1, 32, 32) == SOOC_EINVAL && strstr(sooc_errmsg(), "scene_0000"));
+    /* another size goes through the frame path (include/sooc3d/framepath.h):
+     * cropped/resized, depth kept valid */
+    sooc_dataset *small = NULL;
+    CHECK_OK(sooc_dataset_open(&small, dirs, 1, 32, 32));
+    if (small) {
+        const sooc_frame *f = sooc_dataset_view(small, 0, 0), *g = sooc_dataset_view(ds, 0, 0);
+        size_t nv = 0, ng = 0;
+        for (int i = 0; i < 32 * 32; i++) nv += f->valid[i] != 0;
+        for (int i = 0; i < 64 * 64; i++) ng += g->valid[i] != 0;
+        CHECK(f->width == 32 && f->height == 32 && f->K.width == 32 && fabs(f->K.fx - 0.5 * g->K.fx) < 1e-9);
+        CHECK_MSG((double)nv / 1024.0 > 0.9 * (double)ng / 4096.0, "valid %zu / 1024 resized, %zu / 4096", nv, ng);
+        CHECK(sooc_dataset_n_inputs(small, 0) == sooc_dataset_n_inputs(ds, 0));
+    }
+    sooc_dataset_destroy(small);
     /* sampling: T consecutive input views, Q query views, deterministic */
     sooc_frame v1[4], q1[2], v2[4], q2[2];
     int nv1, nq1, nv2, nq2;
