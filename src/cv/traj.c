@@ -57,10 +57,12 @@ sooc_status sooc_traj_load_tum(const char *path, sooc_traj *out) {
                 errno = 0;
                 v[k] = strtod(q, &end);
                 if (end == q || errno || !isfinite(v[k])) {
+                    /* the message quotes the line: set it before freeing buf */
+                    st = sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 8 numbers `t tx ty tz qx qy qz qw`, got '%.60s'",
+                                     path, line, p);
                     sooc_free(buf);
                     sooc_traj_free(out);
-                    return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 8 numbers `t tx ty tz qx qy qz qw`, got '%.60s'",
-                                       path, line, p);
+                    return st;
                 }
                 q = end;
             }

@@ -22,7 +22,7 @@ static const double g_box_hi[NBOX][3] = {{1.3, 0.9, -0.6}, {-1.4, 1.2, 1.6}, {0.
 /* smooth value noise on a 6 cm lattice plus a coarse checker: gradients of
  * 10-30 grey levels per pixel at 1-3 m, like a real room's texture */
 static double lattice(int i, int j, int ch) {
-    uint64_t h = (uint64_t)(i * 73856093) ^ (uint64_t)(j * 19349663) ^ (uint64_t)(ch * 83492791);
+    uint64_t h = ((uint64_t)(int64_t)i * 73856093u) ^ ((uint64_t)(int64_t)j * 19349663u) ^ ((uint64_t)ch * 83492791u);
     h ^= h >> 13;
     h *= 0x9E3779B97F4A7C15ull;
     h ^= h >> 29;
