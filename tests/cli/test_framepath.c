@@ -7,6 +7,7 @@
  *    shifted, no scene.yaml): the support-plane estimate puts the cameras
  *    back at their heights over the floor, and a world frame stored in a map
  *    database is taken over the estimate;
+ *  - the same preprocessing as the node's mapping thread (launch defaults);
  *  - bad options fail with a message naming the problem. */
 #include "check.h"
 #include "sooc3d/framepath.h"
@@ -220,6 +221,44 @@ static void test_recorded(const char *scene, const char *rec) {
     CHECK_MSG(strstr(sooc_errmsg(), "no world frame stored") != NULL, "%s", sooc_errmsg());
 }
 
+/* The node's mapping thread and the commands preprocess alike: the frame
+ * path's defaults are a launch file's (pipeline.min/max_depth_m,
+ * model.depth_resample), and a frame read through the frame path equals
+ * sooc_node_preprocess of the reader's frame with those settings. */
+static void test_same_as_node(const char *scene) {
+    sooc_node_config c;
+    sooc_node_config_default(&c);
+    sooc_framepath_params p;
+    sooc_framepath_params_default(&p);
+    CHECK(p.min_depth_m == c.min_depth_m && p.max_depth_m == c.max_depth_m && p.resample == c.depth_resample);
+    p.width = 40, p.height = 30;
+    sooc_framepath *fp = NULL;
+    sooc_seq *sq = NULL;
+    CHECK_OK(sooc_framepath_open(&fp, scene, &p));
+    CHECK_OK(sooc_seq_open(&sq, scene, NULL));
+    sooc_frame raw, a, b;
+    memset(&raw, 0, sizeof raw);
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    if (fp && sq) {
+        CHECK_OK(sooc_framepath_read(fp, 1, &a));
+        CHECK_OK(sooc_seq_read(sq, 1, &raw));
+        CHECK_OK(sooc_node_preprocess(&raw, &b, 40, 30, c.depth_resample, c.min_depth_m, c.max_depth_m));
+        CHECK(a.width == b.width && a.height == b.height && a.width == 40);
+        if (a.width == b.width && a.height == b.height) {
+            size_t np = (size_t)a.width * a.height;
+            CHECK(memcmp(a.rgb, b.rgb, 3 * np) == 0 && memcmp(a.depth, b.depth, np * sizeof(float)) == 0 &&
+                  memcmp(a.valid, b.valid, np) == 0);
+            CHECK(a.K.fx == b.K.fx && a.K.cx == b.K.cx && a.K.cy == b.K.cy);
+        }
+    }
+    sooc_frame_free(&raw);
+    sooc_frame_free(&a);
+    sooc_frame_free(&b);
+    sooc_seq_close(sq);
+    sooc_framepath_close(fp);
+}
+
 static void test_bad(const char *scene) {
     sooc_framepath_params p;
     sooc_framepath *fp = (sooc_framepath *)1;
@@ -261,6 +300,7 @@ int main(void) {
     test_resize(scene);
     write_recorded(scene, rec);
     test_recorded(scene, rec);
+    test_same_as_node(scene);
     test_bad(scene);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", g_tmp);
