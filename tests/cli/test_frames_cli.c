@@ -5,6 +5,7 @@
  *    `--calib F`;
  *  - render of the resized frames scores every view with a finite depth RMSE
  *    (the old [0, 0] depth range emptied every resized frame: nan);
+ *  - a depth scale that empties every frame gives warnings, not a silent nan;
  *  - infer writes the map's world frame (identity for scene.yaml);
  *  - label-fusion (../shared/real, skipped when absent) with the shipped
  *    model: infer and render run on the 640x480 frames with no conversion and
@@ -140,6 +141,15 @@ static void test_synthetic(const char *bin) {
     snprintf(p, sizeof p, "%s/infer/map.json", g_tmp);
     t = slurp(p);
     CHECK_MSG(t && strstr(t, "\"world\": {\"source\": \"identity\""), "map.json: %.200s", t ? t : "");
+    sooc_free(t);
+    /* a wrong depth scale empties every frame: render still runs, and says so */
+    snprintf(cmd, sizeof cmd, "%s render --model %s --seq %s --out %s/render_bad --samples 16,0 --views 1 --calib %s "
+             "--depth-scale 1e-6 > %s/out_bad.txt 2>&1", bin, model, scene, g_tmp, calib, g_tmp);
+    CHECK(run(cmd) == 0);
+    snprintf(p, sizeof p, "%s/out_bad.txt", g_tmp);
+    t = slurp(p);
+    CHECK_MSG(t && strstr(t, "warning: 6 frames have no valid depth") && strstr(t, "non-finite"), "render: %s",
+              t ? t : "");
     sooc_free(t);
     /* a bad frame-path value is a usage error naming the option */
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s --out %s/x --up 0,0,0 2>/dev/null", bin, model, scene, g_tmp);
