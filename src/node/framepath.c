@@ -161,6 +161,7 @@ static sooc_status world_estimate(sooc_framepath *fp) {
          * default stride of 4 is meant for 640-column frames and leaves a
          * 80x60 frame 300 points, too few for the height-histogram refit) */
         sp.pixel_step = 1;
+        sp.max_frames = k;   /* all the frames read, spread over the sequence */
         if (fp->p.has_up) {
             sp.has_up_hint = 1;
             memcpy(sp.up_hint, fp->p.up, sizeof sp.up_hint);
