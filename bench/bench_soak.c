@@ -6,7 +6,7 @@
  * memory (VmRSS) and open file descriptors after the first pass, after 10% of
  * the keyframes and at the end. Prints a JSON object as its last line.
  *
- *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--model PATH] [--out DIR]
+ *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] [--model PATH] [--out DIR]
  *
  * Run from the repository root (the default model path is relative to it). */
 #include "sooc3d/gen.h"
@@ -79,17 +79,18 @@ int main(int argc, char **argv) {
     long long keyframes = 10000;
     const char *scale = "m", *model = "models/sooc3d_unity/model.bin", *out = NULL;
     uint64_t seed = 7;
-    double merge = -1;
+    double merge = -1, clip = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--keyframes") && i + 1 < argc) keyframes = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--scale") && i + 1 < argc) scale = argv[++i];
         else if (!strcmp(argv[i], "--seed") && i + 1 < argc) seed = strtoull(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--merge") && i + 1 < argc) merge = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--clip") && i + 1 < argc) clip = atof(argv[++i]);
         else if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
         else if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
         else {
-            fprintf(stderr, "usage: bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--model P] "
-                            "[--out DIR]\n");
+            fprintf(stderr, "usage: bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] "
+                            "[--model P] [--out DIR]\n");
             return 2;
         }
     }
@@ -137,6 +138,7 @@ int main(int argc, char **argv) {
         return 1;
     }
     if (merge >= 0) c.merge_m = merge;
+    if (clip > 0) c.clip_m = clip;
     sooc_log_set_level(SOOC_LOG_WARN);
     long rss0 = rss_kb();
     int fds0 = open_fds();
@@ -152,7 +154,8 @@ int main(int argc, char **argv) {
     memset(&m, 0, sizeof m);
     m.node = n;
     atomic_init(&m.done, 0);
-    int views = sooc_gen_views(&gp);
+    int views = sooc_gen_views(&gp);   /* a pass replays the input and the query views */
+    views += gp.n_query >= 0 ? gp.n_query : (views / 5 > 2 ? views / 5 : 2);
     m.first_pass_kf = (uint64_t)views;
     m.tenth_kf = (uint64_t)(keyframes / 10 > views ? keyframes / 10 : views);
     pthread_t th;
@@ -176,13 +179,13 @@ int main(int argc, char **argv) {
             (unsigned long long)s.keyframes, secs, (unsigned long long)m.entries_first, views,
             (unsigned long long)s.n_objects, 100 * growth, (unsigned long long)m.entries_max, m.rss_first,
             m.rss_tenth, rss_end, m.fds_first, m.fds_tenth, fds_end, fds_after);
-    printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"views_per_pass\": %d, \"merge_m\": %g, "
+    printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"views_per_pass\": %d, \"merge_m\": %g, \"clip_m\": %g, "
            "\"keyframes\": %llu, \"seconds\": %.1f, \"entries_first_pass\": %llu, \"entries_tenth\": %llu, "
            "\"entries_end\": %llu, \"entries_max\": %llu, \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
            "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
            "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
            "\"status\": \"%s\"}\n",
-           scale, (unsigned long long)seed, views, c.merge_m, (unsigned long long)s.keyframes, secs,
+           scale, (unsigned long long)seed, views, c.merge_m, c.clip_m, (unsigned long long)s.keyframes, secs,
            (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
            (unsigned long long)m.entries_max, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
            m.fds_tenth, fds_end, fds_after, sooc_status_str(st));

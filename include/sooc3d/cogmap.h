@@ -208,6 +208,21 @@ sooc_status sooc_cogmap_register(sooc_cogmap *m, const sooc_floor_frame *gf, int
 void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint64_t *removed_out,
                        int *n_removed);
 
+/* Revisits (the node; docs/cogmap.md "Revisits"), after sooc_cogmap_merge:
+ * an entry the view registered (ids[i]) closer than `radius` to an entry the
+ * view did not register (the nearest such) is that object seen again, which
+ * the view did not retrieve (more entries in view than slots, or an entry
+ * that drifted). The two become one: the better-observed id stays (tie: the
+ * older), with the view's estimate (ids[i]'s values), the sum of both
+ * observation counts and the earlier first_seen; the other id is removed
+ * (written to removed_out, room for cap; at most cap merges) and ids[i] holds
+ * the kept id. Unlike sooc_cogmap_merge this removes or overwrites entries
+ * outside ids[] (only ones within radius of a registered entry). Fails only
+ * when moving the kept entry to another grid cell runs out of memory (the map
+ * stays consistent). */
+sooc_status sooc_cogmap_merge_neighbours(sooc_cogmap *m, uint64_t *ids, int k, double radius,
+                                         uint64_t *removed_out, int cap, int *n_removed);
+
 /* --------------------------------------------------------- layout blocks */
 
 /* Block (bi, bj) covers [bi*B_s, (bi+1)*B_s) x [bj*B_s, (bj+1)*B_s) on (X, Z);

@@ -210,6 +210,8 @@ typedef struct sooc_eval_run_opts {
     double d_clip;             /* > 0: clip depth for inference and scoring instead of the
                                   model's (sooc_model_set_clip); 0 = the model's         (0) */
     double merge_radius;       /* SOOC3D mapper's duplicate merge radius (m); <= 0 = off (0) */
+    int revisit;               /* SOOC3D mapper: the node's revisit rules with merge_radius
+                                  (sooc3d_mapper_set_merge_neighbours; docs/cogmap.md) (0) */
     int latents;               /* SOOC3D mapper: SOOC3D_LATENTS_MEAN / _SAMPLE          (MEAN) */
     int slots;                 /* SOOC3D models: object slots per keyframe (sooc_model_copy_slots);
                                   0 = the model's setting (config.slots, else K); ignored

@@ -129,6 +129,10 @@ typedef struct sooc3d_mapper_params {
                                   slots of one keyframe closer than this never both
                                   register (sooc3d_mapper_same_pose). 0 = the default
                                   SOOC3D_MAPPER_SAME_POSE_FRAC; < 0 = off              */
+    int merge_neighbours;      /* 1: with merge_radius > 0, also merge a registered entry
+                                  with an unregistered one within the radius
+                                  (sooc_cogmap_merge_neighbours; the node's revisit rule,
+                                  docs/cogmap.md "Revisits"). 0 = off (the default)      */
 } sooc3d_mapper_params;
 
 enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
@@ -217,6 +221,8 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, 
                                       const float *logvar);
 
 /* Set the merge radius of a live mapper (same meaning as the parameter). */
+/* The revisit rule of sooc3d_mapper_params.merge_neighbours (0 / 1). */
+void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on);
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC3D_LATENTS_*). */
 void sooc3d_mapper_set_latents(sooc3d_mapper *m, int latents);

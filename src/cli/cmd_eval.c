@@ -21,7 +21,7 @@ static void usage(FILE *f) {
             "usage: sooc3d eval --model M [--model M2 ...] [--name N ...] --data DIR [DIR...] --json OUT\n"
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
-            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R]\n"
+            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R] [--revisit]\n"
             "                   [--latents mean|sample] [--slots N] [--quiet]\n"
             "                   recorded sequences: [--query-every N] [--no-second-pass] [--seen-tol M]\n"
             "                   [--seen-height M] [--persist-min K] [--panels DIR]\n\n"
@@ -52,6 +52,9 @@ static void usage(FILE *f) {
             "                  than R are merged; a new entry that close to an older one is dropped)\n"
             "                  0 = never (default: the paper registers without object matching);\n"
             "                  0.35 measured best (docs/cogmap.md \"Merging split objects\")\n"
+            "  --revisit       SOOC3D mapper, with --merge: the node's revisit rules (merge with\n"
+            "                  unregistered neighbours, hold entries that left the view, running-mean\n"
+            "                  updates; docs/cogmap.md \"Revisits\")\n"
             "  --latents       SOOC3D mapper: refine on the posterior means (mean, default) or on one\n"
             "                  posterior sample per iteration as in training (sample); docs/model.md\n"
             "  --slots         SOOC3D mapper: object slots per view; 0 = the model's setting (default:\n"
@@ -184,6 +187,7 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--clip") && has) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0.01, 1000, &ro.d_clip)) return 2;
         }
+        else if (!strcmp(a, "--revisit")) ro.revisit = 1;
         else if (!strcmp(a, "--merge") && has) {
             if (!sooc_cli_parse_merge(argv[++i], &ro.merge_radius)) {
                 fprintf(stderr, "sooc3d eval: --merge wants a radius >= 0 in metres (0 = never merge)\n");

@@ -847,6 +847,58 @@ void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint
     if (n_removed) *n_removed = nr;
 }
 
+/* The entry outside ids[0..k) nearest to (X, Z), closer than r; SOOC_HEMPTY if none. */
+static uint32_t nearest_other(const sooc_cogmap *m, double X, double Z, double r, const uint64_t *ids, int k) {
+    int32_t ci0, cj0, ci1, cj1;
+    cell_coords(m, X - r, Z - r, &ci0, &cj0);
+    cell_coords(m, X + r, Z + r, &ci1, &cj1);
+    uint32_t best = SOOC_HEMPTY;
+    double bd = r * r;
+    for (int64_t ci = ci0; ci <= ci1; ci++)
+        for (int64_t cj = cj0; cj <= cj1; cj++) {
+            const sooc_cell *cl = cell_at(m, (int32_t)ci, (int32_t)cj);
+            if (!cl) continue;
+            for (uint32_t i = 0; i < cl->n; i++) {
+                const sooc_cell_member *mb = &cl->mem[i];
+                double dx = mb->X - X, dz = mb->Z - Z, d2 = dx * dx + dz * dz;
+                if (!(d2 < bd)) continue;
+                int listed = 0;
+                for (int j = 0; j < k && !listed; j++) listed = ids[j] == mb->id;
+                if (listed) continue;
+                bd = d2;
+                best = mb->idx;
+            }
+        }
+    return best;
+}
+
+sooc_status sooc_cogmap_merge_neighbours(sooc_cogmap *m, uint64_t *ids, int k, double radius,
+                                         uint64_t *removed_out, int cap, int *n_removed) {
+    int nr = 0;
+    sooc_status st = SOOC_OK;
+    for (int i = 0; radius > 0 && i < k && nr < cap && !st; i++) {
+        uint32_t a = ids[i] ? hmap_get(&m->ids, ids[i]) : SOOC_HEMPTY;
+        if (a == SOOC_HEMPTY) continue;
+        uint32_t b = nearest_other(m, m->ent[a].X, m->ent[a].Z, radius, ids, k);
+        if (b == SOOC_HEMPTY) continue;
+        const sooc_cogmap_entry ea = m->ent[a], eb = m->ent[b];
+        int keep_a = ea.obs_count > eb.obs_count || (ea.obs_count == eb.obs_count && ea.id < eb.id);
+        sooc_cogmap_entry kept = ea;   /* the view's estimate refines the kept entry */
+        kept.id = keep_a ? ea.id : eb.id;
+        uint64_t obs = (uint64_t)ea.obs_count + eb.obs_count;
+        kept.obs_count = obs > UINT32_MAX ? UINT32_MAX : (uint32_t)obs;
+        if (eb.first_seen_ns < kept.first_seen_ns) kept.first_seen_ns = eb.first_seen_ns;
+        uint64_t lose = keep_a ? eb.id : ea.id;
+        ent_del_at(m, keep_a ? b : a);
+        st = ent_put(m, &kept);   /* overwrites an existing id: never appends */
+        if (removed_out) removed_out[nr] = lose;
+        nr++;
+        ids[i] = kept.id;
+    }
+    if (n_removed) *n_removed = nr;
+    return st;
+}
+
 /* --------------------------------------------------------- layout blocks */
 
 void sooc_cogmap_block_of(const sooc_cogmap *m, double X, double Z, int32_t *bi, int32_t *bj) {

@@ -22,6 +22,7 @@ struct sooc3d_mapper {
     view_rec V;
     int L, view_idx;
     double merge_r;   /* sooc3d_mapper_params.merge_radius, resolved (0 = off) */
+    int merge_nb;     /* sooc3d_mapper_params.merge_neighbours */
     double same_r;    /* same-pose radius in m, resolved (0 = off) */
     int sample;       /* 1 = SOOC3D_LATENTS_SAMPLE */
     sooc_rng rng;
@@ -92,6 +93,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
     if (st) sooc_model_destroy(m);
     else {
         sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
+        sooc3d_mapper_set_merge_neighbours(*out, p->merge_neighbours);
         sooc3d_mapper_set_latents(*out, p->latents);
         if (p->same_pose != 0)
             (*out)->same_r = p->same_pose > 0 ? p->same_pose * 2.0 * sooc_model_get_config(m)->box_rh : 0.0;
@@ -111,6 +113,67 @@ void sooc3d_mapper_input_size(const sooc3d_mapper *mp, int *w, int *h) {
     const sooc_model_config *c = sooc_model_get_config(mp->m);
     *w = c->img_w;
     *h = c->img_h;
+}
+
+/* The node's revisit rule (merge_neighbours; docs/cogmap.md "Revisits"): a
+ * present slot whose refined centre left the keyframe's view is not evidence
+ * of this view. A retrieved entry keeps its stored values (the slot is not
+ * registered, the entry not removed: it stays bit-identical); a new slot is
+ * dropped when its centre lies behind the camera or beyond the clip depth
+ * (at the image edge it is kept: a partly seen object). Returns the count. */
+static int hold_unseen(sooc3d_mapper *mp, const sooc_frame *f, const view_rec *V, int K, int d) {
+    sooc_cogmap_camera cam;
+    mdl_camera_of(mp->m, f, &cam);
+    const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
+    int held = 0;
+    for (int i = 0; i < K; i++) {
+        float *lam = mp->lam_reg + (size_t)i * NL;
+        if (!(lam[PA] >= 0.0f)) continue;
+        sooc_cogmap_entry e;
+        sooc_cogmap_lam_to_world(&V->gf, d, lam, &e);
+        if (mp->src_reg[i]) {
+            if (sooc_cogmap_in_view(&cam, &e)) continue;
+        } else {
+            const double *T = cam.T_wc;   /* camera depth of the box centre */
+            double q[3] = {e.X - T[3], 0.5 * cam.H_b - T[7], e.Z - T[11]};
+            double z = T[2] * q[0] + T[6] * q[1] + T[10] * q[2];
+            if (z > cam.t_near && z < cam.d_clip) continue;
+        }
+        lam[PA] = -1.0f;
+        mp->src_reg[i] = 0;
+        held++;
+    }
+    return held;
+}
+
+/* The node's revisit rule, part 2: once an entry has been registered
+ * REVISIT_SETTLED times, its registered where and what are the running mean of
+ * its later refinements (the refined slot moves the stored values by
+ * 1 / (obs_count - REVISIT_SETTLED + 2)), so repeated views of a static scene
+ * converge instead of letting small biases of the refinement accumulate over
+ * thousands of keyframes (docs/cogmap.md "Revisits"). Younger entries take the
+ * refinement as it is (one pass over a scene is mapped as before). Variances
+ * and presence are the refined ones. */
+#define REVISIT_SETTLED 8
+static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
+    const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
+    for (int i = 0; i < K; i++) {
+        float *lam = mp->lam_reg + (size_t)i * NL;
+        if (!mp->src_reg[i] || !(lam[PA] >= 0.0f)) continue;
+        sooc_cogmap_entry old;
+        if (sooc_cogmap_get(mp->map, mp->src_reg[i], &old)) continue;
+        float o[SOOC_LAM_MAX];
+        sooc_cogmap_lam_to_local(&V->gf, &old, o);
+        if (old.obs_count < REVISIT_SETTLED) continue;   /* young entries: the refinement as is */
+        float w = 1.0f / (float)(old.obs_count - REVISIT_SETTLED + 2);
+        lam[SOOC_LAM_X] = o[SOOC_LAM_X] + w * (lam[SOOC_LAM_X] - o[SOOC_LAM_X]);
+        lam[SOOC_LAM_Z] = o[SOOC_LAM_Z] + w * (lam[SOOC_LAM_Z] - o[SOOC_LAM_Z]);
+        float dth = lam[SOOC_LAM_TH] - o[SOOC_LAM_TH];
+        dth = (float)atan2(sin(dth), cos(dth));
+        lam[SOOC_LAM_TH] = o[SOOC_LAM_TH] + w * dth;
+        for (int j = 0; j < d; j++)
+            lam[SOOC_LAM_WHAT_MU + j] = o[SOOC_LAM_WHAT_MU + j] + w * (lam[SOOC_LAM_WHAT_MU + j] - o[SOOC_LAM_WHAT_MU + j]);
+    }
 }
 
 sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_update_stats *stp) {
@@ -144,6 +207,10 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     memcpy(mp->lam_reg, lamL, sizeof(float) * (size_t)c->K * NL);
     memcpy(mp->src_reg, V->src_id, sizeof(uint64_t) * (size_t)c->K);
     int n_same = sooc3d_mapper_same_pose(mp->lam_reg, mp->src_reg, c->K, c->d_what, mp->same_r);
+    if (mp->merge_nb && mp->merge_r > 0) {
+        hold_unseen(mp, f, V, c->K, c->d_what);
+        blend_revisits(mp, V, c->K, c->d_what);
+    }
     sooc_cogmap_reg_stats rs;
     uint64_t ids[SOOC_MODEL_K_MAX];
     if ((s = sooc_cogmap_register(mp->map, &V->gf, c->K, mp->lam_reg, mp->src_reg, f->t_ns, mp->view_idx, ids,
@@ -153,6 +220,14 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     int n_merged = 0;   /* merged-away entries: removed, and no longer among the written ids */
     sooc_cogmap_merge(mp->map, ids, c->K, mp->merge_r, mp->rem_ids + mp->n_rem, &n_merged);
     mp->n_rem += n_merged;
+    if (mp->merge_nb && mp->merge_r > 0) {   /* revisits: merge with unregistered neighbours */
+        int n_nb = 0;
+        s = sooc_cogmap_merge_neighbours(mp->map, ids, c->K, mp->merge_r, mp->rem_ids + mp->n_rem,
+                                         mp->n_rem < SOOC_MODEL_K_MAX ? SOOC_MODEL_K_MAX - mp->n_rem : 0, &n_nb);
+        mp->n_rem += n_nb;
+        n_merged += n_nb;
+        if (s) return s;
+    }
     for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 32) */
         if (ids[i]) {
             int j = mp->n_chg++;
@@ -287,6 +362,8 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj,
 }
 
 void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) { sooc_cogmap_reserve_ids(mp->map, next_id); }
+void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on) { mp->merge_nb = on != 0; }
+
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *mp, double radius) {
     mp->merge_r = radius > 0 ? radius : 0;
 }

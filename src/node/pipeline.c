@@ -657,6 +657,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.threads = c->threads;
         mp.d_clip = c->clip_m;
         mp.merge_radius = c->merge_m;
+        mp.merge_neighbours = 1;   /* revisits refine the mapped entry (docs/cogmap.md "Revisits") */
         mp.latents = c->latents;
         mp.slots = c->slots;
         if (!c->model_path[0]) {
