@@ -120,6 +120,7 @@ void sooc_odom_destroy(sooc_odom *o) {
     sooc_free(o);
 }
 
+#if SOOC_HAVE_OPENCV
 static double rot_angle_deg(const double T[16]) {
     double tr = T[0] + T[5] + T[10];
     double c = (tr - 1) * 0.5;
@@ -129,7 +130,6 @@ static double rot_angle_deg(const double T[16]) {
 
 static double trans_norm(const double T[16]) { return sqrt(T[3] * T[3] + T[7] * T[7] + T[11] * T[11]); }
 
-#if SOOC_HAVE_OPENCV
 static sooc_status start(sooc_odom *o, const sooc_frame *f) {
     int w = o->p.width ? o->p.width : f->width, h = o->p.height ? o->p.height : f->height;
     double sx = (double)w / f->width, sy = (double)h / f->height;
