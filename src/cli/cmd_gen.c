@@ -34,7 +34,11 @@ static void usage(FILE *f) {
             "               (default kinect for tabletop, none otherwise)\n"
             "  --clip       camera clipping depth in m: depth beyond it is stored as 0 (default 8)\n"
             "  --threads    OpenMP threads (default: all); output does not depend on it\n"
-            "  --stats      print objects per view, distance and pixel-size histograms\n");
+            "  --stats      print objects per view, distance and pixel-size histograms\n\n"
+            "Calibration boards: sooc3d gen --board SPEC --out DIR [--views 15 --focal 525 --width 640\n"
+            "  --height 480 --noise 2 --seed S --pure-translation]: views of a ChArUco or checkerboard\n"
+            "  (charuco:7x5:0.04:0.03, checker:9x6:0.025) with known intrinsics and hand-eye, for\n"
+            "  `sooc3d calib` (docs/node.md \"Your own camera\").\n");
 }
 
 typedef struct prog_ctx {
