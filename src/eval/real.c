@@ -365,6 +365,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
             return st;
         }
         sooc3d_mapper_set_merge_radius(C.mp, o->run.merge_radius);
+        sooc3d_mapper_set_merge_neighbours(C.mp, o->run.revisit);
         sooc3d_mapper_set_latents(C.mp, o->run.latents);
     }
 

@@ -389,6 +389,16 @@ static void test_runner(void) {
         sooc_free(js);
     }
 
+    /* merging (--merge 0.35 --revisit): the counts still add up */
+    o.second_pass = 1;
+    o.run.merge_radius = 0.35;
+    o.run.revisit = 1;
+    CHECK_OK(sooc_eval_real_run(m, fa, N, &o, NULL, NULL, &rb));
+    CHECK((long)rb.entries_final == rb.churn.created - rb.churn.removed);
+    CHECK((long)rb.entries_pass2 == (long)rb.entries_final + rb.churn2.created - rb.churn2.removed);
+    o.run.merge_radius = 0;
+    o.run.revisit = 0;
+
     /* the global-frame baseline: its present slots are the entries */
     {
         sooc_model_config gc;
