@@ -85,7 +85,21 @@ typedef struct sooc_model_config {
                                 the caller does not choose: 0 = K; more = K plus
                                 mirrored priors (sooc_model_copy_slots). Training
                                 uses K                                          (0) */
+    /* appended in checkpoint version 4 (older files load with 0 = free) */
+    int invalid_depth;       /* what a pixel without valid depth says (SOOC_INVALID_DEPTH_*):
+                                FREE = no surface up to d_clip (synthetic sky / beyond
+                                range); UNKNOWN = a sensor hole, masked out of the
+                                likelihood and the refinement inputs    (0 = FREE) */
 } sooc_model_config;
+
+/* config.invalid_depth (docs/model.md "Invalid depth"). Under UNKNOWN a ray
+ * whose depth is invalid (valid = 0, z <= 0 or non-finite) or nearer than
+ * t_near has no surface sample, no air sample and no colour term; a valid
+ * depth beyond d_clip is still "free up to d_clip". */
+enum { SOOC_INVALID_DEPTH_FREE = 0, SOOC_INVALID_DEPTH_UNKNOWN = 1 };
+/* "free" / "unknown" -> the enum value; SOOC_EINVAL naming the word otherwise. */
+sooc_status sooc_model_invalid_depth_parse(const char *s, int *mode);
+const char *sooc_model_invalid_depth_name(int mode);
 
 void sooc_model_config_default(sooc_model_config *c);
 /* Validate sizes (K <= SOOC_MODEL_K_MAX, d <= SOOC_MODEL_D_MAX, img divisible
@@ -112,6 +126,10 @@ sooc_status sooc_model_set_clip(sooc_model *m, float d_clip);
  * SOOC_EINVAL unless 0 or K <= slots <= SOOC_MODEL_K_MAX (0 for the
  * global-frame baseline). The weights are unchanged. */
 sooc_status sooc_model_set_slots(sooc_model *m, int slots);
+/* Set config.invalid_depth (saved with the model; the weights are unchanged),
+ * e.g. SOOC_INVALID_DEPTH_UNKNOWN to run a model trained on synthetic data on
+ * a real sensor's frames. SOOC_EINVAL for another value. */
+sooc_status sooc_model_set_invalid_depth(sooc_model *m, int mode);
 /* A copy of m that samples its rays on a ray_w x ray_h grid of each view
  * instead of its config's (e.g. every pixel of a 64x64 frame: 64x64 instead
  * of the stratified 32x32 sub-grid). No weight depends on the grid (above

@@ -78,9 +78,10 @@ sooc_status mdl_rays_alloc(view_rays *vr, int gw, int gh) {
     vr->rgb = sooc_calloc((size_t)N * 3, sizeof(float));
     vr->depth = sooc_calloc(N, sizeof(float));
     vr->surf = sooc_calloc(N, 1);
+    vr->unk = sooc_calloc(N, 1);
     vr->W = sooc_calloc(N, sizeof(float));
     vr->pts = sooc_calloc((size_t)N * 6, sizeof(float));
-    if (!vr->dir || !vr->rgb || !vr->depth || !vr->surf || !vr->W || !vr->pts) {
+    if (!vr->dir || !vr->rgb || !vr->depth || !vr->surf || !vr->unk || !vr->W || !vr->pts) {
         mdl_rays_free(vr);
         return SOOC_ENOMEM;
     }
@@ -92,6 +93,7 @@ void mdl_rays_free(view_rays *vr) {
     sooc_free(vr->rgb);
     sooc_free(vr->depth);
     sooc_free(vr->surf);
+    sooc_free(vr->unk);
     sooc_free(vr->W);
     sooc_free(vr->pts);
     memset(vr, 0, sizeof *vr);
@@ -115,6 +117,7 @@ sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int 
     vr->blk[1] = (float)-h;
     vr->blk[2] = (float)blk_local[1];
     float cut = c->air_cut;
+    int unk_mode = c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN;
     for (int i = 0; i < c->ray_h; i++)
         for (int j = 0; j < c->ray_w; j++) {
             int rr = i * c->ray_w + j, u = j * sx + ox, v = i * sy + oy;
@@ -128,7 +131,11 @@ sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int 
             int valid = (f->valid ? f->valid[pix] != 0 : 1) && z > 0 && isfinite(z);
             float d = valid ? (float)(z / uz) : 0.0f;
             int surf = valid && d <= c->d_clip && d > c->t_near;
+            /* UNKNOWN: a hole (or a reading inside the near plane) says nothing about the ray;
+             * a valid depth beyond d_clip still says "no surface up to d_clip" */
+            int unk = unk_mode && !surf && !(valid && d > c->d_clip);
             vr->surf[rr] = (uint8_t)surf;
+            vr->unk[rr] = (uint8_t)unk;
             vr->depth[rr] = d;
             float *ps = vr->pts + rr * 6, *pa = ps + 3;
             float ta;
@@ -144,6 +151,10 @@ sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int 
                     ta = d * cut * U;
                     vr->W[rr] = 2 * cut * d;
                 }
+            } else if (unk) {
+                for (int a = 0; a < 3; a++) ps[a] = 0;
+                ta = 0;
+                vr->W[rr] = 0;
             } else {
                 for (int a = 0; a < 3; a++) ps[a] = 0;
                 ta = c->d_clip * sooc_rng_uniformf(r);
@@ -597,7 +608,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     for (int k = 0; k < K; k++) cth[k] = cosf(c->zw[k][2]), sth[k] = sinf(c->zw[k][2]);
     int nro = 0;
     for (int pt = 0; pt < P; pt++) {
-        int used = (pt & 1) || vr->surf[pt >> 1];
+        int used = (pt & 1) ? !vr->unk[pt >> 1] : vr->surf[pt >> 1];
         for (int k = 0; k < C; k++) w->rowof[(size_t)pt * C + k] = -1;
         if (!used) continue;
         const float *x = vr->pts + (size_t)pt * 3;
@@ -627,7 +638,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     /* layout rows: compacted used points (reuse ro arrays' tail? keep own list in rowof comp 0) */
     int nrl = 0;
     for (int pt = 0; pt < P; pt++)
-        if ((pt & 1) || vr->surf[pt >> 1]) w->rowof[(size_t)pt * C] = nrl++;
+        if ((pt & 1) ? !vr->unk[pt >> 1] : vr->surf[pt >> 1]) w->rowof[(size_t)pt * C] = nrl++;
     /* 3. PE + MLPs: each thread owns a contiguous chunk of rows */
     float inv_o = 1.0f / cfg->box_rh, inv_l = 1.0f / cfg->block_size;
     for (int pt = 0; pt < P; pt++) {
@@ -658,7 +669,7 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             float *gsh = w->gsh + (size_t)pt * C, *gct = w->gct + (size_t)pt * C * 3;
             memset(gsh, 0, sizeof(float) * C);
             memset(gct, 0, sizeof(float) * 3 * C);
-            if (!q && !vr->surf[rr]) {
+            if (q ? vr->unk[rr] : !vr->surf[rr]) {   /* no such sample: contributes nothing */
                 memset(sh, 0, sizeof(float) * C);
                 memset(ct, 0, sizeof(float) * 3 * C);
                 w->S[pt] = w->Sb[pt] = 0;

@@ -42,6 +42,8 @@ void sooc_model_config_default(sooc_model_config *c) {
     c->prior_pres_logit = 0.0f;
     c->global_frame = 0;
     c->global_radius = 4.2f;
+    c->slots = 0;
+    c->invalid_depth = SOOC_INVALID_DEPTH_FREE;
 }
 
 sooc_status sooc_model_config_check(const sooc_model_config *c) {
@@ -77,6 +79,7 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
         !(c->prior_sigma_t > 0 && c->prior_sigma_t < 1e3) || !isfinite(c->prior_near) || !isfinite(c->prior_far) ||
         !isfinite(c->prior_pres_logit) || !isfinite(c->rho_min) || !isfinite(c->rho_max) || !(c->block_size < 1e4) ||
         (c->use_box != 0 && c->use_box != 1) || (c->global_frame != 0 && c->global_frame != 1) ||
+        (c->invalid_depth != SOOC_INVALID_DEPTH_FREE && c->invalid_depth != SOOC_INVALID_DEPTH_UNKNOWN) ||
         !(c->global_radius > 0 && c->global_radius < 1e4))
         return sooc_seterr(SOOC_EINVAL, "model config: constant out of range or non-finite");
     if (!(c->sigma_max > 0) || !(c->sigma_c > 0) || !(c->air_cut > 0 && c->air_cut < 1) || !(c->d_clip > c->t_near) ||
@@ -357,6 +360,22 @@ sooc_status sooc_model_set_slots(sooc_model *m, int slots) {
     if (!st) m->cfg.slots = slots;
     return st;
 }
+sooc_status sooc_model_invalid_depth_parse(const char *s, int *mode) {
+    if (s && !strcmp(s, "free")) *mode = SOOC_INVALID_DEPTH_FREE;
+    else if (s && !strcmp(s, "unknown")) *mode = SOOC_INVALID_DEPTH_UNKNOWN;
+    else return sooc_seterr(SOOC_EINVAL, "invalid depth mode '%s': expected free or unknown", s ? s : "(null)");
+    return SOOC_OK;
+}
+const char *sooc_model_invalid_depth_name(int mode) {
+    return mode == SOOC_INVALID_DEPTH_UNKNOWN ? "unknown" : mode == SOOC_INVALID_DEPTH_FREE ? "free" : "?";
+}
+sooc_status sooc_model_set_invalid_depth(sooc_model *m, int mode) {
+    if (!m) return sooc_seterr(SOOC_EINVAL, "model: no model");
+    if (mode != SOOC_INVALID_DEPTH_FREE && mode != SOOC_INVALID_DEPTH_UNKNOWN)
+        return sooc_seterr(SOOC_EINVAL, "model: invalid depth mode %d (0 = free, 1 = unknown)", mode);
+    m->cfg.invalid_depth = mode;
+    return SOOC_OK;
+}
 size_t sooc_model_param_count(const sooc_model *m) { return m->np; }
 float *sooc_model_params(sooc_model *m) { return m->p; }
 float *sooc_model_grads(sooc_model *m) { return m->g; }
@@ -378,10 +397,11 @@ void sooc_step_opts_default(sooc_step_opts *o) {
 /* ------------------------------------------------------------ checkpoint */
 
 #define MDL_MAGIC "SOOCMDL1"
-#define MDL_VERSION 3u   /* 2: config gained global_frame, global_radius; 3: slots (appended) */
+#define MDL_VERSION 4u   /* 2: config gained global_frame, global_radius; 3: slots; 4: invalid_depth (appended) */
 /* older files: the config without the fields appended since */
 #define MDL_V1_CONFIG_SIZE offsetof(sooc_model_config, global_frame)
 #define MDL_V2_CONFIG_SIZE offsetof(sooc_model_config, slots)
+#define MDL_V3_CONFIG_SIZE offsetof(sooc_model_config, invalid_depth)
 
 sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *blob, size_t blob_size) {
     sooc_afile f;
@@ -432,13 +452,14 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     }
     memcpy(&ver, b + 8, 4);
     memcpy(&csz, b + 12, 4);
-    int v1 = (ver == 1u && csz == MDL_V1_CONFIG_SIZE) || (ver == 2u && csz == MDL_V2_CONFIG_SIZE);
+    int v1 = (ver == 1u && csz == MDL_V1_CONFIG_SIZE) || (ver == 2u && csz == MDL_V2_CONFIG_SIZE) ||
+             (ver == 3u && csz == MDL_V3_CONFIG_SIZE);
     if (!v1 && (ver != MDL_VERSION || csz != sizeof cfg)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: model file version %u / config size %u, expected %u / %zu", path, ver,
                          csz, MDL_VERSION, sizeof cfg);
         goto done;
     }
-    if (v1) {                              /* version 1 or 2 */
+    if (v1) {                              /* version 1, 2 or 3 */
         sooc_model_config_default(&cfg);   /* appended fields keep their defaults */
         if (n < 8 + 4 + 4 + (size_t)csz + 8 + 8 + 4) {
             st = sooc_seterr(SOOC_EFORMAT, "%s: too short", path);

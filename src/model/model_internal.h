@@ -48,6 +48,8 @@ typedef struct view_rays {
     float *rgb;                   /* N x 3 observed colour in [0, 1]                   */
     float *depth;                 /* N Euclidean depth (valid rays)                    */
     uint8_t *surf;                /* N 1 = surface visible (d <= d_clip)               */
+    uint8_t *unk;                 /* N 1 = depth unknown (invalid_depth UNKNOWN and no
+                                     valid depth): no surface, no air sample, no colour */
     float *W;                     /* N air-sample importance weight                    */
     float *pts;                   /* 2N x 3 points in G                                */
     float h, pitch;               /* camera height, pitch                              */

@@ -211,7 +211,7 @@ static void aux_task(void *ctx, int comp, int tid) {
             float ss = sh[(size_t)ps * C + comp], sa = sh[(size_t)pa * C + comp];
             d0[rr] = ss;
             d1[rr] = vr->surf[rr] ? ss / Sv[ps] : 0.0f;
-            d5[rr] = sa * sa / Sv[pa];
+            d5[rr] = vr->unk[rr] ? 0.0f : sa * sa / Sv[pa];   /* unknown: no air sample */
         }
         float *restrict e0 = CH(o + 2), *restrict e1 = CH(o + 3), *restrict e2 = CH(o + 4);
         for (int rr = 0; rr < N; rr++) {
@@ -311,8 +311,11 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
         for (int rr = 0; rr < N; rr++) {
             int surf = vr->surf[rr];
             c0[rr] = vr->rgb[rr * 3], c1[rr] = vr->rgb[rr * 3 + 1], c2[rr] = vr->rgb[rr * 3 + 2];
-            c3[rr] = surf ? vr->depth[rr] / cfg->d_clip : 1.0f;
-            c4[rr] = surf ? 0.0f : 1.0f;
+            /* unknown depth (config.invalid_depth UNKNOWN): neither a depth nor the
+             * beyond-clip flag, 0 and 0 (docs/model.md "Invalid depth") */
+            int unk = vr->unk[rr];
+            c3[rr] = surf ? vr->depth[rr] / cfg->d_clip : unk ? 0.0f : 1.0f;
+            c4[rr] = surf || unk ? 0.0f : 1.0f;
         }
         float *restrict c5 = img_l + 5 * (size_t)N, *restrict c6 = img_l + 6 * (size_t)N, *restrict c7 = img_l + 7 * (size_t)N;
         for (int rr = 0; rr < N; rr++) c5[rr] = vr->dir[rr * 3], c6[rr] = vr->dir[rr * 3 + 1], c7[rr] = vr->dir[rr * 3 + 2];
