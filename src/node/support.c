@@ -361,13 +361,15 @@ sooc_status sooc_support_estimate_points(const double *pts, size_t n_pts, const 
         if (pick < 0 || c[k].mean_clear > c[pick].mean_clear) pick = k;   /* lowest: farthest below the cameras */
     }
     log_cands("parallel", c, nc, pick);
-    if (pick < 0)
+    if (pick < 0) {
+        double cl = nc ? c[0].min_clear : a[0].min_clear;
         return sooc_seterr(SOOC_ENOTFOUND,
                            "support plane: %d level plane(s) within %.0f deg of the up direction (%.3f %.3f %.3f, "
-                           "%s), none below every camera (the largest is %.3f m below the lowest camera); check "
-                           "the up axis (world.up)",
-                           nc, tilt, up[0], up[1], up[2], sooc_up_source_name(out->up_source),
-                           nc ? c[0].min_clear : a[0].min_clear);
+                           "%s), none below every camera (the strongest lies %.3f m %s the lowest camera); check "
+                           "the up axis (world.up; without it the cameras give one)",
+                           nc, tilt, up[0], up[1], up[2], sooc_up_source_name(out->up_source), fabs(cl),
+                           cl < 0 ? "above" : "below");
+    }
     const cand *q = &c[pick];
     memcpy(out->plane_src, q->plane, sizeof out->plane_src);
     memcpy(out->up_src, q->plane, 3 * sizeof(double));
