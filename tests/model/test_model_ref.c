@@ -33,15 +33,26 @@ static void cmp_arr(const char *name, const float *c, const float *ref, size_t n
     CHECK_MSG(rel <= tol || merr <= 1e-6, "%s: relative max error %.3e > %.1e", name, rel, tol);
 }
 
+static int run_ref(int unknown);
+
 int main(void) {
     if (system("/usr/bin/python3 -c 'import torch' >/dev/null 2>&1") != 0) {
         printf("test_model_ref: SKIP (/usr/bin/python3 cannot import torch)\n");
         return SOOC_TEST_SKIP;
     }
+    /* pass 0: the plain decode; pass 1: config.invalid_depth unknown, a quarter of the rays holes */
+    for (int unknown = 0; unknown < 2; unknown++)
+        if (run_ref(unknown)) return 1;
+    return check_report("test_model_ref");
+}
+
+static int run_ref(int unknown) {
     const char *src = getenv("SOOC_SRC") ? getenv("SOOC_SRC") : ".";
     char path[256], cmd[1024];
     snprintf(path, sizeof path, "/tmp/sooc_model_ref.%d.bin", (int)getpid());
-    snprintf(cmd, sizeof cmd, "/usr/bin/python3 %s/tests/ref/model_ref.py %s", src, path);
+    snprintf(cmd, sizeof cmd, "/usr/bin/python3 %s/tests/ref/model_ref.py %s%s", src, path,
+             unknown ? " --unknown" : "");
+    printf("test_model_ref: %s\n", unknown ? "unknown rays (a quarter of the rays are holes)" : "plain decode");
     if (system(cmd) != 0) {
         fprintf(stderr, "test_model_ref: reference script failed: %s\n", cmd);
         return 1;
@@ -81,7 +92,13 @@ int main(void) {
     dec_noise nz;
     memset(&nz, 0, sizeof nz);
     CHECK(!rd(vr.rgb, N * 12) && !rd(vr.depth, N * 4) && !rd(surf, N * 4) && !rd(vr.W, N * 4) && !rd(vr.pts, P * 12));
-    for (int r = 0; r < N; r++) vr.surf[r] = surf[r] > 0.5f;
+    int nunk = 0;
+    for (int r = 0; r < N; r++) {
+        vr.surf[r] = surf[r] > 0.5f && surf[r] < 1.5f;
+        vr.unk[r] = surf[r] > 1.5f;
+        nunk += vr.unk[r];
+    }
+    CHECK(unknown ? nunk == N / 4 : nunk == 0);
     CHECK(!rd(lam, K * NL * 4) && !rd(lam0, K * NL * 4) && !rd(lay, 2 * dl * 4) && !rd(lay0, 2 * dl * 4));
     for (int k = 0; k < K; k++) CHECK(!rd(nz.eps_where[k], 12));
     for (int k = 0; k < K; k++) CHECK(!rd(nz.eps_what[k], d * 4));
@@ -95,7 +112,7 @@ int main(void) {
     CHECK(!rd(r_sh, P * C * 4) && !rd(r_col, P * 12) && !rd(r_gl, K * NL * 4) && !rd(r_gl0, K * NL * 4));
     CHECK(!rd(r_gy, 2 * dl * 4) && !rd(r_gy0, 2 * dl * 4) && !rd(r_gw, (nobj + nlay) * 4));
     CHECK(!rd(magic, 4) && !memcmp(magic, "END!", 4) && rleft == 0);
-    if (g_check_fail) return check_report("test_model_ref");
+    if (g_check_fail) return 1;
 
     float g_lam[16 * 70] = {0}, g_lam0[16 * 70] = {0}, g_lay[64] = {0}, g_lay0[64] = {0};
     dec_call dc;
@@ -114,7 +131,7 @@ int main(void) {
     /* outputs at used points */
     float *c_col = calloc(P * 3, 4);
     for (int p = 0; p < P; p++)
-        if ((p & 1) || vr.surf[p >> 1]) memcpy(c_col + p * 3, m->ws.cc + p * 3, 12);
+        if ((p & 1) ? !vr.unk[p >> 1] : vr.surf[p >> 1]) memcpy(c_col + p * 3, m->ws.cc + p * 3, 12);
     cmp_arr("sigma_hat", m->ws.sh, r_sh, (size_t)P * C, 1e-4);
     cmp_arr("colour", c_col, r_col, (size_t)P * 3, 1e-4);
     cmp_arr("dL/dlam", g_lam, r_gl, (size_t)K * NL, 2e-3);
@@ -131,5 +148,5 @@ int main(void) {
     free(surf), free(lam), free(lam0), free(lay), free(lay0), free(r_sh), free(r_col), free(r_gl), free(r_gl0);
     free(r_gy), free(r_gy0), free(r_gw), free(c_col);
     sooc_free(buf);
-    return check_report("test_model_ref");
+    return 0;
 }

@@ -9,7 +9,10 @@ Writes inputs, weights, noise, outputs and gradients (w.r.t. λ, λ0, layout
 latents and all decoder weights) to a versioned little-endian binary file that
 tests/model/test_model_ref.c reads and compares against the C decoder.
 
-usage: model_ref.py OUT.bin [--seed S]
+usage: model_ref.py OUT.bin [--seed S] [--unknown]
+--unknown: config.invalid_depth = unknown; every ray r with r % 4 == 1 is a
+sensor hole (no surface sample, no air sample, no colour term; W = 0). The
+surf array then carries the ray state: 1 surface, 0 free, 2 unknown.
 Format (version 1): b"SOOCREF1", u32 version, i32[9] ints, f32[16] floats, then
 float32 arrays in the order of ARRAYS below, then f64[3] (loss, nll, kl), then
 float32 outputs/gradients in the order of OUTPUTS, then b"END!".
@@ -29,6 +32,7 @@ def main():
     out = sys.argv[1]
     seed = int(sys.argv[sys.argv.index("--seed") + 1]) if "--seed" in sys.argv else 3
     rs = np.random.RandomState(seed)
+    unknown = "--unknown" in sys.argv
     K, d, dl, H, Hc, nf, nfl, N, use_box = 3, 8, 4, 16, 8, 3, 3, 256, 1
     smax, sigc, eps_rel, Rh, Hb, s_g, Bs, rmin, rmax = 30.0, 0.2, 1e-4, 0.6, 1.2, 0.3, 4.0, -10.0, 4.0
     tau, beta, h, npix, dclip, cut, dels = 0.8, 0.9, 1.5, 1024.0, 8.0, 0.98, 0.03
@@ -70,6 +74,10 @@ def main():
         else:
             ta, W[r] = dclip * rs.uniform(), dclip
         pts[2 * r + 1] = ta * dirs[r]
+    unk = np.zeros(N, bool)
+    if unknown:   # holes: the drawn samples stay in pts (never decoded), the state says unknown
+        unk[1::4] = True
+        surf[unk], W[unk] = 2, 0
     dirs, depth, surf, rgb, W, pts = map(f32, (dirs, depth, surf, rgb, W, pts))
 
     lam = np.zeros((K, NL))
@@ -141,7 +149,8 @@ def main():
 
     P = 2 * N
     used = torch.ones(P, dtype=torch.bool)
-    used[0::2] = torch.tensor(surf > 0.5)
+    used[0::2] = torch.tensor((surf > 0.5) & (surf < 1.5))
+    used[1::2] = torch.tensor(~unk)
     # layout
     xl = tpts - T(blk)
     sl, cl_l = mlp(twl, pe(xl, 1.0 / Bs, nfl), zl @ twl[1] + twl[2])
@@ -163,7 +172,7 @@ def main():
     col = (SH[:, :, None] * CT).sum(1) / S[:, None]
     scale = npix / N
     ps, pa = torch.arange(0, P, 2), torch.arange(1, P, 2)
-    tsurf = T(surf) > 0.5
+    tsurf = (T(surf) > 0.5) & (T(surf) < 1.5)
     lnorm = 3 * math.log(sigc * math.sqrt(2 * math.pi))
     ld = torch.where(tsurf, torch.log(smax * Sb[ps] + eps_rel * smax), torch.zeros(N)) - T(W) * smax * Sb[pa]
     lc = torch.where(tsurf, -((T(rgb) - col[ps]) ** 2).sum(1) / (2 * sigc ** 2) - lnorm, torch.zeros(N))
