@@ -216,6 +216,8 @@ typedef struct sooc_eval_run_opts {
     int slots;                 /* SOOC3D models: object slots per keyframe (sooc_model_copy_slots);
                                   0 = the model's setting (config.slots, else K); ignored
                                   for the global-frame baseline                        (0) */
+    int invalid_depth;         /* 0 = the model's config.invalid_depth; 1 + SOOC_INVALID_DEPTH_*
+                                  overrides it (2 = holes unknown; docs/model.md)       (0) */
     /* extras, only for the views flagged in detail_views (NULL = every view): */
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */

@@ -129,6 +129,10 @@ typedef struct sooc3d_mapper_params {
                                   slots of one keyframe closer than this never both
                                   register (sooc3d_mapper_same_pose). 0 = the default
                                   SOOC3D_MAPPER_SAME_POSE_FRAC; < 0 = off              */
+    int invalid_depth;         /* pixels without valid depth: 0 = the model's setting
+                                  (config.invalid_depth), 1 + SOOC_INVALID_DEPTH_* overrides
+                                  it (2 = sensor holes unknown, masked out of the
+                                  likelihood; docs/model.md "Invalid depth")            */
     int merge_neighbours;      /* 1: with merge_radius > 0, also merge a registered entry
                                   with an unregistered one within the radius
                                   (sooc_cogmap_merge_neighbours; the node's revisit rule,

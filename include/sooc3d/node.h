@@ -106,6 +106,8 @@ typedef struct sooc_node_config {
     int latents;                             /* SOOC3D_LATENTS_MEAN (default) / _SAMPLE */
     int slots;                               /* object slots per keyframe (sooc3d_mapper_params.
                                                 slots): 0 = the model's K (default) */
+    int invalid_depth;                       /* model.invalid_depth: 0 = the model's (default),
+                                                1 = free, 2 = unknown (sooc3d_mapper_params) */
 
     /* keyframe: */
     double kf_translation_m;                 /* default 0.10 */

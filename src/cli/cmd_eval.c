@@ -22,7 +22,7 @@ static void usage(FILE *f) {
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
             "                   [--max-views N] [--max-obj K] [--clip D] [--merge R] [--revisit]\n"
-            "                   [--latents mean|sample] [--slots N] [--quiet]\n"
+            "                   [--latents mean|sample] [--slots N] [--invalid-depth free|unknown] [--quiet]\n"
             "                   recorded sequences: [--query-every N] [--no-second-pass] [--seen-tol M]\n"
             "                   [--seen-height M] [--persist-min K] [--panels DIR]\n\n"
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
@@ -60,6 +60,9 @@ static void usage(FILE *f) {
             "  --slots         SOOC3D mapper: object slots per view; 0 = the model's setting (default:\n"
             "                  its config slots, else K). More than K pads the extra slots with\n"
             "                  mirrored learnt priors (docs/model.md)\n"
+            "  --invalid-depth pixels without valid depth: free (no surface up to d_clip) or unknown\n"
+            "                  (sensor holes, masked out of the model's likelihood); default: the\n"
+            "                  model's config.invalid_depth (docs/model.md \"Invalid depth\")\n"
             "  --quiet         no progress line\n\n%s\n%s",
             sooc_cli_framepath_help, sooc_eval_real_cli_help);
 }
@@ -205,6 +208,14 @@ int sooc_cmd_eval(int argc, char **argv) {
                 fprintf(stderr, "sooc3d eval: --slots wants 0 (the model's) up to %d object slots\n", SOOC_MODEL_K_MAX);
                 return 2;
             }
+        }
+        else if (!strcmp(a, "--invalid-depth") && has) {
+            int mode;
+            if (sooc_model_invalid_depth_parse(argv[++i], &mode)) {
+                fprintf(stderr, "sooc3d eval: --invalid-depth wants free or unknown\n");
+                return 2;
+            }
+            ro.invalid_depth = 1 + mode;
         }
         else if (!strcmp(a, "--quiet")) quiet = 1;
         else if (!strcmp(a, "--query-every") && has) INTV(2, 1000000, &rel.query_every);

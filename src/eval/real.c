@@ -349,7 +349,8 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     int global = sooc_model_is_global(m);
     sooc_status st = sooc_model_copy_slots(m, global ? 0 : o->run.slots, &copy);
     if (st) return sooc_adderr(st, "eval real: model copy");
-    if (o->run.d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->run.d_clip))) {
+    if ((o->run.d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->run.d_clip))) ||
+        (o->run.invalid_depth > 0 && (st = sooc_model_set_invalid_depth(copy, o->run.invalid_depth - 1)))) {
         sooc_model_destroy(copy);
         return st;
     }

@@ -234,7 +234,8 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     memset(&C, 0, sizeof C);
     sooc_status st = sooc_model_copy_slots(m, sooc_model_is_global(m) ? 0 : o->slots, &copy);
     if (st) goto done;
-    if (o->d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->d_clip))) {
+    if ((o->d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->d_clip))) ||
+        (o->invalid_depth > 0 && (st = sooc_model_set_invalid_depth(copy, o->invalid_depth - 1)))) {
         sooc_model_destroy(copy);
         goto done;
     }

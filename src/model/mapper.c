@@ -76,7 +76,8 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
     sooc_model *m;
     sooc_status st = sooc_model_load(&m, p->model_path, NULL, NULL);
     if (st) return sooc_adderr(st, "mapper");
-    if (p->d_clip > 0 && (st = sooc_model_set_clip(m, (float)p->d_clip))) {
+    if ((p->d_clip > 0 && (st = sooc_model_set_clip(m, (float)p->d_clip))) ||
+        (p->invalid_depth > 0 && (st = sooc_model_set_invalid_depth(m, p->invalid_depth - 1)))) {
         sooc_model_destroy(m);
         return sooc_adderr(st, "mapper");
     }

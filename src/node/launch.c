@@ -470,6 +470,7 @@ static const kspec g_keys[] = {
     KV("model", "merge_m", KV_NUM, merge_m, 0, 100),
     KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC3D_LATENTS_* */
     KV("model", "slots", KV_INT, slots, 0, SOOC_MODEL_K_MAX),
+    KV_CH("model", "invalid_depth", invalid_depth, "model|free|unknown"),   /* 1 + SOOC_INVALID_DEPTH_* */
     KV("keyframe", "translation_m", KV_NUM, kf_translation_m, 0, 1000),
     KV("keyframe", "rotation_deg", KV_NUM, kf_rotation_deg, 0, 360),
     KV("keyframe", "time_s", KV_NUM, kf_time_s, 0, 86400),
@@ -653,10 +654,11 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
             c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m, c->odom_min_agreement);
     }
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
-        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d}\n",
+        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s}\n",
         c->calib_path, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
-        c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean", c->slots);
+        c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
+        c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model");
     OUT("keyframe: {translation_m: %g, rotation_deg: %g, time_s: %g}\n", c->kf_translation_m,
         c->kf_rotation_deg, c->kf_time_s);
     OUT("shm: {name: '%s', capacity: %u, unlink_on_exit: %s}\n", c->shm_name, c->shm_capacity,

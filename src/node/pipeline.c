@@ -660,6 +660,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.merge_neighbours = 1;   /* revisits refine the mapped entry (docs/cogmap.md "Revisits") */
         mp.latents = c->latents;
         mp.slots = c->slots;
+        mp.invalid_depth = c->invalid_depth;
         if (!c->model_path[0]) {
             st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
             goto fail;

@@ -381,6 +381,21 @@ static void test_checkpoint(void) {
     CHECK(sooc_model_get_config(l)->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN);
     CHECK(!memcmp(sooc_model_params(l), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
     sooc_model_destroy(l);
+    /* the mapper's override (node launch key model.invalid_depth, eval --invalid-depth) */
+    sooc3d_mapper_params mpp;
+    sooc3d_mapper_params_default(&mpp);
+    mpp.model_path = p;
+    mpp.invalid_depth = 1 + SOOC_INVALID_DEPTH_FREE;
+    sooc3d_mapper *mp = NULL;
+    CHECK_OK(sooc3d_mapper_create(&mp, &mpp));
+    if (mp) CHECK(sooc_model_get_config(sooc3d_mapper_model(mp))->invalid_depth == SOOC_INVALID_DEPTH_FREE);
+    sooc3d_mapper_destroy(mp);
+    mpp.invalid_depth = 0;   /* the model's */
+    CHECK_OK(sooc3d_mapper_create(&mp, &mpp));
+    if (mp) CHECK(sooc_model_get_config(sooc3d_mapper_model(mp))->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN);
+    sooc3d_mapper_destroy(mp);
+    mpp.invalid_depth = 7;
+    CHECK(sooc3d_mapper_create(&mp, &mpp) == SOOC_EINVAL);
     /* a version-3 file: the same bytes with the config cut before invalid_depth */
     void *buf = NULL;
     size_t n = 0;

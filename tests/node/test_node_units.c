@@ -104,6 +104,13 @@ static void test_launch(void) {
     CHECK(c.slots == 10);
     CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "slots: 10"));
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  slots: 99\n", "t.yaml:3", "model.slots");
+    /* model.invalid_depth: the model's setting (default), free or unknown (docs/model.md) */
+    CHECK(c.invalid_depth == 0 && strstr(buf, "invalid_depth: model"));
+    const char *iv = "sensor: {driver: replay, path: x}\nmodel:\n  invalid_depth: unknown\n";
+    CHECK_OK(sooc_node_config_parse(&c, iv, strlen(iv), "i.yaml"));
+    CHECK(c.invalid_depth == 2);   /* 1 + SOOC_INVALID_DEPTH_UNKNOWN */
+    CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "invalid_depth: unknown"));
+    expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  invalid_depth: holes\n", "t.yaml:3", "model.invalid_depth");
 
     /* an OpenCV-style header line is tolerated */
     const char *ocv = "%YAML:1.0\n---\nsensor: {driver: replay, path: x}\n";
