@@ -10,7 +10,7 @@
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d model M [--slots N] [--rays R] [--out F]\n\n"
+            "usage: sooc3d model M [--slots N] [--rays R] [--invalid-depth free|unknown] [--out F]\n\n"
             "Print checkpoint M's configuration (resolution, slots, latent sizes, clip depth,\n"
             "parameter count). With --out, write a copy of M changed by:\n"
             "  --slots N  inference slot count: the mapper and `sooc3d eval`/`infer` then run it\n"
@@ -20,6 +20,9 @@ static void usage(FILE *f) {
             "             side; R = the image side uses every pixel; a model of a 16 x 16 grid\n"
             "             stays at 16). Updates cost about R^2/1024 times a 32 x 32 grid's\n"
             "             (docs/model.md)\n"
+            "  --invalid-depth free|unknown  what a pixel without valid depth means: no surface up\n"
+            "             to the clip depth (free; synthetic sky) or a sensor hole, masked out of the\n"
+            "             likelihood (unknown; docs/model.md \"Invalid depth\")\n"
             "The weights and any trainer state are copied unchanged; F is written atomically and\n"
             "may be M itself.\n");
 }
@@ -30,7 +33,7 @@ int sooc_cmd_model(int argc, char **argv) {
         return 0;
     }
     const char *path = NULL, *out = NULL;
-    int slots = -1, rays = -1;
+    int slots = -1, rays = -1, invalid = -1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--slots") && i + 1 < argc) {
@@ -43,6 +46,11 @@ int sooc_cmd_model(int argc, char **argv) {
                 fprintf(stderr, "sooc3d model: --rays wants a ray grid side, 16..1024 (got '%s')\n", argv[i]);
                 return 2;
             }
+        } else if (!strcmp(a, "--invalid-depth") && i + 1 < argc) {
+            if (sooc_model_invalid_depth_parse(argv[++i], &invalid)) {
+                fprintf(stderr, "sooc3d model: --invalid-depth wants free or unknown (got '%s')\n", argv[i]);
+                return 2;
+            }
         } else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
         else if (a[0] != '-' && !path) path = a;
         else {
@@ -51,7 +59,7 @@ int sooc_cmd_model(int argc, char **argv) {
             return 2;
         }
     }
-    if (!path || (slots >= 0 || rays >= 0) != (out != NULL)) {
+    if (!path || (slots >= 0 || rays >= 0 || invalid >= 0) != (out != NULL)) {
         usage(stderr);
         return 2;
     }
@@ -69,6 +77,7 @@ int sooc_cmd_model(int argc, char **argv) {
             }
         }
         if (!st && slots >= 0) st = sooc_model_set_slots(m, slots);
+        if (!st && invalid >= 0) st = sooc_model_set_invalid_depth(m, invalid);
         if (!st) st = sooc_model_save(m, out, blob, bs);
         if (st) sooc_adderr(st, "%s", out);
     }
@@ -81,6 +90,9 @@ int sooc_cmd_model(int argc, char **argv) {
                c->slots > c->K ? " (extra priors mirrored)" : "");
         printf("  latents     d_what %d, d_layout %d, L = %d refinement updates\n", c->d_what, c->d_layout, c->L);
         printf("  clip        %g m (near %g m)\n", (double)c->d_clip, (double)c->t_near);
+        printf("  no depth    %s\n", c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN
+                                         ? "unknown (sensor holes masked out of the likelihood)"
+                                         : "free (no surface up to the clip depth)");
         printf("  parameters  %zu%s\n", sooc_model_param_count(m), bs ? ", with trainer state" : "");
     }
     sooc_free(blob);
