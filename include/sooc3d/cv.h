@@ -66,7 +66,30 @@ typedef struct sooc_odom_params {
      * frame's depth pixels, moved into the keyframe, agree with its depth
      * within max_depth_diff_m (default 0.3; 0 = no check) */
     double min_agreement;
+    /* Colour not registered to depth (7-Scenes: the frames' K is the depth
+     * camera's, f = 585; its colour camera has f = 525,
+     * SOOC_ODOM_7SCENES_COLOR_F): the colour camera's fx, fy, cx, cy at the
+     * frames' resolution, and p_color = T_color_depth * p_depth (rigid).
+     * The odometry then samples the colour at each depth pixel's projection
+     * into the colour camera and tracks the depth camera (the frames' K).
+     * Default color_K all 0 = colour registered to depth (T_color_depth
+     * unused, identity). */
+    double color_K[4];
+    double T_color_depth[16];
 } sooc_odom_params;
+
+/* Focal length of the 7-Scenes colour camera at 640x480 (the dataset's
+ * camera-intrinsics are the depth camera's, f = 585; its colour images are
+ * not registered to depth: Brachmann et al., DSAC/LessMore 7-Scenes
+ * calibration, principal point 320, 240). */
+#define SOOC_ODOM_7SCENES_COLOR_F 525.0
+
+/* 1 if K (at width x height) is the 7-Scenes depth camera's published
+ * intrinsics (f = 585, principal point at the centre, 640x480 scaled). */
+int sooc_odom_is_7scenes_depth_K(const sooc_intrinsics *K, int width, int height);
+/* Set p's colour camera to 7-Scenes' (f = 525 scaled to width x height,
+ * principal point at the centre, T_color_depth identity). */
+void sooc_odom_params_7scenes_color(sooc_odom_params *p, int width, int height);
 
 void sooc_odom_params_default(sooc_odom_params *p);
 

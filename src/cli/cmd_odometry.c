@@ -30,6 +30,10 @@ static void usage(FILE *f) {
             "  --depth-diff M       correspondence depth gate in metres (default 0.07)\n"
             "  --max-failures N     re-anchor after N failed frames in a row (default 10)\n"
             "  --depth-range A:B    depths used, metres (default 0.3:4)\n"
+            "  --color-K K          colour camera when colour is not registered to depth: fx,fy,cx,cy\n"
+            "                       (frames' resolution), '7scenes' (f 525) or 'registered'; default auto:\n"
+            "                       7scenes for a 7-Scenes sequence with its depth intrinsics (f 585)\n"
+            "  --color-t X,Y,Z      colour camera translation, p_color = p_depth + t (metres, default 0)\n"
             "  --max-frames N       stop after N frames\n"
             "  --start-gt           start at the sequence's first pose instead of the identity\n"
             "  --gt-out FILE        also write the sequence's poses (TUM)\n"
@@ -61,6 +65,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
     sooc_odom_params_default(&op);
     double delta = 1.0, max_dt = 0.02;
     int delta_frames = 0, start_gt = 0;
+    const char *color_K = "auto";
     long long max_frames = 0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -117,6 +122,32 @@ int sooc_cmd_odometry(int argc, char **argv) {
             }
             op.min_depth_m = lo;
             op.max_depth_m = hi;
+        } else if (!strcmp(a, "--color-K")) {
+            NEEDV();
+            double k[4];
+            int n = 0;
+            if (!strcmp(v, "auto") || !strcmp(v, "7scenes") || !strcmp(v, "registered")) color_K = v;
+            else if (sscanf(v, "%lf,%lf,%lf,%lf%n", &k[0], &k[1], &k[2], &k[3], &n) == 4 && !v[n] && k[0] > 0 &&
+                     k[1] > 0 && k[0] < 1e5 && k[1] < 1e5 && fabs(k[2]) < 1e5 && fabs(k[3]) < 1e5) {
+                memcpy(op.color_K, k, sizeof k);
+                color_K = "given";
+            } else {
+                fprintf(stderr, "sooc3d odometry: --color-K: expected fx,fy,cx,cy (pixels), 7scenes, registered "
+                                "or auto, got '%s'\n", v);
+                return 2;
+            }
+        } else if (!strcmp(a, "--color-t")) {
+            NEEDV();
+            double t[3];
+            int n = 0;
+            if (sscanf(v, "%lf,%lf,%lf%n", &t[0], &t[1], &t[2], &n) != 3 || v[n] || !(fabs(t[0]) < 1 && fabs(t[1]) < 1 &&
+                                                                                    fabs(t[2]) < 1)) {
+                fprintf(stderr, "sooc3d odometry: --color-t: expected X,Y,Z metres (each under 1 m), got '%s'\n", v);
+                return 2;
+            }
+            op.T_color_depth[3] = t[0];
+            op.T_color_depth[7] = t[1];
+            op.T_color_depth[11] = t[2];
         } else if (!strcmp(a, "--max-frames")) { NEEDV(); if (!sooc_cli_count_opt(cmd, a, v, &max_frames)) return 2; }
         else if (!strcmp(a, "--start-gt")) start_gt = 1;
         else if (!strcmp(a, "--delta")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 1e-6, 1e6, &delta)) return 2; }
@@ -166,6 +197,21 @@ int sooc_cmd_odometry(int argc, char **argv) {
     int64_t *kept = NULL;
     int rc = 1;
     if ((st = sooc_seq_open(&seq, seq_dir, &sp))) goto fail;
+    {
+        const sooc_calib *cal = sooc_seq_calib(seq);
+        int cw = cal->K.width, ch = cal->K.height;
+        if (!strcmp(color_K, "7scenes") ||
+            (!strcmp(color_K, "auto") && sooc_seq_get_format(seq) == SOOC_SEQ_7SCENES &&
+             sooc_odom_is_7scenes_depth_K(&cal->K, cw, ch))) {
+            double t[3] = {op.T_color_depth[3], op.T_color_depth[7], op.T_color_depth[11]};
+            sooc_odom_params_7scenes_color(&op, cw, ch);
+            op.T_color_depth[3] = t[0];
+            op.T_color_depth[7] = t[1];
+            op.T_color_depth[11] = t[2];
+            sooc_log(SOOC_LOG_INFO, "odometry: %s: 7-Scenes colour is not registered to depth: colour camera "
+                     "f %.1f, depth camera f %.1f (--color-K registered to turn off)", seq_dir, op.color_K[0], cal->K.fx);
+        }
+    }
     if ((st = sooc_odom_create(&odo, &op))) goto fail;
     int64_t n = sooc_seq_count(seq);
     if (max_frames && max_frames < n) n = max_frames;

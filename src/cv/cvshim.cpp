@@ -69,13 +69,17 @@ struct sooc_cvodo {
     cv::Ptr<cv::rgbd::Odometry> odo;
     int w = 0, h = 0, variant = 0;
     double K[4] = {0, 0, 0, 0}, min_depth = 0, max_depth = 0;
+    bool unregistered = false;                 // colour camera != depth camera
+    double Kc[4] = {0, 0, 0, 0}, Tcd[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     cv::Mat rgb_full, gray_full, gray, depth;   // reused buffers
+    cv::Mat mapx, mapy;                         // colour-to-depth resampling maps (reused)
     cv::Ptr<cv::rgbd::OdometryFrame> cur, kf;
 };
 
 extern "C" int sooc_cvodo_create(sooc_cvodo **out, int variant, const double K[4], int w, int h, double min_depth,
                                  double max_depth, double max_depth_diff, double max_points_part,
-                                 double max_translation, double max_rotation_deg, char *err, size_t errcap) {
+                                 double max_translation, double max_rotation_deg, const double Kc[4],
+                                 const double T_cd[16], char *err, size_t errcap) {
     *out = nullptr;
     try {
         auto *o = new sooc_cvodo();
@@ -107,6 +111,14 @@ extern "C" int sooc_cvodo_create(sooc_cvodo **out, int variant, const double K[4
         for (int i = 0; i < 4; i++) o->K[i] = K[i];
         o->min_depth = min_depth;
         o->max_depth = max_depth;
+        if (Kc) {
+            o->unregistered = true;
+            for (int i = 0; i < 4; i++) o->Kc[i] = Kc[i];
+            if (T_cd)
+                for (int i = 0; i < 16; i++) o->Tcd[i] = T_cd[i];
+            o->mapx.create(h, w, CV_32F);
+            o->mapy.create(h, w, CV_32F);
+        }
         *out = o;
         return 0;
     } catch (const std::exception &e) {
@@ -130,6 +142,41 @@ extern "C" int sooc_cvodo_load(sooc_cvodo *o, const uint8_t *rgb, const float *d
         } else {
             cv::resize(o->gray_full, gray, cv::Size(o->w, o->h), 0, 0, cv::INTER_AREA);
             cv::resize(depth_in, dep, cv::Size(o->w, o->h), 0, 0, cv::INTER_NEAREST);
+        }
+        if (o->unregistered && o->variant != 1) {
+            // colour camera -> depth camera: sample the colour at each depth
+            // pixel's 3D point projected into the colour camera
+            const double *T = o->Tcd;
+            const double fx = o->K[0], fy = o->K[1], cx = o->K[2], cy = o->K[3];
+            const double fxc = o->Kc[0], fyc = o->Kc[1], cxc = o->Kc[2], cyc = o->Kc[3];
+            for (int y = 0; y < o->h; y++) {
+                const float *dr = dep.ptr<float>(y);
+                float *mx = o->mapx.ptr<float>(y), *my = o->mapy.ptr<float>(y);
+                const double ry = (y - cy) / fy;
+                for (int x = 0; x < o->w; x++) {
+                    const double rx = (x - cx) / fx;
+                    const double z = dr[x];
+                    double px, py, pz;
+                    if (z > 0 && std::isfinite(z)) {   // p_c = R p_d + t
+                        px = T[0] * rx * z + T[1] * ry * z + T[2] * z + T[3];
+                        py = T[4] * rx * z + T[5] * ry * z + T[6] * z + T[7];
+                        pz = T[8] * rx * z + T[9] * ry * z + T[10] * z + T[11];
+                    } else {                            // ray at infinity: rotation only
+                        px = T[0] * rx + T[1] * ry + T[2];
+                        py = T[4] * rx + T[5] * ry + T[6];
+                        pz = T[8] * rx + T[9] * ry + T[10];
+                    }
+                    if (pz > 1e-9) {
+                        mx[x] = (float)(fxc * px / pz + cxc);
+                        my[x] = (float)(fyc * py / pz + cyc);
+                    } else {
+                        mx[x] = my[x] = -1e6f;
+                    }
+                }
+            }
+            cv::Mat reg;
+            cv::remap(gray, reg, o->mapx, o->mapy, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+            gray = reg;
         }
         // the frame keeps its own buffers: a keyframe outlives later loads
         o->cur = cv::rgbd::OdometryFrame::create(o->variant == 1 ? cv::Mat() : gray, dep);

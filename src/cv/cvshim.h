@@ -23,13 +23,20 @@ extern "C" {
 typedef struct sooc_cvodo sooc_cvodo;
 
 /* variant: 0 RGB-D (photometric), 1 ICP (depth only), 2 RGB-D + ICP.
- * K = fx fy cx cy at the working resolution w x h. */
+ * K = fx fy cx cy at the working resolution w x h (the depth camera's).
+ * Kc: the colour camera's intrinsics at the working resolution when colour
+ * is not registered to depth, with p_color = T_cd * p_depth (T_cd may be
+ * NULL: identity); Kc NULL = colour registered (same pixels as depth). */
 int sooc_cvodo_create(sooc_cvodo **out, int variant, const double K[4], int w, int h, double min_depth,
                       double max_depth, double max_depth_diff, double max_points_part, double max_translation,
-                      double max_rotation_deg, char *err, size_t errcap);
+                      double max_rotation_deg, const double Kc[4], const double T_cd[16], char *err,
+                      size_t errcap);
 void sooc_cvodo_destroy(sooc_cvodo *o);   /* NULL-safe */
 /* Load the current frame: RGB8 (sw x sh) and depth in metres (0 = invalid),
- * resized to the working resolution (area for the image, nearest for depth). */
+ * resized to the working resolution (area for the image, nearest for depth).
+ * With a colour camera (Kc), the grey image is resampled into the depth
+ * camera: each depth pixel takes the colour at its point's projection
+ * (pixels without depth: the projection of their ray at infinity). */
 int sooc_cvodo_load(sooc_cvodo *o, const uint8_t *rgb, const float *depth, int sw, int sh, char *err,
                     size_t errcap);
 /* Make the loaded frame the keyframe (its pyramids are cached). */

@@ -51,6 +51,22 @@ void sooc_odom_params_default(sooc_odom_params *p) {
     p->kf_max_frames = 0;
     p->max_failures = 10;
     p->min_agreement = 0.3;
+    sooc_se3_identity(p->T_color_depth);
+}
+
+int sooc_odom_is_7scenes_depth_K(const sooc_intrinsics *K, int width, int height) {
+    double sx = width / 640.0, sy = height / 480.0;
+    return width > 0 && height > 0 && fabs(K->fx - 585.0 * sx) < 1e-6 * sx * 585 &&
+           fabs(K->fy - 585.0 * sy) < 1e-6 * sy * 585 && fabs(K->cx - width / 2.0) < 1e-6 * width &&
+           fabs(K->cy - height / 2.0) < 1e-6 * height;
+}
+
+void sooc_odom_params_7scenes_color(sooc_odom_params *p, int width, int height) {
+    p->color_K[0] = SOOC_ODOM_7SCENES_COLOR_F * width / 640.0;
+    p->color_K[1] = SOOC_ODOM_7SCENES_COLOR_F * height / 480.0;
+    p->color_K[2] = width / 2.0;
+    p->color_K[3] = height / 2.0;
+    sooc_se3_identity(p->T_color_depth);
 }
 
 struct sooc_odom {
@@ -82,6 +98,22 @@ static sooc_status check_params(const sooc_odom_params *p) {
         return sooc_seterr(SOOC_EINVAL, "odometry: min_agreement %g not in [0, 1]", p->min_agreement);
     if (p->kf_translation_m < 0 || p->kf_rotation_deg < 0 || p->kf_max_frames < 0 || p->max_failures < 0)
         return sooc_seterr(SOOC_EINVAL, "odometry: keyframe rule values must be >= 0");
+    const double *c = p->color_K, *T = p->T_color_depth;
+    if (c[0] || c[1] || c[2] || c[3]) {
+        if (!(c[0] > 0 && c[1] > 0 && isfinite(c[0]) && isfinite(c[1]) && isfinite(c[2]) && isfinite(c[3])))
+            return sooc_seterr(SOOC_EINVAL, "odometry: colour intrinsics fx %g fy %g cx %g cy %g are invalid", c[0],
+                               c[1], c[2], c[3]);
+        double err = 0;
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                double d = T[i * 4 + 0] * T[j * 4 + 0] + T[i * 4 + 1] * T[j * 4 + 1] + T[i * 4 + 2] * T[j * 4 + 2];
+                err = fmax(err, fabs(d - (i == j)));
+            }
+        for (int i = 0; i < 12; i++)
+            if (!isfinite(T[i])) err = INFINITY;
+        if (!(err < 1e-3) || T[12] != 0 || T[13] != 0 || T[14] != 0 || T[15] != 1)
+            return sooc_seterr(SOOC_EINVAL, "odometry: T_color_depth is not rigid (rotation error %g)", err);
+    }
     return SOOC_OK;
 }
 
@@ -135,10 +167,13 @@ static sooc_status start(sooc_odom *o, const sooc_frame *f) {
     double sx = (double)w / f->width, sy = (double)h / f->height;
     /* OpenCV pixel centres: u' + 0.5 = (u + 0.5) * s */
     double K[4] = {f->K.fx * sx, f->K.fy * sy, (f->K.cx + 0.5) * sx - 0.5, (f->K.cy + 0.5) * sy - 0.5};
+    const double *c = o->p.color_K;
+    int unreg = c[0] || c[1] || c[2] || c[3];
+    double Kc[4] = {c[0] * sx, c[1] * sy, (c[2] + 0.5) * sx - 0.5, (c[3] + 0.5) * sy - 0.5};
     char err[512] = "";
     if (sooc_cvodo_create(&o->cv, (int)o->p.variant, K, w, h, o->p.min_depth_m, o->p.max_depth_m,
                           o->p.max_depth_diff_m, o->p.max_points_part, o->p.max_translation_m,
-                          o->p.max_rotation_deg, err, sizeof err))
+                          o->p.max_rotation_deg, unreg ? Kc : NULL, o->p.T_color_depth, err, sizeof err))
         return sooc_seterr(SOOC_ERR, "odometry: %s", err);
     o->src_w = f->width;
     o->src_h = f->height;

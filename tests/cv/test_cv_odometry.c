@@ -4,7 +4,9 @@
  * elsewhere in the room, a frame without depth -> FAILED (no pose), then
  * tracking resumes; max_failures in a row -> REANCHORED. Bad frames are
  * errors. On the real 7-Scenes frames (../shared/real, skipped when absent)
- * the default odometry must stay under the ATE bar printed below. */
+ * the default odometry, given 7-Scenes' colour camera (colour is not
+ * registered to depth there; test_cv_odometry_color.c), must stay under
+ * the ATE bar printed below. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -168,9 +170,18 @@ int main(void) {
     if (!sooc_dir_exists(dir) || sooc_seq_open(&seq, dir, NULL)) {
         printf("test_cv_odometry: 7-Scenes part skipped: %s not readable\n", dir);
     } else {
-        const double bar = 0.05;
+        /* measured 2.68 cm (4.69 cm before the colour camera was modelled);
+         * the issue's bar is 4 cm */
+        const double bar = 0.035;
+        /* the same rule as `sooc3d odometry`: a 7-Scenes sequence with the
+         * depth camera's intrinsics gets the 7-Scenes colour camera (f 525) */
+        const sooc_calib *cal = sooc_seq_calib(seq);
+        sooc_odom_params p7;
+        sooc_odom_params_default(&p7);
+        CHECK(sooc_odom_is_7scenes_depth_K(&cal->K, cal->K.width, cal->K.height));
+        sooc_odom_params_7scenes_color(&p7, cal->K.width, cal->K.height);
         sooc_odom *o = NULL;
-        CHECK(sooc_odom_create(&o, NULL) == SOOC_OK);
+        CHECK(sooc_odom_create(&o, &p7) == SOOC_OK);
         sooc_frame f = {0};
         sooc_traj est = {0}, g7 = {0};
         int64_t n = sooc_seq_count(seq), failed = 0;
@@ -184,7 +195,7 @@ int main(void) {
         }
         sooc_traj_metrics m;
         CHECK(sooc_traj_evaluate(&est, &g7, 0.02, 1.0, 0, &m) == SOOC_OK);
-        printf("7-Scenes redkitchen (%lld frames, %lld untracked): ATE RMSE %.4f m (bar %.2f), RPE %.4f m / %.2f deg per s\n",
+        printf("7-Scenes redkitchen (%lld frames, %lld untracked): ATE RMSE %.4f m (bar %.3f), RPE %.4f m / %.2f deg per s\n",
                (long long)n, (long long)failed, m.ate_rmse, bar, m.rpe_trans_rmse, m.rpe_rot_rmse_deg);
         CHECK(failed == 0);
         CHECK(m.ate_rmse <= bar);
