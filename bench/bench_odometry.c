@@ -74,8 +74,10 @@ int main(int argc, char **argv) {
             synth(&frames[i], i);
         }
     }
-    fprintf(stderr, "bench_odometry: %d frames (%s, %dx%d), %d rounds\n", n, source, frames[0].width,
-            frames[0].height, rounds);
+    /* as `sooc3d odometry`: 7-Scenes colour is resampled into the depth camera */
+    int seven = sooc_odom_is_7scenes_depth_K(&frames[0].K, frames[0].width, frames[0].height);
+    fprintf(stderr, "bench_odometry: %d frames (%s, %dx%d), %d rounds%s\n", n, source, frames[0].width,
+            frames[0].height, rounds, seven ? ", 7-Scenes colour camera" : "");
     double fps[3];
     double *t = calloc((size_t)rounds, sizeof(double));
     for (int v = 0; v < 3; v++) {
@@ -84,6 +86,7 @@ int main(int argc, char **argv) {
             sooc_odom_params p;
             sooc_odom_params_default(&p);
             p.variant = (sooc_odom_variant)v;
+            if (seven) sooc_odom_params_7scenes_color(&p, frames[0].width, frames[0].height);
             sooc_odom *o = NULL;
             if (sooc_odom_create(&o, &p)) {
                 fprintf(stderr, "bench_odometry: %s\n", sooc_errmsg());
@@ -108,8 +111,9 @@ int main(int argc, char **argv) {
                 sooc_odom_variant_name((sooc_odom_variant)v), fps[v], 1e3 / fps[v], tracked, n);
     }
     printf("{\"bench\": \"odometry\", \"source\": \"%s\", \"frames\": %d, \"input\": \"%dx%d\", \"working\": \"320x240\", "
-           "\"rounds\": %d, \"fps_rgbd\": %.2f, \"fps_icp\": %.2f, \"fps_rgbd_icp\": %.2f, \"default\": \"rgbd_icp\"}\n",
-           source, n, frames[0].width, frames[0].height, rounds, fps[0], fps[1], fps[2]);
+           "\"rounds\": %d, \"color_resampled\": %s, \"fps_rgbd\": %.2f, \"fps_icp\": %.2f, \"fps_rgbd_icp\": %.2f, "
+           "\"default\": \"rgbd_icp\"}\n",
+           source, n, frames[0].width, frames[0].height, rounds, seven ? "true" : "false", fps[0], fps[1], fps[2]);
     for (int i = 0; i < n; i++) sooc_frame_free(&frames[i]);
     free(frames);
     free(t);
