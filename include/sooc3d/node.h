@@ -89,6 +89,9 @@ typedef struct sooc_node_config {
     int odom_max_failures;                   /* re-anchor after this many failures (default 10) */
     double odom_min_depth_m, odom_max_depth_m;   /* depths used (default 0.3 .. 4) */
     double odom_min_agreement;               /* depth agreement below this = failure (0.3) */
+    double odom_color_fx, odom_color_fy;     /* colour camera when colour is not registered to */
+    double odom_color_cx, odom_color_cy;     /* depth (sooc_odom_params.color_K; 0 = registered) */
+    double odom_color_tx, odom_color_ty, odom_color_tz;   /* p_color = p_depth + t (metres) */
 
     /* calib: (optional for sources that carry intrinsics) */
     char calib_path[SOOC_NODE_PATH_MAX];

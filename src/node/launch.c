@@ -459,6 +459,13 @@ static const kspec g_keys[] = {
     KV("odometry", "min_depth_m", KV_NUM, odom_min_depth_m, 0, 100),
     KV("odometry", "max_depth_m", KV_NUM, odom_max_depth_m, 0.01, 100),
     KV("odometry", "min_agreement", KV_NUM, odom_min_agreement, 0, 1),
+    KV("odometry", "color_fx", KV_NUM, odom_color_fx, 0, 1e5),
+    KV("odometry", "color_fy", KV_NUM, odom_color_fy, 0, 1e5),
+    KV("odometry", "color_cx", KV_NUM, odom_color_cx, -1e5, 1e5),
+    KV("odometry", "color_cy", KV_NUM, odom_color_cy, -1e5, 1e5),
+    KV("odometry", "color_tx", KV_NUM, odom_color_tx, -1, 1),
+    KV("odometry", "color_ty", KV_NUM, odom_color_ty, -1, 1),
+    KV("odometry", "color_tz", KV_NUM, odom_color_tz, -1, 1),
     KV("model", "path", KV_STR, model_path, 0, 0),
     KV("model", "width", KV_INT, input_width, 0, 8192),
     KV("model", "height", KV_INT, input_height, 0, 8192),
@@ -610,6 +617,8 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
         st = sooc_seterr(SOOC_EINVAL, "%s: odometry.width/height: give both or neither", name);
     if (!st && c->odom_min_depth_m >= c->odom_max_depth_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: odometry.min_depth_m: must be below max_depth_m", name);
+    if (!st && (c->odom_color_fx > 0) != (c->odom_color_fy > 0))
+        st = sooc_seterr(SOOC_EINVAL, "%s: odometry.color_fx/color_fy: give both or neither", name);
     if (!st && c->min_depth_m >= c->max_depth_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: pipeline.min_depth_m: must be below max_depth_m", name);
     if (!st && (c->input_width > 0) != (c->input_height > 0))
@@ -649,9 +658,12 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY) {
         static const char *ov[] = {"rgbd", "icp", "rgbd_icp"};
         OUT("odometry: {variant: %s, width: %d, height: %d, keyframe_translation_m: %g, keyframe_rotation_deg: %g, "
-            "keyframe_frames: %d, max_failures: %d, min_depth_m: %g, max_depth_m: %g, min_agreement: %g}\n",
+            "keyframe_frames: %d, max_failures: %d, min_depth_m: %g, max_depth_m: %g, min_agreement: %g, "
+            "color_fx: %g, color_fy: %g, color_cx: %g, color_cy: %g, color_tx: %g, color_ty: %g, color_tz: %g}\n",
             ov[c->odom_variant], c->odom_width, c->odom_height, c->odom_kf_translation_m, c->odom_kf_rotation_deg,
-            c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m, c->odom_min_agreement);
+            c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m, c->odom_min_agreement,
+            c->odom_color_fx, c->odom_color_fy, c->odom_color_cx, c->odom_color_cy, c->odom_color_tx,
+            c->odom_color_ty, c->odom_color_tz);
     }
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s}\n",

@@ -731,6 +731,15 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         op.min_depth_m = c->odom_min_depth_m;
         op.max_depth_m = c->odom_max_depth_m;
         op.min_agreement = c->odom_min_agreement;
+        if (c->odom_color_fx > 0) {   /* colour not registered to depth (7-Scenes) */
+            op.color_K[0] = c->odom_color_fx;
+            op.color_K[1] = c->odom_color_fy;
+            op.color_K[2] = c->odom_color_cx;
+            op.color_K[3] = c->odom_color_cy;
+            op.T_color_depth[3] = c->odom_color_tx;
+            op.T_color_depth[7] = c->odom_color_ty;
+            op.T_color_depth[11] = c->odom_color_tz;
+        }
         if ((st = sooc_odom_create(&n->odom, &op))) {
             sooc_adderr(st, "%s: pose.source: odometry", c->path);
             goto fail;

@@ -56,12 +56,20 @@ int main(void) {
     CHECK(sooc_node_config_parse(&c, g_launch, strlen(g_launch), "odo.yaml") == SOOC_OK);
     CHECK(c.pose_kind == SOOC_NODE_POSE_ODOMETRY && c.odom_variant == 2 && c.odom_width == 0);
     CHECK(c.odom_min_agreement == 0.3 && c.odom_max_failures == 10);
+    CHECK(c.odom_color_fx == 0 && c.odom_color_fy == 0 && c.odom_color_tx == 0);   /* registered */
+    const char *col = "sensor: {driver: replay, path: x}\npose: {source: odometry}\n"
+                      "odometry: {color_fx: 525, color_fy: 526, color_cx: 320, color_cy: 241, color_tx: 0.02}\n";
+    CHECK(sooc_node_config_parse(&c, col, strlen(col), "col.yaml") == SOOC_OK);
+    CHECK(c.odom_color_fx == 525 && c.odom_color_fy == 526 && c.odom_color_cx == 320 && c.odom_color_cy == 241 &&
+          c.odom_color_tx == 0.02 && c.odom_color_tz == 0);
     const char *bad[][2] = {
         {"sensor: {driver: replay, path: x}\npose: {source: odometry}\nodometry: {variant: orb}\n", "odometry.variant"},
         {"sensor: {driver: replay, path: x}\npose: {source: odometry}\nodometry: {min_agreement: 2}\n",
          "odometry.min_agreement"},
         {"sensor: {driver: replay, path: x}\npose: {source: odometry}\nodometry: {width: 320, height: 0}\n", "odometry.width"},
         {"sensor: {driver: replay, path: x}\npose: {source: odometry}\nodometry: {colour: 1}\n", "unknown key"},
+        {"sensor: {driver: replay, path: x}\npose: {source: odometry}\nodometry: {color_fx: 525}\n", "odometry.color_fx"},
+        {"sensor: {driver: replay, path: x}\npose: {source: odometry}\nodometry: {color_tx: 3}\n", "odometry.color_tx"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         sooc_status st = sooc_node_config_parse(&c, bad[i][0], strlen(bad[i][0]), "bad.yaml");
