@@ -90,6 +90,13 @@ typedef struct sooc_model_config {
                                 FREE = no surface up to d_clip (synthetic sky / beyond
                                 range); UNKNOWN = a sensor hole, masked out of the
                                 likelihood and the refinement inputs    (0 = FREE) */
+    /* appended in checkpoint version 5 (older files load with 1) */
+    float unit_m;            /* metres per model unit (docs/model.md "Model unit"): every
+                                length above (d_clip, t_near, box, gauss_s, block_size,
+                                delta_s, priors, global_radius; sigma_max is per unit) is
+                                in model units; frames, poses and the cognitive map are
+                                in metres and the model divides what comes in by unit_m
+                                and multiplies what goes out                      (1) */
 } sooc_model_config;
 
 /* config.invalid_depth (docs/model.md "Invalid depth"). Under UNKNOWN a ray
@@ -113,14 +120,15 @@ sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint
 void sooc_model_destroy(sooc_model *m);   /* NULL-safe */
 const sooc_model_config *sooc_model_get_config(const sooc_model *m);
 /* The object locality box as a map-entry extent (x, y, z) in metres:
- * (2 R_h, H_b, 2 R_h). */
+ * (2 R_h, H_b, 2 R_h) times unit_m. */
 void sooc_model_box_extent(const sooc_model_config *c, float ext[3]);
 /* Threads for the decoder / refinement loops (0 = OpenMP default). */
 void sooc_model_set_threads(sooc_model *m, int n);
 /* Use another clip depth d_clip (metres) than the one trained with, e.g. the
  * usable range of the depth sensor: pixels beyond it count as "no surface
  * up to d_clip", and map entries beyond it are out of view. The weights are
- * unchanged. SOOC_EINVAL unless t_near < d_clip < 1e4. */
+ * unchanged; config.d_clip becomes d_clip / unit_m (model units). SOOC_EINVAL
+ * unless t_near < d_clip / unit_m < 1e4. */
 sooc_status sooc_model_set_clip(sooc_model *m, float d_clip);
 /* Set the model's inference slot count (config.slots, saved with it): 0 = K.
  * SOOC_EINVAL unless 0 or K <= slots <= SOOC_MODEL_K_MAX (0 for the
@@ -130,6 +138,12 @@ sooc_status sooc_model_set_slots(sooc_model *m, int slots);
  * e.g. SOOC_INVALID_DEPTH_UNKNOWN to run a model trained on synthetic data on
  * a real sensor's frames. SOOC_EINVAL for another value. */
 sooc_status sooc_model_set_invalid_depth(sooc_model *m, int mode);
+/* Set config.unit_m (metres per model unit, saved with the model; the weights
+ * and the config's lengths in model units are unchanged), e.g. 1 / 3.5 to run
+ * a model trained on scenes shown 3.5 times larger on metric tabletop frames.
+ * The clip depth in metres becomes d_clip * unit_m. SOOC_EINVAL unless
+ * 1e-3 <= unit_m <= 1e3. */
+sooc_status sooc_model_set_unit(sooc_model *m, float unit_m);
 /* A copy of m that samples its rays on a ray_w x ray_h grid of each view
  * instead of its config's (e.g. every pixel of a 64x64 frame: 64x64 instead
  * of the stratified 32x32 sub-grid). No weight depends on the grid (above
@@ -289,7 +303,8 @@ void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents);
 sooc_model *sooc_global_mapper_model(sooc_global_mapper *g);
 const sooc_cogmap *sooc_global_mapper_cogmap(const sooc_global_mapper *g);
 int sooc_global_mapper_n_slots(const sooc_global_mapper *g);
-/* Current posterior of slot k (world frame, cogmap.h λ layout) / the layout latent. */
+/* Current posterior of slot k (world frame in model units, config.unit_m; cogmap.h λ
+ * layout) / the layout latent. */
 const float *sooc_global_mapper_slot(const sooc_global_mapper *g, int k);
 const float *sooc_global_mapper_layout(const sooc_global_mapper *g);
 /* Present slots as map entries (like sooc3d_mapper_entries). */

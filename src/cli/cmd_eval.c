@@ -54,7 +54,8 @@ static void usage(FILE *f) {
             "                  0.35 measured best (docs/cogmap.md \"Merging split objects\")\n"
             "  --revisit       SOOC3D mapper, with --merge: the node's revisit rules (merge with\n"
             "                  unregistered neighbours, hold entries that left the view, running-mean\n"
-            "                  updates; docs/cogmap.md \"Revisits\")\n"
+            "                  updates, retire entries the depth keeps showing as free space;\n"
+            "                  docs/cogmap.md \"Revisits\")\n"
             "  --latents       SOOC3D mapper: refine on the posterior means (mean, default) or on one\n"
             "                  posterior sample per iteration as in training (sample); docs/model.md\n"
             "  --slots         SOOC3D mapper: object slots per view; 0 = the model's setting (default:\n"
@@ -331,7 +332,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     {
         char note[1024], clip[64];
         if (ro.d_clip > 0) snprintf(clip, sizeof clip, "%g m (--clip)", ro.d_clip);
-        else snprintf(clip, sizeof clip, "%g m (the model's)", (double)sooc_model_get_config(mdl[0])->d_clip);
+        else snprintf(clip, sizeof clip, "%g m (the model's)", (double)(sooc_model_get_config(mdl[0])->d_clip * sooc_model_get_config(mdl[0])->unit_m));
         snprintf(note, sizeof note,
                  "%s Mean +- std over %d run%s (seeds %llu..%llu), %d scene%s; %d+%d samples per ray; "
                  "RGB RMSE sums the channels (MulMON); L2 in metres for query views; clip depth %s.",

@@ -226,7 +226,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
             sooc_eval_real_result *r = &res[n_cells];
             char sn[256], pdir[4096];
             seq_name(a->dirs[d], sn, sizeof sn);
-            panel_ctx pc = {pdir, NULL, a->opts.run.d_clip > 0 ? a->opts.run.d_clip : c->d_clip};
+            panel_ctx pc = {pdir, NULL, a->opts.run.d_clip > 0 ? a->opts.run.d_clip : c->d_clip * c->unit_m};
             if (a->panels) {
                 snprintf(pdir, sizeof pdir, "%s/%s/%s", a->panels, sn, a->names[mi]);
                 char cp[4200];

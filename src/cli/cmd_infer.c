@@ -106,7 +106,7 @@ static sooc_status render_frame(sooc3d_mapper *mp, const sooc_frame *f, const ch
     sooc_render_opts o;
     sooc_render_opts_default(&o);
     o.n_coarse = samples;
-    o.t_near = c->t_near, o.d_clip = c->d_clip;
+    o.t_near = c->t_near * c->unit_m, o.d_clip = c->d_clip * c->unit_m;   /* metres */
     o.threads = threads;
     double T_fc[16];
     sooc_model_field_T_fc(fld, T_fc);
@@ -131,7 +131,7 @@ static sooc_status render_frame(sooc3d_mapper *mp, const sooc_frame *f, const ch
         snprintf(path, sizeof path, "%s/%06lld_rgb.png", rdir, (long long)f->index);
         if (!(st = sooc_image_from_rgb(&img, rgb, W, H))) st = sooc_png_write(path, &img, 6);
         snprintf(path, sizeof path, "%s/%06lld_depth.png", rdir, (long long)f->index);
-        if (!st && !(st = sooc_image_from_depth(&img, ro.depth, W, H, 0.0, c->d_clip))) st = sooc_png_write(path, &img, 6);
+        if (!st && !(st = sooc_image_from_depth(&img, ro.depth, W, H, 0.0, c->d_clip * c->unit_m))) st = sooc_png_write(path, &img, 6);
         snprintf(path, sizeof path, "%s/%06lld_label.png", rdir, (long long)f->index);
         if (!st && !(st = sooc_image_from_ids(&img, ids, W, H))) st = sooc_png_write(path, &img, 6);
         sooc_image_free(&img);

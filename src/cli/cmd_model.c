@@ -10,7 +10,7 @@
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d model M [--slots N] [--rays R] [--invalid-depth free|unknown] [--out F]\n\n"
+            "usage: sooc3d model M [--slots N] [--rays R] [--invalid-depth free|unknown] [--unit-m U] [--out F]\n\n"
             "Print checkpoint M's configuration (resolution, slots, latent sizes, clip depth,\n"
             "parameter count). With --out, write a copy of M changed by:\n"
             "  --slots N  inference slot count: the mapper and `sooc3d eval`/`infer` then run it\n"
@@ -23,6 +23,10 @@ static void usage(FILE *f) {
             "  --invalid-depth free|unknown  what a pixel without valid depth means: no surface up\n"
             "             to the clip depth (free; synthetic sky) or a sensor hole, masked out of the\n"
             "             likelihood (unknown; docs/model.md \"Invalid depth\")\n"
+            "  --unit-m U metres per model unit (0.001..1000): the model divides frame depth and\n"
+            "             camera positions by U and multiplies the map's positions, sizes and the\n"
+            "             rendered depth back; e.g. 0.2857 (= 1/3.5) runs a model trained on scenes\n"
+            "             shown 3.5x larger on metric tabletop frames (docs/model.md \"Model unit\")\n"
             "The weights and any trainer state are copied unchanged; F is written atomically and\n"
             "may be M itself.\n");
 }
@@ -34,6 +38,7 @@ int sooc_cmd_model(int argc, char **argv) {
     }
     const char *path = NULL, *out = NULL;
     int slots = -1, rays = -1, invalid = -1;
+    double unit = -1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--slots") && i + 1 < argc) {
@@ -51,6 +56,8 @@ int sooc_cmd_model(int argc, char **argv) {
                 fprintf(stderr, "sooc3d model: --invalid-depth wants free or unknown (got '%s')\n", argv[i]);
                 return 2;
             }
+        } else if (!strcmp(a, "--unit-m") && i + 1 < argc) {
+            if (!sooc_cli_double_opt("model", a, argv[++i], 0.001, 1000, &unit)) return 2;
         } else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
         else if (a[0] != '-' && !path) path = a;
         else {
@@ -59,7 +66,7 @@ int sooc_cmd_model(int argc, char **argv) {
             return 2;
         }
     }
-    if (!path || (slots >= 0 || rays >= 0 || invalid >= 0) != (out != NULL)) {
+    if (!path || (slots >= 0 || rays >= 0 || invalid >= 0 || unit > 0) != (out != NULL)) {
         usage(stderr);
         return 2;
     }
@@ -78,6 +85,7 @@ int sooc_cmd_model(int argc, char **argv) {
         }
         if (!st && slots >= 0) st = sooc_model_set_slots(m, slots);
         if (!st && invalid >= 0) st = sooc_model_set_invalid_depth(m, invalid);
+        if (!st && unit > 0) st = sooc_model_set_unit(m, (float)unit);
         if (!st) st = sooc_model_save(m, out, blob, bs);
         if (st) sooc_adderr(st, "%s", out);
     }
@@ -89,7 +97,8 @@ int sooc_cmd_model(int argc, char **argv) {
         printf("  slots       K = %d trained, %d at inference%s\n", c->K, c->slots ? c->slots : c->K,
                c->slots > c->K ? " (extra priors mirrored)" : "");
         printf("  latents     d_what %d, d_layout %d, L = %d refinement updates\n", c->d_what, c->d_layout, c->L);
-        printf("  clip        %g m (near %g m)\n", (double)c->d_clip, (double)c->t_near);
+        printf("  clip        %g m (near %g m)\n", (double)(c->d_clip * c->unit_m), (double)(c->t_near * c->unit_m));
+        printf("  unit        %g m per model unit\n", (double)c->unit_m);
         printf("  no depth    %s\n", c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN
                                          ? "unknown (sensor holes masked out of the likelihood)"
                                          : "free (no surface up to the clip depth)");

@@ -72,7 +72,7 @@ static sooc_status write_panel(render_ctx *R, const sooc_eval_view_info *v) {
     uint32_t ids[SOOC_RENDER_MAX_COMP];
     for (int k = 0; k < v->n_comp; k++) ids[k] = (uint32_t)v->comp_ids[k];
     po.comp_ids = ids;
-    po.d_clip = R->mc->d_clip;
+    po.d_clip = R->mc->d_clip * R->mc->unit_m;   /* metres */
     char title[160], path[1200];
     const sooc_view_metrics *m = v->metrics;
     if (isfinite(m->miou_best))
@@ -319,7 +319,7 @@ int sooc_cmd_render(int argc, char **argv) {
         if ((st = sooc_mapstore_open(&ms, mappath, &mp))) goto fail;
         sooc_cogmap_params cp;
         sooc_cogmap_params_default(&cp);
-        cp.dim = mc->d_what, cp.layout_dim = mc->d_layout, cp.block_size = mc->block_size;
+        cp.dim = mc->d_what, cp.layout_dim = mc->d_layout, cp.block_size = (double)mc->block_size * mc->unit_m;
         if ((st = sooc_cogmap_create(&map, &cp))) goto fail;
         if ((st = sooc_mapstore_load_map(ms, map))) goto fail;
         size_t ne = sooc_cogmap_count(map);
@@ -367,7 +367,7 @@ int sooc_cmd_render(int argc, char **argv) {
         sooc_intrinsics K = fr[0].K;
         K.width = fr[0].width, K.height = fr[0].height;
         to.K = &K;
-        to.d_clip = mc->d_clip;
+        to.d_clip = mc->d_clip * mc->unit_m;
         to.title = mappath ? "stored cognitive map" : "cognitive map (online run)";
         {   /* small worlds (a shelf bin, a desk) get more pixels per metre: at least 480 px across */
             double b[4] = {INFINITY, -INFINITY, INFINITY, -INFINITY};

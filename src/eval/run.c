@@ -108,8 +108,8 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
     sooc_render_opts_default(&ro);
     ro.n_coarse = o->n_coarse > 0 ? o->n_coarse : 96;
     ro.n_fine = o->n_fine >= 0 ? o->n_fine : 0;
-    ro.t_near = c->t_near;
-    ro.d_clip = c->d_clip;
+    ro.t_near = c->t_near * c->unit_m;   /* metres (config.unit_m) */
+    ro.d_clip = c->d_clip * c->unit_m;
     ro.threads = o->threads;
     ro.components = detail && o->components;
     sooc_model_field *fld = NULL;

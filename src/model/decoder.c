@@ -111,11 +111,13 @@ sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int 
     sooc_se3_to_rt(Rwc, tt, f->T_wc);
     sooc_m3_transpose(RwgT, Rwg);
     sooc_m3_mul(Rgc, RwgT, Rwc);
-    vr->h = (float)h;
+    /* h, blk_local and the frame's depth are in metres: model units from here on (config.unit_m) */
+    float iu = 1.0f / c->unit_m;
+    vr->h = (float)h * iu;
     vr->pitch = (float)pitch;
-    vr->blk[0] = (float)blk_local[0];
-    vr->blk[1] = (float)-h;
-    vr->blk[2] = (float)blk_local[1];
+    vr->blk[0] = (float)blk_local[0] * iu;
+    vr->blk[1] = (float)-h * iu;
+    vr->blk[2] = (float)blk_local[1] * iu;
     float cut = c->air_cut;
     int unk_mode = c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN;
     for (int i = 0; i < c->ray_h; i++)
@@ -129,7 +131,7 @@ sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int 
             for (int a = 0; a < 3; a++) vr->rgb[rr * 3 + a] = f->rgb[pix * 3 + a] * (1.0f / 255.0f);
             float z = f->depth ? f->depth[pix] : 0.0f;
             int valid = (f->valid ? f->valid[pix] != 0 : 1) && z > 0 && isfinite(z);
-            float d = valid ? (float)(z / uz) : 0.0f;
+            float d = valid ? (float)(z / uz) * iu : 0.0f;
             int surf = valid && d <= c->d_clip && d > c->t_near;
             /* UNKNOWN: a hole (or a reading inside the near plane) says nothing about the ray;
              * a valid depth beyond d_clip still says "no surface up to d_clip" */

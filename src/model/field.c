@@ -19,7 +19,8 @@ struct sooc_model_field {
     fcomp *comp;
     float *biasbuf;
     double T_gc[16];
-    float h, blk[3];
+    float h, blk[3];           /* model units (config.unit_m); the field's frame is in metres */
+    float iu;                  /* 1 / unit_m */
     int nw, maxb;
     float *scratch;            /* nw x per-worker */
     size_t per_worker;
@@ -39,7 +40,8 @@ static void field_eval(void *user, int worker, int comp, const float *pts, int n
     for (int b0 = 0; b0 < n; b0 += F->maxb) {
         int nb = n - b0 < F->maxb ? n - b0 : F->maxb;
         for (int i = 0; i < nb; i++) {
-            const float *x = pts + (size_t)(b0 + i) * 3;
+            const float *xm = pts + (size_t)(b0 + i) * 3;
+            const float x[3] = {xm[0] * F->iu, xm[1] * F->iu, xm[2] * F->iu};   /* metres -> model units */
             float xk[3];
             if (comp) {
                 mdl_pi(x, fc->px, fc->pz, fc->th, F->h, xk);
@@ -89,7 +91,8 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     if (st) goto fail;
     sooc_se3_inverse(T_gw, T_wg);
     sooc_se3_mul(F->T_gc, T_gw, T_wc);
-    F->h = (float)h;
+    F->iu = 1.0f / c->unit_m;
+    F->h = (float)h * F->iu;
     if (c->global_frame) {   /* global-frame baseline (global.c): world axes, origin (0, h, 0) */
         double T_fw[16];
         sooc_se3_identity(T_fw);
@@ -100,7 +103,8 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     memset(&cam, 0, sizeof cam);
     memcpy(cam.T_wc, T_wc, sizeof cam.T_wc);
     cam.K = *K;
-    cam.t_near = c->t_near, cam.d_clip = c->d_clip, cam.R_h = c->box_rh, cam.H_b = c->box_hb;
+    double u = c->unit_m;   /* the map's camera is in metres */
+    cam.t_near = c->t_near * u, cam.d_clip = c->d_clip * u, cam.R_h = c->box_rh * u, cam.H_b = c->box_hb * u;
     cam.mode = SOOC_INVIEW_CORNERS;
     sooc_cogmap_slot slots[SOOC_COGMAP_K_MAX];
     int nret = 0;
@@ -110,9 +114,10 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     double blk[2] = {0, 0};
     if (c->global_frame)   /* baseline: world-frame slots, one layout latent at the world origin */
         for (int i = 0; i < nret; i++) mdl_global_world_lam(map, slots[i].id, slots[i].lam);
-    else if ((st = sooc_cogmap_active_block(map, T_wc, c->d_clip, &bi, &bj, blk)))
+    else if ((st = sooc_cogmap_active_block(map, T_wc, cam.d_clip, &bi, &bj, blk)))
         goto fail;
-    F->blk[0] = (float)blk[0], F->blk[1] = (float)-h, F->blk[2] = (float)blk[1];
+    for (int i = 0; i < nret; i++) mdl_lam_from_m(c, slots[i].lam, 1, SOOC_LAM_SIZE(c->d_what));
+    F->blk[0] = (float)blk[0] * F->iu, F->blk[1] = (float)-h * F->iu, F->blk[2] = (float)blk[1] * F->iu;
     int nc = 1 + nret, H = c->dec_width, d = c->d_what, dl = c->d_layout;
     F->comp = sooc_calloc(nc, sizeof(fcomp));
     F->boxes = sooc_calloc(nc, sizeof(sooc_render_box));
@@ -148,12 +153,12 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
             fc->id = slots[k - 1].id;
             /* the model.md §2.5 locality box in G (same as sooc_render_box_object) */
             sooc_render_box *b = &F->boxes[k];
-            double R[9], t[3] = {fc->px, -h, fc->pz};
+            double R[9], t[3] = {fc->px * u, -h, fc->pz * u};   /* in metres */
             sooc_m3_rot_y(R, fc->th);
             b->enabled = 1;
             sooc_se3_from_rt(b->T_fb, R, t);
-            b->lo[0] = -c->box_rh, b->lo[1] = 0, b->lo[2] = -c->box_rh;
-            b->hi[0] = c->box_rh, b->hi[1] = c->box_hb, b->hi[2] = c->box_rh;
+            b->lo[0] = -c->box_rh * u, b->lo[1] = 0, b->lo[2] = -c->box_rh * u;
+            b->hi[0] = c->box_rh * u, b->hi[1] = c->box_hb * u, b->hi[2] = c->box_rh * u;
         }
         for (int j = 0; j < H; j++) fc->bias[j] = m->p[net->b1 + j];
         for (int i = 0; i < net->dz; i++)
@@ -161,7 +166,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     }
     F->f.n_comp = nc;
     F->f.boxes = F->boxes;
-    F->f.sigma_max = c->sigma_max;
+    F->f.sigma_max = c->sigma_max * F->iu;   /* density per metre */
     F->f.eval = field_eval;
     F->f.prepare = field_prepare;
     F->f.user = F;

@@ -55,12 +55,13 @@ static sooc_status glob_view_setup(sooc_model *m, view_rec *V, const sooc_frame 
     int oy = (int)sooc_rng_below(rng, (uint32_t)(c->img_h / c->ray_h));
     const double blk0[2] = {0, 0};
     if ((st = mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twc_frame, h, pitch, blk0))) return st;
-    /* move the origin from the camera centre to (0, h, 0): + (Xc, 0, Zc) */
+    /* move the origin from the camera centre to (0, h, 0): + (Xc, 0, Zc), in model units */
+    float iu = 1.0f / c->unit_m;
     for (int p = 0; p < 2 * V->vr.N; p++) {
-        V->vr.pts[3 * p] += (float)Xc;
-        V->vr.pts[3 * p + 2] += (float)Zc;
+        V->vr.pts[3 * p] += (float)Xc * iu;
+        V->vr.pts[3 * p + 2] += (float)Zc * iu;
     }
-    V->vr.blk[0] = 0, V->vr.blk[1] = (float)-h, V->vr.blk[2] = 0;
+    V->vr.blk[0] = 0, V->vr.blk[1] = (float)-h * iu, V->vr.blk[2] = 0;
     return SOOC_OK;
 }
 
@@ -196,7 +197,7 @@ sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, i
     sooc_cogmap_params_default(&cp);
     cp.dim = c->d_what;
     cp.layout_dim = c->d_layout;
-    cp.block_size = c->block_size;
+    cp.block_size = (double)c->block_size * c->unit_m;
     sooc_status st = sooc_cogmap_create(&g->map, &cp);
     g->lam = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
     g->lay = sooc_calloc((size_t)2 * c->d_layout, sizeof(float));
@@ -278,8 +279,10 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
         sooc_cogmap_entry e;
         memset(&e, 0, sizeof e);
         e.id = (uint64_t)k + 1;
-        e.X = l[0], e.Z = l[1], e.Theta = l[2];
-        e.rho_t = l[3], e.rho_theta = l[4];
+        float lm[5] = {l[0], l[1], l[2], l[3], l[4]};
+        mdl_lam_to_m(c, lm, 1, 5);   /* model units -> metres */
+        e.X = lm[0], e.Z = lm[1], e.Theta = lm[2];
+        e.rho_t = lm[3], e.rho_theta = lm[4];
         e.pres_logit = l[5 + 2 * d];
         e.dim = d;
         memcpy(e.what_mu, l + 5, d * sizeof(float));

@@ -50,14 +50,14 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     mp->m = m;   /* calloc: merge off, latents mean (the defaults) */
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
-    mp->same_r = SOOC3D_MAPPER_SAME_POSE_FRAC * 2.0 * c->box_rh;
+    mp->same_r = SOOC3D_MAPPER_SAME_POSE_FRAC * 2.0 * c->box_rh * c->unit_m;   /* metres */
     if (mp->L > 16) mp->L = 16;
     sooc_model_set_threads(m, threads);
     sooc_cogmap_params cp;
     sooc_cogmap_params_default(&cp);
     cp.dim = c->d_what;
     cp.layout_dim = c->d_layout;
-    cp.block_size = c->block_size;
+    cp.block_size = (double)c->block_size * c->unit_m;   /* the map is in metres */
     sooc_status st = sooc_cogmap_create(&mp->map, &cp);
     if (!st) st = mdl_view_alloc(m, &mp->V, mp->L);
     if (!st && !mdl_step_state(m, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
@@ -97,7 +97,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
         sooc3d_mapper_set_merge_neighbours(*out, p->merge_neighbours);
         sooc3d_mapper_set_latents(*out, p->latents);
         if (p->same_pose != 0)
-            (*out)->same_r = p->same_pose > 0 ? p->same_pose * 2.0 * sooc_model_get_config(m)->box_rh : 0.0;
+            (*out)->same_r = p->same_pose > 0 ? p->same_pose * 2.0 * sooc_model_get_config(m)->box_rh * sooc_model_get_config(m)->unit_m : 0.0;
     }
     return st;
 }
@@ -207,6 +207,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     const float *layL = V->lay + (size_t)mp->L * D2;
     memcpy(mp->lam_reg, lamL, sizeof(float) * (size_t)c->K * NL);
     memcpy(mp->src_reg, V->src_id, sizeof(uint64_t) * (size_t)c->K);
+    mdl_lam_to_m(c, mp->lam_reg, c->K, NL);   /* model units -> metres (config.unit_m) */
     int n_same = sooc3d_mapper_same_pose(mp->lam_reg, mp->src_reg, c->K, c->d_what, mp->same_r);
     if (mp->merge_nb && mp->merge_r > 0) {
         hold_unseen(mp, f, V, c->K, c->d_what);

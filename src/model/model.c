@@ -44,6 +44,7 @@ void sooc_model_config_default(sooc_model_config *c) {
     c->global_radius = 4.2f;
     c->slots = 0;
     c->invalid_depth = SOOC_INVALID_DEPTH_FREE;
+    c->unit_m = 1.0f;
 }
 
 sooc_status sooc_model_config_check(const sooc_model_config *c) {
@@ -80,7 +81,7 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
         !isfinite(c->prior_pres_logit) || !isfinite(c->rho_min) || !isfinite(c->rho_max) || !(c->block_size < 1e4) ||
         (c->use_box != 0 && c->use_box != 1) || (c->global_frame != 0 && c->global_frame != 1) ||
         (c->invalid_depth != SOOC_INVALID_DEPTH_FREE && c->invalid_depth != SOOC_INVALID_DEPTH_UNKNOWN) ||
-        !(c->global_radius > 0 && c->global_radius < 1e4))
+        !(c->global_radius > 0 && c->global_radius < 1e4) || !(c->unit_m >= 1e-3f && c->unit_m <= 1e3f))
         return sooc_seterr(SOOC_EINVAL, "model config: constant out of range or non-finite");
     if (!(c->sigma_max > 0) || !(c->sigma_c > 0) || !(c->air_cut > 0 && c->air_cut < 1) || !(c->d_clip > c->t_near) ||
         !(c->box_rh > 0) || !(c->box_hb > 0) || !(c->gauss_s > 0) || !(c->block_size > 0) ||
@@ -254,15 +255,35 @@ void sooc_model_destroy(sooc_model *m) {
 const sooc_model_config *sooc_model_get_config(const sooc_model *m) { return &m->cfg; }
 void sooc_model_set_threads(sooc_model *m, int n) { m->threads = n < 0 ? 0 : n; }
 void sooc_model_box_extent(const sooc_model_config *c, float ext[3]) {
-    ext[0] = ext[2] = 2 * c->box_rh;
-    ext[1] = c->box_hb;
+    ext[0] = ext[2] = 2 * c->box_rh * c->unit_m;
+    ext[1] = c->box_hb * c->unit_m;
 }
 sooc_status sooc_model_set_clip(sooc_model *m, float d_clip) {
-    if (!m || !(d_clip > m->cfg.t_near && d_clip < 1e4f))
-        return sooc_seterr(SOOC_EINVAL, "model: clip depth %g m outside (t_near %g, 1e4)", (double)d_clip,
-                           m ? (double)m->cfg.t_near : 0.0);
-    m->cfg.d_clip = d_clip;
+    float u = m ? m->cfg.unit_m : 1.0f, dc = d_clip / u;   /* metres -> model units */
+    if (!m || !(dc > m->cfg.t_near && dc < 1e4f))
+        return sooc_seterr(SOOC_EINVAL, "model: clip depth %g m outside (t_near %g m, 1e4 units)", (double)d_clip,
+                           m ? (double)(m->cfg.t_near * u) : 0.0);
+    m->cfg.d_clip = dc;
     return SOOC_OK;
+}
+sooc_status sooc_model_set_unit(sooc_model *m, float unit_m) {
+    if (!m) return sooc_seterr(SOOC_EINVAL, "model: no model");
+    if (!(unit_m >= 1e-3f && unit_m <= 1e3f))
+        return sooc_seterr(SOOC_EINVAL, "model: unit %g m per model unit outside [0.001, 1000]", (double)unit_m);
+    m->cfg.unit_m = unit_m;
+    return SOOC_OK;
+}
+void mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL) {
+    float u = c->unit_m;
+    if (u == 1.0f) return;   /* bit-identical for the unit model */
+    float iu = 1.0f / u, dr = 2.0f * logf(u);
+    for (int k = 0; k < n; k++, lam += NL) lam[0] *= iu, lam[1] *= iu, lam[3] -= dr;
+}
+void mdl_lam_to_m(const sooc_model_config *c, float *lam, int n, int NL) {
+    float u = c->unit_m;
+    if (u == 1.0f) return;
+    float dr = 2.0f * logf(u);
+    for (int k = 0; k < n; k++, lam += NL) lam[0] *= u, lam[1] *= u, lam[3] += dr;
 }
 /* Extra slot priors for a model run with more slots than it was trained with
  * (docs/model.md "slots at inference"): mirror images (x -> -x) of the learnt
@@ -397,11 +418,12 @@ void sooc_step_opts_default(sooc_step_opts *o) {
 /* ------------------------------------------------------------ checkpoint */
 
 #define MDL_MAGIC "SOOCMDL1"
-#define MDL_VERSION 4u   /* 2: config gained global_frame, global_radius; 3: slots; 4: invalid_depth (appended) */
+#define MDL_VERSION 5u   /* 2: config gained global_frame, global_radius; 3: slots; 4: invalid_depth; 5: unit_m (appended) */
 /* older files: the config without the fields appended since */
 #define MDL_V1_CONFIG_SIZE offsetof(sooc_model_config, global_frame)
 #define MDL_V2_CONFIG_SIZE offsetof(sooc_model_config, slots)
 #define MDL_V3_CONFIG_SIZE offsetof(sooc_model_config, invalid_depth)
+#define MDL_V4_CONFIG_SIZE offsetof(sooc_model_config, unit_m)
 
 sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *blob, size_t blob_size) {
     sooc_afile f;
@@ -453,13 +475,13 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     memcpy(&ver, b + 8, 4);
     memcpy(&csz, b + 12, 4);
     int v1 = (ver == 1u && csz == MDL_V1_CONFIG_SIZE) || (ver == 2u && csz == MDL_V2_CONFIG_SIZE) ||
-             (ver == 3u && csz == MDL_V3_CONFIG_SIZE);
+             (ver == 3u && csz == MDL_V3_CONFIG_SIZE) || (ver == 4u && csz == MDL_V4_CONFIG_SIZE);
     if (!v1 && (ver != MDL_VERSION || csz != sizeof cfg)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: model file version %u / config size %u, expected %u / %zu", path, ver,
                          csz, MDL_VERSION, sizeof cfg);
         goto done;
     }
-    if (v1) {                              /* version 1, 2 or 3 */
+    if (v1) {                              /* version 1 to 4 */
         sooc_model_config_default(&cfg);   /* appended fields keep their defaults */
         if (n < 8 + 4 + 4 + (size_t)csz + 8 + 8 + 4) {
             st = sooc_seterr(SOOC_EFORMAT, "%s: too short", path);

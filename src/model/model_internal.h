@@ -153,6 +153,13 @@ struct sooc_model {
 sooc_status mdl_alloc_ws(sooc_model *m);
 void mdl_free_ws(sooc_model *m);
 
+/* model.c: config.unit_m at the cognitive map's boundary. n slot posteriors λ
+ * (flat cogmap.h layout, stride NL) in a G frame: metres -> model units
+ * (x, z divided by unit_m, rho_t less 2 ln unit_m) and back. No-ops at
+ * unit_m = 1 (bit-identical). */
+void mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL);
+void mdl_lam_to_m(const sooc_model_config *c, float *lam, int n, int NL);
+
 /* decoder.c */
 void mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n);
 sooc_status mdl_decode(sooc_model *m, dec_call *c);

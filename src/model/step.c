@@ -70,7 +70,7 @@ step_state *mdl_step_state(sooc_model *m, int T, int L) {
         sooc_cogmap_params_default(&cp);
         cp.dim = c->d_what;
         cp.layout_dim = c->d_layout;
-        cp.block_size = c->block_size;
+        cp.block_size = (double)c->block_size * c->unit_m;   /* the map is in metres */
         cp.cell_size = 2.0;
         if (sooc_cogmap_create(&S->map, &cp)) {
             sooc_free(S);
@@ -132,10 +132,11 @@ void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera 
     memset(cam, 0, sizeof *cam);
     memcpy(cam->T_wc, f->T_wc, sizeof cam->T_wc);
     cam->K = f->K;
-    cam->t_near = m->cfg.t_near;
-    cam->d_clip = m->cfg.d_clip;
-    cam->R_h = m->cfg.box_rh;
-    cam->H_b = m->cfg.box_hb;
+    double u = m->cfg.unit_m;   /* the map's camera is in metres */
+    cam->t_near = m->cfg.t_near * u;
+    cam->d_clip = m->cfg.d_clip * u;
+    cam->R_h = m->cfg.box_rh * u;
+    cam->H_b = m->cfg.box_hb * u;
     cam->mode = SOOC_INVIEW_CENTRE;
 }
 
@@ -194,6 +195,7 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
         V->src_view[k] = slots[k].last_view;
         V->prior_idx[k] = -1;
     }
+    mdl_lam_from_m(c, V->lam0, nret, NL);   /* the map's metres -> model units */
     V->nslot = pad ? K : nret;
     if (pad) {
         int pr[SOOC_MODEL_K_MAX];
@@ -207,7 +209,7 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
     }
     /* layout block */
     double blk[2];
-    if ((st = sooc_cogmap_active_block(map, f->T_wc, c->d_clip, &V->bi, &V->bj, blk))) return st;
+    if ((st = sooc_cogmap_active_block(map, f->T_wc, (double)c->d_clip * c->unit_m, &V->bi, &V->bj, blk))) return st;
     float lmu[SOOC_COGMAP_DIM_MAX], llv[SOOC_COGMAP_DIM_MAX];
     if (sooc_cogmap_layout_get(map, V->bi, V->bj, lmu, llv) == SOOC_OK) {
         memcpy(V->lay0, lmu, dl * sizeof(float));
@@ -455,7 +457,9 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
         const float *lamL = V->lam + (size_t)L * K * NL;
         uint64_t ids[SOOC_MODEL_K_MAX];
         sooc_cogmap_reg_stats rs;
-        if ((st = sooc_cogmap_register(S->map, &V->gf, K, lamL, V->src_id, V->t_ns, t, ids, NULL, &rs))) {
+        memcpy(S->tmp0, lamL, (size_t)K * NL * sizeof(float));   /* model units -> the map's metres */
+        mdl_lam_to_m(c, S->tmp0, K, NL);
+        if ((st = sooc_cogmap_register(S->map, &V->gf, K, S->tmp0, V->src_id, V->t_ns, t, ids, NULL, &rs))) {
             if (st == SOOC_ENUMERIC) {
                 nonfinite = 1;
                 st = SOOC_OK;

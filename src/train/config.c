@@ -78,7 +78,7 @@ static const field g_model_fields[] = {
     MF(rho_min, F_FLOAT, -30, 30), MF(rho_max, F_FLOAT, -30, 30), MF(prior_sigma_t, F_FLOAT, 1e-3, 100),
     MF(prior_near, F_FLOAT, 0, 100), MF(prior_far, F_FLOAT, 0, 100), MF(prior_pres_logit, F_FLOAT, -20, 20),
     MF(global_frame, F_INT, 0, 1), MF(global_radius, F_FLOAT, 0.01, 1000), MF(slots, F_INT, 0, SOOC_MODEL_K_MAX),
-    MF(invalid_depth, F_INT, 0, 1),
+    MF(invalid_depth, F_INT, 0, 1), MF(unit_m, F_FLOAT, 1e-3, 1e3),
 };
 
 static sooc_status parse_num(const char *file, int line, const char *key, const char *v, const field *f,
