@@ -133,10 +133,13 @@ typedef struct sooc3d_mapper_params {
                                   (config.invalid_depth), 1 + SOOC_INVALID_DEPTH_* overrides
                                   it (2 = sensor holes unknown, masked out of the
                                   likelihood; docs/model.md "Invalid depth")            */
-    int merge_neighbours;      /* 1: with merge_radius > 0, also merge a registered entry
-                                  with an unregistered one within the radius
-                                  (sooc_cogmap_merge_neighbours; the node's revisit rule,
-                                  docs/cogmap.md "Revisits"). 0 = off (the default)      */
+    int merge_neighbours;      /* 1: with merge_radius > 0, the node's revisit rules
+                                  (docs/cogmap.md "Revisits"): also merge a registered
+                                  entry with an unregistered one within the radius
+                                  (sooc_cogmap_merge_neighbours), hold entries that left
+                                  the view, average settled entries, and retire entries
+                                  the depth keeps showing as free or never shows
+                                  (sooc3d_mapper_free_space). 0 = off (the default)      */
 } sooc3d_mapper_params;
 
 enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
@@ -165,6 +168,21 @@ enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
  * radius <= 0 or k > SOOC_MAPPER_CHANGED_MAX does nothing. */
 int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius);
 
+/* Free-space evidence of the revisit rules (docs/cogmap.md "Revisits"): does
+ * the frame's depth show the floor place (X, Z) of a map entry as free? Nine
+ * probe points inside the entry's footprint, above the floor: three on the
+ * vertical through (X, Z) at 0.1, 0.2 and 0.3 H_b and six on a ring of radius
+ * R_h / 3 at 0.15 H_b (cam's box). A probe that projects into the frame with
+ * valid depth D is informative when the floor behind it along its ray lies
+ * more than twice the tolerance t = 0.1 m + 2% of the probe's depth z beyond
+ * it; then D > z + t means the ray passed through the probe (free), |D - z| <= t
+ * a surface at the probe (occupied), D < z - t something in front (hidden).
+ * Returns 0 if any probe is occupied, 1 (free) if at least four probes are
+ * free and none hidden, else -1 (no evidence). f: depth in planar metres at
+ * cam's intrinsics (0 = invalid; f->valid may be NULL); cam->T_wc world with
+ * +y up and the floor at y = 0. */
+int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z);
+
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
 
 /* Load the model and create an empty map. */
@@ -183,6 +201,8 @@ typedef struct sooc3d_update_stats {
     int n_same_pose;           /* present slots not registered: another slot of
                                   this keyframe with a higher presence landed at
                                   the same pose (sooc3d_mapper_same_pose)     */
+    int n_retired;             /* entries retired on free-space evidence (the
+                                  revisit rules, sooc3d_mapper_free_space)    */
     double elapsed_ms;
 } sooc3d_update_stats;
 

@@ -9,7 +9,8 @@
 #include "model/step_internal.h"
 #include "sooc3d/model.h"
 
-#define MAPPER_TAU 0.7f   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
+#define MAPPER_TAU 0.7f
+#define MAPPER_FREE_SLOTS 1024   /* free-space evidence cache (ids are sequential: no collision below 1024 apart) */   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
 
 /* The change set holds every slot of an update: arrays of SOOC_MAPPER_CHANGED_MAX
  * must fit the largest K a model (or a widened slot setting) can have. */
@@ -33,6 +34,12 @@ struct sooc3d_mapper {
     uint64_t src_reg[SOOC_MODEL_K_MAX];
     int n_chg, n_rem, has_block;
     int32_t bi, bj;
+    /* free-space evidence of the revisit rules (retire_free): consecutive
+     * keyframes whose depth showed an entry's place as free, a direct-mapped
+     * cache by id (a collision forgets evidence: conservative) */
+    uint64_t free_id[MAPPER_FREE_SLOTS];
+    uint16_t free_run[MAPPER_FREE_SLOTS];
+    uint16_t unsup_run[MAPPER_FREE_SLOTS];   /* registrations since the depth last showed a surface there */
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -177,6 +184,146 @@ static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
     }
 }
 
+/* The node's revisit rules, part 4: depth evidence (docs/cogmap.md
+ * "Revisits"). Each keyframe, every entry it registered that is not new is
+ * probed against the keyframe's depth (sooc3d_mapper_free_space).
+ * - Free space: an entry whose place the depth showed free in
+ *   REVISIT_FREE_VIEWS consecutive verdicts (verdicts of "no evidence"
+ *   neither count nor break the run; a surface at a probe resets it) is
+ *   retired: removed, published as a removal.
+ * - Never seen: an entry at whose place the depth has shown no surface for
+ *   REVISIT_UNSUPPORTED registrations (hidden behind another object, or free)
+ *   that this keyframe registered together with an entry the depth does show,
+ *   their floor boxes (side 2 R_h) overlapping by at least a quarter, is that
+ *   object's duplicate: the two become one (merge_into).
+ * The evidence lives in a direct-mapped cache by id (MAPPER_FREE_SLOTS; a
+ * collision forgets evidence, which only delays a retirement); it is not
+ * stored with the map, so a restart starts counting again. */
+#define REVISIT_FREE_VIEWS 5
+#define REVISIT_FREE_RING 6
+#define REVISIT_UNSUPPORTED 48
+int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z) {
+    static const double hf[3] = {0.1, 0.2, 0.3};   /* centre probe heights / H_b */
+    const double *T = cam->T_wc;
+    const double rr = cam->R_h / 3.0;
+    int vis = 0, hidden = 0;
+    for (int p = 0; p < 3 + REVISIT_FREE_RING; p++) {
+        double px = X, pz = Z, py;
+        if (p < 3) py = hf[p] * cam->H_b;
+        else {
+            double a = 2.0 * M_PI * (p - 3) / REVISIT_FREE_RING;
+            px += rr * cos(a);
+            pz += rr * sin(a);
+            py = 0.15 * cam->H_b;
+        }
+        double q[3] = {px - T[3], py - T[7], pz - T[11]};
+        double xc = T[0] * q[0] + T[4] * q[1] + T[8] * q[2];
+        double yc = T[1] * q[0] + T[5] * q[1] + T[9] * q[2];
+        double zc = T[2] * q[0] + T[6] * q[1] + T[10] * q[2];
+        if (!(zc > cam->t_near && zc < cam->d_clip)) continue;
+        double u = cam->K.fx * xc / zc + cam->K.cx, v = cam->K.fy * yc / zc + cam->K.cy;
+        if (!(u >= 0 && u < f->width && v >= 0 && v < f->height)) continue;
+        size_t k = (size_t)(int)v * (size_t)f->width + (size_t)(int)u;
+        if (f->valid && !f->valid[k]) continue;
+        double D = f->depth[k];
+        if (!(D > 0) || !isfinite(D)) continue;
+        double tol = 0.1 + 0.02 * zc;
+        /* the ray meets the floor (y = 0) at planar depth tf: a probe so close
+         * above the floor that tf lies within the tolerance cannot tell the
+         * floor behind it from an object at it */
+        double tf = T[7] > py ? zc * T[7] / (T[7] - py) : INFINITY;
+        if (!(tf > zc + 2.0 * tol)) continue;
+        if (D < zc - tol) hidden++;           /* something in front of the probe */
+        else if (!(D > zc + tol)) return 0;   /* a surface at the probe: occupied */
+        else vis++;
+    }
+    return !hidden && vis >= 4 ? 1 : -1;
+}
+
+static int retire_at(sooc3d_mapper *mp, uint64_t *ids, int i) {
+    if (mp->n_rem >= SOOC_MODEL_K_MAX || sooc_cogmap_remove(mp->map, ids[i])) return 0;
+    size_t c = (size_t)(ids[i] % MAPPER_FREE_SLOTS);
+    mp->rem_ids[mp->n_rem++] = ids[i];
+    mp->free_id[c] = 0;
+    mp->free_run[c] = mp->unsup_run[c] = 0;
+    ids[i] = 0;
+    return 1;
+}
+
+/* Entry ids[i] joins ids[j]: one entry remains with ids[j]'s values, the
+ * better-observed id (tie: the older) and both observation counts, as
+ * sooc_cogmap_merge_neighbours does; the other id is removed. */
+static int merge_into(sooc3d_mapper *mp, uint64_t *ids, int i, int j) {
+    sooc_cogmap_entry ei, ej;
+    if (mp->n_rem >= SOOC_MODEL_K_MAX || sooc_cogmap_get(mp->map, ids[i], &ei) ||
+        sooc_cogmap_get(mp->map, ids[j], &ej))
+        return 0;
+    int keep_i = ei.obs_count > ej.obs_count || (ei.obs_count == ej.obs_count && ei.id < ej.id);
+    uint64_t lose = keep_i ? ej.id : ei.id;
+    uint64_t obs = (uint64_t)ei.obs_count + ej.obs_count;
+    ej.obs_count = obs > UINT32_MAX ? UINT32_MAX : (uint32_t)obs;
+    if (ei.first_seen_ns < ej.first_seen_ns) ej.first_seen_ns = ei.first_seen_ns;
+    ej.id = keep_i ? ei.id : ej.id;
+    if (sooc_cogmap_remove(mp->map, lose)) return 0;
+    mp->rem_ids[mp->n_rem++] = lose;
+    /* overwrites the kept id (never appends); should it run out of memory
+     * moving grid cells, the kept entry keeps its stored values */
+    (void)sooc_cogmap_insert(mp->map, &ej, NULL);
+    size_t c = (size_t)(lose % MAPPER_FREE_SLOTS), ck = (size_t)(ej.id % MAPPER_FREE_SLOTS);
+    mp->free_id[c] = 0;
+    mp->free_run[c] = mp->unsup_run[c] = 0;
+    mp->free_id[ck] = ej.id;   /* the kept entry is the one the depth shows */
+    mp->free_run[ck] = mp->unsup_run[ck] = 0;
+    ids[j] = ej.id;
+    ids[i] = 0;
+    return 1;
+}
+
+static int retire_free(sooc3d_mapper *mp, const sooc_frame *f, uint64_t *ids, int K) {
+    sooc_cogmap_camera cam;
+    mdl_camera_of(mp->m, f, &cam);
+    int n = 0, vd[SOOC_MODEL_K_MAX];
+    double X[SOOC_MODEL_K_MAX], Z[SOOC_MODEL_K_MAX];
+    for (int i = 0; i < K; i++) {
+        sooc_cogmap_entry e;
+        vd[i] = -1;
+        if (!ids[i] || sooc_cogmap_get(mp->map, ids[i], &e) || e.obs_count < 2) continue;
+        X[i] = e.X;
+        Z[i] = e.Z;
+        size_t c = (size_t)(ids[i] % MAPPER_FREE_SLOTS);
+        if (mp->free_id[c] != ids[i]) {
+            mp->free_id[c] = ids[i];
+            mp->free_run[c] = mp->unsup_run[c] = 0;
+        }
+        vd[i] = sooc3d_mapper_free_space(&cam, f, e.X, e.Z);
+        if (vd[i] == 0) mp->free_run[c] = mp->unsup_run[c] = 0;
+        else {
+            if (vd[i] == 1 && mp->free_run[c] < UINT16_MAX) mp->free_run[c]++;
+            if (mp->unsup_run[c] < UINT16_MAX) mp->unsup_run[c]++;
+        }
+        if (mp->free_run[c] >= REVISIT_FREE_VIEWS) n += retire_at(mp, ids, i);
+    }
+    /* never seen, always next to one that is: an entry the depth has not shown
+     * a surface at for REVISIT_UNSUPPORTED registrations, registered together
+     * with an entry the depth shows at its place now, whose floor box overlaps
+     * its own by at least a quarter, adds nothing the other does not explain */
+    const double B = 2.0 * cam.R_h;
+    for (int i = 0; i < K; i++) {
+        if (!ids[i] || vd[i] == 0) continue;
+        size_t c = (size_t)(ids[i] % MAPPER_FREE_SLOTS);
+        if (mp->free_id[c] != ids[i] || mp->unsup_run[c] < REVISIT_UNSUPPORTED) continue;
+        for (int j = 0; j < K; j++) {
+            if (j == i || !ids[j] || vd[j] != 0) continue;
+            double ox = B - fabs(X[i] - X[j]), oz = B - fabs(Z[i] - Z[j]);
+            if (ox > 0 && oz > 0 && ox * oz >= 0.25 * B * B) {
+                n += merge_into(mp, ids, i, j);
+                break;
+            }
+        }
+    }
+    return n;
+}
+
 sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_update_stats *stp) {
     double t0 = sooc_seconds();
     sooc3d_update_stats st0;
@@ -219,6 +366,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
                                   mp->rem_ids, &rs)))
         return s;
     mp->n_rem = rs.n_removed;
+    int n_retired = 0;
     int n_merged = 0;   /* merged-away entries: removed, and no longer among the written ids */
     sooc_cogmap_merge(mp->map, ids, c->K, mp->merge_r, mp->rem_ids + mp->n_rem, &n_merged);
     mp->n_rem += n_merged;
@@ -229,6 +377,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
         mp->n_rem += n_nb;
         n_merged += n_nb;
         if (s) return s;
+        n_retired = retire_free(mp, f, ids, c->K);
     }
     for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 32) */
         if (ids[i]) {
@@ -250,6 +399,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     st->n_removed = rs.n_removed;
     st->n_merged = n_merged;
     st->n_same_pose = n_same;
+    st->n_retired = n_retired;
     st->elapsed_ms = 1e3 * (sooc_seconds() - t0);
     return SOOC_OK;
 }
