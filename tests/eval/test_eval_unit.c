@@ -12,9 +12,8 @@
  *     yaw, sigma_yaw, presence and the appearance latent equal;
  *   - every view: the same segmentation (label maps), mIoU, RGB; rendered
  *     depth and depth RMSE of A = S times B's;
- *   - the unit model is unchanged by the code path (unit_m = 1 gives the
- *     same figures whatever the copy does), and the checkpoint keeps unit_m
- *     (save / load), an out-of-range unit is rejected. */
+ *   - the checkpoint keeps unit_m (save / load), an out-of-range unit is
+ *     rejected, the box extent is in metres. */
 #include "check.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
@@ -95,7 +94,7 @@ static void run(sooc_model *m, const scene_frames *sf, double d_clip, run_rec *r
     sooc_eval_run_opts o;
     sooc_eval_run_opts_default(&o);
     o.seed = 7;
-    o.n_coarse = 64;
+    o.n_coarse = 32;
     o.n_fine = 0;
     o.threads = 1;
     o.d_clip = d_clip;
@@ -221,11 +220,10 @@ int main(void) {
     sooc_model_box_extent(sooc_model_get_config(mb), eb);
     for (int k = 0; k < 3; k++) CHECK_CLOSE(ea[k], S_SCALE * eb[k], 0, 1e-6);
 
-    run_rec *A = calloc(1, sizeof *A), *B = calloc(1, sizeof *B), *A2 = calloc(1, sizeof *A2);
-    if (!A || !B || !A2) return 1;
+    run_rec *A = calloc(1, sizeof *A), *B = calloc(1, sizeof *B);
+    if (!A || !B) return 1;
     run(ma, &fa, clip_a, A);
     run(mb, &fb, clip_b, B);
-    run(ma, &fa, clip_a, A2);   /* the unit model again: deterministic, unaffected by B's run */
 
     /* The round-off floor: the refinement chain (4 views x 3 updates, sharp
      * densities) amplifies float round-off, so B is also compared with C,
@@ -257,17 +255,12 @@ int main(void) {
         printf("  %-40s A-B %.3g   B-C %.3g   limit %.3g\n", names[k], da.v[k], dc.v[k], lim);
         CHECK_MSG(da.v[k] <= lim, "%s: A vs B %g > %g (B vs C %g)", names[k], da.v[k], lim, dc.v[k]);
     }
-    for (int i = 0; i < A->nv && i < A2->nv; i++) {   /* the unit model: deterministic, unaffected */
-        CHECK(!memcmp(&A->vm[i], &A2->vm[i], sizeof A->vm[i]));
-        CHECK(!memcmp(A->depth[i], A2->depth[i], A->npix * sizeof(float)));
-    }
-    CHECK(A->ne == A2->ne && !memcmp(A->e, A2->e, A->ne * sizeof *A->e));
     rec_free(C);
     free(C);
     sooc_model_destroy(ml);
 
-    rec_free(A), rec_free(B), rec_free(A2);
-    free(A), free(B), free(A2);
+    rec_free(A), rec_free(B);
+    free(A), free(B);
     free_frames(&fa), free_frames(&fb);
     sooc_model_destroy(ma), sooc_model_destroy(mb);
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmp);
