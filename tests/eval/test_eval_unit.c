@@ -13,7 +13,9 @@
  *   - every view: the same segmentation (label maps), mIoU, RGB; rendered
  *     depth and depth RMSE of A = S times B's;
  *   - the checkpoint keeps unit_m (save / load), an out-of-range unit is
- *     rejected, the box extent is in metres. */
+ *     rejected, the box extent is in metres; `sooc3d model M --unit-m U
+ *     --out F` writes the unit (weights unchanged) and `sooc3d model F`
+ *     prints it and the clip in metres (SOOC_BIN; skipped without). */
 #include "check.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
@@ -24,6 +26,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
@@ -215,6 +218,33 @@ int main(void) {
     }
     sooc_model_destroy(ml);
     ml = NULL;
+    /* the CLI: sooc3d model M --unit-m U --out F, and its printout (SOOC_BIN) */
+    const char *bin = getenv("SOOC_BIN");
+    if (bin && access(bin, X_OK) == 0) {
+        char cpath[700], txt[700], out[4096];
+        snprintf(cpath, sizeof cpath, "%s/cli.bin", tmp);
+        snprintf(txt, sizeof txt, "%s/cli.txt", tmp);
+        snprintf(cmd, sizeof cmd, "'%s' model %s --unit-m 0.285714285714 --out %s > /dev/null", bin, SHIPPED, cpath);
+        CHECK(system(cmd) == 0);
+        CHECK_OK(sooc_model_load(&ml, cpath, NULL, NULL));
+        if (ml) {
+            CHECK(sooc_model_get_config(ml)->unit_m == (float)0.285714285714);
+            CHECK(!memcmp(sooc_model_params(ml), sooc_model_params(ma), sooc_model_param_count(ma) * sizeof(float)));
+        }
+        sooc_model_destroy(ml);
+        ml = NULL;
+        snprintf(cmd, sizeof cmd, "'%s' model %s > %s", bin, cpath, txt);
+        CHECK(system(cmd) == 0);
+        FILE *ft = fopen(txt, "r");
+        size_t nr = ft ? fread(out, 1, sizeof out - 1, ft) : 0;
+        if (ft) fclose(ft);
+        out[nr] = 0;
+        CHECK_MSG(strstr(out, "unit        0.285714 m per model unit") != NULL, "%s", out);
+        CHECK_MSG(strstr(out, "clip        2.28571 m") != NULL, "%s", out);
+        snprintf(cmd, sizeof cmd, "'%s' model %s --unit-m 0 --out %s 2> %s", bin, SHIPPED, cpath, txt);
+        CHECK(WEXITSTATUS(system(cmd)) == 2);
+    } else
+        printf("test_eval_unit: SOOC_BIN not set: `sooc3d model --unit-m` part skipped\n");
     float ea[3], eb[3];
     sooc_model_box_extent(sooc_model_get_config(ma), ea);
     sooc_model_box_extent(sooc_model_get_config(mb), eb);
