@@ -52,6 +52,10 @@ struct sooc_framepath_params;
 sooc_status sooc_dataset_open_fp(sooc_dataset **out, const char *const *dirs, int n_dirs,
                                  const struct sooc_framepath_params *fpp);
 void sooc_dataset_destroy(sooc_dataset *d);   /* NULL-safe */
+/* The model's metres per unit (config.unit_m; default 1): query views of
+ * sooc_dataset_sample mode 0 weigh camera distance in model units against
+ * heading in radians, as on a copy of the scenes scaled by 1 / unit_m. */
+void sooc_dataset_set_unit(sooc_dataset *d, double unit_m);
 int sooc_dataset_n_scenes(const sooc_dataset *d);
 const char *sooc_dataset_scene_path(const sooc_dataset *d, int scene);
 /* Views of a scene in trajectory order (input and query views interleaved as

@@ -97,6 +97,8 @@ int sooc_cmd_train(int argc, char **argv) {
         s = sooc_dataset_open_fp(&valset, val, n_val, &fpp);
         if (s) { sooc_dataset_destroy(train); return sooc_cli_fail("train", s); }
     }
+    sooc_dataset_set_unit(train, mc.unit_m);   /* query choice in model units (docs/model.md "Model unit") */
+    if (valset) sooc_dataset_set_unit(valset, mc.unit_m);
     fprintf(stderr, "%d training scenes, %d validation scenes; %lld steps -> %s\n",
             sooc_dataset_n_scenes(train), valset ? sooc_dataset_n_scenes(valset) : 0, (long long)cfg.steps, out);
     signal(SIGINT, on_signal);

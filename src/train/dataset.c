@@ -24,7 +24,10 @@ typedef struct ds_scene {
 struct sooc_dataset {
     int n, cap;
     ds_scene *scenes;
+    double unit_m;   /* the model's metres per unit for the query choice (0 = 1) */
 };
+
+void sooc_dataset_set_unit(sooc_dataset *d, double unit_m) { d->unit_m = unit_m > 0 ? unit_m : 0; }
 
 static void scene_free(ds_scene *s) {
     for (int i = 0; i < s->n_views; i++) sooc_frame_free(&s->views[i]);
@@ -213,7 +216,9 @@ void sooc_dataset_object(const sooc_dataset *d, int s, int i, uint16_t *id, doub
 /* Query views of mode 0: the Q query frames whose camera centre is nearest
  * (on the floor) to any camera of the chosen segment, so that they look at
  * what the segment mapped. Ties go to the lower index: deterministic. */
-static int sample_nearest(const ds_scene *sc, const sooc_frame *views, int T, int Q, sooc_frame *queries) {
+static int sample_nearest(const ds_scene *sc, const sooc_frame *views, int T, int Q, double unit_m,
+                          sooc_frame *queries) {
+    double iu = unit_m > 0 ? 1.0 / unit_m : 1.0;   /* distances in model units */
     int nq = 0;
     int used[64] = {0};
     for (int q = 0; q < Q; q++) {
@@ -227,10 +232,10 @@ static int sample_nearest(const ds_scene *sc, const sooc_frame *views, int T, in
             for (int t = 0; t < T; t++) {
                 const double *Tv = views[t].T_wc;
                 double dx = Tq[3] - Tv[3], dz = Tq[11] - Tv[11];
-                /* Also prefer a similar heading: 1 m per radian. */
+                /* Also prefer a similar heading: 1 model unit (config.unit_m) per radian. */
                 double fq = atan2(Tq[2], Tq[10]), fv = atan2(Tv[2], Tv[10]);
                 double da = fabs(remainder(fq - fv, 2 * M_PI));
-                double dist = sqrt(dx * dx + dz * dz) + da;
+                double dist = sqrt(dx * dx + dz * dz) * iu + da;
                 if (dist < best) { best = dist; best_v = v; best_ci = ci; }
             }
         }
@@ -312,6 +317,6 @@ void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, int mod
     *n_views = T;
     int nq = 0;
     if (mode == 1 && Q > 0) nq = sample_held_out(sc, start, T, Q, rng, queries);
-    if (nq == 0) nq = sample_nearest(sc, views, T, Q, queries);
+    if (nq == 0) nq = sample_nearest(sc, views, T, Q, d->unit_m, queries);
     *n_queries = nq;
 }

@@ -15,12 +15,16 @@
  *   - the checkpoint keeps unit_m (save / load), an out-of-range unit is
  *     rejected, the box extent is in metres; `sooc3d model M --unit-m U
  *     --out F` writes the unit (weights unchanged) and `sooc3d model F`
- *     prints it and the clip in metres (SOOC_BIN; skipped without). */
+ *     prints it and the clip in metres (SOOC_BIN; skipped without);
+ *   - the trainer's query-view choice (sooc_dataset_sample mode 0) with
+ *     sooc_dataset_set_unit(1 / S) on the original picks what unit 1 picks
+ *     on the copy. */
 #include "check.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
 #include "sooc3d/seq.h"
+#include "sooc3d/train.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -245,6 +249,31 @@ int main(void) {
         CHECK(WEXITSTATUS(system(cmd)) == 2);
     } else
         printf("test_eval_unit: SOOC_BIN not set: `sooc3d model --unit-m` part skipped\n");
+    /* the trainer's query choice in model units */
+    {
+        sooc_dataset *da = NULL, *db = NULL;
+        const char *dira[1] = {sa}, *dirb[1] = {sb};
+        CHECK_OK(sooc_dataset_open(&da, dira, 1, 64, 64));
+        CHECK_OK(sooc_dataset_open(&db, dirb, 1, 64, 64));
+        if (da && db) {
+            sooc_dataset_set_unit(db, 1.0 / S_SCALE);
+            int same = 0, n = 0;
+            for (int s = 0; s < 24; s++) {
+                sooc_frame va[4], qa[2], vb[4], qb[2];
+                int nva, nqa, nvb, nqb;
+                sooc_rng ra, rb;
+                sooc_rng_seed(&ra, (uint64_t)s, 1);
+                sooc_rng_seed(&rb, (uint64_t)s, 1);
+                sooc_dataset_sample(da, 0, 1 + s % 2, 1, 0, &ra, va, &nva, qa, &nqa);
+                sooc_dataset_sample(db, 0, 1 + s % 2, 1, 0, &rb, vb, &nvb, qb, &nqb);
+                n++;
+                same += nva == nvb && nqa == 1 && nqb == 1 && va[0].index == vb[0].index && qa[0].index == qb[0].index;
+            }
+            CHECK_MSG(same == n, "query choice: %d of %d samples agree", same, n);
+        }
+        sooc_dataset_destroy(da);
+        sooc_dataset_destroy(db);
+    }
     float ea[3], eb[3];
     sooc_model_box_extent(sooc_model_get_config(ma), ea);
     sooc_model_box_extent(sooc_model_get_config(mb), eb);
