@@ -4,7 +4,9 @@
  * (model.merge_m). A monitor thread samples the node's stats: the map size
  * after the first pass over the scene, at the end and its maximum, resident
  * memory (VmRSS) and open file descriptors after the first pass, after 10% of
- * the keyframes and at the end. Prints a JSON object as its last line.
+ * the keyframes and at the end, and the map size at every 1,000th keyframe
+ * (entries_per_1000: the count moves as duplicates appear and are merged or
+ * retired, so one end value says little). Prints a JSON object as its last line.
  *
  *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] [--model PATH] [--out DIR]
  *
@@ -50,6 +52,8 @@ typedef struct mon {
     long rss_first, rss_tenth;
     int fds_first, fds_tenth;
     int have_first, have_tenth;
+    uint64_t per_k[101];   /* entries at every 1,000th keyframe (per_k[i]: i x 1,000), up to 10^5 */
+    int n_per_k;
 } mon;
 
 static void *monitor(void *arg) {
@@ -58,6 +62,7 @@ static void *monitor(void *arg) {
         sooc_node_stats s;
         sooc_node_get_stats(m->node, &s);
         if (s.n_objects > m->entries_max) m->entries_max = s.n_objects;
+        while (m->n_per_k < 101 && s.keyframes >= (uint64_t)m->n_per_k * 1000) m->per_k[m->n_per_k++] = s.n_objects;
         if (!m->have_first && s.keyframes >= m->first_pass_kf) {
             m->entries_first = s.n_objects;
             m->rss_first = rss_kb();
@@ -170,6 +175,10 @@ int main(int argc, char **argv) {
     long rss_end = rss_kb();
     int fds_end = open_fds();
     if (st) fprintf(stderr, "bench_soak: run: %s\n", sooc_errmsg());
+    char perk[101 * 24] = "";
+    size_t pl = 0;
+    for (int i = 1; i < m.n_per_k && pl + 24 < sizeof perk; i++)
+        pl += (size_t)snprintf(perk + pl, sizeof perk - pl, "%s%llu", i > 1 ? ", " : "", (unsigned long long)m.per_k[i]);
     sooc_node_destroy(n);
     int fds_after = open_fds();
     double growth = m.entries_first ? (double)s.n_objects / (double)m.entries_first - 1.0 : 0.0;
@@ -181,13 +190,13 @@ int main(int argc, char **argv) {
             m.rss_tenth, rss_end, m.fds_first, m.fds_tenth, fds_end, fds_after);
     printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"views_per_pass\": %d, \"merge_m\": %g, \"clip_m\": %g, "
            "\"keyframes\": %llu, \"seconds\": %.1f, \"entries_first_pass\": %llu, \"entries_tenth\": %llu, "
-           "\"entries_end\": %llu, \"entries_max\": %llu, \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
+           "\"entries_end\": %llu, \"entries_max\": %llu, \"entries_per_1000\": [%s], \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
            "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
            "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
            "\"status\": \"%s\"}\n",
            scale, (unsigned long long)seed, views, c.merge_m, c.clip_m, (unsigned long long)s.keyframes, secs,
            (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
-           (unsigned long long)m.entries_max, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
+           (unsigned long long)m.entries_max, perk, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
            m.fds_tenth, fds_end, fds_after, sooc_status_str(st));
     if (!out) {
         char cmd[600];

@@ -883,8 +883,17 @@ sooc_status sooc_cogmap_merge_neighbours(sooc_cogmap *m, uint64_t *ids, int k, d
         if (b == SOOC_HEMPTY) continue;
         const sooc_cogmap_entry ea = m->ent[a], eb = m->ent[b];
         int keep_a = ea.obs_count > eb.obs_count || (ea.obs_count == eb.obs_count && ea.id < eb.id);
-        sooc_cogmap_entry kept = ea;   /* the view's estimate refines the kept entry */
+        /* two estimates of one object: where and what means are their mean
+         * weighted by observation counts (a settled entry is not carried off
+         * by a young one); variances and presence are the view's */
+        sooc_cogmap_entry kept = ea;
         kept.id = keep_a ? ea.id : eb.id;
+        double wb = (double)eb.obs_count / ((double)ea.obs_count + eb.obs_count);
+        kept.X = ea.X + wb * (eb.X - ea.X);
+        kept.Z = ea.Z + wb * (eb.Z - ea.Z);
+        kept.Theta = sooc_wrap_angle(ea.Theta + wb * sooc_wrap_angle(eb.Theta - ea.Theta));
+        for (int j = 0; j < ea.dim; j++)
+            kept.what_mu[j] = (float)(ea.what_mu[j] + wb * ((double)eb.what_mu[j] - ea.what_mu[j]));
         uint64_t obs = (uint64_t)ea.obs_count + eb.obs_count;
         kept.obs_count = obs > UINT32_MAX ? UINT32_MAX : (uint32_t)obs;
         if (eb.first_seen_ns < kept.first_seen_ns) kept.first_seen_ns = eb.first_seen_ns;
