@@ -213,8 +213,9 @@ void sooc_cogmap_merge(sooc_cogmap *m, uint64_t *ids, int k, double radius, uint
  * view did not register (the nearest such) is that object seen again, which
  * the view did not retrieve (more entries in view than slots, or an entry
  * that drifted). The two become one: the better-observed id stays (tie: the
- * older), with the view's estimate (ids[i]'s values), the sum of both
- * observation counts and the earlier first_seen; the other id is removed
+ * older), with where (X, Z, Theta) and what means averaged over the two
+ * weighted by their observation counts, the view's variances and presence
+ * (ids[i]'s), the sum of both observation counts and the earlier first_seen; the other id is removed
  * (written to removed_out, room for cap; at most cap merges) and ids[i] holds
  * the kept id. Unlike sooc_cogmap_merge this removes or overwrites entries
  * outside ids[] (only ones within radius of a registered entry). Fails only
