@@ -11,6 +11,7 @@
  *    model: infer and render run on the 640x480 frames with no conversion and
  *    write outputs with finite metrics. */
 #include "check.h"
+#include "cli_util.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
 
@@ -23,23 +24,9 @@
 
 static char g_tmp[256];
 
-static int run(const char *cmd) {
-    printf("+ %s\n", cmd);
-    fflush(stdout);
-    int rc = system(cmd);
-    return rc == -1 ? -1 : WEXITSTATUS(rc);
-}
-
-static char *slurp(const char *path) {
-    size_t n = 0;
-    void *b = NULL;
-    if (sooc_file_read_all(path, 1 << 24, &b, &n)) return NULL;
-    return b;
-}
-
 /* Rows of views.csv: all with finite rgb_rmse and depth_rmse (columns 7, 8). */
 static int views_finite(const char *csv, int *rows) {
-    char *t = slurp(csv);
+    char *t = tc_slurp(csv);
     *rows = 0;
     if (!t) return 0;
     int ok = 1;
@@ -59,21 +46,6 @@ static int views_finite(const char *csv, int *rows) {
     }
     sooc_free(t);
     return ok && *rows > 0;
-}
-
-static void small_model(const char *path) {
-    sooc_model_config c;
-    sooc_model_config_default(&c);
-    c.K = 3, c.d_what = 8, c.d_layout = 4, c.L = 1;
-    c.img_w = c.img_h = 32;
-    c.ray_w = c.ray_h = 16;
-    c.dec_width = 16, c.dec_color_width = 8;
-    c.ref_ch[0] = c.ref_ch[1] = c.ref_ch[2] = c.ref_ch[3] = 8;
-    c.ref_fc = 16, c.ref_hidden = 16;
-    sooc_model *m = NULL;
-    CHECK_OK(sooc_model_create(&m, &c, 3));
-    if (m) CHECK_OK(sooc_model_save(m, path, NULL, 0));
-    sooc_model_destroy(m);
 }
 
 static void test_synthetic(const char *bin) {
@@ -97,7 +69,7 @@ static void test_synthetic(const char *bin) {
     CHECK_OK(sooc_gen_run(&gp, data, NULL, NULL, NULL));
     snprintf(p, sizeof p, "%s/calib.yaml", scene);
     CHECK(rename(p, calib) == 0);
-    small_model(model);
+    tc_tiny_model(model);
     const char *yaml = "steps: 2\nwarmup: 1\nkl_warmup: 1\nlog_every: 1\nckpt_every: 100\nval_every: 0\n"
                        "t_max_b: 2\nt_max_c: 2\nmodel:\n  K: 3\n  d_what: 8\n  d_layout: 4\n  L: 1\n"
                        "  img_w: 32\n  img_h: 32\n  ray_w: 16\n  ray_h: 16\n  dec_width: 16\n  dec_color_width: 8\n"
@@ -117,17 +89,17 @@ static void test_synthetic(const char *bin) {
                      data, g_tmp);
         else snprintf(args, sizeof args, "train --config %s --data %s --out %s/train --threads 1", cfg, data, g_tmp);
         snprintf(cmd, sizeof cmd, "%s %s > %s/err_%d.txt 2>&1", bin, args, g_tmp, k);
-        CHECK_MSG(run(cmd) != 0, "%s ran without a calibration", what[k]);
+        CHECK_MSG(tc_run(cmd) != 0, "%s ran without a calibration", what[k]);
         snprintf(p, sizeof p, "%s/err_%d.txt", g_tmp, k);
-        char *t = slurp(p);
+        char *t = tc_slurp(p);
         CHECK_MSG(t && strstr(t, "calib"), "%s: the error does not name the calibration: %s", what[k], t ? t : "");
         sooc_free(t);
         snprintf(cmd, sizeof cmd, "%s %s --calib %s > %s/out_%d.txt 2>&1", bin, args, calib, g_tmp, k);
-        int rc = run(cmd);
+        int rc = tc_run(cmd);
         CHECK_MSG(rc == 0, "%s --calib: exit %d", what[k], rc);
         if (rc) {
             snprintf(cmd, sizeof cmd, "cat %s/out_%d.txt", g_tmp, k);
-            if (run(cmd)) fprintf(stderr, "(no output)\n");
+            if (tc_run(cmd)) fprintf(stderr, "(no output)\n");
         }
     }
     /* render scored every resized view with finite depth */
@@ -135,31 +107,31 @@ static void test_synthetic(const char *bin) {
     snprintf(p, sizeof p, "%s/render/views.csv", g_tmp);
     CHECK_MSG(views_finite(p, &rows) && rows == 6, "%s: %d rows, not all finite", p, rows);
     snprintf(p, sizeof p, "%s/out_1.txt", g_tmp);
-    char *t = slurp(p);
+    char *t = tc_slurp(p);
     CHECK_MSG(t && strstr(t, "cropped/resized") && !strstr(t, "warning"), "render output: %s", t ? t : "");
     sooc_free(t);
     snprintf(p, sizeof p, "%s/infer/map.json", g_tmp);
-    t = slurp(p);
+    t = tc_slurp(p);
     CHECK_MSG(t && strstr(t, "\"world\": {\"source\": \"identity\""), "map.json: %.200s", t ? t : "");
     sooc_free(t);
     /* a wrong depth scale empties every frame: render still runs, and says so */
     snprintf(cmd, sizeof cmd, "%s render --model %s --seq %s --out %s/render_bad --samples 16,0 --views 1 --calib %s "
              "--depth-scale 1e-6 > %s/out_bad.txt 2>&1", bin, model, scene, g_tmp, calib, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(p, sizeof p, "%s/out_bad.txt", g_tmp);
-    t = slurp(p);
+    t = tc_slurp(p);
     CHECK_MSG(t && strstr(t, "warning: 6 frames have no valid depth") && strstr(t, "non-finite"), "render: %s",
               t ? t : "");
     sooc_free(t);
     /* a bad frame-path value is a usage error naming the option */
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s --out %s/x --up 0,0,0 2>/dev/null", bin, model, scene, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s render --model %s --seq %s --out %s/x --min-depth 3 --max-depth 2 2>/dev/null", bin,
              model, scene, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/x.json --world sideways 2>/dev/null", bin, model,
              data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
 }
 
 /* label-fusion: 640x480 PNG, depth (raw >> 3) * 1e-4 m, arm camera looking into a bin (up +z). */
@@ -181,20 +153,20 @@ static int test_labelfusion(const char *bin) {
     /* no option at all: the reader's label-fusion default, the world from the cameras' mean */
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s --out %s/lf_plain --max-frames 3 --no-render --samples 16", bin, model,
              lf, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     const char *opts = "--depth-shift 3 --depth-scale 1e-4 --up 0,0,1 --max-frames 4";
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s --out %s/lf_infer %s --samples 16", bin, model, lf, g_tmp,
              opts);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(p, sizeof p, "%s/lf_infer/map.json", g_tmp);
-    char *t = slurp(p);
+    char *t = tc_slurp(p);
     CHECK_MSG(t && strstr(t, "\"source\": \"estimate\"") && strstr(t, "\"id\""), "map.json: %.300s", t ? t : "");
     sooc_free(t);
     snprintf(p, sizeof p, "%s/lf_infer/render/000000_depth.png", g_tmp);
     CHECK(access(p, R_OK) == 0);
     snprintf(cmd, sizeof cmd, "%s render --model %s --seq %s --out %s/lf_render %s --views 2 --samples 16,0", bin,
              model, lf, g_tmp, opts);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     int rows = 0;
     snprintf(p, sizeof p, "%s/lf_render/views.csv", g_tmp);
     CHECK_MSG(views_finite(p, &rows) && rows == 4, "%s: %d rows, not all finite", p, rows);

@@ -9,6 +9,7 @@
  *  - label-fusion from ../shared/real (skipped when absent): segm.png labels
  *    give obj_ids [48, 132] over 3 query frames. */
 #include "../data/util.h"
+#include "../cli_util.h"
 #include "sooc3d/geom.h"
 #include "sooc3d/image.h"
 #include "sooc3d/model.h"
@@ -16,38 +17,6 @@
 
 #include <math.h>
 #include <sys/wait.h>
-
-static int run(const char *cmd) {
-    printf("+ %s\n", cmd);
-    fflush(stdout);
-    int rc = system(cmd);
-    return rc == -1 ? -1 : WEXITSTATUS(rc);
-}
-
-static char *slurp(const char *path) {
-    void *t = NULL;
-    size_t n = 0;
-    if (sooc_file_read_all(path, (size_t)1 << 24, &t, &n)) {
-        sooc_clearerr();
-        return NULL;
-    }
-    return t;
-}
-
-static void tiny_model(const char *path) {
-    sooc_model_config c;
-    sooc_model_config_default(&c);
-    c.K = 3, c.d_what = 8, c.d_layout = 4, c.L = 1;
-    c.img_w = c.img_h = 32;
-    c.ray_w = c.ray_h = 16;
-    c.dec_width = 16, c.dec_color_width = 8;
-    c.ref_ch[0] = c.ref_ch[1] = c.ref_ch[2] = c.ref_ch[3] = 8;
-    c.ref_fc = 16, c.ref_hidden = 16;
-    sooc_model *m = NULL;
-    CHECK_OK(sooc_model_create(&m, &c, 3));
-    if (m) CHECK_OK(sooc_model_save(m, path, NULL, 0));
-    sooc_model_destroy(m);
-}
 
 /* Frame i of a walk along +z, camera 1.3 m up and pitched 25 deg down over a
  * checkered floor (y = 0; depth in mm, 0 beyond 6 m), 7-Scenes layout. */
@@ -122,16 +91,16 @@ int main(void) {
     CHECK_OK(sooc_mkdirs(p));
     tu_write(seq, "camera-intrinsics.txt", "50 0 32\n0 50 24\n0 0 1\n");
     for (int i = 0; i < 10; i++) write_frame(seq, i, i % 5 == 2);   /* labels on the query frames only */
-    tiny_model(model);
+    tc_tiny_model(model);
 
     snprintf(cmd, sizeof cmd,
              "%s eval --model %s --name tiny --data %s --json %s/walk.json --md %s/walk.md --panels %s/pan "
              "--world identity --samples 16,0 --threads 1 --quiet > %s/out.txt 2>&1",
              bin, model, seq, tmp, tmp, tmp, tmp);
-    int rc = run(cmd);
+    int rc = tc_run(cmd);
     CHECK_MSG(rc == 0, "eval on a recorded sequence: exit %d", rc);
     snprintf(p, sizeof p, "%s/walk.json", tmp);
-    char *js = slurp(p);
+    char *js = tc_slurp(p);
     check_keys(js, "walk");
     CHECK_MSG(js && strstr(js, "\"model\": \"tiny\"") && strstr(js, "\"sequence\": \"walk\"") &&
                   strstr(js, "\"obj_ids\": [300]") && strstr(js, "\"frames\": 10") &&
@@ -140,7 +109,7 @@ int main(void) {
               "walk.json: %s", js ? js : "(missing)");
     sooc_free(js);
     snprintf(p, sizeof p, "%s/walk.md", tmp);
-    char *md = slurp(p);
+    char *md = tc_slurp(p);
     CHECK_MSG(md && strstr(md, "| tiny | walk | 8/2 |"), "walk.md: %s", md ? md : "(missing)");
     sooc_free(md);
     for (int k = 2; k < 10; k += 5) {
@@ -148,7 +117,7 @@ int main(void) {
         CHECK_MSG(sooc_file_exists(p), "%s missing", p);
     }
     snprintf(p, sizeof p, "%s/pan/walk/tiny/views.csv", tmp);
-    char *csv = slurp(p);
+    char *csv = tc_slurp(p);
     int rows = 0;
     for (const char *q = csv; q && *q; q++) rows += *q == '\n';
     CHECK_MSG(rows == 3, "views.csv: %d lines", rows);
@@ -159,9 +128,9 @@ int main(void) {
     CHECK(remove(p) == 0);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/x.json --world identity --quiet > %s/err.txt 2>&1",
              bin, model, seq, tmp, tmp);
-    CHECK(run(cmd) == 1);
+    CHECK(tc_run(cmd) == 1);
     snprintf(p, sizeof p, "%s/err.txt", tmp);
-    char *err = slurp(p);
+    char *err = tc_slurp(p);
     CHECK_MSG(err && strstr(err, "frame-000007.png"), "error: %s", err ? err : "");
     sooc_free(err);
     /* mixing a recorded sequence with a gen dataset, bad option values */
@@ -169,12 +138,12 @@ int main(void) {
     CHECK_OK(sooc_mkdirs(p));
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s %s/gen --json %s/x.json 2>/dev/null", bin, model, seq, tmp,
              tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/x.json --query-every 1 2>/dev/null", bin, model,
              seq, tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/x.json --runs 2 2>/dev/null", bin, model, seq, tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
 
     /* the TUM layout with instance/ on every frame (read by the sequence
      * reader): the walk rewritten by sooc_seq_writer, ids 5 on the left third */
@@ -203,10 +172,10 @@ int main(void) {
         sooc_frame_free(&f);
         snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/tum.json --world identity "
                  "--samples 16,0 --quiet", bin, model, tum, tmp);
-        rc = run(cmd);
+        rc = tc_run(cmd);
         CHECK_MSG(rc == 0, "eval on a TUM-layout sequence: exit %d", rc);
         snprintf(p, sizeof p, "%s/tum.json", tmp);
-        js = slurp(p);
+        js = tc_slurp(p);
         check_keys(js, "tum");
         CHECK_MSG(js && strstr(js, "\"obj_ids\": [5]") && strstr(js, "\"obj_views\": [2]") &&
                       strstr(js, "\"sequence\": \"tumwalk\""),
@@ -224,10 +193,10 @@ int main(void) {
     } else {
         snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/lf.json --samples 16,0 --quiet",
                  bin, model, lf, tmp);
-        rc = run(cmd);
+        rc = tc_run(cmd);
         CHECK_MSG(rc == 0, "eval on label-fusion: exit %d", rc);
         snprintf(p, sizeof p, "%s/lf.json", tmp);
-        js = slurp(p);
+        js = tc_slurp(p);
         check_keys(js, "label-fusion");
         CHECK_MSG(js && strstr(js, "\"obj_ids\": [48, 132]") && strstr(js, "\"obj_views\": [3, 3]") &&
                       strstr(js, "\"frames_query\": 3") && strstr(js, "\"frames_mapped\": 12"),

@@ -8,6 +8,7 @@
  *  - the CLI writes JSON / Markdown / PNGs that parse;
  *  - numeric options reject junk and out-of-range values with a usage error. */
 #include "check.h"
+#include "cli_util.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
@@ -395,13 +396,6 @@ static void test_l2(sooc_model *m0, const scene_data *sd) {
 }
 
 /* ------------------------------------------------------------------- CLI */
-static int run(const char *cmd) {
-    printf("+ %s\n", cmd);
-    fflush(stdout);
-    int rc = system(cmd);
-    return rc == -1 ? -1 : WEXITSTATUS(rc);
-}
-
 /* `sooc3d infer --trace` with a model whose presence falls by ~0.1 per view
  * (prior logit 0.15, presence head bias -0.05, L = 2), so that every frame
  * registers new entries and removes the ones it retrieved: replaying trace.csv (reg = insert or overwrite, del =
@@ -429,7 +423,7 @@ static void test_infer(const char *bin, sooc_model *m0, const char *data) {
              "%s infer --model %s --seq %s/scene_0000 --out %s/inf --trace --samples 16 --threads 1 "
              "> %s/inf.txt 2>&1",
              bin, model, data, g_tmp, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     static unsigned long long id[TR_MAX];
     static double x[TR_MAX], z[TR_MAX];
     static int live[TR_MAX];
@@ -509,21 +503,21 @@ static void test_infer(const char *bin, sooc_model *m0, const char *data) {
     /* usage errors exit 2 and write nothing */
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --merge -1 2>/dev/null", bin,
              model, data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 2>/dev/null", bin, model, data);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --latents x 2>/dev/null", bin,
              model, data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/inf2 --slots 99 2>/dev/null", bin,
              model, data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(p, sizeof p, "%s/inf2", g_tmp);
     CHECK_MSG(access(p, F_OK) != 0, "no output directory after a usage error");
     /* a sequence that does not exist names it */
     snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/nope --out %s/inf3 --no-render > %s/inf3.txt 2>&1", bin,
              model, g_tmp, g_tmp, g_tmp);
-    CHECK(run(cmd) != 0);
+    CHECK(tc_run(cmd) != 0);
     snprintf(p, sizeof p, "%s/inf3.txt", g_tmp);
     char *er = read_text(p);
     CHECK_MSG(er && strstr(er, "nope"), "error names the missing sequence");
@@ -536,7 +530,7 @@ static void test_cli(const char *bin, const char *model, const char *data) {
              "%s eval --model %s --model %s --name a --name b --data %s --json %s/e.json --md %s/e.md --runs 2 "
              "--samples 16,4 --threads 1 --input-timing both --quiet > %s/eval.txt",
              bin, model, model, data, g_tmp, g_tmp, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(p, sizeof p, "%s/e.json", g_tmp);
     char *js = read_text(p);
     CHECK_MSG(js && json_valid(js), "eval JSON parses");
@@ -554,26 +548,26 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     free(tx);
     /* bad usage */
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s 2>/dev/null", bin, model, data);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --help > /dev/null", bin);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     /* --merge: a negative or non-numeric radius is a usage error; 0 (never merge) runs */
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --merge -1 2>/dev/null", bin, model, data,
              g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --merge 0.3x 2>/dev/null", bin, model,
              data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --latents median 2>/dev/null", bin,
              model, data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --slots -1 2>/dev/null", bin, model,
              data, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     /* fewer slots than the model was trained with: a clear run-time error */
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --slots 2 --quiet > %s/s2.txt 2>&1", bin,
              model, data, g_tmp, g_tmp);
-    CHECK(run(cmd) == 1);
+    CHECK(tc_run(cmd) == 1);
     snprintf(p, sizeof p, "%s/s2.txt", g_tmp);
     char *s2 = read_text(p);
     CHECK_MSG(s2 && strstr(s2, "2 slots requested"), "eval --slots 2 names the problem");
@@ -583,7 +577,7 @@ static void test_cli(const char *bin, const char *model, const char *data) {
              "--samples 16,4 "
              "--threads 1 --quiet > /dev/null 2>&1",
              bin, model, data, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
 
     /* render: online run over scene 0, panels with uncertainty, curves */
     snprintf(p, sizeof p, "%s/log.csv", g_tmp);
@@ -598,7 +592,7 @@ static void test_cli(const char *bin, const char *model, const char *data) {
              "%s render --model %s --seq %s/scene_0000 --out %s/r --views 2 --uncertainty 2 --log %s/log.csv "
              "--samples 16,4 --threads 1 2>/dev/null",
              bin, model, data, g_tmp, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     const char *pngs[] = {"r/cogmap/cogmap_sheet.png", "r/cogmap/cogmap_0000.png", "r/curves.png"};
     for (int i = 0; i < 3; i++) {
         snprintf(p, sizeof p, "%s/%s", g_tmp, pngs[i]);
@@ -632,7 +626,7 @@ static void test_cli(const char *bin, const char *model, const char *data) {
              "%s render --model %s --seq %s/scene_0000 --out %s/rm --map %s/map.sqlite --views 0 --samples 16,4 "
              "--threads 1 > %s/rm.txt 2>/dev/null",
              bin, model, data, g_tmp, g_tmp, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(p, sizeof p, "%s/rm.txt", g_tmp);
     vc = read_text(p);
     CHECK(vc && strstr(vc, "2 entries loaded"));
@@ -653,7 +647,7 @@ static void model_cmd_fails(const char *bin, const char *model, const char *opts
     char cmd[4096], p[1024];
     snprintf(cmd, sizeof cmd, "%s model %s %s --out %s/%s.bin > %s/%s.txt 2>&1", bin, model, opts, g_tmp, name, g_tmp,
              name);
-    CHECK_MSG(run(cmd) == 1, "model %s: exit status", opts);
+    CHECK_MSG(tc_run(cmd) == 1, "model %s: exit status", opts);
     snprintf(p, sizeof p, "%s/%s.txt", g_tmp, name);
     char *tx = read_text(p);
     CHECK_MSG(tx && strstr(tx, needle), "model %s names the problem ('%s')", opts, needle);
@@ -681,7 +675,7 @@ static void test_bad_values(const char *bin) {
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
         const char *c = bad[k][0], *o = bad[k][1], *v = bad[k][2];
         snprintf(cmd, sizeof cmd, "%s %s %s '%s' --out %s/bad > %s/bad.txt 2>&1", bin, c, o, v, g_tmp, g_tmp);
-        CHECK_MSG(run(cmd) == 2, "%s %s %s: exit status", c, o, v);
+        CHECK_MSG(tc_run(cmd) == 2, "%s %s %s: exit status", c, o, v);
         snprintf(p, sizeof p, "%s/bad.txt", g_tmp);
         char *tx = read_text(p);
         snprintf(want[0], sizeof want[0], "sooc3d %s: %s: expected ", c, o);
@@ -695,7 +689,7 @@ static void test_bad_values(const char *bin) {
              "%s gen --scenes 1 --width 16 --height 24 --views 2 --query 1 --threads 1 --density 0.5 --clip 6.5 "
              "--no-meshes --no-sheet --out %s/g16 > /dev/null 2>&1",
              bin, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     sooc_scene sc;
     sooc_scene_init(&sc);
     snprintf(p, sizeof p, "%s/g16/scene_0000/scene.yaml", g_tmp);
@@ -707,14 +701,14 @@ static void test_bad_values(const char *bin) {
 static void test_model_cmd(const char *bin, const char *model, const char *data) {
     char cmd[4096], p[1024], m5[1024];
     snprintf(cmd, sizeof cmd, "%s model %s > %s/mi.txt", bin, model, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(p, sizeof p, "%s/mi.txt", g_tmp);
     char *tx = read_text(p);
     CHECK_MSG(tx && strstr(tx, "K = 3 trained, 3 at inference"), "model info: slots line");
     free(tx);
     snprintf(m5, sizeof m5, "%s/m5.bin", g_tmp);
     snprintf(cmd, sizeof cmd, "%s model %s --slots 5 --out %s > /dev/null", bin, model, m5);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     sooc_model *a = NULL, *b = NULL;
     CHECK_OK(sooc_model_load(&a, model, NULL, NULL));
     CHECK_OK(sooc_model_load(&b, m5, NULL, NULL));
@@ -728,11 +722,11 @@ static void test_model_cmd(const char *bin, const char *model, const char *data)
     const char *ev = "%s eval --model %s --data %s --json %s/%s --scenes 1 --max-views 2 --samples 16,4 --threads 1 "
                      "--quiet %s > /dev/null 2>&1";
     snprintf(cmd, sizeof cmd, ev, bin, m5, data, g_tmp, "s5a.json", "");
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(cmd, sizeof cmd, ev, bin, model, data, g_tmp, "s5b.json", "--slots 5");
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(cmd, sizeof cmd, ev, bin, model, data, g_tmp, "s3.json", "");
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     char *ja, *jb, *j3;
     snprintf(p, sizeof p, "%s/s5a.json", g_tmp);
     ja = read_text(p);
@@ -751,9 +745,9 @@ static void test_model_cmd(const char *bin, const char *model, const char *data)
     /* errors */
     model_cmd_fails(bin, model, "--slots 2", "m2", "slots = 2");
     snprintf(cmd, sizeof cmd, "%s model %s --slots 5 2>/dev/null", bin, model);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
     snprintf(cmd, sizeof cmd, "%s model %s/nope.bin > %s/nope.txt 2>&1", bin, g_tmp, g_tmp);
-    CHECK(run(cmd) == 1);
+    CHECK(tc_run(cmd) == 1);
     snprintf(p, sizeof p, "%s/nope.txt", g_tmp);
     tx = read_text(p);
     CHECK_MSG(tx && strstr(tx, "nope.bin"), "a missing model file is named");
@@ -761,14 +755,14 @@ static void test_model_cmd(const char *bin, const char *model, const char *data)
     /* --rays: this model's 16 x 16 grid can be kept but not widened (another FC
      * size; test_model_mapper runs a 32 -> 64 copy); bad values are usage errors */
     snprintf(cmd, sizeof cmd, "%s model %s --rays 16 --slots 4 --out %s/r16.bin > %s/r16.txt", bin, model, g_tmp, g_tmp);
-    CHECK(run(cmd) == 0);
+    CHECK(tc_run(cmd) == 0);
     snprintf(p, sizeof p, "%s/r16.txt", g_tmp);
     tx = read_text(p);
     CHECK_MSG(tx && strstr(tx, "rays 16x16") && strstr(tx, "4 at inference"), "model --rays 16 --slots 4 info");
     free(tx);
     model_cmd_fails(bin, model, "--rays 32", "r32", "FC sizes");
     snprintf(cmd, sizeof cmd, "%s model %s --rays 8x --out %s/r8.bin 2>/dev/null", bin, model, g_tmp);
-    CHECK(run(cmd) == 2);
+    CHECK(tc_run(cmd) == 2);
 }
 
 int main(void) {
