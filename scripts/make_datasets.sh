@@ -29,4 +29,15 @@ if [ "${TABLETOP:-0}" = 1 ]; then
     tt --scale $sc --scenes 20 --seed 9002 --out "$OUT/tabletop_test_$sc"
   done
 fi
+# Blender sets (issue 19, the paper's Table 2): textured floors, shadows and specular highlights,
+# same scales and densities as unity; BLENDER=1 bash scripts/make_datasets.sh.
+if [ "${BLENDER:-0}" = 1 ]; then
+  bl() { "$BIN" gen --preset blender --no-sheet "$@"; }
+  bl --scale s --density 0.5  --scenes 800 --seed 3001 --out "$OUT/blender_train_s"
+  bl --scale m --density 0.35 --scenes 400 --seed 3002 --out "$OUT/blender_train_m"
+  bl --scale m --scenes 8 --seed 8003 --out "$OUT/blender_val_m"
+  for sc in s m l xl; do
+    bl --scale $sc --scenes 20 --seed 9003 --out "$OUT/blender_test_$sc"
+  done
+fi
 echo "datasets in $OUT"
