@@ -1,0 +1,268 @@
+/* The refinement network of the shipped unity model (models/sooc3d_unity/model.bin)
+ * against reference numbers recorded BEFORE the network moved onto the src/nn
+ * kernel pairs (issue 21; tests/model/data/refine_golden.txt, written by this
+ * program with --write at commit f253788, the last refine.c with its own conv,
+ * ELU, layer norm and LSTM):
+ *
+ *   1. mdl_ref_forward2 of the object net (K = 7 items, the 8 shared leading
+ *      channels stored once) and the layout net on fixed pseudo-random inputs:
+ *      outputs, LSTM state;
+ *   2. mdl_ref_backward of both nets from fixed output / state gradients:
+ *      dh, dc, the vector-input gradients and the weight gradients (large
+ *      arrays as digests: sum, absolute sum and 16 entries at fixed positions);
+ *   3. two keyframe updates (query on an empty map, pad with the priors, L = 3
+ *      refinements, mean latents, as the mapper runs them) on synthetic frames:
+ *      the refined object and layout latents.
+ *
+ * Every value must match within 1e-5 (|a - b| <= 1e-5 (1 + |b|)). Skips (77)
+ * when the shipped model is absent. About 1 s in Release.
+ *   test_model_refine_golden [--write FILE]
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "model/model_internal.h"
+#include "model/step_internal.h"
+#include "model/synth.h"
+
+#define SHIPPED "models/sooc3d_unity/model.bin"
+#define GOLDEN "tests/model/data/refine_golden.txt"
+#define TOL 1e-5
+#define NSAMP 16
+
+/* ------------------------------------------------------------ value stream */
+
+typedef struct gold {
+    FILE *w;                 /* --write: the output file            */
+    double *v;               /* check: the reference values         */
+    size_t n, pos;
+    double worst;            /* largest |a - b| / (1 + |b|)         */
+    char worst_what[256];
+} gold;
+
+static void put(gold *g, const char *what, double x) {
+    if (g->w) {
+        fprintf(g->w, "%s %.9g\n", what, x);
+        return;
+    }
+    if (g->pos >= g->n) {
+        CHECK_MSG(0, "%s: golden file has only %zu values", what, g->n);
+        return;
+    }
+    double r = g->v[g->pos++], e = fabs(x - r) / (1.0 + fabs(r));
+    if (!(e <= g->worst)) {
+        g->worst = e;
+        snprintf(g->worst_what, sizeof g->worst_what, "%s (%.9g vs %.9g)", what, x, r);
+    }
+    CHECK_MSG(e <= TOL, "%s: %.9g, golden %.9g (err %.3g)", what, x, r, e);
+}
+
+static void put_arr(gold *g, const char *what, const float *x, size_t n) {
+    char name[96];
+    for (size_t i = 0; i < n; i++) {
+        snprintf(name, sizeof name, "%s[%zu]", what, i);
+        put(g, name, x[i]);
+    }
+}
+
+/* Large arrays: sum, absolute sum and NSAMP entries at fixed positions. */
+static void put_digest(gold *g, const char *what, const float *x, size_t n) {
+    double s = 0, sa = 0;
+    for (size_t j = 0; j < n; j++) s += x[j], sa += fabs(x[j]);
+    char name[96];
+    snprintf(name, sizeof name, "%s.sum", what);
+    put(g, name, s);
+    snprintf(name, sizeof name, "%s.abssum", what);
+    put(g, name, sa);
+    for (int q = 0; q < NSAMP; q++) {
+        size_t j = (size_t)(((uint64_t)q * 2654435761u + 17) % n);
+        snprintf(name, sizeof name, "%s[%zu]", what, j);
+        put(g, name, x[j]);
+    }
+}
+
+static int load_golden(gold *g) {
+    FILE *f = fopen(GOLDEN, "r");
+    if (!f) return -1;
+    size_t cap = 1 << 14;
+    g->v = malloc(cap * sizeof(double));
+    char name[128];
+    double x;
+    while (g->v && fscanf(f, "%127s %lf", name, &x) == 2) {
+        if (g->n == cap) {
+            double *nv = realloc(g->v, 2 * cap * sizeof(double));
+            if (!nv) break;
+            g->v = nv, cap *= 2;
+        }
+        g->v[g->n++] = x;
+    }
+    fclose(f);
+    return g->v ? 0 : -1;
+}
+
+static void fill(float *x, size_t n, sooc_rng *r, float s) {
+    for (size_t i = 0; i < n; i++) x[i] = s * (float)sooc_rng_normal(r);
+}
+
+/* ------------------------------------------------------------ 1 + 2: the nets */
+
+static void nets(gold *g, sooc_model *m) {
+    const sooc_model_config *c = sooc_model_get_config(m);
+    int K = c->K, gw = c->ray_w, gh = c->ray_h, HW = gw * gh, H = c->ref_hidden;
+    const ref_net *no = &m->robj, *nl = &m->rlay;
+    ref_act ao, al;
+    CHECK_OK(mdl_ref_act_alloc(no, K, gw, gh, &ao));
+    CHECK_OK(mdl_ref_act_alloc(nl, 1, gw, gh, &al));
+    sooc_rng r;
+    sooc_rng_seed(&r, 2021, 4);
+    /* images in [0, 1]-ish ranges like the aux inputs; shared channels for item 0 only */
+    ao.B = K, ao.nsh = MDL_AUX_NSH, al.B = 1, al.nsh = 0;
+    for (int ch = 0; ch < no->cin; ch++)
+        for (int b = 0; b < K; b++) {
+            if (ch < MDL_AUX_NSH && b > 0) continue;
+            fill(ao.x0 + ((size_t)ch * K + b) * HW, (size_t)HW, &r, 0.7f);
+        }
+    fill(al.x0, (size_t)nl->cin * HW, &r, 0.7f);
+    for (int b = 0; b < K; b++) fill(ao.xin + (size_t)b * (no->fc + no->nvec) + no->fc, (size_t)no->nvec, &r, 0.5f);
+    fill(al.xin + nl->fc, (size_t)nl->nvec, &r, 0.5f);
+    fill(ao.h_prev, (size_t)K * H, &r, 0.3f);
+    fill(ao.c_prev, (size_t)K * H, &r, 0.3f);
+    fill(al.h_prev, (size_t)H, &r, 0.3f);
+    fill(al.c_prev, (size_t)H, &r, 0.3f);
+    float *out_o = calloc((size_t)K * no->nout, sizeof(float)), *out_l = calloc((size_t)nl->nout, sizeof(float));
+    mdl_ref_forward2(m, no, &ao, out_o, nl, &al, out_l, gw, gh);
+    put_arr(g, "fwd.obj.out", out_o, (size_t)K * no->nout);
+    put_digest(g, "fwd.obj.h", ao.h, (size_t)K * H);
+    put_digest(g, "fwd.obj.c", ao.c, (size_t)K * H);
+    put_arr(g, "fwd.lay.out", out_l, (size_t)nl->nout);
+    put_digest(g, "fwd.lay.h", al.h, (size_t)H);
+    put_digest(g, "fwd.lay.c", al.c, (size_t)H);
+    /* the one-net entry point gives the same numbers */
+    float *out1 = calloc((size_t)K * no->nout, sizeof(float));
+    mdl_ref_forward(m, no, &ao, gw, gh, out1);
+    double d1 = 0;
+    for (int i = 0; i < K * no->nout; i++) d1 = fmax(d1, fabs(out1[i] - out_o[i]));
+    CHECK_MSG(d1 == 0, "mdl_ref_forward vs mdl_ref_forward2: max diff %.3g", d1);
+
+    /* backward */
+    float *go = malloc(sizeof(float) * (size_t)K * no->nout), *gl = malloc(sizeof(float) * (size_t)nl->nout);
+    float *dh = malloc(sizeof(float) * (size_t)K * H), *dc = malloc(sizeof(float) * (size_t)K * H);
+    float *dhl = malloc(sizeof(float) * (size_t)H), *dcl = malloc(sizeof(float) * (size_t)H);
+    float *gvo = calloc((size_t)K * no->nvec, sizeof(float)), *gvl = calloc((size_t)nl->nvec, sizeof(float));
+    fill(go, (size_t)K * no->nout, &r, 1.0f);
+    fill(gl, (size_t)nl->nout, &r, 1.0f);
+    fill(dh, (size_t)K * H, &r, 0.5f);
+    fill(dc, (size_t)K * H, &r, 0.5f);
+    fill(dhl, (size_t)H, &r, 0.5f);
+    fill(dcl, (size_t)H, &r, 0.5f);
+    memset(m->g, 0, m->np * sizeof(float));
+    mdl_ref_backward(m, no, &ao, gw, gh, go, dh, dc, gvo);
+    mdl_ref_backward(m, nl, &al, gw, gh, gl, dhl, dcl, gvl);
+    put_digest(g, "bwd.obj.dh", dh, (size_t)K * H);
+    put_digest(g, "bwd.obj.dc", dc, (size_t)K * H);
+    put_digest(g, "bwd.obj.gvec", gvo, (size_t)K * no->nvec);
+    put_digest(g, "bwd.lay.dh", dhl, (size_t)H);
+    put_digest(g, "bwd.lay.dc", dcl, (size_t)H);
+    put_digest(g, "bwd.lay.gvec", gvl, (size_t)nl->nvec);
+    sooc_model_tensor t[MDL_MAXT];
+    int ntens = sooc_model_tensors(m, t, MDL_MAXT);
+    for (int i = 0; i < ntens && i < MDL_MAXT; i++) {
+        if (strncmp(t[i].name, "ref.", 4)) continue;
+        char name[96];
+        snprintf(name, sizeof name, "grad.%s", t[i].name);
+        put_digest(g, name, m->g + t[i].offset, t[i].count);
+    }
+    mdl_ref_act_free(&ao);
+    mdl_ref_act_free(&al);
+    free(out_o), free(out_l), free(out1), free(go), free(gl), free(dh), free(dc), free(dhl), free(dcl), free(gvo),
+        free(gvl);
+}
+
+/* ------------------------------------------------------------ 3: keyframe updates */
+
+static void keyframes(gold *g, sooc_model *m) {
+    const sooc_model_config *c = sooc_model_get_config(m);
+    int L = 3, NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
+    sooc_cogmap_params cp;
+    sooc_cogmap_params_default(&cp);
+    cp.dim = c->d_what;
+    cp.layout_dim = c->d_layout;
+    cp.block_size = (double)c->block_size * c->unit_m;
+    sooc_cogmap *map = NULL;
+    CHECK_OK(sooc_cogmap_create(&map, &cp));
+    view_rec V;
+    memset(&V, 0, sizeof V);
+    CHECK_OK(mdl_view_alloc(m, &V, L));
+    step_state *S = mdl_step_state(m, 1, L);
+    CHECK(S != NULL);
+    if (!map || !S) return;
+    synth_sphere sp[4] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}},
+                          {{1.2, 0.35, 4.5}, 0.35, {0.2f, 0.8f, 0.2f}}, {{-1.5, 0.5, 5.0}, 0.5, {0.8f, 0.8f, 0.1f}}};
+    sooc_rng rng;
+    sooc_rng_seed(&rng, 77, 0x6d6170ULL);
+    for (int v = 0; v < 2; v++) {
+        double T[16];
+        synth_pose(T, 0.3 * v, 1.5, -0.5 + 0.2 * v, 0.15 * v, -0.45);
+        sooc_frame f;
+        CHECK_OK(synth_frame(&f, c->img_w, c->img_h, 60, T, sp, 4));
+        f.index = v, f.t_ns = (int64_t)v * 100000000;
+        S->aux_replay = 0;
+        CHECK_OK(mdl_view_setup(m, map, &V, &f, 1, &rng, NULL));
+        sooc_step_opts o;
+        sooc_step_opts_default(&o);
+        o.tau = 0.7f;   /* the mapper's */
+        o.L = L;
+        o.mean_latents = 1;
+        double lw = 0;
+        CHECK_OK(mdl_view_forward(m, S, &V, L, &o, 0, &rng, &lw, NULL));
+        char name[64];
+        snprintf(name, sizeof name, "kf%d.lam", v);
+        put_arr(g, name, V.lam + (size_t)L * c->K * NL, (size_t)c->K * NL);
+        snprintf(name, sizeof name, "kf%d.lay", v);
+        put_arr(g, name, V.lay + (size_t)L * D2, (size_t)D2);
+        sooc_frame_free(&f);
+    }
+    mdl_view_free(&V);
+    sooc_cogmap_destroy(map);
+}
+
+int main(int argc, char **argv) {
+    const char *wpath = argc == 3 && !strcmp(argv[1], "--write") ? argv[2] : NULL;
+    if (argc > 1 && !wpath) {
+        fprintf(stderr, "usage: test_model_refine_golden [--write FILE]\n");
+        return 2;
+    }
+    FILE *mf = fopen(SHIPPED, "rb");
+    if (!mf) {
+        printf("test_model_refine_golden: SKIP (%s not found; run from the repository root)\n", SHIPPED);
+        return SOOC_TEST_SKIP;
+    }
+    fclose(mf);
+    gold g;
+    memset(&g, 0, sizeof g);
+    if (wpath) {
+        if (!(g.w = fopen(wpath, "w"))) return fprintf(stderr, "cannot write %s\n", wpath), 1;
+    } else if (load_golden(&g)) {
+        fprintf(stderr, "test_model_refine_golden: cannot read %s\n", GOLDEN);
+        return 1;
+    }
+    sooc_model *m;
+    if (sooc_model_load(&m, SHIPPED, NULL, NULL)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
+    sooc_model_set_threads(m, 2);
+    nets(&g, m);
+    keyframes(&g, m);
+    sooc_model_destroy(m);
+    if (g.w) {
+        fclose(g.w);
+        printf("test_model_refine_golden: wrote %s\n", wpath);
+        return 0;
+    }
+    CHECK_MSG(g.pos == g.n, "golden file has %zu values, the test produced %zu", g.n, g.pos);
+    printf("test_model_refine_golden: %zu values, worst |a - b| / (1 + |b|) = %.3g at %s\n", g.pos, g.worst,
+           g.worst_what);
+    free(g.v);
+    return check_report("test_model_refine_golden");
+}
