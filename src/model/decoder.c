@@ -8,7 +8,6 @@
  * Weight layout: W is [in x out] row-major, Y = X W + b. */
 #include "model/model_internal.h"
 
-#include <cblas.h>
 #include <math.h>
 #include <string.h>
 #ifdef SOOC_HAVE_OPENMP
@@ -220,38 +219,6 @@ double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *
 
 /* ---------------------------------------------------------------- MLP */
 
-static void gemm_nt(int M, int N, int K, const float *A, const float *B, float beta, float *C) {
-    /* C[M x N] = A[M x K] B^T (+ beta C), B is [N x K] */
-    if (M <= 0) return;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, M, N, K, 1.0f, A, K, B, K, beta, C, N);
-}
-static void gemm_tn_acc(int M, int N, int R, float alpha, const float *A, const float *B, float *C) {
-    /* C[M x N] += alpha A^T B, A is [R x M], B is [R x N] */
-    if (R <= 0) return;
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, M, N, R, alpha, A, M, B, N, 1.0f, C, N);
-}
-
-/* Element-wise helpers: plain loops over restrict pointers (vectorised by the compiler). */
-static void relu_inplace(float *restrict x, size_t n) {
-    for (size_t i = 0; i < n; i++) x[i] = x[i] > 0 ? x[i] : 0;
-}
-/* g[i] = y[i] > 0 ? g[i] : 0 (ReLU backward on the post-activation). */
-static void relu_mask(float *restrict g, const float *restrict y, size_t n) {
-    for (size_t i = 0; i < n; i++) g[i] = y[i] > 0 ? g[i] : 0;
-}
-/* dot product with 8 independent partial sums (vectorisable without reassociation) */
-static inline float dot8(const float *restrict a, const float *restrict b, int n) {
-    float s[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-    int j = 0;
-    for (; j + 8 <= n; j += 8)
-        for (int u = 0; u < 8; u++) s[u] += a[j + u] * b[j + u];
-    float t = ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]));
-    for (; j < n; j++) t += a[j] * b[j];
-    return t;
-}
-
-#define MDL_HC_MAX 256   /* colour-head width bound for the stack copies below */
-
 void mdl_pe_row(const float *x, float inv, int nf, float *out) {
     float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv}, sn[3], cs[3];
     out[0] = v[0], out[1] = v[1], out[2] = v[2];
@@ -285,62 +252,35 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
 
 /* Rows per block inside a thread's range: a block's activations (~4 x 256 x 64
  * floats) stay in L2 between layers. */
-#define MDL_BLOCK_ROWS 256
+#define MDL_BLOCK_ROWS 256   /* rows per block of a thread's contiguous range (weight-gradient backward) */
 /* Rows per dynamically scheduled block of the decode (forward, and backward without weight gradients). */
 #define MDL_DYN_ROWS 128
 
-static void tail_forward_block(const float *p, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
-                               float *sig, float *col, int a1_relu) {
-    int H = n->H, Hc = n->Hc;
-    if (!a1_relu) relu_inplace(a1, (size_t)R * H);
-    /* bias, GEMM and ReLU in one pass (kern.c) */
-    mdl_gemm(R, H, H, a1, H, p + n->W2, H, a2, H, p + n->b2, 0, MDL_EP_RELU, NULL, 0);
-    mdl_gemm(R, H, H, a2, H, p + n->W3, H, a3, H, p + n->b3, 0, MDL_EP_RELU, NULL, 0);
-    mdl_gemm(R, Hc, H, a3, H, p + n->Wc1, Hc, ac, Hc, p + n->bc1, 0, MDL_EP_RELU, NULL, 0);
-    /* density and colour heads: Wc2 [Hc x 3] transposed to 3 contiguous rows */
-    float w2t[3][MDL_HC_MAX];
-    for (int j = 0; j < Hc; j++)
-        for (int a = 0; a < 3; a++) w2t[a][j] = p[n->Wc2 + j * 3 + a];
-    const float *Wd = p + n->Wd;
-    float bd = p[n->bd], b0 = p[n->bc2], b1 = p[n->bc2 + 1], b2 = p[n->bc2 + 2];
-    for (int r = 0; r < R; r++) {
-        const float *h3 = a3 + (size_t)r * H, *hc = ac + (size_t)r * Hc;
-        sig[r] = sigm(dot8(h3, Wd, H) + bd);
-        float *cr = col + (size_t)r * 3;
-        cr[0] = sigm(dot8(hc, w2t[0], Hc) + b0);
-        cr[1] = sigm(dot8(hc, w2t[1], Hc) + b1);
-        cr[2] = sigm(dot8(hc, w2t[2], Hc) + b2);
-    }
+/* Layers 2.. of the decoders run on the engine (sooc3d/nn_kern.h, src/nn/nerf.c).
+ * Transposed weights ([out x in]) for the input-gradient GEMMs: dec_wt. */
+typedef struct dec_wt {
+    const float *W2, *W3, *Wc1, *W1x;
+} dec_wt;
+
+static sooc_nn_nerf_tail tail_of(const float *p, const dec_net *n, const dec_wt *wt) {
+    sooc_nn_nerf_tail t = {n->H, n->Hc, p + n->W2, p + n->b2, p + n->W3, p + n->b3, p + n->Wd, p + n->bd,
+                           p + n->Wc1, p + n->bc1, p + n->Wc2, p + n->bc2,
+                           wt ? wt->W2 : NULL, wt ? wt->W3 : NULL, wt ? wt->Wc1 : NULL};
+    return t;
 }
 
 /* Layers 2.. of a decoder on R rows (serial; callers split rows across
- * threads) whose layer-1 pre-activation is in a1 (ReLU applied here). */
+ * threads) whose layer-1 pre-activation is in a1 (ReLU applied here unless a1_relu). */
 static void tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                          float *sig, float *col, int a1_relu) {
-    int H = n->H, Hc = n->Hc;
-    SOOC_ASSERT(Hc <= MDL_HC_MAX);
-    for (int r0 = 0; r0 < R; r0 += MDL_BLOCK_ROWS) {
-        int nb = R - r0 < MDL_BLOCK_ROWS ? R - r0 : MDL_BLOCK_ROWS;
-        tail_forward_block(m->p, n, nb, a1 + (size_t)r0 * H, a2 + (size_t)r0 * H, a3 + (size_t)r0 * H,
-                           ac + (size_t)r0 * Hc, sig + r0, col + (size_t)r0 * 3, a1_relu);
-    }
+    sooc_nn_nerf_tail t = tail_of(m->p, n, NULL);
+    sooc_nn_nerf_tail_forward(&t, R, a1, a2, a3, ac, sig, col, !a1_relu);
 }
 
 void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col) {
     tail_forward(m, n, R, a1, a2, a3, ac, sig, col, 0);
 }
-
-/* Backward through layers 3.. to the layer-1 pre-activation gradient g1 (R x H)
- * (serial on a row range). gsig, gcol: dL/d(sigmoid outputs) on entry
- * (overwritten with pre-sigmoid grads). Weight grads scaled by ws go to the
- * slab `g` (a thread-private copy; 0 = skip). Scratch gA, gB (R x H each);
- * g1 may alias gA. */
-/* Transposed decoder weights ([out x in] row-major) for the backward GEMMs
- * (input gradients = output gradients x W^T) through mdl_gemm. */
-typedef struct dec_wt {
-    const float *W2, *W3, *Wc1, *W1x;
-} dec_wt;
 
 static size_t wt_floats(const dec_net *n, int with_w1) {
     return (size_t)n->H * (2 * n->H + n->Hc + (with_w1 ? n->din : 0));
@@ -361,73 +301,22 @@ static float *wt_build(const float *p, const dec_net *n, int with_w1, float *buf
     return buf;
 }
 
+/* Backward through layers 2.. to the layer-1 pre-activation gradient g1 (R x H)
+ * (serial on a row range). gsig, gcol: dL/d(sigmoid outputs) on entry
+ * (overwritten with pre-sigmoid grads). Weight grads scaled by ws go to the
+ * slab `g` (a thread-private copy; 0 = skip). Scratch gA, gB (R x H each; the
+ * colour hidden layer's gradient lives in gB); g1 may alias gA. */
 static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, const dec_wt *wt, int R,
                               const float *a1, const float *a2, const float *a3, const float *ac, const float *sig,
                               const float *col, float *gsig, float *gcol, float *gA, float *gB, float *g1, float ws) {
-    const float *p = m->p;
-    int H = n->H, Hc = n->Hc;
     if (R <= 0) return;
-    float *gac = gB;
-    float w2t[3][MDL_HC_MAX];
-    SOOC_ASSERT(Hc <= MDL_HC_MAX);
-    for (int j = 0; j < Hc; j++)
-        for (int a = 0; a < 3; a++) w2t[a][j] = p[n->Wc2 + j * 3 + a];
-    const float *Wd = p + n->Wd;
-    for (int r = 0; r < R; r++) {
-        gsig[r] *= sig[r] * (1 - sig[r]);
-        float *gc = gcol + (size_t)r * 3;
-        const float *cl = col + (size_t)r * 3;
-        float g0 = gc[0] * cl[0] * (1 - cl[0]), g1c = gc[1] * cl[1] * (1 - cl[1]), g2 = gc[2] * cl[2] * (1 - cl[2]);
-        gc[0] = g0, gc[1] = g1c, gc[2] = g2;
-        const float *restrict hc = ac + (size_t)r * Hc;
-        float *restrict gh = gac + (size_t)r * Hc;
-        for (int j = 0; j < Hc; j++) {
-            float v = g0 * w2t[0][j] + g1c * w2t[1][j] + g2 * w2t[2][j];
-            gh[j] = hc[j] > 0 ? v : 0;
-        }
-        /* density head: pre-fill gA with gsig ⊗ Wd, the Wc1 GEMM accumulates onto it */
-        float gs = gsig[r];
-        float *restrict ga = gA + (size_t)r * H;
-        for (int j = 0; j < H; j++) ga[j] = gs * Wd[j];
-    }
-    if (ws != 0) {
-        gemm_tn_acc(Hc, 3, R, ws, ac, gcol, g + n->Wc2);
-        gemm_tn_acc(H, Hc, R, ws, a3, gac, g + n->Wc1);
-        gemm_tn_acc(H, 1, R, ws, a3, gsig, g + n->Wd);
-        for (int r = 0; r < R; r++) {
-            g[n->bd] += ws * gsig[r];
-            for (int a = 0; a < 3; a++) g[n->bc2 + a] += ws * gcol[(size_t)r * 3 + a];
-            for (int j = 0; j < Hc; j++) g[n->bc1 + j] += ws * gac[(size_t)r * Hc + j];
-        }
-    }
-    if (wt) {
-        mdl_gemm(R, H, Hc, gac, Hc, wt->Wc1, H, gA, H, NULL, 1, MDL_EP_MASK, a3, H);
-    } else {
-        gemm_nt(R, H, Hc, gac, p + n->Wc1, 1.0f, gA);
-        relu_mask(gA, a3, (size_t)R * H);
-    }
-    if (ws != 0) {
-        gemm_tn_acc(H, H, R, ws, a2, gA, g + n->W3);
-        for (int r = 0; r < R; r++)
-            for (int j = 0; j < H; j++) g[n->b3 + j] += ws * gA[(size_t)r * H + j];
-    }
-    if (wt) {
-        mdl_gemm(R, H, H, gA, H, wt->W3, H, gB, H, NULL, 0, MDL_EP_MASK, a2, H);
-    } else {
-        gemm_nt(R, H, H, gA, p + n->W3, 0.0f, gB);
-        relu_mask(gB, a2, (size_t)R * H);
-    }
-    if (ws != 0) {
-        gemm_tn_acc(H, H, R, ws, a1, gB, g + n->W2);
-        for (int r = 0; r < R; r++)
-            for (int j = 0; j < H; j++) g[n->b2 + j] += ws * gB[(size_t)r * H + j];
-    }
-    if (wt) {
-        mdl_gemm(R, H, H, gB, H, wt->W2, H, g1, H, NULL, 0, MDL_EP_MASK, a1, H);
-    } else {
-        gemm_nt(R, H, H, gB, p + n->W2, 0.0f, g1);
-        relu_mask(g1, a1, (size_t)R * H);
-    }
+    SOOC_ASSERT(n->Hc <= n->H);
+    sooc_nn_nerf_tail t = tail_of(m->p, n, wt);
+    sooc_nn_nerf_tail_grad tg = {0};
+    if (ws != 0)
+        tg = (sooc_nn_nerf_tail_grad){g + n->W2, g + n->b2, g + n->W3, g + n->b3, g + n->Wd, g + n->bd,
+                                      g + n->Wc1, g + n->bc1, g + n->Wc2, g + n->bc2};
+    sooc_nn_nerf_tail_backward(&t, ws != 0 ? &tg : NULL, ws, R, a1, a2, a3, ac, sig, col, gsig, gcol, gA, gB, gB, g1);
 }
 
 static inline void chunk_of(int n, int tid, int nth, int *r0, int *r1) {
@@ -471,12 +360,10 @@ static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
     mlp_tail_backward(m, tg, no, x->pwo, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H, w->o_a3 + (size_t)b0 * H,
                       w->o_ac + (size_t)b0 * no->Hc, w->o_sig + b0, w->o_col + (size_t)b0 * 3, x->gsig + b0,
                       x->gcol + (size_t)b0 * 3, w->gA + (size_t)b0 * H, w->gB + (size_t)b0 * H, g1, x->ws);
-    if (x->ws != 0) gemm_tn_acc(no->din, H, R, x->ws, w->o_pe + (size_t)b0 * no->din, g1, tg + no->W1x);
-    if (x->pwo)
-        mdl_gemm(R, no->din, H, g1, H, x->pwo->W1x, no->din, w->gpe + (size_t)b0 * no->din, no->din, NULL, 0,
-                 MDL_EP_NONE, NULL, 0);
-    else
-        gemm_nt(R, no->din, H, g1, m->p + no->W1x, 0.0f, w->gpe + (size_t)b0 * no->din);
+    /* layer 1 (its bias is the slot bias, whose gradient the caller sums): W1x and dL/dpe */
+    sooc_nn_dense_backward(R, no->din, H, g1, H, w->o_pe + (size_t)b0 * no->din, no->din, m->p + no->W1x,
+                           x->pwo ? x->pwo->W1x : NULL, w->gpe + (size_t)b0 * no->din, no->din, 0, NULL,
+                           x->ws != 0 ? tg + no->W1x : NULL, NULL, x->ws);
     for (int r = b0; r < b0 + R; r++) {
         int k = w->ro_slot[r], pt = w->ro_pt[r];
         float gx[3], *gw = w->gpe + (size_t)r * no->din;
@@ -497,7 +384,9 @@ static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
     mlp_tail_backward(m, tg, nl, x->pwl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H, w->l_a3 + (size_t)b0 * H,
                       w->l_ac + (size_t)b0 * nl->Hc, w->l_sig + b0, w->l_col + (size_t)b0 * 3, x->gsig + s0,
                       x->gcol + (size_t)s0 * 3, w->gA + (size_t)s0 * H, w->gB + (size_t)s0 * H, g1, x->ws);
-    if (x->ws != 0) gemm_tn_acc(nl->din, H, R, x->ws, w->l_pe + (size_t)b0 * nl->din, g1, tg + nl->W1x);
+    if (x->ws != 0)
+        sooc_nn_dense_backward(R, nl->din, H, g1, H, w->l_pe + (size_t)b0 * nl->din, nl->din, m->p + nl->W1x, NULL, NULL,
+                               0, 0, NULL, tg + nl->W1x, NULL, x->ws);
 }
 
 /* One fixed block of object or layout rows of the decoder forward (a pool task). */
@@ -522,8 +411,8 @@ static void fwd_task(void *ctx, int blk, int tid) {
         for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, j->inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
         for (int r = r0; r < r1; r++)
             memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
-        mdl_gemm(r1 - r0, H, no->din, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, H, w->o_a1 + (size_t)r0 * H,
-                 H, NULL, 1, MDL_EP_RELU, NULL, 0);
+        sooc_nn_dense_forward(r1 - r0, no->din, H, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, NULL,
+                              w->o_a1 + (size_t)r0 * H, H, 1, SOOC_NN_EP_RELU);
         tail_forward(m, no, r1 - r0, w->o_a1 + (size_t)r0 * H, w->o_a2 + (size_t)r0 * H, w->o_a3 + (size_t)r0 * H,
                      w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
     } else {
@@ -533,8 +422,8 @@ static void fwd_task(void *ctx, int blk, int tid) {
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
             mdl_pe_row(xl, j->inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
         }
-        mdl_gemm(r1 - r0, H, nl->din, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, H, w->l_a1 + (size_t)r0 * H,
-                 H, w->slot_bias, 0, MDL_EP_RELU, NULL, 0);
+        sooc_nn_dense_forward(r1 - r0, nl->din, H, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, w->slot_bias,
+                              w->l_a1 + (size_t)r0 * H, H, 0, SOOC_NN_EP_RELU);
         tail_forward(m, nl, r1 - r0, w->l_a1 + (size_t)r0 * H, w->l_a2 + (size_t)r0 * H, w->l_a3 + (size_t)r0 * H,
                      w->l_ac + (size_t)r0 * nl->Hc, w->l_sig + r0, w->l_col + (size_t)r0 * 3, 1);
     }
@@ -564,7 +453,7 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     int H = cfg->dec_width, nt = nthreads(m);
     SOOC_ASSERT(P <= w->Pmax && K <= w->Kmax);
     MDL_PT(tprof);
-    openblas_set_num_threads(1);   /* threads split rows; BLAS runs serially inside */
+    sooc_nn_blas_single_once();   /* threads split rows; BLAS (the portable path) runs serially inside */
     const dec_net *no = &m->dobj, *nl = &m->dlay;
     float rmin = cfg->rho_min, rmax = cfg->rho_max, tau = c->tau > 0 ? c->tau : 1.0f;
     float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c;

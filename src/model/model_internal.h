@@ -4,6 +4,7 @@
 
 #include "sooc3d/model.h"
 #include "sooc3d/geom.h"
+#include "sooc3d/nn_kern.h"
 
 #define MDL_NL(d) (6 + 2 * (d))   /* λ size per slot */
 /* Parallel regions only pay off with enough rows: with fewer, thread start-up
@@ -146,7 +147,7 @@ struct sooc_model {
     dec_ws ws;
     ref_ws rws;
     void *step;                   /* training-step state (step.c) */
-    struct mdl_pool *pool;        /* task pool of the inference passes (kern.c), made on first use */
+    sooc_nn_pool *pool;           /* task pool of the inference passes (kern.c), made on first use */
 };
 
 /* model.c */
@@ -194,20 +195,23 @@ void mdl_pe_row(const float *x, float inv, int nf, float *out);
 void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col);
 
-/* kern.c: C[M x N] = init + A[M x K] B[K x N], all row-major (leading dimensions
+/* The engine's GEMM (src/nn/gemm.c, sooc3d/nn_kern.h) under the model's old names:
+ * C[M x N] = init + A[M x K] B[K x N], all row-major (leading dimensions
  * lda, ldb, ldc), init = C (acc != 0), else the row vector bias (N; NULL: 0);
  * then the epilogue ep: MDL_EP_RELU max(0, .), MDL_EP_MASK zero where
  * mask[i ldm + j] <= 0 (ReLU backward on a post-activation). AVX2/FMA when the
  * CPU has it (SOOC_NO_AVX2 set in the environment forces the portable path). */
-enum { MDL_EP_NONE, MDL_EP_RELU, MDL_EP_MASK };
-void mdl_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
-              const float *bias, int acc, int ep, const float *mask, int ldm);
-int mdl_kern_avx2(void);
-/* kern.c: task pool. mdl_par_run runs fn(ctx, t, tid) for t = 0..n-1, the caller being
+enum { MDL_EP_NONE = SOOC_NN_EP_NONE, MDL_EP_RELU = SOOC_NN_EP_RELU, MDL_EP_MASK = SOOC_NN_EP_MASK };
+static inline void mdl_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                            const float *bias, int acc, int ep, const float *mask, int ldm) {
+    sooc_nn_gemm(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
+}
+static inline int mdl_kern_avx2(void) { return sooc_nn_gemm_avx2(); }
+/* kern.c: the task pool (sooc_nn_pool). mdl_par_run runs fn(ctx, t, tid) for t = 0..n-1, the caller being
  * tid 0 and up to mdl_par_threads(m) - 1 helpers the others (tid < mdl_par_threads(m));
  * tasks are claimed one at a time and the caller waits only for claimed tasks. A task's
  * result must not depend on tid. mdl_par_threads makes the pool (m->threads) if needed. */
-typedef void (*mdl_task_fn)(void *ctx, int task, int tid);
+typedef sooc_nn_task_fn mdl_task_fn;
 int mdl_par_threads(sooc_model *m);
 void mdl_par_run(sooc_model *m, int n, mdl_task_fn fn, void *ctx);
 void mdl_pool_free(sooc_model *m);

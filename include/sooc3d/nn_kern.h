@@ -1,0 +1,134 @@
+/*
+ * sooc3d nn: the kernels the model runs (issue 21 "one engine").
+ *
+ *  - sooc_nn_gemm / sooc_nn_gemm_tn: row-major GEMMs for narrow layers
+ *    (N = 16..64 outputs, K = 33..576) with the bias / accumulate init and a
+ *    ReLU or ReLU-backward epilogue applied on the registers (AVX2/FMA kernel
+ *    chosen at run time, OpenBLAS otherwise).
+ *  - sooc_nn_pool: a small pthread task pool whose caller waits only for the
+ *    tasks a helper has claimed (robust on a loaded machine).
+ *  - the decoder MLP layers (model.md 3.3) as forward / backward pairs:
+ *    sooc_nn_dense_* (linear + ReLU, weights [in x out] row-major, Y = X W + b),
+ *    sooc_nn_nerf_heads_* (the density and colour sigmoid heads), and their
+ *    composition sooc_nn_nerf_tail_* (layers 2.. of the decoder).
+ *
+ * Determinism: every output element of every kernel here is one FMA chain
+ * over the reduction index in order, whatever the row blocking, so results
+ * do not depend on how callers split rows across threads. No kernel
+ * allocates; none is multi-threaded by itself (callers split rows).
+ * Backward kernels ACCUMULATE (+=) weight gradients, scaled by alpha;
+ * any weight-gradient pointer may be NULL to skip it.
+ */
+#ifndef SOOC3D_NN_KERN_H
+#define SOOC3D_NN_KERN_H
+
+#include "sooc3d/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ================================================================== GEMM */
+
+/* C[M x N] = init + A[M x K] B[K x N], row-major with leading dimensions
+ * lda, ldb, ldc; init = C (acc != 0), else the row vector bias[N] (NULL: 0);
+ * then the epilogue ep: SOOC_NN_EP_RELU max(0, .), SOOC_NN_EP_MASK zero where
+ * mask[i ldm + j] <= 0 (ReLU backward on a post-activation). AVX2/FMA when the
+ * CPU has it (SOOC_NO_AVX2 in the environment forces the OpenBLAS path). */
+enum { SOOC_NN_EP_NONE = 0, SOOC_NN_EP_RELU = 1, SOOC_NN_EP_MASK = 2 };
+void sooc_nn_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                  const float *bias, int acc, int ep, const float *mask, int ldm);
+/* C[M x N] += alpha A^T B with A [R x M] (lda), B [R x N] (ldb): the weight
+ * gradient of a layer over R rows. Each element sums r = 0..R-1 in order. */
+void sooc_nn_gemm_tn(int M, int N, int R, float alpha, const float *A, int lda, const float *B, int ldb, float *C,
+                     int ldc);
+/* 1 when the AVX2/FMA kernels run (CPU support and SOOC_NO_AVX2 unset). */
+int sooc_nn_gemm_avx2(void);
+/* Put OpenBLAS in single-thread mode once per process (the engine splits rows
+ * across its own threads); later calls are a relaxed atomic load. */
+void sooc_nn_blas_single_once(void);
+
+/* ============================================================ task pool */
+
+typedef struct sooc_nn_pool sooc_nn_pool;
+/* A task: fn(ctx, task, tid), tid 0 = the caller, 1.. = helpers. A task's
+ * result must not depend on tid (tid only selects per-thread scratch). */
+typedef void (*sooc_nn_task_fn)(void *ctx, int task, int tid);
+#define SOOC_NN_POOL_MAX 16
+/* nthr threads in all (the caller and nthr - 1 helpers; 1 <= nthr <= SOOC_NN_POOL_MAX).
+ * Helpers that fail to start are left out (sooc_nn_pool_threads says how many run). */
+sooc_status sooc_nn_pool_create(sooc_nn_pool **out, int nthr);
+void sooc_nn_pool_destroy(sooc_nn_pool *p);   /* NULL-safe; joins the helpers */
+/* Threads that take tasks (caller included); 1 for NULL. */
+int sooc_nn_pool_threads(const sooc_nn_pool *p);
+/* The nthr the pool was created with (0 for NULL). */
+int sooc_nn_pool_size(const sooc_nn_pool *p);
+/* Run fn for task = 0..n-1: tasks are claimed one at a time, the caller takes
+ * part, and it waits only for tasks a helper has claimed. p NULL or n < 2: serial. */
+void sooc_nn_pool_run(sooc_nn_pool *p, int n, sooc_nn_task_fn fn, void *ctx);
+
+/* ========================================================== decoder MLP */
+
+/* Dense layer, weights W [I x O] row-major (the model's layout), on R rows:
+ *   y[R x O] = act(x[R x I] W + init), init = y (acc) or b[O] (NULL: 0),
+ *   act = SOOC_NN_EP_NONE or SOOC_NN_EP_RELU. Leading dimensions ldx, ldy. */
+void sooc_nn_dense_forward(int R, int I, int O, const float *x, int ldx, const float *W, const float *b, float *y,
+                           int ldy, int acc, int act);
+/* Backward of a dense layer given dz[R x O] = dL/d(pre-activation) (ldz):
+ *   dW[I x O] += alpha x^T dz, db[O] += alpha sum_r dz (both NULL-able; dW needs x);
+ *   dx[R x I] = (acc_dx ? dx : 0) + dz W^T, then zeroed where xmask <= 0 when
+ *   xmask != NULL (the ReLU backward of the layer that produced x: pass x).
+ * Wt: W transposed ([O x I]) for the AVX2 kernel, or NULL (OpenBLAS on W).
+ * dx NULL: no input gradient. */
+void sooc_nn_dense_backward(int R, int I, int O, const float *dz, int ldz, const float *x, int ldx, const float *W,
+                            const float *Wt, float *dx, int lddx, int acc_dx, const float *xmask, float *dW,
+                            float *db, float alpha);
+
+/* The decoder's heads on R rows (model.md 3.3): density from the last hidden
+ * layer h[R x H], colour from the colour hidden layer hc[R x Hc]:
+ *   sig[r] = sigmoid(h[r] . Wd + bd[0]),  col[r] = sigmoid(hc[r] Wc2 + bc2)
+ * Wd [H], Wc2 [Hc x 3] row-major, bc2 [3]. Hc <= SOOC_NN_HC_MAX. */
+#define SOOC_NN_HC_MAX 256
+void sooc_nn_nerf_heads_forward(int R, int H, int Hc, const float *h, const float *hc, const float *Wd,
+                                const float *bd, const float *Wc2, const float *bc2, float *sig, float *col);
+/* Backward: gsig[R], gcol[R x 3] = dL/d(sig, col) on entry, OVERWRITTEN with
+ * the pre-sigmoid gradients. Writes dh[R x H] = gsig' Wd^T (the density's
+ * share of dL/dh, to be accumulated onto by the colour branch) and
+ * dhc[R x Hc] = (gcol' Wc2^T) masked by hc > 0 (the ReLU backward of hc: the
+ * colour hidden layer's pre-activation gradient). Weight gradients scaled by
+ * alpha accumulate into dWd [H], dbd [1], dWc2 [Hc x 3], dbc2 [3] (NULL-able
+ * as a group: pass dWd = NULL to skip all four). */
+void sooc_nn_nerf_heads_backward(int R, int H, int Hc, const float *h, const float *hc, const float *sig,
+                                 const float *col, const float *Wd, const float *Wc2, float *gsig, float *gcol,
+                                 float *dh, float *dhc, float *dWd, float *dbd, float *dWc2, float *dbc2,
+                                 float alpha);
+
+/* Layers 2.. of a decoder (model.md 3.3): a1 -> W2 ReLU -> a2 -> W3 ReLU ->
+ * a3 -> {density head; Wc1 ReLU -> ac -> colour head}. Weights [in x out]. */
+typedef struct sooc_nn_nerf_tail {
+    int H, Hc;
+    const float *W2, *b2, *W3, *b3, *Wd, *bd, *Wc1, *bc1, *Wc2, *bc2;
+    /* transposed copies for the backward's input gradients (NULL: OpenBLAS on W):
+       W2t, W3t [H x H], Wc1t [Hc x H] */
+    const float *W2t, *W3t, *Wc1t;
+} sooc_nn_nerf_tail;
+typedef struct sooc_nn_nerf_tail_grad {   /* weight gradients (+=); all NULL or all set */
+    float *W2, *b2, *W3, *b3, *Wd, *bd, *Wc1, *bc1, *Wc2, *bc2;
+} sooc_nn_nerf_tail_grad;
+/* a1 [R x H]: the layer-1 pre-activation (relu_a1 = 1: ReLU applied here, in
+ * place) or post-activation (relu_a1 = 0). Writes a2, a3 [R x H], ac [R x Hc],
+ * sig [R], col [R x 3]. */
+void sooc_nn_nerf_tail_forward(const sooc_nn_nerf_tail *t, int R, float *a1, float *a2, float *a3, float *ac,
+                               float *sig, float *col, int relu_a1);
+/* Backward to g1 [R x H] = dL/d(layer-1 pre-activation) given gsig, gcol
+ * (overwritten as in the heads). Scratch gA, gB [R x H] and gC [R x Hc]; g1
+ * may alias gA. g NULL: no weight gradients. */
+void sooc_nn_nerf_tail_backward(const sooc_nn_nerf_tail *t, const sooc_nn_nerf_tail_grad *g, float alpha, int R,
+                                const float *a1, const float *a2, const float *a3, const float *ac, const float *sig,
+                                const float *col, float *gsig, float *gcol, float *gA, float *gB, float *gC,
+                                float *g1);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* SOOC3D_NN_KERN_H */

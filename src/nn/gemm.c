@@ -1,0 +1,242 @@
+/* Small row-major GEMMs for the decoder MLPs and the refinement convs
+ * (sooc3d/nn_kern.h; moved here from src/model/kern.c). The layers are
+ * narrow (N = 16..64 outputs, K = 33..576), so OpenBLAS spends a good part of
+ * its time packing A and B and in its beta pass; these kernels read A and B in
+ * place (B rows are contiguous in N, A elements are broadcast), start from the
+ * bias, the existing C or zero, and apply the epilogue (ReLU or a
+ * ReLU-backward mask) on the registers before the single store.
+ *
+ * sooc_nn_gemm_tn (weight gradients, C += alpha A^T B) runs the same register
+ * kernels with A read down its columns: element (i, k) of A^T is A[k lda + i].
+ *
+ * Every C element is accumulated as one FMA chain over k = 0..K-1 in order,
+ * whatever the row or column blocking, so results do not depend on how rows
+ * are split across threads. The AVX2/FMA kernels are selected at run time
+ * (GCC/Clang on x86-64, CPUs with AVX2 and FMA); elsewhere OpenBLAS runs
+ * instead (different rounding, also independent of the thread split). */
+#include "nn_impl.h"
+#include "sooc3d/nn_kern.h"
+
+#include <stdatomic.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ------------------------------------------------------------ OpenBLAS threads */
+
+static atomic_int blas_single_done;
+
+void sooc_nn_blas_single_once(void) {
+    if (atomic_load_explicit(&blas_single_done, memory_order_relaxed)) return;
+    sooc_nn_blas_single();
+    atomic_store_explicit(&blas_single_done, 1, memory_order_relaxed);
+}
+
+/* ------------------------------------------------------------ portable path */
+
+/* OpenBLAS, then the epilogue as a separate pass */
+static void gemm_blas(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                      const float *bias, int acc, int ep, const float *mask, int ldm) {
+    if (!acc && bias)
+        for (int i = 0; i < M; i++) memcpy(C + (size_t)i * ldc, bias, (size_t)N * sizeof(float));
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, lda, B, ldb, acc || bias ? 1.0f : 0.0f,
+                C, ldc);
+    if (ep == SOOC_NN_EP_NONE) return;
+    for (int i = 0; i < M; i++) {
+        float *restrict c = C + (size_t)i * ldc;
+        if (ep == SOOC_NN_EP_RELU)
+            for (int j = 0; j < N; j++) c[j] = c[j] > 0 ? c[j] : 0;
+        else
+            for (int j = 0; j < N; j++) c[j] = mask[(size_t)i * ldm + j] > 0 ? c[j] : 0;
+    }
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#define NN_KERN_X86 1
+#include <immintrin.h>
+
+#define TGT __attribute__((target("avx2,fma")))
+#define AI __attribute__((always_inline)) inline
+
+/* Shared parameters of one register-tile call. A's element (row r, k) is
+ * A[r ra + k ka] (ra = lda, ka = 1 for A; ra = 1, ka = lda for A^T).
+ * init: 0 zero, 1 bias, 2 C. addc: the tile is C += alpha * sum (init zero). */
+typedef struct tile {
+    int K, ra, ka, ldb, ldc, ldm, init, ep, addc;
+    float alpha;
+} tile;
+
+/* MR rows x 16 columns (two vectors); m0/m1: column masks of the two vectors
+ * (full = 1: no masks, plain loads). */
+static TGT AI void k16(int MR, int full, const tile *t, const float *A, const float *B, float *C, const float *bias,
+                       const float *mask, __m256i m0, __m256i m1) {
+    __m256 c0[6], c1[6];
+    int K = t->K, ra = t->ra, ka = t->ka, ldb = t->ldb, ldc = t->ldc;
+#define LD0(p) (full ? _mm256_loadu_ps(p) : _mm256_maskload_ps((p), m0))
+#define LD1(p) (full ? _mm256_loadu_ps(p) : _mm256_maskload_ps((p), m1))
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        if (t->init == 2) {
+            c0[r] = LD0(C + (size_t)r * ldc);
+            c1[r] = LD1(C + (size_t)r * ldc + 8);
+        } else if (t->init == 1) {
+            c0[r] = LD0(bias);
+            c1[r] = LD1(bias + 8);
+        } else {
+            c0[r] = _mm256_setzero_ps();
+            c1[r] = _mm256_setzero_ps();
+        }
+    }
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb, *a = A + (size_t)k * ka;
+        __m256 b0 = LD0(b), b1 = LD1(b + 8);
+#pragma GCC unroll 6
+        for (int r = 0; r < MR; r++) {
+            __m256 av = _mm256_broadcast_ss(a + (size_t)r * ra);
+            c0[r] = _mm256_fmadd_ps(av, b0, c0[r]);
+            c1[r] = _mm256_fmadd_ps(av, b1, c1[r]);
+        }
+    }
+    const __m256 z = _mm256_setzero_ps(), al = _mm256_set1_ps(t->alpha);
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        float *cr = C + (size_t)r * ldc;
+        if (t->addc) {
+            c0[r] = _mm256_fmadd_ps(al, c0[r], LD0(cr));
+            c1[r] = _mm256_fmadd_ps(al, c1[r], LD1(cr + 8));
+        }
+        if (t->ep == SOOC_NN_EP_RELU) {
+            c0[r] = _mm256_max_ps(c0[r], z);
+            c1[r] = _mm256_max_ps(c1[r], z);
+        } else if (t->ep == SOOC_NN_EP_MASK) {
+            const float *mr = mask + (size_t)r * t->ldm;
+            c0[r] = _mm256_and_ps(c0[r], _mm256_cmp_ps(LD0(mr), z, _CMP_GT_OQ));
+            c1[r] = _mm256_and_ps(c1[r], _mm256_cmp_ps(LD1(mr + 8), z, _CMP_GT_OQ));
+        }
+        if (full) {
+            _mm256_storeu_ps(cr, c0[r]);
+            _mm256_storeu_ps(cr + 8, c1[r]);
+        } else {
+            _mm256_maskstore_ps(cr, m0, c0[r]);
+            _mm256_maskstore_ps(cr + 8, m1, c1[r]);
+        }
+    }
+#undef LD0
+#undef LD1
+}
+
+/* MR rows x up to 8 columns (one masked vector): narrow panels (the last columns of an
+ * odd-width layer, the 2x2 outputs of the last conv). */
+static TGT AI void k8(int MR, const tile *t, const float *A, const float *B, float *C, const float *bias,
+                      const float *mask, __m256i m0) {
+    __m256 c0[12];
+    int K = t->K, ra = t->ra, ka = t->ka, ldb = t->ldb, ldc = t->ldc;
+#pragma GCC unroll 12
+    for (int r = 0; r < MR; r++)
+        c0[r] = t->init == 2 ? _mm256_maskload_ps(C + (size_t)r * ldc, m0)
+              : t->init == 1 ? _mm256_maskload_ps(bias, m0)
+                             : _mm256_setzero_ps();
+    for (int k = 0; k < K; k++) {
+        __m256 b0 = _mm256_maskload_ps(B + (size_t)k * ldb, m0);
+        const float *a = A + (size_t)k * ka;
+#pragma GCC unroll 12
+        for (int r = 0; r < MR; r++) c0[r] = _mm256_fmadd_ps(_mm256_broadcast_ss(a + (size_t)r * ra), b0, c0[r]);
+    }
+    const __m256 z = _mm256_setzero_ps(), al = _mm256_set1_ps(t->alpha);
+#pragma GCC unroll 12
+    for (int r = 0; r < MR; r++) {
+        if (t->addc) c0[r] = _mm256_fmadd_ps(al, c0[r], _mm256_maskload_ps(C + (size_t)r * ldc, m0));
+        if (t->ep == SOOC_NN_EP_RELU) c0[r] = _mm256_max_ps(c0[r], z);
+        else if (t->ep == SOOC_NN_EP_MASK)
+            c0[r] = _mm256_and_ps(c0[r], _mm256_cmp_ps(_mm256_maskload_ps(mask + (size_t)r * t->ldm, m0), z, _CMP_GT_OQ));
+        _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
+    }
+}
+
+/* Rows i.. of one 16-column panel: blocks of 6, then the remainder. */
+#define PANEL16(FULL)                                                                                        \
+    do {                                                                                                     \
+        int i = 0;                                                                                           \
+        for (; i + 6 <= M; i += 6)                                                                           \
+            k16(6, FULL, t, A + (size_t)i * t->ra, Bj, Cj + (size_t)i * t->ldc, bj,                          \
+                mj ? mj + (size_t)i * t->ldm : NULL, m0, m1);                                                \
+        const float *Ai = A + (size_t)i * t->ra, *Mi = mj ? mj + (size_t)i * t->ldm : NULL;                  \
+        float *Ci = Cj + (size_t)i * t->ldc;                                                                 \
+        switch (M - i) {                                                                                     \
+        case 5: k16(5, FULL, t, Ai, Bj, Ci, bj, Mi, m0, m1); break;                                          \
+        case 4: k16(4, FULL, t, Ai, Bj, Ci, bj, Mi, m0, m1); break;                                          \
+        case 3: k16(3, FULL, t, Ai, Bj, Ci, bj, Mi, m0, m1); break;                                          \
+        case 2: k16(2, FULL, t, Ai, Bj, Ci, bj, Mi, m0, m1); break;                                          \
+        case 1: k16(1, FULL, t, Ai, Bj, Ci, bj, Mi, m0, m1); break;                                          \
+        default: break;                                                                                      \
+        }                                                                                                    \
+    } while (0)
+
+static TGT void gemm_avx2(int M, int N, const tile *t, const float *A, const float *B, float *C, const float *bias,
+                          const float *mask) {
+    /* column panels outermost: a K x 16 panel of B stays in L1 while all rows stream past */
+    for (int j = 0; j < N; j += 16) {
+        int nr = N - j < 16 ? N - j : 16;
+        const float *Bj = B + j, *bj = bias ? bias + j : NULL, *mj = mask ? mask + j : NULL;
+        float *Cj = C + j;
+        int32_t lane[16];
+        for (int q = 0; q < 16; q++) lane[q] = q < nr ? -1 : 0;
+        __m256i m0 = _mm256_loadu_si256((const __m256i *)lane), m1 = _mm256_loadu_si256((const __m256i *)(lane + 8));
+        if (nr <= 8) {
+            int i = 0;
+            for (; i + 12 <= M; i += 12)
+                k8(12, t, A + (size_t)i * t->ra, Bj, Cj + (size_t)i * t->ldc, bj, mj ? mj + (size_t)i * t->ldm : NULL, m0);
+            for (; i + 4 <= M; i += 4)
+                k8(4, t, A + (size_t)i * t->ra, Bj, Cj + (size_t)i * t->ldc, bj, mj ? mj + (size_t)i * t->ldm : NULL, m0);
+            for (; i < M; i++)
+                k8(1, t, A + (size_t)i * t->ra, Bj, Cj + (size_t)i * t->ldc, bj, mj ? mj + (size_t)i * t->ldm : NULL, m0);
+        } else if (nr == 16) {
+            PANEL16(1);
+        } else {
+            PANEL16(0);
+        }
+    }
+}
+#endif
+
+static atomic_int kern_mode = -1;   /* -1 unknown, 0 portable, 1 AVX2/FMA */
+
+int sooc_nn_gemm_avx2(void) {
+    int mode = atomic_load_explicit(&kern_mode, memory_order_relaxed);
+    if (mode < 0) {
+        mode = 0;
+#ifdef NN_KERN_X86
+        __builtin_cpu_init();
+        mode = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
+        if (getenv("SOOC_NO_AVX2")) mode = 0;
+        atomic_store_explicit(&kern_mode, mode, memory_order_relaxed);
+    }
+    return mode;
+}
+
+void sooc_nn_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                  const float *bias, int acc, int ep, const float *mask, int ldm) {
+    if (M <= 0 || N <= 0) return;
+#ifdef NN_KERN_X86
+    if (sooc_nn_gemm_avx2()) {
+        tile t = {K, lda, 1, ldb, ldc, ldm, acc ? 2 : bias ? 1 : 0, ep, 0, 1.0f};
+        gemm_avx2(M, N, &t, A, B, C, bias, mask);
+        return;
+    }
+#endif
+    gemm_blas(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
+}
+
+void sooc_nn_gemm_tn(int M, int N, int R, float alpha, const float *A, int lda, const float *B, int ldb, float *C,
+                     int ldc) {
+    if (M <= 0 || N <= 0 || R <= 0) return;
+#ifdef NN_KERN_X86
+    if (sooc_nn_gemm_avx2()) {
+        tile t = {R, 1, lda, ldb, ldc, 0, 0, SOOC_NN_EP_NONE, 1, alpha};
+        gemm_avx2(M, N, &t, A, B, C, NULL, NULL);
+        return;
+    }
+#endif
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, M, N, R, alpha, A, lda, B, ldb, 1.0f, C, ldc);
+}
