@@ -1,21 +1,15 @@
 /* Refinement inputs (model.md §3.1) and the refinement network (§3.2):
  * conv 3x3 stride 2 SAME (TF padding: 0 before, 1 after) + ELU, FC + ELU,
- * LSTMCell, linear head. Activations are [channel][item][pixel]. */
+ * LSTMCell, linear head, on the src/nn pairs of sooc3d/nn_refine.h.
+ * Activations are [channel][item][pixel]. */
 #include "model/model_internal.h"
+#include "sooc3d/nn_refine.h"
 
-#include <cblas.h>
 #include <math.h>
 #include <string.h>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
-#ifdef SOOC_HAVE_OPENMP
-#include <omp.h>
-#endif
 
-static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
 /* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
- * relative error < 1e-7, like expf). Scalar version, and an SSE2 version for rows. */
+ * relative error < 1e-7, like expf; the aux inputs' per-ray loops). */
 static inline float expf_nonpos(float x) {
     x = x < -87.0f ? -87.0f : x;
     float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
@@ -36,7 +30,6 @@ static inline float expf_nonpos(float x) {
     memcpy(&s, &bits, sizeof s);
     return y * s;
 }
-static inline float elu(float x) { return x > 0 ? x : expf_nonpos(x) - 1.0f; }
 
 /* log(x) for normal x > 0 (Cephes logf polynomial on the mantissa in [sqrt(1/2), sqrt(2));
  * relative error ~1e-7, like logf; inlined in the per-ray loops of the aux inputs). */
@@ -68,83 +61,9 @@ static inline float logf_pos(float x) {
     return f + y + 0.693359375f * fe;
 }
 
-/* y[j] = elu(y[j] + bias) over a row (the conv epilogue). */
-static void elu_bias_rows(float *y, size_t n, float bias) {
-    size_t j = 0;
-#ifdef __SSE2__
-    const __m128 vb = _mm_set1_ps(bias), lo = _mm_set1_ps(-87.0f), zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
-    const __m128 l2e = _mm_set1_ps(1.44269504088896341f), c1 = _mm_set1_ps(0.693359375f), c2 = _mm_set1_ps(2.12194440e-4f);
-    for (; j + 4 <= n; j += 4) {
-        __m128 x = _mm_add_ps(_mm_loadu_ps(y + j), vb);
-        __m128 xn = _mm_max_ps(_mm_min_ps(x, zero), lo);
-        __m128i ni = _mm_cvtps_epi32(_mm_mul_ps(xn, l2e));   /* round to nearest (default MXCSR) */
-        __m128 fn = _mm_cvtepi32_ps(ni);
-        __m128 r = _mm_sub_ps(xn, _mm_mul_ps(fn, c1));
-        r = _mm_add_ps(r, _mm_mul_ps(fn, c2));
-        __m128 p = _mm_set1_ps(1.9875691500e-4f);
-        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(1.3981999507e-3f));
-        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(8.3334519073e-3f));
-        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(4.1665795894e-2f));
-        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(1.6666665459e-1f));
-        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(5.0000001201e-1f));
-        p = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(p, r), r), r), one);
-        __m128 s = _mm_castsi128_ps(_mm_slli_epi32(_mm_add_epi32(ni, _mm_set1_epi32(127)), 23));
-        __m128 e = _mm_sub_ps(_mm_mul_ps(p, s), one);
-        __m128 pos = _mm_cmpgt_ps(x, zero);
-        _mm_storeu_ps(y + j, _mm_or_ps(_mm_and_ps(pos, x), _mm_andnot_ps(pos, e)));
-    }
-#endif
-    for (; j < n; j++) y[j] = elu(y[j] + bias);
-}
-
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
 int mdl_aux_channels(int layout) { return layout ? 25 : 26; }
-
-/* MulMON layer norm over n values at stride 1: (x - mean) / (std + 1e-5). */
-static void ln_inplace(float *x, int n) {
-    double s = 0, s2 = 0;
-    for (int i = 0; i < n; i++) s += x[i];
-    float mean = (float)(s / n);
-    for (int i = 0; i < n; i++) s2 += (double)(x[i] - mean) * (x[i] - mean);
-    float inv = 1.0f / ((float)sqrt(s2 / n) + 1e-5f);
-    for (int i = 0; i < n; i++) x[i] = (x[i] - mean) * inv;
-}
-
-/* LN over channels [c0, c0 + nc) of item b (all pixels), image layout [c][B][HW].
- * Sums in double with 8 independent partial sums (vectorisable; the order is fixed). */
-static void ln_img(float *img, int B, int HW, int b, int c0, int nc) {
-    double s8[8] = {0}, q8[8] = {0};
-    int n = nc * HW;
-    for (int c = c0; c < c0 + nc; c++) {
-        const float *restrict v = img + ((size_t)c * B + b) * HW;
-        int i = 0;
-        for (; i + 8 <= HW; i += 8)
-            for (int u = 0; u < 8; u++) s8[u] += v[i + u];
-        for (; i < HW; i++) s8[0] += v[i];
-    }
-    double s = ((s8[0] + s8[4]) + (s8[1] + s8[5])) + ((s8[2] + s8[6]) + (s8[3] + s8[7]));
-    float mean = (float)(s / n);
-    for (int c = c0; c < c0 + nc; c++) {
-        const float *restrict v = img + ((size_t)c * B + b) * HW;
-        int i = 0;
-        for (; i + 8 <= HW; i += 8)
-            for (int u = 0; u < 8; u++) {
-                double d = v[i + u] - mean;
-                q8[u] += d * d;
-            }
-        for (; i < HW; i++) {
-            double d = v[i] - mean;
-            q8[0] += d * d;
-        }
-    }
-    double s2 = ((q8[0] + q8[4]) + (q8[1] + q8[5])) + ((q8[2] + q8[6]) + (q8[3] + q8[7]));
-    float inv = 1.0f / ((float)sqrt(s2 / n) + 1e-5f);
-    for (int c = c0; c < c0 + nc; c++) {
-        float *restrict v = img + ((size_t)c * B + b) * HW;
-        for (int i = 0; i < HW; i++) v[i] = (v[i] - mean) * inv;
-    }
-}
 
 /* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
 typedef struct aux_job {
@@ -265,11 +184,11 @@ static void aux_task(void *ctx, int comp, int tid) {
             e0[rr] = g[0], e1[rr] = g[1], e2[rr] = g[2];
         }
     }
-    ln_img(img, B, N, b, o + 7, 1);
-    ln_img(img, B, N, b, o + 8, 1);
-    ln_img(img, B, N, b, o + 9, 1);
-    ln_img(img, B, N, b, o + 10, 1);
-    ln_img(img, B, N, b, o + 11, 3);
+    sooc_nn_mln_forward(CH(o + 7), NULL, CH(o + 7), 1, N, (int64_t)B * N);
+    sooc_nn_mln_forward(CH(o + 8), NULL, CH(o + 8), 1, N, (int64_t)B * N);
+    sooc_nn_mln_forward(CH(o + 9), NULL, CH(o + 9), 1, N, (int64_t)B * N);
+    sooc_nn_mln_forward(CH(o + 10), NULL, CH(o + 10), 1, N, (int64_t)B * N);
+    sooc_nn_mln_forward(CH(o + 11), NULL, CH(o + 11), 3, N, (int64_t)B * N);
 #undef CH
 }
 
@@ -330,7 +249,7 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
         float *v = vec_o + (size_t)k * nv;
         memcpy(v, c->lam + (size_t)k * NL, NL * sizeof(float));
         memcpy(v + NL, g_lam + (size_t)k * NL, NL * sizeof(float));
-        ln_inplace(v + NL, NL);
+        sooc_nn_mln_forward(v + NL, NULL, v + NL, 1, NL, NL);
         v[2 * NL + 0] = c->zw[k][0];
         v[2 * NL + 1] = c->zw[k][1];
         v[2 * NL + 2] = c->zw[k][2];
@@ -340,7 +259,7 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
     }
     memcpy(vec_l, c->lay, 2 * dl * sizeof(float));
     memcpy(vec_l + 2 * dl, g_lay, 2 * dl * sizeof(float));
-    ln_inplace(vec_l + 2 * dl, 2 * dl);
+    sooc_nn_mln_forward(vec_l + 2 * dl, NULL, vec_l + 2 * dl, 1, 2 * dl, 2 * dl);
     vec_l[4 * dl] = vr->h;
     vec_l[4 * dl + 1] = vr->pitch;
     (void)d;
@@ -382,93 +301,9 @@ void mdl_ref_act_free(ref_act *a) {
     }
 }
 
-/* Columns of items [b0, b1) (No = (b1 - b0) Ho Wo columns), 3x3 stride 2, TF SAME
- * padding on even sizes (nothing before, one zero row/column after).
- * Row (ci, ky, kx), column (b, oy, ox) = x[ci][b][2 oy + ky][2 ox + kx]. Each input row
- * feeds one or two output rows per kx (even columns, odd columns, even columns shifted
- * by one with the pad last), written by plain loops (no small memcpy calls). */
-static void im2col(const float *x, int Ci, int B, int b0, int b1, int Hi, int Wi, float *cols) {
-    int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
-    size_t No = (size_t)(b1 - b0) * HWo;
-    SOOC_ASSERT(Hi % 2 == 0 && Wi % 2 == 0);
-    for (int ci = 0; ci < Ci; ci++)
-        for (int b = b0; b < b1; b++) {
-            const float *xb = x + ((size_t)ci * B + b) * Hi * Wi;
-            float *base = cols + (size_t)ci * 9 * No + (size_t)(b - b0) * HWo;
-            for (int kx = 0; kx < 3; kx++) {
-                float *restrict r = base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo;
-                for (int ox = 0; ox < Wo; ox++) r[ox] = 0.0f;
-            }
-            for (int iy = 0; iy < Hi; iy++) {
-                const float *restrict xr = xb + (size_t)iy * Wi;
-                int ky[2], oy[2], nt = 0;
-                if (iy & 1) {
-                    ky[nt] = 1, oy[nt++] = iy >> 1;
-                } else {
-                    ky[nt] = 0, oy[nt++] = iy >> 1;
-                    if (iy >= 2) ky[nt] = 2, oy[nt++] = (iy >> 1) - 1;
-                }
-                for (int t = 0; t < nt; t++) {
-                    float *restrict r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
-                    float *restrict r1 = r0 + No, *restrict r2 = r0 + 2 * No;
-                    for (int ox = 0; ox < Wo; ox++) {
-                        r0[ox] = xr[2 * ox];
-                        r1[ox] = xr[2 * ox + 1];
-                    }
-                    for (int ox = 0; ox + 1 < Wo; ox++) r2[ox] = xr[2 * ox + 2];
-                    r2[Wo - 1] = 0.0f;
-                }
-            }
-        }
-}
-
-static void col2im(const float *cols, int Ci, int B, int Hi, int Wi, float *gx) {
-    int Ho = Hi / 2, Wo = Wi / 2, No = B * Ho * Wo;
-    memset(gx, 0, sizeof(float) * (size_t)Ci * B * Hi * Wi);
-    for (int ci = 0; ci < Ci; ci++)
-        for (int ky = 0; ky < 3; ky++)
-            for (int kx = 0; kx < 3; kx++) {
-                const float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
-                for (int b = 0; b < B; b++) {
-                    float *xb = gx + ((size_t)ci * B + b) * Hi * Wi;
-                    for (int oy = 0; oy < Ho; oy++) {
-                        int iy = 2 * oy + ky;
-                        if (iy >= Hi) continue;
-                        const float *r = row + ((size_t)b * Ho + oy) * Wo;
-                        for (int ox = 0; ox < Wo; ox++) {
-                            int ix = 2 * ox + kx;
-                            if (ix < Wi) xb[iy * Wi + ix] += r[ox];
-                        }
-                    }
-                }
-            }
-}
-
-/* The four conv layers of item b of a (on the calling thread; ct: its column scratch).
- * The first a->nsh input channels are stored once (item 0) and their share of the first
- * convolution is in ysh (ch[0] x HW1): the item's own channels are accumulated onto it
- * (the same FMA chain over k as the full product with the AVX2 kernel). */
-static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const float *ysh, float *ct, int gw, int gh) {
-    int B = a->B, nsh = ysh ? a->nsh : 0;
-    const float *x = a->x0;
-    int Ci = n->cin, Hi = gh, Wi = gw;
-    for (int i = 0; i < 4; i++) {
-        int Co = n->ch[i], Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo, ldy = B * HWo;
-        float *y = a->y[i] + (size_t)b * HWo;
-        if (i == 0 && nsh > 0) {
-            for (int co = 0; co < Co; co++) memcpy(y + (size_t)co * ldy, ysh + (size_t)co * HWo, HWo * sizeof(float));
-            im2col(x + (size_t)nsh * B * Hi * Wi, Ci - nsh, B, b, b + 1, Hi, Wi, ct);
-            mdl_gemm(Co, HWo, (Ci - nsh) * 9, p + n->cw[i] + nsh * 9, Ci * 9, ct, HWo, y, ldy, NULL, 1, MDL_EP_NONE, NULL,
-                     0);
-        } else {
-            im2col(x, Ci, B, b, b + 1, Hi, Wi, ct);
-            mdl_gemm(Co, HWo, Ci * 9, p + n->cw[i], Ci * 9, ct, HWo, y, ldy, NULL, 0, MDL_EP_NONE, NULL, 0);
-        }
-        for (int co = 0; co < Co; co++) elu_bias_rows(y + (size_t)co * ldy, (size_t)HWo, p[n->cb[i] + co]);
-        x = a->y[i];
-        Ci = Co, Hi = Ho, Wi = Wo;
-    }
-}
+/* The layers are the src/nn pairs of sooc3d/nn_refine.h (conv 3x3 stride 2 +
+ * ELU, pool + flatten, linear + ELU, LSTM cell, linear head); this file wires
+ * them to the model's slab and workspace and splits items across the pool. */
 
 /* The conv stack's last map (C x B x fh x fw, fh = gh / 16) flattened per item
  * for the FC layer. Ray grids up to 32 x 32 are flattened as they are; a
@@ -476,48 +311,29 @@ static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const
  * 32 x 32 grid, so the FC weights (and every other weight) do not depend on
  * the ray grid and a model trained on one grid runs on another
  * (sooc_model_copy_rays). */
-typedef struct pool_geom {
-    int fh, fw;   /* last conv map            */
-    int ph, pw;   /* FC input map (<= 2 x 2)  */
-    int sh, sw;   /* pooling window           */
-    float inv;    /* 1 / window size          */
-} pool_geom;
-
-static pool_geom pool_of(int gw, int gh) {
-    pool_geom g;
-    g.fh = gh >> 4, g.fw = gw >> 4;
-    g.ph = g.fh > 2 ? 2 : g.fh, g.pw = g.fw > 2 ? 2 : g.fw;
-    g.sh = g.fh / g.ph, g.sw = g.fw / g.pw;
-    g.inv = 1.0f / (float)(g.sh * g.sw);
-    return g;
-}
-
 void mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
-    pool_geom g = pool_of(gw, gh);
-    for (int b = 0; b < B; b++)
-        for (int c = 0; c < n->ch[3]; c++) {
-            const float *src = y3 + ((size_t)c * B + b) * g.fh * g.fw;
-            float *dst = flat + (size_t)b * n->nflat + (size_t)c * g.ph * g.pw;
-            for (int i = 0; i < g.ph; i++)
-                for (int j = 0; j < g.pw; j++) {
-                    float acc = 0;
-                    for (int u = 0; u < g.sh; u++)
-                        for (int v = 0; v < g.sw; v++) acc += src[(i * g.sh + u) * g.fw + j * g.sw + v];
-                    dst[i * g.pw + j] = acc * g.inv;
-                }
-        }
+    sooc_nn_pool2_forward(flat, y3, n->ch[3], B, gh >> 4, gw >> 4);
 }
 
 /* Backward of mdl_ref_flatten: writes (not adds) the gradient w.r.t. y3. */
 void mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
-    pool_geom g = pool_of(gw, gh);
-    for (int b = 0; b < B; b++)
-        for (int c = 0; c < n->ch[3]; c++) {
-            float *dst = gy3 + ((size_t)c * B + b) * g.fh * g.fw;
-            const float *src = gflat + (size_t)b * n->nflat + (size_t)c * g.ph * g.pw;
-            for (int y = 0; y < g.fh; y++)
-                for (int x = 0; x < g.fw; x++) dst[y * g.fw + x] = src[(y / g.sh) * g.pw + x / g.sw] * g.inv;
-        }
+    memset(gy3, 0, sizeof(float) * (size_t)n->ch[3] * B * (gh >> 4) * (gw >> 4));
+    sooc_nn_pool2_backward(gy3, gflat, n->ch[3], B, gh >> 4, gw >> 4);
+}
+
+/* The four conv layers of item b of a (on the calling thread; ct: its column scratch).
+ * The first a->nsh input channels are stored once (item 0) and their share of the first
+ * convolution is in ysh (ch[0] x HW1): the item's own channels continue its FMA chains. */
+static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const float *ysh, float *ct, int gw, int gh) {
+    const float *x = a->x0;
+    int Ci = n->cin, Hi = gh, Wi = gw;
+    for (int i = 0; i < 4; i++) {
+        int sh = i == 0 && ysh ? a->nsh : 0;
+        sooc_nn_rconv_forward(a->y[i], ct, x, p + n->cw[i], p + n->cb[i], sh ? ysh : NULL, sh, a->B, b, b + 1, Ci, Hi,
+                              Wi, n->ch[i], SOOC_NN_ACT_ELU);
+        x = a->y[i];
+        Ci = n->ch[i], Hi /= 2, Wi /= 2;
+    }
 }
 
 /* FC + ELU, LSTM cell and linear head of every item of a (serial). */
@@ -525,33 +341,13 @@ static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int g
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
     MDL_PT(tprof);
     mdl_ref_flatten(n, a->y[3], B, gw, gh, a->flat);
-    mdl_gemm(B, n->fc, n->nflat, a->flat, n->nflat, p + n->fcW, n->fc, a->f, n->fc, NULL, 0, MDL_EP_NONE, NULL, 0);
-    for (int b = 0; b < B; b++)
-        for (int j = 0; j < n->fc; j++) {
-            float v = elu(a->f[(size_t)b * n->fc + j] + p[n->fcb + j]);
-            a->f[(size_t)b * n->fc + j] = v;
-            a->xin[(size_t)b * nin + j] = v;
-        }
+    sooc_nn_rlinear_forward(a->f, a->flat, n->nflat, p + n->fcW, p + n->fcb, B, n->nflat, n->fc, SOOC_NN_ACT_ELU);
+    for (int b = 0; b < B; b++) memcpy(a->xin + (size_t)b * nin, a->f + (size_t)b * n->fc, n->fc * sizeof(float));
     if (prof) MDL_PACC(MDL_PR_FC, tprof);
-    float *gt = a->gates;
-    mdl_gemm(B, 4 * H, nin, a->xin, nin, p + n->Wx, 4 * H, gt, 4 * H, NULL, 0, MDL_EP_NONE, NULL, 0);
-    mdl_gemm(B, 4 * H, H, a->h_prev, H, p + n->Wh, 4 * H, gt, 4 * H, NULL, 1, MDL_EP_NONE, NULL, 0);
-    if (prof) MDL_PACC(MDL_PR_GATES, tprof);
-    for (int b = 0; b < B; b++) {
-        float *g = gt + (size_t)b * 4 * H;
-        for (int j = 0; j < H; j++) {
-            float gi = sigm(g[j] + p[n->lb + j]), gf = sigm(g[H + j] + p[n->lb + H + j]);
-            float gg = tanhf(g[2 * H + j] + p[n->lb + 2 * H + j]), go = sigm(g[3 * H + j] + p[n->lb + 3 * H + j]);
-            g[j] = gi, g[H + j] = gf, g[2 * H + j] = gg, g[3 * H + j] = go;
-            float cc = gf * a->c_prev[(size_t)b * H + j] + gi * gg;
-            a->c[(size_t)b * H + j] = cc;
-            a->h[(size_t)b * H + j] = go * tanhf(cc);
-        }
-    }
+    sooc_nn_rlstm_forward(a->h, a->c, a->gates, a->xin, a->h_prev, a->c_prev, p + n->Wx, p + n->Wh, p + n->lb, B, nin,
+                          H);
     if (prof) MDL_PACC(MDL_PR_LSTM, tprof);
-    mdl_gemm(B, n->nout, H, a->h, H, p + n->hW, n->nout, out, n->nout, NULL, 0, MDL_EP_NONE, NULL, 0);
-    for (int b = 0; b < B; b++)
-        for (int j = 0; j < n->nout; j++) out[(size_t)b * n->nout + j] += p[n->hb + j];
+    sooc_nn_rlinear_forward(out, a->h, H, p + n->hW, p + n->hb, B, H, n->nout, SOOC_NN_ACT_NONE);
     if (prof) MDL_PACC(MDL_PR_HEAD, tprof);
 }
 
@@ -597,14 +393,12 @@ void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0
         ntask += a->B;
         if (a->nsh > 0 && a->nsh < n->cin && a->B > 1 && (size_t)n->ch[0] <= (size_t)m->rws.ysh_ch) {
             float *y = m->rws.ysh + (size_t)q * m->rws.ysh_ch * HW1;
-            im2col(a->x0, a->nsh, a->B, 0, 1, gh, gw, m->rws.cols);
-            mdl_gemm(n->ch[0], (int)HW1, a->nsh * 9, p + n->cw[0], n->cin * 9, m->rws.cols, (int)HW1, y, (int)HW1, NULL,
-                     0, MDL_EP_NONE, NULL, 0);
+            sooc_nn_rconv_shared(y, m->rws.cols, a->x0, p + n->cw[0], a->B, n->cin, gh, gw, n->ch[0], a->nsh);
             ysh[q] = y;
         }
-        size_t s = (size_t)n->cin * 9 * HW1;
+        size_t s = sooc_nn_rconv_cols_floats(n->cin, 1, gh, gw);
         for (int i = 1; i < 4; i++) {
-            size_t t = (size_t)n->ch[i - 1] * 9 * (HW >> (2 * (i + 1)));
+            size_t t = sooc_nn_rconv_cols_floats(n->ch[i - 1], 1, gh >> i, gw >> i);
             if (t > s) s = t;
         }
         if (s > cstride) cstride = s;
@@ -636,84 +430,47 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
     float *g = m->g;
     ref_ws *s = &m->rws;
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
-    /* head */
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, H, n->nout, B, 1.0f, a->h, H, gout, n->nout, 1.0f, g + n->hW,
-                n->nout);
-    for (int b = 0; b < B; b++)
-        for (int j = 0; j < n->nout; j++) g[n->hb + j] += gout[(size_t)b * n->nout + j];
-    float *ghh = s->gh;   /* B x H: dL/dh */
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, H, n->nout, 1.0f, gout, n->nout, p + n->hW, n->nout, 0.0f,
-                ghh, H);
-    float *gg = s->gg;
-    for (int b = 0; b < B; b++) {
-        const float *gt = a->gates + (size_t)b * 4 * H;
-        float *q = gg + (size_t)b * 4 * H;
-        for (int j = 0; j < H; j++) {
-            size_t i = (size_t)b * H + j;
-            float gh_ = ghh[i] + dh[i];
-            float gi = gt[j], gf = gt[H + j], ggt = gt[2 * H + j], go = gt[3 * H + j];
-            float tc = tanhf(a->c[i]);
-            float gc = gh_ * go * (1 - tc * tc) + dc[i];
-            q[j] = gc * ggt * gi * (1 - gi);
-            q[H + j] = gc * a->c_prev[i] * gf * (1 - gf);
-            q[2 * H + j] = gc * gi * (1 - ggt * ggt);
-            q[3 * H + j] = gh_ * tc * go * (1 - go);
-            dc[i] = gc * gf;
-        }
-    }
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, nin, 4 * H, B, 1.0f, a->xin, nin, gg, 4 * H, 1.0f, g + n->Wx,
-                4 * H);
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, H, 4 * H, B, 1.0f, a->h_prev, H, gg, 4 * H, 1.0f, g + n->Wh,
-                4 * H);
-    for (int b = 0; b < B; b++)
-        for (int j = 0; j < 4 * H; j++) g[n->lb + j] += gg[(size_t)b * 4 * H + j];
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, H, 4 * H, 1.0f, gg, 4 * H, p + n->Wh, 4 * H, 0.0f, dh, H);
+    size_t HW = (size_t)gw * gh;
+    /* head (act NONE: gout is not written) */
+    float *ghh = s->gh;   /* B x H: dL/dh, then + the next iteration's */
+    memset(ghh, 0, sizeof(float) * (size_t)B * H);
+    sooc_nn_rlinear_backward(ghh, g + n->hW, g + n->hb, (float *)gout, a->h, H, NULL, p + n->hW, B, H, n->nout,
+                             SOOC_NN_ACT_NONE);
+    for (size_t i = 0; i < (size_t)B * H; i++) ghh[i] += dh[i];
+    /* LSTM: dh, dc become the gradients w.r.t. the previous state */
+    float *dcn = s->gy[0];   /* B x H (free until the conv stack) */
+    SOOC_ASSERT((size_t)B * H <= (size_t)n->ch[0] * B * (HW / 4));
+    memset(dcn, 0, sizeof(float) * (size_t)B * H);
+    memset(dh, 0, sizeof(float) * (size_t)B * H);
     float *gx = s->gx;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, nin, 4 * H, 1.0f, gg, 4 * H, p + n->Wx, 4 * H, 0.0f, gx,
-                nin);
+    memset(gx, 0, sizeof(float) * (size_t)B * nin);
+    sooc_nn_rlstm_backward(gx, dh, dcn, g + n->Wx, g + n->Wh, g + n->lb, ghh, dc, s->gg, a->gates, a->c, a->xin,
+                           a->h_prev, a->c_prev, p + n->Wx, p + n->Wh, B, nin, H);
+    memcpy(dc, dcn, sizeof(float) * (size_t)B * H);
     for (int b = 0; b < B; b++)
         for (int j = 0; j < n->nvec; j++) gvec[(size_t)b * n->nvec + j] += gx[(size_t)b * nin + n->fc + j];
-    /* FC */
-    float *gf = s->gf;
-    for (int b = 0; b < B; b++)
-        for (int j = 0; j < n->fc; j++) {
-            float y = a->f[(size_t)b * n->fc + j];
-            gf[(size_t)b * n->fc + j] = gx[(size_t)b * nin + j] * (y > 0 ? 1.0f : y + 1.0f);
-        }
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, n->nflat, n->fc, B, 1.0f, a->flat, n->nflat, gf, n->fc, 1.0f,
-                g + n->fcW, n->fc);
-    for (int b = 0; b < B; b++)
-        for (int j = 0; j < n->fc; j++) g[n->fcb + j] += gf[(size_t)b * n->fc + j];
-    float *gflat = s->gflat;
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, n->nflat, n->fc, 1.0f, gf, n->fc, p + n->fcW, n->fc, 0.0f,
-                gflat, n->nflat);
+    /* FC (its input gradient is the first fc columns of gx) */
+    float *gf = s->gf, *gflat = s->gflat;
+    for (int b = 0; b < B; b++) memcpy(gf + (size_t)b * n->fc, gx + (size_t)b * nin, n->fc * sizeof(float));
+    memset(gflat, 0, sizeof(float) * (size_t)B * n->nflat);
+    sooc_nn_rlinear_backward(gflat, g + n->fcW, g + n->fcb, gf, a->flat, n->nflat, a->f, p + n->fcW, B, n->nflat,
+                             n->fc, SOOC_NN_ACT_ELU);
     /* conv stack, top down */
     int Hs[5], Ws[5], Cs[5];
     Hs[0] = gh, Ws[0] = gw, Cs[0] = n->cin;
     for (int i = 0; i < 4; i++) Hs[i + 1] = Hs[i] / 2, Ws[i + 1] = Ws[i] / 2, Cs[i + 1] = n->ch[i];
-    size_t HW = (size_t)gw * gh;
     mdl_ref_flatten_backward(n, gflat, B, gw, gh, s->gy[3]);
+    /* shared leading channels stored for item 0 only: fill the other items' copies */
+    for (int c = 0; c < a->nsh; c++)
+        for (int b = 1; b < B; b++)
+            memcpy(a->x0 + ((size_t)c * B + b) * HW, a->x0 + (size_t)c * B * HW, HW * sizeof(float));
     for (int i = 3; i >= 0; i--) {
-        int Co = Cs[i + 1], Ci = Cs[i], No = B * Hs[i + 1] * Ws[i + 1];
-        float *gy = s->gy[i];
-        const float *y = a->y[i];
-        for (size_t j = 0; j < (size_t)Co * No; j++) gy[j] *= y[j] > 0 ? 1.0f : y[j] + 1.0f;
-        const float *x = i ? a->y[i - 1] : a->x0;
-        if (i == 0)   /* shared leading channels stored for item 0 only: fill the other items' copies */
-            for (int c = 0; c < a->nsh; c++)
-                for (int b = 1; b < B; b++)
-                    memcpy(a->x0 + ((size_t)c * B + b) * HW, a->x0 + (size_t)c * B * HW, HW * sizeof(float));
-        im2col(x, Ci, B, 0, B, Hs[i], Ws[i], s->cols);
-        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Ci * 9, No, 1.0f, gy, No, s->cols, No, 1.0f,
-                    g + n->cw[i], Ci * 9);
-        for (int co = 0; co < Co; co++) {
-            double sb = 0;
-            for (int j = 0; j < No; j++) sb += gy[(size_t)co * No + j];
-            g[n->cb[i] + co] += (float)sb;
+        float *gxi = NULL;
+        if (i > 0) {   /* inputs are stop-gradient */
+            gxi = s->gy[i - 1];
+            memset(gxi, 0, sizeof(float) * (size_t)Cs[i] * B * Hs[i] * Ws[i]);
         }
-        if (i == 0) break;   /* inputs are stop-gradient */
-        cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Ci * 9, No, Co, 1.0f, p + n->cw[i], Ci * 9, gy, No, 0.0f,
-                    s->gcols, No);
-        col2im(s->gcols, Ci, B, Hs[i], Ws[i], s->gy[i - 1]);
+        sooc_nn_rconv_backward(gxi, g + n->cw[i], g + n->cb[i], s->gy[i], a->y[i], i ? a->y[i - 1] : a->x0,
+                               p + n->cw[i], s->cols, s->gcols, B, Cs[i], Hs[i], Ws[i], Cs[i + 1], SOOC_NN_ACT_ELU);
     }
 }

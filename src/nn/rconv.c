@@ -1,0 +1,443 @@
+/*
+ * The refinement network's convolution (nn_refine.h): 3x3, stride 2, TF SAME
+ * on even sizes, CBHW activations, fused bias + ELU; im2col + one GEMM per
+ * call over all the items it is given (items x pixels as the N dimension).
+ *
+ * The GEMM (sooc_nn_r_gemm) keeps every output one FMA chain over k in
+ * order, so splitting items across threads, or taking the shared leading
+ * channels' share from a precomputed ysh, never changes a result. The
+ * backward's two GEMMs go to OpenBLAS (single-threaded) in a fixed number
+ * of output blocks that OpenMP threads take.
+ */
+#include "rnet_impl.h"
+
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
+/* ------------------------------------------------------------------ ELU */
+
+/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
+ * relative error < 1e-7, like expf). The SSE2 rows below compute the same
+ * operations in the same order (bitwise equal). */
+static inline float expf_nonpos(float x) {
+    x = x < -87.0f ? -87.0f : x;
+    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
+    uint32_t bi;
+    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
+    float fn = big - 12582912.0f;
+    float r = x - fn * 0.693359375f;
+    r = r + fn * 2.12194440e-4f;
+    float y = 1.9875691500e-4f;
+    y = y * r + 1.3981999507e-3f;
+    y = y * r + 8.3334519073e-3f;
+    y = y * r + 4.1665795894e-2f;
+    y = y * r + 1.6666665459e-1f;
+    y = y * r + 5.0000001201e-1f;
+    y = y * r * r + r + 1.0f;
+    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
+    float s;
+    memcpy(&s, &bits, sizeof s);
+    return y * s;
+}
+
+float sooc_nn_r_elu1(float x) { return x > 0 ? x : expf_nonpos(x) - 1.0f; }
+
+void sooc_nn_r_elu_bias(float *y, int64_t n, float bias) {
+    int64_t j = 0;
+#ifdef __SSE2__
+    const __m128 vb = _mm_set1_ps(bias), lo = _mm_set1_ps(-87.0f), zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    const __m128 l2e = _mm_set1_ps(1.44269504088896341f), c1 = _mm_set1_ps(0.693359375f), c2 = _mm_set1_ps(2.12194440e-4f);
+    for (; j + 4 <= n; j += 4) {
+        __m128 x = _mm_add_ps(_mm_loadu_ps(y + j), vb);
+        __m128 xn = _mm_max_ps(_mm_min_ps(x, zero), lo);
+        __m128i ni = _mm_cvtps_epi32(_mm_mul_ps(xn, l2e));   /* round to nearest (default MXCSR) */
+        __m128 fn = _mm_cvtepi32_ps(ni);
+        __m128 r = _mm_sub_ps(xn, _mm_mul_ps(fn, c1));
+        r = _mm_add_ps(r, _mm_mul_ps(fn, c2));
+        __m128 p = _mm_set1_ps(1.9875691500e-4f);
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(1.3981999507e-3f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(8.3334519073e-3f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(4.1665795894e-2f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(1.6666665459e-1f));
+        p = _mm_add_ps(_mm_mul_ps(p, r), _mm_set1_ps(5.0000001201e-1f));
+        p = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(p, r), r), r), one);
+        __m128 s = _mm_castsi128_ps(_mm_slli_epi32(_mm_add_epi32(ni, _mm_set1_epi32(127)), 23));
+        __m128 e = _mm_sub_ps(_mm_mul_ps(p, s), one);
+        __m128 pos = _mm_cmpgt_ps(x, zero);
+        _mm_storeu_ps(y + j, _mm_or_ps(_mm_and_ps(pos, x), _mm_andnot_ps(pos, e)));
+    }
+#endif
+    for (; j < n; j++) y[j] = sooc_nn_r_elu1(y[j] + bias);
+}
+
+void sooc_nn_elu_forward(float *y, const float *x, int64_t n) {
+    if (y != x) memcpy(y, x, (size_t)n * sizeof(float));
+    sooc_nn_r_elu_bias(y, n, 0.0f);
+}
+
+void sooc_nn_elu_backward(float *dx, const float *dy, const float *y, int64_t n) {
+    for (int64_t i = 0; i < n; i++) dx[i] += dy[i] * (y[i] > 0 ? 1.0f : y[i] + 1.0f);
+}
+
+void sooc_nn_elu_forward_f64(double *y, const double *x, int64_t n) {
+    for (int64_t i = 0; i < n; i++) y[i] = x[i] > 0 ? x[i] : expm1(x[i]);
+}
+
+void sooc_nn_elu_backward_f64(double *dx, const double *dy, const double *y, int64_t n) {
+    for (int64_t i = 0; i < n; i++) dx[i] += dy[i] * (y[i] > 0 ? 1.0 : y[i] + 1.0);
+}
+
+/* ----------------------------------------------------------------- GEMM */
+
+static void gemm_blas(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                      int acc) {
+    sooc_nn_blas_single();
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, lda, B, ldb, acc ? 1.0f : 0.0f, C, ldc);
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#define RN_X86 1
+#include <immintrin.h>
+#define TGT __attribute__((target("avx2,fma")))
+#define AI __attribute__((always_inline)) inline
+
+/* MR rows x 16 columns; m0/m1 column masks of the two vectors (all set for full panels). */
+static TGT AI void k16(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc, int acc,
+                       __m256i m0, __m256i m1) {
+    __m256 c0[6], c1[6];
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        c0[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc, m0) : _mm256_setzero_ps();
+        c1[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc + 8, m1) : _mm256_setzero_ps();
+    }
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb;
+        __m256 b0 = _mm256_maskload_ps(b, m0), b1 = _mm256_maskload_ps(b + 8, m1);
+#pragma GCC unroll 6
+        for (int r = 0; r < MR; r++) {
+            __m256 a = _mm256_broadcast_ss(A + (size_t)r * lda + k);
+            c0[r] = _mm256_fmadd_ps(a, b0, c0[r]);
+            c1[r] = _mm256_fmadd_ps(a, b1, c1[r]);
+        }
+    }
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
+        _mm256_maskstore_ps(C + (size_t)r * ldc + 8, m1, c1[r]);
+    }
+}
+
+static TGT AI void k16f(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc, int acc) {
+    __m256 c0[6], c1[6];
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        c0[r] = acc ? _mm256_loadu_ps(C + (size_t)r * ldc) : _mm256_setzero_ps();
+        c1[r] = acc ? _mm256_loadu_ps(C + (size_t)r * ldc + 8) : _mm256_setzero_ps();
+    }
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb;
+        __m256 b0 = _mm256_loadu_ps(b), b1 = _mm256_loadu_ps(b + 8);
+#pragma GCC unroll 6
+        for (int r = 0; r < MR; r++) {
+            __m256 a = _mm256_broadcast_ss(A + (size_t)r * lda + k);
+            c0[r] = _mm256_fmadd_ps(a, b0, c0[r]);
+            c1[r] = _mm256_fmadd_ps(a, b1, c1[r]);
+        }
+    }
+#pragma GCC unroll 6
+    for (int r = 0; r < MR; r++) {
+        _mm256_storeu_ps(C + (size_t)r * ldc, c0[r]);
+        _mm256_storeu_ps(C + (size_t)r * ldc + 8, c1[r]);
+    }
+}
+
+/* MR rows x up to 8 columns (one masked vector). */
+static TGT AI void k8(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc, int acc,
+                      __m256i m0) {
+    __m256 c0[12];
+#pragma GCC unroll 12
+    for (int r = 0; r < MR; r++) c0[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc, m0) : _mm256_setzero_ps();
+    for (int k = 0; k < K; k++) {
+        __m256 b0 = _mm256_maskload_ps(B + (size_t)k * ldb, m0);
+#pragma GCC unroll 12
+        for (int r = 0; r < MR; r++) c0[r] = _mm256_fmadd_ps(_mm256_broadcast_ss(A + (size_t)r * lda + k), b0, c0[r]);
+    }
+#pragma GCC unroll 12
+    for (int r = 0; r < MR; r++) _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
+}
+
+static TGT void gemm_avx2(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                          int acc) {
+    /* column panels outermost: a K x 16 panel of B stays in L1 while the rows stream past */
+    for (int j = 0; j < N; j += 16) {
+        int nr = N - j < 16 ? N - j : 16;
+        const float *Bj = B + j;
+        float *Cj = C + j;
+        if (nr <= 8) {
+            int32_t lane[8];
+            for (int t = 0; t < 8; t++) lane[t] = t < nr ? -1 : 0;
+            __m256i m0 = _mm256_loadu_si256((const __m256i *)lane);
+            int i = 0;
+            for (; i + 12 <= M; i += 12) k8(12, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0);
+            for (; i + 4 <= M; i += 4) k8(4, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0);
+            for (; i < M; i++) k8(1, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0);
+            continue;
+        }
+        int i = 0;
+        if (nr == 16) {
+            for (; i + 6 <= M; i += 6) k16f(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc);
+            const float *Ai = A + (size_t)i * lda;
+            float *Ci = Cj + (size_t)i * ldc;
+            switch (M - i) {
+            case 5: k16f(5, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
+            case 4: k16f(4, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
+            case 3: k16f(3, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
+            case 2: k16f(2, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
+            case 1: k16f(1, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
+            default: break;
+            }
+            continue;
+        }
+        int32_t lane[16];
+        for (int t = 0; t < 16; t++) lane[t] = t < nr ? -1 : 0;
+        __m256i m0 = _mm256_loadu_si256((const __m256i *)lane), m1 = _mm256_loadu_si256((const __m256i *)(lane + 8));
+        for (; i + 6 <= M; i += 6) k16(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0, m1);
+        const float *Ai = A + (size_t)i * lda;
+        float *Ci = Cj + (size_t)i * ldc;
+        switch (M - i) {
+        case 5: k16(5, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
+        case 4: k16(4, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
+        case 3: k16(3, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
+        case 2: k16(2, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
+        case 1: k16(1, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
+        default: break;
+        }
+    }
+}
+#endif
+
+static atomic_int r_mode = -1;   /* -1 unknown, 0 OpenBLAS, 1 AVX2/FMA */
+
+static int r_avx2(void) {
+    int mode = atomic_load_explicit(&r_mode, memory_order_relaxed);
+    if (mode < 0) {
+        mode = 0;
+#ifdef RN_X86
+        __builtin_cpu_init();
+        mode = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
+        if (getenv("SOOC_NO_AVX2")) mode = 0;
+        atomic_store_explicit(&r_mode, mode, memory_order_relaxed);
+    }
+    return mode;
+}
+
+void sooc_nn_r_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                    int acc) {
+    if (M <= 0 || N <= 0) return;
+    if (K <= 0) {
+        if (!acc)
+            for (int i = 0; i < M; i++) memset(C + (size_t)i * ldc, 0, (size_t)N * sizeof(float));
+        return;
+    }
+#ifdef RN_X86
+    if (r_avx2()) {
+        gemm_avx2(M, N, K, A, lda, B, ldb, C, ldc, acc);
+        return;
+    }
+#endif
+    gemm_blas(M, N, K, A, lda, B, ldb, C, ldc, acc);
+}
+
+/* ------------------------------------------------------------ im2col */
+
+/* Each input row feeds one or two output rows per kx (even columns, odd columns,
+ * even columns shifted by one with the pad last), written by plain loops. */
+void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int Hi, int Wi, float *cols) {
+    int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
+    size_t No = (size_t)(b1 - b0) * HWo;
+    SOOC_ASSERT(Hi % 2 == 0 && Wi % 2 == 0);
+    for (int cc = 0; cc < nc; cc++)
+        for (int b = b0; b < b1; b++) {
+            const float *xb = x + ((size_t)(c0 + cc) * B + b) * Hi * Wi;
+            float *base = cols + (size_t)cc * 9 * No + (size_t)(b - b0) * HWo;
+            for (int kx = 0; kx < 3; kx++) {
+                float *restrict r = base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo;
+                for (int ox = 0; ox < Wo; ox++) r[ox] = 0.0f;
+            }
+            for (int iy = 0; iy < Hi; iy++) {
+                const float *restrict xr = xb + (size_t)iy * Wi;
+                int ky[2], oy[2], nt = 0;
+                if (iy & 1) {
+                    ky[nt] = 1, oy[nt++] = iy >> 1;
+                } else {
+                    ky[nt] = 0, oy[nt++] = iy >> 1;
+                    if (iy >= 2) ky[nt] = 2, oy[nt++] = (iy >> 1) - 1;
+                }
+                for (int t = 0; t < nt; t++) {
+                    float *restrict r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
+                    float *restrict r1 = r0 + No, *restrict r2 = r0 + 2 * No;
+                    for (int ox = 0; ox < Wo; ox++) {
+                        r0[ox] = xr[2 * ox];
+                        r1[ox] = xr[2 * ox + 1];
+                    }
+                    for (int ox = 0; ox + 1 < Wo; ox++) r2[ox] = xr[2 * ox + 2];
+                    r2[Wo - 1] = 0.0f;
+                }
+            }
+        }
+}
+
+/* dx[ci] += the columns of channel ci (all B items), taps in (ky, kx) order. */
+static void col2im_ch(const float *cols, int ci, int B, int Hi, int Wi, float *dx) {
+    int Ho = Hi / 2, Wo = Wi / 2;
+    size_t No = (size_t)B * Ho * Wo;
+    for (int ky = 0; ky < 3; ky++)
+        for (int kx = 0; kx < 3; kx++) {
+            const float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
+            for (int b = 0; b < B; b++) {
+                float *xb = dx + ((size_t)ci * B + b) * Hi * Wi;
+                for (int oy = 0; oy < Ho; oy++) {
+                    int iy = 2 * oy + ky;
+                    if (iy >= Hi) continue;
+                    const float *r = row + ((size_t)b * Ho + oy) * Wo;
+                    float *xr = xb + (size_t)iy * Wi + kx;
+                    int n = kx == 2 ? Wo - 1 : Wo;   /* the last tap of kx = 2 is the pad column */
+                    for (int ox = 0; ox < n; ox++) xr[2 * ox] += r[ox];
+                }
+            }
+        }
+}
+
+/* ------------------------------------------------------------ forward */
+
+void sooc_nn_rconv_shared(float *ysh, float *cols, const float *x, const float *w, int B, int Ci, int H, int W,
+                          int Co, int nsh) {
+    int HWo = (H / 2) * (W / 2);
+    sooc_nn_rconv_im2col(x, 0, nsh, B, 0, 1, H, W, cols);
+    sooc_nn_r_gemm(Co, HWo, nsh * 9, w, Ci * 9, cols, HWo, ysh, HWo, 0);
+}
+
+void sooc_nn_rconv_forward(float *y, float *cols, const float *x, const float *w, const float *b,
+                           const float *ysh, int nsh, int B, int b0, int b1, int Ci, int H, int W, int Co,
+                           sooc_nn_act act) {
+    SOOC_ASSERT(act == SOOC_NN_ACT_NONE || act == SOOC_NN_ACT_ELU);
+    int HWo = (H / 2) * (W / 2), nb = b1 - b0, ldy = B * HWo, N = nb * HWo;
+    if (nb <= 0) return;
+    int c0 = ysh ? nsh : 0;
+    float *yb = y + (size_t)b0 * HWo;
+    if (ysh)
+        for (int co = 0; co < Co; co++)
+            for (int q = 0; q < nb; q++) memcpy(yb + (size_t)co * ldy + (size_t)q * HWo, ysh + (size_t)co * HWo,
+                                                (size_t)HWo * sizeof(float));
+    sooc_nn_rconv_im2col(x, c0, Ci - c0, B, b0, b1, H, W, cols);
+    sooc_nn_r_gemm(Co, N, (Ci - c0) * 9, w + c0 * 9, Ci * 9, cols, N, yb, ldy, ysh != NULL);
+    for (int co = 0; co < Co; co++) {
+        float *r = yb + (size_t)co * ldy, bias = b ? b[co] : 0.0f;
+        if (act == SOOC_NN_ACT_ELU) sooc_nn_r_elu_bias(r, N, bias);
+        else if (b)
+            for (int j = 0; j < N; j++) r[j] += bias;
+    }
+}
+
+/* ------------------------------------------------------------ backward */
+
+#define RC_BLOCKS 4   /* fixed output blocks of the backward GEMMs (independent of the thread count) */
+#define RC_PAR_FLOPS 2.0e6
+
+void sooc_nn_rconv_backward(float *dx, float *dw, float *db, float *dy, const float *y, const float *x,
+                            const float *w, float *cols, float *dcols, int B, int Ci, int H, int W, int Co,
+                            sooc_nn_act act) {
+    SOOC_ASSERT(act == SOOC_NN_ACT_NONE || act == SOOC_NN_ACT_ELU);
+    int HWo = (H / 2) * (W / 2), No = B * HWo, Kc = Ci * 9;
+    double flops = 2.0 * Co * (double)Kc * No;
+    int par = flops > RC_PAR_FLOPS;
+    (void)par;
+    sooc_nn_blas_single();
+#pragma omp parallel if (par)
+    {
+#pragma omp for schedule(static)
+        for (int co = 0; co < Co; co++) {
+            float *g = dy + (size_t)co * No;
+            const float *yy = y + (size_t)co * No;
+            if (act == SOOC_NN_ACT_ELU)
+                for (int j = 0; j < No; j++) g[j] *= yy[j] > 0 ? 1.0f : yy[j] + 1.0f;
+            if (db) {
+                double s = 0;
+                for (int j = 0; j < No; j++) s += g[j];
+                db[co] += (float)s;
+            }
+        }
+#pragma omp for schedule(static)
+        for (int ci = 0; ci < Ci; ci++) sooc_nn_rconv_im2col(x, ci, 1, B, 0, B, H, W, cols + (size_t)ci * 9 * No);
+        /* dw[Co][Kc] += dz[Co][No] cols[Kc][No]^T in column blocks; dcols = w^T dz in row blocks */
+#pragma omp for schedule(static)
+        for (int t = 0; t < 2 * RC_BLOCKS; t++) {
+            int blk = t % RC_BLOCKS, lo = (int)((int64_t)Kc * blk / RC_BLOCKS), hi = (int)((int64_t)Kc * (blk + 1) / RC_BLOCKS);
+            if (hi <= lo) continue;
+            if (t < RC_BLOCKS) {
+                if (dw)
+                    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, hi - lo, No, 1.0f, dy, No,
+                                cols + (size_t)lo * No, No, 1.0f, dw + lo, Kc);
+            } else if (dx) {
+                cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, hi - lo, No, Co, 1.0f, w + lo, Kc, dy, No, 0.0f,
+                            dcols + (size_t)lo * No, No);
+            }
+        }
+        if (dx) {
+#pragma omp for schedule(static)
+            for (int ci = 0; ci < Ci; ci++) col2im_ch(dcols, ci, B, H, W, dx);
+        }
+    }
+}
+
+/* ------------------------------------------------------------ float64 */
+
+void sooc_nn_rconv_forward_f64(double *y, const double *x, const double *w, const double *b, int B, int Ci, int H,
+                               int W, int Co, sooc_nn_act act) {
+    int Ho = H / 2, Wo = W / 2;
+    for (int co = 0; co < Co; co++)
+        for (int bb = 0; bb < B; bb++)
+            for (int oy = 0; oy < Ho; oy++)
+                for (int ox = 0; ox < Wo; ox++) {
+                    double s = b ? b[co] : 0.0;
+                    for (int ci = 0; ci < Ci; ci++)
+                        for (int ky = 0; ky < 3; ky++)
+                            for (int kx = 0; kx < 3; kx++) {
+                                int iy = 2 * oy + ky, ix = 2 * ox + kx;
+                                if (iy >= H || ix >= W) continue;
+                                s += w[((size_t)co * Ci + ci) * 9 + ky * 3 + kx] *
+                                     x[(((size_t)ci * B + bb) * H + iy) * W + ix];
+                            }
+                    double *o = y + (((size_t)co * B + bb) * Ho + oy) * Wo + ox;
+                    *o = act == SOOC_NN_ACT_ELU && s <= 0 ? expm1(s) : s;
+                }
+}
+
+void sooc_nn_rconv_backward_f64(double *dx, double *dw, double *db, const double *dy, const double *y,
+                                const double *x, const double *w, int B, int Ci, int H, int W, int Co,
+                                sooc_nn_act act) {
+    int Ho = H / 2, Wo = W / 2;
+    for (int co = 0; co < Co; co++)
+        for (int bb = 0; bb < B; bb++)
+            for (int oy = 0; oy < Ho; oy++)
+                for (int ox = 0; ox < Wo; ox++) {
+                    size_t o = (((size_t)co * B + bb) * Ho + oy) * Wo + ox;
+                    double g = dy[o] * (act == SOOC_NN_ACT_ELU && y[o] <= 0 ? y[o] + 1.0 : 1.0);
+                    if (db) db[co] += g;
+                    for (int ci = 0; ci < Ci; ci++)
+                        for (int ky = 0; ky < 3; ky++)
+                            for (int kx = 0; kx < 3; kx++) {
+                                int iy = 2 * oy + ky, ix = 2 * ox + kx;
+                                if (iy >= H || ix >= W) continue;
+                                size_t wi = ((size_t)co * Ci + ci) * 9 + ky * 3 + kx;
+                                size_t xi = (((size_t)ci * B + bb) * H + iy) * W + ix;
+                                if (dw) dw[wi] += g * x[xi];
+                                if (dx) dx[xi] += g * w[wi];
+                            }
+                }
+}
