@@ -51,6 +51,38 @@ sooc_status sooc_dataset_open(sooc_dataset **out, const char *const *dirs, int n
 struct sooc_framepath_params;
 sooc_status sooc_dataset_open_fp(sooc_dataset **out, const char *const *dirs, int n_dirs,
                                  const struct sooc_framepath_params *fpp);
+/* Training from recordings (docs/training.md "Training from recordings").
+ * A recorded sequence's frames at sequence positions p with
+ * p % held_out_every == held_out_every / 2 are the frames `sooc3d eval` holds
+ * out (sooc_eval_real_is_query): they are loaded with is_query = 1 and never
+ * returned by sooc_dataset_sample. Of the other frames, the input views are a
+ * keyframe chain (each at least view_min_cm from the previous one or turned
+ * by at least view_min_deg between optical axes), and each query view is,
+ * among the frames outside the segment, the nearest one that is at least
+ * view_min_cm from every input view of the segment or turned by at least
+ * view_min_deg from it. Synthetic scenes keep their own input/query views.
+ * world_dir (may be NULL): each recorded sequence's support-plane world
+ * frame is stored there (world_<name>_<hash>.sqlite, a map database with the
+ * frame only) when first estimated and reused by later runs (--resume), as
+ * the node keeps it in its map. */
+#define SOOC_DATASET_VIEW_MIN_CM 5.0
+#define SOOC_DATASET_VIEW_MIN_DEG 5.0
+typedef struct sooc_dataset_rec_params {
+    double view_min_cm;      /* (SOOC_DATASET_VIEW_MIN_CM)                         */
+    double view_min_deg;     /* (SOOC_DATASET_VIEW_MIN_DEG)                        */
+    int held_out_every;      /* 0 = no held-out frames, else >= 2 (SOOC_DATASET_QUERY_EVERY) */
+    const char *world_dir;   /* (NULL)                                             */
+} sooc_dataset_rec_params;
+void sooc_dataset_rec_params_default(sooc_dataset_rec_params *p);
+/* sooc_dataset_open_fp with the recording rule's parameters (NULL = defaults). */
+sooc_status sooc_dataset_open_rec(sooc_dataset **out, const char *const *dirs, int n_dirs,
+                                  const struct sooc_framepath_params *fpp, const sooc_dataset_rec_params *rp);
+int sooc_dataset_scene_recorded(const sooc_dataset *d, int scene);   /* 1: a recorded sequence */
+int sooc_dataset_n_recorded(const sooc_dataset *d);
+/* The scene of one training draw: uniform over all scenes (one
+ * sooc_rng_below, as before) unless recorded_frac > 0 and the set holds both
+ * kinds, then a recorded sequence with probability recorded_frac. */
+int sooc_dataset_pick(const sooc_dataset *d, double recorded_frac, sooc_rng *rng);
 void sooc_dataset_destroy(sooc_dataset *d);   /* NULL-safe */
 /* The model's metres per unit (config.unit_m; default 1): query views of
  * sooc_dataset_sample mode 0 weigh camera distance in model units against
@@ -108,6 +140,10 @@ typedef struct sooc_train_config {
     int64_t val_every;      /* validation (0 = off)                             (500) */
     int val_scenes;         /* validation scenes (from --val dirs)                (8) */
     float val_max_seconds;  /* stop the run cleanly after this many seconds (0 = no) */
+    /* training from recordings (sooc_dataset_rec_params) */
+    float view_min_cm;      /* input/query baseline, centimetres                   (5) */
+    float view_min_deg;     /* ... or degrees between optical axes                 (5) */
+    float recorded_frac;    /* share of draws from recorded sequences (0 = uniform) (0) */
 } sooc_train_config;
 
 void sooc_train_config_default(sooc_train_config *c);

@@ -45,6 +45,9 @@ void sooc_train_config_default(sooc_train_config *c) {
     c->val_every = 500;
     c->val_scenes = 8;
     c->val_max_seconds = 0;
+    c->view_min_cm = (float)SOOC_DATASET_VIEW_MIN_CM;
+    c->view_min_deg = (float)SOOC_DATASET_VIEW_MIN_DEG;
+    c->recorded_frac = 0;
 }
 
 typedef enum { F_INT, F_I64, F_U64, F_FLOAT, F_INT4 } ftype;
@@ -63,6 +66,7 @@ static const field g_train_fields[] = {
     TF(accum, F_INT, 1, 64), TF(threads, F_INT, 0, 256), TF(log_every, F_I64, 1, 1e9),
     TF(ckpt_every, F_I64, 1, 1e9), TF(val_every, F_I64, 0, 1e9), TF(val_scenes, F_INT, 1, 100000),
     TF(val_max_seconds, F_FLOAT, 0, 1e9),
+    TF(view_min_cm, F_FLOAT, 0, 1e4), TF(view_min_deg, F_FLOAT, 0, 180), TF(recorded_frac, F_FLOAT, 0, 1),
 };
 #define MF(n, t, lo, hi) {#n, t, offsetof(sooc_model_config, n), lo, hi}
 static const field g_model_fields[] = {

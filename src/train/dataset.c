@@ -3,11 +3,13 @@
  * cropped/resized to the model's, poses in the map's world frame. */
 #include "sooc3d/train.h"
 #include "sooc3d/framepath.h"
+#include "sooc3d/mapstore.h"
 #include "sooc3d/scene.h"
 #include "sooc3d/seq.h"
 
 #include <dirent.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -19,13 +21,27 @@ typedef struct ds_scene {
     int n_obj;
     uint16_t *obj_id;
     double *obj_xz;             /* n_obj x 2                       */
+    int recorded;               /* 1: a recorded sequence (no scene.yaml) */
+    int *cand_idx;              /* recorded: views that may be inputs or queries
+                                   (every view but the held-out ones)      */
+    int n_cand;
 } ds_scene;
 
 struct sooc_dataset {
     int n, cap;
     ds_scene *scenes;
     double unit_m;   /* the model's metres per unit for the query choice (0 = 1) */
+    sooc_dataset_rec_params rec;
+    int n_recorded;
 };
+
+void sooc_dataset_rec_params_default(sooc_dataset_rec_params *p) {
+    memset(p, 0, sizeof *p);
+    p->view_min_cm = SOOC_DATASET_VIEW_MIN_CM;
+    p->view_min_deg = SOOC_DATASET_VIEW_MIN_DEG;
+    p->held_out_every = SOOC_DATASET_QUERY_EVERY;
+    p->world_dir = NULL;
+}
 
 void sooc_dataset_set_unit(sooc_dataset *d, double unit_m) { d->unit_m = unit_m > 0 ? unit_m : 0; }
 
@@ -35,6 +51,7 @@ static void scene_free(ds_scene *s) {
     sooc_free(s->input_idx);
     sooc_free(s->obj_id);
     sooc_free(s->obj_xz);
+    sooc_free(s->cand_idx);
     sooc_free(s->path);
     memset(s, 0, sizeof *s);
 }
@@ -46,35 +63,113 @@ void sooc_dataset_destroy(sooc_dataset *d) {
     sooc_free(d);
 }
 
+/* Two camera poses (T_wc, row-major) differ by at least min_cm in centre
+ * position or at least min_deg between their optical axes. */
+static int views_distinct(const double *A, const double *B, double min_cm, double min_deg) {
+    double dx = A[3] - B[3], dy = A[7] - B[7], dz = A[11] - B[11];
+    if (100.0 * sqrt(dx * dx + dy * dy + dz * dz) >= min_cm) return 1;
+    double c = A[2] * B[2] + A[6] * B[6] + A[10] * B[10];
+    c = c > 1 ? 1 : c < -1 ? -1 : c;
+    return acos(c) * (180.0 / M_PI) >= min_deg;
+}
+
+/* Map database that keeps a recorded sequence's world frame (support plane)
+ * for the next run: world_dir/world_<name>_<hash of the path>.sqlite. */
+static sooc_status world_db_path(char *buf, size_t cap, const char *world_dir, const char *dir) {
+    size_t n = strlen(dir);
+    while (n > 1 && dir[n - 1] == '/') n--;
+    size_t b = n;
+    while (b > 0 && dir[b - 1] != '/') b--;
+    uint32_t h = 2166136261u;   /* FNV-1a of the path as given */
+    for (size_t i = 0; i < n; i++) h = (h ^ (uint8_t)dir[i]) * 16777619u;
+    char name[160];
+    int k = 0;
+    for (size_t i = b; i < n && k < 100; i++) {
+        char ch = dir[i];
+        name[k++] = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '-' ? ch : '_';
+    }
+    name[k] = 0;
+    int w = snprintf(buf, cap, "%s/world_%s_%08x.sqlite", world_dir, name, (unsigned)h);
+    if (w < 0 || (size_t)w >= cap) return sooc_seterr(SOOC_EINVAL, "%s: path too long", world_dir);
+    return SOOC_OK;
+}
+
+/* Store a fresh support-plane estimate where the next run reads it (as the
+ * node stores it in its map, docs/node.md "Support plane"). */
+static sooc_status world_store(sooc_framepath *fp, const char *db) {
+    sooc_map_frame mf;
+    memset(&mf, 0, sizeof mf);
+    sooc_framepath_frame_record(fp, mf.T_world_src, mf.up_src, mf.plane_src, &mf.cam_height_m, &mf.up_source);
+    sooc_mapstore *ms = NULL;
+    sooc_mapstore_params mp;
+    sooc_mapstore_params_default(&mp);
+    mp.dim = mp.layout_dim = 1;   /* no entries are stored, only the frame */
+    sooc_status s = sooc_mapstore_open(&ms, db, &mp);
+    if (!s) s = sooc_mapstore_frame_put(ms, &mf);
+    sooc_mapstore_close(ms);
+    if (s) return sooc_adderr(s, "%s: storing the world frame", db);
+    sooc_log(SOOC_LOG_INFO, "%s: world frame stored in %s", sooc_framepath_dir(fp), db);
+    return SOOC_OK;
+}
+
+/* Input views of a recorded sequence: a keyframe chain over the views that
+ * are not held out, each distinct (views_distinct) from the previous one. */
+static void recorded_chain(ds_scene *sc, const sooc_dataset_rec_params *rp) {
+    sc->n_inputs = 0;
+    int last = -1;
+    for (int c = 0; c < sc->n_cand; c++) {
+        int v = sc->cand_idx[c];
+        if (last >= 0 && !views_distinct(sc->views[v].T_wc, sc->views[last].T_wc, rp->view_min_cm, rp->view_min_deg))
+            continue;
+        sc->input_idx[sc->n_inputs++] = v;
+        last = v;
+    }
+}
+
 /* Load one scene directory: a synthetic scene (scene.yaml + TUM layout) or a
- * recorded sequence (no scene.yaml: no objects, query views by the rule of
- * SOOC_DATASET_QUERY_EVERY, frames without a pose skipped). */
-static sooc_status load_scene(ds_scene *out, const char *dir, const sooc_framepath_params *fpp) {
+ * recorded sequence (no scene.yaml: no objects; the frames at sequence
+ * positions p with p % held_out_every == held_out_every / 2 are held out
+ * (is_query, never sampled for training), frames without a pose skipped;
+ * inputs by recorded_chain). */
+static sooc_status load_scene(ds_scene *out, const char *dir, const sooc_framepath_params *fpp0,
+                              const sooc_dataset_rec_params *rp) {
     memset(out, 0, sizeof *out);
-    char path[4096];
+    char path[4096], db[4096];
     sooc_status s = sooc_path_join(path, sizeof path, dir, "scene.yaml");
     if (s) return s;
     int synthetic = sooc_file_exists(path);
+    sooc_framepath_params fpp = *fpp0;
+    int store = 0;   /* 1: store a fresh estimate in db */
+    if (!synthetic && rp->world_dir && rp->world_dir[0] && !fpp.map_db && fpp.world == SOOC_WORLD_AUTO) {
+        if ((s = world_db_path(db, sizeof db, rp->world_dir, dir))) return s;
+        if (sooc_file_exists(db)) fpp.map_db = db;   /* reused: a frame stored by an earlier run */
+        else store = 1;
+    }
     sooc_scene sc;
     sooc_scene_init(&sc);
     if (synthetic && (s = sooc_scene_load(path, &sc))) return s;
     sooc_framepath *fp = NULL;
-    s = sooc_framepath_open(&fp, dir, fpp);
+    s = sooc_framepath_open(&fp, dir, &fpp);
     if (s) { sooc_scene_free(&sc); return s; }
+    if (store && sooc_framepath_world_get(fp, NULL) == SOOC_WORLD_ESTIMATE && (s = world_store(fp, db)))
+        goto done;
     int64_t n = sooc_framepath_count(fp);
     if (n <= 0 || n > 100000) {
         s = sooc_seterr(SOOC_EFORMAT, "%s: %lld views", dir, (long long)n);
         goto done;
     }
     out->path = sooc_strdup(dir);
+    out->recorded = !synthetic;
     out->views = sooc_calloc((size_t)n, sizeof(sooc_frame));
     out->input_idx = sooc_calloc((size_t)n, sizeof(int));
+    out->cand_idx = sooc_calloc((size_t)n, sizeof(int));
     out->obj_id = sooc_calloc((size_t)sc.n_objects + 1, sizeof(uint16_t));
     out->obj_xz = sooc_calloc((size_t)sc.n_objects + 1, 2 * sizeof(double));
-    if (!out->path || !out->views || !out->input_idx || !out->obj_id || !out->obj_xz) {
+    if (!out->path || !out->views || !out->input_idx || !out->cand_idx || !out->obj_id || !out->obj_xz) {
         s = SOOC_ENOMEM;
         goto done;
     }
+    int every = rp->held_out_every;
     for (int64_t i = 0; i < n; i++) {
         int v = out->n_views;
         sooc_frame *f = &out->views[v];
@@ -92,11 +187,14 @@ static sooc_status load_scene(ds_scene *out, const char *dir, const sooc_framepa
         }
         if (synthetic) {
             if (sc.view_is_query && i < sc.n_views) f->is_query = sc.view_is_query[i];
+            if (!f->is_query) out->input_idx[out->n_inputs++] = v;
         } else {
-            f->is_query = v % SOOC_DATASET_QUERY_EVERY == SOOC_DATASET_QUERY_EVERY / 2;
+            /* the position in the sequence, as `sooc3d eval` counts it */
+            f->is_query = every >= 2 && i % every == every / 2;
+            if (!f->is_query) out->cand_idx[out->n_cand++] = v;
         }
-        if (!f->is_query) out->input_idx[out->n_inputs++] = v;
     }
+    if (!synthetic) recorded_chain(out, rp);
     if (out->n_inputs == 0) {
         s = sooc_seterr(SOOC_EFORMAT, "%s: no input views", dir);
         goto done;
@@ -126,8 +224,9 @@ static sooc_status push_scene(sooc_dataset *d, const char *dir, const sooc_frame
         d->scenes = ns;
         d->cap = cap;
     }
-    sooc_status s = load_scene(&d->scenes[d->n], dir, fpp);
+    sooc_status s = load_scene(&d->scenes[d->n], dir, fpp, &d->rec);
     if (s) return s;
+    d->n_recorded += d->scenes[d->n].recorded;
     d->n++;
     return SOOC_OK;
 }
@@ -183,11 +282,29 @@ sooc_status sooc_dataset_open(sooc_dataset **out, const char *const *dirs, int n
 
 sooc_status sooc_dataset_open_fp(sooc_dataset **out, const char *const *dirs, int n_dirs,
                                  const sooc_framepath_params *fpp) {
+    return sooc_dataset_open_rec(out, dirs, n_dirs, fpp, NULL);
+}
+
+sooc_status sooc_dataset_open_rec(sooc_dataset **out, const char *const *dirs, int n_dirs,
+                                  const sooc_framepath_params *fpp, const sooc_dataset_rec_params *rp) {
     *out = NULL;
     if (!fpp || fpp->width <= 0 || fpp->height <= 0)
         return sooc_seterr(SOOC_EINVAL, "dataset: the frame path needs the model's resolution");
+    sooc_dataset_rec_params def;
+    sooc_dataset_rec_params_default(&def);
+    if (!rp) rp = &def;
+    if (!(rp->view_min_cm >= 0 && rp->view_min_cm <= 1e4 && rp->view_min_deg >= 0 && rp->view_min_deg <= 180))
+        return sooc_seterr(SOOC_EINVAL, "dataset: view baseline %g cm / %g deg out of range (0..1e4 cm, 0..180 deg)",
+                           rp->view_min_cm, rp->view_min_deg);
+    if (rp->held_out_every == 1 || rp->held_out_every < 0)
+        return sooc_seterr(SOOC_EINVAL, "dataset: held-out rule N = %d (0 = none, else >= 2)", rp->held_out_every);
+    if (rp->world_dir && rp->world_dir[0]) {
+        sooc_status s = sooc_mkdirs(rp->world_dir);
+        if (s) return sooc_adderr(s, "dataset: world-frame folder %s", rp->world_dir);
+    }
     sooc_dataset *d = sooc_calloc(1, sizeof *d);
     if (!d) return SOOC_ENOMEM;
+    d->rec = *rp;
     for (int i = 0; i < n_dirs; i++) {
         sooc_status s = add_dir(d, dirs[i], fpp);
         if (s) { sooc_dataset_destroy(d); return s; }
@@ -198,6 +315,19 @@ sooc_status sooc_dataset_open_fp(sooc_dataset **out, const char *const *dirs, in
     }
     *out = d;
     return SOOC_OK;
+}
+
+int sooc_dataset_scene_recorded(const sooc_dataset *d, int s) { return d->scenes[s].recorded; }
+int sooc_dataset_n_recorded(const sooc_dataset *d) { return d->n_recorded; }
+
+int sooc_dataset_pick(const sooc_dataset *d, double recorded_frac, sooc_rng *rng) {
+    int nr = d->n_recorded, ns = d->n - d->n_recorded;
+    if (!(recorded_frac > 0) || nr == 0 || ns == 0) return (int)sooc_rng_below(rng, (uint32_t)d->n);
+    int rec = sooc_rng_uniform(rng) < recorded_frac;
+    int k = (int)sooc_rng_below(rng, (uint32_t)(rec ? nr : ns));
+    for (int i = 0; i < d->n; i++)
+        if (d->scenes[i].recorded == rec && k-- == 0) return i;
+    return d->n - 1;   /* not reached */
 }
 
 int sooc_dataset_n_scenes(const sooc_dataset *d) { return d->n; }
@@ -308,6 +438,47 @@ static int sample_held_out(const ds_scene *sc, int start, int T, int Q, sooc_rng
     return nq;
 }
 
+/* Query views of a recorded sequence: the Q views, among those neither held
+ * out nor in the segment, that are distinct (views_distinct) from every
+ * input view of the segment and nearest to it (floor distance in model units
+ * plus the angle between optical axes in radians, to the nearest segment
+ * view), so that they look at what the segment saw from a real baseline.
+ * Deterministic; ties go to the lower index. */
+static int sample_recorded(const ds_scene *sc, const sooc_frame *views, int T, int Q, double unit_m,
+                           const sooc_dataset_rec_params *rp, int seg_lo, int seg_hi, sooc_frame *queries) {
+    double iu = unit_m > 0 ? 1.0 / unit_m : 1.0;
+    int chosen[16], nq = 0;
+    if (Q > 16) Q = 16;
+    while (nq < Q) {
+        double best = INFINITY;
+        int best_v = -1;
+        for (int c = 0; c < sc->n_cand; c++) {
+            int v = sc->cand_idx[c];
+            if (v >= seg_lo && v <= seg_hi) continue;   /* inside the segment's stretch */
+            int dup = 0;
+            for (int k = 0; k < nq && !dup; k++) dup = chosen[k] == v;
+            if (dup) continue;
+            const double *Tq = sc->views[v].T_wc;
+            double dmin = INFINITY;
+            int ok = 1;
+            for (int t = 0; t < T && ok; t++) {
+                const double *Tv = views[t].T_wc;
+                if (!views_distinct(Tq, Tv, rp->view_min_cm, rp->view_min_deg)) { ok = 0; break; }
+                double dx = Tq[3] - Tv[3], dz = Tq[11] - Tv[11];
+                double ca = Tq[2] * Tv[2] + Tq[6] * Tv[6] + Tq[10] * Tv[10];
+                ca = ca > 1 ? 1 : ca < -1 ? -1 : ca;
+                double dist = sqrt(dx * dx + dz * dz) * iu + acos(ca);
+                if (dist < dmin) dmin = dist;
+            }
+            if (ok && dmin < best) { best = dmin; best_v = v; }
+        }
+        if (best_v < 0) break;
+        chosen[nq] = best_v;
+        queries[nq++] = sc->views[best_v];
+    }
+    return nq;
+}
+
 void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, int mode, sooc_rng *rng,
                          sooc_frame *views, int *n_views, sooc_frame *queries, int *n_queries) {
     const ds_scene *sc = &d->scenes[scene];
@@ -316,6 +487,11 @@ void sooc_dataset_sample(const sooc_dataset *d, int scene, int T, int Q, int mod
     for (int t = 0; t < T; t++) views[t] = sc->views[sc->input_idx[start + t]];
     *n_views = T;
     int nq = 0;
+    if (sc->recorded) {   /* documented rule: docs/training.md "Training from recordings" */
+        *n_queries = Q > 0 ? sample_recorded(sc, views, T, Q, d->unit_m, &d->rec, sc->input_idx[start],
+                                             sc->input_idx[start + T - 1], queries) : 0;
+        return;
+    }
     if (mode == 1 && Q > 0) nq = sample_held_out(sc, start, T, Q, rng, queries);
     if (nq == 0) nq = sample_nearest(sc, views, T, Q, d->unit_m, queries);
     *n_queries = nq;

@@ -306,7 +306,6 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
                               cfg->cosine ? SOOC_NN_DECAY_COSINE : SOOC_NN_DECAY_LINEAR};
 
     const sooc_dataset *ds = rp->train;
-    int nsc = sooc_dataset_n_scenes(ds);
     sooc_frame views[64], queries[16];
     sooc_progress prog;
     /* progress (rate, ETA) counts the steps of this session, so a resumed run's
@@ -339,7 +338,7 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             curriculum(cfg, step, &rng, &T, &Q);
             if (T > 64) T = 64;
             if (Q > 16) Q = 16;
-            int sc = (int)sooc_rng_below(&rng, (uint32_t)nsc), nv = 0, nq = 0;
+            int sc = sooc_dataset_pick(ds, cfg->recorded_frac, &rng), nv = 0, nq = 0;
             sooc_dataset_sample(ds, sc, T, Q, cfg->query_held_out, &rng, views, &nv, queries, &nq);
             sooc_step_losses l;
             if (sooc_model_is_global(tr.model))   /* MulMON-style baseline (docs/baseline.md) */
