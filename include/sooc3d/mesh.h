@@ -110,8 +110,10 @@ typedef struct sooc_mesh_opts {
     int res;              /* samples per axis over an object's box     (64) */
     float level;          /* on sigma_hat                    (SOOC_MESH_LEVEL) */
     int threads;          /* 0 = OpenMP default                          (0) */
-    double layout_cell;   /* layout grid spacing, m                   (0.05) */
-    double layout_y[2];   /* layout grid height range, m        (-0.25, 3.0) */
+    double layout_cell;   /* layout grid spacing                      (0.05) */
+    double layout_y[2];   /* layout grid height range           (-0.25, 3.0)
+                             (layout lengths in metres for a model with
+                             unit_m 1; they are multiplied by unit_m)        */
 } sooc_mesh_opts;
 void sooc_mesh_opts_default(sooc_mesh_opts *o);
 
@@ -126,12 +128,27 @@ sooc_status sooc_mesh_object(struct sooc_model *m, const sooc_cogmap *map, uint6
 sooc_status sooc_mesh_layout(struct sooc_model *m, const sooc_cogmap *map, const sooc_mesh_opts *o,
                              sooc_mesh *out);
 
+/* Write <dir>/object_<id>.ply for map entries ids[0..n_ids) (ids NULL: every
+ * entry) and <dir>/scene.ply (those objects plus the layout), creating dir;
+ * each file is written atomically. An entry with nothing above the level
+ * gets a PLY without vertices. */
+typedef struct sooc_mesh_write_stats {
+    int n_objects, n_empty;     /* object files written, of which empty        */
+    size_t n_vert, n_tri;       /* of scene.ply                                */
+    size_t n_layout_tri;        /* layout triangles in scene.ply               */
+} sooc_mesh_write_stats;
+sooc_status sooc_mesh_write_map(struct sooc_model *m, const sooc_cogmap *map, const char *dir, const sooc_mesh_opts *o,
+                                const uint64_t *ids, size_t n_ids, sooc_mesh_write_stats *stats);
+
 /* ---- the Atlas mesh metric (model.md §1.6 / §5.5) ---- */
 typedef struct sooc_mesh_metric {
     double acc_cm;        /* mean over predicted points of the distance to GT, cm */
     double comp_cm;       /* mean over GT points of the distance to prediction, cm */
     double precision, recall, fscore;   /* at 5 cm                          */
-    int n_objects;        /* objects averaged over (matched GT objects)      */
+    int n_objects;        /* objects averaged over (matched GT objects whose
+                             map entry has a non-empty mesh)                 */
+    int n_empty;          /* matched objects whose mesh is empty (nothing above
+                             the level): not averaged, counted here          */
     int n_gt;             /* GT objects in the scene                         */
 } sooc_mesh_metric;
 

@@ -23,6 +23,12 @@ int sooc_cmd_calib(int argc, char **argv);
 /* `sooc3d gen --board ...`: board views for calibration (cmd_calib.c). */
 int sooc_cmd_gen_board(int argc, char **argv);
 
+/* cmd_mesh.c: meshes of a stored map into dir (`sooc3d mesh`, `sooc3d map export --ply DIR
+ * --model M`); box = X0 Z0 X1 Z1 (objects whose floor point lies in it) or NULL. Exit code. */
+struct sooc_mesh_opts;
+int sooc_cli_mesh_map(const char *cmd, const char *db, const char *model, const char *dir,
+                      const struct sooc_mesh_opts *o, const double *box);
+
 /* Print "sooc3d <cmd>: <status>: <errmsg>" to stderr and return 1. */
 int sooc_cli_fail(const char *cmd, sooc_status s);
 /* True if argv has -h or --help. */

@@ -2,6 +2,7 @@
  * include/sooc3d/mapstore.h). Read-only: never modifies the database. */
 #include "cli.h"
 #include "sooc3d/mapstore.h"
+#include "sooc3d/mesh.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -13,6 +14,7 @@ static void map_usage(FILE *f) {
             "usage: sooc3d map list   --db MAP.sqlite [--limit N]\n"
             "       sooc3d map query  --db MAP.sqlite --box X0 Z0 X1 Z1\n"
             "       sooc3d map export --db MAP.sqlite (--csv|--json|--ply) FILE [--box X0 Z0 X1 Z1]\n"
+            "       sooc3d map export --db MAP.sqlite --ply DIR --model M [--res N] [--level L] [--box ...]\n"
             "       sooc3d map info   --db MAP.sqlite\n"
             "\n"
             "Reads a persistent cognitive map (written by `sooc3d node`; `sooc3d infer` writes JSON/CSV,\n"
@@ -29,6 +31,10 @@ static void map_usage(FILE *f) {
             "                        coloured by a hash of its id, with properties id, yaw,\n"
             "                        presence (open it in MeshLab / CloudCompare / Open3D)\n"
             "           FILE may be '-' for standard output.\n"
+            "           --ply DIR --model M: the objects' MESHES instead (what `sooc3d mesh` writes:\n"
+            "                        DIR/object_<id>.ply and DIR/scene.ply, binary PLY with vertex\n"
+            "                        colours, world frame; --res N samples per box axis, default 64;\n"
+            "                        --level L on sigma_hat, default 0.5; docs/mesh.md)\n"
             "  info     schema version, model id, dims, counts, journal mode\n"
             "\n"
             "  --db FILE     the map database (required; it is never created or modified)\n"
@@ -130,13 +136,24 @@ int sooc_cmd_map(int argc, char **argv) {
         map_usage(stderr);
         return 2;
     }
-    const char *sub = argv[1], *db = NULL, *out = NULL;
-    int fmt = -1, has_box = 0;
+    const char *sub = argv[1], *db = NULL, *out = NULL, *model = NULL;
+    int fmt = -1, has_box = 0, mesh_opt = 0;
+    sooc_mesh_opts mo;
+    sooc_mesh_opts_default(&mo);
     double box[4] = {0};
     size_t limit = 0;
     for (int i = 2; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--db") && i + 1 < argc) db = argv[++i];
+        else if (!strcmp(a, "--model") && i + 1 < argc) model = argv[++i];
+        else if (!strcmp(a, "--res") && i + 1 < argc) {
+            if (!sooc_cli_int_opt("map", "--res", argv[++i], 2, 1024, &mo.res)) return 2;
+            mesh_opt = 1;
+        } else if (!strcmp(a, "--level") && i + 1 < argc) {
+            double l;
+            if (!sooc_cli_double_opt("map", "--level", argv[++i], 1e-6, 1 - 1e-6, &l)) return 2;
+            mo.level = (float)l, mesh_opt = 1;
+        }
         else if ((!strcmp(a, "--csv") || !strcmp(a, "--json") || !strcmp(a, "--ply")) && i + 1 < argc) {
             if (fmt >= 0) { fprintf(stderr, "sooc3d map: give one of --csv, --json, --ply\n"); return 2; }
             fmt = a[2] == 'c' ? 1 : a[2] == 'j' ? 2 : 3;
@@ -173,6 +190,11 @@ int sooc_cmd_map(int argc, char **argv) {
     if (is_query && !has_box) { fprintf(stderr, "sooc3d map query: --box X0 Z0 X1 Z1 is required\n"); return 2; }
     if (is_export && fmt < 0) { fprintf(stderr, "sooc3d map export: give --csv, --json or --ply FILE\n"); return 2; }
     if (!is_export && fmt >= 0) { fprintf(stderr, "sooc3d map %s: --csv/--json/--ply belong to export\n", sub); return 2; }
+    if ((model || mesh_opt) && !(is_export && fmt == 3)) {
+        fprintf(stderr, "sooc3d map: --model/--res/--level belong to export --ply DIR (meshes)\n");
+        return 2;
+    }
+    if (model) return sooc_cli_mesh_map("map export", db, model, out, &mo, has_box ? box : NULL);
 
     sooc_mapstore_params p;
     sooc_mapstore_params_default(&p);
