@@ -218,6 +218,11 @@ typedef struct sooc_eval_run_opts {
                                   for the global-frame baseline                        (0) */
     int invalid_depth;         /* 0 = the model's config.invalid_depth; 1 + SOOC_INVALID_DEPTH_*
                                   overrides it (2 = holes unknown; docs/model.md)       (0) */
+    const struct sooc_scene *scene;  /* the scene's description (scene.yaml) or NULL: with it, the
+                                  final map's mesh accuracy / completeness (mesh.h
+                                  sooc_mesh_eval_scene) go into the mesh sums of every cell
+                                  of the scene (input and query rows)                   (NULL) */
+    int mesh_res;              /* samples per box axis for those meshes; 0 = 64         (0) */
     /* extras, only for the views flagged in detail_views (NULL = every view): */
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */
@@ -261,6 +266,8 @@ typedef struct sooc_eval_scene_result {
     int n_mapped, n_query;           /* input views mapped, query views scored            */
     size_t n_entries;                /* map entries at the end                            */
     double update_s, render_s;       /* time in mapper updates and in render + scoring    */
+    double mesh_s;                   /* time in the mesh metric (opts.scene)               */
+    int mesh_objects, mesh_empty;    /* objects it averaged / matched with an empty mesh   */
 } sooc_eval_scene_result;
 
 /* Run one scene (see above). frames[0..n_frames): trajectory order, input

@@ -4,6 +4,7 @@
  * input views from the final map and/or right after their own update). */
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
+#include "sooc3d/mesh.h"
 
 #include <math.h>
 #include <string.h>
@@ -300,6 +301,28 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         }
     }
     if (!st) res->n_entries = sooc_cogmap_count(C.map);
+    if (!st && o->scene) {   /* mesh accuracy / completeness of the final map (docs/mesh.md) */
+        sooc_mesh_opts mo;
+        sooc_mesh_opts_default(&mo);
+        if (o->mesh_res > 0) mo.res = o->mesh_res;
+        mo.threads = o->threads;
+        sooc_mesh_metric mm;
+        double t0 = sooc_seconds();
+        st = sooc_mesh_eval_scene(C.model, C.map, o->scene, &mo, &mm);
+        res->mesh_s = sooc_seconds() - t0;
+        if (!st) {
+            res->mesh_objects = mm.n_objects, res->mesh_empty = mm.n_empty;
+            sooc_mesh_sums ms = {mm.n_objects, mm.n_objects * mm.acc_cm, mm.n_objects * mm.comp_cm,
+                                 mm.n_objects * mm.fscore};
+            if (mm.n_objects) {
+                sooc_metric_sums *cells[3] = {&res->input_final, &res->input_online, &res->query};
+                for (int k = 0; k < 3; k++) {
+                    cells[k]->mesh.n_obj += ms.n_obj, cells[k]->mesh.acc_cm += ms.acc_cm;
+                    cells[k]->mesh.comp_cm += ms.comp_cm, cells[k]->mesh.fscore += ms.fscore;
+                }
+            }
+        }
+    }
 done:
     sooc_render_out_free(&C.rout);
     sooc_free(ent);
