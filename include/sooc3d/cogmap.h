@@ -244,6 +244,25 @@ size_t sooc_cogmap_layout_count(const sooc_cogmap *m);
 typedef int (*sooc_cogmap_block_fn)(void *user, int32_t bi, int32_t bj, const float *mu, const float *logvar);
 int sooc_cogmap_layout_foreach(const sooc_cogmap *m, sooc_cogmap_block_fn fn, void *user);
 
+/* ------------------------------------------------------------- payloads */
+/* A float vector kept with an entry id or a layout block: the finetuned
+ * decoder of the object / block (include/sooc3d/finetune.h; the model's field
+ * renders with it, sooc_mapstore_load_map / _save_map carry it). The map
+ * only stores the values: their meaning is the finetuning module's. Keyed by
+ * id (ids are never reused, so a payload of a removed entry is never looked
+ * up again); sooc_cogmap_clear and _destroy drop every payload.
+ * set: copies v[0..n); n = 0 removes; non-finite values -> SOOC_ENUMERIC.
+ * get: the stored values (valid until the next set/clear of that key) and *n,
+ * or NULL (*n = 0) if none. */
+sooc_status sooc_cogmap_payload_set(sooc_cogmap *m, uint64_t id, const float *v, size_t n);
+const float *sooc_cogmap_payload_get(const sooc_cogmap *m, uint64_t id, size_t *n);
+sooc_status sooc_cogmap_block_payload_set(sooc_cogmap *m, int32_t bi, int32_t bj, const float *v, size_t n);
+const float *sooc_cogmap_block_payload_get(const sooc_cogmap *m, int32_t bi, int32_t bj, size_t *n);
+size_t sooc_cogmap_payload_count(const sooc_cogmap *m);
+/* Visit every payload (is_block: 0 entry `id`, 1 block (bi, bj)); non-zero stops. */
+typedef int (*sooc_cogmap_payload_fn)(void *user, int is_block, uint64_t id, int32_t bi, int32_t bj, const float *v,
+                                      size_t n);
+int sooc_cogmap_payload_foreach(const sooc_cogmap *m, sooc_cogmap_payload_fn fn, void *user);
 #ifdef __cplusplus
 }
 #endif

@@ -227,6 +227,10 @@ typedef struct sooc_eval_run_opts {
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */
     const uint8_t *detail_views;  /* n_frames flags, or NULL                          (NULL) */
+    /* SOOC3D+ (issue 19): after online inference, finetune every object and
+     * layout block of the map by EM on the input views (finetune.h), then score
+     * the views from the finetuned map; NULL = no finetuning              (NULL) */
+    const struct sooc_finetune_params *finetune;
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 
@@ -268,6 +272,7 @@ typedef struct sooc_eval_scene_result {
     double update_s, render_s;       /* time in mapper updates and in render + scoring    */
     double mesh_s;                   /* time in the mesh metric (opts.scene)               */
     int mesh_objects, mesh_empty;    /* objects it averaged / matched with an empty mesh   */
+    double finetune_s;               /* time in finetuning (opts.finetune)                */
 } sooc_eval_scene_result;
 
 /* Run one scene (see above). frames[0..n_frames): trajectory order, input

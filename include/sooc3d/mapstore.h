@@ -25,6 +25,26 @@
  *        n_changed, n_removed, n_entries)
  * Latent blobs, latent_version 1: dim little-endian IEEE float32 values.
  *
+ * Schema version 2 (issue 19) adds the finetuned decoders (finetune.h):
+ *   ft_objects(id INTEGER PRIMARY KEY, version, n, crc, data BLOB, steps, loss)
+ *   ft_layout(bi, bj, version, n, crc, data BLOB, steps, loss, PRIMARY KEY(bi, bj))
+ *   trigger entries_ad_ft: deleting an entry deletes its decoder.
+ * data: n little-endian float32 (a cogmap payload), crc = CRC-32 of its bytes,
+ * version 1. A version-1 map is migrated on its first read-write open (one
+ * transaction: the tables, then schema_version 2); opened read-only it reads
+ * as before, without finetuned decoders. load_map puts the stored decoders
+ * into the map's payloads (cogmap.h); save_map stores the map's payloads.
+ *
+ * Schema version 3 (issue 19 item 5) adds the object geometry for planners
+ * (include/sooc3d/objgeom.h, docs/shm.md):
+ *   entry_geometry(id INTEGER PRIMARY KEY, flags, ext_x, ext_y, ext_z,
+ *        centre_x, centre_y, centre_z, sym_score, cov_xx, cov_xz, cov_zz,
+ *        var_yaw (NULL = undefined), reg_n, reg_mean_x, reg_mean_z, reg_m2_xx,
+ *        reg_m2_xz, reg_m2_zz, reg_cos, reg_sin)
+ *   trigger entries_ad_geom: deleting an entry deletes its geometry.
+ * Migrations apply in order on a read-write open, one transaction each
+ * (1 -> 2, then 2 -> 3); a read-only open of an older map reads no geometry.
+ *
  * Errors: every failure message starts with the database path; a file that is
  * not an SQLite database, not a sooc3d map, or corrupt gives SOOC_EFORMAT, a
  * schema/dimension/model mismatch SOOC_EVERSION, a missing file (create = 0)
@@ -38,12 +58,13 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/cogmap.h"
+#include "sooc3d/mapper.h"   /* sooc_map_geometry */
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define SOOC_MAPSTORE_SCHEMA_VERSION 1
+#define SOOC_MAPSTORE_SCHEMA_VERSION 3
 #define SOOC_MAPSTORE_LATENT_VERSION 1
 
 typedef struct sooc_mapstore sooc_mapstore;
@@ -142,6 +163,39 @@ sooc_status sooc_mapstore_foreach_layout(sooc_mapstore *s, sooc_cogmap_block_fn 
  * block_size, next_id) are refused. get: SOOC_ENOTFOUND if absent. */
 sooc_status sooc_mapstore_meta_set(sooc_mapstore *s, const char *key, const char *value);
 sooc_status sooc_mapstore_meta_get(sooc_mapstore *s, const char *key, char *buf, size_t cap);
+
+/* ------------------------------------------- finetuned decoders (schema 2) */
+
+/* Store (replace) the finetuned decoder of entry `id` (is_block 0; the entry
+ * must be stored: SOOC_ENOTFOUND) or of layout block (bi, bj) (is_block 1):
+ * v[0..n) as sooc_finetune_unit_payload gives it, the Adam steps it took and
+ * its last loss (NAN: none). Its own transaction unless one is open, so a
+ * finetuning run commits object by object. Non-finite values: SOOC_ENUMERIC.
+ * A version-1 map opened read-only: SOOC_EUNSUPPORTED. */
+sooc_status sooc_mapstore_ft_put(sooc_mapstore *s, int is_block, uint64_t id, int32_t bi, int32_t bj, const float *v,
+                                 size_t n, int steps, double loss);
+/* Is a decoder stored for this entry / block? *found = 0 or 1 (steps, loss
+ * may be NULL). */
+sooc_status sooc_mapstore_ft_get(sooc_mapstore *s, int is_block, uint64_t id, int32_t bi, int32_t bj, int *found,
+                                 int *steps, double *loss);
+sooc_status sooc_mapstore_ft_count(sooc_mapstore *s, uint64_t *n_objects, uint64_t *n_blocks);
+/* Delete every stored decoder (sooc3d finetune --restart). */
+sooc_status sooc_mapstore_ft_clear(sooc_mapstore *s);
+
+/* The distinct view indices of the stored keyframes, ascending: *n = their
+ * number; the first min(n, cap) go to views (may be NULL). */
+sooc_status sooc_mapstore_keyframe_views(sooc_mapstore *s, int64_t *views, size_t cap, size_t *n);
+
+/* ------------------------------------------- object geometry (schema 3) */
+
+/* Store (replace) entry id's geometry: its extent (tight box, or the
+ * locality box when g->flags has no SOOC_GEOM_TIGHT) and g (mapper.h).
+ * Use inside the keyframe's transaction. Non-finite values other than an
+ * undefined (NaN) yaw variance: SOOC_ENUMERIC. */
+sooc_status sooc_mapstore_geom_put(sooc_mapstore *s, uint64_t id, const float extent[3], const sooc_map_geometry *g);
+/* Read it back: *found = 0 (extent, g untouched) when none is stored or the
+ * map predates schema 3. */
+sooc_status sooc_mapstore_geom_get(sooc_mapstore *s, uint64_t id, float extent[3], sooc_map_geometry *g, int *found);
 
 /* Fetch one entry by id (SOOC_ENOTFOUND if absent). */
 sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *out);

@@ -218,6 +218,9 @@ typedef struct sooc_step_losses {
     double map_entries;    /* entries in the map after the last input view                   */
     int n_views, n_queries;
     int nonfinite;         /* 1 if the loss or a gradient was non-finite (grads zeroed)      */
+    double sec_backward;   /* wall seconds of the reverse sweep (refinement backward); the
+                              rest of the step is the forward sweep, which includes the
+                              decoder's backward (the trainer's t_forward / t_backward)  */
 } sooc_step_losses;
 
 /* One scene: T input views (in order) then Q query views, all of the model's
@@ -243,7 +246,10 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
  * pass sooc_model_field_T_fc() to sooc_render_view. Evaluation is
  * allocation-free (per-worker scratch sized by the prepare callback) and
  * deterministic per batch. The model and map must outlive the field; the
- * map is only read during create. */
+ * map is only read during create, except the finetuned decoders: an entry
+ * or the active layout block with a finetuning payload (cogmap.h payloads,
+ * include/sooc3d/finetune.h) is drawn with its own decoder copy and z^what,
+ * read from the map while the field lives (do not change payloads meanwhile). */
 typedef struct sooc_model_field sooc_model_field;
 sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const sooc_cogmap *map,
                                     const double T_wc[16], const sooc_intrinsics *K, int max_obj,

@@ -4,6 +4,7 @@
 #include "cli.h"
 #include "cmd_eval_real.h"
 #include "sooc3d/eval.h"
+#include "sooc3d/finetune.h"
 #include "sooc3d/mesh.h"
 #include "sooc3d/model.h"
 #include "sooc3d/scene.h"
@@ -44,6 +45,11 @@ static void usage(FILE *f) {
             "  --samples       coarse,fine samples per ray (96,32)\n"
             "  --threads       model/renderer threads (0 = OpenMP default)\n"
             "  --iterations    refinement updates per input view (default: the model's L)\n"
+            "  --finetune      SOOC3D+: also a '<name>+ft' row per model: online inference as for the\n"
+            "                  base row, then per-object NeRF finetuning by EM on the input views\n"
+            "                  (sooc3d finetune), then the same views scored from the finetuned map\n"
+            "  --ft-iterations, --ft-rays, --ft-lr   finetuning steps per object / block, rays per\n"
+            "                  step, Adam learning rate (defaults: those of sooc3d finetune)\n"
             "  --mesh-res N    mesh accuracy / completeness (JSON mesh_acc_cm, mesh_comp_cm; Atlas,\n"
             "                  docs/mesh.md): marching cubes with N samples per object box axis\n"
             "                  (default 64); 0 = no mesh metrics\n"
@@ -148,7 +154,9 @@ int sooc_cmd_eval(int argc, char **argv) {
     const char *models[MAX_MODELS], *names[MAX_MODELS], *dirs[MAX_DIRS];
     int n_models = 0, n_names = 0, n_dirs = 0;
     const char *json = NULL, *md = NULL;
-    int runs = 1, max_scenes = -1, quiet = 0, timing = SOOC_EVAL_FINAL;
+    int runs = 1, max_scenes = -1, quiet = 0, timing = SOOC_EVAL_FINAL, finetune = 0;
+    sooc_finetune_params ftp;
+    sooc_finetune_params_default(&ftp);
     uint64_t seed = 1;
     int mesh_res = SOOC_MESH_RES_DEFAULT;
     sooc_eval_run_opts ro;
@@ -191,6 +199,14 @@ int sooc_cmd_eval(int argc, char **argv) {
             }
         } else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
+        else if (!strcmp(a, "--finetune")) finetune = 1;
+        else if (!strcmp(a, "--ft-iterations") && has) INTV(0, 1000000, &ftp.iterations);
+        else if (!strcmp(a, "--ft-rays") && has) INTV(1, 1 << 20, &ftp.rays);
+        else if (!strcmp(a, "--ft-lr") && has) {
+            double d;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &d)) return 2;
+            ftp.lr = ftp.lr_z = (float)d;
+        }
         else if (!strcmp(a, "--mesh-res") && has) INTV(0, 1024, &mesh_res);
         else if (!strcmp(a, "--max-views") && has) INTV(0, 1000000, &ro.max_views);
         else if (!strcmp(a, "--max-obj") && has) INTV(0, SOOC_RENDER_MAX_COMP - 1, &ro.max_obj);
@@ -276,7 +292,7 @@ int sooc_cmd_eval(int argc, char **argv) {
 
     sooc_status st = SOOC_OK;
     sooc_model *mdl[MAX_MODELS] = {0};
-    char mname[MAX_MODELS][128], oname[MAX_MODELS][160];
+    char mname[MAX_MODELS][128], oname[MAX_MODELS][160], fname[MAX_MODELS][160];
     sooc_dataset *ds[MAX_DIRS] = {0};
     int *scale_of[MAX_DIRS] = {0};
     int n_sc[MAX_DIRS] = {0};
@@ -302,6 +318,7 @@ int sooc_cmd_eval(int argc, char **argv) {
         if (n_names) snprintf(mname[i], sizeof mname[i], "%s", names[i]);
         else model_name(models[i], mname[i], sizeof mname[i]);
         snprintf(oname[i], sizeof oname[i], "%.127s online", mname[i]);
+        snprintf(fname[i], sizeof fname[i], "%.127s+ft", mname[i]);
         for (int j = 0; j < i; j++)
             if (!strcmp(mname[i], mname[j])) {
                 st = sooc_seterr(SOOC_EINVAL, "two models are named '%s': use --name", mname[i]);
@@ -335,6 +352,7 @@ int sooc_cmd_eval(int argc, char **argv) {
             int nv = sooc_dataset_n_views(ds[d], s), ni = sooc_dataset_n_inputs(ds[d], s);
             if (ro.max_views > 0 && ni > ro.max_views) nv -= ni - ro.max_views, ni = ro.max_views;
             total += (uint64_t)(nv + (timing == SOOC_EVAL_BOTH ? ni : 0)) * (uint64_t)n_models * (uint64_t)runs;
+            if (finetune) total += (uint64_t)nv * (uint64_t)n_models * (uint64_t)runs;
             total_scenes++;
         }
     }
@@ -357,7 +375,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     pc.quiet = quiet;
     pc.t0 = sooc_seconds();
     if (!quiet) sooc_progress_begin(&pc.pr, "eval", total);
-    double upd_s = 0, ren_s = 0;
+    double upd_s = 0, ren_s = 0, ft_s = 0;
     long n_upd = 0;
     for (int d = 0; d < n_dirs; d++) {
         for (int s = 0; s < n_sc[d]; s++) {
@@ -410,6 +428,21 @@ int sooc_cmd_eval(int argc, char **argv) {
                         if ((st = sooc_eval_table_add_sums(tab, nm, scale, r, 0, &res.input_online))) goto fail;
                         if ((st = sooc_eval_table_add_sums(tab, nm, scale, r, 1, &res.query))) goto fail;
                     }
+                    if (finetune && !sooc_model_is_global(mdl[mi])) {   /* the <name>+ft row (issue 19) */
+                        sooc_eval_run_opts rf = ro;
+                        rf.finetune = &ftp;
+                        rf.timing = SOOC_EVAL_FINAL;
+                        ftp.seed = ro.seed;
+                        st = sooc_eval_run_scene(mdl[mi], fr, nv, gt, no, &rf, on_view, NULL, &pc, &res);
+                        if (st) {
+                            sooc_adderr(st, "%s (finetuned)", sooc_dataset_scene_path(ds[d], s));
+                            goto fail;
+                        }
+                        ren_s += res.render_s;
+                        ft_s += res.finetune_s;
+                        if ((st = sooc_eval_table_add_sums(tab, fname[mi], scale, r, 0, &res.input_final))) goto fail;
+                        if ((st = sooc_eval_table_add_sums(tab, fname[mi], scale, r, 1, &res.query))) goto fail;
+                    }
                 }
             }
         }
@@ -423,7 +456,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     if ((st = sooc_eval_table_text(tab, &text))) goto fail;
     printf("%s", text);
     {
-        char rows[2 * MAX_MODELS][160];
+        char rows[3 * MAX_MODELS][160];
         int nr = 0, used[SOOC_N_SCALES] = {0};
         for (int d = 0; d < n_dirs; d++)
             for (int s = 0; s < n_sc[d]; s++) used[scale_of[d][s]] = 1;
@@ -431,6 +464,7 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (ro.timing & SOOC_EVAL_FINAL) snprintf(rows[nr++], sizeof rows[0], "%.150s", mname[i]);
             if (ro.timing & SOOC_EVAL_ONLINE)
                 snprintf(rows[nr++], sizeof rows[0], "%.150s", ro.timing == SOOC_EVAL_BOTH ? oname[i] : mname[i]);
+            if (finetune && !sooc_model_is_global(mdl[i])) snprintf(rows[nr++], sizeof rows[0], "%.150s", fname[i]);
         }
         print_supp(tab, rows, nr, used, runs);
     }
@@ -439,6 +473,7 @@ int sooc_cmd_eval(int argc, char **argv) {
            total_scenes, total_scenes == 1 ? "" : "s", n_models, n_models == 1 ? "" : "s", runs, runs == 1 ? "" : "s",
            (unsigned long long)pc.done, el, el > 0 ? (double)pc.done / el : 0.0, n_upd ? 1e3 * upd_s / (double)n_upd : 0.0,
            ren_s);
+    if (finetune) printf("eval: finetuning (+ft rows) %.1f s in all\n", ft_s);
     if (mesh_res > 0)
         printf("eval: mesh metric (base rows) over %ld matched objects (%ld more with an empty mesh), %d^3 per box, "
                "%.1f s\n", mesh_obj, mesh_empty, mesh_res, mesh_s);

@@ -188,6 +188,7 @@ void sooc_cogmap_destroy(sooc_cogmap *m) {
     hmap_free(&m->ids);
     hmap_free(&m->cells_h);
     hmap_free(&m->blocks_h);
+    sooc_cogmap_payloads_free(m);
     sooc_free(m);
 }
 
@@ -199,6 +200,7 @@ void sooc_cogmap_clear(sooc_cogmap *m, int reset_ids) {
     hmap_reset(&m->ids);
     hmap_reset(&m->cells_h);
     hmap_reset(&m->blocks_h);
+    sooc_cogmap_payloads_free(m);
     if (reset_ids) m->next_id = 1;
 }
 

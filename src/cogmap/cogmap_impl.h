@@ -54,6 +54,11 @@ struct sooc_cogmap {
     float *blk_lat;        /* 2 * ldim per block: mu, logvar */
     size_t n_blk, cap_blk;
     sooc_hmap blocks_h;
+    /* per-entry / per-block float payloads (finetuned decoders; payload.c) */
+    struct sooc_cogmap_payloads *pl;
 };
+
+/* payload.c */
+void sooc_cogmap_payloads_free(sooc_cogmap *m);
 
 #endif

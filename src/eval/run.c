@@ -4,6 +4,7 @@
  * input views from the final map and/or right after their own update). */
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
+#include "sooc3d/finetune.h"
 #include "sooc3d/mesh.h"
 
 #include <math.h>
@@ -289,6 +290,18 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
             if ((st = step_cb(user, &si))) break;
         }
         if (o->timing & SOOC_EVAL_ONLINE) st = score_view(&C, i, 1, res->n_mapped, &res->input_online);
+    }
+    /* SOOC3D+: finetune the final map's objects and blocks on the mapped input views */
+    if (!st && o->finetune && mp) {
+        double t0 = sooc_seconds();
+        sooc_finetune *ft = NULL;
+        /* the mapper owns its map; the finetuned decoders go into it as payloads */
+        st = sooc_finetune_create(&ft, C.model, (sooc_cogmap *)C.map, o->finetune);
+        for (int i = 0; i < n_frames && !st; i++)
+            if (use[i] && !frames[i].is_query) st = sooc_finetune_add_view(ft, &frames[i]);
+        if (!st) st = sooc_finetune_run_all(ft, NULL, NULL, 0);
+        sooc_finetune_destroy(ft);
+        res->finetune_s = sooc_seconds() - t0;
     }
     /* everything else from the final map */
     for (int i = 0; i < n_frames && !st; i++) {

@@ -1,15 +1,18 @@
 /* render.h field adapter: the layout of the camera's active block plus the
  * in-view map entries, evaluated with the model's decoders (model.md §2.11). */
+#include "model/dec_own.h"
+#include "model/model_internal.h"
+
 #include <cblas.h>
 #include <math.h>
 #include <string.h>
-
-#include "model/model_internal.h"
 
 typedef struct fcomp {
     uint64_t id;
     float px, pz, th;          /* object pose in G (objects) */
     float *bias;               /* H: W1z z + b1               */
+    const float *w;            /* finetuned decoder (dec_own.h, a map payload), NULL = the model's */
+    dec_net rel;               /* its offsets relative to w   */
 } fcomp;
 
 struct sooc_model_field {
@@ -52,6 +55,11 @@ static void field_eval(void *user, int worker, int comp, const float *pts, int n
                 in[i] = 1;
                 mdl_pe_row(xl, 1.0f / c->block_size, net->nfreq, pe + (size_t)i * din);
             }
+        }
+        if (fc->w) {   /* finetuned copy (issue 19) */
+            mdl_own_forward(fc->w, &fc->rel, nb, pe, fc->bias, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
+            for (int i = 0; i < nb; i++) sigma_hat[b0 + i] = in[i] ? sig[i] : 0.0f;
+            continue;
         }
         for (int i = 0; i < nb; i++) memcpy(a1 + (size_t)i * H, fc->bias, H * sizeof(float));
         cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, nb, H, din, 1.0f, pe, din, m->p + net->W1x, H, 1.0f, a1,
@@ -159,6 +167,17 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
             sooc_se3_from_rt(b->T_fb, R, t);
             b->lo[0] = -c->box_rh * u, b->lo[1] = 0, b->lo[2] = -c->box_rh * u;
             b->hi[0] = c->box_rh * u, b->hi[1] = c->box_hb * u, b->hi[2] = c->box_rh * u;
+        }
+        /* a finetuned decoder kept with the map (include/sooc3d/finetune.h): its own weights and z */
+        size_t npl = 0;
+        const float *pl = c->global_frame ? NULL
+                          : k ? sooc_cogmap_payload_get(map, fc->id, &npl)
+                              : sooc_cogmap_block_payload_get(map, bi, bj, &npl);
+        if (pl && mdl_ft_payload_ok(net, k ? MDL_FT_OBJ : MDL_FT_LAY, pl, npl)) {
+            fc->w = mdl_ft_payload_w(net, pl);
+            mdl_dec_rel(net, &fc->rel);
+            mdl_own_bias(fc->w, &fc->rel, mdl_ft_payload_z(pl), fc->bias);
+            continue;
         }
         for (int j = 0; j < H; j++) fc->bias[j] = m->p[net->b1 + j];
         for (int i = 0; i < net->dz; i++)
