@@ -14,8 +14,8 @@
  *   LSTM    wx[I][4G], wh[G][4G], one bias b[4G], gate order i, f, g, o.
  *
  * Every float32 forward computes each output as ONE fused multiply-add chain
- * over the reduction index in order, starting from zero (the AVX2/FMA kernel
- * when the CPU has it; SOOC_NO_AVX2 in the environment selects OpenBLAS), then
+ * over the reduction index in order, starting from zero (sooc_nn_gemm of
+ * sooc3d/nn_kern.h: AVX2/FMA, or OpenBLAS under SOOC_NO_AVX2), then
  * adds the bias and applies the activation; results do not depend on how items
  * are split across threads. ELU is exp(x) - 1 with a Cephes polynomial
  * (relative error < 1e-7, like expf).
@@ -111,17 +111,17 @@ void sooc_nn_rlinear_backward_f64(double *dx, double *dw, double *db, double *dy
  * may be NULL) are the gradients w.r.t. h1 and c1; dx, dh0, dc0, dwx, dwh, db
  * accumulate; scratch: 4 B G floats. */
 void sooc_nn_rlstm_forward(float *h1, float *c1, float *gates, const float *x, const float *h0, const float *c0,
-                           const float *wx, const float *wh, const float *b, int B, int I, int G);
+                           const float *wx, const float *wh, const float *b, int B, int In, int G);
 void sooc_nn_rlstm_backward(float *dx, float *dh0, float *dc0, float *dwx, float *dwh, float *db, const float *dh1,
                             const float *dc1, float *scratch, const float *gates, const float *c1, const float *x,
-                            const float *h0, const float *c0, const float *wx, const float *wh, int B, int I, int G);
+                            const float *h0, const float *c0, const float *wx, const float *wh, int B, int In, int G);
 void sooc_nn_rlstm_forward_f64(double *h1, double *c1, double *gates, const double *x, const double *h0,
-                               const double *c0, const double *wx, const double *wh, const double *b, int B, int I,
+                               const double *c0, const double *wx, const double *wh, const double *b, int B, int In,
                                int G);
 void sooc_nn_rlstm_backward_f64(double *dx, double *dh0, double *dc0, double *dwx, double *dwh, double *db,
                                 const double *dh1, const double *dc1, const double *gates, const double *c1,
                                 const double *x, const double *h0, const double *c0, const double *wx,
-                                const double *wh, int B, int I, int G);
+                                const double *wh, int B, int In, int G);
 
 /* -------------------------------------------------------- pool + flatten
  * The conv stack's last map x[C][B][fh][fw] flattened per item for the FC:

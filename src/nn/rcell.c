@@ -117,7 +117,7 @@ static void act_bias_rows(float *y, const float *b, int M, int N, sooc_nn_act ac
 
 void sooc_nn_rlinear_forward(float *y, const float *x, int ldx, const float *w, const float *b, int M, int K, int N,
                              sooc_nn_act act) {
-    sooc_nn_r_gemm(M, N, K, x, ldx, w, N, y, N, 0);
+    sooc_nn_gemm(M, N, K, x, ldx, w, N, y, N, NULL, 0, SOOC_NN_EP_NONE, NULL, 0);
     act_bias_rows(y, b, M, N, act);
 }
 
@@ -162,8 +162,8 @@ void sooc_nn_rlinear_backward_f64(double *dx, double *dw, double *db, double *dy
 void sooc_nn_rlstm_forward(float *h1, float *c1, float *gates, const float *x, const float *h0, const float *c0,
                            const float *wx, const float *wh, const float *b, int B, int I, int G) {
     int G4 = 4 * G;
-    sooc_nn_r_gemm(B, G4, I, x, I, wx, G4, gates, G4, 0);
-    if (h0) sooc_nn_r_gemm(B, G4, G, h0, G, wh, G4, gates, G4, 1);
+    sooc_nn_gemm(B, G4, I, x, I, wx, G4, gates, G4, NULL, 0, SOOC_NN_EP_NONE, NULL, 0);
+    if (h0) sooc_nn_gemm(B, G4, G, h0, G, wh, G4, gates, G4, NULL, 1, SOOC_NN_EP_NONE, NULL, 0);
     for (int bb = 0; bb < B; bb++) {
         float *g = gates + (size_t)bb * G4;
         for (int j = 0; j < G; j++) {

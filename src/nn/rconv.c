@@ -3,16 +3,14 @@
  * on even sizes, CBHW activations, fused bias + ELU; im2col + one GEMM per
  * call over all the items it is given (items x pixels as the N dimension).
  *
- * The GEMM (sooc_nn_r_gemm) keeps every output one FMA chain over k in
- * order, so splitting items across threads, or taking the shared leading
+ * The forward GEMM (sooc_nn_gemm, sooc3d/nn_kern.h) keeps every output one
+ * FMA chain over k in order, so splitting items across threads, or taking the shared leading
  * channels' share from a precomputed ysh, never changes a result. The
  * backward's two GEMMs go to OpenBLAS (single-threaded) in a fixed number
  * of output blocks that OpenMP threads take.
  */
 #include "rnet_impl.h"
 
-#include <stdatomic.h>
-#include <stdlib.h>
 #include <string.h>
 #ifdef __SSE2__
 #include <emmintrin.h>
@@ -91,168 +89,6 @@ void sooc_nn_elu_backward_f64(double *dx, const double *dy, const double *y, int
     for (int64_t i = 0; i < n; i++) dx[i] += dy[i] * (y[i] > 0 ? 1.0 : y[i] + 1.0);
 }
 
-/* ----------------------------------------------------------------- GEMM */
-
-static void gemm_blas(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
-                      int acc) {
-    sooc_nn_blas_single();
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, lda, B, ldb, acc ? 1.0f : 0.0f, C, ldc);
-}
-
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
-#define RN_X86 1
-#include <immintrin.h>
-#define TGT __attribute__((target("avx2,fma")))
-#define AI __attribute__((always_inline)) inline
-
-/* MR rows x 16 columns; m0/m1 column masks of the two vectors (all set for full panels). */
-static TGT AI void k16(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc, int acc,
-                       __m256i m0, __m256i m1) {
-    __m256 c0[6], c1[6];
-#pragma GCC unroll 6
-    for (int r = 0; r < MR; r++) {
-        c0[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc, m0) : _mm256_setzero_ps();
-        c1[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc + 8, m1) : _mm256_setzero_ps();
-    }
-    for (int k = 0; k < K; k++) {
-        const float *b = B + (size_t)k * ldb;
-        __m256 b0 = _mm256_maskload_ps(b, m0), b1 = _mm256_maskload_ps(b + 8, m1);
-#pragma GCC unroll 6
-        for (int r = 0; r < MR; r++) {
-            __m256 a = _mm256_broadcast_ss(A + (size_t)r * lda + k);
-            c0[r] = _mm256_fmadd_ps(a, b0, c0[r]);
-            c1[r] = _mm256_fmadd_ps(a, b1, c1[r]);
-        }
-    }
-#pragma GCC unroll 6
-    for (int r = 0; r < MR; r++) {
-        _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
-        _mm256_maskstore_ps(C + (size_t)r * ldc + 8, m1, c1[r]);
-    }
-}
-
-static TGT AI void k16f(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc, int acc) {
-    __m256 c0[6], c1[6];
-#pragma GCC unroll 6
-    for (int r = 0; r < MR; r++) {
-        c0[r] = acc ? _mm256_loadu_ps(C + (size_t)r * ldc) : _mm256_setzero_ps();
-        c1[r] = acc ? _mm256_loadu_ps(C + (size_t)r * ldc + 8) : _mm256_setzero_ps();
-    }
-    for (int k = 0; k < K; k++) {
-        const float *b = B + (size_t)k * ldb;
-        __m256 b0 = _mm256_loadu_ps(b), b1 = _mm256_loadu_ps(b + 8);
-#pragma GCC unroll 6
-        for (int r = 0; r < MR; r++) {
-            __m256 a = _mm256_broadcast_ss(A + (size_t)r * lda + k);
-            c0[r] = _mm256_fmadd_ps(a, b0, c0[r]);
-            c1[r] = _mm256_fmadd_ps(a, b1, c1[r]);
-        }
-    }
-#pragma GCC unroll 6
-    for (int r = 0; r < MR; r++) {
-        _mm256_storeu_ps(C + (size_t)r * ldc, c0[r]);
-        _mm256_storeu_ps(C + (size_t)r * ldc + 8, c1[r]);
-    }
-}
-
-/* MR rows x up to 8 columns (one masked vector). */
-static TGT AI void k8(int MR, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc, int acc,
-                      __m256i m0) {
-    __m256 c0[12];
-#pragma GCC unroll 12
-    for (int r = 0; r < MR; r++) c0[r] = acc ? _mm256_maskload_ps(C + (size_t)r * ldc, m0) : _mm256_setzero_ps();
-    for (int k = 0; k < K; k++) {
-        __m256 b0 = _mm256_maskload_ps(B + (size_t)k * ldb, m0);
-#pragma GCC unroll 12
-        for (int r = 0; r < MR; r++) c0[r] = _mm256_fmadd_ps(_mm256_broadcast_ss(A + (size_t)r * lda + k), b0, c0[r]);
-    }
-#pragma GCC unroll 12
-    for (int r = 0; r < MR; r++) _mm256_maskstore_ps(C + (size_t)r * ldc, m0, c0[r]);
-}
-
-static TGT void gemm_avx2(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
-                          int acc) {
-    /* column panels outermost: a K x 16 panel of B stays in L1 while the rows stream past */
-    for (int j = 0; j < N; j += 16) {
-        int nr = N - j < 16 ? N - j : 16;
-        const float *Bj = B + j;
-        float *Cj = C + j;
-        if (nr <= 8) {
-            int32_t lane[8];
-            for (int t = 0; t < 8; t++) lane[t] = t < nr ? -1 : 0;
-            __m256i m0 = _mm256_loadu_si256((const __m256i *)lane);
-            int i = 0;
-            for (; i + 12 <= M; i += 12) k8(12, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0);
-            for (; i + 4 <= M; i += 4) k8(4, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0);
-            for (; i < M; i++) k8(1, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0);
-            continue;
-        }
-        int i = 0;
-        if (nr == 16) {
-            for (; i + 6 <= M; i += 6) k16f(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc);
-            const float *Ai = A + (size_t)i * lda;
-            float *Ci = Cj + (size_t)i * ldc;
-            switch (M - i) {
-            case 5: k16f(5, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
-            case 4: k16f(4, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
-            case 3: k16f(3, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
-            case 2: k16f(2, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
-            case 1: k16f(1, K, Ai, lda, Bj, ldb, Ci, ldc, acc); break;
-            default: break;
-            }
-            continue;
-        }
-        int32_t lane[16];
-        for (int t = 0; t < 16; t++) lane[t] = t < nr ? -1 : 0;
-        __m256i m0 = _mm256_loadu_si256((const __m256i *)lane), m1 = _mm256_loadu_si256((const __m256i *)(lane + 8));
-        for (; i + 6 <= M; i += 6) k16(6, K, A + (size_t)i * lda, lda, Bj, ldb, Cj + (size_t)i * ldc, ldc, acc, m0, m1);
-        const float *Ai = A + (size_t)i * lda;
-        float *Ci = Cj + (size_t)i * ldc;
-        switch (M - i) {
-        case 5: k16(5, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
-        case 4: k16(4, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
-        case 3: k16(3, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
-        case 2: k16(2, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
-        case 1: k16(1, K, Ai, lda, Bj, ldb, Ci, ldc, acc, m0, m1); break;
-        default: break;
-        }
-    }
-}
-#endif
-
-static atomic_int r_mode = -1;   /* -1 unknown, 0 OpenBLAS, 1 AVX2/FMA */
-
-static int r_avx2(void) {
-    int mode = atomic_load_explicit(&r_mode, memory_order_relaxed);
-    if (mode < 0) {
-        mode = 0;
-#ifdef RN_X86
-        __builtin_cpu_init();
-        mode = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-#endif
-        if (getenv("SOOC_NO_AVX2")) mode = 0;
-        atomic_store_explicit(&r_mode, mode, memory_order_relaxed);
-    }
-    return mode;
-}
-
-void sooc_nn_r_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
-                    int acc) {
-    if (M <= 0 || N <= 0) return;
-    if (K <= 0) {
-        if (!acc)
-            for (int i = 0; i < M; i++) memset(C + (size_t)i * ldc, 0, (size_t)N * sizeof(float));
-        return;
-    }
-#ifdef RN_X86
-    if (r_avx2()) {
-        gemm_avx2(M, N, K, A, lda, B, ldb, C, ldc, acc);
-        return;
-    }
-#endif
-    gemm_blas(M, N, K, A, lda, B, ldb, C, ldc, acc);
-}
-
 /* ------------------------------------------------------------ im2col */
 
 /* Each input row feeds one or two output rows per kx (even columns, odd columns,
@@ -319,7 +155,7 @@ void sooc_nn_rconv_shared(float *ysh, float *cols, const float *x, const float *
                           int Co, int nsh) {
     int HWo = (H / 2) * (W / 2);
     sooc_nn_rconv_im2col(x, 0, nsh, B, 0, 1, H, W, cols);
-    sooc_nn_r_gemm(Co, HWo, nsh * 9, w, Ci * 9, cols, HWo, ysh, HWo, 0);
+    sooc_nn_gemm(Co, HWo, nsh * 9, w, Ci * 9, cols, HWo, ysh, HWo, NULL, 0, SOOC_NN_EP_NONE, NULL, 0);
 }
 
 void sooc_nn_rconv_forward(float *y, float *cols, const float *x, const float *w, const float *b,
@@ -335,7 +171,7 @@ void sooc_nn_rconv_forward(float *y, float *cols, const float *x, const float *w
             for (int q = 0; q < nb; q++) memcpy(yb + (size_t)co * ldy + (size_t)q * HWo, ysh + (size_t)co * HWo,
                                                 (size_t)HWo * sizeof(float));
     sooc_nn_rconv_im2col(x, c0, Ci - c0, B, b0, b1, H, W, cols);
-    sooc_nn_r_gemm(Co, N, (Ci - c0) * 9, w + c0 * 9, Ci * 9, cols, N, yb, ldy, ysh != NULL);
+    sooc_nn_gemm(Co, N, (Ci - c0) * 9, w + c0 * 9, Ci * 9, cols, N, yb, ldy, NULL, ysh != NULL, SOOC_NN_EP_NONE, NULL, 0);
     for (int co = 0; co < Co; co++) {
         float *r = yb + (size_t)co * ldy, bias = b ? b[co] : 0.0f;
         if (act == SOOC_NN_ACT_ELU) sooc_nn_r_elu_bias(r, N, bias);
