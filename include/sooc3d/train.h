@@ -175,10 +175,17 @@ typedef struct sooc_train_run_params {
                                      ones; its network shapes must match the config's,
                                      other settings (clip, likelihood) come from the
                                      config. Fresh optimiser state. NULL = random init */
+    void (*step_hook)(void *user, int64_t step);   /* called after each step (may be NULL) */
+    void *hook_user;
 } sooc_train_run_params;
 
 /* Train until cfg->steps (or the stop flag, or the time budget). Always
- * leaves a consistent last.bin behind. */
+ * leaves a consistent last.bin behind.
+ * Under MPI (include/sooc3d/dist.h; the caller ran sooc_dist_init) every
+ * rank calls this with the same arguments: each takes accum scenes of the
+ * step's ranks x accum, the gradients are summed over the ranks, and rank 0
+ * alone writes out_dir (docs/cluster.md). log.csv's t_* columns give the
+ * seconds of each stage of a step (docs/training.md). */
 sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config *mc,
                            const sooc_train_run_params *rp);
 

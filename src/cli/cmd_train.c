@@ -1,5 +1,6 @@
 /* sooc3d train: train a SOOC3D model on synthetic scenes. */
 #include "cli.h"
+#include "sooc3d/dist.h"
 #include "sooc3d/train.h"
 
 #include <signal.h>
@@ -30,8 +31,33 @@ static void usage(FILE *f) {
             "  --steps N        override the config's total steps\n"
             "  --threads N      decoder threads (default: all cores)\n"
             "  --max-seconds S  checkpoint and stop after S seconds (for time-sliced runs)\n"
-            "Ctrl-C checkpoints and stops; --resume continues exactly.\n\n%s",
+            "Ctrl-C checkpoints and stops; --resume continues exactly.\n"
+            "Data-parallel on Open MPI: mpirun -np N sooc3d train ... (each rank takes `accum` scenes of\n"
+            "every step; rank 0 writes DIR; docs/cluster.md).\n\n%s",
             sooc_cli_framepath_help);
+}
+
+/* Fault injection for the MPI tests (docs/cluster.md): SOOC_TRAIN_KILL=R:S
+ * makes rank R kill itself (SIGKILL) after step S. */
+static int g_kill_rank = -1;
+static long long g_kill_step = -1;
+static void kill_hook(void *user, int64_t step) {
+    (void)user;
+    if (sooc_dist_rank() == g_kill_rank && step >= g_kill_step) raise(SIGKILL);
+}
+
+/* A failure on one rank ends the whole job (no rank waits forever in a
+ * collective): the message names the rank, then MPI_Abort. */
+static int train_fail(sooc_status s) {
+    if (sooc_dist_size() > 1) {
+        fprintf(stderr, "sooc3d train: rank %d of %d (%s): error (%s): %s\n", sooc_dist_rank(), sooc_dist_size(),
+                sooc_dist_host(), sooc_status_str(s), sooc_errmsg());
+        fflush(stderr);
+        sooc_dist_abort(1);
+    }
+    int rc = sooc_cli_fail("train", s);
+    sooc_dist_finalize();
+    return rc;
 }
 
 /* Validation: provided by the evaluation path (src/train/validate.c). */
@@ -79,35 +105,47 @@ int sooc_cmd_train(int argc, char **argv) {
     }
     if (!config || !out || n_data == 0) { usage(stderr); return 2; }
     if (!sooc_cli_framepath_check("train", &fpp)) return 2;
+    sooc_status s = sooc_dist_init(&argc, &argv);
+    if (s) return train_fail(s);
+    int rank = sooc_dist_rank(), nranks = sooc_dist_size();
+    if (rank > 0) sooc_log_set_level(SOOC_LOG_WARN);   /* rank 0 reports; the others only warn */
+    const char *kill = getenv("SOOC_TRAIN_KILL");
+    if (kill && sscanf(kill, "%d:%lld", &g_kill_rank, &g_kill_step) != 2) g_kill_rank = -1;
     sooc_train_config cfg;
     sooc_model_config mc;
     sooc_train_config_default(&cfg);
     sooc_model_config_default(&mc);
-    sooc_status s = sooc_train_config_load(config, &cfg, &mc);
-    if (s) return sooc_cli_fail("train", s);
+    s = sooc_train_config_load(config, &cfg, &mc);
+    if (s) return train_fail(s);
     if (steps > 0) cfg.steps = steps;
     if (threads >= 0) cfg.threads = threads;
     if (max_s > 0) cfg.val_max_seconds = (float)max_s;
     sooc_dataset *train = NULL, *valset = NULL;
-    fprintf(stderr, "loading %d training folder(s)...\n", n_data);
+    if (rank == 0 && nranks > 1)
+        fprintf(stderr, "%d MPI ranks x %d scene(s) each = %d scenes per step\n", nranks, cfg.accum,
+                nranks * cfg.accum);
+    if (rank == 0) fprintf(stderr, "loading %d training folder(s)...\n", n_data);
     fpp.width = mc.img_w, fpp.height = mc.img_h;
     s = sooc_dataset_open_fp(&train, data, n_data, &fpp);
-    if (s) return sooc_cli_fail("train", s);
-    if (n_val) {
+    if (s) return train_fail(s);
+    if (n_val && rank == 0) {   /* validation runs on rank 0 only */
         s = sooc_dataset_open_fp(&valset, val, n_val, &fpp);
-        if (s) { sooc_dataset_destroy(train); return sooc_cli_fail("train", s); }
+        if (s) { sooc_dataset_destroy(train); return train_fail(s); }
     }
     sooc_dataset_set_unit(train, mc.unit_m);   /* query choice in model units (docs/model.md "Model unit") */
     if (valset) sooc_dataset_set_unit(valset, mc.unit_m);
-    fprintf(stderr, "%d training scenes, %d validation scenes; %lld steps -> %s\n",
+    if (rank == 0)
+        fprintf(stderr, "%d training scenes, %d validation scenes; %lld steps -> %s\n",
             sooc_dataset_n_scenes(train), valset ? sooc_dataset_n_scenes(valset) : 0, (long long)cfg.steps, out);
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     sooc_train_run_params rp = {config, out, resume, train, valset,
-                                valset ? sooc_train_validate : NULL, &cfg, 1, &g_stop, init};
+                                valset ? sooc_train_validate : NULL, &cfg, rank == 0, &g_stop, init,
+                                g_kill_rank >= 0 ? kill_hook : NULL, NULL};
     s = sooc_train_run(&cfg, &mc, &rp);
     sooc_dataset_destroy(train);
     sooc_dataset_destroy(valset);
-    if (s) return sooc_cli_fail("train", s);
+    if (s) return train_fail(s);
+    sooc_dist_finalize();
     return 0;
 }

@@ -141,6 +141,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
             for (int i = 0; i < D2; i++) W->Glay[i] += S->tmpl0[i];
         }
     /* ---- reverse sweep: identity transport between views (world frame) ---- */
+    double t_rev = sooc_seconds();
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
             view_rec *V = &S->views[t];
@@ -156,6 +157,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
                 for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
             }
         }
+    out->sec_backward = sooc_seconds() - t_rev;
     return mdl_step_finish(m, S, total, nonfinite, out);
 fail:
     memcpy(m->g, S->gbak, m->np * sizeof(float));

@@ -512,6 +512,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
                 for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += S->tmpl0[i];
         }
     /* ---- reverse sweep ---- */
+    double t_rev = sooc_seconds();
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
             view_rec *V = &S->views[t];
@@ -532,6 +533,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
             } else
                 for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
         }
+    out->sec_backward = sooc_seconds() - t_rev;
     return mdl_step_finish(m, S, total, nonfinite, out);
 fail:
     memcpy(m->g, S->gbak, m->np * sizeof(float));

@@ -1,6 +1,7 @@
 /* The training loop: curriculum, Adam with clipping, temperature and KL
  * schedules, checkpoints with exact resume, validation and logs. */
 #include "sooc3d/train.h"
+#include "sooc3d/dist.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/nn.h"
 
@@ -16,7 +17,8 @@
  * moments m and v (n_params floats each). */
 typedef struct trainer_blob {
     uint64_t magic;
-    uint32_t version, reserved;
+    uint32_t version;
+    uint32_t batch;           /* scenes per step over all ranks (ranks x accum; 0 = not recorded) */
     int64_t step;             /* next step to run                      */
     int64_t adam_t;
     uint64_t n_params;
@@ -33,9 +35,13 @@ typedef struct trainer {
     sooc_nn_params adam;      /* wraps the model's slabs               */
     sooc_nn_param_view view;
     float *m, *v;
+    float *gacc;              /* accum > 1: the step's gradient sum (each scene's gradient
+                                 is computed alone in the model's slab, then added here) */
     size_t n;
     trainer_blob st;
     uint8_t *idbits;          /* 65536-bit scratch for counting ids    */
+    int rank, size;           /* data parallelism (include/sooc3d/dist.h) */
+    double t_val, t_ckpt;     /* seconds in validation / checkpoints since the last log row */
     char path_last[4096], path_best[4096], path_log[4096], path_val[4096], path_png[4096];
 } trainer;
 
@@ -106,6 +112,11 @@ static sooc_status restore_blob(trainer *tr, const void *blob, size_t n) {
     if (b.seed != tr->cfg->seed)
         return sooc_seterr(SOOC_EINVAL, "%s: checkpoint was trained with seed %llu, the config says %llu",
                            tr->path_last, (unsigned long long)b.seed, (unsigned long long)tr->cfg->seed);
+    uint64_t batch = (uint64_t)sooc_dist_size() * (uint64_t)tr->cfg->accum;
+    if (b.batch && b.batch != batch)
+        sooc_log(SOOC_LOG_WARN, "%s: trained with %u scenes per step over all ranks, now %llu (ranks x accum): "
+                                "the data order from here on differs from an uninterrupted run",
+                 tr->path_last, b.batch, (unsigned long long)batch);
     tr->st = b;
     tr->adam.adam_t = b.adam_t;
     memcpy(tr->m, (const uint8_t *)blob + sizeof b, tr->n * sizeof(float));
@@ -221,10 +232,34 @@ static sooc_status init_from(sooc_model *m, const sooc_model_config *mc, const c
     return SOOC_OK;
 }
 
+/* Data parallelism: every rank must hold the same network before the first
+ * step. Rank 0's parameter count is checked on every rank, then its trainer
+ * state (step, Adam step, best validation), weights and Adam moments are
+ * broadcast, so the ranks agree even when only rank 0 could read last.bin. */
+static sooc_status sync_ranks(trainer *tr) {
+    uint64_t n0 = tr->n;
+    sooc_status s = sooc_dist_bcast(&n0, sizeof n0, "parameter count");
+    if (s) return s;
+    double bad = n0 != tr->n;
+    if ((s = sooc_dist_sum_f64(&bad, 1, "parameter count check"))) return s;
+    if (bad > 0)
+        return sooc_seterr(SOOC_EINVAL, "rank %d: the model has %zu parameters, rank 0's %llu (%g rank(s) differ): "
+                                        "every rank needs the same config and checkpoint",
+                           tr->rank, tr->n, (unsigned long long)n0, bad);
+    if ((s = sooc_dist_bcast(&tr->st, sizeof tr->st, "trainer state")) ||
+        (s = sooc_dist_bcast(sooc_model_params(tr->model), tr->n * sizeof(float), "weights")) ||
+        (s = sooc_dist_bcast(tr->m, tr->n * sizeof(float), "Adam m")) ||
+        (s = sooc_dist_bcast(tr->v, tr->n * sizeof(float), "Adam v")))
+        return s;
+    tr->adam.adam_t = tr->st.adam_t;
+    return SOOC_OK;
+}
+
 static void trainer_free(trainer *tr) {
     sooc_model_destroy(tr->model);
     sooc_free(tr->m);
     sooc_free(tr->v);
+    sooc_free(tr->gacc);
     sooc_free(tr->idbits);
 }
 
@@ -234,6 +269,8 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
     memset(&tr, 0, sizeof tr);
     tr.cfg = cfg;
     tr.rp = rp;
+    tr.rank = sooc_dist_rank();
+    tr.size = sooc_dist_size();
     sooc_status s = sooc_mkdirs(rp->out_dir);
     if (s) return s;
     sooc_path_join(tr.path_last, sizeof tr.path_last, rp->out_dir, "last.bin");
@@ -266,7 +303,8 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
     tr.m = sooc_calloc(tr.n, sizeof(float));
     tr.v = sooc_calloc(tr.n, sizeof(float));
     tr.idbits = sooc_malloc(65536 / 8);
-    if (!tr.m || !tr.v || !tr.idbits) { s = SOOC_ENOMEM; goto done; }
+    if (cfg->accum > 1) tr.gacc = sooc_malloc(tr.n * sizeof(float));
+    if (!tr.m || !tr.v || !tr.idbits || (cfg->accum > 1 && !tr.gacc)) { s = SOOC_ENOMEM; goto done; }
     tr.st.magic = TRAINER_MAGIC;
     tr.st.version = TRAINER_VERSION;
     tr.st.n_params = tr.n;
@@ -281,8 +319,10 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
         sooc_log(SOOC_LOG_INFO, "resuming %s at step %lld (best val mIoU %.4f at step %lld)", tr.path_last,
                  (long long)tr.st.step, tr.st.best_val, (long long)tr.st.best_step);
     }
-    if ((s = trim_log(tr.path_log, tr.st.step)) || (s = trim_log(tr.path_val, tr.st.step))) goto done;
-    if ((s = copy_config(rp->config_path, rp->out_dir))) goto done;
+    if (tr.rank == 0) {
+        if ((s = trim_log(tr.path_log, tr.st.step)) || (s = trim_log(tr.path_val, tr.st.step))) goto done;
+        if ((s = copy_config(rp->config_path, rp->out_dir))) goto done;
+    }
 
     /* Adam over the model's flat slab: one view that covers everything. */
     sooc_nn_params_init(&tr.adam);
@@ -305,24 +345,40 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
     sooc_nn_schedule sched = {cfg->lr, cfg->warmup, cfg->steps, cfg->lr_final_frac,
                               cfg->cosine ? SOOC_NN_DECAY_COSINE : SOOC_NN_DECAY_LINEAR};
 
+    /* every rank starts from rank 0's weights, Adam moments and step */
+    if (tr.size > 1 && (s = sync_ranks(&tr))) goto done;
+
     const sooc_dataset *ds = rp->train;
     sooc_frame views[64], queries[16];
     sooc_progress prog;
+    int lead = tr.rank == 0;   /* rank 0 alone writes logs, validation, checkpoints, curves */
     /* progress (rate, ETA) counts the steps of this session, so a resumed run's
      * rate is not inflated by the steps done before; the absolute step is in `extra` */
     int64_t step0 = tr.st.step;
-    if (rp->progress) sooc_progress_begin(&prog, "train", (uint64_t)(cfg->steps > step0 ? cfg->steps - step0 : 0));
+    if (rp->progress && lead)
+        sooc_progress_begin(&prog, "train", (uint64_t)(cfg->steps > step0 ? cfg->steps - step0 : 0));
     double t_start = sooc_seconds();
+    /* the per-stage columns (t_*) come after the original ones, so readers by
+     * position keep working (docs/training.md "Where a step's time goes") */
     const char *hdr = "step,lr,tau,beta_kl,total,nll_input,kl,nll_query,nll_depth,nll_color,"
-                      "present_slots,gt_visible,mean_pres_logit,map_entries,grad_norm,T,Q,sec_per_step\n";
+                      "present_slots,gt_visible,mean_pres_logit,map_entries,grad_norm,T,Q,sec_per_step,"
+                      "t_data,t_forward,t_backward,t_optim,t_allreduce,t_val,t_ckpt,ranks\n";
     double acc[8] = {0};
     int acc_n = 0;
     char extra[256] = "";
+    /* Scene j of a step's batch (j = rank * accum + a, over all ranks) draws
+     * everything (curriculum, scene, views, model noise) from its own stream:
+     * (seed, step) for j = 0, as a single process always did, and (seed, step
+     * + j * 2^40) after it. So the data order is a function of (seed, step,
+     * ranks x accum) alone: N ranks with accum a see the scenes one process
+     * sees with accum N a, and --resume restores every rank's RNG by
+     * restoring the step. */
+    const uint64_t batch = (uint64_t)tr.size * (uint64_t)cfg->accum;
+    tr.st.batch = (uint32_t)batch;
     while (tr.st.step < cfg->steps) {
         int64_t step = tr.st.step;
         double ts = sooc_seconds();
-        sooc_rng rng;
-        sooc_rng_seed(&rng, cfg->seed, (uint64_t)step);
+        double t_data = 0, t_fwd = 0, t_bwd = 0, t_opt = 0, t_ar = 0, t0;
         sooc_step_opts o;
         sooc_step_opts_default(&o);
         o.tau = tau_at(cfg, step);
@@ -334,12 +390,23 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
         memset(&sum, 0, sizeof sum);
         double vis = 0;
         int T = 1, Q = 1, ok_scenes = 0, nonfinite = 0;
+        float *g = sooc_model_grads(tr.model);
         for (int a = 0; a < cfg->accum; a++) {
+            t0 = sooc_seconds();
+            /* accum > 1: every scene's gradient alone, then summed into gacc, so
+             * that N ranks x accum a round like one process x accum N a (the
+             * sums differ only in their order, not in how each scene rounds) */
+            if (a > 0) sooc_model_zero_grad(tr.model);
+            uint64_t j = (uint64_t)tr.rank * (uint64_t)cfg->accum + (uint64_t)a;
+            sooc_rng rng;
+            sooc_rng_seed(&rng, cfg->seed, (uint64_t)step + (j << 40));
             curriculum(cfg, step, &rng, &T, &Q);
             if (T > 64) T = 64;
             if (Q > 16) Q = 16;
             int sc = sooc_dataset_pick(ds, cfg->recorded_frac, &rng), nv = 0, nq = 0;
             sooc_dataset_sample(ds, sc, T, Q, cfg->query_held_out, &rng, views, &nv, queries, &nq);
+            double t1 = sooc_seconds();
+            t_data += t1 - t0;
             sooc_step_losses l;
             if (sooc_model_is_global(tr.model))   /* MulMON-style baseline (docs/baseline.md) */
                 s = sooc_model_global_train_step(tr.model, views, nv, queries, nq, sooc_dataset_n_objects(ds, sc),
@@ -350,7 +417,14 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
                 sooc_adderr(s, "step %lld, scene %s", (long long)step, sooc_dataset_scene_path(ds, sc));
                 goto done;
             }
+            double t2 = sooc_seconds();
+            t_bwd += l.sec_backward;
+            t_fwd += (t2 - t1) - l.sec_backward;
             if (l.nonfinite) { nonfinite = 1; continue; }
+            if (tr.gacc) {
+                if (ok_scenes == 0) memcpy(tr.gacc, g, tr.n * sizeof(float));
+                else for (size_t i = 0; i < tr.n; i++) tr.gacc[i] += g[i];
+            }
             ok_scenes++;
             sum.total += l.total;
             sum.nll_input += l.nll_input;
@@ -362,12 +436,37 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             sum.mean_pres_logit += l.mean_pres_logit;
             sum.map_entries += l.map_entries;
             vis += visible_objects(&tr, views, nv);
+            t_data += sooc_seconds() - t2;
         }
+        if (tr.gacc) {
+            if (ok_scenes > 0) memcpy(g, tr.gacc, tr.n * sizeof(float));
+            else sooc_model_zero_grad(tr.model);
+        }
+        /* the stop decision is taken together, so that no rank leaves the others waiting */
+        int stop = (rp->stop_flag && *rp->stop_flag) ||
+                   (cfg->val_max_seconds > 0 && sooc_seconds() - t_start > cfg->val_max_seconds);
+        if (tr.size > 1) {
+            t0 = sooc_seconds();
+            double red[13] = {ok_scenes, nonfinite, stop, sum.total, sum.nll_input, sum.kl, sum.nll_query,
+                              sum.nll_depth, sum.nll_color, sum.present_slots, sum.mean_pres_logit,
+                              sum.map_entries, vis};
+            /* one in-place allreduce over the flat gradient slab (a rank whose
+             * scenes were all non-finite adds zeros), one for the loss sums */
+            if ((s = sooc_dist_sum_f64(red, 13, "loss sums")) ||
+                (s = sooc_dist_sum_f32(sooc_model_grads(tr.model), tr.n, "gradient slab")))
+                goto done;
+            ok_scenes = (int)red[0], nonfinite = red[1] > 0, stop = red[2] > 0;
+            sum.total = red[3], sum.nll_input = red[4], sum.kl = red[5], sum.nll_query = red[6];
+            sum.nll_depth = red[7], sum.nll_color = red[8], sum.present_slots = red[9];
+            sum.mean_pres_logit = red[10], sum.map_entries = red[11], vis = red[12];
+            t_ar = sooc_seconds() - t0;
+        }
+        t0 = sooc_seconds();
         double gnorm = NAN;
         float lr = sooc_nn_schedule_lr(&sched, step);
         if (ok_scenes > 0) {
             if (ok_scenes > 1) {
-                float *g = sooc_model_grads(tr.model), sc = 1.0f / (float)ok_scenes;
+                float sc = 1.0f / (float)ok_scenes;
                 for (size_t i = 0; i < tr.n; i++) g[i] *= sc;
             }
             gnorm = sooc_nn_clip_grad_norm(&tr.adam, cfg->clip);
@@ -375,6 +474,7 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             if (s == SOOC_ENUMERIC) { s = SOOC_OK; nonfinite = 1; }
             else if (s) goto done;
         }
+        t_opt = sooc_seconds() - t0;
         if (nonfinite) tr.st.skipped++;
         tr.st.step = step + 1;
         double inv = ok_scenes ? 1.0 / ok_scenes : NAN;
@@ -382,13 +482,16 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
                          sum.present_slots * inv, vis * inv, sum.mean_pres_logit * inv, gnorm};
         for (int i = 0; i < 8; i++) acc[i] += row[i];
         acc_n++;
-        if (tr.st.step % cfg->log_every == 0 || tr.st.step == cfg->steps) {
-            char line[512];
+        if (lead && (tr.st.step % cfg->log_every == 0 || tr.st.step == cfg->steps)) {
+            char line[768];
             snprintf(line, sizeof line,
-                     "%lld,%.4g,%.4f,%.4f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.3f,%.3f,%.4f,%.2f,%.4g,%d,%d,%.3f\n",
+                     "%lld,%.4g,%.4f,%.4f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.3f,%.3f,%.4f,%.2f,%.4g,%d,%d,%.3f,"
+                     "%.6f,%.6f,%.6f,%.6f,%.6f,%.3f,%.3f,%d\n",
                      (long long)step, lr, o.tau, o.beta_kl, row[0], row[1], row[2], row[3],
                      sum.nll_depth * inv, sum.nll_color * inv, row[4], row[5], row[6], sum.map_entries * inv,
-                     gnorm, T, Q, sooc_seconds() - ts);
+                     gnorm, T, Q, sooc_seconds() - ts, t_data, t_fwd, t_bwd, t_opt, t_ar, tr.t_val, tr.t_ckpt,
+                     tr.size);
+            tr.t_val = tr.t_ckpt = 0;
             if ((s = append_line(tr.path_log, hdr, line))) goto done;
             snprintf(extra, sizeof extra, "step %lld loss %.4g nll %.4g kl %.4g query %.4g slots %.2f/%.2f gt lr %.2e tau %.2f%s",
                      (long long)tr.st.step, acc[0] / acc_n, acc[1] / acc_n, acc[2] / acc_n, acc[3] / acc_n, acc[4] / acc_n,
@@ -396,23 +499,26 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             memset(acc, 0, sizeof acc);
             acc_n = 0;
         }
-        if (rp->progress) sooc_progress_update(&prog, (uint64_t)(tr.st.step - step0), extra);
-        int stop = (rp->stop_flag && *rp->stop_flag) ||
-                   (cfg->val_max_seconds > 0 && sooc_seconds() - t_start > cfg->val_max_seconds);
-        if (cfg->val_every > 0 && (tr.st.step % cfg->val_every == 0 || tr.st.step == cfg->steps)) {
+        if (rp->progress && lead) sooc_progress_update(&prog, (uint64_t)(tr.st.step - step0), extra);
+        if (rp->step_hook) rp->step_hook(rp->hook_user, tr.st.step);
+        if (lead && cfg->val_every > 0 && (tr.st.step % cfg->val_every == 0 || tr.st.step == cfg->steps)) {
+            t0 = sooc_seconds();
             if ((s = run_validation(&tr, tr.st.step))) goto done;
+            tr.t_val += sooc_seconds() - t0;
         }
-        if (tr.st.step % cfg->ckpt_every == 0 || tr.st.step == cfg->steps || stop) {
+        if (lead && (tr.st.step % cfg->ckpt_every == 0 || tr.st.step == cfg->steps || stop)) {
+            t0 = sooc_seconds();
             if ((s = save_ckpt(&tr, tr.path_last))) goto done;
             sooc_status ps = sooc_eval_plot_csv(tr.path_log, tr.path_png, "sooc3d training");
             if (ps) sooc_log(SOOC_LOG_WARN, "curves: %s", sooc_errmsg());
+            tr.t_ckpt += sooc_seconds() - t0;
         }
         if (stop) {
-            sooc_log(SOOC_LOG_INFO, "stopping at step %lld (checkpoint %s)", (long long)tr.st.step, tr.path_last);
+            if (lead) sooc_log(SOOC_LOG_INFO, "stopping at step %lld (checkpoint %s)", (long long)tr.st.step, tr.path_last);
             break;
         }
     }
-    if (rp->progress) {
+    if (rp->progress && lead) {
         /* stopped early (signal, --max-seconds): the last line shows the steps done, not 100% */
         if (tr.st.step < cfg->steps) prog.total = (uint64_t)(tr.st.step - step0);
         sooc_progress_end(&prog, extra);

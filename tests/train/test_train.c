@@ -169,7 +169,7 @@ static void test_resume(void) {
     sooc_train_config c;
     sooc_model_config mc;
     tiny_config(&c, &mc);
-    sooc_train_run_params rp = {NULL, outa, 0, ds, NULL, NULL, NULL, 0, NULL, NULL};
+    sooc_train_run_params rp = {NULL, outa, 0, ds, NULL, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     CHECK_OK(sooc_train_run(&c, &mc, &rp));
     /* b: stop after 3 steps, then resume */
     sooc_train_config c3 = c;
@@ -220,7 +220,7 @@ static void test_resume(void) {
         sooc_model_config mc5 = mc;
         mc5.d_clip = 5.0f;
         volatile int stop1 = 1;
-        sooc_train_run_params ri = {NULL, outc, 0, ds, NULL, NULL, NULL, 0, &stop1, pa};
+        sooc_train_run_params ri = {NULL, outc, 0, ds, NULL, NULL, NULL, 0, &stop1, pa, NULL, NULL};
         CHECK_OK(sooc_train_run(&c1, &mc5, &ri));
         snprintf(pc, sizeof pc, "%s/last.bin", outc);
         float *wc = NULL;
