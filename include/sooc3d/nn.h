@@ -24,18 +24,17 @@
  *     tape segment into separate buffers without disturbing the final
  *     backward (model.md 2.8 auxiliary inputs).
  *
- *  3. A fused, chunked, multi-threaded MLP (sooc_nn_mlp) for the NeRF
- *     decoder hot path: tree of dense layers, optional per-slot bias on
- *     layer 0, deterministic per-lane weight-gradient reduction.
+ *  3. The kernels the model runs (sooc3d/nn_kern.h): the GEMM, the task
+ *     pool and the decoder MLP layers as forward / backward pairs.
  *
  * Memory: parameters, gradients and Adam moments live in one sooc_nn_params
  * slab each (named views); activations live in a sooc_nn_arena (bump
  * allocator, reset per step). Nothing here calls malloc during a step.
  *
- * Threads: OpenMP loops only over outputs each iteration owns; the MLP's
- * weight gradients use a fixed number of lanes (SOOC_NN_MLP_LANES) reduced
- * in a fixed order, so results are bitwise identical with OpenMP on or off
- * and for any thread count. All nn parallelism is OpenMP: the engine puts
+ * Threads: OpenMP loops only over outputs each iteration owns, so results
+ * are bitwise identical with OpenMP on or off and for any thread count
+ * (the nn_kern.h kernels are serial; callers split rows). All parallelism
+ * here is OpenMP: the engine puts
  * OpenBLAS in single-thread mode on first use (process-global, see
  * sooc_nn_blas_set_threads) and splits large sgemms into a fixed number of
  * M/N blocks (never K), so no output element's summation order depends on
@@ -451,66 +450,6 @@ sooc_status sooc_nn_tape_grad(sooc_nn_tape *t, int mark, sooc_nn_tensor *loss,
 /* Drop the nodes recorded since `mark` (their outputs stay valid as data
  * but no longer propagate gradient). */
 void sooc_nn_tape_cut(sooc_nn_tape *t, int mark);
-
-/* ================================================================ fused MLP */
-
-/* A tree of dense layers run in chunks of points, forward and backward fused
- * per chunk, chunks spread over OpenMP threads. Layer l reads the network
- * input (src = -1) or the post-activation output of an earlier layer src < l.
- * The decoder of model.md 3.3 is:
- *   0: src -1, 33->64 RELU, + per-slot bias      3: src 2, 64->1 SIGMOID (density)
- *   1: src 0,  64->64 RELU                       4: src 2, 64->32 RELU
- *   2: src 1,  64->64 RELU                       5: src 4, 32->3 SIGMOID (colour) */
-#define SOOC_NN_MLP_MAX_LAYERS 12
-#define SOOC_NN_MLP_LANES 16    /* fixed gradient lanes: result independent of threads */
-#define SOOC_NN_MLP_CHUNK 256   /* points per chunk */
-
-typedef struct sooc_nn_mlp_layer {
-    int src;             /* -1 = input, else earlier layer index */
-    int c_in, c_out;
-    sooc_nn_act act;     /* NONE, RELU, ELU, SIGMOID, TANH */
-    const float *w;      /* [c_out, c_in] */
-    const float *b;      /* [c_out] or NULL */
-    float *dw, *db;      /* gradient accumulators (+=) or NULL */
-} sooc_nn_mlp_layer;
-
-typedef struct sooc_nn_mlp {
-    int n_layers;
-    int c_in;
-    sooc_nn_mlp_layer layer[SOOC_NN_MLP_MAX_LAYERS];
-} sooc_nn_mlp;
-
-/* Saved activations of N points: one [N, c_out] block per layer, in layer order. */
-size_t sooc_nn_mlp_act_floats(const sooc_nn_mlp *m, int64_t N);
-/* Pointer to layer l's [N, c_out] output block inside `acts`. */
-float *sooc_nn_mlp_output(const sooc_nn_mlp *m, float *acts, int64_t N, int l);
-/* Backward scratch for K slots (K = 1 without slot bias). */
-size_t sooc_nn_mlp_scratch_floats(const sooc_nn_mlp *m, int K);
-/* x[N, c_in]; slot_bias[K, layer0.c_out] or NULL is added to layer 0's
- * pre-activation, where point n belongs to slot n / pts_per_slot
- * (N = K * pts_per_slot). */
-sooc_status sooc_nn_mlp_forward(const sooc_nn_mlp *m, float *acts, const float *x, int64_t N,
-                                const float *slot_bias, int64_t pts_per_slot);
-/* dout[l]: dL/d(post-activation output of layer l) [N, c_out] or NULL
- * (layers whose output is only consumed inside the net usually pass NULL).
- * Accumulates into each layer's dw/db, dx[N,c_in] (NULL to skip) and
- * dslot_bias[K, c0] (NULL to skip). */
-sooc_status sooc_nn_mlp_backward(const sooc_nn_mlp *m, float *dx, float *dslot_bias,
-                                 const float *const *dout, const float *acts, const float *x,
-                                 int64_t N, const float *slot_bias, int64_t pts_per_slot,
-                                 float *scratch);
-
-/* The fused MLP as ONE tape node (so the decoder can live on the tape and
- * take part in sooc_nn_tape_grad). Weights come from the tensors w[l] [c_out,
- * c_in] and b[l] [c_out] (b or b[l] may be NULL); m->layer[l].w/b/dw/db are
- * ignored. x [N, c_in]; slot_bias [K, layer0.c_out] or NULL (N = K *
- * pts_per_slot). out[l] (may be NULL) receives each layer's [N, c_out] output
- * tensor; seed/consume any of them. Saved activations and backward scratch
- * come from the arena. */
-sooc_status sooc_nn_mlp_apply(sooc_nn_tape *t, const sooc_nn_mlp *m, sooc_nn_tensor *const *w,
-                              sooc_nn_tensor *const *b, sooc_nn_tensor *x,
-                              sooc_nn_tensor *slot_bias, int64_t pts_per_slot,
-                              sooc_nn_tensor **out);
 
 /* Set OpenBLAS threads and return the previous count. The nn kernels reset
  * it to 1 on their next call (they parallelise with OpenMP themselves); use

@@ -13,7 +13,7 @@
 
 typedef enum node_op {
     OP_LINEAR, OP_SLOT_BIAS, OP_UNARY, OP_BINARY, OP_AFFINE, OP_CONCAT, OP_SLICE, OP_GATHER,
-    OP_SCATTER, OP_SUM, OP_LAYERNORM, OP_POSENC, OP_CONV, OP_LSTM, OP_RESHAPE, OP_MLP
+    OP_SCATTER, OP_SUM, OP_LAYERNORM, OP_POSENC, OP_CONV, OP_LSTM, OP_RESHAPE
 } node_op;
 
 #define NODE_MAX_IN 8
@@ -27,21 +27,7 @@ typedef struct node {
     void *aux;
     int64_t ia[6];
     float fa[2];
-    /* ops with many operands (fused MLP): extra tensors (weights, outputs),
-     * visited by the segment-gradient bookkeeping like in/out */
-    sooc_nn_tensor **extra;
-    int n_extra;
 } node;
-
-/* fused-MLP node payload */
-typedef struct mlp_aux {
-    sooc_nn_mlp m;
-    sooc_nn_tensor *w[SOOC_NN_MLP_MAX_LAYERS], *b[SOOC_NN_MLP_MAX_LAYERS];
-    sooc_nn_tensor *out[SOOC_NN_MLP_MAX_LAYERS];
-    float *acts;
-    int64_t N, pps;
-    int K;
-} mlp_aux;
 
 struct sooc_nn_tape {
     sooc_nn_arena *arena;
@@ -492,73 +478,6 @@ sooc_nn_tensor *sooc_nn_reshape(sooc_nn_tape *t, sooc_nn_tensor *x, int ndim,
     return push(t, OP_RESHAPE, y, 1, x) ? y : NULL;
 }
 
-sooc_status sooc_nn_mlp_apply(sooc_nn_tape *t, const sooc_nn_mlp *m, sooc_nn_tensor *const *w,
-                              sooc_nn_tensor *const *b, sooc_nn_tensor *x,
-                              sooc_nn_tensor *slot_bias, int64_t pts_per_slot,
-                              sooc_nn_tensor **out) {
-    if (t->status) return t->status;
-    int L = m->n_layers;
-    if (!x || L < 1 || L > SOOC_NN_MLP_MAX_LAYERS || x->ndim != 2 || x->shape[1] != m->c_in) {
-        fail(t, SOOC_EINVAL, "nn tape: mlp_apply: bad input shape or layer count%s", "");
-        return t->status;
-    }
-    int64_t N = x->shape[0];
-    int K = 1;
-    if (slot_bias) {
-        if (pts_per_slot < 1 || N % pts_per_slot || slot_bias->ndim != 2 ||
-            slot_bias->shape[0] != N / pts_per_slot || slot_bias->shape[1] != m->layer[0].c_out) {
-            fail(t, SOOC_EINVAL, "nn tape: mlp_apply: slot_bias must be [N/pts_per_slot, c_out0]%s", "");
-            return t->status;
-        }
-        K = (int)(N / pts_per_slot);
-    }
-    mlp_aux *ma = sooc_nn_arena_alloc(t->arena, sizeof *ma);
-    sooc_nn_tensor **extra = sooc_nn_arena_alloc(t->arena, sizeof(sooc_nn_tensor *) * 3 * (size_t)L);
-    if (!ma || !extra) { fail(t, SOOC_ENOMEM, NULL, NULL); return t->status; }
-    memset(ma, 0, sizeof *ma);
-    ma->m = *m;
-    ma->N = N;
-    ma->pps = slot_bias ? pts_per_slot : 0;
-    ma->K = K;
-    int req = x->requires_grad || (slot_bias && slot_bias->requires_grad);
-    for (int l = 0; l < L; l++) {
-        sooc_nn_mlp_layer *ly = &ma->m.layer[l];
-        if (!w[l] || w[l]->ndim != 2 || w[l]->shape[0] != ly->c_out || w[l]->shape[1] != ly->c_in ||
-            (b && b[l] && b[l]->n != ly->c_out)) {
-            fail(t, SOOC_EINVAL, "nn tape: mlp_apply: weight shape mismatch%s", "");
-            return t->status;
-        }
-        ma->w[l] = w[l];
-        ma->b[l] = b ? b[l] : NULL;
-        ly->w = w[l]->data;
-        ly->b = ma->b[l] ? ma->b[l]->data : NULL;
-        ly->dw = ly->db = NULL;
-        req = req || w[l]->requires_grad || (ma->b[l] && ma->b[l]->requires_grad);
-    }
-    ma->acts = sooc_nn_arena_floats(t->arena, sooc_nn_mlp_act_floats(&ma->m, N));
-    if (!ma->acts) { fail(t, SOOC_ENOMEM, NULL, NULL); return t->status; }
-    sooc_status s = sooc_nn_mlp_forward(&ma->m, ma->acts, x->data, N,
-                                        slot_bias ? slot_bias->data : NULL, pts_per_slot);
-    if (s) { fail(t, s, NULL, NULL); return t->status; }
-    int ne = 0;
-    for (int l = 0; l < L; l++) {
-        int64_t shp[2] = {N, ma->m.layer[l].c_out};
-        ma->out[l] = new_tensor(t, sooc_nn_mlp_output(&ma->m, ma->acts, N, l), 2, shp, req);
-        if (!ma->out[l]) return t->status;
-        if (out) out[l] = ma->out[l];
-        extra[ne++] = ma->out[l];
-        extra[ne++] = ma->w[l];
-        if (ma->b[l]) extra[ne++] = ma->b[l];
-    }
-    node *nd = push(t, OP_MLP, ma->out[L - 1], 2, x, slot_bias);
-    if (!nd) return t->status;
-    for (int l = 0; l < L; l++) ma->out[l]->requires_grad = req;
-    nd->aux = ma;
-    nd->extra = extra;
-    nd->n_extra = ne;
-    return SOOC_OK;
-}
-
 sooc_nn_tensor *sooc_nn_stop_grad(sooc_nn_tape *t, sooc_nn_tensor *x) {
     CHECK_IN(x);
     return new_tensor(t, x->data, x->ndim, x->shape, 0);
@@ -569,10 +488,6 @@ sooc_nn_tensor *sooc_nn_stop_grad(sooc_nn_tape *t, sooc_nn_tensor *x) {
 static void node_backward(sooc_nn_tape *t, node *nd) {
     sooc_nn_tensor *y = nd->out[0];
     int reached = y->grad || (nd->out[1] && nd->out[1]->grad);
-    if (nd->op == OP_MLP) {
-        const mlp_aux *ma = nd->aux;
-        for (int l = 0; l < ma->m.n_layers; l++) reached = reached || ma->out[l]->grad;
-    }
     if (!reached) return; /* nothing reached it */
     sooc_nn_tensor **in = nd->in;
     sooc_nn_arena *A = t->arena;
@@ -701,26 +616,6 @@ static void node_backward(sooc_nn_tape *t, node *nd) {
         if (dx) for (int64_t i = 0; i < y->n; i++) dx[i] += y->grad[i];
         break;
     }
-    case OP_MLP: {
-        mlp_aux *ma = nd->aux;
-        sooc_nn_mlp m = ma->m;
-        const float *dout[SOOC_NN_MLP_MAX_LAYERS];
-        for (int l = 0; l < m.n_layers; l++) {
-            m.layer[l].dw = gin(t, ma->w[l]);
-            m.layer[l].db = gin(t, ma->b[l]);
-            dout[l] = ma->out[l]->grad;
-        }
-        float *dx = gin(t, in[0]), *dsb = gin(t, in[1]);
-        if (t->status) return;
-        size_t mk = sooc_nn_arena_mark(A);
-        float *scr = sooc_nn_arena_floats(A, sooc_nn_mlp_scratch_floats(&m, ma->K));
-        if (!scr) { fail(t, SOOC_ENOMEM, NULL, NULL); return; }
-        sooc_status s = sooc_nn_mlp_backward(&m, dx, dsb, dout, ma->acts, in[0]->data, ma->N,
-                                             in[1] ? in[1]->data : NULL, ma->pps, scr);
-        if (s) fail(t, s, NULL, NULL);
-        sooc_nn_arena_rewind(A, mk);
-        break;
-    }
     }
 }
 
@@ -746,8 +641,8 @@ static void seg_swap(sooc_nn_tape *t, int mark, uint32_t ep) {
         for (int j = 0; j < nd->n_in; j++) ts[k++] = nd->in[j];
         ts[k++] = nd->out[0];
         ts[k++] = nd->out[1];
-        for (int j = 0; j < k + nd->n_extra; j++) {
-            sooc_nn_tensor *x = j < k ? ts[j] : nd->extra[j - k];
+        for (int j = 0; j < k; j++) {
+            sooc_nn_tensor *x = ts[j];
             if (!x || x->epoch == ep) continue;
             x->epoch = ep;
             x->grad_main = x->grad;
@@ -781,19 +676,16 @@ sooc_status sooc_nn_tape_grad(sooc_nn_tape *t, int mark, sooc_nn_tensor *loss,
     /* restore main gradients; fold parameter gradients in */
     for (int i = mark; i <= t->n; i++) {
         sooc_nn_tensor *ts[NODE_MAX_IN + 2];
-        int k = 0, ne = 0;
-        sooc_nn_tensor **ex = NULL;
+        int k = 0;
         if (i == t->n) ts[k++] = loss;
         else {
             node *nd = &t->nodes[i];
             for (int j = 0; j < nd->n_in; j++) ts[k++] = nd->in[j];
             ts[k++] = nd->out[0];
             ts[k++] = nd->out[1];
-            ne = nd->n_extra;
-            ex = nd->extra;
         }
-        for (int j = 0; j < k + ne; j++) {
-            sooc_nn_tensor *x = j < k ? ts[j] : ex[j - k];
+        for (int j = 0; j < k; j++) {
+            sooc_nn_tensor *x = ts[j];
             if (!x || x->epoch != ep) continue;
             x->epoch = ep + 0x80000000u; /* restored */
             if (x->is_param && x->grad && param_scale != 0.f && !t->status)

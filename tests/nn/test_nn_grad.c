@@ -1,6 +1,7 @@
 /*
  * Finite-difference gradient check for every nn op (through the tape, which
- * calls the kernel pairs), plus the fused MLP kernels.
+ * calls the kernel pairs). The decoder MLP kernels the model runs are
+ * checked in test_nn_nerf.c.
  *
  * Loss L = sum(out * r) with a fixed random r, evaluated in double from the
  * float32 output. Numeric derivative: 4-point central difference
@@ -222,64 +223,6 @@ static sooc_nn_tensor *f_reshape(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
     return sooc_nn_unary(t, SOOC_NN_ACT_TANH, sooc_nn_reshape(t, x[0], 2, s));
 }
 
-/* fused MLP as a tape node: x[12,4] (3 slots x 4 points), sb[3,6],
- * 0: 4->6 tanh (+slot bias), 1: 6->2 sigmoid, 2: 6->3 elu; loss on 1 and 2 */
-static sooc_nn_mlp g_small_mlp = {3, 4, {{-1, 4, 6, SOOC_NN_ACT_TANH, 0, 0, 0, 0},
-                                         {0, 6, 2, SOOC_NN_ACT_SIGMOID, 0, 0, 0, 0},
-                                         {0, 6, 3, SOOC_NN_ACT_ELU, 0, 0, 0, 0}}};
-static sooc_nn_tensor *f_mlp_apply(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
-    (void)c;
-    sooc_nn_tensor *w[3] = {x[2], x[4], x[6]}, *b[3] = {x[3], x[5], x[7]}, *out[3];
-    if (sooc_nn_mlp_apply(t, &g_small_mlp, w, b, x[0], x[1], 4, out)) return NULL;
-    sooc_nn_tensor *cat[2] = {out[1], out[2]};
-    return sooc_nn_concat(t, cat, 2, 1);
-}
-
-/* tape_grad over a fused-MLP node equals the plain backward */
-static void test_mlp_apply_segment(void) {
-    float xs[12 * 4], sb[18], w0[24], b0[6], w1[12], b1[2], w2[18], b2[3];
-    float *all[8] = {xs, sb, w0, b0, w1, b1, w2, b2};
-    int ns[8] = {48, 18, 24, 6, 12, 2, 18, 3};
-    int64_t sh[8][2] = {{12, 4}, {3, 6}, {6, 4}, {6, 1}, {2, 6}, {2, 1}, {3, 6}, {3, 1}};
-    for (int i = 0; i < 8; i++)
-        for (int e = 0; e < ns[i]; e++) all[i][e] = (float)sooc_rng_normal(&g_rng) * 0.7f;
-    float g[2][8][48], dxs[48], r[12 * 5];
-    for (int i = 0; i < 60; i++) r[i] = (float)sooc_rng_normal(&g_rng);
-    for (int pass = 0; pass < 2; pass++) {
-        memset(g[pass], 0, sizeof g[pass]);
-        sooc_nn_tape_reset(g_tape);
-        sooc_nn_arena_reset(&g_arena);
-        sooc_nn_tensor *ts[8];
-        for (int i = 0; i < 8; i++) {
-            ts[i] = sooc_nn_tensor_new(g_tape, all[i], (i & 1) && i > 1 ? 1 : 2, sh[i], 1);
-            if (i >= 2) { ts[i]->is_param = 1; ts[i]->grad = g[pass][i]; }
-        }
-        int mark = sooc_nn_tape_mark(g_tape);
-        sooc_nn_tensor *y = f_mlp_apply(g_tape, ts, NULL);
-        CHECK(y != NULL);
-        if (!y) return;
-        if (pass == 0) {
-            CHECK_OK(sooc_nn_tape_seed(g_tape, y, r, 1.f));
-            CHECK_OK(sooc_nn_tape_backward(g_tape));
-            memcpy(g[0][0], ts[0]->grad, sizeof(float) * 48);
-            memcpy(g[0][1], ts[1]->grad, sizeof(float) * 18);
-        } else {
-            sooc_nn_tensor *wrt[2] = {ts[0], ts[1]};
-            float *dw[2] = {dxs, g[1][1]};
-            CHECK_OK(sooc_nn_tape_grad(g_tape, mark, y, r, wrt, dw, 2, 1.f));
-            memcpy(g[1][0], dxs, sizeof dxs);
-            CHECK(ts[0]->grad == NULL); /* main gradient untouched */
-        }
-    }
-    double worst = 0;
-    for (int i = 0; i < 8; i++)
-        for (int e = 0; e < ns[i]; e++)
-            worst = fmax(worst, fabs(g[0][i][e] - g[1][i][e]) / (1e-6 + 1e-5 * fabs(g[0][i][e])));
-    printf("%-28s %s tape_grad vs backward worst err/tol %.3f\n", "mlp_apply segment grad",
-           worst <= 1 ? "ok  " : "FAIL", worst);
-    CHECK_MSG(worst <= 1, "mlp_apply segment gradient worst %.3g", worst);
-}
-
 #define IN(nd, a, b, c_, d, lo_, hi_) {nd, {a, b, c_, d}, lo_, hi_, 0, NULL, NULL, 0}
 
 static void test_stopgrad_zero(void) {
@@ -295,105 +238,6 @@ static void test_stopgrad_zero(void) {
     CHECK_OK(sooc_nn_tape_backward(g_tape));
     CHECK(tb->grad == NULL);
     CHECK(ta->grad && ta->grad[2] == 7.f);
-}
-
-/* fused MLP vs the tape's unfused ops (gradients), and thread determinism */
-static void test_mlp_fused(void) {
-    enum { K = 3, NK = 300, N = K * NK, CI = 7 };
-    sooc_nn_mlp m;
-    memset(&m, 0, sizeof m);
-    static const int src[5] = {-1, 0, 1, 1, 3}, co[5] = {16, 12, 1, 6, 3};
-    static const sooc_nn_act act[5] = {SOOC_NN_ACT_RELU, SOOC_NN_ACT_ELU, SOOC_NN_ACT_SIGMOID,
-                                       SOOC_NN_ACT_TANH, SOOC_NN_ACT_NONE};
-    m.n_layers = 5;
-    m.c_in = CI;
-    float *w[5], *b[5], *dw[2][5], *db[2][5];
-    for (int l = 0; l < 5; l++) {
-        int ci = src[l] < 0 ? CI : co[src[l]];
-        w[l] = sooc_malloc(sizeof(float) * ci * co[l]);
-        b[l] = sooc_malloc(sizeof(float) * co[l]);
-        sooc_nn_init_uniform(w[l], (size_t)ci * co[l], 1.f / sqrtf((float)ci), &g_rng);
-        sooc_nn_init_uniform(b[l], (size_t)co[l], 0.3f, &g_rng);
-        for (int r = 0; r < 2; r++) {
-            dw[r][l] = sooc_calloc((size_t)ci * co[l], sizeof(float));
-            db[r][l] = sooc_calloc((size_t)co[l], sizeof(float));
-        }
-        m.layer[l] = (sooc_nn_mlp_layer){src[l], ci, co[l], act[l], w[l], b[l], NULL, NULL};
-    }
-    float *x = sooc_malloc(sizeof(float) * N * CI), *sb = sooc_malloc(sizeof(float) * K * 16);
-    float *dx[2], *dsb[2];
-    for (int i = 0; i < N * CI; i++) x[i] = (float)sooc_rng_normal(&g_rng);
-    for (int i = 0; i < K * 16; i++) sb[i] = 0.2f * (float)sooc_rng_normal(&g_rng);
-    float *d2 = sooc_malloc(sizeof(float) * N), *d4 = sooc_malloc(sizeof(float) * N * 3);
-    for (int i = 0; i < N; i++) d2[i] = (float)sooc_rng_normal(&g_rng);
-    for (int i = 0; i < 3 * N; i++) d4[i] = (float)sooc_rng_normal(&g_rng);
-    const float *dout[5] = {NULL, NULL, d2, NULL, d4};
-    float *acts = sooc_malloc(sizeof(float) * sooc_nn_mlp_act_floats(&m, N));
-    float *scr = sooc_malloc(sizeof(float) * sooc_nn_mlp_scratch_floats(&m, K));
-    for (int r = 0; r < 2; r++) {
-        dx[r] = sooc_calloc((size_t)N * CI, sizeof(float));
-        dsb[r] = sooc_calloc((size_t)K * 16, sizeof(float));
-        for (int l = 0; l < 5; l++) { m.layer[l].dw = dw[r][l]; m.layer[l].db = db[r][l]; }
-#ifdef SOOC_HAVE_OPENMP
-        omp_set_num_threads(r == 0 ? 1 : 2);
-#endif
-        CHECK_OK(sooc_nn_mlp_forward(&m, acts, x, N, sb, NK));
-        CHECK_OK(sooc_nn_mlp_backward(&m, dx[r], dsb[r], dout, acts, x, N, sb, NK, scr));
-    }
-#ifdef SOOC_HAVE_OPENMP
-    omp_set_num_threads(2);
-#endif
-    int same = memcmp(dx[0], dx[1], sizeof(float) * N * CI) == 0 &&
-               memcmp(dsb[0], dsb[1], sizeof(float) * K * 16) == 0;
-    for (int l = 0; l < 5; l++)
-        same = same && memcmp(dw[0][l], dw[1][l], sizeof(float) * m.layer[l].c_in * co[l]) == 0 &&
-               memcmp(db[0][l], db[1][l], sizeof(float) * co[l]) == 0;
-    CHECK_MSG(same, "fused MLP gradients differ between 1 and 2 threads (must be bitwise equal)");
-    /* reference: the same net on the tape */
-    sooc_nn_tape_reset(g_tape);
-    sooc_nn_arena_reset(&g_arena);
-    int64_t sx[3] = {K, NK, CI};
-    sooc_nn_tensor *tx = sooc_nn_tensor_new(g_tape, x, 3, sx, 1);
-    int64_t ssb[2] = {K, 16};
-    sooc_nn_tensor *tsb = sooc_nn_tensor_new(g_tape, sb, 2, ssb, 1);
-    sooc_nn_tensor *h[5], *tw[5], *tb[5];
-    for (int l = 0; l < 5; l++) {
-        int64_t sw[2] = {co[l], m.layer[l].c_in}, sbb[1] = {co[l]};
-        tw[l] = sooc_nn_tensor_new(g_tape, w[l], 2, sw, 1);
-        tb[l] = sooc_nn_tensor_new(g_tape, b[l], 1, sbb, 1);
-        sooc_nn_tensor *in = src[l] < 0 ? tx : h[src[l]];
-        if (l == 0) {
-            sooc_nn_tensor *z = sooc_nn_linear(g_tape, in, tw[0], tb[0], SOOC_NN_ACT_NONE);
-            h[0] = sooc_nn_unary(g_tape, act[0], sooc_nn_slot_bias(g_tape, z, tsb));
-        } else {
-            h[l] = sooc_nn_linear(g_tape, in, tw[l], tb[l], act[l]);
-        }
-    }
-    CHECK_OK(sooc_nn_tape_seed(g_tape, h[2], d2, 1.f));
-    CHECK_OK(sooc_nn_tape_seed(g_tape, h[4], d4, 1.f));
-    CHECK_OK(sooc_nn_tape_backward(g_tape));
-    double worst = 0;
-#define CMPV(a, b, n)                                                                    \
-    for (int64_t i_ = 0; i_ < (int64_t)(n); i_++) {                                      \
-        double e_ = fabs((double)(a)[i_] - (b)[i_]) / (1e-4 + 1e-4 * fabs((double)(b)[i_])); \
-        if (e_ > worst) worst = e_;                                                      \
-    }
-    for (int l = 0; l < 5; l++) {
-        CMPV(dw[1][l], tw[l]->grad, m.layer[l].c_in * co[l]);
-        CMPV(db[1][l], tb[l]->grad, co[l]);
-        CMPV(sooc_nn_mlp_output(&m, acts, N, l), h[l]->data, (int64_t)N * co[l]);
-    }
-    CMPV(dx[1], tx->grad, N * CI);
-    CMPV(dsb[1], tsb->grad, K * 16);
-    printf("%-28s %s fused vs tape: worst err/(1e-4 + 1e-4|ref|) %.3f; 1 vs 2 threads bitwise %s\n",
-           "mlp_fused", worst <= 1 ? "ok  " : "FAIL", worst, same ? "equal" : "DIFFERENT");
-    CHECK_MSG(worst <= 1.0, "fused MLP vs tape worst %.3g", worst);
-    for (int l = 0; l < 5; l++) {
-        sooc_free(w[l]); sooc_free(b[l]);
-        for (int r = 0; r < 2; r++) { sooc_free(dw[r][l]); sooc_free(db[r][l]); }
-    }
-    for (int r = 0; r < 2; r++) { sooc_free(dx[r]); sooc_free(dsb[r]); }
-    sooc_free(x); sooc_free(sb); sooc_free(d2); sooc_free(d4); sooc_free(acts); sooc_free(scr);
 }
 
 /* the fixed-block parallel sgemm against a naive double product, all
@@ -576,15 +420,6 @@ int main(void) {
         gc_input r[1] = {IN(3, 2, 3, 4, 0, -1, 1)};
         gradcheck("reshape", f_reshape, r, 1, NULL);
     }
-    {
-        gc_input in[8] = {IN(2, 12, 4, 0, 0, -1, 1), IN(2, 3, 6, 0, 0, -0.5f, 0.5f),
-                          IN(2, 6, 4, 0, 0, -0.6f, 0.6f), IN(1, 6, 0, 0, 0, -0.3f, 0.3f),
-                          IN(2, 2, 6, 0, 0, -0.6f, 0.6f), IN(1, 2, 0, 0, 0, -0.3f, 0.3f),
-                          IN(2, 3, 6, 0, 0, -0.6f, 0.6f), IN(1, 3, 0, 0, 0, -0.3f, 0.3f)};
-        gradcheck("mlp_apply (fused, tape)", f_mlp_apply, in, 8, NULL);
-    }
-    test_mlp_apply_segment();
-    test_mlp_fused();
     test_sgemm_blocks();
     sooc_nn_tape_destroy(g_tape);
     sooc_nn_arena_deinit(&g_arena);

@@ -3,7 +3,7 @@
  * /usr/bin/python3 (Debian python3-torch) to write nn_ref.bin into the build
  * directory, then rebuilds the same composite network on the sooc3d tape and
  * compares outputs, every gradient, the losses of 5 Adam steps and the final
- * parameters; the decoder part is also run through the fused sooc_nn_mlp.
+ * parameters. (The decoder MLP as the model runs it: test_nn_nerf_ref.c.)
  * Skips (77) only when python3 or torch is missing.
  *
  * Tolerances (float32, different summation orders): |c - t| <= atol + rtol*|t|
@@ -153,46 +153,6 @@ static void forward(sooc_nn_tape *t, fwd *f) {
     f->loss = sooc_nn_binary(t, SOOC_NN_ADD, l, mse(t, f->dz, in_tensor(t, "in.t_dz", 0)));
 }
 
-static void fused_mlp_check(fwd *f) {
-    sooc_nn_mlp m;
-    memset(&m, 0, sizeof m);
-    m.n_layers = 4;
-    m.c_in = 33;
-    const char *w[4] = {"mlp.w0", "mlp.w1", "mlp.wd", "mlp.wc"}, *b[4] = {"mlp.b0", "mlp.b1", "mlp.bd", "mlp.bc"};
-    static const int src[4] = {-1, 0, 1, 1}, co[4] = {16, 16, 1, 3};
-    static const sooc_nn_act act[4] = {SOOC_NN_ACT_RELU, SOOC_NN_ACT_RELU, SOOC_NN_ACT_SIGMOID, SOOC_NN_ACT_SIGMOID};
-    float *dw[4], *db[4];
-    for (int l = 0; l < 4; l++) {
-        int ci = src[l] < 0 ? 33 : 16;
-        dw[l] = sooc_calloc((size_t)ci * co[l], 4);
-        db[l] = sooc_calloc((size_t)co[l], 4);
-        m.layer[l] = (sooc_nn_mlp_layer){src[l], ci, co[l], act[l], P(w[l])->data, P(b[l])->data, dw[l], db[l]};
-    }
-    const int N = 32;
-    float *acts = sooc_malloc(4 * sooc_nn_mlp_act_floats(&m, N));
-    float *scr = sooc_malloc(4 * sooc_nn_mlp_scratch_floats(&m, 2));
-    float *dx = sooc_calloc((size_t)N * 33, 4), *dsb = sooc_calloc(2 * 16, 4);
-    CHECK_OK(sooc_nn_mlp_forward(&m, acts, f->pe->data, N, f->sb->data, 16));
-    const float *dout[4] = {NULL, NULL, f->dens->grad, f->col->grad};
-    CHECK_OK(sooc_nn_mlp_backward(&m, dx, dsb, dout, acts, f->pe->data, N, f->sb->data, 16, scr));
-    cmp("fused mlp out", sooc_nn_mlp_output(&m, acts, N, 2), "out.dens", 1e-6, 1e-5);
-    cmp("fused mlp out", sooc_nn_mlp_output(&m, acts, N, 3), "out.col", 1e-6, 1e-5);
-    char gn[64];
-    for (int l = 0; l < 4; l++) {
-        snprintf(gn, sizeof gn, "grad.%s", w[l]);
-        cmp("fused mlp grad", dw[l], gn, 1e-6, 1e-4);
-        snprintf(gn, sizeof gn, "grad.%s", b[l]);
-        cmp("fused mlp grad", db[l], gn, 1e-6, 1e-4);
-    }
-    /* dslot_bias and dx against the tape */
-    double worst = 0;
-    for (int i = 0; i < 32; i++) worst = fmax(worst, fabs(dsb[i] - f->sb->grad[i]) / (1e-5 + 1e-4 * fabs(f->sb->grad[i])));
-    for (int i = 0; i < N * 33; i++) worst = fmax(worst, fabs(dx[i] - f->pe->grad[i]) / (1e-5 + 1e-4 * fabs(f->pe->grad[i])));
-    CHECK_MSG(worst <= 1, "fused mlp dslot/dx vs tape worst %.3g", worst);
-    for (int l = 0; l < 4; l++) { sooc_free(dw[l]); sooc_free(db[l]); }
-    sooc_free(acts); sooc_free(scr); sooc_free(dx); sooc_free(dsb);
-}
-
 int main(void) {
     if (system("/usr/bin/python3 -c 'import torch' > /dev/null 2>&1") != 0) {
         printf("SKIP: /usr/bin/python3 with torch not available (apt install python3-torch)\n");
@@ -246,7 +206,6 @@ int main(void) {
     printf("forward/backward vs torch: worst err/tol %.3f over all tensors\n", g_worst_all);
     /* digests for comparing builds (OpenMP on/off, thread counts): bitwise */
     uint32_t grad_crc = sooc_crc32(0, g_p.g, g_p.n_total * sizeof(float));
-    fused_mlp_check(&f);
 
     /* 5 Adam steps, lr 1e-2 */
     float losses[5];
