@@ -69,10 +69,11 @@ void sooc_nn_pool_run(sooc_nn_pool *p, int n, sooc_nn_task_fn fn, void *ctx);
 
 /* ========================================================== decoder MLP */
 
-/* Dense layer, weights W [I x O] row-major (the model's layout), on R rows:
+/* Dense layer, weights W [nin x nout] row-major (the model's layout), on R rows
+ * (I = nin, O = nout below):
  *   y[R x O] = act(x[R x I] W + init), init = y (acc) or b[O] (NULL: 0),
  *   act = SOOC_NN_EP_NONE or SOOC_NN_EP_RELU. Leading dimensions ldx, ldy. */
-void sooc_nn_dense_forward(int R, int I, int O, const float *x, int ldx, const float *W, const float *b, float *y,
+void sooc_nn_dense_forward(int R, int nin, int nout, const float *x, int ldx, const float *W, const float *b, float *y,
                            int ldy, int acc, int act);
 /* Backward of a dense layer given dz[R x O] = dL/d(pre-activation) (ldz):
  *   dW[I x O] += alpha x^T dz, db[O] += alpha sum_r dz (both NULL-able; dW needs x);
@@ -80,7 +81,7 @@ void sooc_nn_dense_forward(int R, int I, int O, const float *x, int ldx, const f
  *   xmask != NULL (the ReLU backward of the layer that produced x: pass x).
  * Wt: W transposed ([O x I]) for the AVX2 kernel, or NULL (OpenBLAS on W).
  * dx NULL: no input gradient. */
-void sooc_nn_dense_backward(int R, int I, int O, const float *dz, int ldz, const float *x, int ldx, const float *W,
+void sooc_nn_dense_backward(int R, int nin, int nout, const float *dz, int ldz, const float *x, int ldx, const float *W,
                             const float *Wt, float *dx, int lddx, int acc_dx, const float *xmask, float *dW,
                             float *db, float alpha);
 
