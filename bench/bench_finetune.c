@@ -1,0 +1,158 @@
+/* bench_finetune (issue 19): wall time of `sooc3d finetune` with the default
+ * iterations on a medium unity scene (bar: <= 60 s on this machine's 2 cores),
+ * and the cost per object against the map's size (a large scene's map holds
+ * ~9x the objects: the per-unit time must not grow with it).
+ *
+ * Each scene: sooc_gen_scene (seed 9001, held out), its input views rendered
+ * at the model's resolution, online inference with the shipped model, then
+ * sooc_finetune_run over every unit (objects, then layout blocks). The time
+ * measured is the finetuning only (build + all units), not inference.
+ *
+ *   bench_finetune [--model M] [--scenes N] [--iterations K] [--no-large]
+ * Prints a line per scene and a JSON object last. */
+#include "sooc3d/finetune.h"
+#include "sooc3d/gen.h"
+#include "sooc3d/model.h"
+#include "sooc3d/scene.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifndef SOOC_SOURCE_DIR
+#define SOOC_SOURCE_DIR "."
+#endif
+
+typedef struct scene_run {
+    int n_views, n_entries, n_units, n_objects_units;
+    double seconds, s_per_unit, s_per_object, ms_per_step;
+    double ll_before, ll_after;   /* mean ℓ per ray, fixed samples */
+} scene_run;
+
+static sooc_status run_scene(const char *model, sooc_gen_scale scale, int index, const sooc_finetune_params *fp,
+                             scene_run *out) {
+    memset(out, 0, sizeof *out);
+    sooc_model *m = NULL;
+    sooc3d_mapper *mp = NULL;
+    sooc_finetune *ft = NULL;
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    sooc_frame *fr = NULL;
+    int nfr = 0;
+    sooc_status st = sooc_model_load(&m, model, NULL, NULL);
+    if (st) return st;
+    const sooc_model_config *c = sooc_model_get_config(m);
+    sooc_gen_params gp;
+    sooc_gen_params_default(&gp);
+    gp.preset = SOOC_GEN_UNITY, gp.scale = scale, gp.seed = 9001;
+    gp.width = c->img_w, gp.height = c->img_h;
+    if ((st = sooc_gen_scene(&sc, &gp, index))) goto done;
+    fr = calloc((size_t)sc.n_views, sizeof *fr);
+    if (!fr) {
+        st = SOOC_ENOMEM;
+        goto done;
+    }
+    sooc_intrinsics K;
+    sooc_gen_intrinsics(&K, gp.width, gp.height, sc.fov_deg);
+    if ((st = sooc3d_mapper_create_with_model(&mp, m, 0, 1, 0))) goto done;
+    m = NULL;   /* owned by the mapper */
+    sooc_model *mm = sooc3d_mapper_model(mp);
+    for (int v = 0; v < sc.n_views; v++) {
+        if (sc.view_is_query[v]) continue;
+        sooc_frame *f = &fr[nfr];
+        if ((st = sooc_gen_render_view(&sc, sc.view_T_wc + 16 * v, &K, f))) goto done;
+        f->has_pose = 1, f->index = v;
+        nfr++;
+        sooc3d_update_stats us;
+        if ((st = sooc3d_mapper_update(mp, f, &us))) goto done;
+    }
+    sooc_cogmap *map = (sooc_cogmap *)sooc3d_mapper_cogmap(mp);
+    double t0 = sooc_seconds();
+    if ((st = sooc_finetune_create(&ft, mm, map, fp))) goto done;
+    for (int i = 0; i < nfr; i++)
+        if ((st = sooc_finetune_add_view(ft, &fr[i]))) goto done;
+    size_t nr = 0;
+    double ll = 0;
+    if ((st = sooc_finetune_loglik(ft, 77, &ll, &nr))) goto done;
+    double tl = sooc_seconds() - t0;   /* not part of a run: subtracted below */
+    out->ll_before = nr ? ll / (double)nr : 0;
+    int nu = sooc_finetune_n_units(ft);
+    double t_obj = 0;
+    for (int u = 0; u < nu; u++) {
+        sooc_finetune_unit un;
+        sooc_finetune_result r;
+        if ((st = sooc_finetune_unit_get(ft, u, &un)) || (st = sooc_finetune_unit_run(ft, u, NULL, NULL, 0, &r)))
+            goto done;
+        if (un.kind == SOOC_FT_OBJECT) t_obj += r.seconds, out->n_objects_units++;
+    }
+    out->seconds = sooc_seconds() - t0 - tl;
+    if ((st = sooc_finetune_loglik(ft, 77, &ll, &nr))) goto done;
+    out->ll_after = nr ? ll / (double)nr : 0;
+    out->n_views = nfr, out->n_units = nu, out->n_entries = (int)sooc_cogmap_count(map);
+    out->s_per_unit = nu ? out->seconds / nu : 0;
+    out->s_per_object = out->n_objects_units ? t_obj / out->n_objects_units : 0;
+    out->ms_per_step = nu && fp->iterations ? 1e3 * out->seconds / ((double)nu * fp->iterations) : 0;
+done:
+    sooc_finetune_destroy(ft);
+    sooc3d_mapper_destroy(mp);
+    sooc_model_destroy(m);
+    for (int i = 0; i < nfr; i++) sooc_frame_free(&fr[i]);
+    free(fr);
+    sooc_scene_free(&sc);
+    return st;
+}
+
+int main(int argc, char **argv) {
+    const char *model = SOOC_SOURCE_DIR "/models/sooc3d_unity/model.bin";
+    int scenes = 1, large = 1;
+    sooc_finetune_params fp;
+    sooc_finetune_params_default(&fp);
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
+        else if (!strcmp(argv[i], "--scenes") && i + 1 < argc) scenes = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--iterations") && i + 1 < argc) fp.iterations = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--no-large")) large = 0;
+        else {
+            fprintf(stderr, "usage: bench_finetune [--model M] [--scenes N] [--iterations K] [--no-large]\n");
+            return 2;
+        }
+    }
+    if (scenes < 1) scenes = 1;
+    double sec_max = 0, sec_sum = 0, spo_m = 0, ms_step_m = 0, dll = 0;
+    int units_m = 0, ent_m = 0;
+    for (int s = 0; s < scenes; s++) {
+        scene_run r;
+        sooc_status st = run_scene(model, SOOC_GEN_M, s, &fp, &r);
+        if (st) {
+            fprintf(stderr, "bench_finetune: %s: %s\n", sooc_status_str(st), sooc_errmsg());
+            return 1;
+        }
+        printf("m scene %d: %d views, %d entries, %d units: %.2f s (%.3f s/unit, %.3f s/object, %.2f ms/step), "
+               "mean ll/ray %.4f -> %.4f\n",
+               s, r.n_views, r.n_entries, r.n_units, r.seconds, r.s_per_unit, r.s_per_object, r.ms_per_step,
+               r.ll_before, r.ll_after);
+        if (r.seconds > sec_max) sec_max = r.seconds;
+        sec_sum += r.seconds, spo_m += r.s_per_object, ms_step_m += r.ms_per_step, dll += r.ll_after - r.ll_before;
+        units_m += r.n_units, ent_m += r.n_entries;
+    }
+    scene_run rl;
+    memset(&rl, 0, sizeof rl);
+    if (large) {
+        sooc_status st = run_scene(model, SOOC_GEN_L, 0, &fp, &rl);
+        if (st) {
+            fprintf(stderr, "bench_finetune: %s: %s\n", sooc_status_str(st), sooc_errmsg());
+            return 1;
+        }
+        printf("l scene 0: %d views, %d entries, %d units: %.2f s (%.3f s/unit, %.3f s/object, %.2f ms/step)\n",
+               rl.n_views, rl.n_entries, rl.n_units, rl.seconds, rl.s_per_unit, rl.s_per_object, rl.ms_per_step);
+    }
+    double spo = spo_m / scenes;
+    printf("{\"bench\": \"finetune\", \"iterations\": %d, \"rays\": %d, \"m_scenes\": %d, \"m_seconds_mean\": %.3f, "
+           "\"m_seconds_max\": %.3f, \"bar_seconds\": 60, \"m_units_mean\": %.1f, \"m_entries_mean\": %.1f, "
+           "\"m_s_per_object\": %.4f, \"m_ms_per_step\": %.3f, \"m_dll_per_ray\": %.4f, \"l_entries\": %d, "
+           "\"l_units\": %d, \"l_seconds\": %.3f, \"l_s_per_object\": %.4f, \"per_object_ratio_l_over_m\": %.3f}\n",
+           fp.iterations, fp.rays, scenes, sec_sum / scenes, sec_max, (double)units_m / scenes,
+           (double)ent_m / scenes, spo, ms_step_m / scenes, dll / scenes, rl.n_entries, rl.n_units, rl.seconds,
+           rl.s_per_object, large && spo > 0 ? rl.s_per_object / spo : 0.0);
+    return 0;
+}
