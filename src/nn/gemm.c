@@ -233,8 +233,19 @@ void sooc_nn_gemm_tn(int M, int N, int R, float alpha, const float *A, int lda, 
     if (M <= 0 || N <= 0 || R <= 0) return;
 #ifdef NN_KERN_X86
     if (sooc_nn_gemm_avx2()) {
-        tile t = {R, 1, lda, ldb, ldc, 0, 0, SOOC_NN_EP_NONE, 1, alpha};
-        gemm_avx2(M, N, &t, A, B, C, NULL, NULL);
+        /* A read in place down its columns (element (i, k) of A^T is A[k lda + i]),
+         * R in chunks of TN_ROWS rows so that a chunk's rows of A and B stay in L1
+         * while every register tile of C passes over them (64 x 64 x 256, CPU time
+         * on this machine: one pass over all R 95 GFLOP/s, chunks of 32-64 rows
+         * 104-106, 16 rows 94; a transposed copy of A cost more than it saved).
+         * C += alpha (chunk sum) per chunk, chunks in order: the result does not
+         * depend on how callers split rows. */
+        enum { TN_ROWS = 64 };
+        for (int r0 = 0; r0 < R; r0 += TN_ROWS) {
+            int n = R - r0 < TN_ROWS ? R - r0 : TN_ROWS;
+            tile t = {n, 1, lda, ldb, ldc, 0, 0, SOOC_NN_EP_NONE, 1, alpha};
+            gemm_avx2(M, N, &t, A + (size_t)r0 * lda, B + (size_t)r0 * ldb, C, NULL, NULL);
+        }
         return;
     }
 #endif
