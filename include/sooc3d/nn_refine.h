@@ -56,14 +56,16 @@ void sooc_nn_rconv_shared(float *ysh, float *cols, const float *x, const float *
 void sooc_nn_rconv_forward(float *y, float *cols, const float *x, const float *w, const float *b,
                            const float *ysh, int nsh, int B, int b0, int b1, int Ci, int H, int W, int Co,
                            sooc_nn_act act);
-/* Backward over all B items. dy [Co][B][Ho*Wo] (dL/dy) is OVERWRITTEN with the
- * pre-activation gradient; y is the forward output. dx [Ci][B][H][W], dw, db
- * accumulate. cols, dcols: sooc_nn_rconv_cols_floats(Ci, B, H, W) floats each
- * (dcols only if dx). Splits its GEMMs over OpenMP threads (outputs only:
- * the result does not depend on the thread count). */
+/* Backward of items [b0, b1) (whole batch: 0, B; serial). dy [Co][B][Ho*Wo]
+ * (dL/dy) is OVERWRITTEN with the pre-activation gradient on those items; y is
+ * the forward output. dx [Ci][B][H][W] (those items), dw, db accumulate.
+ * cols, dcols: sooc_nn_rconv_cols_floats(Ci, b1 - b0, H, W) floats each
+ * (dcols only if dx). Callers split items into a FIXED set of blocks (private
+ * dw/db per block, summed in block order) to get thread-count independent
+ * results; dx needs no reduction (items are independent). */
 void sooc_nn_rconv_backward(float *dx, float *dw, float *db, float *dy, const float *y, const float *x,
-                            const float *w, float *cols, float *dcols, int B, int Ci, int H, int W, int Co,
-                            sooc_nn_act act);
+                            const float *w, float *cols, float *dcols, int B, int b0, int b1, int Ci, int H, int W,
+                            int Co, sooc_nn_act act);
 void sooc_nn_rconv_forward_f64(double *y, const double *x, const double *w, const double *b, int B, int Ci, int H,
                                int W, int Co, sooc_nn_act act);
 void sooc_nn_rconv_backward_f64(double *dx, double *dw, double *db, const double *dy, const double *y,

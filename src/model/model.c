@@ -612,6 +612,9 @@ sooc_status mdl_alloc_ws(sooc_model *m) {
     B(gx, (size_t)K * (c->ref_fc + m->robj.nvec));
     B(gg, (size_t)K * 4 * hid);
     B(gh, (size_t)K * hid);
+    r->ngconv = m->robj.cb[3] + m->robj.ch[3] - m->robj.cw[0];   /* the object net's conv weights and biases */
+    if (m->rlay.cb[3] + m->rlay.ch[3] - m->rlay.cw[0] > r->ngconv) r->ngconv = m->rlay.cb[3] + m->rlay.ch[3] - m->rlay.cw[0];
+    B(gconv, r->ngconv);
 #undef B
     return SOOC_OK;
 }
@@ -636,7 +639,7 @@ void mdl_free_ws(sooc_model *m) {
     w->tbuf = NULL;
     ref_ws *r = &m->rws;
     float **rp[] = {&r->cols, &r->gcols, &r->ysh, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
-                    &r->gg, &r->gh};
+                    &r->gg, &r->gh, &r->gconv};
     for (size_t i = 0; i < sizeof rp / sizeof rp[0]; i++) {
         sooc_free(*rp[i]);
         *rp[i] = NULL;

@@ -131,6 +131,8 @@ typedef struct ref_ws {           /* scratch for conv forward/backward */
     size_t ncols;                 /* floats in cols (and gcols): per-thread slices in the forward */
     float *ysh;                   /* 2 x ysh_ch x (gw gh / 4): first-conv share of the shared channels */
     int ysh_ch;
+    float *gconv;                 /* ngconv: the second item block's conv weight gradients (backward) */
+    size_t ngconv;
 } ref_ws;
 
 struct sooc_model {

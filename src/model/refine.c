@@ -424,6 +424,43 @@ void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh
     mdl_ref_forward2(m, n, a, out, NULL, NULL, NULL, gw, gh);
 }
 
+/* The conv stack's backward on items [bb[q], bb[q + 1]) (a pool task): weight
+ * gradients into gd[q] (slab offsets less g0), columns in the block's share of
+ * rws.cols / gcols, input gradients of those items only. */
+typedef struct conv_bjob {
+    sooc_model *m;
+    const ref_net *n;
+    ref_act *a;
+    int gw, gh, nblk, bb[3];
+    float *gd[2];
+    size_t g0;
+} conv_bjob;
+
+static void conv_bwd_task(void *ctx, int q, int tid) {
+    const conv_bjob *j = ctx;
+    const ref_net *n = j->n;
+    ref_act *a = j->a;
+    ref_ws *s = &j->m->rws;
+    const float *p = j->m->p;
+    int B = a->B, b0 = j->bb[q], b1 = j->bb[q + 1];
+    size_t per_item = s->ncols / (size_t)B;   /* every layer's columns are a multiple of the items */
+    float *cols = s->cols + per_item * b0, *gcols = s->gcols + per_item * b0, *gd = j->gd[q];
+    int Hs[5], Ws[5], Cs[5];
+    Hs[0] = j->gh, Ws[0] = j->gw, Cs[0] = n->cin;
+    for (int i = 0; i < 4; i++) Hs[i + 1] = Hs[i] / 2, Ws[i + 1] = Ws[i] / 2, Cs[i + 1] = n->ch[i];
+    (void)tid;
+    for (int i = 3; i >= 0; i--) {
+        float *gxi = NULL;
+        if (i > 0) {   /* inputs are stop-gradient */
+            gxi = s->gy[i - 1];
+            size_t hw = (size_t)Hs[i] * Ws[i];
+            for (int c = 0; c < Cs[i]; c++) memset(gxi + ((size_t)c * B + b0) * hw, 0, sizeof(float) * (b1 - b0) * hw);
+        }
+        sooc_nn_rconv_backward(gxi, gd + (n->cw[i] - j->g0), gd + (n->cb[i] - j->g0), s->gy[i], a->y[i], i ? a->y[i - 1] : a->x0,
+                               p + n->cw[i], cols, gcols, B, b0, b1, Cs[i], Hs[i], Ws[i], Cs[i + 1], SOOC_NN_ACT_ELU);
+    }
+}
+
 void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
                       float *dc, float *gvec) {
     const float *p = m->p;
@@ -456,21 +493,22 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
     sooc_nn_rlinear_backward(gflat, g + n->fcW, g + n->fcb, gf, a->flat, n->nflat, a->f, p + n->fcW, B, n->nflat,
                              n->fc, SOOC_NN_ACT_ELU);
     /* conv stack, top down */
-    int Hs[5], Ws[5], Cs[5];
-    Hs[0] = gh, Ws[0] = gw, Cs[0] = n->cin;
-    for (int i = 0; i < 4; i++) Hs[i + 1] = Hs[i] / 2, Ws[i + 1] = Ws[i] / 2, Cs[i + 1] = n->ch[i];
     mdl_ref_flatten_backward(n, gflat, B, gw, gh, s->gy[3]);
     /* shared leading channels stored for item 0 only: fill the other items' copies */
     for (int c = 0; c < a->nsh; c++)
         for (int b = 1; b < B; b++)
             memcpy(a->x0 + ((size_t)c * B + b) * HW, a->x0 + (size_t)c * B * HW, HW * sizeof(float));
-    for (int i = 3; i >= 0; i--) {
-        float *gxi = NULL;
-        if (i > 0) {   /* inputs are stop-gradient */
-            gxi = s->gy[i - 1];
-            memset(gxi, 0, sizeof(float) * (size_t)Cs[i] * B * Hs[i] * Ws[i]);
-        }
-        sooc_nn_rconv_backward(gxi, g + n->cw[i], g + n->cb[i], s->gy[i], a->y[i], i ? a->y[i - 1] : a->x0,
-                               p + n->cw[i], s->cols, s->gcols, B, Cs[i], Hs[i], Ws[i], Cs[i + 1], SOOC_NN_ACT_ELU);
-    }
+    /* The conv stack in two fixed item blocks (whatever the thread count): the
+     * first accumulates into the model's gradients, the second into rws.gconv,
+     * added afterwards. */
+    size_t g0 = n->cw[0], ng = n->cb[3] + n->ch[3] - g0;
+    SOOC_ASSERT(ng <= s->ngconv);
+    int nblk = B >= 2 ? 2 : 1;
+    if (nblk == 2) memset(s->gconv, 0, ng * sizeof(float));
+    conv_bjob j = {m, n, a, gw, gh, nblk, {0, (B + 1) / 2, B}, {g + g0, s->gconv}, g0};
+    if (nblk == 2 && mdl_par_threads(m) > 1) mdl_par_run(m, 2, conv_bwd_task, &j);
+    else
+        for (int q = 0; q < nblk; q++) conv_bwd_task(&j, q, 0);
+    if (nblk == 2)
+        for (size_t i = 0; i < ng; i++) g[g0 + i] += s->gconv[i];
 }

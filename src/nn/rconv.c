@@ -128,19 +128,19 @@ void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1,
         }
 }
 
-/* dx[ci] += the columns of channel ci (all B items), taps in (ky, kx) order. */
-static void col2im_ch(const float *cols, int ci, int B, int Hi, int Wi, float *dx) {
+/* dx[ci] of items [b0, b1) += the columns of channel ci, taps in (ky, kx) order. */
+static void col2im_ch(const float *cols, int ci, int B, int b0, int b1, int Hi, int Wi, float *dx) {
     int Ho = Hi / 2, Wo = Wi / 2;
-    size_t No = (size_t)B * Ho * Wo;
+    size_t No = (size_t)(b1 - b0) * Ho * Wo;
     for (int ky = 0; ky < 3; ky++)
         for (int kx = 0; kx < 3; kx++) {
             const float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
-            for (int b = 0; b < B; b++) {
+            for (int b = b0; b < b1; b++) {
                 float *xb = dx + ((size_t)ci * B + b) * Hi * Wi;
                 for (int oy = 0; oy < Ho; oy++) {
                     int iy = 2 * oy + ky;
                     if (iy >= Hi) continue;
-                    const float *r = row + ((size_t)b * Ho + oy) * Wo;
+                    const float *r = row + ((size_t)(b - b0) * Ho + oy) * Wo;
                     float *xr = xb + (size_t)iy * Wi + kx;
                     int n = kx == 2 ? Wo - 1 : Wo;   /* the last tap of kx = 2 is the pad column */
                     for (int ox = 0; ox < n; ox++) xr[2 * ox] += r[ox];
@@ -182,53 +182,33 @@ void sooc_nn_rconv_forward(float *y, float *cols, const float *x, const float *w
 
 /* ------------------------------------------------------------ backward */
 
-#define RC_BLOCKS 4   /* fixed output blocks of the backward GEMMs (independent of the thread count) */
-#define RC_PAR_FLOPS 2.0e6
-
 void sooc_nn_rconv_backward(float *dx, float *dw, float *db, float *dy, const float *y, const float *x,
-                            const float *w, float *cols, float *dcols, int B, int Ci, int H, int W, int Co,
-                            sooc_nn_act act) {
+                            const float *w, float *cols, float *dcols, int B, int b0, int b1, int Ci, int H, int W,
+                            int Co, sooc_nn_act act) {
     SOOC_ASSERT(act == SOOC_NN_ACT_NONE || act == SOOC_NN_ACT_ELU);
-    int HWo = (H / 2) * (W / 2), No = B * HWo, Kc = Ci * 9;
-    double flops = 2.0 * Co * (double)Kc * No;
-    int par = flops > RC_PAR_FLOPS;
-    (void)par;
-    sooc_nn_blas_single();
-#pragma omp parallel if (par)
-    {
-#pragma omp for schedule(static)
-        for (int co = 0; co < Co; co++) {
-            float *g = dy + (size_t)co * No;
-            const float *yy = y + (size_t)co * No;
-            if (act == SOOC_NN_ACT_ELU)
-                for (int j = 0; j < No; j++) g[j] *= yy[j] > 0 ? 1.0f : yy[j] + 1.0f;
-            if (db) {
-                double s = 0;
-                for (int j = 0; j < No; j++) s += g[j];
-                db[co] += (float)s;
-            }
-        }
-#pragma omp for schedule(static)
-        for (int ci = 0; ci < Ci; ci++) sooc_nn_rconv_im2col(x, ci, 1, B, 0, B, H, W, cols + (size_t)ci * 9 * No);
-        /* dw[Co][Kc] += dz[Co][No] cols[Kc][No]^T in column blocks; dcols = w^T dz in row blocks */
-#pragma omp for schedule(static)
-        for (int t = 0; t < 2 * RC_BLOCKS; t++) {
-            int blk = t % RC_BLOCKS, lo = (int)((int64_t)Kc * blk / RC_BLOCKS), hi = (int)((int64_t)Kc * (blk + 1) / RC_BLOCKS);
-            if (hi <= lo) continue;
-            if (t < RC_BLOCKS) {
-                if (dw)
-                    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, hi - lo, No, 1.0f, dy, No,
-                                cols + (size_t)lo * No, No, 1.0f, dw + lo, Kc);
-            } else if (dx) {
-                cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, hi - lo, No, Co, 1.0f, w + lo, Kc, dy, No, 0.0f,
-                            dcols + (size_t)lo * No, No);
-            }
-        }
-        if (dx) {
-#pragma omp for schedule(static)
-            for (int ci = 0; ci < Ci; ci++) col2im_ch(dcols, ci, B, H, W, dx);
+    int HWo = (H / 2) * (W / 2), ldy = B * HWo, N = (b1 - b0) * HWo, Kc = Ci * 9;
+    if (N <= 0) return;
+    float *g0 = dy + (size_t)b0 * HWo;
+    const float *y0 = y + (size_t)b0 * HWo;
+    for (int co = 0; co < Co; co++) {
+        float *g = g0 + (size_t)co * ldy;
+        const float *yy = y0 + (size_t)co * ldy;
+        if (act == SOOC_NN_ACT_ELU)
+            for (int j = 0; j < N; j++) g[j] *= yy[j] > 0 ? 1.0f : yy[j] + 1.0f;
+        if (db) {
+            double s = 0;
+            for (int j = 0; j < N; j++) s += g[j];
+            db[co] += (float)s;
         }
     }
+    sooc_nn_blas_single();
+    sooc_nn_rconv_im2col(x, 0, Ci, B, b0, b1, H, W, cols);
+    /* dw[Co][Kc] += dz[Co][N] cols[Kc][N]^T */
+    if (dw) cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Kc, N, 1.0f, g0, ldy, cols, N, 1.0f, dw, Kc);
+    if (!dx) return;
+    /* dcols[Kc][N] = w^T dz, then back onto the items' pixels */
+    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Kc, N, Co, 1.0f, w, Kc, g0, ldy, 0.0f, dcols, N);
+    for (int ci = 0; ci < Ci; ci++) col2im_ch(dcols, ci, B, b0, b1, H, W, dx);
 }
 
 /* ------------------------------------------------------------ float64 */

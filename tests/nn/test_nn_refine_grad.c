@@ -142,7 +142,7 @@ static void conv_32(op *o, float **x, float *y, float **g, float *dy) {
     float *cols = falloc(sooc_nn_rconv_cols_floats(c->Ci, c->B, c->H, c->W));
     float *dcols = falloc(sooc_nn_rconv_cols_floats(c->Ci, c->B, c->H, c->W));
     sooc_nn_rconv_forward(y, cols, x[0], x[1], x[2], NULL, 0, c->B, 0, c->B, c->Ci, c->H, c->W, c->Co, c->act);
-    sooc_nn_rconv_backward(g[0], g[1], g[2], dy, y, x[0], x[1], cols, dcols, c->B, c->Ci, c->H, c->W, c->Co, c->act);
+    sooc_nn_rconv_backward(g[0], g[1], g[2], dy, y, x[0], x[1], cols, dcols, c->B, 0, c->B, c->Ci, c->H, c->W, c->Co, c->act);
     free(cols), free(dcols);
 }
 static void test_conv(int B, int Ci, int H, int W, int Co, sooc_nn_act act, const char *name) {

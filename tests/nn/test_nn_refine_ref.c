@@ -182,8 +182,8 @@ int main(void) {
     sooc_nn_rlinear_backward(dflat, gp[4], gp[5], df, flat, NFLAT, f, D("fc.w"), B, NFLAT, FC, SOOC_NN_ACT_ELU);
     float *dy2 = z((size_t)C2 * B * H2 * H2), *dy1 = z((size_t)C1 * B * H1 * H1), *dx0 = z((size_t)CIN * B * NP);
     sooc_nn_pool2_backward(dy2, dflat, C2, B, H2, H2);
-    sooc_nn_rconv_backward(dy1, gp[2], gp[3], dy2, y2, y1, D("c2.w"), cols, dcols, B, C1, H1, H1, C2, SOOC_NN_ACT_ELU);
-    sooc_nn_rconv_backward(dx0, gp[0], gp[1], dy1, y1, x0, D("c1.w"), cols, dcols, B, CIN, HW, HW, C1, SOOC_NN_ACT_ELU);
+    sooc_nn_rconv_backward(dy1, gp[2], gp[3], dy2, y2, y1, D("c2.w"), cols, dcols, B, 0, B, C1, H1, H1, C2, SOOC_NN_ACT_ELU);
+    sooc_nn_rconv_backward(dx0, gp[0], gp[1], dy1, y1, x0, D("c1.w"), cols, dcols, B, 0, B, CIN, HW, HW, C1, SOOC_NN_ACT_ELU);
     /* through the image LN (channels 1..2 of each item); channels 0 and 3 pass through */
     float *dimg = z((size_t)CIN * B * NP);
     for (int c = 0; c < CIN; c += 3) memcpy(dimg + (size_t)c * B * NP, dx0 + (size_t)c * B * NP, sizeof(float) * B * NP);
