@@ -87,18 +87,12 @@ void sooc_nn_nerf_heads_backward(int R, int H, int Hc, const float *h, const flo
         gsig[r] *= sig[r] * (1 - sig[r]);
         float *gc = gcol + (size_t)r * 3;
         const float *cl = col + (size_t)r * 3;
-        float g0 = gc[0] * cl[0] * (1 - cl[0]), g1 = gc[1] * cl[1] * (1 - cl[1]), g2 = gc[2] * cl[2] * (1 - cl[2]);
-        gc[0] = g0, gc[1] = g1, gc[2] = g2;
-        const float *restrict hr = hc + (size_t)r * Hc;
-        float *restrict gh = dhc + (size_t)r * Hc;
-        for (int j = 0; j < Hc; j++) {
-            float v = g0 * w2t[0][j] + g1 * w2t[1][j] + g2 * w2t[2][j];
-            gh[j] = hr[j] > 0 ? v : 0;
-        }
-        float gs = gsig[r];
-        float *restrict ga = dh + (size_t)r * H;
-        for (int j = 0; j < H; j++) ga[j] = gs * Wd[j];
+        gc[0] *= cl[0] * (1 - cl[0]), gc[1] *= cl[1] * (1 - cl[1]), gc[2] *= cl[2] * (1 - cl[2]);
     }
+    /* dhc = (gcol' Wc2^T) masked by hc > 0 and dh = gsig' Wd^T as GEMMs with K = 3 and 1
+     * (the register kernels; per-row loops over Hc and H cost ~7% of a decode) */
+    sooc_nn_gemm(R, Hc, 3, gcol, 3, &w2t[0][0], SOOC_NN_HC_MAX, dhc, Hc, NULL, 0, SOOC_NN_EP_MASK, hc, Hc);
+    sooc_nn_gemm(R, H, 1, gsig, 1, Wd, H, dh, H, NULL, 0, SOOC_NN_EP_NONE, NULL, 0);
     if (!dWd) return;
     sooc_nn_gemm_tn(Hc, 3, R, alpha, hc, Hc, gcol, 3, dWc2, 3);
     sooc_nn_gemm_tn(H, 1, R, alpha, h, H, gsig, 1, dWd, 1);
