@@ -174,39 +174,8 @@ static inline int64_t sooc_nn_posenc_dim(int64_t D, int F) { return D * (1 + 2 *
 void sooc_nn_posenc_forward(float *y, const float *x, int64_t N, int D, int F);
 void sooc_nn_posenc_backward(float *dx, const float *dy, const float *y, int64_t N, int D, int F);
 
-/* conv2d 3x3, stride 1 or 2, TF "SAME" padding (out = ceil(in/stride);
- * pad_total = max((out-1)*stride + 3 - in, 0), pad_before = pad_total/2,
- * the extra pixel after: stride 2 on even sizes pads only bottom/right),
- * NCHW, torch weight layout, batched over B images (slots):
- *   x[B,Ci,H,W], w[Co,Ci,3,3], b[Co] (may be NULL), y[B,Co,Ho,Wo] = act(conv + b).
- * col[Ci*9, B*Ho*Wo] is saved for backward; scratch for both directions has
- * sooc_nn_conv2d_scratch_floats() floats. backward: dy is OVERWRITTEN with
- * the pre-activation gradient; dx, dw, db accumulate. im2col + one sgemm. */
-static inline int sooc_nn_conv2d_out(int in, int stride) { return (in + stride - 1) / stride; }
-size_t sooc_nn_conv2d_col_floats(int B, int Ci, int H, int W, int stride);
-size_t sooc_nn_conv2d_scratch_floats(int B, int Ci, int H, int W, int Co, int stride);
-void sooc_nn_conv2d_forward(float *y, float *col, float *scratch, const float *x, const float *w,
-                            const float *b, int B, int Ci, int H, int W, int Co, int stride,
-                            sooc_nn_act act);
-void sooc_nn_conv2d_backward(float *dx, float *dw, float *db, float *dy, const float *col,
-                             float *scratch, const float *y, const float *w, int B, int Ci, int H,
-                             int W, int Co, int stride, sooc_nn_act act);
-
-/* LSTM cell, torch.nn.LSTMCell semantics and layout (gate order i, f, g, o):
- *   z[B,4G] = x[B,I] w_ih[4G,I]^T   (I = Cx)
- *            + b_ih + h0[B,G] w_hh[4G,G]^T + b_hh
- *   i,f,o = sigmoid, g = tanh;  c1 = f*c0 + i*g;  h1 = o*tanh(c1)
- * h0/c0 may be NULL (zero state); b_ih/b_hh may be NULL.
- * gates[B,4G] (post-activation) and c1 are saved for backward.
- * backward: dh1 and/or dc1 may be NULL (zero); scratch has 4*B*G floats. */
-void sooc_nn_lstm_forward(float *h1, float *c1, float *gates, const float *x, const float *h0,
-                          const float *c0, const float *w_ih, const float *w_hh,
-                          const float *b_ih, const float *b_hh, int B, int Cx, int G);
-void sooc_nn_lstm_backward(float *dx, float *dh0, float *dc0, float *dw_ih, float *dw_hh,
-                           float *db_ih, float *db_hh, const float *dh1, const float *dc1,
-                           float *scratch, const float *gates, const float *c1, const float *x,
-                           const float *h0, const float *c0, const float *w_ih,
-                           const float *w_hh, int B, int Cx, int G);
+/* The refinement network's conv 3x3 stride 2 and LSTM cell, in the model's
+ * layouts, are the pairs of sooc3d/nn_refine.h. */
 
 /* ================================================================== arena */
 
@@ -404,15 +373,6 @@ sooc_nn_tensor *sooc_nn_layernorm(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_te
                                   sooc_nn_tensor *b, float eps);
 /* x[N,D] -> [N, D(1+2F)] */
 sooc_nn_tensor *sooc_nn_posenc(sooc_nn_tape *t, sooc_nn_tensor *x, int F);
-/* x[B,Ci,H,W], w[Co,Ci,3,3], b[Co] or NULL -> [B,Co,Ho,Wo] */
-sooc_nn_tensor *sooc_nn_conv2d(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *w,
-                               sooc_nn_tensor *b, int stride, sooc_nn_act act);
-/* LSTM cell: x[B,I], h0/c0 [B,G] or NULL, w_ih[4G,I], w_hh[4G,G], b_* [4G] or NULL.
- * Returns 0/-status; *h1, *c1 receive the new state. */
-sooc_status sooc_nn_lstm(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *h0,
-                         sooc_nn_tensor *c0, sooc_nn_tensor *w_ih, sooc_nn_tensor *w_hh,
-                         sooc_nn_tensor *b_ih, sooc_nn_tensor *b_hh, sooc_nn_tensor **h1,
-                         sooc_nn_tensor **c1);
 /* same data, new shape (copy-free forward; backward adds the gradient) */
 sooc_nn_tensor *sooc_nn_reshape(sooc_nn_tape *t, sooc_nn_tensor *x, int ndim,
                                 const int64_t *shape);

@@ -13,7 +13,7 @@
 
 typedef enum node_op {
     OP_LINEAR, OP_SLOT_BIAS, OP_UNARY, OP_BINARY, OP_AFFINE, OP_CONCAT, OP_SLICE, OP_GATHER,
-    OP_SCATTER, OP_SUM, OP_LAYERNORM, OP_POSENC, OP_CONV, OP_LSTM, OP_RESHAPE
+    OP_SCATTER, OP_SUM, OP_LAYERNORM, OP_POSENC, OP_RESHAPE
 } node_op;
 
 #define NODE_MAX_IN 8
@@ -409,64 +409,6 @@ sooc_nn_tensor *sooc_nn_posenc(sooc_nn_tape *t, sooc_nn_tensor *x, int F) {
     return y;
 }
 
-sooc_nn_tensor *sooc_nn_conv2d(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *w,
-                               sooc_nn_tensor *b, int stride, sooc_nn_act act) {
-    CHECK_IN(x); CHECK_IN(w);
-    if (x->ndim != 4 || w->ndim != 4 || w->shape[1] != x->shape[1] || w->shape[2] != 3 ||
-        w->shape[3] != 3 || (b && b->n != w->shape[0]) || (stride != 1 && stride != 2))
-        return SHAPE_FAIL("conv2d");
-    int B = (int)x->shape[0], Ci = (int)x->shape[1], H = (int)x->shape[2], W = (int)x->shape[3];
-    int Co = (int)w->shape[0];
-    int64_t shp[4] = {B, Co, sooc_nn_conv2d_out(H, stride), sooc_nn_conv2d_out(W, stride)};
-    sooc_nn_tensor *y = new_tensor(t, NULL, 4, shp, 0);
-    float *col = y ? sooc_nn_arena_floats(t->arena, sooc_nn_conv2d_col_floats(B, Ci, H, W, stride)) : NULL;
-    if (!col) return fail(t, SOOC_ENOMEM, NULL, NULL);
-    size_t mk = sooc_nn_arena_mark(t->arena);
-    float *scr = sooc_nn_arena_floats(t->arena, (size_t)Co * shp[2] * shp[3] * B);
-    if (!scr) return fail(t, SOOC_ENOMEM, NULL, NULL);
-    sooc_nn_conv2d_forward(y->data, col, scr, x->data, w->data, b ? b->data : NULL, B, Ci, H, W,
-                           Co, stride, act);
-    sooc_nn_arena_rewind(t->arena, mk);
-    node *nd = push(t, OP_CONV, y, 3, x, w, b);
-    if (!nd) return NULL;
-    nd->saved[0] = col;
-    nd->ia[0] = stride;
-    nd->ia[1] = act;
-    return y;
-}
-
-sooc_status sooc_nn_lstm(sooc_nn_tape *t, sooc_nn_tensor *x, sooc_nn_tensor *h0,
-                         sooc_nn_tensor *c0, sooc_nn_tensor *w_ih, sooc_nn_tensor *w_hh,
-                         sooc_nn_tensor *b_ih, sooc_nn_tensor *b_hh, sooc_nn_tensor **h1,
-                         sooc_nn_tensor **c1) {
-    *h1 = *c1 = NULL;
-    if (t->status) return t->status;
-    if (!x || !w_ih || !w_hh) { fail(t, SOOC_EINVAL, "nn tape: lstm NULL input%s", ""); return t->status; }
-    int64_t B = x->shape[0], I = x->shape[x->ndim - 1], G = w_hh->shape[1];
-    if (x->ndim != 2 || w_ih->ndim != 2 || w_ih->shape[0] != 4 * G || w_ih->shape[1] != I ||
-        w_hh->shape[0] != 4 * G || (h0 && h0->n != B * G) || (c0 && c0->n != B * G) ||
-        (b_ih && b_ih->n != 4 * G) || (b_hh && b_hh->n != 4 * G)) {
-        SHAPE_FAIL("lstm");
-        return t->status;
-    }
-    int64_t shp[2] = {B, G}, gs[2] = {B, 4 * G};
-    sooc_nn_tensor *h = new_tensor(t, NULL, 2, shp, 0);
-    sooc_nn_tensor *c = new_tensor(t, NULL, 2, shp, 0);
-    sooc_nn_tensor *gates = new_tensor(t, NULL, 2, gs, 0);
-    if (!h || !c || !gates) return t->status;
-    sooc_nn_lstm_forward(h->data, c->data, gates->data, x->data, h0 ? h0->data : NULL,
-                         c0 ? c0->data : NULL, w_ih->data, w_hh->data, b_ih ? b_ih->data : NULL,
-                         b_hh ? b_hh->data : NULL, (int)B, (int)I, (int)G);
-    node *nd = push(t, OP_LSTM, h, 7, x, h0, c0, w_ih, w_hh, b_ih, b_hh);
-    if (!nd) return t->status;
-    nd->out[1] = c;
-    c->requires_grad = h->requires_grad;
-    nd->saved[0] = gates->data;
-    *h1 = h;
-    *c1 = c;
-    return SOOC_OK;
-}
-
 sooc_nn_tensor *sooc_nn_reshape(sooc_nn_tape *t, sooc_nn_tensor *x, int ndim,
                                 const int64_t *shape) {
     CHECK_IN(x);
@@ -578,37 +520,6 @@ static void node_backward(sooc_nn_tape *t, node *nd) {
     case OP_POSENC: {
         float *dx = gin(t, in[0]);
         if (dx) sooc_nn_posenc_backward(dx, y->grad, y->data, in[0]->shape[0], (int)in[0]->shape[1], (int)nd->ia[0]);
-        break;
-    }
-    case OP_CONV: {
-        float *dx = gin(t, in[0]), *dw = gin(t, in[1]), *db = gin(t, in[2]);
-        if (t->status) return;
-        sooc_nn_tensor *x = in[0];
-        int B = (int)x->shape[0], Ci = (int)x->shape[1], H = (int)x->shape[2], W = (int)x->shape[3];
-        int Co = (int)in[1]->shape[0], stride = (int)nd->ia[0];
-        size_t mk = sooc_nn_arena_mark(A);
-        float *scr = sooc_nn_arena_floats(A, sooc_nn_conv2d_scratch_floats(B, Ci, H, W, Co, stride));
-        float *dz = sooc_nn_arena_floats(A, (size_t)y->n);
-        if (!scr || !dz) { fail(t, SOOC_ENOMEM, NULL, NULL); return; }
-        memcpy(dz, y->grad, (size_t)y->n * sizeof(float));
-        sooc_nn_conv2d_backward(dx, dw, db, dz, nd->saved[0], scr, y->data, in[1]->data, B, Ci,
-                                H, W, Co, stride, (sooc_nn_act)nd->ia[1]);
-        sooc_nn_arena_rewind(A, mk);
-        break;
-    }
-    case OP_LSTM: {
-        float *g[7];
-        for (int i = 0; i < 7; i++) g[i] = gin(t, in[i]);
-        if (t->status) return;
-        sooc_nn_tensor *x = in[0], *c = nd->out[1];
-        int B = (int)x->shape[0], I = (int)x->shape[1], G = (int)y->shape[1];
-        size_t mk = sooc_nn_arena_mark(A);
-        float *scr = sooc_nn_arena_floats(A, (size_t)4 * B * G);
-        if (!scr) { fail(t, SOOC_ENOMEM, NULL, NULL); return; }
-        sooc_nn_lstm_backward(g[0], g[1], g[2], g[3], g[4], g[5], g[6], y->grad, c->grad, scr,
-                              nd->saved[0], c->data, x->data, in[1] ? in[1]->data : NULL,
-                              in[2] ? in[2]->data : NULL, in[3]->data, in[4]->data, B, I, G);
-        sooc_nn_arena_rewind(A, mk);
         break;
     }
     case OP_RESHAPE: {

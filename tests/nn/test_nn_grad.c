@@ -198,21 +198,6 @@ static sooc_nn_tensor *f_posenc(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
     (void)c;
     return sooc_nn_posenc(t, x[0], 5);
 }
-typedef struct { int stride; sooc_nn_act act; int bias; } conv_cfg;
-static sooc_nn_tensor *f_conv(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
-    conv_cfg *k = c;
-    return sooc_nn_conv2d(t, x[0], x[1], k->bias ? x[2] : NULL, k->stride, k->act);
-}
-static sooc_nn_tensor *f_lstm(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
-    int zero_state = *(int *)c;
-    sooc_nn_tensor *h, *cc;
-    if (sooc_nn_lstm(t, x[0], zero_state ? NULL : x[1], zero_state ? NULL : x[2], x[3], x[4], x[5],
-                     x[6], &h, &cc))
-        return NULL;
-    /* both outputs into the loss: concat along features */
-    sooc_nn_tensor *hc[2] = {h, cc};
-    return sooc_nn_concat(t, hc, 2, 1);
-}
 static sooc_nn_tensor *f_stopgrad(sooc_nn_tape *t, sooc_nn_tensor **x, void *c) {
     (void)c; /* y = x0 * SG(x1): gradient to x1 must be zero */
     return sooc_nn_binary(t, SOOC_NN_MUL, x[0], sooc_nn_stop_grad(t, x[1]));
@@ -391,25 +376,6 @@ int main(void) {
     {
         gc_input in[1] = {IN(2, 6, 3, 0, 0, -1.5f, 1.5f)};
         gradcheck("posenc F=5", f_posenc, in, 1, NULL);
-    }
-    conv_cfg cc[] = {{1, SOOC_NN_ACT_NONE, 1}, {2, SOOC_NN_ACT_NONE, 1}, {2, SOOC_NN_ACT_ELU, 1},
-                     {1, SOOC_NN_ACT_ELU, 0}, {2, SOOC_NN_ACT_TANH, 1}};
-    int hw[] = {5, 6, 7, 4, 6};
-    for (int k = 0; k < 5; k++) {
-        char nm[64];
-        snprintf(nm, sizeof nm, "conv2d s%d %dx%d act%d%s", cc[k].stride, hw[k], hw[k], cc[k].act,
-                 cc[k].bias ? "" : " nobias");
-        gc_input in[3] = {IN(4, 2, 3, hw[k], hw[k], -1, 1), IN(4, 4, 3, 3, 3, -0.4f, 0.4f),
-                          IN(1, 4, 0, 0, 0, -0.2f, 0.2f)};
-        gradcheck(nm, f_conv, in, cc[k].bias ? 3 : 2, &cc[k]);
-    }
-    for (int zs = 0; zs < 2; zs++) {
-        gc_input in[7] = {IN(2, 3, 5, 0, 0, -1, 1), IN(2, 3, 4, 0, 0, -1, 1),
-                          IN(2, 3, 4, 0, 0, -1, 1), IN(2, 16, 5, 0, 0, -0.5f, 0.5f),
-                          IN(2, 16, 4, 0, 0, -0.5f, 0.5f), IN(1, 16, 0, 0, 0, -0.5f, 0.5f),
-                          IN(1, 16, 0, 0, 0, -0.5f, 0.5f)};
-        if (zs) { in[1].no_grad = 1; in[2].no_grad = 1; }
-        gradcheck(zs ? "lstm cell (zero state)" : "lstm cell", f_lstm, in, 7, &zs);
     }
     {
         /* y is checked for zero gradient in test_stopgrad_zero; here only x */

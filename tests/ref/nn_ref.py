@@ -5,9 +5,9 @@ Builds a small composite network with the same structure as the model's:
   * a per-slot-conditioned NeRF MLP: posenc(pts) -> Linear + per-slot bias
     (z Wz^T) -> ReLU -> Linear ReLU -> density head (sigmoid) and colour head
     (sigmoid);
-  * a refinement encoder: MulMON LN over (C,H,W) -> conv3x3 s2 TF-SAME ELU x2
-    -> flatten -> FC ELU -> learnable layer norm;
-  * an LSTM cell on concat(encoder, z) -> linear head.
+  * an encoder: MulMON LN over (C,H,W) -> flatten -> FC ELU -> learnable
+    layer norm; a linear head on concat(encoder, z).
+(The refinement network's conv and LSTM in the model's layouts: refine_ref.py.)
 Writes parameters, inputs, outputs, all gradients (parameters and inputs),
 the losses of 5 Adam steps and the final parameters to a versioned binary
 file that tests/nn/test_nn_ref.c compares against.
@@ -30,7 +30,6 @@ torch.set_num_threads(1)
 K, NPTS, FREQ = 2, 16, 5
 D_Z, W_MLP = 8, 16
 C_IN, IMG = 5, 8
-G = 12
 
 
 def posenc(x):
@@ -48,20 +47,14 @@ params = {
     "mlp.wz": u(W_MLP, D_Z), "mlp.w0": u(W_MLP, 33), "mlp.b0": u(W_MLP),
     "mlp.w1": u(W_MLP, W_MLP), "mlp.b1": u(W_MLP),
     "mlp.wd": u(1, W_MLP), "mlp.bd": u(1), "mlp.wc": u(3, W_MLP), "mlp.bc": u(3),
-    "enc.c1.w": u(6, C_IN, 3, 3, s=0.3), "enc.c1.b": u(6, s=0.1),
-    "enc.c2.w": u(8, 6, 3, 3, s=0.3), "enc.c2.b": u(8, s=0.1),
-    "enc.fc.w": u(16, 32, s=0.3), "enc.fc.b": u(16, s=0.1),
+    "enc.fc.w": u(16, C_IN * IMG * IMG, s=0.1), "enc.fc.b": u(16, s=0.1),
     "enc.ln.g": (1 + u(16, s=0.2)).detach().requires_grad_(), "enc.ln.b": u(16, s=0.1),
-    "lstm.w_ih": u(4 * G, 16 + D_Z, s=0.3), "lstm.w_hh": u(4 * G, G, s=0.3),
-    "lstm.b_ih": u(4 * G, s=0.1), "lstm.b_hh": u(4 * G, s=0.1),
-    "head.w": u(D_Z, G, s=0.3), "head.b": u(D_Z, s=0.1),
+    "head.w": u(D_Z, 16 + D_Z, s=0.3), "head.b": u(D_Z, s=0.1),
 }
 inputs = {
     "in.pts": (torch.rand(K * NPTS, 3) * 2 - 1).requires_grad_(),
     "in.z": torch.randn(K, D_Z).requires_grad_(),
     "in.img": torch.randn(K, C_IN, IMG, IMG),
-    "in.h0": torch.randn(K, G) * 0.5,
-    "in.c0": torch.randn(K, G) * 0.5,
     "in.t_dens": torch.rand(K * NPTS, 1),
     "in.t_col": torch.rand(K * NPTS, 3),
     "in.t_dz": torch.randn(K, D_Z),
@@ -77,18 +70,12 @@ def forward(p, x):
     dens = torch.sigmoid(h @ p["mlp.wd"].t() + p["mlp.bd"])     # [K*N, 1]
     col = torch.sigmoid(h @ p["mlp.wc"].t() + p["mlp.bc"])      # [K*N, 3]
     img = F.layer_norm(x["in.img"], x["in.img"].shape[1:], eps=1e-5)
-    e = F.elu(F.conv2d(F.pad(img, (0, 1, 0, 1)), p["enc.c1.w"], p["enc.c1.b"], stride=2))
-    e = F.elu(F.conv2d(F.pad(e, (0, 1, 0, 1)), p["enc.c2.w"], p["enc.c2.b"], stride=2))
-    e = F.elu(e.reshape(K, 32) @ p["enc.fc.w"].t() + p["enc.fc.b"])
+    e = F.elu(img.reshape(K, -1) @ p["enc.fc.w"].t() + p["enc.fc.b"])
     e = F.layer_norm(e, (16,), p["enc.ln.g"], p["enc.ln.b"], eps=1e-5)
-    lin = torch.cat([e, x["in.z"]], dim=1)
-    h1, c1 = torch.lstm_cell(lin, (x["in.h0"], x["in.c0"]), p["lstm.w_ih"], p["lstm.w_hh"],
-                             p["lstm.b_ih"], p["lstm.b_hh"])
-    dz = h1 @ p["head.w"].t() + p["head.b"]
+    dz = torch.cat([e, x["in.z"]], dim=1) @ p["head.w"].t() + p["head.b"]
     loss = (((dens - x["in.t_dens"]) ** 2).mean() + ((col - x["in.t_col"]) ** 2).mean()
             + ((dz - x["in.t_dz"]) ** 2).mean())
-    return loss, {"out.dens": dens, "out.col": col, "out.enc": e, "out.h1": h1, "out.c1": c1,
-                  "out.dz": dz}
+    return loss, {"out.dens": dens, "out.col": col, "out.enc": e, "out.dz": dz}
 
 
 records = []
