@@ -3,7 +3,8 @@
  * (sooc_train_run), after warm-up. JSON on the last line.
  *
  *   bench_train [--config F] [--model M] [--data DIR] [--scenes N] [--steps N]
- *               [--warmup N] [--threads T] [--seed S] [--keep]
+ *               [--warmup N] [--threads T] [--accum A] [--seed S] [--keep]
+ *   mpirun -np N bench_train ...   (data-parallel: docs/cluster.md; rank 0 prints)
  *
  * The model sizes are those of --model (default models/sooc3d_unity/model.bin,
  * trained with models/sooc3d_unity/config_col02.yaml); the training keys
@@ -29,6 +30,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "sooc3d/dist.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
 #include "sooc3d/train.h"
@@ -89,7 +91,7 @@ int main(int argc, char **argv) {
     const char *config = SOOC_SOURCE_DIR "/models/sooc3d_unity/config_col02.yaml";
     const char *model = SOOC_SOURCE_DIR "/models/sooc3d_unity/model.bin";
     const char *data = NULL;
-    int scenes = 4, steps = 40, warmup = 5, threads = -1, keep = 0;
+    int scenes = 4, steps = 40, warmup = 5, threads = -1, accum = 0, keep = 0;
     unsigned long long seed = 4242;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -100,11 +102,12 @@ int main(int argc, char **argv) {
         else if (!strcmp(a, "--steps") && i + 1 < argc) steps = atoi(argv[++i]);
         else if (!strcmp(a, "--warmup") && i + 1 < argc) warmup = atoi(argv[++i]);
         else if (!strcmp(a, "--threads") && i + 1 < argc) threads = atoi(argv[++i]);
+        else if (!strcmp(a, "--accum") && i + 1 < argc) accum = atoi(argv[++i]);
         else if (!strcmp(a, "--seed") && i + 1 < argc) seed = strtoull(argv[++i], NULL, 10);
         else if (!strcmp(a, "--keep")) keep = 1;
         else {
             fprintf(stderr, "usage: bench_train [--config F] [--model M] [--data DIR] [--scenes N] [--steps N]\n"
-                            "                   [--warmup N] [--threads T] [--seed S] [--keep]\n");
+                            "                   [--warmup N] [--threads T] [--accum A] [--seed S] [--keep]\n");
             return 2;
         }
     }
@@ -112,11 +115,14 @@ int main(int argc, char **argv) {
         fprintf(stderr, "bench_train: --scenes and --steps must be >= 1, --warmup >= 0\n");
         return 2;
     }
+    sooc_status s = sooc_dist_init(&argc, &argv);
+    if (s) die("MPI", s);
+    int rank = sooc_dist_rank();
     sooc_train_config cfg;
     sooc_model_config mc;
     sooc_train_config_default(&cfg);
     sooc_model_config_default(&mc);
-    sooc_status s = sooc_train_config_load(config, &cfg, &mc);
+    s = sooc_train_config_load(config, &cfg, &mc);
     if (s) die(config, s);
     sooc_model *m = NULL;
     if ((s = sooc_model_load(&m, model, NULL, NULL))) die(model, s);
@@ -143,7 +149,7 @@ int main(int argc, char **argv) {
         gp.height = mc.img_h;
         gp.write_meshes = 0;
         gp.contact_sheet = 0;
-        fprintf(stderr, "bench_train: generating %d unity m scenes in %s\n", scenes, gen_dir);
+        if (rank == 0) fprintf(stderr, "bench_train: generating %d unity m scenes in %s\n", scenes, gen_dir);
         if ((s = sooc_gen_run(&gp, gen_dir, NULL, NULL, NULL))) die("gen", s);
         data = gen_dir;
     }
@@ -158,6 +164,7 @@ int main(int argc, char **argv) {
     cfg.val_every = 0;
     cfg.val_max_seconds = 0;
     if (threads >= 0) cfg.threads = threads;
+    if (accum > 0) cfg.accum = accum;
     sooc_train_run_params rp;
     memset(&rp, 0, sizeof rp);
     rp.out_dir = out_dir;
@@ -168,6 +175,32 @@ int main(int argc, char **argv) {
     double cpu = cpu_seconds() - c0, wall = sooc_seconds() - w0, la1 = loadavg1();
     if (s) die("train", s);
     sooc_dataset_destroy(ds);
+    /* every rank's CPU seconds per step (rank 0 reports their sum) */
+    double cpu_all = cpu / cfg.steps;
+    if ((s = sooc_dist_sum_f64(&cpu_all, 1, "cpu seconds"))) die("MPI", s);
+    /* the allreduce alone: 20 sums of a slab of the model's size, back to back
+     * (each call waits for the slowest rank, so this is transfer + sync, not
+     * the straggler wait that t_allreduce also holds) */
+    double ar_med = NAN;
+    if (sooc_dist_size() > 1) {
+        float *slab = calloc(n_params, sizeof(float));
+        double ar[20];
+        if (!slab) die("allreduce slab", SOOC_ENOMEM);
+        for (int i = 0; i < 23; i++) {
+            double t0 = sooc_seconds();
+            if ((s = sooc_dist_sum_f32(slab, n_params, "allreduce bench"))) die("MPI", s);
+            if (i >= 3) ar[i - 3] = sooc_seconds() - t0;
+        }
+        free(slab);
+        ar_med = quantile(ar, 20, 0.5);
+    }
+    if (rank > 0) {   /* rank 0 alone wrote the log */
+        char cmd[700];
+        snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
+        if (system(cmd) != 0) fprintf(stderr, "bench_train: could not remove %s\n", tmp);
+        sooc_dist_finalize();
+        return 0;
+    }
 
     /* read the per-step rows back from log.csv */
     char log_path[700];
@@ -225,11 +258,12 @@ int main(int argc, char **argv) {
         if (sl >= sizeof stages) break;
     }
     sooc_free(buf);
-    char commit[64];
+    char commit[64], ar_txt[32] = "null";   /* JSON has no NaN */
     git_commit(commit, sizeof commit);
-    fprintf(stderr, "bench_train: %d timed steps (after %d warm-up): median %.4f s, p10 %.4f, p90 %.4f; "
-                    "%.3f cpu-s/step; load %.2f -> %.2f\n",
-            nr, warmup, med, p10, p90, cpu / cfg.steps, la0, la1);
+    if (isfinite(ar_med)) snprintf(ar_txt, sizeof ar_txt, "%.5f", ar_med);
+    fprintf(stderr, "bench_train: %d timed steps (after %d warm-up) on %d rank(s): median %.4f s, p10 %.4f, "
+                    "p90 %.4f; %.3f cpu-s/step (all ranks); load %.2f -> %.2f\n",
+            nr, warmup, sooc_dist_size(), med, p10, p90, cpu_all, la0, la1);
     if (!keep) {
         char cmd[700];
         snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
@@ -238,10 +272,12 @@ int main(int argc, char **argv) {
         fprintf(stderr, "bench_train: kept %s\n", tmp);
     }
     printf("{\"bench\": \"train\", \"commit\": \"%s\", \"config\": \"%s\", \"K\": %d, \"L\": %d, \"ray_grid\": %d, "
-           "\"params\": %zu, \"accum\": %d, \"threads\": %d, \"steps\": %d, \"warmup\": %d, "
+           "\"params\": %zu, \"ranks\": %d, \"accum\": %d, \"threads\": %d, \"steps\": %d, \"warmup\": %d, "
            "\"step_median_s\": %.5f, \"step_p10_s\": %.5f, \"step_p90_s\": %.5f, \"steps_per_s\": %.3f, "
-           "\"cpu_s_per_step\": %.5f, \"wall_s\": %.2f, \"load_before\": %.2f, \"load_after\": %.2f%s%s}\n",
-           commit, config, mc.K, mc.L, mc.ray_w, n_params, cfg.accum, cfg.threads, nr, warmup, med, p10, p90,
-           1.0 / med, cpu / cfg.steps, wall, la0, la1, stages[0] ? ", " : "", stages);
+           "\"cpu_s_per_step\": %.5f, \"allreduce_slab_median_s\": %s, \"wall_s\": %.2f, \"load_before\": %.2f, "
+           "\"load_after\": %.2f%s%s}\n",
+           commit, config, mc.K, mc.L, mc.ray_w, n_params, sooc_dist_size(), cfg.accum, cfg.threads, nr, warmup, med,
+           p10, p90, 1.0 / med, cpu_all, ar_txt, wall, la0, la1, stages[0] ? ", " : "", stages);
+    sooc_dist_finalize();
     return 0;
 }

@@ -366,13 +366,16 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
     double acc[8] = {0};
     int acc_n = 0;
     char extra[256] = "";
-    /* Scene j of a step's batch (j = rank * accum + a, over all ranks) draws
-     * everything (curriculum, scene, views, model noise) from its own stream:
-     * (seed, step) for j = 0, as a single process always did, and (seed, step
-     * + j * 2^40) after it. So the data order is a function of (seed, step,
-     * ranks x accum) alone: N ranks with accum a see the scenes one process
-     * sees with accum N a, and --resume restores every rank's RNG by
-     * restoring the step. */
+    /* The curriculum (T input views, Q queries) is drawn once per step, from
+     * the stream (seed, step), so every scene of a step, on every rank, has
+     * the same T: no rank waits for another's longer segment. Scene j of the
+     * step's batch (j = rank * accum + a, over all ranks) then draws its scene,
+     * views and model noise from its own stream: for j = 0 the same (seed,
+     * step) stream after the curriculum draw, as a single process always did
+     * (accum 1 runs are unchanged), and (seed, step + j * 2^40) for j > 0.
+     * So the data order is a function of (seed, step, ranks x accum) alone: N
+     * ranks with accum a see the scenes one process sees with accum N a, and
+     * --resume restores every rank's RNG by restoring the step. */
     const uint64_t batch = (uint64_t)tr.size * (uint64_t)cfg->accum;
     tr.st.batch = (uint32_t)batch;
     while (tr.st.step < cfg->steps) {
@@ -391,6 +394,11 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
         double vis = 0;
         int T = 1, Q = 1, ok_scenes = 0, nonfinite = 0;
         float *g = sooc_model_grads(tr.model);
+        sooc_rng rng0;
+        sooc_rng_seed(&rng0, cfg->seed, (uint64_t)step);
+        curriculum(cfg, step, &rng0, &T, &Q);
+        if (T > 64) T = 64;
+        if (Q > 16) Q = 16;
         for (int a = 0; a < cfg->accum; a++) {
             t0 = sooc_seconds();
             /* accum > 1: every scene's gradient alone, then summed into gacc, so
@@ -398,11 +406,8 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
              * sums differ only in their order, not in how each scene rounds) */
             if (a > 0) sooc_model_zero_grad(tr.model);
             uint64_t j = (uint64_t)tr.rank * (uint64_t)cfg->accum + (uint64_t)a;
-            sooc_rng rng;
-            sooc_rng_seed(&rng, cfg->seed, (uint64_t)step + (j << 40));
-            curriculum(cfg, step, &rng, &T, &Q);
-            if (T > 64) T = 64;
-            if (Q > 16) Q = 16;
+            sooc_rng rng = rng0;
+            if (j > 0) sooc_rng_seed(&rng, cfg->seed, (uint64_t)step + (j << 40));
             int sc = sooc_dataset_pick(ds, cfg->recorded_frac, &rng), nv = 0, nq = 0;
             sooc_dataset_sample(ds, sc, T, Q, cfg->query_held_out, &rng, views, &nv, queries, &nq);
             double t1 = sooc_seconds();
