@@ -256,7 +256,7 @@ static sooc_status add_dir(sooc_dataset *d, const char *dir, const sooc_framepat
     }
     closedir(dp);
     if (!s) {
-        qsort(names, (size_t)n, sizeof(char *), cmp_str);
+        if (n > 0) qsort(names, (size_t)n, sizeof(char *), cmp_str);   /* names is NULL when n == 0 */
         for (int i = 0; i < n && !s; i++) {
             if ((s = sooc_path_join(path, sizeof path, dir, names[i]))) break;
             s = push_scene(d, path, fpp);
