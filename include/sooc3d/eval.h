@@ -62,6 +62,7 @@ typedef struct sooc_eval_cell {
     sooc_eval_stat rgb_rmse_obj;       /* RGB RMSE over object pixels (GT id != 0) */
     sooc_eval_stat recall[SOOC_METRIC_N_DBINS];
     sooc_eval_stat mesh_acc_cm, mesh_comp_cm;
+    sooc_eval_stat extent_err_cm, sigma1_frac, symmetric_agree;   /* object geometry (eval_geom.h) */
     long n_views;                      /* summed over runs */
     /* mIoU of the views with b visible GT objects (b >= 7 in the last bin),
      * pooled over runs (NaN where no view has that count), and their number */

@@ -28,6 +28,25 @@ extern "C" {
 
 #define SOOC_MAP_LATENT_MAX 32
 
+/* Object geometry for planners (issue 19; docs/shm.md "How each field is
+ * computed"; src/model/objgeom.c). flags 0 = not computed: extent is then
+ * the model's locality box and the spreads are the posterior's. */
+#define SOOC_GEOM_TIGHT 0x1u      /* extent and centre: the tight box of the object's own density */
+#define SOOC_GEOM_SYMMETRIC 0x2u  /* rotationally symmetric about its vertical axis: yaw undefined */
+#define SOOC_GEOM_EMPTY 0x4u      /* no density at the surface level in its box (extent 0) */
+#define SOOC_GEOM_CLIPPED 0x8u    /* the density reaches the locality box's side: extent cut there */
+typedef struct sooc_map_geometry {
+    uint32_t flags;            /* SOOC_GEOM_* */
+    float centre[3];           /* tight box centre in the object frame (m); centre[1] = height above the floor */
+    float sym_iou;             /* rotational self-overlap of the density (symmetric when >= SOOC_OBJGEOM_SYM_IOU) */
+    double cov_xz[3];          /* position covariance xx xz zz (m^2, world), calibrated (objgeom.h) */
+    double var_yaw;            /* yaw variance (rad^2); NaN = undefined (SYMMETRIC) */
+    uint32_t reg_n;            /* registrations in the spread statistics */
+    double reg_mean[2];        /* their mean floor position (X, Z) */
+    double reg_m2[3];          /* Welford sums of squares xx xz zz about it */
+    double reg_cs[2];          /* sums of cos / sin of their yaw */
+} sooc_map_geometry;
+
 /* One cognitive-map entry in the world frame (+y up, floor y = 0). */
 typedef struct sooc_map_entry {
     uint64_t id;               /* stable, never reused; starts at 1 */
@@ -38,9 +57,10 @@ typedef struct sooc_map_entry {
     int latent_dim;            /* <= SOOC_MAP_LATENT_MAX */
     float what_mu[SOOC_MAP_LATENT_MAX];
     float what_logvar[SOOC_MAP_LATENT_MAX];
-    float extent[3];           /* box size (x, y, z) in m, from the model's locality box */
+    float extent[3];           /* box size (x, y, z) in m: the tight box (geom.flags TIGHT) or the model's locality box */
     int64_t first_seen_ns, last_seen_ns;
     uint32_t obs_count;
+    sooc_map_geometry geom;    /* tight box, height, spreads (zero: not computed) */
 } sooc_map_entry;
 
 /* Conversions between a map entry and the cognitive map's entry (the rows of
@@ -243,6 +263,17 @@ int sooc3d_mapper_latent_dim(const sooc3d_mapper *m);
 sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar);
 sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar);
+
+/* Object geometry (include/sooc3d/objgeom.h): every update keeps the
+ * registration statistics of the entries it wrote and recomputes at most
+ * `per_update` stale tight boxes (default SOOC_OBJGEOM_BUDGET; 0 = none
+ * during updates, < 0 = all). refresh_geometry computes up to max_objects
+ * stale boxes now (< 0 = all; e.g. before reading a final map); *n_done
+ * (may be NULL) = boxes computed. entries() / changed() fill extent and geom. */
+void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *m, int per_update);
+/* Mark every cached tight box stale (the decoders changed, e.g. finetuning). */
+void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *m);
+sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *m, int max_objects, int *n_done);
 
 /* Set the merge radius of a live mapper (same meaning as the parameter). */
 /* The revisit rule of sooc3d_mapper_params.merge_neighbours (0 / 1). */

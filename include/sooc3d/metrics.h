@@ -123,6 +123,21 @@ typedef struct sooc_mesh_sums {
     double fscore;                 /* sum of F-score at 5 cm                   */
 } sooc_mesh_sums;
 
+/* Object geometry (include/sooc3d/eval_geom.h), per scene of the final map:
+ * extent errors of the matched objects in a histogram of SOOC_METRIC_EXT_BIN_CM
+ * bins (the last one holds everything above; the median is read from it to
+ * within a bin), and the per-axis position errors within one published sigma. */
+#define SOOC_METRIC_EXT_BINS 400
+#define SOOC_METRIC_EXT_BIN_CM 0.25
+typedef struct sooc_geom_sums {
+    long ext_hist[SOOC_METRIC_EXT_BINS];
+    long n_ext;                    /* matched objects with a tight box         */
+    long n_axis, n_axis_within;    /* position error axes, within one sigma     */
+    long n_sym, n_sym_agree;       /* symmetry flag agrees with the GT shape    */
+} sooc_geom_sums;
+/* Add one extent error (cm) to the histogram. */
+void sooc_geom_sums_add_extent(sooc_geom_sums *g, double err_cm);
+
 /* Sums over views of one (scale, I/Q) cell. Means: value / count. */
 typedef struct sooc_metric_sums {
     long n_views;
@@ -135,6 +150,7 @@ typedef struct sooc_metric_sums {
     /* best-match mIoU of the views with b visible GT objects (b >= 7 in the last bin) */
     double miou_by_nobj[SOOC_METRIC_N_OBINS]; long n_by_nobj[SOOC_METRIC_N_OBINS];
     sooc_mesh_sums mesh;
+    sooc_geom_sums geom;
 } sooc_metric_sums;
 
 void sooc_metric_sums_add_view(sooc_metric_sums *s, const sooc_view_metrics *v);
@@ -150,6 +166,9 @@ typedef struct sooc_metric_means {
     double miou_by_nobj[SOOC_METRIC_N_OBINS];   /* NaN where no view has that count */
     long n_by_nobj[SOOC_METRIC_N_OBINS];
     double mesh_acc_cm, mesh_comp_cm, mesh_fscore;
+    double extent_err_cm;          /* median extent error of matched objects (cm) */
+    double sigma1_frac;            /* position error axes within one sigma       */
+    double symmetric_agree;        /* symmetry flag agreeing with the GT shape   */
     long n_views;
 } sooc_metric_means;
 void sooc_metric_sums_means(const sooc_metric_sums *s, sooc_metric_means *m);

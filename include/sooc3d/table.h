@@ -109,6 +109,9 @@ extern "C" {
 #define SOOC_TABLE_FLAG_REMOVED 0x4u   /* object deleted from the map; the slot is
                                           kept for >= 1 epoch, then may be reused */
 #define SOOC_TABLE_FLAG_STATIC 0x8u    /* believed not to move */
+#define SOOC_TABLE_FLAG_SYMMETRIC 0x10u /* rotationally symmetric about its vertical axis:
+                                           yaw is undefined, cov_xzyaw[5] (yaw variance)
+                                           is NaN and the yaw cross terms 0 (docs/shm.md) */
 
 /* Header flags (sooc_table_header.hflags). */
 #define SOOC_TABLE_HFLAG_WRITER_EXITED 0x1u /* writer closed cleanly (table is final) */

@@ -146,6 +146,31 @@ static void print_supp(const sooc_eval_table *t, char names[][160], int n_names,
             }
 }
 
+/* Object geometry for planners (issue 19; eval_geom.h, docs/metrics.md): per
+ * query cell with a scene description (the geometry comes from the final map). */
+static void print_geom(const sooc_eval_table *t, char names[][160], int n_names, const int *scales_used, int runs) {
+    int any = 0;
+    for (int m = 0; m < n_names; m++)
+        for (int s = 0; s < SOOC_N_SCALES; s++) {
+            sooc_eval_cell c;
+            if (!scales_used[s] || sooc_eval_table_cell(t, names[m], s, 1, &c)) {
+                sooc_clearerr();
+                continue;
+            }
+            if (!isfinite(c.extent_err_cm.mean) && !isfinite(c.sigma1_frac.mean)) continue;
+            if (!any++)
+                printf("\nObject geometry (final map, GT objects matched to the nearest entry within 0.5 m): median\n"
+                       "extent error of the tight boxes (cm), position error axes within one sigma, symmetry flag\n"
+                       "agreeing with the GT shape.\n%-16s %-5s %-14s %-14s %-14s\n",
+                       "model", "scale", "extent_err_cm", "sigma1_frac", "symmetric");
+            char a[3][48];
+            fmt_stat(a[0], sizeof a[0], &c.extent_err_cm, runs);
+            fmt_stat(a[1], sizeof a[1], &c.sigma1_frac, runs);
+            fmt_stat(a[2], sizeof a[2], &c.symmetric_agree, runs);
+            printf("%-16s %-5s %-14s %-14s %-14s\n", names[m], sooc_scale_name(s), a[0], a[1], a[2]);
+        }
+}
+
 int sooc_cmd_eval(int argc, char **argv) {
     if (sooc_cli_wants_help(argc, argv)) {
         usage(stdout);
@@ -467,6 +492,7 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (finetune && !sooc_model_is_global(mdl[i])) snprintf(rows[nr++], sizeof rows[0], "%.150s", fname[i]);
         }
         print_supp(tab, rows, nr, used, runs);
+        print_geom(tab, rows, nr, used, runs);
     }
     printf("\neval: %d scene%s x %d model%s x %d run%s, %llu views in %.1f s (%.2f views/s); "
            "mapper %.1f ms/update, rendering + scoring %.1f s\n",

@@ -328,6 +328,32 @@ void sooc_metric_sums_merge(sooc_metric_sums *d, const sooc_metric_sums *s) {
     d->mesh.acc_cm += s->mesh.acc_cm;
     d->mesh.comp_cm += s->mesh.comp_cm;
     d->mesh.fscore += s->mesh.fscore;
+    for (int b = 0; b < SOOC_METRIC_EXT_BINS; b++) d->geom.ext_hist[b] += s->geom.ext_hist[b];
+    d->geom.n_ext += s->geom.n_ext;
+    d->geom.n_axis += s->geom.n_axis;
+    d->geom.n_axis_within += s->geom.n_axis_within;
+    d->geom.n_sym += s->geom.n_sym;
+    d->geom.n_sym_agree += s->geom.n_sym_agree;
+}
+
+void sooc_geom_sums_add_extent(sooc_geom_sums *g, double err_cm) {
+    if (!isfinite(err_cm) || err_cm < 0) return;
+    double b = err_cm / SOOC_METRIC_EXT_BIN_CM;
+    g->ext_hist[b < SOOC_METRIC_EXT_BINS - 1 ? (int)b : SOOC_METRIC_EXT_BINS - 1]++;
+    g->n_ext++;
+}
+
+/* the median of the histogram, linear within its bin */
+static double geom_median(const sooc_geom_sums *g) {
+    if (g->n_ext <= 0) return NAN;
+    double half = 0.5 * (double)g->n_ext, c = 0;
+    for (int b = 0; b < SOOC_METRIC_EXT_BINS; b++) {
+        if (!g->ext_hist[b]) continue;
+        if (c + (double)g->ext_hist[b] >= half)
+            return SOOC_METRIC_EXT_BIN_CM * (b + (half - c) / (double)g->ext_hist[b]);
+        c += (double)g->ext_hist[b];
+    }
+    return SOOC_METRIC_EXT_BIN_CM * SOOC_METRIC_EXT_BINS;
 }
 
 static double ratio(double a, long n) { return n > 0 ? a / (double)n : NAN; }
@@ -349,6 +375,9 @@ void sooc_metric_sums_means(const sooc_metric_sums *s, sooc_metric_means *m) {
     m->mesh_acc_cm = ratio(s->mesh.acc_cm, s->mesh.n_obj);
     m->mesh_comp_cm = ratio(s->mesh.comp_cm, s->mesh.n_obj);
     m->mesh_fscore = ratio(s->mesh.fscore, s->mesh.n_obj);
+    m->extent_err_cm = geom_median(&s->geom);
+    m->sigma1_frac = ratio((double)s->geom.n_axis_within, s->geom.n_axis);
+    m->symmetric_agree = ratio((double)s->geom.n_sym_agree, s->geom.n_sym);
 }
 
 void sooc_metric_acc_add_view(sooc_metric_acc *a, int scale, const sooc_view_metrics *v) {

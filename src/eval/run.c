@@ -4,8 +4,9 @@
  * input views from the final map and/or right after their own update). */
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/finetune.h"
 #include "sooc3d/mesh.h"
+#include "sooc3d/eval_geom.h"
+#include "sooc3d/finetune.h"
 
 #include <math.h>
 #include <string.h>
@@ -187,6 +188,46 @@ static sooc_status score_view(run_ctx *C, int i, int online, int n_mapped, sooc_
     return C->view_cb(C->user, &vi);
 }
 
+/* Object geometry of the final map against the scene (eval_geom.h): every
+ * stale tight box is computed (all of them after finetuning), then the
+ * matched objects' extent errors, position-sigma coverage and symmetry flags
+ * go into the geometry sums of every cell of the scene. */
+static sooc_status geometry_scene(sooc3d_mapper *mp, const struct sooc_scene *sc, int finetuned,
+                                  sooc_eval_scene_result *res) {
+    if (finetuned) sooc3d_mapper_geometry_invalidate(mp);
+    sooc_status st = sooc3d_mapper_refresh_geometry(mp, -1, NULL);
+    size_t n = 0;
+    if (!st) st = sooc3d_mapper_entries(mp, NULL, 0, &n);
+    if (st) return st;
+    sooc_map_entry *e = sooc_calloc(n + 1, sizeof *e);
+    sooc_geom_match *mt = sooc_calloc((size_t)sc->n_objects + 1, sizeof *mt);
+    int nm = 0;
+    if (!e || !mt) st = sooc_seterr(SOOC_ENOMEM, "eval: object geometry: out of memory");
+    if (!st) st = sooc3d_mapper_entries(mp, e, n, &n);
+    if (!st) st = sooc_geom_eval_scene(e, n, sc, 0.5, mt, &nm);
+    sooc_geom_sums g;
+    memset(&g, 0, sizeof g);
+    for (int i = 0; !st && i < nm; i++) {
+        const sooc_geom_match *r = &mt[i];
+        g.n_axis += 2;
+        g.n_axis_within += (fabs(r->err_x) <= r->sig_x) + (fabs(r->err_z) <= r->sig_z);
+        if (!r->tight) continue;
+        sooc_geom_sums_add_extent(&g, r->ext_err_cm);
+        g.n_sym++;
+        g.n_sym_agree += r->sym_pred == r->sym_gt;
+    }
+    sooc_metric_sums *cells[3] = {&res->input_final, &res->input_online, &res->query};
+    for (int k = 0; k < 3 && !st; k++) {
+        sooc_metric_sums add;
+        memset(&add, 0, sizeof add);
+        add.geom = g;
+        sooc_metric_sums_merge(cells[k], &add);
+    }
+    sooc_free(e);
+    sooc_free(mt);
+    return st;
+}
+
 sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_frames,
                                 const sooc_gt_object *gt, int n_gt, const sooc_eval_run_opts *o,
                                 sooc_eval_view_fn view_cb, sooc_eval_step_fn step_cb, void *user,
@@ -336,6 +377,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
             }
         }
     }
+    if (!st && o->scene && mp) st = geometry_scene(mp, o->scene, o->finetune != NULL, res);
 done:
     sooc_render_out_free(&C.rout);
     sooc_free(ent);

@@ -112,7 +112,7 @@ static void stat_of(const double *v, int n, sooc_eval_stat *s) {
 sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, int scale, int is_query,
                                  sooc_eval_cell *out) {
     memset(out, 0, sizeof *out);
-    enum { NM = 9 + SOOC_METRIC_N_DBINS };
+    enum { NG = 9 + SOOC_METRIC_N_DBINS, NM = NG + 3 };
     static _Thread_local double vals[NM][MAX_RUNS];
     double by_sum[SOOC_METRIC_N_OBINS] = {0};
     int n = 0;
@@ -128,6 +128,7 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
         vals[3][n] = m.depth_rmse; vals[4][n] = m.l2; vals[5][n] = m.matched_frac;
         vals[6][n] = m.mesh_acc_cm; vals[7][n] = m.mesh_comp_cm; vals[8][n] = m.rgb_rmse_obj;
         for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) vals[9 + b][n] = m.recall[b];
+        vals[NG][n] = m.extent_err_cm; vals[NG + 1][n] = m.sigma1_frac; vals[NG + 2][n] = m.symmetric_agree;
         for (int b = 0; b < SOOC_METRIC_N_OBINS; b++) {
             by_sum[b] += s->miou_by_nobj[b];
             out->n_by_nobj[b] += s->n_by_nobj[b];
@@ -142,6 +143,8 @@ sooc_status sooc_eval_table_cell(const sooc_eval_table *t, const char *model, in
     stat_of(vals[6], n, &out->mesh_acc_cm); stat_of(vals[7], n, &out->mesh_comp_cm);
     stat_of(vals[8], n, &out->rgb_rmse_obj);
     for (int b = 0; b < SOOC_METRIC_N_DBINS; b++) stat_of(vals[9 + b], n, &out->recall[b]);
+    stat_of(vals[NG], n, &out->extent_err_cm); stat_of(vals[NG + 1], n, &out->sigma1_frac);
+    stat_of(vals[NG + 2], n, &out->symmetric_agree);
     for (int b = 0; b < SOOC_METRIC_N_OBINS; b++)
         out->miou_by_nobj[b] = out->n_by_nobj[b] ? by_sum[b] / (double)out->n_by_nobj[b] : NAN;
     return SOOC_OK;
@@ -442,6 +445,9 @@ sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
                 json_stat(&b, "recall_gt5m", &c.recall[2], 1);
                 json_stat(&b, "mesh_acc_cm", &c.mesh_acc_cm, 1);
                 json_stat(&b, "mesh_comp_cm", &c.mesh_comp_cm, 1);
+                json_stat(&b, "extent_err_cm", &c.extent_err_cm, 1);
+                json_stat(&b, "sigma1_frac", &c.sigma1_frac, 1);
+                json_stat(&b, "symmetric_agree", &c.symmetric_agree, 1);
                 sb_printf(&b, "\"miou_by_nobj\": [");
                 for (int k = 0; k < SOOC_METRIC_N_OBINS; k++) {
                     json_num(&b, c.miou_by_nobj[k]);

@@ -8,6 +8,7 @@
 
 #include "model/step_internal.h"
 #include "sooc3d/model.h"
+#include "sooc3d/objgeom.h"
 
 #define MAPPER_TAU 0.7f
 #define MAPPER_FREE_SLOTS 1024   /* free-space evidence cache (ids are sequential: no collision below 1024 apart) */   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
@@ -40,6 +41,8 @@ struct sooc3d_mapper {
     uint64_t free_id[MAPPER_FREE_SLOTS];
     uint16_t free_run[MAPPER_FREE_SLOTS];
     uint16_t unsup_run[MAPPER_FREE_SLOTS];   /* registrations since the depth last showed a surface there */
+    sooc_objgeom_cache *geo;   /* object geometry for planners (objgeom.h) */
+    int geo_budget;            /* tight boxes recomputed per update */
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -66,6 +69,8 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     cp.layout_dim = c->d_layout;
     cp.block_size = (double)c->block_size * c->unit_m;   /* the map is in metres */
     sooc_status st = sooc_cogmap_create(&mp->map, &cp);
+    if (!st) st = sooc_objgeom_cache_create(&mp->geo);
+    mp->geo_budget = SOOC_OBJGEOM_BUDGET;
     if (!st) st = mdl_view_alloc(m, &mp->V, mp->L);
     if (!st && !mdl_step_state(m, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
     if (st) {
@@ -113,6 +118,7 @@ void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
     if (!mp) return;
     if (mp->V.buf) mdl_view_free(&mp->V);
     sooc_cogmap_destroy(mp->map);
+    sooc_objgeom_cache_destroy(mp->geo);
     sooc_model_destroy(mp->m);
     sooc_free(mp);
 }
@@ -324,6 +330,37 @@ static int retire_free(sooc3d_mapper *mp, const sooc_frame *f, uint64_t *ids, in
     return n;
 }
 
+/* Object geometry (objgeom.h): registration statistics of what this update
+ * wrote, then at most geo_budget tight boxes recomputed. */
+static sooc_status mapper_geometry(sooc3d_mapper *mp) {
+    for (int i = 0; i < mp->n_rem; i++) sooc_objgeom_cache_remove(mp->geo, mp->rem_ids[i]);
+    for (int i = 0; i < mp->n_chg; i++) {
+        sooc_cogmap_entry e;
+        if (sooc_cogmap_get(mp->map, mp->chg_ids[i], &e)) {
+            sooc_clearerr();
+            continue;
+        }
+        sooc_status s = sooc_objgeom_cache_observe(mp->geo, &e);
+        if (s) return s;
+    }
+    if (mp->geo_budget == 0) return SOOC_OK;
+    sooc_objgeom_opts o;
+    sooc_objgeom_opts_default(&o);
+    return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, mp->geo_budget, NULL);
+}
+
+sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *mp, int max_objects, int *n_done) {
+    sooc_objgeom_opts o;
+    sooc_objgeom_opts_default(&o);
+    return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, max_objects, n_done);
+}
+
+void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) { sooc_objgeom_cache_invalidate(mp->geo); }
+
+void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *mp, int per_update) {
+    mp->geo_budget = per_update < 0 ? -1 : per_update;
+}
+
 sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_update_stats *stp) {
     double t0 = sooc_seconds();
     sooc3d_update_stats st0;
@@ -389,6 +426,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
             mp->chg_ids[j] = ids[i];
         }
     if ((s = sooc_cogmap_layout_set(mp->map, V->bi, V->bj, layL, layL + c->d_layout))) return s;
+    if ((s = mapper_geometry(mp))) return s;
     mp->has_block = 1;
     mp->bi = V->bi;
     mp->bj = V->bj;
@@ -453,7 +491,10 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
     sooc_status s = sooc_cogmap_entries(mp->map, tmp, cnt, &got);
     float ext[3];
     sooc_model_box_extent(sooc_model_get_config(mp->m), ext);
-    for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
+    for (size_t i = 0; !s && i < got; i++) {
+        sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
+        sooc_objgeom_cache_fill(mp->geo, &tmp[i], &out[i]);
+    }
     *n = s ? 0 : got;
     sooc_free(tmp);
     return s;
@@ -474,6 +515,8 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
     }
     if (!s) s = sooc_cogmap_load(mp->map, tmp, n);
     sooc_free(tmp);
+    sooc_objgeom_cache_clear(mp->geo);
+    for (size_t i = 0; !s && i < n; i++) s = sooc_objgeom_cache_seed(mp->geo, &e[i]);
     mp->n_chg = mp->n_rem = mp->has_block = 0;
     return s;
 }
@@ -493,6 +536,7 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
         sooc_status s = sooc_cogmap_get(mp->map, mp->chg_ids[i], &e);
         if (s) return sooc_adderr(s, "mapper changed: entry %llu", (unsigned long long)mp->chg_ids[i]);
         sooc3d_mapper_entry_from_cogmap(&e, ext, &out[i]);
+        sooc_objgeom_cache_fill(mp->geo, &e, &out[i]);
     }
     if (removed_ids) memcpy(removed_ids, mp->rem_ids, nr * sizeof *removed_ids);
     return SOOC_OK;

@@ -283,6 +283,15 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     r->cov_xzyaw[5] = vy;
     r->y = 0.5f * e->extent[1];   /* objects rest on the floor */
     memcpy(r->extent, e->extent, sizeof r->extent);
+    const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
+    if (g->cov_xz[0] > 0 && g->cov_xz[2] > 0) {   /* calibrated spreads */
+        r->cov_xzyaw[0] = (float)g->cov_xz[0];
+        r->cov_xzyaw[1] = (float)g->cov_xz[1];
+        r->cov_xzyaw[3] = (float)g->cov_xz[2];
+        r->cov_xzyaw[5] = (float)g->var_yaw;   /* NaN when the shape is symmetric: yaw undefined */
+    }
+    if (g->flags & SOOC_GEOM_TIGHT) r->y = g->centre[1];   /* tight box centre above the floor */
+    if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
     r->first_seen_ns = e->first_seen_ns;
     r->last_seen_ns = e->last_seen_ns;
     int d = e->latent_dim;
@@ -413,6 +422,8 @@ static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, c
         for (size_t i = 0; i < nc && !st && to_db; i++) {
             sooc3d_mapper_entry_to_cogmap(&chg[i], &ce);
             st = sooc_mapstore_put_entries(n->store, &ce, 1);
+            if (!st && (chg[i].geom.flags || chg[i].geom.reg_n))   /* object geometry (schema 3) */
+                st = sooc_mapstore_geom_put(n->store, chg[i].id, chg[i].extent, &chg[i].geom);
         }
         if (!st && nr) st = sooc_mapstore_remove_entries(n->store, rem, nr);
         if (!st && !n->extent_stored && nc && chg[0].extent[0] > 0) {
@@ -774,6 +785,13 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         if ((st = sooc_mapstore_foreach(n->store, load_visit, &L)) || (st = L.st)) {
             sooc_adderr(st, "%s: resume from %s", c->path, c->map_db);
             goto fail;
+        }
+        for (size_t i = 0; i < n->n_prev; i++) {   /* stored object geometry (schema 3; none in older maps) */
+            int found = 0;
+            if ((st = sooc_mapstore_geom_get(n->store, n->prev[i].id, n->prev[i].extent, &n->prev[i].geom, &found))) {
+                sooc_adderr(st, "%s: resume from %s", c->path, c->map_db);
+                goto fail;
+            }
         }
         if (n->n_prev && (st = sooc3d_mapper_load_entries(n->mapper, n->prev, n->n_prev))) {
             sooc_adderr(st, "%s: resume: mapper refused %zu stored entries", c->path, n->n_prev);
