@@ -11,8 +11,17 @@
  *   - one training step on two input views and one query view
  *     (sooc_model_train_step / sooc_model_global_train_step): the losses and
  *     the gradient slab (norm and 16 fixed entries).
- * Every number must be within 1e-5 (|a - b| <= 1e-5 max(1, |b|); gradient
- * entries relative to the largest |b| of their group).
+ * The decode numbers must be within 1e-5 (|a - b| <= 1e-5 max(1, |b|);
+ * gradient entries relative to the largest |b| of their group). The training
+ * step is compared at 2e-3 (losses) and 3e-2 (gradients, of the group's
+ * largest): a step is not continuous in rounding. Its refinement moves the
+ * slots, points cross the locality boxes' faces (a row of the object MLP
+ * appears or vanishes) and presences cross 0.5 (straight-through, registration),
+ * so a change of the last bit in one decoder expression (measured: the colour
+ * head's input gradient written as two FMAs instead of multiply-adds) moves
+ * the step's losses by up to 3e-4 relative and single gradient norms by up to
+ * 0.8% of the largest, while every decode number stays within 4e-7 of its
+ * group's scale.
  *
  *   test_model_golden            compare against tests/model/data/golden.txt
  *   test_model_golden --write F  write the reference numbers to F */
@@ -27,7 +36,9 @@
 
 #define GOLDEN "tests/model/data/golden.txt"
 #define MAXV 4096
-#define TOL 1e-5
+#define TOL 1e-5        /* decode */
+#define TOL_STEP_LOSS 2e-3
+#define TOL_STEP_GRAD 3e-2
 
 static const char *models[] = {"models/sooc3d_unity/model.bin", "models/sooc3d_tabletop/model.bin",
                                "models/baseline_global/model.bin"};
@@ -52,8 +63,8 @@ static void grp_add(double v) {
     if (g_cur.n < MAXV) g_cur.v[g_cur.n++] = v;
 }
 
-/* Scalars: each within TOL max(1, |ref|). Vectors ("scale" set): each within TOL max(1, max |ref|). */
-static void grp_end(int scale) {
+/* Scalars: each within tol max(1, |ref|). Vectors ("scale" set): each within tol max(1, max |ref|). */
+static void grp_end(int scale, double tol0) {
     g_groups++;
     if (g_out) {
         fprintf(g_out, "%s %d", g_cur.name, g_cur.n);
@@ -83,12 +94,12 @@ static void grp_end(int scale) {
     double worst = 0;
     int wi = 0;
     for (int i = 0; i < n; i++) {
-        double tol = TOL * (scale ? mx : fmax(1.0, fabs(ref[i])));
+        double tol = tol0 * (scale ? mx : fmax(1.0, fabs(ref[i])));
         double r = fabs(g_cur.v[i] - ref[i]) / tol;
         if (!(r <= worst)) worst = r, wi = i;
     }
-    printf("  %-40s %4ld numbers, worst |diff| / tol = %.3g (#%d: %.9g vs %.9g)\n", g_cur.name, n, worst, wi,
-           g_cur.v[wi], ref[wi]);
+    printf("  %-40s %4ld numbers, worst |diff| / tol = %.3g (tol %.0e; #%d: %.9g vs %.9g)\n", g_cur.name, n, worst,
+           tol0, wi, g_cur.v[wi], ref[wi]);
     CHECK_MSG(worst <= 1.0, "%s: #%d = %.9g, reference %.9g", g_cur.name, wi, g_cur.v[wi], ref[wi]);
 }
 
@@ -142,11 +153,11 @@ static void check_decode(sooc_model *m, const char *tag, const sooc_frame *f) {
     grp_begin(tag, "decode.loss");
     grp_add(dc.loss), grp_add(dc.nll_d), grp_add(dc.nll_c), grp_add(dc.kl);
     for (int k = 0; k < K; k++) grp_add(dc.zp[k]);
-    grp_end(0);
+    grp_end(0, TOL);
     grp_begin(tag, "decode.g_lam");
     for (int i = 0; i < K * NL && i < 4 * NL; i++) grp_add(g_lam[i]);   /* the first 4 slots */
     for (int i = 0; i < 2 * dl; i++) grp_add(g_lay[i]);
-    grp_end(1);
+    grp_end(1, TOL);
     const dec_net *nets[2] = {&m->dobj, &m->dlay};
     for (int q = 0; q < 2; q++) {
         const dec_net *n = nets[q];
@@ -161,7 +172,7 @@ static void check_decode(sooc_model *m, const char *tag, const sooc_frame *f) {
             grp_add(sqrt(ss));
             for (size_t i = 0; i < cnt[t] && i < 4; i++) grp_add(m->g[offs[t] + i * 7 % cnt[t]]);
         }
-        grp_end(1);
+        grp_end(1, TOL);
     }
     mdl_rays_free(&vr);
 }
@@ -180,7 +191,7 @@ static void check_step(sooc_model *m, const char *tag, const sooc_frame *F) {
     grp_add(l.total), grp_add(l.nll_input), grp_add(l.kl), grp_add(l.nll_query), grp_add(l.nll_depth);
     grp_add(l.nll_color), grp_add(l.present_slots), grp_add(l.mean_pres_logit), grp_add(l.map_entries);
     grp_add(l.nonfinite);
-    grp_end(0);
+    grp_end(0, TOL_STEP_LOSS);
     size_t np = sooc_model_param_count(m);
     const float *g = sooc_model_grads(m);
     grp_begin(tag, "step.grads");
@@ -192,7 +203,7 @@ static void check_step(sooc_model *m, const char *tag, const sooc_frame *F) {
         grp_add(sqrt(ss));
     }
     for (int i = 0; i < 16; i++) grp_add(g[(size_t)i * 7919 % np]);
-    grp_end(1);
+    grp_end(1, TOL_STEP_GRAD);
 }
 
 int main(int argc, char **argv) {
