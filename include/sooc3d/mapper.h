@@ -35,6 +35,7 @@ extern "C" {
 #define SOOC_GEOM_SYMMETRIC 0x2u  /* rotationally symmetric about its vertical axis: yaw undefined */
 #define SOOC_GEOM_EMPTY 0x4u      /* no density at the surface level in its box (extent 0) */
 #define SOOC_GEOM_CLIPPED 0x8u    /* the density reaches the locality box's side: extent cut there */
+#define SOOC_GEOM_FAINT 0x10u     /* below the surface level everywhere: the box at half its peak density */
 typedef struct sooc_map_geometry {
     uint32_t flags;            /* SOOC_GEOM_* */
     float centre[3];           /* tight box centre in the object frame (m); centre[1] = height above the floor */

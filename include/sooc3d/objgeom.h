@@ -17,7 +17,11 @@
  * locality box (SOOC_GEOM_CLIPPED; the face is the wall). Cost: res^3 +
  * about 6 x 12 x refine field evaluations plus the symmetry test (4 x 3 x
  * 144), all in batches: with the defaults about 6,000 decoder rows, no
- * allocation per point.
+ * allocation per point. A density that reaches the level nowhere in the box
+ * but peaks at >= SOOC_OBJGEOM_FAINT_MIN gets the box of the points at or
+ * above half its peak instead (SOOC_GEOM_TIGHT | SOOC_GEOM_FAINT: a faint
+ * object still gets a box for planners; the mesh at the level is empty);
+ * below that it is SOOC_GEOM_EMPTY (extent 0).
  *
  * Symmetry. The density is rotationally symmetric about the vertical axis
  * through the tight box's centre when the inside set of three horizontal
@@ -59,6 +63,7 @@ extern "C" {
 
 #define SOOC_OBJGEOM_SYM_IOU 0.9     /* symmetric at or above this rotational self-IoU */
 #define SOOC_OBJGEOM_DRIFT 0.05      /* RMS z^what change that makes a cached box stale */
+#define SOOC_OBJGEOM_FAINT_MIN 0.05  /* a density peak below this (sigma_hat) is EMPTY, not FAINT */
 #define SOOC_OBJGEOM_BUDGET 1        /* boxes recomputed per keyframe by the mapper (default) */
 
 /* Position spread calibration (see above; fitted on unity m seed 8001). */

@@ -32,6 +32,7 @@ typedef struct og_ctx {
     int comp;
     const sooc_render_box *box;
     float level;
+    float peak[16];           /* per worker: largest sigma_hat of the coarse grid */
     int nw;
     float *pts, *sig, *rgb;   /* nw x OG_BATCH each (x3 for pts, rgb) */
     long n_eval;
@@ -49,7 +50,10 @@ static void og_eval(og_ctx *C, int w, const double *p, int n, uint8_t *inside) {
         pts[3 * i + 2] = (float)(T[8] * q[0] + T[9] * q[1] + T[10] * q[2] + T[11]);
     }
     C->f->eval(C->f->user, w, C->comp, pts, n, sig, rgb);
-    for (int i = 0; i < n; i++) inside[i] = sig[i] >= C->level;
+    for (int i = 0; i < n; i++) {
+        inside[i] = sig[i] >= C->level;
+        if (sig[i] > C->peak[w]) C->peak[w] = sig[i];
+    }
 }
 
 /* Evaluate a list of points in batches (serial; small lists). */
@@ -256,7 +260,8 @@ sooc_status sooc_objgeom_field_box(const sooc_field *f, int comp, const sooc_ren
     if (nw < 1) nw = 1;
     if (nw > 16) nw = 16;
 #endif
-    og_ctx C = {f, comp, box, opt->level, nw, NULL, NULL, NULL, 0};
+    og_ctx C = {f, comp, box, opt->level, {0}, nw, NULL, NULL, NULL, 0};
+    int faint = 0;
     size_t NN = (size_t)N * N * N, nsym = (size_t)OG_SYM_SLICES * OG_SYM_RAYS;
     C.pts = sooc_malloc((size_t)nw * OG_BATCH * 7 * sizeof(float));
     uint8_t *grid = sooc_malloc(NN + 2 * nsym);
@@ -271,6 +276,7 @@ sooc_status sooc_objgeom_field_box(const sooc_field *f, int comp, const sooc_ren
     C.rgb = C.sig + (size_t)nw * OG_BATCH;
     if (f->prepare && (st = f->prepare(f->user, nw, OG_BATCH))) goto done;
     /* coarse grid, in batches of OG_BATCH consecutive cells */
+grid:;
     long nb = (long)((NN + OG_BATCH - 1) / OG_BATCH);
 #ifdef SOOC_HAVE_OPENMP
 #pragma omp parallel for num_threads(nw) schedule(dynamic, 1)
@@ -300,6 +306,15 @@ sooc_status sooc_objgeom_field_box(const sooc_field *f, int comp, const sooc_ren
         }
     }
     if (hi_i[0] < 0) {
+        /* nothing reaches the level: a faint object gets the box at half its
+         * peak density (SOOC_GEOM_FAINT), if that peak is not negligible */
+        float peak = 0;
+        for (int w = 0; w < nw; w++) peak = C.peak[w] > peak ? C.peak[w] : peak;
+        if (!faint && peak >= SOOC_OBJGEOM_FAINT_MIN) {
+            faint = 1;
+            C.level = 0.5f * peak;
+            goto grid;
+        }
         out->flags = SOOC_GEOM_EMPTY;
         out->n_eval = C.n_eval;
         goto done;
@@ -329,7 +344,7 @@ sooc_status sooc_objgeom_field_box(const sooc_field *f, int comp, const sooc_ren
             else out->lo[a] = b;
         }
     }
-    out->flags = SOOC_GEOM_TIGHT | (clipped ? SOOC_GEOM_CLIPPED : 0u);
+    out->flags = SOOC_GEOM_TIGHT | (clipped ? SOOC_GEOM_CLIPPED : 0u) | (faint ? SOOC_GEOM_FAINT : 0u);
     if (opt->symmetry) {
         out->sym_iou = og_symmetry(&C, out->lo, out->hi, opt->refine, pb, grid);
         if (out->sym_iou >= SOOC_OBJGEOM_SYM_IOU) out->flags |= SOOC_GEOM_SYMMETRIC;

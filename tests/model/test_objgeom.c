@@ -19,6 +19,7 @@ typedef struct afield {
     double c[3];      /* centre (box: centre; cone: base centre) in the BOX frame */
     double d[3];      /* sphere r; box half extents; cone r, h; cylinder r, half height */
     double T_bf[16];  /* field -> box frame */
+    float dens;       /* sigma_hat inside (0 = 1) */
     long evals;
 } afield;
 
@@ -43,7 +44,7 @@ static void a_eval(void *user, int worker, int comp, const float *pts, int n, fl
     for (int i = 0; i < n; i++) {
         double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]}, q[3];
         sooc_se3_apply(q, a->T_bf, p);
-        sig[i] = comp == 1 && inside(a, q) ? 1.0f : 0.0f;
+        sig[i] = comp == 1 && inside(a, q) ? (a->dens > 0 ? a->dens : 1.0f) : 0.0f;
         rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = 0.5f;
     }
 }
@@ -141,6 +142,21 @@ static void test_shapes(void) {
         check_box("clipped cylinder", &b, lo, hi, tol);
     }
     CHECK(b.flags & SOOC_GEOM_CLIPPED);
+
+    /* a faint sphere (sigma_hat 0.3 < the level): the box at half its peak, flagged FAINT */
+    memset(&a, 0, sizeof a);
+    setup(&a, &f, boxes);
+    a.sh = SH_SPHERE, a.c[1] = 0.4, a.d[0] = 0.25, a.dens = 0.3f;
+    CHECK_OK(sooc_objgeom_field_box(&f, 1, &boxes[1], &o, &b));
+    {
+        double lo[3] = {-0.25, 0.15, -0.25}, hi[3] = {0.25, 0.65, 0.25};
+        check_box("faint sphere", &b, lo, hi, tol);
+    }
+    CHECK(b.flags & SOOC_GEOM_TIGHT);
+    CHECK(b.flags & SOOC_GEOM_FAINT);
+    a.dens = 0.01f;   /* below SOOC_OBJGEOM_FAINT_MIN: empty */
+    CHECK_OK(sooc_objgeom_field_box(&f, 1, &boxes[1], &o, &b));
+    CHECK(b.flags == SOOC_GEOM_EMPTY);
 
     /* nothing at the level: EMPTY, no TIGHT */
     memset(&a, 0, sizeof a);
