@@ -1,7 +1,7 @@
 /* The refinement network of the shipped unity model (models/sooc3d_unity/model.bin)
  * against reference numbers recorded BEFORE the network moved onto the src/nn
  * kernel pairs (issue 21; tests/model/data/refine_golden.txt, written by this
- * program with --write at commit f253788, the last refine.c with its own conv,
+ * program with --write at commit 71da594, the last refine.c with its own conv,
  * ELU, layer norm and LSTM):
  *
  *   1. mdl_ref_forward2 of the object net (K = 7 items, the 8 shared leading
@@ -11,11 +11,16 @@
  *      dh, dc, the vector-input gradients and the weight gradients (large
  *      arrays as digests: sum, absolute sum and 16 entries at fixed positions);
  *   3. two keyframe updates (query on an empty map, pad with the priors, L = 3
- *      refinements, mean latents, as the mapper runs them) on synthetic frames:
- *      the refined object and layout latents.
+ *      refinements, mean latents, as the mapper runs them; one thread) on
+ *      synthetic frames: the refined object and layout latents.
  *
- * Every value must match within 1e-5 (|a - b| <= 1e-5 (1 + |b|)). Skips (77)
- * when the shipped model is absent. About 1 s in Release.
+ * The nets' values must match within 1e-5 (|a - b| <= 1e-5 (1 + |b|)). The
+ * keyframe latents within 5e-4: three refinement iterations, whose inputs
+ * include the decoder's gradients, amplify any rounding change of the decoder
+ * about 10^4-fold (measured: the same code under SOOC_NO_AVX2, 2.6e-4; the
+ * decoder heads' input gradients as K = 3 GEMMs (833c1be), 9.9e-5), while the
+ * refinement code itself reproduced them to 3e-9. Skips (77) when the shipped
+ * model is absent. About 1 s in Release.
  *   test_model_refine_golden [--write FILE]
  */
 #include <math.h>
@@ -30,7 +35,8 @@
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
 #define GOLDEN "tests/model/data/refine_golden.txt"
-#define TOL 1e-5
+#define TOL 1e-5      /* the refinement nets                                          */
+#define TOL_KF 5e-4   /* keyframe latents: three refinements amplify the decoder's rounding */
 #define NSAMP 16
 
 /* ------------------------------------------------------------ value stream */
@@ -41,6 +47,7 @@ typedef struct gold {
     size_t n, pos;
     double worst;            /* largest |a - b| / (1 + |b|)         */
     char worst_what[256];
+    double tol;
 } gold;
 
 static void put(gold *g, const char *what, double x) {
@@ -57,7 +64,7 @@ static void put(gold *g, const char *what, double x) {
         g->worst = e;
         snprintf(g->worst_what, sizeof g->worst_what, "%s (%.9g vs %.9g)", what, x, r);
     }
-    CHECK_MSG(e <= TOL, "%s: %.9g, golden %.9g (err %.3g)", what, x, r, e);
+    CHECK_MSG(e <= g->tol, "%s: %.9g, golden %.9g (err %.3g > %.1g)", what, x, r, e, g->tol);
 }
 
 static void put_arr(gold *g, const char *what, const float *x, size_t n) {
@@ -243,6 +250,7 @@ int main(int argc, char **argv) {
     fclose(mf);
     gold g;
     memset(&g, 0, sizeof g);
+    g.tol = TOL;
     if (wpath) {
         if (!(g.w = fopen(wpath, "w"))) return fprintf(stderr, "cannot write %s\n", wpath), 1;
     } else if (load_golden(&g)) {
@@ -253,6 +261,11 @@ int main(int argc, char **argv) {
     if (sooc_model_load(&m, SHIPPED, NULL, NULL)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
     sooc_model_set_threads(m, 2);
     nets(&g, m);
+    /* the decoder's weight-gradient lanes depend on its thread count, and three
+     * refinements amplify their rounding: the keyframes run on one thread */
+    double worst_nets = g.worst;
+    sooc_model_set_threads(m, 1);
+    g.tol = TOL_KF;
     keyframes(&g, m);
     sooc_model_destroy(m);
     if (g.w) {
@@ -261,8 +274,8 @@ int main(int argc, char **argv) {
         return 0;
     }
     CHECK_MSG(g.pos == g.n, "golden file has %zu values, the test produced %zu", g.n, g.pos);
-    printf("test_model_refine_golden: %zu values, worst |a - b| / (1 + |b|) = %.3g at %s\n", g.pos, g.worst,
-           g.worst_what);
+    printf("test_model_refine_golden: %zu values, worst |a - b| / (1 + |b|): nets %.3g (tolerance %.0e), "
+           "overall %.3g at %s\n", g.pos, worst_nets, TOL, g.worst, g.worst_what);
     free(g.v);
     return check_report("test_model_refine_golden");
 }
