@@ -10,7 +10,9 @@
  *     gradients within 1e-5 + 1e-4 |g| (relative to the array's largest value);
  *  3. invariances of the float32 conv: items split into ranges, and the shared
  *     leading channels taken from sooc_nn_rconv_shared, give bitwise the
- *     result of one call over all items.
+ *     result of one call over all items; the backward on two item blocks gives
+ *     bitwise the input gradients and the weight gradients within 1e-6 of
+ *     their largest value.
  * Shapes are small (every pair at its model layout, odd sizes, strided rows).
  */
 #include "check.h"
@@ -174,6 +176,27 @@ static void test_conv_invariance(void) {
         sooc_nn_rconv_forward(y2, cols, x, w, b, ysh, nsh, B, bb, bb + 1, Ci, H, W, Co, SOOC_NN_ACT_ELU);
     CHECK_MSG(!memcmp(y0, y1, ny * sizeof(float)), "conv: items [0,1) + [1,B) differ from [0,B)");
     CHECK_MSG(!memcmp(y0, y2, ny * sizeof(float)), "conv: shared-channel share differs from the full product");
+    /* backward on two item blocks (the model's split): input gradients bitwise equal to one
+     * call, weight gradients (block partial sums added) equal to rounding */
+    float *dy0 = falloc(ny), *dy1 = falloc(ny), *dx0 = falloc(nx), *dx1 = falloc(nx), *dw0 = falloc((size_t)Co * Ci * 9),
+          *dw1 = falloc((size_t)Co * Ci * 9), *dw2 = falloc((size_t)Co * Ci * 9), *db0 = falloc(Co), *db1 = falloc(Co),
+          *db2 = falloc(Co), *dcols = falloc(sooc_nn_rconv_cols_floats(Ci, B, H, W));
+    for (size_t i = 0; i < ny; i++) dy0[i] = dy1[i] = (float)sooc_rng_normal(&g_rng);
+    sooc_nn_rconv_backward(dx0, dw0, db0, dy0, y0, x, w, cols, dcols, B, 0, B, Ci, H, W, Co, SOOC_NN_ACT_ELU);
+    sooc_nn_rconv_backward(dx1, dw1, db1, dy1, y0, x, w, cols, dcols, B, 0, 1, Ci, H, W, Co, SOOC_NN_ACT_ELU);
+    sooc_nn_rconv_backward(dx1, dw2, db2, dy1, y0, x, w, cols, dcols, B, 1, B, Ci, H, W, Co, SOOC_NN_ACT_ELU);
+    double dwerr = 0, dwmax = 0;   /* relative to the largest gradient (sums with cancellation) */
+    for (int i = 0; i < Co * Ci * 9; i++) dwmax = fmax(dwmax, fabs(dw0[i]));
+    for (int i = 0; i < Co; i++) dwmax = fmax(dwmax, fabs(db0[i]));
+    for (int i = 0; i < Co * Ci * 9; i++) dwerr = fmax(dwerr, fabs(dw1[i] + dw2[i] - dw0[i]) / dwmax);
+    for (int i = 0; i < Co; i++) dwerr = fmax(dwerr, fabs(db1[i] + db2[i] - db0[i]) / dwmax);
+    CHECK_MSG(!memcmp(dx0, dx1, nx * sizeof(float)), "conv backward: item blocks change the input gradient");
+    CHECK_MSG(!memcmp(dy0, dy1, ny * sizeof(float)), "conv backward: item blocks change the pre-activation gradient");
+    CHECK_MSG(dwerr < 1e-6, "conv backward: item blocks' weight gradients differ by %.3g (relative)", dwerr);
+    printf("  conv backward on item blocks: input gradients %s, weight gradients within %.2g\n",
+           !memcmp(dx0, dx1, nx * sizeof(float)) ? "bitwise equal" : "DIFFER", dwerr);
+    free(dy0), free(dy1), free(dx0), free(dx1), free(dw0), free(dw1), free(dw2), free(db0), free(db1), free(db2),
+        free(dcols);
     printf("  conv item ranges and shared channels: %s\n",
            !memcmp(y0, y1, ny * sizeof(float)) && !memcmp(y0, y2, ny * sizeof(float)) ? "bitwise equal" : "DIFFER");
     free(x), free(w), free(b), free(y0), free(y1), free(y2), free(ysh), free(cols);
