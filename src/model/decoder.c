@@ -444,6 +444,43 @@ static void bwd_task(void *ctx, int blk, int tid) {
     else bwd_lay_block(j->bx, b0, R, NULL);
 }
 
+/* Slot-bias and z^where gradient sums of one backward pass (step 7): task t <
+ * SB_TASKS sums columns [t H / SB_TASKS, (t + 1) H / SB_TASKS) of every row's
+ * layer-1 pre-activation gradient into its component's g_bias row, task SB_TASKS
+ * the object rows' z^where gradients; every sum runs in row order. */
+#define SB_TASKS 4
+typedef struct sb_job {
+    dec_ws *w;
+    int no_, nl_, loff, H, din;
+    float (*gzw)[3];
+} sb_job;
+
+static void sb_task(void *ctx, int t, int tid) {
+    const sb_job *j = ctx;
+    dec_ws *w = j->w;
+    int H = j->H;
+    (void)tid;
+    if (t == SB_TASKS) {
+        for (int r = 0; r < j->no_; r++) {
+            int k = w->ro_slot[r];
+            const float *gw = w->gpe + (size_t)r * j->din;
+            j->gzw[k][0] += gw[0], j->gzw[k][1] += gw[1], j->gzw[k][2] += gw[2];
+        }
+        return;
+    }
+    int j0 = H * t / SB_TASKS, j1 = H * (t + 1) / SB_TASKS;
+    for (int r = 0; r < j->no_; r++) {
+        float *restrict gb = w->g_bias + (size_t)(1 + w->ro_slot[r]) * H;
+        const float *restrict gr = w->gA + (size_t)r * H;
+        for (int q = j0; q < j1; q++) gb[q] += gr[q];
+    }
+    for (int r = 0; r < j->nl_; r++) {
+        float *restrict gb = w->g_bias;
+        const float *restrict gr = w->gA + (size_t)(j->loff + r) * H;
+        for (int q = j0; q < j1; q++) gb[q] += gr[q];
+    }
+}
+
 sooc_status mdl_decode(sooc_model *m, dec_call *c) {
     const sooc_model_config *cfg = &m->cfg;
     dec_ws *w = &m->ws;
@@ -710,7 +747,6 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             }
         bx.loff = loff;
         int no_ = do_obj ? nro : 0, nl_ = do_lay ? nrl : 0, rows = no_ + nl_;
-        (void)rows;   /* only read by the OpenMP clauses */
         if (ws != 0) {
 MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
             {
@@ -730,20 +766,12 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
             else
                 for (int blk = 0; blk < nbo + nbl; blk++) bwd_task(&bj, blk, 0);
         }
-        /* slot-bias (layer-1 pre-activation) and z^where gradients, row order */
-        for (int r = 0; r < no_; r++) {
-            int k = w->ro_slot[r];
-            float *restrict gb = w->g_bias + (size_t)(1 + k) * H;
-            const float *restrict gr = w->gA + (size_t)r * H;
-            for (int j = 0; j < H; j++) gb[j] += gr[j];
-            const float *gw = w->gpe + (size_t)r * no->din;
-            gzw[k][0] += gw[0], gzw[k][1] += gw[1], gzw[k][2] += gw[2];
-        }
-        for (int r = 0; r < nl_; r++) {
-            float *restrict gb = w->g_bias;
-            const float *restrict gr = w->gA + (size_t)(loff + r) * H;
-            for (int j = 0; j < H; j++) gb[j] += gr[j];
-        }
+        /* slot-bias (layer-1 pre-activation) and z^where gradients, row order; split
+         * by columns across the pool (each sum keeps its row order: bitwise the same) */
+        sb_job sj = {w, no_, nl_, loff, H, no->din, gzw};
+        if (rows >= MDL_PAR_ROWS && nt > 1) mdl_par_run(m, SB_TASKS + 1, sb_task, &sj);
+        else
+            for (int t = 0; t <= SB_TASKS; t++) sb_task(&sj, t, 0);
     }
     MDL_PACC(MDL_PR_DEC_BWD, tprof);
     if (ws != 0)   /* thread order: deterministic */
