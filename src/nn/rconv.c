@@ -91,6 +91,55 @@ void sooc_nn_elu_backward_f64(double *dx, const double *dy, const double *y, int
 
 /* ------------------------------------------------------------ im2col */
 
+/* One input row (2 Wo values) into its three tap rows: r0[ox] = x[2 ox],
+ * r1[ox] = x[2 ox + 1], r2[ox] = x[2 ox + 2] (the last one the zero pad). */
+static inline void deint_row(const float *restrict xr, int Wo, float *restrict r0, float *restrict r1,
+                             float *restrict r2) {
+    int ox = 0;
+#ifdef __SSE2__
+    for (; ox + 4 <= Wo; ox += 4) {
+        __m128 a = _mm_loadu_ps(xr + 2 * ox), b = _mm_loadu_ps(xr + 2 * ox + 4);
+        __m128 e = _mm_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0));
+        _mm_storeu_ps(r0 + ox, e);
+        _mm_storeu_ps(r1 + ox, _mm_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1)));
+        if (ox + 4 < Wo) {   /* reads up to x[2 ox + 9] <= x[2 Wo - 1] */
+            __m128 c = _mm_loadu_ps(xr + 2 * ox + 2), d = _mm_loadu_ps(xr + 2 * ox + 6);
+            _mm_storeu_ps(r2 + ox, _mm_shuffle_ps(c, d, _MM_SHUFFLE(2, 0, 2, 0)));
+        } else {   /* the last block: r0 shifted down one lane, the pad zero last */
+            _mm_storeu_ps(r2 + ox, _mm_castsi128_ps(_mm_srli_si128(_mm_castps_si128(e), 4)));
+        }
+    }
+#endif
+    for (; ox < Wo; ox++) {
+        r0[ox] = xr[2 * ox];
+        r1[ox] = xr[2 * ox + 1];
+        r2[ox] = ox + 1 < Wo ? xr[2 * ox + 2] : 0.0f;
+    }
+}
+
+/* The backward of deint_row for one tap row ky: x[2 j] += r0[j], then += r2[j - 1];
+ * x[2 j + 1] += r1[j] (the order of the taps (ky, kx) of every element is kept). */
+static inline void col2im_row(float *restrict x, int Wo, const float *restrict r0, const float *restrict r1,
+                              const float *restrict r2) {
+    x[0] += r0[0];
+    x[1] += r1[0];
+    int j = 1;
+#ifdef __SSE2__
+    for (; j + 4 <= Wo; j += 4) {
+        __m128 a = _mm_loadu_ps(x + 2 * j), b = _mm_loadu_ps(x + 2 * j + 4);
+        __m128 ev = _mm_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0)), od = _mm_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1));
+        ev = _mm_add_ps(_mm_add_ps(ev, _mm_loadu_ps(r0 + j)), _mm_loadu_ps(r2 + j - 1));
+        od = _mm_add_ps(od, _mm_loadu_ps(r1 + j));
+        _mm_storeu_ps(x + 2 * j, _mm_unpacklo_ps(ev, od));
+        _mm_storeu_ps(x + 2 * j + 4, _mm_unpackhi_ps(ev, od));
+    }
+#endif
+    for (; j < Wo; j++) {
+        x[2 * j] = (x[2 * j] + r0[j]) + r2[j - 1];
+        x[2 * j + 1] += r1[j];
+    }
+}
+
 /* Each input row feeds one or two output rows per kx (even columns, odd columns,
  * even columns shifted by one with the pad last), written by plain loops. */
 void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int Hi, int Wi, float *cols) {
@@ -115,14 +164,8 @@ void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1,
                     if (iy >= 2) ky[nt] = 2, oy[nt++] = (iy >> 1) - 1;
                 }
                 for (int t = 0; t < nt; t++) {
-                    float *restrict r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
-                    float *restrict r1 = r0 + No, *restrict r2 = r0 + 2 * No;
-                    for (int ox = 0; ox < Wo; ox++) {
-                        r0[ox] = xr[2 * ox];
-                        r1[ox] = xr[2 * ox + 1];
-                    }
-                    for (int ox = 0; ox + 1 < Wo; ox++) r2[ox] = xr[2 * ox + 2];
-                    r2[Wo - 1] = 0.0f;
+                    float *r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
+                    deint_row(xr, Wo, r0, r0 + No, r0 + 2 * No);
                 }
             }
         }
@@ -132,21 +175,18 @@ void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1,
 static void col2im_ch(const float *cols, int ci, int B, int b0, int b1, int Hi, int Wi, float *dx) {
     int Ho = Hi / 2, Wo = Wi / 2;
     size_t No = (size_t)(b1 - b0) * Ho * Wo;
-    for (int ky = 0; ky < 3; ky++)
-        for (int kx = 0; kx < 3; kx++) {
-            const float *row = cols + ((size_t)ci * 9 + ky * 3 + kx) * No;
-            for (int b = b0; b < b1; b++) {
-                float *xb = dx + ((size_t)ci * B + b) * Hi * Wi;
-                for (int oy = 0; oy < Ho; oy++) {
-                    int iy = 2 * oy + ky;
-                    if (iy >= Hi) continue;
-                    const float *r = row + ((size_t)(b - b0) * Ho + oy) * Wo;
-                    float *xr = xb + (size_t)iy * Wi + kx;
-                    int n = kx == 2 ? Wo - 1 : Wo;   /* the last tap of kx = 2 is the pad column */
-                    for (int ox = 0; ox < n; ox++) xr[2 * ox] += r[ox];
-                }
+    for (int ky = 0; ky < 3; ky++) {
+        const float *row = cols + ((size_t)ci * 9 + ky * 3) * No;
+        for (int b = b0; b < b1; b++) {
+            float *xb = dx + ((size_t)ci * B + b) * Hi * Wi;
+            for (int oy = 0; oy < Ho; oy++) {
+                int iy = 2 * oy + ky;
+                if (iy >= Hi) continue;
+                const float *r = row + ((size_t)(b - b0) * Ho + oy) * Wo;
+                col2im_row(xb + (size_t)iy * Wi, Wo, r, r + No, r + 2 * No);
             }
         }
+    }
 }
 
 /* ------------------------------------------------------------ forward */
@@ -191,14 +231,27 @@ void sooc_nn_rconv_backward(float *dx, float *dw, float *db, float *dy, const fl
     float *g0 = dy + (size_t)b0 * HWo;
     const float *y0 = y + (size_t)b0 * HWo;
     for (int co = 0; co < Co; co++) {
-        float *g = g0 + (size_t)co * ldy;
-        const float *yy = y0 + (size_t)co * ldy;
-        if (act == SOOC_NN_ACT_ELU)
-            for (int j = 0; j < N; j++) g[j] *= yy[j] > 0 ? 1.0f : yy[j] + 1.0f;
-        if (db) {
-            double s = 0;
-            for (int j = 0; j < N; j++) s += g[j];
-            db[co] += (float)s;
+        float *restrict g = g0 + (size_t)co * ldy;
+        const float *restrict yy = y0 + (size_t)co * ldy;
+        if (act == SOOC_NN_ACT_ELU) {   /* dz = dy (y > 0 ? 1 : y + 1), without branches */
+            int j = 0;
+#ifdef __SSE2__
+            const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+            for (; j + 4 <= N; j += 4) {
+                __m128 v = _mm_loadu_ps(yy + j), pos = _mm_cmpgt_ps(v, zero);
+                __m128 d = _mm_or_ps(_mm_and_ps(pos, one), _mm_andnot_ps(pos, _mm_add_ps(v, one)));
+                _mm_storeu_ps(g + j, _mm_mul_ps(_mm_loadu_ps(g + j), d));
+            }
+#endif
+            for (; j < N; j++) g[j] *= yy[j] > 0 ? 1.0f : yy[j] + 1.0f;
+        }
+        if (db) {   /* four partial sums in double (a fixed order) */
+            double s4[4] = {0, 0, 0, 0};
+            int j = 0;
+            for (; j + 4 <= N; j += 4)
+                for (int u = 0; u < 4; u++) s4[u] += g[j + u];
+            for (; j < N; j++) s4[0] += g[j];
+            db[co] += (float)((s4[0] + s4[2]) + (s4[1] + s4[3]));
         }
     }
     sooc_nn_blas_single();
