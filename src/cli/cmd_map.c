@@ -34,7 +34,8 @@ static void map_usage(FILE *f) {
             "           --ply DIR --model M: the objects' MESHES instead (what `sooc3d mesh` writes:\n"
             "                        DIR/object_<id>.ply and DIR/scene.ply, binary PLY with vertex\n"
             "                        colours, world frame; --res N samples per box axis, default 64;\n"
-            "                        --level L on sigma_hat, default 0.5; docs/mesh.md)\n"
+            "                        --level L on sigma_hat, default 0.5; --layout-cell C metres,\n"
+            "                        default 0.05; docs/mesh.md)\n"
             "  info     schema version, model id, dims, counts, journal mode\n"
             "\n"
             "  --db FILE     the map database (required; it is never created or modified)\n"
@@ -153,6 +154,9 @@ int sooc_cmd_map(int argc, char **argv) {
             double l;
             if (!sooc_cli_double_opt("map", "--level", argv[++i], 1e-6, 1 - 1e-6, &l)) return 2;
             mo.level = (float)l, mesh_opt = 1;
+        } else if (!strcmp(a, "--layout-cell") && i + 1 < argc) {
+            if (!sooc_cli_double_opt("map", "--layout-cell", argv[++i], 0.005, 1.0, &mo.layout_cell)) return 2;
+            mesh_opt = 1;
         }
         else if ((!strcmp(a, "--csv") || !strcmp(a, "--json") || !strcmp(a, "--ply")) && i + 1 < argc) {
             if (fmt >= 0) { fprintf(stderr, "sooc3d map: give one of --csv, --json, --ply\n"); return 2; }
@@ -191,7 +195,7 @@ int sooc_cmd_map(int argc, char **argv) {
     if (is_export && fmt < 0) { fprintf(stderr, "sooc3d map export: give --csv, --json or --ply FILE\n"); return 2; }
     if (!is_export && fmt >= 0) { fprintf(stderr, "sooc3d map %s: --csv/--json/--ply belong to export\n", sub); return 2; }
     if ((model || mesh_opt) && !(is_export && fmt == 3)) {
-        fprintf(stderr, "sooc3d map: --model/--res/--level belong to export --ply DIR (meshes)\n");
+        fprintf(stderr, "sooc3d map: --model/--res/--level/--layout-cell belong to export --ply DIR (meshes)\n");
         return 2;
     }
     if (model) return sooc_cli_mesh_map("map export", db, model, out, &mo, has_box ? box : NULL);

@@ -12,7 +12,8 @@
 
 static void mesh_usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d mesh --map MAP.sqlite --model M --out DIR [--res N] [--level L] [--threads N]\n"
+            "usage: sooc3d mesh --map MAP.sqlite --model M --out DIR [--res N] [--level L] [--layout-cell C]\n"
+            "                   [--threads N]\n"
             "\n"
             "Extracts a triangle mesh of every object of a stored map (written by `sooc3d node`) by\n"
             "marching cubes on the object's own density (its component of the model's field; a\n"
@@ -29,9 +30,10 @@ static void mesh_usage(FILE *f) {
             "  --res N        samples per axis over an object's box (default %d; 2..1024)\n"
             "  --level L      surface level on the raw density sigma_hat in (0, 1) (default %g =\n"
             "                 sigma_max / 2 per metre)\n"
+            "  --layout-cell C  layout grid spacing in metres (default %g; times the model's unit_m)\n"
             "  --threads N    0 = OpenMP default\n"
             "  -h, --help     this text\n",
-            SOOC_MESH_RES_DEFAULT, (double)SOOC_MESH_LEVEL);
+            SOOC_MESH_RES_DEFAULT, (double)SOOC_MESH_LEVEL, 0.05);
 }
 
 int sooc_cli_mesh_map(const char *cmd, const char *db, const char *model, const char *dir, const sooc_mesh_opts *o,
@@ -107,6 +109,8 @@ int sooc_cmd_mesh(int argc, char **argv) {
             double l;
             if (!sooc_cli_double_opt("mesh", "--level", argv[++i], 1e-6, 1 - 1e-6, &l)) return 2;
             o.level = (float)l;
+        } else if (!strcmp(a, "--layout-cell") && has) {
+            if (!sooc_cli_double_opt("mesh", "--layout-cell", argv[++i], 0.005, 1.0, &o.layout_cell)) return 2;
         } else if (!strcmp(a, "--threads") && has) {
             if (!sooc_cli_int_opt("mesh", "--threads", argv[++i], 0, 1024, &o.threads)) return 2;
         } else {

@@ -289,7 +289,70 @@ static void test_ply(void) {
     sooc_mesh_free(&r);
 }
 
+/* The metric's pieces: points on a true surface (a generator sphere and box)
+ * lie on it and cover it, and a marching-cubes mesh of the same shape is
+ * within a few millimetres of them both ways; a shifted copy is not. */
+static void test_metric(void) {
+    sooc_scene_object o;
+    memset(&o, 0, sizeof o);
+    o.id = 1, o.shape = SOOC_SHAPE_SPHERE, o.x = 0.4, o.z = -0.3, o.params[0] = 0.3;
+    o.size[0] = o.size[1] = o.size[2] = 0.6;
+    float *gt = NULL;
+    size_t ngt = 0;
+    CHECK_OK(sooc_mesh_gt_points(&o, 0.02, 1, &gt, &ngt));
+    double worst = 0;
+    for (size_t i = 0; i < ngt; i++) {
+        double p[3] = {gt[3 * i], gt[3 * i + 1], gt[3 * i + 2]};
+        double d = sooc_scene_object_distance(&o, p);
+        if (d > worst) worst = d;
+    }
+    /* 2 cm voxel centroids of a sphere lie at most ~1 mm inside it; about one point per 4 cm^2 */
+    CHECK_MSG(worst < 2e-3, "a GT point lies %g m from the sphere", worst);
+    double area = 4 * M_PI * 0.09;
+    CHECK_MSG(ngt > 0.7 * area / 4e-4 && ngt < 2.5 * area / 4e-4, "%zu GT points for %.3f m^2", ngt, area);
+    afield a = {0};
+    a.kind = 0, a.c[0] = o.x, a.c[1] = 0.3, a.c[2] = o.z, a.r = 0.3, a.w = 0.2;
+    sooc_field f = make_field(&a);
+    sooc_mesh_grid g;
+    grid_cube(&g, -0.35, 0.35, 64);
+    g.T_eg[3] = o.x, g.T_eg[7] = 0.3, g.T_eg[11] = o.z;
+    memcpy(g.T_og, g.T_eg, sizeof g.T_og);
+    sooc_mesh m = {0};
+    CHECK_OK(sooc_mesh_extract(&f, 0, &g, SOOC_MESH_LEVEL, 0, &m));
+    float *pred = malloc(20000 * 3 * sizeof(float));
+    CHECK_OK(sooc_mesh_sample(&m, 20000, 7, pred));
+    sooc_mesh_metric r;
+    CHECK_OK(sooc_mesh_acc_comp(pred, 20000, gt, ngt, &r));
+    printf("sphere mesh vs true sphere: acc %.3f cm, comp %.3f cm, F %.3f (%zu GT points)\n", r.acc_cm, r.comp_cm,
+           r.fscore, ngt);
+    CHECK(r.acc_cm < 1.0 && r.comp_cm < 1.0 && r.fscore > 0.999);   /* 2 cm voxels: ~0.4-0.7 cm */
+    /* 10 cm off: both distances grow to several cm */
+    for (size_t i = 0; i < 20000; i++) pred[3 * i] += 0.1f;
+    CHECK_OK(sooc_mesh_acc_comp(pred, 20000, gt, ngt, &r));
+    CHECK(r.acc_cm > 3 && r.comp_cm > 3 && r.fscore < 0.8);
+    sooc_free(gt);
+    /* a box (yawed): points on its faces */
+    memset(&o, 0, sizeof o);
+    o.id = 2, o.shape = SOOC_SHAPE_BOX, o.x = -1, o.z = 2, o.yaw = 0.6;
+    o.params[0] = 0.2, o.params[1] = 0.15, o.params[2] = 0.1;
+    o.size[0] = 0.4, o.size[1] = 0.3, o.size[2] = 0.2;
+    CHECK_OK(sooc_mesh_gt_points(&o, 0.02, 1, &gt, &ngt));
+    worst = 0;
+    for (size_t i = 0; i < ngt; i++) {
+        double p[3] = {gt[3 * i], gt[3 * i + 1], gt[3 * i + 2]};
+        double d = sooc_scene_object_distance(&o, p);
+        if (d > worst) worst = d;
+    }
+    area = 8 * (0.2 * 0.15 + 0.15 * 0.1 + 0.2 * 0.1);
+    CHECK_MSG(worst < 6e-3, "a GT point lies %g m from the box", worst);
+    CHECK_MSG(ngt > 0.7 * area / 4e-4 && ngt < 2.5 * area / 4e-4, "%zu GT points for %.3f m^2", ngt, area);
+    sooc_free(gt);
+    free(pred);
+    sooc_mesh_free(&m);
+}
+
 int main(void) {
+    test_metric();
     test_sphere();
     test_box();
     test_noise_and_border();

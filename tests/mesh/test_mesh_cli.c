@@ -114,7 +114,8 @@ int main(void) {
     sooc_mapstore_close(s);
 
     /* sooc3d mesh */
-    snprintf(cmd, sizeof cmd, "'%s' mesh --map '%s' --model '%s' --out '%s/m' --res 12", bin, db, model, dir);
+    snprintf(cmd, sizeof cmd, "'%s' mesh --map '%s' --model '%s' --out '%s/m' --res 12 --layout-cell 0.25", bin, db,
+             model, dir);
     CHECK(tc_run(cmd) == 0);
     for (int i = 0; i < 2; i++) {
         snprintf(path, sizeof path, "%s/m/object_%d.ply", dir, i + 1);
@@ -139,7 +140,8 @@ int main(void) {
     }
 
     /* map export --ply DIR --model M writes the same files */
-    snprintf(cmd, sizeof cmd, "'%s' map export --db '%s' --ply '%s/x' --model '%s' --res 12", bin, db, dir, model);
+    snprintf(cmd, sizeof cmd, "'%s' map export --db '%s' --ply '%s/x' --model '%s' --res 12 --layout-cell 0.25", bin,
+             db, dir, model);
     CHECK(tc_run(cmd) == 0);
     const char *names[3] = {"object_1.ply", "object_2.ply", "scene.ply"};
     for (int i = 0; i < 3; i++) {
@@ -150,7 +152,8 @@ int main(void) {
         CHECK_MSG(tc_run(cmd) == 0, "%s differs between mesh and map export", names[i]);
     }
     /* --box keeps the objects whose floor point is inside */
-    snprintf(cmd, sizeof cmd, "'%s' map export --db '%s' --ply '%s/b' --model '%s' --res 8 --box 0 -3 2 -1", bin, db,
+    snprintf(cmd, sizeof cmd,
+             "'%s' map export --db '%s' --ply '%s/b' --model '%s' --res 8 --layout-cell 0.5 --box 0 -3 2 -1", bin, db,
              dir, model);
     CHECK(tc_run(cmd) == 0);
     snprintf(path, sizeof path, "%s/b/object_1.ply", dir);
