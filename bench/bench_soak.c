@@ -9,6 +9,10 @@
  * retired, so one end value says little). Prints a JSON object as its last line.
  *
  *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] [--model PATH] [--out DIR]
+ *              [--gate-min F] [--gate-ratio F] [--gate-part F] [--log debug|info|warn]
+ *
+ * --gate-*: the creation gate's model.gate_* (0 = default, -1 = that test off);
+ * --log debug prints the gate's verdict on every new slot (docs/cogmap.md).
  *
  * Run from the repository root (the default model path is relative to it). */
 #include "sooc3d/gen.h"
@@ -80,11 +84,18 @@ static void *monitor(void *arg) {
     return NULL;
 }
 
+static void log_stderr(void *user, sooc_log_level level, const char *msg) {
+    (void)user;
+    (void)level;
+    fprintf(stderr, "%s\n", msg);
+}
+
 int main(int argc, char **argv) {
     long long keyframes = 10000;
     const char *scale = "m", *model = "models/sooc3d_unity/model.bin", *out = NULL;
     uint64_t seed = 7;
-    double merge = -1, clip = 0;
+    double merge = -1, clip = 0, gate[3] = {0, 0, 0};
+    sooc_log_level lvl = SOOC_LOG_WARN;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--keyframes") && i + 1 < argc) keyframes = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--scale") && i + 1 < argc) scale = argv[++i];
@@ -93,9 +104,14 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--clip") && i + 1 < argc) clip = atof(argv[++i]);
         else if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
         else if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
+        else if (!strcmp(argv[i], "--gate-min") && i + 1 < argc) gate[0] = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--gate-ratio") && i + 1 < argc) gate[1] = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--gate-part") && i + 1 < argc) gate[2] = atof(argv[++i]);
+        else if (!strcmp(argv[i], "--log") && i + 1 < argc && !sooc_log_level_parse(argv[i + 1], &lvl)) i++;
         else {
             fprintf(stderr, "usage: bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] "
-                            "[--model P] [--out DIR]\n");
+                            "[--model P] [--out DIR] [--gate-min F] [--gate-ratio F] [--gate-part F] "
+                            "[--log debug|info|warn]\n");
             return 2;
         }
     }
@@ -144,7 +160,12 @@ int main(int argc, char **argv) {
     }
     if (merge >= 0) c.merge_m = merge;
     if (clip > 0) c.clip_m = clip;
-    sooc_log_set_level(SOOC_LOG_WARN);
+    c.gate_min_rays = gate[0];
+    c.gate_ratio = gate[1];
+    c.gate_part = gate[2];
+    c.log_level = lvl;
+    sooc_log_set_level(lvl);
+    sooc_log_set_callback(log_stderr, NULL);
     long rss0 = rss_kb();
     int fds0 = open_fds();
     sooc_node_options o;
@@ -189,12 +210,14 @@ int main(int argc, char **argv) {
             (unsigned long long)s.n_objects, 100 * growth, (unsigned long long)m.entries_max, m.rss_first,
             m.rss_tenth, rss_end, m.fds_first, m.fds_tenth, fds_end, fds_after);
     printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"views_per_pass\": %d, \"merge_m\": %g, \"clip_m\": %g, "
+           "\"gate\": [%g, %g, %g], "
            "\"keyframes\": %llu, \"seconds\": %.1f, \"entries_first_pass\": %llu, \"entries_tenth\": %llu, "
            "\"entries_end\": %llu, \"entries_max\": %llu, \"entries_per_1000\": [%s], \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
            "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
            "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
            "\"status\": \"%s\"}\n",
-           scale, (unsigned long long)seed, views, c.merge_m, c.clip_m, (unsigned long long)s.keyframes, secs,
+           scale, (unsigned long long)seed, views, c.merge_m, c.clip_m, gate[0], gate[1], gate[2],
+           (unsigned long long)s.keyframes, secs,
            (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
            (unsigned long long)m.entries_max, perk, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
            m.fds_tenth, fds_end, fds_after, sooc_status_str(st));

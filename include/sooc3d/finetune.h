@@ -43,7 +43,7 @@ extern "C" {
 #endif
 
 typedef struct sooc_finetune_params {
-    int iterations;       /* Adam steps per unit                                   (120) */
+    int iterations;       /* Adam steps per unit                                   (300) */
     int rays;             /* rays per step (0 = every ray of the unit, full batch) (512) */
     float lr;             /* Adam learning rate of the decoder weights           (1e-3) */
     float lr_z;           /* Adam learning rate of z^what / the layout latent    (1e-3) */

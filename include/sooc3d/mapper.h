@@ -161,7 +161,26 @@ typedef struct sooc3d_mapper_params {
                                   the view, average settled entries, and retire entries
                                   the depth keeps showing as free or never shows
                                   (sooc3d_mapper_free_space). 0 = off (the default)      */
+    /* The creation gate, part of the revisit rules (merge_neighbours; docs/cogmap.md
+     * "Revisits", rule 5, sooc3d_mapper_gate): a NEW slot creates an entry only if it
+     * explains enough rays on its own and is not the part of a registered retrieved
+     * entry. 0 = the default (SOOC3D_GATE_*), < 0 = that test off.                    */
+    double gate_min_rays;      /* fraction of the keyframe's rays a new slot must own
+                                  (largest density) with no registered retrieved slot's
+                                  density reaching gate_ratio x its own               */
+    double gate_ratio;         /* "explains nearly as well": a retrieved slot's density at
+                                  the ray's surface point >= this x the new slot's     */
+    double gate_part;          /* fold-in: the fraction of the new slot's owned surface
+                                  points inside one registered retrieved slot's floor
+                                  box (side 2 R_h) at or above which it is that
+                                  object's part (no new entry)                        */
 } sooc3d_mapper_params;
+
+/* Creation-gate defaults (docs/cogmap.md "Revisits", rule 5; measured on the
+ * looped replay and the 10-scene eval, see there) */
+#define SOOC3D_GATE_MIN_RAYS 0.01
+#define SOOC3D_GATE_RATIO 0.5
+#define SOOC3D_GATE_PART 0.5
 
 enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
 
@@ -204,6 +223,50 @@ int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double 
  * +y up and the floor at y = 0. */
 int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z);
 
+/* The creation gate (revisit rule 5, docs/cogmap.md "Revisits"), on one
+ * keyframe's final decode. Components are c = 0 (layout) and 1..n_slots (the
+ * object slots). For each slot with role SOOC3D_GATE_NEW:
+ * - owned: rays with a surface point where the slot's density is the largest
+ *   of all components (ties: the lower component);
+ * - alone: owned rays where no SOOC3D_GATE_KNOWN slot's density reaches
+ *   ratio x the slot's own;
+ * - part: the KNOWN slot whose floor box (|x'|, |z'| <= box_rh in its frame,
+ *   the decoder's box test) holds the most owned surface points, and that
+ *   share of the owned points (part = -1, share 0 if none), and the mean
+ *   of min(1, part's density / the slot's) over those points (part_ratio).
+ * create = 0 (reason SOOC3D_GATE_FEW_RAYS) if alone < min_rays x n_rays
+ * (min_rays < 0: test off), else 0 (SOOC3D_GATE_PART_OF) if the share >=
+ * part_frac (part_frac < 0: off), else 1 (SOOC3D_GATE_CREATED). Slots of
+ * other roles get create = 1, reason SOOC3D_GATE_NOT_NEW and no counts.
+ * Pure: no allocation, the inputs are read only. Returns the number of NEW
+ * slots refused. */
+enum { SOOC3D_GATE_OFF = 0, SOOC3D_GATE_NEW = 1, SOOC3D_GATE_KNOWN = 2 };
+enum { SOOC3D_GATE_NOT_NEW = 0, SOOC3D_GATE_CREATED = 1, SOOC3D_GATE_FEW_RAYS = 2, SOOC3D_GATE_PART_OF = 3 };
+typedef struct sooc3d_gate_input {
+    int n_rays, n_slots;       /* n_slots <= SOOC_MAPPER_CHANGED_MAX                 */
+    const float *dens;         /* dens[r * dens_stride + c]: density of component c at
+                                  ray r's surface point                               */
+    int dens_stride;
+    const float *pts;          /* pts[r * pts_stride + 0..2]: ray r's surface point
+                                  (x, y, z) in the slots' floor frame                 */
+    int pts_stride;
+    const uint8_t *surf;       /* 1 = ray r has a surface point                       */
+    const float *pose;         /* pose[k * pose_stride + 0..2]: slot k's (x, z, yaw);
+                                  a point p is at x' = cos(yaw)(p.x - x) - sin(yaw)(p.z - z),
+                                  z' = sin(yaw)(p.x - x) + cos(yaw)(p.z - z)          */
+    int pose_stride;
+    const int *role;           /* n_slots SOOC3D_GATE_OFF / _NEW / _KNOWN             */
+    double box_rh;             /* half side of a slot's floor box (units of pts)      */
+} sooc3d_gate_input;
+typedef struct sooc3d_gate_verdict {
+    int owned, alone, part;
+    float part_share;          /* share of the owned points inside part's box          */
+    float part_ratio;          /* mean of min(1, part's density / the slot's) there   */
+    int create, reason;
+} sooc3d_gate_verdict;
+int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double ratio, double part_frac,
+                       sooc3d_gate_verdict *out);
+
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
 
 /* Load the model and create an empty map. */
@@ -224,6 +287,8 @@ typedef struct sooc3d_update_stats {
                                   the same pose (sooc3d_mapper_same_pose)     */
     int n_retired;             /* entries retired on free-space evidence (the
                                   revisit rules, sooc3d_mapper_free_space)    */
+    int n_gated;               /* new slots the creation gate refused (revisit
+                                  rule 5, sooc3d_mapper_gate)                 */
     double elapsed_ms;
 } sooc3d_update_stats;
 
@@ -268,7 +333,9 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, 
 /* Object geometry (include/sooc3d/objgeom.h): every update keeps the
  * registration statistics of the entries it wrote and recomputes at most
  * `per_update` stale tight boxes (default SOOC_OBJGEOM_BUDGET; 0 = none
- * during updates, < 0 = all). refresh_geometry computes up to max_objects
+ * during updates, < 0 = all); an entry whose box it recomputed without
+ * registering it is added to the update's changed set (sooc3d_mapper_changed)
+ * so that publishers republish it, room permitting (K_MAX). refresh_geometry computes up to max_objects
  * stale boxes now (< 0 = all; e.g. before reading a final map); *n_done
  * (may be NULL) = boxes computed. entries() / changed() fill extent and geom. */
 void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *m, int per_update);
@@ -279,6 +346,9 @@ sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *m, int max_objects, in
 /* Set the merge radius of a live mapper (same meaning as the parameter). */
 /* The revisit rule of sooc3d_mapper_params.merge_neighbours (0 / 1). */
 void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on);
+/* The creation gate's parameters of a live mapper (same meaning as the
+ * gate_* parameters: 0 = default, < 0 = off). */
+void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part);
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC3D_LATENTS_*). */
 void sooc3d_mapper_set_latents(sooc3d_mapper *m, int latents);

@@ -111,6 +111,9 @@ typedef struct sooc_node_config {
                                                 slots): 0 = the model's K (default) */
     int invalid_depth;                       /* model.invalid_depth: 0 = the model's (default),
                                                 1 = free, 2 = unknown (sooc3d_mapper_params) */
+    double gate_min_rays, gate_ratio, gate_part;   /* model.gate_*: the creation gate of the
+                                                revisit rules (sooc3d_mapper_params.gate_*):
+                                                0 = default, < 0 = that test off */
 
     /* keyframe: */
     double kf_translation_m;                 /* default 0.10 */

@@ -127,10 +127,11 @@ void sooc_objgeom_cache_invalidate(sooc_objgeom_cache *c);
  * its current latent. */
 sooc_status sooc_objgeom_cache_seed(sooc_objgeom_cache *c, const sooc_map_entry *e);
 /* Recompute the stale boxes, at most `max` (< 0: all), new entries first,
- * then by drift. *n_done (may be NULL) = boxes computed. Entries the map no
+ * then by drift. *n_done (may be NULL) = boxes computed; their ids go to
+ * done_ids (may be NULL; room for max when max >= 0). Entries the map no
  * longer holds are dropped. */
 sooc_status sooc_objgeom_cache_refresh(sooc_objgeom_cache *c, struct sooc_model *m, const sooc_cogmap *map,
-                                       const sooc_objgeom_opts *o, int max, int *n_done);
+                                       const sooc_objgeom_opts *o, int max, int *n_done, uint64_t *done_ids);
 /* Fill out->extent and out->geom for cogmap entry e from the cache
  * (spreads from e's posterior and the statistics; box fields only once a
  * box was computed, else extent stays as it is). */

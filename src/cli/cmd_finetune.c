@@ -26,7 +26,7 @@ static void usage(FILE *f) {
             "usage: sooc3d finetune --map DB --model M --seq DIR [--iterations N] [--rays N] [--lr X]\n"
             "                       [--lr-z X] [--no-layout] [--restart] [--seed S] [--every K] [--quiet]\n"
             "                       [--max-views N] [frame-path options]\n\n"
-            "Per-object NeRF finetuning by EM (docs/model.md \"Finetuning\"): every object of the map DB\n"
+            "Per-object NeRF finetuning by EM (docs/finetune.md): every object of the map DB\n"
             "gets its own copy of the model's object decoder and a free z^what (z^where fixed), every\n"
             "layout block its own layout decoder and latent; each is fitted by Adam to the responsibility-\n"
             "weighted likelihood of the rays of the keyframes that saw it (the views stored in the map's\n"
@@ -45,7 +45,7 @@ static void usage(FILE *f) {
             "  --max-views   use at most N views (evenly spread; 0 = all)\n"
             "  --every       progress line every K steps (default 20)\n"
             "%s",
-            120, 512, 1e-3, 1e-3, sooc_cli_framepath_help);
+            300, 512, 1e-3, 1e-3, sooc_cli_framepath_help);
 }
 
 typedef struct prog_ctx {

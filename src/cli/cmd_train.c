@@ -19,7 +19,10 @@ static void usage(FILE *f) {
             "usage: sooc3d train --config F --data DIR [DIR...] --out DIR [--val DIR...] [--resume]\n"
             "                    [--init M] [--steps N] [--threads N] [--max-seconds S]\n"
             "                    [--calib F] [--format NAME] [--depth-scale S] [--depth-shift N] ...\n\n"
-            "Train SOOC3D (ELBO + query objective) on scenes written by `sooc3d gen`.\n"
+            "Train SOOC3D (ELBO + query objective) on scenes written by `sooc3d gen` and/or recorded sequences\n"
+            "(7-Scenes, label-fusion, TUM, ...: the frames `sooc3d eval` holds out are never trained on; inputs and\n"
+            "queries at least view_min_cm apart or view_min_deg turned; the support plane is kept in OUT/world;\n"
+            "recorded_frac sets their share of the draws; docs/training.md \"Training from recordings\").\n"
             "  --config F       training YAML (training keys + a `model:` mapping); see models/*/config.yaml\n"
             "  --data DIR...    scene folders (or folders of scene_* folders, or recorded sequences) to train on\n"
             "  --val DIR...     held-out scenes for periodic validation (best.bin keeps the best mIoU)\n"
@@ -126,17 +129,32 @@ int sooc_cmd_train(int argc, char **argv) {
                 nranks * cfg.accum);
     if (rank == 0) fprintf(stderr, "loading %d training folder(s)...\n", n_data);
     fpp.width = mc.img_w, fpp.height = mc.img_h;
-    s = sooc_dataset_open_fp(&train, data, n_data, &fpp);
+    /* recorded sequences: the view rule of the config (view_min_cm / view_min_deg),
+     * eval's held-out frames never sampled, support plane kept in OUT/world
+     * (docs/training.md "Training from recordings") */
+    char world_dir[4096];
+    snprintf(world_dir, sizeof world_dir, "%s/world", out);
+    sooc_dataset_rec_params rec;
+    sooc_dataset_rec_params_default(&rec);
+    rec.view_min_cm = cfg.view_min_cm;
+    rec.view_min_deg = cfg.view_min_deg;
+    rec.world_dir = world_dir;
+    /* under MPI rank 0 loads first (it may write OUT/world), then the others read */
+    int ready = 1;
+    if (rank > 0 && (s = sooc_dist_bcast(&ready, sizeof ready, "dataset loaded on rank 0"))) return train_fail(s);
+    s = sooc_dataset_open_rec(&train, data, n_data, &fpp, &rec);
     if (s) return train_fail(s);
     if (n_val && rank == 0) {   /* validation runs on rank 0 only */
-        s = sooc_dataset_open_fp(&valset, val, n_val, &fpp);
+        s = sooc_dataset_open_rec(&valset, val, n_val, &fpp, &rec);
         if (s) { sooc_dataset_destroy(train); return train_fail(s); }
     }
+    if (rank == 0 && (s = sooc_dist_bcast(&ready, sizeof ready, "dataset loaded on rank 0"))) return train_fail(s);
     sooc_dataset_set_unit(train, mc.unit_m);   /* query choice in model units (docs/model.md "Model unit") */
     if (valset) sooc_dataset_set_unit(valset, mc.unit_m);
     if (rank == 0)
-        fprintf(stderr, "%d training scenes, %d validation scenes; %lld steps -> %s\n",
-            sooc_dataset_n_scenes(train), valset ? sooc_dataset_n_scenes(valset) : 0, (long long)cfg.steps, out);
+        fprintf(stderr, "%d training scenes (%d recorded), %d validation scenes; %lld steps -> %s\n",
+            sooc_dataset_n_scenes(train), sooc_dataset_n_recorded(train), valset ? sooc_dataset_n_scenes(valset) : 0,
+            (long long)cfg.steps, out);
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     sooc_train_run_params rp = {config, out, resume, train, valset,

@@ -17,7 +17,7 @@
 
 void sooc_finetune_params_default(sooc_finetune_params *p) {
     memset(p, 0, sizeof *p);
-    p->iterations = 120;
+    p->iterations = 300;
     p->rays = 512;
     p->lr = 1e-3f;
     p->lr_z = 1e-3f;

@@ -5,6 +5,7 @@
 
 #include <math.h>
 #include <string.h>
+#include <stdio.h>
 
 #include "model/step_internal.h"
 #include "sooc3d/model.h"
@@ -43,6 +44,11 @@ struct sooc3d_mapper {
     uint16_t unsup_run[MAPPER_FREE_SLOTS];   /* registrations since the depth last showed a surface there */
     sooc_objgeom_cache *geo;   /* object geometry for planners (objgeom.h) */
     int geo_budget;            /* tight boxes recomputed per update */
+    /* the creation gate (revisit rule 5, mapper_gate.c): resolved parameters
+     * (< 0 = that test off), the final decode's λ and zero noise */
+    double gate_min, gate_ratio, gate_part;
+    float lam_gate[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
+    dec_noise gate_noise;
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -58,6 +64,7 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
     if (!mp) return SOOC_ENOMEM;
     mp->m = m;   /* calloc: merge off, latents mean (the defaults) */
+    sooc3d_mapper_set_gate(mp, 0, 0, 0);
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
     mp->same_r = SOOC3D_MAPPER_SAME_POSE_FRAC * 2.0 * c->box_rh * c->unit_m;   /* metres */
@@ -108,6 +115,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
         sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
         sooc3d_mapper_set_merge_neighbours(*out, p->merge_neighbours);
         sooc3d_mapper_set_latents(*out, p->latents);
+        sooc3d_mapper_set_gate(*out, p->gate_min_rays, p->gate_ratio, p->gate_part);
         if (p->same_pose != 0)
             (*out)->same_r = p->same_pose > 0 ? p->same_pose * 2.0 * sooc_model_get_config(m)->box_rh * sooc_model_get_config(m)->unit_m : 0.0;
     }
@@ -158,6 +166,68 @@ static int hold_unseen(sooc3d_mapper *mp, const sooc_frame *f, const view_rec *V
         held++;
     }
     return held;
+}
+
+/* The node's revisit rules, part 5: the creation gate (sooc3d_mapper_gate,
+ * docs/cogmap.md "Revisits"). When the keyframe has a new present slot, the
+ * final λ^L (model units; slots that will not register forced off) is decoded
+ * once more, forward only, and each new slot creates an entry only if it owns
+ * enough rays that no registered retrieved slot explains nearly as well and
+ * is not the part of one (its owned surface points inside that slot's floor
+ * box). A refused slot is turned off (it has no entry: nothing is removed).
+ * Every new slot's verdict is logged at debug level. Returns the count. */
+static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_status *err) {
+    sooc_model *m = mp->m;
+    const sooc_model_config *c = sooc_model_get_config(m);
+    const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
+    int role[SOOC_MODEL_K_MAX], n_new = 0;
+    for (int i = 0; i < K; i++) {
+        const float *lam = mp->lam_reg + (size_t)i * NL;
+        role[i] = !(lam[PA] >= 0.0f) ? SOOC3D_GATE_OFF : mp->src_reg[i] ? SOOC3D_GATE_KNOWN : SOOC3D_GATE_NEW;
+        n_new += role[i] == SOOC3D_GATE_NEW;
+    }
+    if (!n_new || (mp->gate_min < 0 && mp->gate_part < 0)) return 0;
+    memcpy(mp->lam_gate, V->lam + (size_t)mp->L * K * NL, sizeof(float) * (size_t)K * NL);
+    for (int i = 0; i < K; i++)
+        if (role[i] == SOOC3D_GATE_OFF) mp->lam_gate[(size_t)i * NL + PA] = -30.0f;
+    dec_call dc;
+    memset(&dc, 0, sizeof dc);
+    dc.rays = &V->vr;
+    dc.nslot = K;
+    dc.lam = mp->lam_gate;
+    dc.lay = V->lay + (size_t)mp->L * 2 * c->d_layout;
+    dc.noise = &mp->gate_noise;
+    dc.tau = MAPPER_TAU;
+    if ((*err = mdl_decode(m, &dc))) return 0;
+    const int C = K + 1;
+    sooc3d_gate_input in = {V->vr.N, K, m->ws.sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh};
+    sooc3d_gate_verdict v[SOOC_MODEL_K_MAX];
+    int refused = sooc3d_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
+    static const char *why[] = {"not new", "created", "refused: too few rays of its own",
+                                "refused: part of a retrieved entry"};
+    for (int i = 0; i < K; i++) {
+        if (role[i] != SOOC3D_GATE_NEW) continue;
+        float *lam = mp->lam_reg + (size_t)i * NL;
+        if (sooc_log_get_level() <= SOOC_LOG_DEBUG) {
+            sooc_cogmap_entry e, ej;
+            sooc_cogmap_lam_to_world(&V->gf, d, lam, &e);
+            double dj = -1;
+            uint64_t idj = 0;
+            if (v[i].part >= 0) {
+                sooc_cogmap_lam_to_world(&V->gf, d, mp->lam_reg + (size_t)v[i].part * NL, &ej);
+                dj = hypot(e.X - ej.X, e.Z - ej.Z);
+                idj = mp->src_reg[v[i].part];
+            }
+            sooc_log(SOOC_LOG_DEBUG,
+                     "mapper gate: view %d slot %d new at (%.2f, %.2f): owns %d rays, %d alone (of %d, need %.0f); "
+                     "part share %.2f ratio %.3f of entry %llu %.2f m away -> %s",
+                     mp->view_idx, i, e.X, e.Z, v[i].owned, v[i].alone, V->vr.N,
+                     mp->gate_min >= 0 ? mp->gate_min * V->vr.N : -1.0, (double)v[i].part_share, (double)v[i].part_ratio,
+                     (unsigned long long)idj, dj, why[v[i].reason]);
+        }
+        if (!v[i].create) lam[PA] = -1.0f;
+    }
+    return refused;
 }
 
 /* The node's revisit rule, part 2: once an entry has been registered
@@ -346,13 +416,28 @@ static sooc_status mapper_geometry(sooc3d_mapper *mp) {
     if (mp->geo_budget == 0) return SOOC_OK;
     sooc_objgeom_opts o;
     sooc_objgeom_opts_default(&o);
-    return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, mp->geo_budget, NULL);
+    if (mp->geo_budget < 0) return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, -1, NULL, NULL);
+    /* a box computed for an entry this update did not register is republished
+     * with the update's changes (sooc3d_mapper_changed), while there is room */
+    int room = SOOC_MODEL_K_MAX - mp->n_chg, nd = 0, max = mp->geo_budget < room ? mp->geo_budget : room;
+    uint64_t done[SOOC_MODEL_K_MAX];
+    if (max <= 0) return SOOC_OK;
+    sooc_status s = sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, max, &nd, done);
+    for (int k = 0; k < nd; k++) {
+        int j = 0;
+        while (j < mp->n_chg && mp->chg_ids[j] < done[k]) j++;
+        if (j < mp->n_chg && mp->chg_ids[j] == done[k]) continue;
+        memmove(mp->chg_ids + j + 1, mp->chg_ids + j, sizeof mp->chg_ids[0] * (size_t)(mp->n_chg - j));
+        mp->chg_ids[j] = done[k];
+        mp->n_chg++;
+    }
+    return s;
 }
 
 sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *mp, int max_objects, int *n_done) {
     sooc_objgeom_opts o;
     sooc_objgeom_opts_default(&o);
-    return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, max_objects, n_done);
+    return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, max_objects, n_done, NULL);
 }
 
 void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) { sooc_objgeom_cache_invalidate(mp->geo); }
@@ -393,8 +478,11 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     memcpy(mp->src_reg, V->src_id, sizeof(uint64_t) * (size_t)c->K);
     mdl_lam_to_m(c, mp->lam_reg, c->K, NL);   /* model units -> metres (config.unit_m) */
     int n_same = sooc3d_mapper_same_pose(mp->lam_reg, mp->src_reg, c->K, c->d_what, mp->same_r);
+    int n_gated = 0;
     if (mp->merge_nb && mp->merge_r > 0) {
         hold_unseen(mp, f, V, c->K, c->d_what);
+        n_gated = gate_new(mp, V, c->K, c->d_what, &s);
+        if (s) return s;
         blend_revisits(mp, V, c->K, c->d_what);
     }
     sooc_cogmap_reg_stats rs;
@@ -438,6 +526,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     st->n_merged = n_merged;
     st->n_same_pose = n_same;
     st->n_retired = n_retired;
+    st->n_gated = n_gated;
     st->elapsed_ms = 1e3 * (sooc_seconds() - t0);
     return SOOC_OK;
 }
@@ -559,6 +648,11 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj,
 
 void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) { sooc_cogmap_reserve_ids(mp->map, next_id); }
 void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on) { mp->merge_nb = on != 0; }
+void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part) {
+    mp->gate_min = min_rays == 0 ? SOOC3D_GATE_MIN_RAYS : min_rays < 0 ? -1.0 : min_rays;
+    mp->gate_ratio = ratio > 0 ? ratio : SOOC3D_GATE_RATIO;
+    mp->gate_part = part == 0 ? SOOC3D_GATE_PART : part < 0 ? -1.0 : part;
+}
 
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *mp, double radius) {
     mp->merge_r = radius > 0 ? radius : 0;

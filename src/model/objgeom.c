@@ -66,116 +66,170 @@ static double og_coord(const sooc_render_box *b, int a, int i, int N) {
     return b->lo[a] + (i + 0.5) * (b->hi[a] - b->lo[a]) / N;
 }
 
-/* 1 if the point with coordinate t on axis a and (l1, l2) on the lateral axes is inside */
-static int og_inside_at(og_ctx *C, int a, double t, double l1, double l2) {
-    double p[3];
-    uint8_t in;
-    p[a] = t, p[(a + 1) % 3] = l1, p[(a + 2) % 3] = l2;
-    og_eval_list(C, p, 1, &in);
-    return in;
+/* One column of a face search: along axis a towards side s at lateral
+ * coordinates (l1, l2) on axes (a+1)%3, (a+2)%3; in_t is inside, out_t
+ * outside (NaN: not known yet). */
+typedef struct og_col {
+    int a, s, face;
+    double l1, l2, in_t, out_t;
+    int at_wall;
+} og_col;
+
+#define OG_MAXCOL (6 * OG_COLS)
+
+static void og_col_point(const og_col *c, double t, double *p) {
+    p[c->a] = t, p[(c->a + 1) % 3] = c->l1, p[(c->a + 2) % 3] = c->l2;
 }
 
-/* Along axis a at lateral (l1, l2), from a coordinate `in_t` known inside,
- * the crossing towards side s: march outwards by `step` until outside (the
- * wall: *at_wall = 1 if inside there), then `refine` halvings. */
-static double og_cross(og_ctx *C, int a, int s, double l1, double l2, double in_t, double step, int refine,
-                       int *at_wall) {
-    const double wall = s ? C->box->hi[a] : C->box->lo[a], dir = s ? 1.0 : -1.0;
-    double out_t = in_t;
-    *at_wall = 0;
-    for (;;) {
-        out_t = in_t + dir * step;
-        if (s ? out_t >= wall : out_t <= wall) {
-            if (og_inside_at(C, a, wall, l1, l2)) {
-                *at_wall = 1;
-                return wall;
-            }
-            out_t = wall;
-            break;
+/* The crossings of n columns, in lockstep (one batched evaluation per step):
+ * columns without a known outside point march outwards by `step` (the box
+ * wall: at_wall = 1 if inside there), then `refine` halvings. Afterwards
+ * in_t is the crossing (the wall when at_wall). */
+static void og_cross_many(og_ctx *C, og_col *c, int n, double step, int refine) {
+    double p[OG_MAXCOL * 3];
+    uint8_t in[OG_MAXCOL];
+    int idx[OG_MAXCOL], wallp[OG_MAXCOL];
+    for (int guard = 0; guard < 256; guard++) {   /* march */
+        int m = 0;
+        for (int k = 0; k < n; k++) {
+            if (!isnan(c[k].out_t) || c[k].at_wall) continue;
+            const double wall = c[k].s ? C->box->hi[c[k].a] : C->box->lo[c[k].a];
+            double t = c[k].in_t + (c[k].s ? step : -step);
+            wallp[m] = c[k].s ? t >= wall : t <= wall;
+            og_col_point(&c[k], wallp[m] ? wall : t, p + 3 * m);
+            idx[m++] = k;
         }
-        if (!og_inside_at(C, a, out_t, l1, l2)) break;
-        in_t = out_t;
+        if (!m) break;
+        og_eval_list(C, p, m, in);
+        for (int j = 0; j < m; j++) {
+            og_col *q = &c[idx[j]];
+            double t = p[3 * j + q->a];
+            if (in[j] && wallp[j]) q->at_wall = 1, q->in_t = t;
+            else if (in[j]) q->in_t = t;
+            else q->out_t = t;
+        }
     }
-    for (int it = 0; it < refine; it++) {
-        double m = 0.5 * (in_t + out_t);
-        if (og_inside_at(C, a, m, l1, l2)) in_t = m;
-        else out_t = m;
+    for (int it = 0; it < refine; it++) {   /* bisection */
+        int m = 0;
+        for (int k = 0; k < n; k++) {
+            if (c[k].at_wall) continue;
+            og_col_point(&c[k], 0.5 * (c[k].in_t + c[k].out_t), p + 3 * m);
+            idx[m++] = k;
+        }
+        if (!m) break;
+        og_eval_list(C, p, m, in);
+        for (int j = 0; j < m; j++) {
+            og_col *q = &c[idx[j]];
+            if (in[j]) q->in_t = p[3 * j + q->a];
+            else q->out_t = p[3 * j + q->a];
+        }
     }
-    return 0.5 * (in_t + out_t);
+    for (int k = 0; k < n; k++)
+        if (!c[k].at_wall) c[k].in_t = 0.5 * (c[k].in_t + c[k].out_t);
 }
 
-/* One face: axis a, side s (0 = min, 1 = max). first[] holds, per lateral
- * column (u, v), the index of the extreme inside sample along a (or -1).
- * The columns at the extreme index are bisected (batched); then a pattern
- * search moves laterally from the best column (steps of a half, a quarter
- * and an eighth of a grid step on each lateral axis) to where the face
- * reaches further, e.g. a cone's base rim between two sample rows. */
-static double og_face(og_ctx *C, const sooc_objgeom_opts *o, int a, int s, int N, const int *first, int ext,
-                      int *clipped) {
+/* The six faces of the tight box. For each face (axis a, side s) the grid
+ * columns whose extreme inside sample is the face's extreme index (at most
+ * OG_COLS of them) are bisected between that sample and the next one out
+ * (or the box wall); then a lateral pattern search moves from the best
+ * column by half and a quarter of a grid step on each lateral axis to where
+ * the face reaches further (e.g. a cone's base rim between two sample rows,
+ * or its apex between two columns). All faces run in lockstep, so every
+ * step is one batched evaluation. clipped[f] = the face is the box wall. */
+static void og_faces(og_ctx *C, const sooc_objgeom_opts *o, int N, const uint8_t *grid, const int lo_i[3],
+                     const int hi_i[3], double lo[3], double hi[3], int clipped[6]) {
     const sooc_render_box *B = C->box;
-    int a1 = (a + 1) % 3, a2 = (a + 2) % 3;
-    int cols[OG_COLS][2], nc = 0, total = 0;
-    for (int u = 0; u < N; u++)
-        for (int v = 0; v < N; v++) total += first[u * N + v] == ext;
-    int stride = total > OG_COLS ? (total + OG_COLS - 1) / OG_COLS : 1, seen = 0;
-    for (int u = 0; u < N && nc < OG_COLS; u++)
-        for (int v = 0; v < N && nc < OG_COLS; v++)
-            if (first[u * N + v] == ext && seen++ % stride == 0) cols[nc][0] = u, cols[nc][1] = v, nc++;
-    double in_c = og_coord(B, a, ext, N);
-    double wall = s ? B->hi[a] : B->lo[a];
-    double out_c = (s ? ext == N - 1 : ext == 0) ? wall : og_coord(B, a, s ? ext + 1 : ext - 1, N);
-    double p[OG_COLS * 3], inc[OG_COLS], outc[OG_COLS];
-    uint8_t ins[OG_COLS];
-    for (int k = 0; k < nc; k++) {
-        p[3 * k + a] = out_c;
-        p[3 * k + a1] = og_coord(B, a1, cols[k][0], N);
-        p[3 * k + a2] = og_coord(B, a2, cols[k][1], N);
-        inc[k] = in_c;
-        outc[k] = out_c;
-    }
-    if (out_c == wall) {   /* the grid's edge: is the density cut by the box wall? */
-        og_eval_list(C, p, nc, ins);
-        for (int k = 0; k < nc; k++)
-            if (ins[k]) {
-                *clipped = 1;
-                return wall;
-            }
-    }
-    for (int it = 0; it < o->refine; it++) {
-        for (int k = 0; k < nc; k++) p[3 * k + a] = 0.5 * (inc[k] + outc[k]);
-        og_eval_list(C, p, nc, ins);
-        for (int k = 0; k < nc; k++) {
-            if (ins[k]) inc[k] = p[3 * k + a];
-            else outc[k] = p[3 * k + a];
-        }
-    }
-    double best = in_c, bl1 = og_coord(B, a1, cols[0][0], N), bl2 = og_coord(B, a2, cols[0][1], N);
-    for (int k = 0; k < nc; k++) {
-        double b = 0.5 * (inc[k] + outc[k]);
-        if (s ? b > best : b < best) best = b, bl1 = p[3 * k + a1], bl2 = p[3 * k + a2];
-    }
-    /* lateral pattern search */
-    const double h1 = (B->hi[a1] - B->lo[a1]) / N, h2 = (B->hi[a2] - B->lo[a2]) / N, ha = (B->hi[a] - B->lo[a]) / N;
-    for (int lev = 1; lev <= 3; lev++) {
-        int moved = 1;
-        for (int guard = 0; moved && guard < 4; guard++) {
-            moved = 0;
-            for (int d = 0; d < 4; d++) {
-                double l1 = bl1 + (d == 0 ? h1 : d == 1 ? -h1 : 0) / (1 << lev);
-                double l2 = bl2 + (d == 2 ? h2 : d == 3 ? -h2 : 0) / (1 << lev);
-                if (l1 < B->lo[a1] || l1 > B->hi[a1] || l2 < B->lo[a2] || l2 > B->hi[a2]) continue;
-                if (!og_inside_at(C, a, best, l1, l2)) continue;   /* does not reach the current face */
-                int at_wall = 0;
-                double b = og_cross(C, a, s, l1, l2, best, 0.5 * ha, o->refine, &at_wall);
-                if (at_wall) {
-                    *clipped = 1;
-                    return wall;
+    og_col col[OG_MAXCOL];
+    int nc = 0;
+    double best[6], bl1[6], bl2[6];
+    for (int f = 0; f < 6; f++) {
+        int a = f / 2, s = f % 2, a1 = (a + 1) % 3, a2 = (a + 2) % 3, ext = s ? hi_i[a] : lo_i[a];
+        int total = 0, nf = 0;
+        clipped[f] = 0;
+        for (int pass = 0; pass < 2; pass++) {   /* count the extreme columns, then take up to OG_COLS evenly */
+            int stride = total > OG_COLS ? (total + OG_COLS - 1) / OG_COLS : 1, seen = 0;
+            for (int u = 0; u < N; u++)
+                for (int v = 0; v < N; v++) {
+                    int ix[3];
+                    ix[a] = ext, ix[a1] = u, ix[a2] = v;
+                    if (!grid[((size_t)ix[0] * N + ix[1]) * N + ix[2]]) continue;
+                    int e2 = s ? ext + 1 : ext - 1, out_in = 0;
+                    if (e2 >= 0 && e2 < N) {
+                        ix[a] = e2;
+                        out_in = grid[((size_t)ix[0] * N + ix[1]) * N + ix[2]];
+                    }
+                    if (out_in) continue;   /* cannot happen at the extreme index */
+                    if (!pass) {
+                        total++;
+                        continue;
+                    }
+                    if (seen++ % stride || nf >= OG_COLS) continue;
+                    og_col *q = &col[nc++];
+                    q->a = a, q->s = s, q->face = f, q->at_wall = 0;
+                    q->l1 = og_coord(B, a1, u, N), q->l2 = og_coord(B, a2, v, N);
+                    q->in_t = og_coord(B, a, ext, N);
+                    q->out_t = e2 >= 0 && e2 < N ? og_coord(B, a, e2, N) : NAN;
+                    nf++;
                 }
-                if (s ? b > best : b < best) best = b, bl1 = l1, bl2 = l2, moved = 1;
-            }
         }
+        best[f] = og_coord(B, a, ext, N), bl1[f] = bl2[f] = NAN;
     }
-    return best;
+    /* the step reaches the wall from an edge sample in one march */
+    og_cross_many(C, col, nc, 0.5 * (B->hi[0] - B->lo[0]) / N + 0.5 * (B->hi[1] - B->lo[1]) / N +
+                                  0.5 * (B->hi[2] - B->lo[2]) / N, o->refine);
+    for (int k = 0; k < nc; k++) {
+        int f = col[k].face, s = f % 2;
+        if (col[k].at_wall) clipped[f] = 1;
+        if (isnan(bl1[f]) || (s ? col[k].in_t > best[f] : col[k].in_t < best[f]))
+            best[f] = col[k].in_t, bl1[f] = col[k].l1, bl2[f] = col[k].l2;
+    }
+    for (int f = 0; f < 6; f++)
+        if (clipped[f]) best[f] = f % 2 ? B->hi[f / 2] : B->lo[f / 2];
+    /* lateral pattern search, all faces in lockstep */
+    for (int lev = 1; lev <= 2; lev++)
+        for (int guard = 0; guard < 2; guard++) {
+            double p[OG_MAXCOL * 3];
+            uint8_t in[OG_MAXCOL];
+            og_col pr[OG_MAXCOL];
+            int np = 0;
+            for (int f = 0; f < 6; f++) {
+                if (clipped[f] || isnan(bl1[f])) continue;
+                int a = f / 2, a1 = (a + 1) % 3, a2 = (a + 2) % 3;
+                double h1 = (B->hi[a1] - B->lo[a1]) / N / (1 << lev), h2 = (B->hi[a2] - B->lo[a2]) / N / (1 << lev);
+                for (int d = 0; d < 4; d++) {
+                    double l1 = bl1[f] + (d == 0 ? h1 : d == 1 ? -h1 : 0), l2 = bl2[f] + (d == 2 ? h2 : d == 3 ? -h2 : 0);
+                    if (l1 < B->lo[a1] || l1 > B->hi[a1] || l2 < B->lo[a2] || l2 > B->hi[a2]) continue;
+                    og_col *q = &pr[np++];
+                    q->a = a, q->s = f % 2, q->face = f, q->l1 = l1, q->l2 = l2, q->in_t = best[f], q->out_t = NAN;
+                    q->at_wall = 0;
+                }
+            }
+            if (!np) break;
+            for (int k = 0; k < np; k++) og_col_point(&pr[k], pr[k].in_t, p + 3 * k);
+            og_eval_list(C, p, np, in);   /* does the probe reach the current face? */
+            int m = 0;
+            for (int k = 0; k < np; k++)
+                if (in[k]) pr[m++] = pr[k];
+            if (!m) break;
+            double hmin = B->hi[0] - B->lo[0];
+            for (int a = 1; a < 3; a++) hmin = B->hi[a] - B->lo[a] < hmin ? B->hi[a] - B->lo[a] : hmin;
+            og_cross_many(C, pr, m, 0.5 * hmin / N, o->refine);
+            int moved = 0;
+            for (int k = 0; k < m; k++) {
+                int f = pr[k].face, s = f % 2;
+                if (pr[k].at_wall) {
+                    clipped[f] = 1, best[f] = pr[k].in_t;
+                    continue;
+                }
+                if (s ? pr[k].in_t > best[f] : pr[k].in_t < best[f])
+                    best[f] = pr[k].in_t, bl1[f] = pr[k].l1, bl2[f] = pr[k].l2, moved = 1;
+            }
+            if (!moved) break;
+        }
+    for (int f = 0; f < 6; f++) {
+        if (f % 2) hi[f / 2] = best[f];
+        else lo[f / 2] = best[f];
+    }
 }
 
 /* Rotational symmetry about the vertical axis through the tight box's
@@ -266,9 +320,8 @@ sooc_status sooc_objgeom_field_box(const sooc_field *f, int comp, const sooc_ren
     C.pts = sooc_malloc((size_t)nw * OG_BATCH * 7 * sizeof(float));
     uint8_t *grid = sooc_malloc(NN + 2 * nsym);
     double *pb = sooc_malloc((size_t)nw * OG_BATCH * 3 * sizeof(double) + 2 * nsym * 3 * sizeof(double));
-    int *first = sooc_malloc((size_t)N * N * sizeof(int));
     sooc_status st = SOOC_OK;
-    if (!C.pts || !grid || !pb || !first) {
+    if (!C.pts || !grid || !pb) {
         st = sooc_seterr(SOOC_ENOMEM, "objgeom: out of memory (grid %d^3)", N);
         goto done;
     }
@@ -319,31 +372,9 @@ grid:;
         out->n_eval = C.n_eval;
         goto done;
     }
-    int clipped = 0;
-    for (int a = 0; a < 3; a++) {
-        int a1 = (a + 1) % 3, a2 = (a + 2) % 3;
-        for (int s = 0; s < 2; s++) {
-            /* per lateral column: the extreme inside index along a */
-            for (int u = 0; u < N; u++)
-                for (int v = 0; v < N; v++) {
-                    int ext = -1;
-                    for (int t = 0; t < N; t++) {
-                        int i = s ? N - 1 - t : t, ix[3];
-                        ix[a] = i, ix[a1] = u, ix[a2] = v;
-                        if (grid[((size_t)ix[0] * N + ix[1]) * N + ix[2]]) {
-                            ext = i;
-                            break;
-                        }
-                    }
-                    first[u * N + v] = ext;
-                }
-            int cl = 0;
-            double b = og_face(&C, opt, a, s, N, first, s ? hi_i[a] : lo_i[a], &cl);
-            if (a != 1 || s) clipped |= cl;   /* the floor (y = 0) is not a cut: objects rest on it */
-            if (s) out->hi[a] = b;
-            else out->lo[a] = b;
-        }
-    }
+    int cl[6], clipped = 0;
+    og_faces(&C, opt, N, grid, lo_i, hi_i, out->lo, out->hi, cl);
+    for (int f = 0; f < 6; f++) clipped |= f != 2 && cl[f];   /* the floor (y min) is not a cut: objects rest on it */
     out->flags = SOOC_GEOM_TIGHT | (clipped ? SOOC_GEOM_CLIPPED : 0u) | (faint ? SOOC_GEOM_FAINT : 0u);
     if (opt->symmetry) {
         out->sym_iou = og_symmetry(&C, out->lo, out->hi, opt->refine, pb, grid);
@@ -354,7 +385,6 @@ done:
     sooc_free(C.pts);
     sooc_free(grid);
     sooc_free(pb);
-    sooc_free(first);
     return st;
 }
 
@@ -581,7 +611,7 @@ sooc_status sooc_objgeom_cache_seed(sooc_objgeom_cache *c, const sooc_map_entry 
 }
 
 sooc_status sooc_objgeom_cache_refresh(sooc_objgeom_cache *c, sooc_model *m, const sooc_cogmap *map,
-                                       const sooc_objgeom_opts *o, int max, int *n_done) {
+                                       const sooc_objgeom_opts *o, int max, int *n_done, uint64_t *done_ids) {
     int done = 0;
     if (n_done) *n_done = 0;
     while (max < 0 || done < max) {
@@ -611,6 +641,7 @@ sooc_status sooc_objgeom_cache_refresh(sooc_objgeom_cache *c, sooc_model *m, con
         best->has_box = 1;
         best->stale = 0;
         best->drift = 0;
+        if (done_ids && max >= 0) done_ids[done] = best->id;
         done++;
         if (n_done) *n_done = done;
     }

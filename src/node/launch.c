@@ -478,6 +478,9 @@ static const kspec g_keys[] = {
     KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC3D_LATENTS_* */
     KV("model", "slots", KV_INT, slots, 0, SOOC_MODEL_K_MAX),
     KV_CH("model", "invalid_depth", invalid_depth, "model|free|unknown"),   /* 1 + SOOC_INVALID_DEPTH_* */
+    KV("model", "gate_min_rays", KV_NUM, gate_min_rays, -1, 1),   /* sooc3d_mapper_params.gate_* */
+    KV("model", "gate_ratio", KV_NUM, gate_ratio, -1, 100),
+    KV("model", "gate_part", KV_NUM, gate_part, -1, 1),
     KV("keyframe", "translation_m", KV_NUM, kf_translation_m, 0, 1000),
     KV("keyframe", "rotation_deg", KV_NUM, kf_rotation_deg, 0, 360),
     KV("keyframe", "time_s", KV_NUM, kf_time_s, 0, 86400),
@@ -666,11 +669,13 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
             c->odom_color_ty, c->odom_color_tz);
     }
     OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
-        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s}\n",
+        "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s, gate_min_rays: %g, "
+        "gate_ratio: %g, gate_part: %g}\n",
         c->calib_path, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
         c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
-        c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model");
+        c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model", c->gate_min_rays,
+        c->gate_ratio, c->gate_part);
     OUT("keyframe: {translation_m: %g, rotation_deg: %g, time_s: %g}\n", c->kf_translation_m,
         c->kf_rotation_deg, c->kf_time_s);
     OUT("shm: {name: '%s', capacity: %u, unlink_on_exit: %s}\n", c->shm_name, c->shm_capacity,

@@ -672,6 +672,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.latents = c->latents;
         mp.slots = c->slots;
         mp.invalid_depth = c->invalid_depth;
+        mp.gate_min_rays = c->gate_min_rays;   /* the creation gate (revisit rule 5): 0 = default */
+        mp.gate_ratio = c->gate_ratio;
+        mp.gate_part = c->gate_part;
         if (!c->model_path[0]) {
             st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
             goto fail;

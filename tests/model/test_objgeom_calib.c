@@ -59,6 +59,7 @@ int main(void) {
         sooc3d_mapper *mp = NULL;
         CHECK_OK(sooc_model_copy_slots(m, 0, &copy));
         CHECK_OK(sooc3d_mapper_create_with_model(&mp, copy, 0, 1, 0));
+        if (mp) sooc3d_mapper_set_geometry_budget(mp, 0);   /* boxes once, at the end (cost) */
         if (!mp) {
             sooc_model_destroy(copy);
             sooc_scene_free(&sc);

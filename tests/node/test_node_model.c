@@ -458,6 +458,10 @@ static void run_inprocess(void) {
         CHECK_CLOSE(rec.presence, e[i].presence, 1e-6, 0);
         CHECK(rec.obs_count == e[i].obs_count);
         CHECK(rec.extent[1] == e[i].extent[1] && e[i].extent[1] > 0);
+        /* object geometry (objgeom.h, docs/shm.md): the record carries the mapper's latest */
+        if (e[i].geom.flags & SOOC_GEOM_TIGHT) CHECK(rec.y == e[i].geom.centre[1]);
+        CHECK(e[i].geom.cov_xz[0] > 0 && rec.cov_xzyaw[0] == (float)e[i].geom.cov_xz[0]);
+        CHECK(!(rec.flags & SOOC_TABLE_FLAG_SYMMETRIC) == !(e[i].geom.flags & SOOC_GEOM_SYMMETRIC));
         CHECK(ce.X == e[i].x && ce.Z == e[i].z && ce.pres_logit == e[i].presence_logit);
         CHECK(ce.obs_count == e[i].obs_count && ce.what_mu[2] == e[i].what_mu[2]);
     }
@@ -497,6 +501,7 @@ static void run_inprocess(void) {
     for (size_t i = 0; i < ne && i < ne2; i++) {
         CHECK(e2[i].id == e[i].id && e2[i].x == e[i].x && e2[i].z == e[i].z);
         CHECK(e2[i].extent[0] == e[i].extent[0] && e2[i].what_mu[0] == e[i].what_mu[0]);
+        CHECK(e2[i].geom.flags == e[i].geom.flags && e2[i].geom.reg_n == e[i].geom.reg_n);   /* stored geometry */
     }
     CHECK(sooc3d_mapper_next_id(m2) == sooc3d_mapper_next_id(m));
     /* layout blocks equal */

@@ -191,14 +191,17 @@ static size_t node_run(const char *model, int slots, int k_eff, int want_min_cha
     int len = snprintf(text, sizeof text,
                        "sensor: {driver: replay, path: %s, format: auto, speed: fast}\n"
                        "pose: {source: sensor, tolerance_ms: 20}\n"
-                       "model: {path: %s, threads: 1, seed: 3, slots: %d}\n"
+                       "model: {path: %s, threads: 1, seed: 3, slots: %d%s}\n"
                        "keyframe: {translation_m: 0.10, rotation_deg: 10, time_s: 0}\n"
                        "shm: {name: %s, capacity: 1024, unlink_on_exit: false}\n"
                        "map: {db: '%s', resume: false}\n"
                        "world: {up: +y, floor: 0.0}\n"
                        "pipeline: {ring_capacity: 8, block_when_full: true, stats_period_s: 0}\n"
                        "log: {level: warn}\n",
-                       g_scene, model, slots, shm, db);
+                       g_scene, model, slots,
+                       /* every slot must register: the creation gate (revisit rule 5) off, as it
+                        * refuses new slots that explain too few rays on their own */
+                       want_min_changed > 1 ? ", gate_min_rays: -1, gate_part: -1" : "", shm, db);
     sooc_table_shm_name(shm, shm_path, sizeof shm_path);
     shm_unlink(shm_path);
     sooc_node_config c;
