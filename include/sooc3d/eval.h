@@ -213,6 +213,9 @@ typedef struct sooc_eval_run_opts {
     double merge_radius;       /* SOOC3D mapper's duplicate merge radius (m); <= 0 = off (0) */
     int revisit;               /* SOOC3D mapper: the node's revisit rules with merge_radius
                                   (sooc3d_mapper_set_merge_neighbours; docs/cogmap.md) (0) */
+    double gate[3];            /* SOOC3D mapper, with revisit: the creation gate's min_rays,
+                                  ratio, part (sooc3d_mapper_set_gate: 0 = default, < 0 =
+                                  that test off; docs/cogmap.md "Revisits" rule 5) (0, 0, 0) */
     int latents;               /* SOOC3D mapper: SOOC3D_LATENTS_MEAN / _SAMPLE          (MEAN) */
     int slots;                 /* SOOC3D models: object slots per keyframe (sooc_model_copy_slots);
                                   0 = the model's setting (config.slots, else K); ignored

@@ -230,10 +230,11 @@ int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f,
  *   of all components (ties: the lower component);
  * - alone: owned rays where no SOOC3D_GATE_KNOWN slot's density reaches
  *   ratio x the slot's own;
- * - part: the KNOWN slot whose floor box (|x'|, |z'| <= box_rh in its frame,
- *   the decoder's box test) holds the most owned surface points, and that
- *   share of the owned points (part = -1, share 0 if none), and the mean
- *   of min(1, part's density / the slot's) over those points (part_ratio).
+ * - part: the KNOWN slot or map-entry box whose floor box (|x'|, |z'| <=
+ *   box_rh in its frame, the decoder's box test) holds the most owned surface
+ *   points (slot k < n_slots, or box b as n_slots + b), and that share of the
+ *   owned points (part = -1, share 0 if none), and the mean of min(1, part's
+ *   density / the slot's) over those points (part_ratio; 0 for a box).
  * create = 0 (reason SOOC3D_GATE_FEW_RAYS) if alone < min_rays x n_rays
  * (min_rays < 0: test off), else 0 (SOOC3D_GATE_PART_OF) if the share >=
  * part_frac (part_frac < 0: off), else 1 (SOOC3D_GATE_CREATED). Slots of
@@ -241,6 +242,7 @@ int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f,
  * Pure: no allocation, the inputs are read only. Returns the number of NEW
  * slots refused. */
 enum { SOOC3D_GATE_OFF = 0, SOOC3D_GATE_NEW = 1, SOOC3D_GATE_KNOWN = 2 };
+#define SOOC3D_GATE_MAX_BOXES 64
 enum { SOOC3D_GATE_NOT_NEW = 0, SOOC3D_GATE_CREATED = 1, SOOC3D_GATE_FEW_RAYS = 2, SOOC3D_GATE_PART_OF = 3 };
 typedef struct sooc3d_gate_input {
     int n_rays, n_slots;       /* n_slots <= SOOC_MAPPER_CHANGED_MAX                 */
@@ -257,6 +259,11 @@ typedef struct sooc3d_gate_input {
     int pose_stride;
     const int *role;           /* n_slots SOOC3D_GATE_OFF / _NEW / _KNOWN             */
     double box_rh;             /* half side of a slot's floor box (units of pts)      */
+    int n_boxes;               /* floor boxes of map entries that are not among the
+                                  slots (<= SOOC3D_GATE_MAX_BOXES; may be 0): candidates
+                                  of the part test like KNOWN slots, without density */
+    const float *boxes;        /* boxes[b * box_stride + 0..2]: (x, z, yaw) as pose   */
+    int box_stride;
 } sooc3d_gate_input;
 typedef struct sooc3d_gate_verdict {
     int owned, alone, part;

@@ -23,7 +23,7 @@ static void usage(FILE *f) {
             "usage: sooc3d eval --model M [--model M2 ...] [--name N ...] --data DIR [DIR...] --json OUT\n"
             "                   [--md OUT] [--runs R] [--seed S] [--input-timing final|online|both]\n"
             "                   [--scenes N] [--samples C,F] [--threads T] [--iterations L]\n"
-            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R] [--revisit]\n"
+            "                   [--max-views N] [--max-obj K] [--clip D] [--merge R] [--revisit] [--gate M,R,P]\n"
             "                   [--latents mean|sample] [--slots N] [--invalid-depth free|unknown] [--quiet]\n"
             "                   recorded sequences: [--query-every N] [--no-second-pass] [--seen-tol M]\n"
             "                   [--seen-height M] [--persist-min K] [--panels DIR]\n\n"
@@ -66,6 +66,9 @@ static void usage(FILE *f) {
             "                  unregistered neighbours, hold entries that left the view, running-mean\n"
             "                  updates, retire entries the depth keeps showing as free space;\n"
             "                  docs/cogmap.md \"Revisits\")\n"
+            "  --gate          with --revisit: the creation gate of new entries (launch keys\n"
+            "                  model.gate_min_rays, gate_ratio, gate_part; 0 = default, -1 = that test\n"
+            "                  off; docs/cogmap.md \"Revisits\" rule 5)\n"
             "  --latents       SOOC3D mapper: refine on the posterior means (mean, default) or on one\n"
             "                  posterior sample per iteration as in training (sample); docs/model.md\n"
             "  --slots         SOOC3D mapper: object slots per view; 0 = the model's setting (default:\n"
@@ -239,6 +242,19 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0.01, 1000, &ro.d_clip)) return 2;
         }
         else if (!strcmp(a, "--revisit")) ro.revisit = 1;
+        else if (!strcmp(a, "--gate") && has) {
+            const char *g = argv[++i];
+            char *e1 = NULL, *e2 = NULL, *e3 = NULL;
+            ro.gate[0] = strtod(g, &e1);
+            ro.gate[1] = *e1 == ',' ? strtod(e1 + 1, &e2) : NAN;
+            ro.gate[2] = e2 && *e2 == ',' ? strtod(e2 + 1, &e3) : NAN;
+            if (!e3 || *e3 || e1 == g || !(ro.gate[0] >= -1 && ro.gate[0] <= 1) || !(ro.gate[1] >= -1 && ro.gate[1] <= 100) ||
+                !(ro.gate[2] >= -1 && ro.gate[2] <= 1)) {
+                fprintf(stderr, "sooc3d eval: --gate wants MIN_RAYS,RATIO,PART (e.g. 0.02,0.5,0.4; 0 = default, -1 = off), "
+                                "got '%s'\n", g);
+                return 2;
+            }
+        }
         else if (!strcmp(a, "--merge") && has) {
             if (!sooc_cli_parse_merge(argv[++i], &ro.merge_radius)) {
                 fprintf(stderr, "sooc3d eval: --merge wants a radius >= 0 in metres (0 = never merge)\n");

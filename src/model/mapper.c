@@ -49,6 +49,7 @@ struct sooc3d_mapper {
     double gate_min, gate_ratio, gate_part;
     float lam_gate[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
     dec_noise gate_noise;
+    float gate_boxes[SOOC3D_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -168,6 +169,34 @@ static int hold_unseen(sooc3d_mapper *mp, const sooc_frame *f, const view_rec *V
     return held;
 }
 
+/* Map entries that are not among the keyframe's slots, within reach of a new
+ * slot: their floor boxes join the gate's part test (the keyframe did not
+ * retrieve them, e.g. their centre is just outside the view, but the surface
+ * a new slot claims lies in their box). Nearest first is not needed: the cap
+ * is far above the entries one box can touch. */
+typedef struct gate_near {
+    const view_rec *V;
+    const uint64_t *src;
+    int K, d, n, n_new;
+    double unit, reach, nx[SOOC_MODEL_K_MAX], nz[SOOC_MODEL_K_MAX];
+    float *out;
+} gate_near;
+
+static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
+    gate_near *g = user;
+    if (g->n >= SOOC3D_GATE_MAX_BOXES) return 1;
+    for (int i = 0; i < g->K; i++)
+        if (g->src[i] == e->id) return 0;
+    int close = 0;
+    for (int i = 0; i < g->n_new && !close; i++) close = hypot(e->X - g->nx[i], e->Z - g->nz[i]) < g->reach;
+    if (!close) return 0;
+    float lam[SOOC_LAM_MAX];
+    sooc_cogmap_lam_to_local(&g->V->gf, e, lam);   /* metres in G -> model units, as the slots' poses */
+    float *b = g->out + 3 * g->n++;
+    b[0] = (float)(lam[SOOC_LAM_X] / g->unit), b[1] = (float)(lam[SOOC_LAM_Z] / g->unit), b[2] = lam[SOOC_LAM_TH];
+    return 0;
+}
+
 /* The node's revisit rules, part 5: the creation gate (sooc3d_mapper_gate,
  * docs/cogmap.md "Revisits"). When the keyframe has a new present slot, the
  * final λ^L (model units; slots that will not register forced off) is decoded
@@ -200,7 +229,17 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
     dc.tau = MAPPER_TAU;
     if ((*err = mdl_decode(m, &dc))) return 0;
     const int C = K + 1;
-    sooc3d_gate_input in = {V->vr.N, K, m->ws.sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh};
+    gate_near near = {.V = V, .src = mp->src_reg, .K = K, .d = d, .unit = c->unit_m, .out = mp->gate_boxes};
+    near.reach = 2.0 * M_SQRT2 * c->box_rh * c->unit_m;   /* a box corner can reach the new slot's points */
+    for (int i = 0; i < K; i++)
+        if (role[i] == SOOC3D_GATE_NEW) {
+            sooc_cogmap_entry e;
+            sooc_cogmap_lam_to_world(&V->gf, d, mp->lam_reg + (size_t)i * NL, &e);
+            near.nx[near.n_new] = e.X, near.nz[near.n_new++] = e.Z;
+        }
+    sooc_cogmap_foreach(mp->map, gate_near_visit, &near);
+    sooc3d_gate_input in = {V->vr.N, K, m->ws.sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh,
+                            near.n, mp->gate_boxes, 3};
     sooc3d_gate_verdict v[SOOC_MODEL_K_MAX];
     int refused = sooc3d_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
     static const char *why[] = {"not new", "created", "refused: too few rays of its own",

@@ -13,10 +13,13 @@ int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double rati
     const int K = in->n_slots;
     if (K <= 0) return 0;
     SOOC_ASSERT(K <= SOOC_MAPPER_CHANGED_MAX);
-    int known[SOOC_MAPPER_CHANGED_MAX], nk = 0, any_new = 0;
-    double cs[SOOC_MAPPER_CHANGED_MAX], sn[SOOC_MAPPER_CHANGED_MAX];
-    int inbox[SOOC_MAPPER_CHANGED_MAX][SOOC_MAPPER_CHANGED_MAX];   /* [new slot][known slot] owned points in its box */
-    float rsum[SOOC_MAPPER_CHANGED_MAX][SOOC_MAPPER_CHANGED_MAX];  /* sum of min(1, known / new density) there */
+    const int NB = in->n_boxes > 0 ? in->n_boxes : 0, NC = K + NB;   /* part candidates: slots, then boxes */
+    SOOC_ASSERT(NB <= SOOC3D_GATE_MAX_BOXES);
+    enum { MAXC = SOOC_MAPPER_CHANGED_MAX + SOOC3D_GATE_MAX_BOXES };
+    int known[MAXC], nk = 0, any_new = 0;
+    double cs[MAXC], sn[MAXC], px[MAXC], pz[MAXC];
+    int inbox[SOOC_MAPPER_CHANGED_MAX][MAXC];   /* [new slot][candidate] owned points in its box */
+    float rsum[SOOC_MAPPER_CHANGED_MAX][MAXC];  /* sum of min(1, known / new density) there (slots) */
     for (int k = 0; k < K; k++) {
         sooc3d_gate_verdict *v = &out[k];
         v->owned = v->alone = 0;
@@ -27,9 +30,19 @@ int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double rati
         const float *ps = in->pose + (size_t)k * in->pose_stride;
         cs[k] = cos(ps[2]);
         sn[k] = sin(ps[2]);
+        px[k] = ps[0];
+        pz[k] = ps[1];
         if (in->role[k] == SOOC3D_GATE_KNOWN) known[nk++] = k;
         if (in->role[k] == SOOC3D_GATE_NEW) any_new = 1;
-        for (int j = 0; j < K; j++) inbox[k][j] = 0, rsum[k][j] = 0.0f;
+        for (int j = 0; j < NC; j++) inbox[k][j] = 0, rsum[k][j] = 0.0f;
+    }
+    for (int b = 0; b < NB; b++) {   /* map entries that are not slots: box test only */
+        const float *pb = in->boxes + (size_t)b * in->box_stride;
+        cs[K + b] = cos(pb[2]);
+        sn[K + b] = sin(pb[2]);
+        px[K + b] = pb[0];
+        pz[K + b] = pb[1];
+        known[nk++] = K + b;
     }
     if (!any_new) return 0;
     const double rh = in->box_rh;
@@ -46,13 +59,12 @@ int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double rati
         const float *p = in->pts + (size_t)r * in->pts_stride;
         for (int a = 0; a < nk; a++) {
             int j = known[a];
-            if (d[1 + j] >= ratio * d[best]) alone = 0;
-            const float *pj = in->pose + (size_t)j * in->pose_stride;
-            double vx = p[0] - pj[0], vz = p[2] - pj[1];
+            if (j < K && d[1 + j] >= ratio * d[best]) alone = 0;
+            double vx = p[0] - px[j], vz = p[2] - pz[j];
             double xl = cs[j] * vx - sn[j] * vz, zl = sn[j] * vx + cs[j] * vz;
             if (fabs(xl) <= rh && fabs(zl) <= rh) {
                 inbox[k][j]++;
-                rsum[k][j] += d[1 + j] < d[best] ? d[1 + j] / d[best] : 1.0f;
+                if (j < K) rsum[k][j] += d[1 + j] < d[best] ? d[1 + j] / d[best] : 1.0f;
             }
         }
         out[k].alone += alone;

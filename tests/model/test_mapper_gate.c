@@ -19,7 +19,8 @@
 #define C (K + 1)
 #define RH 0.6
 
-static float dens[NR * C], pts[NR * 3], pose[K * 3];
+static float dens[NR * C], pts[NR * 3], pose[K * 3], boxes[4 * 3];
+static int n_boxes;   /* map-entry boxes (not slots) of the part test */
 static uint8_t surf[NR];
 static int role[K];
 
@@ -29,6 +30,7 @@ static void reset(void) {
     memset(surf, 0, sizeof surf);
     memset(pose, 0, sizeof pose);
     for (int k = 0; k < K; k++) role[k] = SOOC3D_GATE_OFF;
+    n_boxes = 0;
     for (int r = 0; r < NR; r++) {   /* every ray sees the floor first (the layout's) */
         surf[r] = 1;
         pts[r * 3 + 0] = (float)((r % 32) * 0.1 - 1.6);
@@ -61,7 +63,7 @@ static void hit(int r0, int n, double cx, double cz, double rad, double a0, doub
 }
 
 static int run(sooc3d_gate_verdict *v, double min_rays, double ratio, double part) {
-    sooc3d_gate_input in = {NR, K, dens, C, pts, 3, surf, pose, 3, role, RH};
+    sooc3d_gate_input in = {NR, K, dens, C, pts, 3, surf, pose, 3, role, RH, n_boxes, boxes, 3};
     return sooc3d_mapper_gate(&in, min_rays, ratio, part, v);
 }
 
@@ -171,5 +173,26 @@ int main(void) {
     CHECK_MSG(fabs(v[1].part_share * 400.0 - want) < 1.5, "in box %g, decoder frame %d", v[1].part_share * 400.0,
               want);
     CHECK(want > 150 && want < 350);
+
+    /* 5. Map entries the keyframe did not retrieve (no slot) join the part
+     * test as boxes: case 1's sphere with its entry not among the slots (its
+     * centre just outside the view): the new slot's points lie in that
+     * entry's box -> part of it (candidate K + 0, no density ratio); a box
+     * 3 m away is not chosen; with no box the slot is created. */
+    reset();
+    role[1] = SOOC3D_GATE_NEW;
+    set_pose(1, 0.35, 4.35, -0.4);
+    hit(60, 60, 0.0, 4.0, 0.37, -M_PI / 2, 0.0, 2, 1.0f, -1, 0.0f);
+    CHECK(run(v, SOOC3D_GATE_MIN_RAYS, SOOC3D_GATE_RATIO, SOOC3D_GATE_PART) == 0 && v[1].create == 1);
+    boxes[0] = 3.0f, boxes[1] = 4.0f, boxes[2] = 0.0f;   /* far */
+    boxes[3] = 0.0f, boxes[4] = 4.0f, boxes[5] = 0.3f;   /* the sphere's entry */
+    n_boxes = 2;
+    CHECK(run(v, SOOC3D_GATE_MIN_RAYS, SOOC3D_GATE_RATIO, SOOC3D_GATE_PART) == 1);
+    CHECK_MSG(v[1].part == K + 1 && v[1].part_share == 1.0f && v[1].part_ratio == 0.0f, "part %d share %g ratio %g",
+              v[1].part, (double)v[1].part_share, (double)v[1].part_ratio);
+    CHECK_MSG(v[1].alone == 60, "a box has no density: alone %d", v[1].alone);
+    CHECK(v[1].create == 0 && v[1].reason == SOOC3D_GATE_PART_OF);
+    n_boxes = 1;   /* only the far one */
+    CHECK(run(v, SOOC3D_GATE_MIN_RAYS, SOOC3D_GATE_RATIO, SOOC3D_GATE_PART) == 0 && v[1].part == -1);
     return check_report("test_mapper_gate");
 }
