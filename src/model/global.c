@@ -317,7 +317,7 @@ sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_ent
     const sooc_model_config *c = &g->m->cfg;
     float ext[3];
     sooc_model_box_extent(c, ext);
-    for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
+    for (size_t i = 0; !s && i < got; i++) sooc_map_entry_from_cogmap(&tmp[i], ext, &out[i]);
     *n = s ? 0 : got;
     return s;
 }

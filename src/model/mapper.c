@@ -581,7 +581,7 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
     float ext[3];
     sooc_model_box_extent(sooc_model_get_config(mp->m), ext);
     for (size_t i = 0; !s && i < got; i++) {
-        sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
+        sooc_map_entry_from_cogmap(&tmp[i], ext, &out[i]);
         sooc_objgeom_cache_fill(mp->geo, &tmp[i], &out[i]);
     }
     *n = s ? 0 : got;
@@ -600,7 +600,7 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
                             (unsigned long long)e[i].id, e[i].latent_dim, c->d_what);
             break;
         }
-        sooc3d_mapper_entry_to_cogmap(&e[i], &tmp[i]);
+        sooc_map_entry_to_cogmap(&e[i], &tmp[i]);
     }
     if (!s) s = sooc_cogmap_load(mp->map, tmp, n);
     sooc_free(tmp);
@@ -624,7 +624,7 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
         sooc_cogmap_entry e;
         sooc_status s = sooc_cogmap_get(mp->map, mp->chg_ids[i], &e);
         if (s) return sooc_adderr(s, "mapper changed: entry %llu", (unsigned long long)mp->chg_ids[i]);
-        sooc3d_mapper_entry_from_cogmap(&e, ext, &out[i]);
+        sooc_map_entry_from_cogmap(&e, ext, &out[i]);
         sooc_objgeom_cache_fill(mp->geo, &e, &out[i]);
     }
     if (removed_ids) memcpy(removed_ids, mp->rem_ids, nr * sizeof *removed_ids);
