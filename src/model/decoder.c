@@ -6,16 +6,12 @@
  * the weights, so one GEMM per layer covers every slot; z^what enters as a
  * per-slot bias of layer 1). The layout MLP gets one row per used point.
  * Weight layout: W is [in x out] row-major, Y = X W + b. */
-#include "model/model_internal.h"
+#include "model/decoder.h"
 
 #include <math.h>
 #include <string.h>
 #ifdef SOOC_HAVE_OPENMP
 #include <omp.h>
-#endif
-
-#ifdef MDL_PROFILE
-double mdl_prof[MDL_PR_N];
 #endif
 
 static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
@@ -343,6 +339,7 @@ typedef struct slot_sample {
  * first 3 floats of its gpe row. Weight gradients (ws != 0) go to tg. */
 typedef struct bwd_ctx {
     const sooc_model *m;
+    const dec_ws *w;
     const dec_call *c;
     const dec_net *no, *nl;
     const dec_wt *pwo, *pwl;
@@ -352,7 +349,7 @@ typedef struct bwd_ctx {
 
 static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
     const sooc_model *m = x->m;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = x->w;
     const dec_net *no = x->no;
     const dec_call *c = x->c;
     int H = no->H, C = x->C;
@@ -377,7 +374,7 @@ static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
 
 static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
     const sooc_model *m = x->m;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = x->w;
     const dec_net *nl = x->nl;
     int H = nl->H, s0 = x->loff + b0;
     float *g1 = w->gA + (size_t)s0 * H;
@@ -392,6 +389,7 @@ static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
 /* One fixed block of object or layout rows of the decoder forward (a pool task). */
 typedef struct fwd_job {
     const sooc_model *m;
+    const dec_ws *w;
     const view_rays *vr;
     int nbo, nro, nrl;
     float inv_o, inv_l;
@@ -400,7 +398,7 @@ typedef struct fwd_job {
 static void fwd_task(void *ctx, int blk, int tid) {
     const fwd_job *j = ctx;
     const sooc_model *m = j->m;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = j->w;
     const dec_net *no = &m->dobj, *nl = &m->dlay;
     const view_rays *vr = j->vr;
     const float *p = m->p;
@@ -481,9 +479,10 @@ static void sb_task(void *ctx, int t, int tid) {
     }
 }
 
-sooc_status mdl_decode(sooc_model *m, dec_call *c) {
+sooc_status mdl_decode(sooc_model_ws *x, dec_call *c) {
+    sooc_model *m = x->m;
     const sooc_model_config *cfg = &m->cfg;
-    dec_ws *w = &m->ws;
+    dec_ws *w = x->dec;
     const view_rays *vr = c->rays;
     const float *p = m->p;
     int N = vr->N, P = 2 * N, K = c->nslot, C = K + 1, d = cfg->d_what, dl = cfg->d_layout, NL = m->NL;
@@ -578,8 +577,8 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
      * thread computes it, and a thread that the OS delays (a loaded machine) holds up the
      * others by at most one block. */
     int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-    fwd_job fj = {m, vr, nbo, nro, nrl, inv_o, inv_l};
-    if (nro + nrl >= MDL_PAR_ROWS && nt > 1) mdl_par_run(m, nbo + nbl, fwd_task, &fj);
+    fwd_job fj = {m, w, vr, nbo, nro, nrl, inv_o, inv_l};
+    if (nro + nrl >= MDL_PAR_ROWS && nt > 1) mdl_par_run(x, nbo + nbl, fwd_task, &fj);
     else
         for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
 
@@ -734,7 +733,7 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
      * so they do not depend on the thread count. */
     if (ws != 0)
         for (int t = 0; t < ntb; t++) memset(w->tbuf + (size_t)t * tstride, 0, tstride * sizeof(float));
-    bwd_ctx bx = {m, c, no, nl, pwo, pwl, gsig, gcol, ws, inv_o, cfg->gauss_s, C, 0};
+    bwd_ctx bx = {m, w, c, no, nl, pwo, pwl, gsig, gcol, ws, inv_o, cfg->gauss_s, C, 0};
     memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
     for (int pass = merged ? 1 : 0; pass < 2; pass++) {
         /* pass 0 (only when the scratch does not fit): object rows alone; pass 1: layout (+ objects if merged) */
@@ -762,14 +761,14 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
         } else {
             int nbo = (no_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nl_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
             bwd_job bj = {&bx, nbo, no_, nl_};
-            if (rows >= MDL_PAR_ROWS && ntb > 1) mdl_par_run(m, nbo + nbl, bwd_task, &bj);
+            if (rows >= MDL_PAR_ROWS && ntb > 1) mdl_par_run(x, nbo + nbl, bwd_task, &bj);
             else
                 for (int blk = 0; blk < nbo + nbl; blk++) bwd_task(&bj, blk, 0);
         }
         /* slot-bias (layer-1 pre-activation) and z^where gradients, row order; split
          * by columns across the pool (each sum keeps its row order: bitwise the same) */
         sb_job sj = {w, no_, nl_, loff, H, no->din, gzw};
-        if (rows >= MDL_PAR_ROWS && nt > 1) mdl_par_run(m, SB_TASKS + 1, sb_task, &sj);
+        if (rows >= MDL_PAR_ROWS && nt > 1) mdl_par_run(x, SB_TASKS + 1, sb_task, &sj);
         else
             for (int t = 0; t <= SB_TASKS; t++) sb_task(&sj, t, 0);
     }
@@ -827,4 +826,81 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
         }
     MDL_PACC(MDL_PR_DEC_RED, tprof);
     return SOOC_OK;
+}
+
+/* ------------------------------------------------------------ workspace */
+
+/* The decoder's part of a runner's workspace (sooc_model_ws): every buffer
+ * of a decode, sized for P = 2 ray_w ray_h points and K slots. */
+sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
+    *out = NULL;
+    const sooc_model_config *c = &m->cfg;
+    dec_ws *w = sooc_calloc(1, sizeof *w);
+    if (!w) return SOOC_ENOMEM;
+    int P = 2 * c->ray_w * c->ray_h, K = c->K, C = K + 1, H = c->dec_width;
+    size_t R = (size_t)P * K;
+    w->Pmax = P;
+    w->Kmax = K;
+    int dmax = m->dobj.din > m->dlay.din ? m->dobj.din : m->dlay.din;
+    size_t Rall = R > (size_t)P ? R : (size_t)P;
+#define A(p, n, t) if (!(w->p = sooc_calloc((n), sizeof(t)))) { mdl_dec_ws_destroy(w); return SOOC_ENOMEM; }
+    A(ro_pt, R, int);
+    A(ro_slot, R, int);
+    A(o_pe, R * m->dobj.din, float);
+    A(o_a1, R * H, float);
+    A(o_a2, R * H, float);
+    A(o_a3, R * H, float);
+    A(o_ac, R * c->dec_color_width, float);
+    A(o_sig, R, float);
+    A(o_col, R * 3, float);
+    A(o_xk, R * 3, float);
+    A(o_gf, R, float);
+    A(l_pe, (size_t)P * m->dlay.din, float);
+    A(l_a1, (size_t)P * H, float);
+    A(l_a2, (size_t)P * H, float);
+    A(l_a3, (size_t)P * H, float);
+    A(l_ac, (size_t)P * c->dec_color_width, float);
+    A(l_sig, P, float);
+    A(l_col, (size_t)P * 3, float);
+    A(gA, Rall * H, float);
+    A(gB, Rall * H, float);
+    A(gC, Rall * H, float);
+    A(gpe, Rall * dmax, float);
+    A(sh, (size_t)P * C, float);
+    A(ct, (size_t)P * C * 3, float);
+    A(gsh, (size_t)P * C, float);
+    A(gct, (size_t)P * C * 3, float);
+    A(rowof, (size_t)P * C, int);
+    A(S, P, float);
+    A(Sb, P, float);
+    A(cc, (size_t)P * 3, float);
+    A(ll, P, float);
+    A(ll_cf, (size_t)P * C, float);
+    A(slot_bias, (size_t)C * H, float);
+    A(lr_pt, P, int);
+    w->dec_np = m->robj.cw[0];   /* both decoders come first in the slab */
+    w->nthr = 8;
+    A(tbuf, (size_t)w->nthr * (w->dec_np + (size_t)C * H + 3 * (size_t)K), float);
+    A(g_bias, (size_t)C * H, float);
+    /* transposed W2, W3, Wc1 of both decoders and W1x of the object decoder */
+    w->nwt = (size_t)H * (2 * H + c->dec_color_width) * 2 + (size_t)H * m->dobj.din;
+    A(wt, w->nwt, float);
+#undef A
+    *out = w;
+    return SOOC_OK;
+}
+
+void mdl_dec_ws_destroy(dec_ws *w) {
+    if (!w) return;
+    float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
+                    &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
+                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
+                    &w->g_bias, &w->wt};
+    for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) sooc_free(*fp[i]);
+    sooc_free(w->ro_pt);
+    sooc_free(w->ro_slot);
+    sooc_free(w->rowof);
+    sooc_free(w->lr_pt);
+    sooc_free(w->tbuf);
+    sooc_free(w);
 }
