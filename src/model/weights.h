@@ -61,8 +61,8 @@ struct sooc_model {
     int threads;                  /* sooc_model_set_threads: the thread count a workspace's pool uses */
 };
 
-/* A runner's workspace (sooc_model_ws_create, in the step layer: step.c).
- * Whoever runs the model (the mapper, the trainer, eval, finetuning, tests)
+/* A runner's workspace (sooc_model_ws_create, in the step layer: workspace.c).
+ * Whoever runs the model (the mapper, the global baseline, the trainer, tests)
  * creates one per model and thread of control and passes it down the layers;
  * each layer touches only its own part, whose type its own header defines:
  * the pool here (kern.c), `dec` the decoder's (decoder.h), `ref` the
