@@ -32,7 +32,7 @@
 #include "sooc3d/model.h"
 #include "../tests/model/synth.h"
 #ifdef MDL_PROFILE
-#include "../src/model/model_internal.h"
+#include "../src/model/step.h"
 #endif
 
 static int cmpd(const void *a, const void *b) {

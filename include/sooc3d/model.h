@@ -6,7 +6,8 @@
  * Who calls what:
  *   - the trainer (src/train): sooc_model_create / _load, sooc_model_params /
  *     _grads / _tensors (a flat float slab; Adam and clipping are the trainer's),
- *     sooc_model_zero_grad, sooc_model_train_step once per scene, sooc_model_save.
+ *     sooc_model_zero_grad, sooc_model_ws_create once, sooc_model_train_step
+ *     once per scene, sooc_model_save.
  *   - the online mapper (include/sooc3d/mapper.h, implemented in src/model):
  *     loads a checkpoint and runs the same per-view update without gradients.
  *   - eval/render: sooc_model_field_* (a render.h field built from a map).
@@ -75,7 +76,7 @@ typedef struct sooc_model_config {
     float prior_sigma_t;     /* slot prior position std, m                  (0.5) */
     float prior_near, prior_far; /* slot prior means spread ahead, m    (1.3, 6.2) */
     float prior_pres_logit;  /* initial learnable prior presence logit       (0) */
-    /* MulMON-style global-frame baseline (src/model/global.c, docs/baseline.md);
+    /* MulMON-style global-frame baseline (src/global/global.c, docs/baseline.md);
      * appended fields (checkpoint version 2; version-1 files load with these = 0) */
     int global_frame;        /* 1 = the baseline: K world-frame slots, no cogmap   (0) */
     float global_radius;     /* slot prior means spread over a disc of this radius
@@ -163,6 +164,21 @@ sooc_status sooc_model_copy_rays(const sooc_model *m, int ray_w, int ray_h, sooc
  * (the global-frame baseline: only its own K). */
 sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out);
 
+/* ---- the runner's workspace ----
+ *
+ * A sooc_model holds configuration and weights only. Whoever runs it (the
+ * mapper, the trainer, eval, finetuning) creates a workspace for it: the
+ * decoder's and the refinement's scratch (sized for the model's ray grid and
+ * K at creation), the task pool (m's thread count, sooc_model_set_threads)
+ * and the training step's state (made on the first step). One workspace per
+ * thread of control; several may share one model (read-only weights) when
+ * no step writes its gradients. The model must outlive its workspaces
+ * (docs/model.md "Layers"). */
+typedef struct sooc_model_ws sooc_model_ws;
+sooc_status sooc_model_ws_create(sooc_model_ws **out, sooc_model *m);
+void sooc_model_ws_destroy(sooc_model_ws *w);   /* NULL-safe */
+sooc_model *sooc_model_ws_model(const sooc_model_ws *w);
+
 /* ---- parameters: one flat float slab, with named tensors ---- */
 size_t sooc_model_param_count(const sooc_model *m);
 float *sooc_model_params(sooc_model *m);
@@ -227,11 +243,11 @@ typedef struct sooc_step_losses {
  * resolution, with poses (world +y up, floor y = 0) and planar depth
  * (0 = invalid). Runs retrieve -> refine -> register over the input views with
  * a cognitive map, decodes the query views from the final map, and
- * ACCUMULATES d(total)/d(params) into the gradient slab. `rng` drives every
+ * ACCUMULATES d(total)/d(params) into the gradient slab of w's model. `rng` drives every
  * random choice (ray offsets, samples, noise), so a step is deterministic for
  * a given rng state and thread count. If the loss is non-finite, nothing is
  * accumulated and losses->nonfinite = 1 (status OK). */
-sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
+sooc_status sooc_model_train_step(sooc_model_ws *w, const sooc_frame *views, int T,
                                   const sooc_frame *queries, int Q, const sooc_step_opts *o,
                                   sooc_rng *rng, sooc_step_losses *losses);
 
@@ -268,53 +284,11 @@ const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp);
 sooc_status sooc3d_mapper_create_with_model(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed,
                                             int threads);
 
-/* ==== MulMON-style global-frame baseline (src/model/global.c, docs/baseline.md) ====
- *
- * A model created with config.global_frame = 1 has the same networks, but no
- * object coordinate systems relative to the view and no cognitive map: a
- * scene is explained by n fixed slots whose z^where = (X, Z, Θ) is in the
- * WORLD frame (floor y = 0), persisting over all views of the scene (the
- * posterior after view t is the prior of view t+1), plus one global layout
- * latent decoded in world coordinates. n = sooc_model_global_slots(m,
- * n_objects) = min(K, n_objects + 1): "strictly more slots than objects"
- * (the paper's MulMON protocol), slots n..K-1 unused; n_objects <= 0 -> K.
- * Slot priors: learnable, means spread over a disc of radius global_radius
- * around the world origin. Query views decode every slot of the final
- * posterior. For evaluation the "map" is the fixed slot set: the global
- * mapper keeps a cogmap holding its present slots (presence p >= 0.5, id =
- * slot + 1, world pose) and the layout at block (0, 0); sooc_model_field_*
- * on a global model renders such a map (world axes, layout in world
- * coordinates). */
+/* The MulMON-style global-frame baseline (config.global_frame = 1): its
+ * training step and mapper are in sooc3d/global.h (src/global). */
 int sooc_model_is_global(const sooc_model *m);
+/* n = min(K, n_objects + 1) slots for a scene of n_objects (<= 0: K). */
 int sooc_model_global_slots(const sooc_model *m, int n_objects);
-/* The training step of the baseline (same contract as sooc_model_train_step;
- * losses->map_entries = present slots after the last input view). */
-sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views, int T,
-                                         const sooc_frame *queries, int Q, int n_objects,
-                                         const sooc_step_opts *o, sooc_rng *rng,
-                                         sooc_step_losses *losses);
-
-/* Online inference of the baseline (what sooc3d_mapper is for the model). */
-typedef struct sooc_global_mapper sooc_global_mapper;
-/* Takes ownership of m (a global_frame model). */
-sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, int n_objects,
-                                      int iterations, uint64_t seed, int threads);
-void sooc_global_mapper_destroy(sooc_global_mapper *g);   /* NULL-safe */
-/* One input view: refine every slot L times from the current posterior
- * (n_retrieved = slots carried over, n_registered = present slots, n_new /
- * n_removed = slots whose presence crossed 0.5). */
-sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc3d_update_stats *st);
-/* SOOC3D_LATENTS_MEAN (default) / _SAMPLE, as sooc3d_mapper_set_latents. */
-void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents);
-sooc_model *sooc_global_mapper_model(sooc_global_mapper *g);
-const sooc_cogmap *sooc_global_mapper_cogmap(const sooc_global_mapper *g);
-int sooc_global_mapper_n_slots(const sooc_global_mapper *g);
-/* Current posterior of slot k (world frame in model units, config.unit_m; cogmap.h λ
- * layout) / the layout latent. */
-const float *sooc_global_mapper_slot(const sooc_global_mapper *g, int k);
-const float *sooc_global_mapper_layout(const sooc_global_mapper *g);
-/* Present slots as map entries (like sooc3d_mapper_entries). */
-sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_entry *out, size_t cap, size_t *n);
 
 #ifdef __cplusplus
 }

@@ -285,37 +285,6 @@ typedef struct sooc_nn_schedule {
  * decay from lr to lr*final_frac over [warmup, total]; clamped after total. */
 float sooc_nn_schedule_lr(const sooc_nn_schedule *s, int64_t step);
 
-/* ============================================================ checkpoint */
-
-/* File layout (little-endian), version SOOC_NN_CKPT_VERSION:
- *   header: magic "SOOCNNCK", u32 version, u32 flags (bit0: optimizer state),
- *           u32 n_views, u32 reserved, u64 n_total, u64 config_bytes,
- *           u64 trainer_bytes, i64 adam_t, u64 file_bytes
- *   view table: per view u32 name_len, name, u32 ndim, i64 shape[ndim], u64 offset
- *   config blob, trainer blob, w slab, [m slab, v slab]
- *   u32 CRC32 of all preceding bytes.
- * Saved atomically (sooc_afile_*). */
-#define SOOC_NN_CKPT_VERSION 1u
-#define SOOC_NN_CKPT_MAX_BLOB ((size_t)1 << 30)
-
-sooc_status sooc_nn_ckpt_save(const char *path, const sooc_nn_params *p, const void *config,
-                              size_t config_bytes, const void *trainer, size_t trainer_bytes,
-                              int with_optimizer);
-/* Read only the config blob (so the caller can build the model): *config is
- * sooc_malloc'd (caller frees), size bounded by max_bytes and the file size.
- * Checks magic, version and CRC. */
-sooc_status sooc_nn_ckpt_read_config(const char *path, size_t max_bytes, void **config,
-                                     size_t *config_bytes);
-/* Load into an allocated `p` whose view names/shapes/offsets must match the
- * file exactly. If expect_config != NULL the stored config must be
- * byte-identical. The trainer blob goes to trainer (cap bytes; *trainer_bytes
- * receives its size; trainer may be NULL to skip). Optimizer state is loaded
- * if present (else m, v, adam_t are zeroed). The file is fully validated
- * (size, CRC, layout) before `p` is modified. */
-sooc_status sooc_nn_ckpt_load(const char *path, sooc_nn_params *p, const void *expect_config,
-                              size_t expect_config_bytes, void *trainer, size_t trainer_cap,
-                              size_t *trainer_bytes);
-
 /* =================================================================== tape */
 
 typedef struct sooc_nn_tape sooc_nn_tape;

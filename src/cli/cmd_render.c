@@ -330,7 +330,7 @@ int sooc_cmd_render(int argc, char **argv) {
         {
             float ext[3];
             sooc_model_box_extent(mc, ext);
-            for (size_t i = 0; i < ne; i++) sooc3d_mapper_entry_from_cogmap(&ce[i], ext, &ment[i]);
+            for (size_t i = 0; i < ne; i++) sooc_map_entry_from_cogmap(&ce[i], ext, &ment[i]);
         }
         free(ce);
         R.n_total = nf;

@@ -5,6 +5,7 @@
 #include "sooc3d/eval_real.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/image.h"
+#include "sooc3d/global.h"
 #include "sooc3d/mapper.h"
 
 #include <math.h>

@@ -3,6 +3,7 @@
  * render + score every view from the map (query views from the final map,
  * input views from the final map and/or right after their own update). */
 #include "sooc3d/cogmap.h"
+#include "sooc3d/global.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/mesh.h"
 #include "sooc3d/eval_geom.h"

@@ -14,7 +14,7 @@
 #ifndef SOOC3D_MODEL_DEC_OWN_H
 #define SOOC3D_MODEL_DEC_OWN_H
 
-#include "model/model_internal.h"
+#include "model/decoder.h"
 
 #define MDL_FT_HDR 8
 #define MDL_FT_MAGIC 19019.0f

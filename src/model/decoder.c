@@ -6,16 +6,12 @@
  * the weights, so one GEMM per layer covers every slot; z^what enters as a
  * per-slot bias of layer 1). The layout MLP gets one row per used point.
  * Weight layout: W is [in x out] row-major, Y = X W + b. */
-#include "model/model_internal.h"
+#include "model/decoder.h"
 
 #include <math.h>
 #include <string.h>
 #ifdef SOOC_HAVE_OPENMP
 #include <omp.h>
-#endif
-
-#ifdef MDL_PROFILE
-double mdl_prof[MDL_PR_N];
 #endif
 
 static inline float sigm(float x) { return 1.0f / (1.0f + expf(-x)); }
@@ -343,6 +339,7 @@ typedef struct slot_sample {
  * first 3 floats of its gpe row. Weight gradients (ws != 0) go to tg. */
 typedef struct bwd_ctx {
     const sooc_model *m;
+    const dec_ws *w;
     const dec_call *c;
     const dec_net *no, *nl;
     const dec_wt *pwo, *pwl;
@@ -352,7 +349,7 @@ typedef struct bwd_ctx {
 
 static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
     const sooc_model *m = x->m;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = x->w;
     const dec_net *no = x->no;
     const dec_call *c = x->c;
     int H = no->H, C = x->C;
@@ -377,7 +374,7 @@ static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
 
 static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
     const sooc_model *m = x->m;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = x->w;
     const dec_net *nl = x->nl;
     int H = nl->H, s0 = x->loff + b0;
     float *g1 = w->gA + (size_t)s0 * H;
@@ -392,6 +389,7 @@ static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
 /* One fixed block of object or layout rows of the decoder forward (a pool task). */
 typedef struct fwd_job {
     const sooc_model *m;
+    const dec_ws *w;
     const view_rays *vr;
     int nbo, nro, nrl;
     float inv_o, inv_l;
@@ -400,7 +398,7 @@ typedef struct fwd_job {
 static void fwd_task(void *ctx, int blk, int tid) {
     const fwd_job *j = ctx;
     const sooc_model *m = j->m;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = j->w;
     const dec_net *no = &m->dobj, *nl = &m->dlay;
     const view_rays *vr = j->vr;
     const float *p = m->p;
@@ -481,23 +479,33 @@ static void sb_task(void *ctx, int t, int tid) {
     }
 }
 
-sooc_status mdl_decode(sooc_model *m, dec_call *c) {
-    const sooc_model_config *cfg = &m->cfg;
-    dec_ws *w = &m->ws;
-    const view_rays *vr = c->rays;
-    const float *p = m->p;
-    int N = vr->N, P = 2 * N, K = c->nslot, C = K + 1, d = cfg->d_what, dl = cfg->d_layout, NL = m->NL;
-    int H = cfg->dec_width, nt = nthreads(m);
-    SOOC_ASSERT(P <= w->Pmax && K <= w->Kmax);
-    MDL_PT(tprof);
-    sooc_nn_blas_single_once();   /* threads split rows; BLAS (the portable path) runs serially inside */
-    const dec_net *no = &m->dobj, *nl = &m->dlay;
-    float rmin = cfg->rho_min, rmax = cfg->rho_max, tau = c->tau > 0 ? c->tau : 1.0f;
-    float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c;
+/* One decode's shared state, passed through its parts (mdl_decode below). */
+typedef struct dec_run {
+    sooc_model_ws *x;
+    sooc_model *m;
+    const sooc_model_config *cfg;
+    dec_ws *w;
+    dec_call *c;
+    const view_rays *vr;
+    const dec_net *no, *nl;
+    const float *p;
+    int N, P, K, C, d, dl, NL, H, nt;
+    float rmin, rmax, tau, sigc;
+    float inv_o, inv_l;           /* PE scales of the object / layout rows */
+    int nro, nrl;                 /* object / layout rows */
     slot_sample ss[SOOC_MODEL_K_MAX];
     float sig_lay[SOOC_MODEL_D_MAX];
+    /* backward: gradients w.r.t. the samples */
+    float gzw[SOOC_MODEL_K_MAX][3], gzwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX], gzp[SOOC_MODEL_K_MAX];
+    float gzl[SOOC_MODEL_D_MAX];
+} dec_run;
 
-    /* 1. samples */
+/* 1. Samples: z^where, z^what, z^pres of every slot and the layout latent. */
+static void dec_samples(dec_run *r) {
+    dec_call *c = r->c;
+    int K = r->K, d = r->d, dl = r->dl, NL = r->NL;
+    float rmin = r->rmin, rmax = r->rmax, tau = r->tau;
+    slot_sample *ss = r->ss;
     for (int k = 0; k < K; k++) {
         const float *l = c->lam + (size_t)k * NL;
         const dec_noise *ns = c->noise;
@@ -516,22 +524,36 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         c->zp[k] = hm == 1 ? (zs >= 0.5f ? 1.0f : 0.0f) : hm == 2 ? 1.0f : zs;
     }
     for (int i = 0; i < dl; i++) {
-        sig_lay[i] = expf(0.5f * clampf(c->lay[dl + i], rmin, rmax));
-        c->zlay[i] = c->lay[i] + sig_lay[i] * c->noise->eps_lay[i];
+        r->sig_lay[i] = expf(0.5f * clampf(c->lay[dl + i], rmin, rmax));
+        c->zlay[i] = c->lay[i] + r->sig_lay[i] * c->noise->eps_lay[i];
     }
-    /* slot biases: comp 0 = layout, 1..K objects */
+}
+
+/* Layer-1 biases per component (comp 0 = layout, 1..K objects): b1 + z W1z. */
+static void dec_slot_biases(dec_run *r) {
+    const dec_call *c = r->c;
+    const float *p = r->p;
+    int K = r->K, H = r->H;
     for (int k = 0; k <= K; k++) {
-        const dec_net *n = k ? no : nl;
+        const dec_net *n = k ? r->no : r->nl;
         const float *z = k ? c->zwhat[k - 1] : c->zlay;
-        float *b = w->slot_bias + (size_t)k * H;
+        float *b = r->w->slot_bias + (size_t)k * H;
         for (int j = 0; j < H; j++) b[j] = p[n->b1 + j];
         for (int i = 0; i < n->dz; i++) {
             const float *Wr = p + n->W1z + (size_t)i * H;
             for (int j = 0; j < H; j++) b[j] += z[i] * Wr[j];
         }
     }
+}
 
-    /* 2. rows */
+/* 2. Rows: an object row per (used point, slot) inside the slot's locality
+ * box, a layout row per used point; rowof maps (point, component) -> row. */
+static void dec_rows(dec_run *r) {
+    const sooc_model_config *cfg = r->cfg;
+    const dec_call *c = r->c;
+    const view_rays *vr = r->vr;
+    dec_ws *w = r->w;
+    int P = r->P, K = r->K, C = r->C;
     float cth[SOOC_MODEL_K_MAX], sth[SOOC_MODEL_K_MAX];
     for (int k = 0; k < K; k++) cth[k] = cosf(c->zw[k][2]), sth[k] = sinf(c->zw[k][2]);
     int nro = 0;
@@ -563,32 +585,46 @@ sooc_status mdl_decode(sooc_model *m, dec_call *c) {
         }
     }
     w->nro = nro;
-    /* layout rows: compacted used points (reuse ro arrays' tail? keep own list in rowof comp 0) */
+    /* layout rows: the used points, compacted (their row in rowof's comp 0) */
     int nrl = 0;
     for (int pt = 0; pt < P; pt++)
         if ((pt & 1) ? !vr->unk[pt >> 1] : vr->surf[pt >> 1]) w->rowof[(size_t)pt * C] = nrl++;
-    /* 3. PE + MLPs: each thread owns a contiguous chunk of rows */
-    float inv_o = 1.0f / cfg->box_rh, inv_l = 1.0f / cfg->block_size;
     for (int pt = 0; pt < P; pt++) {
-        int r = w->rowof[(size_t)pt * C];
-        if (r >= 0) w->lr_pt[r] = pt;
+        int rl = w->rowof[(size_t)pt * C];
+        if (rl >= 0) w->lr_pt[rl] = pt;
     }
-    MDL_PACC(MDL_PR_DEC_PREP, tprof);
-    /* Fixed blocks of rows handed out dynamically: every row's result is the same whichever
-     * thread computes it, and a thread that the OS delays (a loaded machine) holds up the
-     * others by at most one block. */
+    r->nro = nro;
+    r->nrl = nrl;
+}
+
+/* 3. PE + MLPs of every row. Fixed blocks of rows handed out dynamically:
+ * every row's result is the same whichever thread computes it, and a thread
+ * that the OS delays (a loaded machine) holds up the others by at most one
+ * block. */
+static void dec_forward(dec_run *r) {
+    int nro = r->nro, nrl = r->nrl;
     int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-    fwd_job fj = {m, vr, nbo, nro, nrl, inv_o, inv_l};
-    if (nro + nrl >= MDL_PAR_ROWS && nt > 1) mdl_par_run(m, nbo + nbl, fwd_task, &fj);
+    fwd_job fj = {r->m, r->w, r->vr, nbo, nro, nrl, r->inv_o, r->inv_l};
+    if (nro + nrl >= MDL_PAR_ROWS && r->nt > 1) mdl_par_run(r->x, nbo + nbl, fwd_task, &fj);
     else
         for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
+}
 
-    MDL_PACC(MDL_PR_DEC_FWD, tprof);
-    /* 4. dense σ̂, c̃, composition, likelihood */
+/* 4. Dense σ̂, c̃ per point and component, composition, the two-sample
+ * likelihood (c->nll, nll_d, nll_c), its gradients w.r.t. σ̂ and c̃ (gsh,
+ * gct) and the per-ray log-likelihood (ll, for the auxiliary inputs). */
+static void dec_compose(dec_run *r) {
+    const sooc_model_config *cfg = r->cfg;
+    dec_call *c = r->c;
+    const view_rays *vr = r->vr;
+    dec_ws *w = r->w;
+    int N = r->N, C = r->C, nt = r->nt;
+    float sigc = r->sigc;
     float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * cfg->sigma_max;
     float scale = (float)(cfg->img_w * cfg->img_h) / (float)N;
     float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)), is2 = 1.0f / (sigc * sigc);
     double sum_d = 0, sum_c = 0;
+    (void)nt;
 MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, sum_c) if (N >= 4 * MDL_PAR_ROWS))
     for (int rr = 0; rr < N; rr++) {
         for (int q = 0; q < 2; q++) {
@@ -605,15 +641,15 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             }
             float S = 1e-8f, Q2 = 0, col[3] = {0, 0, 0};
             for (int k = 0; k < C; k++) {
-                int r = w->rowof[(size_t)pt * C + k];
+                int ri = w->rowof[(size_t)pt * C + k];
                 float s = 0, cl[3] = {0, 0, 0};
-                if (r >= 0) {
+                if (ri >= 0) {
                     if (k == 0) {
-                        s = w->l_sig[r];
-                        memcpy(cl, w->l_col + (size_t)r * 3, sizeof cl);
+                        s = w->l_sig[ri];
+                        memcpy(cl, w->l_col + (size_t)ri * 3, sizeof cl);
                     } else {
-                        s = w->o_sig[r] * c->zp[k - 1] * w->o_gf[r];
-                        memcpy(cl, w->o_col + (size_t)r * 3, sizeof cl);
+                        s = w->o_sig[ri] * c->zp[k - 1] * w->o_gf[ri];
+                        memcpy(cl, w->o_col + (size_t)ri * 3, sizeof cl);
                     }
                 }
                 sh[k] = s;
@@ -670,39 +706,50 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
     c->nll_d = -scale * sum_d;
     c->nll_c = -scale * sum_c;
     c->nll = c->nll_d + c->nll_c;
+}
 
-    MDL_PACC(MDL_PR_DEC_COMP, tprof);
-    /* 5. KL */
+/* 5. KL terms (c->kl) and the loss; 6. (backward) their gradients. */
+static void dec_kl(dec_run *r) {
+    const sooc_model_config *cfg = r->cfg;
+    dec_call *c = r->c;
+    int K = r->K, NL = r->NL, dl = r->dl;
     c->kl = 0;
-    float beta = c->beta_kl;
     if (c->lam0) {
         for (int k = 0; k < K; k++)
             c->kl += mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, 1.0f, NULL, NULL);
     }
     if (c->lay0)
-        c->kl += mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, rmin, rmax, 1.0f, NULL, NULL, NULL,
+        c->kl += mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, r->rmin, r->rmax, 1.0f, NULL, NULL, NULL,
                               NULL);
-    c->loss = c->nll + beta * c->kl;
-    if (!c->backward) return SOOC_OK;
-    if (!isfinite(c->loss)) return sooc_seterr(SOOC_ENUMERIC, "decode: non-finite loss");
+    c->loss = c->nll + c->beta_kl * c->kl;
+}
 
-    /* 6. KL gradients */
+static void dec_kl_backward(dec_run *r) {
+    const sooc_model_config *cfg = r->cfg;
+    dec_call *c = r->c;
+    int K = r->K, NL = r->NL, dl = r->dl;
+    float beta = c->beta_kl;
     if (c->lam0)
         for (int k = 0; k < K; k++)
             mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, beta,
                         c->g_lam ? c->g_lam + (size_t)k * NL : NULL, c->g_lam0 ? c->g_lam0 + (size_t)k * NL : NULL);
     if (c->lay0)
-        mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, rmin, rmax, beta, c->g_lay,
+        mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, r->rmin, r->rmax, beta, c->g_lay,
                      c->g_lay ? c->g_lay + dl : NULL, c->g_lay0, c->g_lay0 ? c->g_lay0 + dl : NULL);
+}
 
-    /* 7. decoder backward: object and layout rows in one parallel region
-     * (each thread takes a contiguous share of both; thread-private weight /
-     * slot-bias / z^where gradients, reduced below in thread order). The
-     * layout rows' scratch follows the object rows' when it fits. */
-    float gzw[SOOC_MODEL_K_MAX][3], gzwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX], gzp[SOOC_MODEL_K_MAX];
-    memset(gzw, 0, sizeof gzw);
-    memset(gzwhat, 0, sizeof gzwhat);
-    memset(gzp, 0, sizeof gzp);
+/* 7. Decoder backward over the rows: object and layout rows in one parallel
+ * region (each thread takes a contiguous share of both; thread-private weight
+ * gradients, reduced in thread order), then the slot-bias (layer-1
+ * pre-activation) and z^where sums per component (sb_task), z^pres gradients
+ * into r->gzp. The layout rows' scratch follows the object rows' when it
+ * fits; otherwise two passes. */
+static void dec_backward_rows(dec_run *r) {
+    const sooc_model *m = r->m;
+    const dec_call *c = r->c;
+    dec_ws *w = r->w;
+    const dec_net *no = r->no, *nl = r->nl;
+    int C = r->C, H = r->H, nt = r->nt, nro = r->nro, nrl = r->nrl;
     float ws = c->wgrad;
     size_t Rall = (size_t)w->Pmax * (w->Kmax > 1 ? w->Kmax : 1);
     int merged = (size_t)nro + nrl <= Rall;
@@ -714,16 +761,16 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
     dec_wt wto, wtl;
     const dec_wt *pwo = NULL, *pwl = NULL;
     if (mdl_kern_avx2() && wt_floats(no, 1) + wt_floats(nl, 0) <= w->nwt) {
-        float *q = wt_build(p, no, 1, w->wt, &wto);
-        wt_build(p, nl, 0, q, &wtl);
+        float *q = wt_build(r->p, no, 1, w->wt, &wto);
+        wt_build(r->p, nl, 0, q, &wtl);
         pwo = &wto, pwl = &wtl;
     }
-    for (int r = 0; r < nro; r++) {
-        int pt = w->ro_pt[r], k = w->ro_slot[r];
+    for (int rw = 0; rw < nro; rw++) {
+        int pt = w->ro_pt[rw], k = w->ro_slot[rw];
         float g = w->gsh[(size_t)pt * C + 1 + k];
-        gsig[r] = g * c->zp[k];
-        gzp[k] += g * w->o_sig[r];
-        memcpy(gcol + (size_t)r * 3, w->gct + ((size_t)pt * C + 1 + k) * 3, 3 * sizeof(float));
+        gsig[rw] = g * c->zp[k];
+        r->gzp[k] += g * w->o_sig[rw];
+        memcpy(gcol + (size_t)rw * 3, w->gct + ((size_t)pt * C + 1 + k) * 3, 3 * sizeof(float));
     }
     int ntb = nt < w->nthr ? nt : w->nthr;
     size_t tstride = w->dec_np;
@@ -734,16 +781,16 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
      * so they do not depend on the thread count. */
     if (ws != 0)
         for (int t = 0; t < ntb; t++) memset(w->tbuf + (size_t)t * tstride, 0, tstride * sizeof(float));
-    bwd_ctx bx = {m, c, no, nl, pwo, pwl, gsig, gcol, ws, inv_o, cfg->gauss_s, C, 0};
+    bwd_ctx bx = {m, w, c, no, nl, pwo, pwl, gsig, gcol, ws, r->inv_o, r->cfg->gauss_s, C, 0};
     memset(w->g_bias, 0, sizeof(float) * (size_t)C * H);
     for (int pass = merged ? 1 : 0; pass < 2; pass++) {
         /* pass 0 (only when the scratch does not fit): object rows alone; pass 1: layout (+ objects if merged) */
         int do_obj = merged || pass == 0, do_lay = pass == 1;
         if (do_lay)
-            for (int r = 0; r < nrl; r++) {
-                int pt = w->lr_pt[r];
-                gsig[loff + r] = w->gsh[(size_t)pt * C];
-                memcpy(gcol + (size_t)(loff + r) * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
+            for (int rl = 0; rl < nrl; rl++) {
+                int pt = w->lr_pt[rl];
+                gsig[loff + rl] = w->gsh[(size_t)pt * C];
+                memcpy(gcol + (size_t)(loff + rl) * 3, w->gct + (size_t)pt * C * 3, 3 * sizeof(float));
             }
         bx.loff = loff;
         int no_ = do_obj ? nro : 0, nl_ = do_lay ? nrl : 0, rows = no_ + nl_;
@@ -762,69 +809,195 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
         } else {
             int nbo = (no_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nl_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
             bwd_job bj = {&bx, nbo, no_, nl_};
-            if (rows >= MDL_PAR_ROWS && ntb > 1) mdl_par_run(m, nbo + nbl, bwd_task, &bj);
+            if (rows >= MDL_PAR_ROWS && ntb > 1) mdl_par_run(r->x, nbo + nbl, bwd_task, &bj);
             else
                 for (int blk = 0; blk < nbo + nbl; blk++) bwd_task(&bj, blk, 0);
         }
         /* slot-bias (layer-1 pre-activation) and z^where gradients, row order; split
          * by columns across the pool (each sum keeps its row order: bitwise the same) */
-        sb_job sj = {w, no_, nl_, loff, H, no->din, gzw};
-        if (rows >= MDL_PAR_ROWS && nt > 1) mdl_par_run(m, SB_TASKS + 1, sb_task, &sj);
+        sb_job sj = {w, no_, nl_, loff, H, no->din, r->gzw};
+        if (rows >= MDL_PAR_ROWS && nt > 1) mdl_par_run(r->x, SB_TASKS + 1, sb_task, &sj);
         else
             for (int t = 0; t <= SB_TASKS; t++) sb_task(&sj, t, 0);
     }
-    MDL_PACC(MDL_PR_DEC_BWD, tprof);
     if (ws != 0)   /* thread order: deterministic */
         for (int t = 0; t < ntb; t++) {
             const float *tg = w->tbuf + (size_t)t * tstride;
-            for (size_t i = 0; i < w->dec_np; i++) m->g[i] += tg[i];
+            for (size_t i = 0; i < w->dec_np; i++) r->m->g[i] += tg[i];
         }
-    /* slot biases -> z, b1, W1z */
-    float gzl[SOOC_MODEL_D_MAX] = {0};
+}
+
+/* Slot biases -> z^what / the layout latent (r->gzwhat, r->gzl) and, with
+ * weight gradients, b1 and W1z. */
+static void dec_bias_backward(dec_run *r) {
+    const dec_call *c = r->c;
+    const dec_ws *w = r->w;
+    const float *p = r->p;
+    float *g = r->m->g;
+    int K = r->K, H = r->H;
+    float ws = c->wgrad;
     for (int k = 0; k <= K; k++) {
-        const dec_net *n = k ? no : nl;
+        const dec_net *n = k ? r->no : r->nl;
         const float *gb = w->g_bias + (size_t)k * H;
         const float *z = k ? c->zwhat[k - 1] : c->zlay;
-        float *gz = k ? gzwhat[k - 1] : gzl;
+        float *gz = k ? r->gzwhat[k - 1] : r->gzl;
         for (int i = 0; i < n->dz; i++) {
             const float *Wr = p + n->W1z + (size_t)i * H;
             float v = 0;
             for (int j = 0; j < H; j++) v += Wr[j] * gb[j];
             gz[i] = v;
             if (ws != 0) {
-                float *gW = m->g + n->W1z + (size_t)i * H;
+                float *gW = g + n->W1z + (size_t)i * H;
                 for (int j = 0; j < H; j++) gW[j] += ws * z[i] * gb[j];
             }
         }
         if (ws != 0)
-            for (int j = 0; j < H; j++) m->g[n->b1 + j] += ws * gb[j];
+            for (int j = 0; j < H; j++) g[n->b1 + j] += ws * gb[j];
     }
-    /* 8. reparameterisation backward -> λ */
+}
+
+/* 8. Reparameterisation backward: sample gradients -> λ and the layout posterior. */
+static void dec_reparam_backward(dec_run *r) {
+    dec_call *c = r->c;
+    int K = r->K, d = r->d, dl = r->dl, NL = r->NL;
+    float rmin = r->rmin, rmax = r->rmax, tau = r->tau;
+    const slot_sample *ss = r->ss;
     if (c->g_lam)
         for (int k = 0; k < K; k++) {
             const float *l = c->lam + (size_t)k * NL;
             float *g = c->g_lam + (size_t)k * NL;
             const dec_noise *ns = c->noise;
-            g[0] += gzw[k][0];
-            g[1] += gzw[k][1];
-            g[2] += gzw[k][2];
+            g[0] += r->gzw[k][0];
+            g[1] += r->gzw[k][1];
+            g[2] += r->gzw[k][2];
             if (l[3] >= rmin && l[3] <= rmax)
-                g[3] += 0.5f * ss[k].sig_t * (gzw[k][0] * ns->eps_where[k][0] + gzw[k][1] * ns->eps_where[k][1]);
-            if (l[4] >= rmin && l[4] <= rmax) g[4] += 0.5f * ss[k].sig_th * gzw[k][2] * ns->eps_where[k][2];
+                g[3] += 0.5f * ss[k].sig_t * (r->gzw[k][0] * ns->eps_where[k][0] + r->gzw[k][1] * ns->eps_where[k][1]);
+            if (l[4] >= rmin && l[4] <= rmax) g[4] += 0.5f * ss[k].sig_th * r->gzw[k][2] * ns->eps_where[k][2];
             for (int i = 0; i < d; i++) {
-                g[5 + i] += gzwhat[k][i];
+                g[5 + i] += r->gzwhat[k][i];
                 if (l[5 + d + i] >= rmin && l[5 + d + i] <= rmax)
-                    g[5 + d + i] += 0.5f * ss[k].sig_what[i] * gzwhat[k][i] * ns->eps_what[k][i];
+                    g[5 + d + i] += 0.5f * ss[k].sig_what[i] * r->gzwhat[k][i] * ns->eps_what[k][i];
             }
             float zs = c->zp_soft[k];
-            g[5 + 2 * d] += gzp[k] * zs * (1 - zs) / tau;
+            g[5 + 2 * d] += r->gzp[k] * zs * (1 - zs) / tau;
         }
     if (c->g_lay)
         for (int i = 0; i < dl; i++) {
-            c->g_lay[i] += gzl[i];
+            c->g_lay[i] += r->gzl[i];
             if (c->lay[dl + i] >= rmin && c->lay[dl + i] <= rmax)
-                c->g_lay[dl + i] += 0.5f * sig_lay[i] * gzl[i] * c->noise->eps_lay[i];
+                c->g_lay[dl + i] += 0.5f * r->sig_lay[i] * r->gzl[i] * c->noise->eps_lay[i];
         }
+}
+
+sooc_status mdl_decode(sooc_model_ws *x, dec_call *c) {
+    dec_run run, *r = &run;
+    memset(r, 0, sizeof *r);
+    sooc_model *m = x->m;
+    const sooc_model_config *cfg = &m->cfg;
+    r->x = x, r->m = m, r->cfg = cfg, r->w = x->dec, r->c = c, r->vr = c->rays;
+    r->no = &m->dobj, r->nl = &m->dlay, r->p = m->p;
+    r->N = r->vr->N, r->P = 2 * r->N, r->K = c->nslot, r->C = r->K + 1;
+    r->d = cfg->d_what, r->dl = cfg->d_layout, r->NL = m->NL, r->H = cfg->dec_width, r->nt = nthreads(m);
+    SOOC_ASSERT(r->P <= r->w->Pmax && r->K <= r->w->Kmax);
+    MDL_PT(tprof);
+    sooc_nn_blas_single_once();   /* threads split rows; BLAS (the portable path) runs serially inside */
+    r->rmin = cfg->rho_min, r->rmax = cfg->rho_max, r->tau = c->tau > 0 ? c->tau : 1.0f;
+    r->sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c;
+    r->inv_o = 1.0f / cfg->box_rh, r->inv_l = 1.0f / cfg->block_size;
+
+    dec_samples(r);
+    dec_slot_biases(r);
+    dec_rows(r);
+    MDL_PACC(MDL_PR_DEC_PREP, tprof);
+    dec_forward(r);
+    MDL_PACC(MDL_PR_DEC_FWD, tprof);
+    dec_compose(r);
+    MDL_PACC(MDL_PR_DEC_COMP, tprof);
+    dec_kl(r);
+    if (!c->backward) return SOOC_OK;
+    if (!isfinite(c->loss)) return sooc_seterr(SOOC_ENUMERIC, "decode: non-finite loss");
+    dec_kl_backward(r);
+    dec_backward_rows(r);
+    MDL_PACC(MDL_PR_DEC_BWD, tprof);
+    dec_bias_backward(r);
+    dec_reparam_backward(r);
     MDL_PACC(MDL_PR_DEC_RED, tprof);
     return SOOC_OK;
+}
+
+/* ------------------------------------------------------------ workspace */
+
+/* The decoder's part of a runner's workspace (sooc_model_ws): every buffer
+ * of a decode, sized for P = 2 ray_w ray_h points and K slots. */
+sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
+    *out = NULL;
+    const sooc_model_config *c = &m->cfg;
+    dec_ws *w = sooc_calloc(1, sizeof *w);
+    if (!w) return SOOC_ENOMEM;
+    int P = 2 * c->ray_w * c->ray_h, K = c->K, C = K + 1, H = c->dec_width;
+    size_t R = (size_t)P * K;
+    w->Pmax = P;
+    w->Kmax = K;
+    int dmax = m->dobj.din > m->dlay.din ? m->dobj.din : m->dlay.din;
+    size_t Rall = R > (size_t)P ? R : (size_t)P;
+#define A(p, n, t) if (!(w->p = sooc_calloc((n), sizeof(t)))) { mdl_dec_ws_destroy(w); return SOOC_ENOMEM; }
+    A(ro_pt, R, int);
+    A(ro_slot, R, int);
+    A(o_pe, R * m->dobj.din, float);
+    A(o_a1, R * H, float);
+    A(o_a2, R * H, float);
+    A(o_a3, R * H, float);
+    A(o_ac, R * c->dec_color_width, float);
+    A(o_sig, R, float);
+    A(o_col, R * 3, float);
+    A(o_xk, R * 3, float);
+    A(o_gf, R, float);
+    A(l_pe, (size_t)P * m->dlay.din, float);
+    A(l_a1, (size_t)P * H, float);
+    A(l_a2, (size_t)P * H, float);
+    A(l_a3, (size_t)P * H, float);
+    A(l_ac, (size_t)P * c->dec_color_width, float);
+    A(l_sig, P, float);
+    A(l_col, (size_t)P * 3, float);
+    A(gA, Rall * H, float);
+    A(gB, Rall * H, float);
+    A(gC, Rall * H, float);
+    A(gpe, Rall * dmax, float);
+    A(sh, (size_t)P * C, float);
+    A(ct, (size_t)P * C * 3, float);
+    A(gsh, (size_t)P * C, float);
+    A(gct, (size_t)P * C * 3, float);
+    A(rowof, (size_t)P * C, int);
+    A(S, P, float);
+    A(Sb, P, float);
+    A(cc, (size_t)P * 3, float);
+    A(ll, P, float);
+    A(ll_cf, (size_t)P * C, float);
+    A(slot_bias, (size_t)C * H, float);
+    A(lr_pt, P, int);
+    w->dec_np = m->robj.cw[0];   /* both decoders come first in the slab */
+    w->nthr = 8;
+    A(tbuf, (size_t)w->nthr * (w->dec_np + (size_t)C * H + 3 * (size_t)K), float);
+    A(g_bias, (size_t)C * H, float);
+    /* transposed W2, W3, Wc1 of both decoders and W1x of the object decoder */
+    w->nwt = (size_t)H * (2 * H + c->dec_color_width) * 2 + (size_t)H * m->dobj.din;
+    A(wt, w->nwt, float);
+#undef A
+    *out = w;
+    return SOOC_OK;
+}
+
+void mdl_dec_ws_destroy(dec_ws *w) {
+    if (!w) return;
+    float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
+                    &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
+                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
+                    &w->g_bias, &w->wt};
+    for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) sooc_free(*fp[i]);
+    sooc_free(w->ro_pt);
+    sooc_free(w->ro_slot);
+    sooc_free(w->rowof);
+    sooc_free(w->lr_pt);
+    sooc_free(w->tbuf);
+    sooc_free(w);
 }

@@ -1,11 +1,20 @@
 /* render.h field adapter: the layout of the camera's active block plus the
  * in-view map entries, evaluated with the model's decoders (model.md §2.11). */
 #include "model/dec_own.h"
-#include "model/model_internal.h"
+#include "model/decoder.h"
 
 #include <cblas.h>
 #include <math.h>
 #include <string.h>
+
+/* The global-frame baseline's map (src/global): world-frame λ of entry id
+ * (identity floor frame). */
+static void world_lam(const sooc_cogmap *map, uint64_t id, float *lam) {
+    sooc_cogmap_entry e;
+    sooc_floor_frame ident = {0, 0, 0};
+    if (sooc_cogmap_get(map, id, &e) == SOOC_OK) sooc_cogmap_lam_to_local(&ident, &e, lam);
+    else sooc_clearerr();
+}
 
 typedef struct fcomp {
     uint64_t id;
@@ -101,7 +110,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     sooc_se3_mul(F->T_gc, T_gw, T_wc);
     F->iu = 1.0f / c->unit_m;
     F->h = (float)h * F->iu;
-    if (c->global_frame) {   /* global-frame baseline (global.c): world axes, origin (0, h, 0) */
+    if (c->global_frame) {   /* global-frame baseline (src/global): world axes, origin (0, h, 0) */
         double T_fw[16];
         sooc_se3_identity(T_fw);
         T_fw[7] = -h;
@@ -121,7 +130,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     int32_t bi = 0, bj = 0;
     double blk[2] = {0, 0};
     if (c->global_frame)   /* baseline: world-frame slots, one layout latent at the world origin */
-        for (int i = 0; i < nret; i++) mdl_global_world_lam(map, slots[i].id, slots[i].lam);
+        for (int i = 0; i < nret; i++) world_lam(map, slots[i].id, slots[i].lam);
     else if ((st = sooc_cogmap_active_block(map, T_wc, cam.d_clip, &bi, &bj, blk)))
         goto fail;
     for (int i = 0; i < nret; i++) mdl_lam_from_m(c, slots[i].lam, 1, SOOC_LAM_SIZE(c->d_what));

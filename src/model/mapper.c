@@ -7,7 +7,7 @@
 #include <string.h>
 #include <stdio.h>
 
-#include "model/step_internal.h"
+#include "model/step.h"
 #include "sooc3d/model.h"
 #include "sooc3d/objgeom.h"
 
@@ -21,6 +21,7 @@ _Static_assert(SOOC_MODEL_D_MAX <= SOOC_COGMAP_DIM_MAX, "λ rows of the same-pos
 
 struct sooc3d_mapper {
     sooc_model *m;
+    sooc_model_ws *ws;   /* the mapper runs the model: its workspace (decoder, refinement, step state, pool) */
     sooc_cogmap *map;
     view_rec V;
     int L, view_idx;
@@ -80,7 +81,8 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     if (!st) st = sooc_objgeom_cache_create(&mp->geo);
     mp->geo_budget = SOOC_OBJGEOM_BUDGET;
     if (!st) st = mdl_view_alloc(m, &mp->V, mp->L);
-    if (!st && !mdl_step_state(m, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
+    if (!st) st = sooc_model_ws_create(&mp->ws, m);
+    if (!st && !mdl_step_state(mp->ws, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
     if (st) {
         mp->m = NULL;
         sooc3d_mapper_destroy(mp);
@@ -126,6 +128,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
 void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
     if (!mp) return;
     if (mp->V.buf) mdl_view_free(&mp->V);
+    sooc_model_ws_destroy(mp->ws);
     sooc_cogmap_destroy(mp->map);
     sooc_objgeom_cache_destroy(mp->geo);
     sooc_model_destroy(mp->m);
@@ -227,7 +230,7 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
     dc.lay = V->lay + (size_t)mp->L * 2 * c->d_layout;
     dc.noise = &mp->gate_noise;
     dc.tau = MAPPER_TAU;
-    if ((*err = mdl_decode(m, &dc))) return 0;
+    if ((*err = mdl_decode(mp->ws, &dc))) return 0;
     const int C = K + 1;
     gate_near near = {.V = V, .src = mp->src_reg, .K = K, .d = d, .unit = c->unit_m, .out = mp->gate_boxes};
     near.reach = 2.0 * M_SQRT2 * c->box_rh * c->unit_m;   /* a box corner can reach the new slot's points */
@@ -238,7 +241,7 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
             near.nx[near.n_new] = e.X, near.nz[near.n_new++] = e.Z;
         }
     sooc_cogmap_foreach(mp->map, gate_near_visit, &near);
-    sooc3d_gate_input in = {V->vr.N, K, m->ws.sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh,
+    sooc3d_gate_input in = {V->vr.N, K, mp->ws->dec->sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh,
                             near.n, mp->gate_boxes, 3};
     sooc3d_gate_verdict v[SOOC_MODEL_K_MAX];
     int refused = sooc3d_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
@@ -497,7 +500,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     if (f->width != c->img_w || f->height != c->img_h)
         return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld is %dx%d, the model needs %dx%d", (long long)f->index,
                            f->width, f->height, c->img_w, c->img_h);
-    step_state *S = mdl_step_state(m, 1, mp->L);
+    step_state *S = mdl_step_state(mp->ws, 1, mp->L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
     S->aux_replay = 0;
     view_rec *V = &mp->V;
@@ -509,7 +512,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     o.L = mp->L;
     o.mean_latents = !mp->sample;
     double lw;
-    if ((s = mdl_view_forward(m, S, V, mp->L, &o, 0, &mp->rng, &lw, NULL))) return s;
+    if ((s = mdl_view_forward(mp->ws, S, V, mp->L, &o, 0, &mp->rng, &lw, NULL))) return s;
     int NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
     const float *lamL = V->lam + (size_t)mp->L * c->K * NL;
     const float *layL = V->lay + (size_t)mp->L * D2;
@@ -620,7 +623,7 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
     float ext[3];
     sooc_model_box_extent(sooc_model_get_config(mp->m), ext);
     for (size_t i = 0; !s && i < got; i++) {
-        sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
+        sooc_map_entry_from_cogmap(&tmp[i], ext, &out[i]);
         sooc_objgeom_cache_fill(mp->geo, &tmp[i], &out[i]);
     }
     *n = s ? 0 : got;
@@ -639,7 +642,7 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
                             (unsigned long long)e[i].id, e[i].latent_dim, c->d_what);
             break;
         }
-        sooc3d_mapper_entry_to_cogmap(&e[i], &tmp[i]);
+        sooc_map_entry_to_cogmap(&e[i], &tmp[i]);
     }
     if (!s) s = sooc_cogmap_load(mp->map, tmp, n);
     sooc_free(tmp);
@@ -663,7 +666,7 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
         sooc_cogmap_entry e;
         sooc_status s = sooc_cogmap_get(mp->map, mp->chg_ids[i], &e);
         if (s) return sooc_adderr(s, "mapper changed: entry %llu", (unsigned long long)mp->chg_ids[i]);
-        sooc3d_mapper_entry_from_cogmap(&e, ext, &out[i]);
+        sooc_map_entry_from_cogmap(&e, ext, &out[i]);
         sooc_objgeom_cache_fill(mp->geo, &e, &out[i]);
     }
     if (removed_ids) memcpy(removed_ids, mp->rem_ids, nr * sizeof *removed_ids);

@@ -1,5 +1,5 @@
 /* Model creation, parameter slab, initialisation, checkpoint IO. */
-#include "model/model_internal.h"
+#include "model/weights.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -205,6 +205,35 @@ static void init_priors(sooc_model *m) {
     }
 }
 
+/* The global-frame baseline's slot prior means (src/global, docs/baseline.md):
+ * a Vogel (golden-angle) spiral over a disc of radius global_radius around
+ * the world origin, so that every prefix of n slots is spread evenly over a
+ * disc of radius R·sqrt(n/K) (a scene with fewer objects uses fewer slots,
+ * see sooc_model_global_slots). Weights initialisation: this layer's. */
+static void init_priors_global(sooc_model *m) {
+    const sooc_model_config *c = &m->cfg;
+    int NL = m->NL;
+    const double ga = M_PI * (3.0 - sqrt(5.0));
+    for (int k = 0; k < c->K; k++) {
+        float *l = m->p + m->prior + (size_t)k * NL;
+        double r = c->global_radius * sqrt((k + 0.5) / c->K), a = ga * k;
+        l[0] = (float)(r * cos(a));
+        l[1] = (float)(r * sin(a));
+    }
+}
+
+/* Image channels of a refinement net's input (refine.c builds them). */
+int mdl_aux_channels(int layout) { return layout ? 25 : 26; }
+
+/* The baseline's queries on the config (its step and mapper: src/global). */
+int sooc_model_is_global(const sooc_model *m) { return m && m->cfg.global_frame; }
+
+int sooc_model_global_slots(const sooc_model *m, int n_objects) {
+    int K = m->cfg.K;
+    if (n_objects <= 0 || n_objects + 1 >= K) return K;
+    return n_objects + 1;
+}
+
 sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint64_t init_seed) {
     *out = NULL;
     sooc_status st = sooc_model_config_check(c);
@@ -234,19 +263,13 @@ sooc_status sooc_model_create(sooc_model **out, const sooc_model_config *c, uint
     init_ref(m, &m->robj, &r);
     init_ref(m, &m->rlay, &r);
     init_priors(m);
-    if (c->global_frame) mdl_global_init_priors(m);   /* global.c: priors spread over the scene */
-    if ((st = mdl_alloc_ws(m))) {
-        sooc_model_destroy(m);
-        return st;
-    }
+    if (c->global_frame) init_priors_global(m);   /* the baseline: priors spread over the scene */
     *out = m;
     return SOOC_OK;
 }
 
 void sooc_model_destroy(sooc_model *m) {
     if (!m) return;
-    mdl_step_free(m);
-    mdl_free_ws(m);
     sooc_free(m->p);
     sooc_free(m->g);
     sooc_free(m);
@@ -534,114 +557,4 @@ done:
     sooc_model_destroy(m);
     sooc_free(buf);
     return st;
-}
-
-/* ------------------------------------------------------------ workspaces */
-
-sooc_status mdl_alloc_ws(sooc_model *m) {
-    const sooc_model_config *c = &m->cfg;
-    dec_ws *w = &m->ws;
-    int P = 2 * c->ray_w * c->ray_h, K = c->K, C = K + 1, H = c->dec_width;
-    size_t R = (size_t)P * K;
-    w->Pmax = P;
-    w->Kmax = K;
-    int dmax = m->dobj.din > m->dlay.din ? m->dobj.din : m->dlay.din;
-    size_t Rall = R > (size_t)P ? R : (size_t)P;
-#define A(p, n, t) if (!(w->p = sooc_calloc((n), sizeof(t)))) return SOOC_ENOMEM
-    A(ro_pt, R, int);
-    A(ro_slot, R, int);
-    A(o_pe, R * m->dobj.din, float);
-    A(o_a1, R * H, float);
-    A(o_a2, R * H, float);
-    A(o_a3, R * H, float);
-    A(o_ac, R * c->dec_color_width, float);
-    A(o_sig, R, float);
-    A(o_col, R * 3, float);
-    A(o_xk, R * 3, float);
-    A(o_gf, R, float);
-    A(l_pe, (size_t)P * m->dlay.din, float);
-    A(l_a1, (size_t)P * H, float);
-    A(l_a2, (size_t)P * H, float);
-    A(l_a3, (size_t)P * H, float);
-    A(l_ac, (size_t)P * c->dec_color_width, float);
-    A(l_sig, P, float);
-    A(l_col, (size_t)P * 3, float);
-    A(gA, Rall * H, float);
-    A(gB, Rall * H, float);
-    A(gC, Rall * H, float);
-    A(gpe, Rall * dmax, float);
-    A(sh, (size_t)P * C, float);
-    A(ct, (size_t)P * C * 3, float);
-    A(gsh, (size_t)P * C, float);
-    A(gct, (size_t)P * C * 3, float);
-    A(rowof, (size_t)P * C, int);
-    A(S, P, float);
-    A(Sb, P, float);
-    A(cc, (size_t)P * 3, float);
-    A(ll, P, float);
-    A(ll_cf, (size_t)P * C, float);
-    A(slot_bias, (size_t)C * H, float);
-    A(lr_pt, P, int);
-    w->dec_np = m->robj.cw[0];   /* both decoders come first in the slab */
-    w->nthr = 8;
-    A(tbuf, (size_t)w->nthr * (w->dec_np + (size_t)C * H + 3 * (size_t)K), float);
-    A(g_bias, (size_t)C * H, float);
-    /* transposed W2, W3, Wc1 of both decoders and W1x of the object decoder */
-    w->nwt = (size_t)H * (2 * H + c->dec_color_width) * 2 + (size_t)H * m->dobj.din;
-    A(wt, w->nwt, float);
-#undef A
-    /* refinement scratch */
-    ref_ws *r = &m->rws;
-    int gw = c->ray_w, gh = c->ray_h;
-    int cinmax = m->robj.cin > m->rlay.cin ? m->robj.cin : m->rlay.cin;
-    size_t colmax = (size_t)cinmax * 9 * K * (gw / 2) * (gh / 2);
-    for (int i = 1; i < 4; i++) {
-        size_t s = (size_t)c->ref_ch[i - 1] * 9 * K * (gw >> (i + 1)) * (gh >> (i + 1));
-        if (s > colmax) colmax = s;
-    }
-#define B(p, n) if (!(r->p = sooc_calloc((n), sizeof(float)))) return SOOC_ENOMEM
-    B(cols, colmax);
-    B(gcols, colmax);
-    r->ncols = colmax;
-    r->ysh_ch = c->ref_ch[0];
-    B(ysh, (size_t)2 * c->ref_ch[0] * (gw / 2) * (gh / 2));
-    for (int i = 0; i < 4; i++) B(gy[i], (size_t)c->ref_ch[i] * K * (gw >> (i + 1)) * (gh >> (i + 1)));
-    int hid = c->ref_hidden;
-    B(gflat, (size_t)K * m->robj.nflat);
-    B(gf, (size_t)K * c->ref_fc);
-    B(gx, (size_t)K * (c->ref_fc + m->robj.nvec));
-    B(gg, (size_t)K * 4 * hid);
-    B(gh, (size_t)K * hid);
-    r->ngconv = m->robj.cb[3] + m->robj.ch[3] - m->robj.cw[0];   /* the object net's conv weights and biases */
-    if (m->rlay.cb[3] + m->rlay.ch[3] - m->rlay.cw[0] > r->ngconv) r->ngconv = m->rlay.cb[3] + m->rlay.ch[3] - m->rlay.cw[0];
-    B(gconv, r->ngconv);
-#undef B
-    return SOOC_OK;
-}
-
-void mdl_free_ws(sooc_model *m) {
-    mdl_pool_free(m);
-    dec_ws *w = &m->ws;
-    float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
-                    &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
-                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
-                    &w->g_bias, &w->wt};
-    for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) {
-        sooc_free(*fp[i]);
-        *fp[i] = NULL;
-    }
-    sooc_free(w->ro_pt);
-    sooc_free(w->ro_slot);
-    sooc_free(w->rowof);
-    sooc_free(w->lr_pt);
-    sooc_free(w->tbuf);
-    w->ro_pt = w->ro_slot = w->rowof = w->lr_pt = NULL;
-    w->tbuf = NULL;
-    ref_ws *r = &m->rws;
-    float **rp[] = {&r->cols, &r->gcols, &r->ysh, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
-                    &r->gg, &r->gh, &r->gconv};
-    for (size_t i = 0; i < sizeof rp / sizeof rp[0]; i++) {
-        sooc_free(*rp[i]);
-        *rp[i] = NULL;
-    }
 }

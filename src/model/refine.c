@@ -2,7 +2,7 @@
  * conv 3x3 stride 2 SAME (TF padding: 0 before, 1 after) + ELU, FC + ELU,
  * LSTMCell, linear head, on the src/nn pairs of sooc3d/nn_refine.h.
  * Activations are [channel][item][pixel]. */
-#include "model/model_internal.h"
+#include "model/refine.h"
 #include "sooc3d/nn_refine.h"
 
 #include <math.h>
@@ -63,11 +63,9 @@ static inline float logf_pos(float x) {
 
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
-int mdl_aux_channels(int layout) { return layout ? 25 : 26; }
-
 /* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
 typedef struct aux_job {
-    const sooc_model *m;
+    const dec_ws *w;
     const dec_call *c;
     float *img_o, *img_l;
     const float *post_all;
@@ -78,7 +76,7 @@ typedef struct aux_job {
 static void aux_task(void *ctx, int comp, int tid) {
     const aux_job *j = ctx;
     const dec_call *c = j->c;
-    const dec_ws *w = &j->m->ws;
+    const dec_ws *w = j->w;
     const view_rays *vr = c->rays;
     float *img_o = j->img_o, *img_l = j->img_l;
     const float *post_all = j->post_all;
@@ -192,11 +190,12 @@ static void aux_task(void *ctx, int comp, int tid) {
 #undef CH
 }
 
-void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
+void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
                     float *vec_o, float *img_l, float *vec_l) {
     MDL_PT(tprof);
+    const sooc_model *m = x->m;
     const sooc_model_config *cfg = &m->cfg;
-    const dec_ws *w = &m->ws;
+    const dec_ws *w = x->dec;
     const view_rays *vr = c->rays;
     int N = vr->N, K = c->nslot, C = K + 1, NL = m->NL, d = cfg->d_what, dl = cfg->d_layout;
     float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * smax;
@@ -239,8 +238,8 @@ void mdl_aux_inputs(sooc_model *m, const dec_call *c, const float *g_lam, const 
         float *restrict c5 = img_l + 5 * (size_t)N, *restrict c6 = img_l + 6 * (size_t)N, *restrict c7 = img_l + 7 * (size_t)N;
         for (int rr = 0; rr < N; rr++) c5[rr] = vr->dir[rr * 3], c6[rr] = vr->dir[rr * 3 + 1], c7[rr] = vr->dir[rr * 3 + 2];
     }
-    aux_job aj = {m, c, img_o, img_l, post_all, N, K, C, smax, eps_s, is2, lognorm, inv_rh, inv_b, s2};
-    if (N >= MDL_PAR_ROWS && mdl_par_threads(m) > 1) mdl_par_run(m, C, aux_task, &aj);
+    aux_job aj = {w, c, img_o, img_l, post_all, N, K, C, smax, eps_s, is2, lognorm, inv_rh, inv_b, s2};
+    if (N >= MDL_PAR_ROWS && mdl_par_threads(x) > 1) mdl_par_run(x, C, aux_task, &aj);
     else
         for (int comp = 0; comp < C; comp++) aux_task(&aj, comp, 0);
     /* vector inputs */
@@ -374,9 +373,10 @@ static void ref_tail_task(void *ctx, int q, int tid) {
     ref_tail(j->p, j->nn[q], j->aa[q], j->gw, j->gh, j->oo[q], tid == 0);
 }
 
-void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
+void mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
                       float *out1, int gw, int gh) {
-    const float *p = m->p;
+    const float *p = x->m->p;
+    const ref_ws *rw = x->ref;
     const ref_net *nn[2] = {n0, n1};
     ref_act *aa[2] = {a0, a1};
     float *oo[2] = {out0, out1};
@@ -391,9 +391,9 @@ void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0
         const ref_net *n = nn[q];
         ref_act *a = aa[q];
         ntask += a->B;
-        if (a->nsh > 0 && a->nsh < n->cin && a->B > 1 && (size_t)n->ch[0] <= (size_t)m->rws.ysh_ch) {
-            float *y = m->rws.ysh + (size_t)q * m->rws.ysh_ch * HW1;
-            sooc_nn_rconv_shared(y, m->rws.cols, a->x0, p + n->cw[0], a->B, n->cin, gh, gw, n->ch[0], a->nsh);
+        if (a->nsh > 0 && a->nsh < n->cin && a->B > 1 && (size_t)n->ch[0] <= (size_t)rw->ysh_ch) {
+            float *y = rw->ysh + (size_t)q * rw->ysh_ch * HW1;
+            sooc_nn_rconv_shared(y, rw->cols, a->x0, p + n->cw[0], a->B, n->cin, gh, gw, n->ch[0], a->nsh);
             ysh[q] = y;
         }
         size_t s = sooc_nn_rconv_cols_floats(n->cin, 1, gh, gw);
@@ -403,16 +403,16 @@ void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0
         }
         if (s > cstride) cstride = s;
     }
-    int nt = mdl_par_threads(m);
-    if ((size_t)nt * cstride > m->rws.ncols) nt = 1;   /* a column slice per thread does not fit (never at K >= threads) */
+    int nt = mdl_par_threads(x);
+    if ((size_t)nt * cstride > rw->ncols) nt = 1;   /* a column slice per thread does not fit (never at K >= threads) */
     /* Items are independent through the conv stack: each runs all four layers on one
      * thread (the second net's items first: the layout item has no shared channels and
      * costs the most); then each net's FC/LSTM/head on one thread. */
-    ref_job j = {p, {nn[0], nn[1]}, {aa[0], aa[1]}, {oo[0], oo[1]}, {ysh[0], ysh[1]}, m->rws.cols, cstride, nnet, gw, gh};
+    ref_job j = {p, {nn[0], nn[1]}, {aa[0], aa[1]}, {oo[0], oo[1]}, {ysh[0], ysh[1]}, rw->cols, cstride, nnet, gw, gh};
     if (nt > 1) {
-        mdl_par_run(m, ntask, ref_conv_task, &j);
+        mdl_par_run(x, ntask, ref_conv_task, &j);
         MDL_PACC(MDL_PR_CONV0, tprof);
-        mdl_par_run(m, nnet, ref_tail_task, &j);
+        mdl_par_run(x, nnet, ref_tail_task, &j);
     } else {
         for (int t = 0; t < ntask; t++) ref_conv_task(&j, t, 0);
         MDL_PACC(MDL_PR_CONV0, tprof);
@@ -420,15 +420,16 @@ void mdl_ref_forward2(sooc_model *m, const ref_net *n0, ref_act *a0, float *out0
     }
 }
 
-void mdl_ref_forward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
-    mdl_ref_forward2(m, n, a, out, NULL, NULL, NULL, gw, gh);
+void mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
+    mdl_ref_forward2(x, n, a, out, NULL, NULL, NULL, gw, gh);
 }
 
 /* The conv stack's backward on items [bb[q], bb[q + 1]) (a pool task): weight
  * gradients into gd[q] (slab offsets less g0), columns in the block's share of
  * rws.cols / gcols, input gradients of those items only. */
 typedef struct conv_bjob {
-    sooc_model *m;
+    const float *p;
+    ref_ws *s;
     const ref_net *n;
     ref_act *a;
     int gw, gh, nblk, bb[3];
@@ -440,8 +441,8 @@ static void conv_bwd_task(void *ctx, int q, int tid) {
     const conv_bjob *j = ctx;
     const ref_net *n = j->n;
     ref_act *a = j->a;
-    ref_ws *s = &j->m->rws;
-    const float *p = j->m->p;
+    ref_ws *s = j->s;
+    const float *p = j->p;
     int B = a->B, b0 = j->bb[q], b1 = j->bb[q + 1];
     size_t per_item = s->ncols / (size_t)B;   /* every layer's columns are a multiple of the items */
     float *cols = s->cols + per_item * b0, *gcols = s->gcols + per_item * b0, *gd = j->gd[q];
@@ -461,11 +462,11 @@ static void conv_bwd_task(void *ctx, int q, int tid) {
     }
 }
 
-void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
+void mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
                       float *dc, float *gvec) {
-    const float *p = m->p;
-    float *g = m->g;
-    ref_ws *s = &m->rws;
+    const float *p = x->m->p;
+    float *g = x->m->g;
+    ref_ws *s = x->ref;
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
     size_t HW = (size_t)gw * gh;
     /* head (act NONE: gout is not written) */
@@ -505,10 +506,56 @@ void mdl_ref_backward(sooc_model *m, const ref_net *n, ref_act *a, int gw, int g
     SOOC_ASSERT(ng <= s->ngconv);
     int nblk = B >= 2 ? 2 : 1;
     if (nblk == 2) memset(s->gconv, 0, ng * sizeof(float));
-    conv_bjob j = {m, n, a, gw, gh, nblk, {0, (B + 1) / 2, B}, {g + g0, s->gconv}, g0};
-    if (nblk == 2 && mdl_par_threads(m) > 1) mdl_par_run(m, 2, conv_bwd_task, &j);
+    conv_bjob j = {p, s, n, a, gw, gh, nblk, {0, (B + 1) / 2, B}, {g + g0, s->gconv}, g0};
+    if (nblk == 2 && mdl_par_threads(x) > 1) mdl_par_run(x, 2, conv_bwd_task, &j);
     else
         for (int q = 0; q < nblk; q++) conv_bwd_task(&j, q, 0);
     if (nblk == 2)
         for (size_t i = 0; i < ng; i++) g[g0 + i] += s->gconv[i];
+}
+
+/* ------------------------------------------------------------ workspace */
+
+/* The refinement's part of a runner's workspace (sooc_model_ws): conv
+ * columns, the backward's gradient maps, sized for K items. */
+sooc_status mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
+    *out = NULL;
+    const sooc_model_config *c = &m->cfg;
+    int K = c->K;
+    ref_ws *r = sooc_calloc(1, sizeof *r);
+    if (!r) return SOOC_ENOMEM;
+    int gw = c->ray_w, gh = c->ray_h;
+    int cinmax = m->robj.cin > m->rlay.cin ? m->robj.cin : m->rlay.cin;
+    size_t colmax = (size_t)cinmax * 9 * K * (gw / 2) * (gh / 2);
+    for (int i = 1; i < 4; i++) {
+        size_t s = (size_t)c->ref_ch[i - 1] * 9 * K * (gw >> (i + 1)) * (gh >> (i + 1));
+        if (s > colmax) colmax = s;
+    }
+#define B(p, n) if (!(r->p = sooc_calloc((n), sizeof(float)))) { mdl_ref_ws_destroy(r); return SOOC_ENOMEM; }
+    B(cols, colmax);
+    B(gcols, colmax);
+    r->ncols = colmax;
+    r->ysh_ch = c->ref_ch[0];
+    B(ysh, (size_t)2 * c->ref_ch[0] * (gw / 2) * (gh / 2));
+    for (int i = 0; i < 4; i++) B(gy[i], (size_t)c->ref_ch[i] * K * (gw >> (i + 1)) * (gh >> (i + 1)));
+    int hid = c->ref_hidden;
+    B(gflat, (size_t)K * m->robj.nflat);
+    B(gf, (size_t)K * c->ref_fc);
+    B(gx, (size_t)K * (c->ref_fc + m->robj.nvec));
+    B(gg, (size_t)K * 4 * hid);
+    B(gh, (size_t)K * hid);
+    r->ngconv = m->robj.cb[3] + m->robj.ch[3] - m->robj.cw[0];   /* the object net's conv weights and biases */
+    if (m->rlay.cb[3] + m->rlay.ch[3] - m->rlay.cw[0] > r->ngconv) r->ngconv = m->rlay.cb[3] + m->rlay.ch[3] - m->rlay.cw[0];
+    B(gconv, r->ngconv);
+#undef B
+    *out = r;
+    return SOOC_OK;
+}
+
+void mdl_ref_ws_destroy(ref_ws *r) {
+    if (!r) return;
+    float **rp[] = {&r->cols, &r->gcols, &r->ysh, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
+                    &r->gg, &r->gh, &r->gconv};
+    for (size_t i = 0; i < sizeof rp / sizeof rp[0]; i++) sooc_free(*rp[i]);
+    sooc_free(r);
 }

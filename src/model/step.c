@@ -3,7 +3,7 @@
  * with a cognitive map, then Q query views decoded from the final map; one
  * local backward per decode, then a reverse sweep over the λ chain and the
  * refinement activations, routing gradients through the map's transforms. */
-#include "model/step_internal.h"
+#include "model/step.h"
 
 #include <math.h>
 #include <string.h>
@@ -60,8 +60,9 @@ sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
 
 void mdl_view_free(view_rec *V) { free_view(V); }
 
-step_state *mdl_step_state(sooc_model *m, int T, int L) {
-    step_state *S = m->step;
+step_state *mdl_step_state(sooc_model_ws *x, int T, int L) {
+    sooc_model *m = x->m;
+    step_state *S = x->step;
     const sooc_model_config *c = &m->cfg;
     if (!S) {
         S = sooc_calloc(1, sizeof *S);
@@ -86,7 +87,7 @@ step_state *mdl_step_state(sooc_model *m, int T, int L) {
         S->tmp0 = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
         S->tmpl0 = sooc_calloc(64, sizeof(float));
         S->gbak = sooc_calloc(m->np, sizeof(float));
-        m->step = S;
+        x->step = S;
         if (!S->vec_o || !S->vec_l || !S->gvec || !S->dh || !S->dc || !S->delta || !S->tmp0 || !S->tmpl0 ||
             !S->gbak)
             return NULL;
@@ -107,8 +108,7 @@ step_state *mdl_step_state(sooc_model *m, int T, int L) {
     return S;
 }
 
-void mdl_step_free(sooc_model *m) {
-    step_state *S = m->step;
+void mdl_step_free(step_state *S) {
     if (!S) return;
     for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
     sooc_free(S->views);
@@ -125,7 +125,6 @@ void mdl_step_free(sooc_model *m) {
     sooc_free(S->id_view);
     sooc_free(S->id_slot);
     sooc_free(S);
-    m->step = NULL;
 }
 
 void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam) {
@@ -262,8 +261,9 @@ static float bound_deriv(float delta, float s) {
  * train = 1: decodes l = 0..L with local backward (weight grads w_l = l/L),
  * stores everything for the reverse sweep. train = 0: decodes l = 0..L-1
  * (backward to the inputs only, for the auxiliary inputs), no final decode. */
-sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
+sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
                              sooc_rng *rng, double *loss_w, dec_call *last) {
+    sooc_model *m = x->m;
     const sooc_model_config *c = &m->cfg;
     int K = V->nslot, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, H = c->ref_hidden;
     int gw = c->ray_w, gh = c->ray_h;
@@ -302,7 +302,7 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
         memset(S->tmpl0, 0, D2 * sizeof(float));
         dc.g_lam0 = S->tmp0, dc.g_lay0 = S->tmpl0;
         if (S->aux_replay) dc.zw_sg = V->zwb[l];
-        if ((st = mdl_decode(m, &dc))) return st;
+        if ((st = mdl_decode(x, &dc))) return st;
         if (!S->aux_replay)
             for (int k = 0; k < K; k++)
                 for (int i = 0; i < 3; i++) V->zwb[l][k * 3 + i] = dc.zw[k][i];
@@ -318,7 +318,7 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
         ao->B = K;
         int nvo = m->robj.nvec, fco = m->robj.fc, nvl = m->rlay.nvec, fcl = m->rlay.fc;
         if (!S->aux_replay) {
-            mdl_aux_inputs(m, &dc, glam, glay, ao->x0, S->vec_o, al->x0, S->vec_l);
+            mdl_aux_inputs(x, &dc, glam, glay, ao->x0, S->vec_o, al->x0, S->vec_l);
             ao->nsh = K > 1 ? MDL_AUX_NSH : 0;
             al->nsh = 0;
             for (int k = 0; k < K; k++)
@@ -341,7 +341,7 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
         }
         /* objects and layout in one pass (their conv items split across the threads together) */
         float *dl_lay = S->delta + (size_t)c->K * NL;
-        mdl_ref_forward2(m, &m->robj, ao, S->delta, &m->rlay, al, dl_lay, gw, gh);
+        mdl_ref_forward2(x, &m->robj, ao, S->delta, &m->rlay, al, dl_lay, gw, gh);
         float *nlam = lam + (size_t)K * NL, *nlay = lay + D2;
         for (int k = 0; k < K; k++)
             for (int i = 0; i < NL; i++) {
@@ -356,7 +356,8 @@ sooc_status mdl_view_forward(sooc_model *m, step_state *S, view_rec *V, int L, c
 /* Reverse sweep of one view: V->G / V->Glay hold the gradient w.r.t. λ^L from
  * later views and queries. On return, V->G / V->Glay hold the gradient w.r.t.
  * the view's starting λ^0 = its prior (including the KL-prior terms). */
-void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L) {
+void mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L) {
+    sooc_model *m = x->m;
     const sooc_model_config *c = &m->cfg;
     int K = V->nslot, NL = m->NL, D2 = 2 * c->d_layout, H = c->ref_hidden;
     int gw = c->ray_w, gh = c->ray_h;
@@ -384,14 +385,14 @@ void mdl_view_backward(sooc_model *m, step_state *S, view_rec *V, int L) {
                 float s = bound_scale_obj(i, c->d_what);
                 S->tmp0[j] = G[j] * bound_deriv(lb[j] - la[j], s);
             }
-        mdl_ref_backward(m, &m->robj, &V->ao[l], gw, gh, S->tmp0, S->dh, S->dc, S->gvec);
+        mdl_ref_backward(x, &m->robj, &V->ao[l], gw, gh, S->tmp0, S->dh, S->dc, S->gvec);
         const float *gl = V->glam + (size_t)l * K * NL;
         for (int k = 0; k < K; k++)
             for (int i = 0; i < NL; i++) G[k * NL + i] += S->gvec[(size_t)k * nvo + i] + wl * gl[k * NL + i];
         memset(S->gvec, 0, nvl * sizeof(float));
         const float *ya = V->lay + (size_t)l * D2, *yb = ya + D2;
         for (int i = 0; i < D2; i++) S->tmpl0[i] = Gl[i] * bound_deriv(yb[i] - ya[i], bound_scale_lay(i, c->d_layout));
-        mdl_ref_backward(m, &m->rlay, &V->al[l], gw, gh, S->tmpl0, dhl, dcl, S->gvec);
+        mdl_ref_backward(x, &m->rlay, &V->al[l], gw, gh, S->tmpl0, dhl, dcl, S->gvec);
         const float *gll = V->glay + (size_t)l * D2;
         for (int i = 0; i < D2; i++) Gl[i] += S->gvec[i] + wl * gll[i];
     }
@@ -418,8 +419,9 @@ static int lay_find(const step_state *S, int32_t bi, int32_t bj) {
     return -1;
 }
 
-sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T, const sooc_frame *queries, int Q,
+sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int T, const sooc_frame *queries, int Q,
                                   const sooc_step_opts *opt, sooc_rng *rng, sooc_step_losses *out) {
+    sooc_model *m = x->m;
     sooc_step_opts od;
     if (!opt) {
         sooc_step_opts_default(&od);
@@ -431,7 +433,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
     const sooc_model_config *c = &m->cfg;
     int L = opt->L > 0 ? opt->L : c->L, K = c->K, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "train step: L must be >= 1");
-    step_state *S = mdl_step_state(m, T + 1, L);
+    step_state *S = mdl_step_state(x, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_cogmap_clear(S->map, 1);
@@ -451,7 +453,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
             V->src_view[k] = ok ? S->id_view[id] : -1;
             V->src_slot[k] = ok ? S->id_slot[id] : -1;
         }
-        if ((st = mdl_view_forward_train(m, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
+        if ((st = mdl_view_forward_train(x, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
         if (nonfinite) break;
         /* register */
         const float *lamL = V->lam + (size_t)L * K * NL;
@@ -495,7 +497,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
             if ((st = mdl_view_setup(m, S->map, V, &queries[q], 0, rng, NULL))) goto fail;
             int li = lay_find(S, V->bi, V->bj);
             V->lay_src = li >= 0 ? S->lay_view[li] : -1;
-            if ((st = mdl_query_decode(m, S, V, q, V->nslot, V->lam0, V->lay0, opt, rng, &total, out, &nonfinite)))
+            if ((st = mdl_query_decode(x, S, V, q, V->nslot, V->lam0, V->lay0, opt, rng, &total, out, &nonfinite)))
                 goto fail;
             if (nonfinite) break;
             /* route to the registering views */
@@ -516,7 +518,7 @@ sooc_status sooc_model_train_step(sooc_model *m, const sooc_frame *views, int T,
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
             view_rec *V = &S->views[t];
-            mdl_view_backward(m, S, V, L);
+            mdl_view_backward(x, S, V, L);
             for (int k = 0; k < K; k++) {
                 const float *g = V->G + (size_t)k * NL;
                 if (V->prior_idx[k] >= 0) {
@@ -557,11 +559,11 @@ sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonf
 /* Training forward of one input view (plain and global-frame steps): add its
  * weighted loss to *total and its final-iterate terms to out. A non-finite
  * loss is not an error: it sets *nonfinite and returns SOOC_OK. */
-sooc_status mdl_view_forward_train(sooc_model *m, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+sooc_status mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
                                    sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite) {
     double lw;
     dec_call last;
-    sooc_status st = mdl_view_forward(m, S, V, L, opt, 1, rng, &lw, &last);
+    sooc_status st = mdl_view_forward(x, S, V, L, opt, 1, rng, &lw, &last);
     if (st == SOOC_ENUMERIC) {
         *nonfinite = 1;
         return SOOC_OK;
@@ -581,9 +583,10 @@ sooc_status mdl_view_forward_train(sooc_model *m, step_state *S, view_rec *V, in
  * route; the loss goes to *total and out. The sampled z_where are kept in
  * S->zq[q] (or replayed from it, S->aux_replay) for the gradient checks. A
  * non-finite loss sets *nonfinite and returns SOOC_OK. */
-sooc_status mdl_query_decode(sooc_model *m, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+sooc_status mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
                              const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
                              sooc_step_losses *out, int *nonfinite) {
+    sooc_model *m = x->m;
     mdl_sample_noise(m, rng, &V->noise[0]);
     memset(S->tmp0, 0, (size_t)nslot * m->NL * sizeof(float));
     memset(S->tmpl0, 0, 2 * (size_t)m->cfg.d_layout * sizeof(float));
@@ -602,7 +605,7 @@ sooc_status mdl_query_decode(sooc_model *m, step_state *S, view_rec *V, int q, i
     dc.backward = 1;
     dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
     if (S->aux_replay) dc.zw_sg = S->zq[q];
-    sooc_status st = mdl_decode(m, &dc);
+    sooc_status st = mdl_decode(x, &dc);
     if (st == SOOC_ENUMERIC) {
         *nonfinite = 1;
         return SOOC_OK;

@@ -325,7 +325,7 @@ static int load_visit(void *user, const sooc_cogmap_entry *c) {
     load_ctx *L = user;
     sooc_node *n = L->n;
     if ((L->st = grow((void **)&n->prev, &n->cap_prev, n->n_prev + 1, sizeof *n->prev))) return 1;
-    sooc3d_mapper_entry_from_cogmap(c, n->extent, &n->prev[n->n_prev]);
+    sooc_map_entry_from_cogmap(c, n->extent, &n->prev[n->n_prev]);
     n->n_prev++;
     return 0;
 }
@@ -420,7 +420,7 @@ static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, c
         st = sooc_mapstore_begin(n->store);
         sooc_cogmap_entry ce;
         for (size_t i = 0; i < nc && !st && to_db; i++) {
-            sooc3d_mapper_entry_to_cogmap(&chg[i], &ce);
+            sooc_map_entry_to_cogmap(&chg[i], &ce);
             st = sooc_mapstore_put_entries(n->store, &ce, 1);
             if (!st && (chg[i].geom.flags || chg[i].geom.reg_n))   /* object geometry (schema 3) */
                 st = sooc_mapstore_geom_put(n->store, chg[i].id, chg[i].extent, &chg[i].geom);

@@ -3,6 +3,7 @@
 #include "sooc3d/train.h"
 #include "sooc3d/dist.h"
 #include "sooc3d/eval.h"
+#include "sooc3d/global.h"
 #include "sooc3d/nn.h"
 
 #include <math.h>
@@ -32,6 +33,7 @@ typedef struct trainer {
     const sooc_train_config *cfg;
     const sooc_train_run_params *rp;
     sooc_model *model;
+    sooc_model_ws *ws;        /* the trainer runs the model: its workspace */
     sooc_nn_params adam;      /* wraps the model's slabs               */
     sooc_nn_param_view view;
     float *m, *v;
@@ -256,6 +258,7 @@ static sooc_status sync_ranks(trainer *tr) {
 }
 
 static void trainer_free(trainer *tr) {
+    sooc_model_ws_destroy(tr->ws);
     sooc_model_destroy(tr->model);
     sooc_free(tr->m);
     sooc_free(tr->v);
@@ -305,6 +308,7 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
     tr.idbits = sooc_malloc(65536 / 8);
     if (cfg->accum > 1) tr.gacc = sooc_malloc(tr.n * sizeof(float));
     if (!tr.m || !tr.v || !tr.idbits || (cfg->accum > 1 && !tr.gacc)) { s = SOOC_ENOMEM; goto done; }
+    if ((s = sooc_model_ws_create(&tr.ws, tr.model))) goto done;
     tr.st.magic = TRAINER_MAGIC;
     tr.st.version = TRAINER_VERSION;
     tr.st.n_params = tr.n;
@@ -414,10 +418,10 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
             t_data += t1 - t0;
             sooc_step_losses l;
             if (sooc_model_is_global(tr.model))   /* MulMON-style baseline (docs/baseline.md) */
-                s = sooc_model_global_train_step(tr.model, views, nv, queries, nq, sooc_dataset_n_objects(ds, sc),
+                s = sooc_model_global_train_step(tr.ws, views, nv, queries, nq, sooc_dataset_n_objects(ds, sc),
                                                  &o, &rng, &l);
             else
-                s = sooc_model_train_step(tr.model, views, nv, queries, nq, &o, &rng, &l);
+                s = sooc_model_train_step(tr.ws, views, nv, queries, nq, &o, &rng, &l);
             if (s) {
                 sooc_adderr(s, "step %lld, scene %s", (long long)step, sooc_dataset_scene_path(ds, sc));
                 goto done;

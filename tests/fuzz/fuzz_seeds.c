@@ -16,11 +16,8 @@
 #include "sooc3d/image.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
-#include "sooc3d/nn.h"
 #include "sooc3d/pose.h"
 #include "sooc3d/scene.h"
-
-void sooc_fuzz_nn_layout(sooc_nn_params *p);
 
 static const char *out_dir;
 
@@ -38,21 +35,6 @@ static const char *path(const char *target, const char *name) {
 int main(int argc, char **argv) {
     if (argc != 2) { fprintf(stderr, "usage: fuzz_seeds <out_dir>\n"); return 2; }
     out_dir = argv[1];
-
-    /* nn checkpoints: with and without optimizer state, with a trainer blob */
-    {
-        sooc_nn_params p;
-        sooc_fuzz_nn_layout(&p);
-        OK(sooc_nn_params_alloc(&p));
-        for (int v = 0; v < p.n_views; v++)
-            for (size_t i = 0; i < p.views[v].n; i++) p.w[p.views[v].offset + i] = 0.25f * (float)(i + 1);
-        p.adam_t = 3;
-        static const char cfg[] = "fuzz-config";
-        static const char trainer[16] = "trainer-state";
-        OK(sooc_nn_ckpt_save(path("nn_ckpt", "plain.ckpt"), &p, cfg, sizeof cfg, NULL, 0, 0));
-        OK(sooc_nn_ckpt_save(path("nn_ckpt", "adam_trainer.ckpt"), &p, cfg, sizeof cfg, trainer, sizeof trainer, 1));
-        sooc_nn_params_deinit(&p);
-    }
 
     /* a tiny model checkpoint (smallest sizes the config check accepts) */
     {

@@ -18,7 +18,6 @@
 #include "sooc3d/image.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
-#include "sooc3d/nn.h"
 #include "sooc3d/node.h"
 #include "sooc3d/pose.h"
 #include "sooc3d/scene.h"
@@ -137,40 +136,6 @@ static int fz_launch(const uint8_t *d, size_t n) {
     }
     return ok;
 }
-
-/* The fixed layout the nn checkpoint seeds were saved with (fuzz_seeds.c). */
-void sooc_fuzz_nn_layout(sooc_nn_params *p);
-void sooc_fuzz_nn_layout(sooc_nn_params *p) {
-    static const int64_t s_a[2] = {4, 3}, s_b[1] = {5}, s_c[3] = {2, 2, 2};
-    sooc_nn_params_init(p);
-    sooc_nn_params_add(p, "enc.W", 2, s_a);
-    sooc_nn_params_add(p, "enc.b", 1, s_b);
-    sooc_nn_params_add(p, "conv.k", 3, s_c);
-}
-
-static int nn_ckpt_one(const uint8_t *d, size_t n) {
-    const char *p = tmp_file("nn.ckpt", d, n);
-    void *cfg = NULL;
-    size_t cfg_n = 0;
-    sooc_nn_ckpt_read_config(p, 4096, &cfg, &cfg_n);
-    sooc_free(cfg);
-    sooc_nn_params par;
-    sooc_fuzz_nn_layout(&par);
-    int ok = 0;
-    if (sooc_nn_params_alloc(&par) == SOOC_OK) {
-        unsigned char trainer[64];
-        size_t tn = 0;
-        ok = sooc_nn_ckpt_load(p, &par, NULL, 0, trainer, sizeof trainer, &tn) == SOOC_OK;
-        static const char expect[] = "fuzz-config";
-        sooc_nn_ckpt_load(p, &par, expect, sizeof expect, NULL, 0, NULL);
-    }
-    sooc_nn_params_deinit(&par);
-    tmp_remove(p);
-    return ok;
-}
-
-/* The file ends with the CRC of all preceding bytes. */
-static int fz_nn_ckpt(const uint8_t *d, size_t n) { return raw_and_crc(nn_ckpt_one, d, n, -1); }
 
 static int model_ckpt_one(const uint8_t *d, size_t n) {
     const char *p = tmp_file("model.ckpt", d, n);
@@ -414,7 +379,6 @@ const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"scene", fz_scene},
     {"train_config", fz_train_config},
     {"launch", fz_launch},
-    {"nn_ckpt", fz_nn_ckpt},
     {"model_ckpt", fz_model_ckpt},
     {"mapstore", fz_mapstore},
     {"mapstore_sql", fz_mapstore_sql},

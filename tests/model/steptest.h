@@ -13,7 +13,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/step_internal.h"
+#include "model/step.h"
 
 /* Gives every refinement-head tensor ("head" in its name) N(0, s^2) weights,
  * so that gradients reach the refinement trunks (the heads start at zero). */

@@ -8,7 +8,7 @@
  * - a present new slot that owns no ray: no new entry (too few rays);
  * - the box test follows the decoder's frame (mdl_pi_cs) at any yaw. */
 #include "check.h"
-#include "model/model_internal.h"
+#include "model/step.h"
 #include "sooc3d/mapper.h"
 
 #include <math.h>

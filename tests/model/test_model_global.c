@@ -16,7 +16,8 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/step_internal.h"
+#include "model/step.h"
+#include "sooc3d/global.h"
 #include "sooc3d/eval.h"
 #include "steptest.h"
 #include "synth.h"
@@ -30,6 +31,7 @@ static void tiny_cfg(sooc_model_config *c) {
 }
 
 static sooc_frame F[4];
+static sooc_model_ws *W;   /* the workspace of the model a test runs */
 
 static double total_of(sooc_model *m, uint64_t seed, sooc_step_losses *ls) {
     sooc_rng r;
@@ -38,7 +40,8 @@ static double total_of(sooc_model *m, uint64_t seed, sooc_step_losses *ls) {
     sooc_step_opts_default(&o);
     o.tau = 0.8f;
     sooc_step_losses l;
-    CHECK_OK(sooc_model_global_train_step(m, F, 3, F + 3, 1, 0, &o, &r, &l));
+    (void)m;
+    CHECK_OK(sooc_model_global_train_step(W, F, 3, F + 3, 1, 0, &o, &r, &l));
     if (ls) *ls = l;
     return l.total;
 }
@@ -51,7 +54,8 @@ static double fd_total(sooc_model *m, void *ctx) {
 static sooc_status overfit_step(sooc_model *m, const sooc_step_opts *o, sooc_rng *r, sooc_step_losses *ls,
                                 void *ctx) {
     const sooc_frame *F = ctx;
-    return sooc_model_global_train_step(m, F, 2, F + 3, 1, 2, o, r, ls);
+    (void)m;
+    return sooc_model_global_train_step(W, F, 2, F + 3, 1, 2, o, r, ls);
 }
 
 static void test_grad(void) {
@@ -59,6 +63,7 @@ static void test_grad(void) {
     tiny_cfg(&c);
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 5));
+    CHECK_OK(sooc_model_ws_create(&W, m));
     CHECK(sooc_model_is_global(m));
     CHECK(sooc_model_global_slots(m, 0) == 3 && sooc_model_global_slots(m, 1) == 2 &&
           sooc_model_global_slots(m, 7) == 3);
@@ -77,7 +82,7 @@ static void test_grad(void) {
     CHECK(total_of(m, 77, NULL) == L0);
     CHECK(memcmp(g, m->g, m->np * sizeof(float)) == 0);
     /* persistence in the training step: λ^0 of view t = λ^L of view t-1 */
-    step_state *S = m->step;
+    step_state *S = W->step;
     int NL = m->NL, n = 3, L = c.L;
     for (int t = 1; t < 3; t++) {
         CHECK(S->views[t].nslot == n);
@@ -93,6 +98,7 @@ static void test_grad(void) {
     steptest_fd_check(m, g, &r, 1, 8, fd_total, NULL, "global step", &fd);
     CHECK_MSG(fd.worst <= 1.0, "global-step gradient check failed at %s", fd.wname);
     sooc_free(g);
+    sooc_model_ws_destroy(W);
     sooc_model_destroy(m);
 }
 
@@ -158,11 +164,13 @@ static void test_overfit(void) {
     c.global_frame = 1, c.global_radius = 2.5f;
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 2));
+    CHECK_OK(sooc_model_ws_create(&W, m));
     double first, last, t0 = sooc_seconds();
     steptest_overfit(m, 120, 30, overfit_step, F, &first, &last);
     printf("global overfit: mean loss first 10 steps %.1f, last 10 %.1f: drop %.2fx |first|, %.1f s\n", first, last,
            (first - last) / fabs(first), sooc_seconds() - t0);
     CHECK(first - last >= 0.5 * fabs(first));
+    sooc_model_ws_destroy(W);
     sooc_model_destroy(m);
 }
 

@@ -31,7 +31,8 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/model_internal.h"
+#include "model/step.h"
+#include "sooc3d/global.h"
 #include "model/synth.h"
 
 #define GOLDEN "tests/model/data/golden.txt"
@@ -107,7 +108,8 @@ static const synth_sphere g_sp[3] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}},
                                      {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}},
                                      {{0.9, 0.25, 2.0}, 0.25, {0.2f, 0.8f, 0.2f}}};
 
-static void check_decode(sooc_model *m, const char *tag, const sooc_frame *f) {
+static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f) {
+    sooc_model *m = w->m;
     const sooc_model_config *c = &m->cfg;
     int K = c->K, NL = m->NL, dl = c->d_layout;
     view_rays vr;
@@ -149,7 +151,7 @@ static void check_decode(sooc_model *m, const char *tag, const sooc_frame *f) {
     dc.g_lam = g_lam;
     dc.g_lay = g_lay;
     sooc_model_zero_grad(m);
-    CHECK_OK(mdl_decode(m, &dc));
+    CHECK_OK(mdl_decode(w, &dc));
     grp_begin(tag, "decode.loss");
     grp_add(dc.loss), grp_add(dc.nll_d), grp_add(dc.nll_c), grp_add(dc.kl);
     for (int k = 0; k < K; k++) grp_add(dc.zp[k]);
@@ -177,7 +179,8 @@ static void check_decode(sooc_model *m, const char *tag, const sooc_frame *f) {
     mdl_rays_free(&vr);
 }
 
-static void check_step(sooc_model *m, const char *tag, const sooc_frame *F) {
+static void check_step(sooc_model_ws *w, const char *tag, const sooc_frame *F) {
+    sooc_model *m = w->m;
     sooc_step_opts o;
     sooc_step_opts_default(&o);
     sooc_step_losses l;
@@ -185,8 +188,8 @@ static void check_step(sooc_model *m, const char *tag, const sooc_frame *F) {
     sooc_rng r;
     sooc_rng_seed(&r, 4242, 0);
     sooc_model_zero_grad(m);
-    if (sooc_model_is_global(m)) CHECK_OK(sooc_model_global_train_step(m, F, 2, F + 2, 1, 3, &o, &r, &l));
-    else CHECK_OK(sooc_model_train_step(m, F, 2, F + 2, 1, &o, &r, &l));
+    if (sooc_model_is_global(m)) CHECK_OK(sooc_model_global_train_step(w, F, 2, F + 2, 1, 3, &o, &r, &l));
+    else CHECK_OK(sooc_model_train_step(w, F, 2, F + 2, 1, &o, &r, &l));
     grp_begin(tag, "step.losses");
     grp_add(l.total), grp_add(l.nll_input), grp_add(l.kl), grp_add(l.nll_query), grp_add(l.nll_depth);
     grp_add(l.nll_color), grp_add(l.present_slots), grp_add(l.mean_pres_logit), grp_add(l.map_entries);
@@ -260,9 +263,12 @@ int main(int argc, char **argv) {
         const char *a = strchr(models[i], '/'), *b = a ? strchr(a + 1, '/') : NULL;
         snprintf(tag, sizeof tag, "%.*s", a && b ? (int)(b - a - 1) : 8, a ? a + 1 : models[i]);
         printf("%s: K %d, %dx%d rays, width %d\n", tag, c->K, c->ray_w, c->ray_h, c->dec_width);
-        check_decode(m, tag, &F[0]);
-        check_step(m, tag, F);
+        sooc_model_ws *w;
+        CHECK_OK(sooc_model_ws_create(&w, m));
+        check_decode(w, tag, &F[0]);
+        check_step(w, tag, F);
         for (int j = 0; j < 3; j++) sooc_frame_free(&F[j]);
+        sooc_model_ws_destroy(w);
         sooc_model_destroy(m);
         nrun++;
     }

@@ -7,7 +7,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/model_internal.h"
+#include "model/step.h"
 #include "synth.h"
 
 typedef struct worst {
@@ -111,6 +111,7 @@ static void test_kl(void) {
 /* ---- the fused decoder and the per-view loss of one decode ---- */
 typedef struct dec_fixture {
     sooc_model *m;
+    sooc_model_ws *w;
     sooc_frame f;
     view_rays vr;
     dec_noise nz;
@@ -123,6 +124,7 @@ static void fixture(dec_fixture *F, int use_box, uint64_t seed) {
     sooc_model_config c;
     synth_tiny_cfg(&c, 2, use_box);
     CHECK_OK(sooc_model_create(&F->m, &c, seed));
+    CHECK_OK(sooc_model_ws_create(&F->w, F->m));
     double T[16], Twg[16], h, pitch, roll;
     synth_pose(T, 0, 1.5, 0, 0.1, -0.45);
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
@@ -148,6 +150,7 @@ static void fixture(dec_fixture *F, int use_box, uint64_t seed) {
 static void fixture_free(dec_fixture *F) {
     mdl_rays_free(&F->vr);
     sooc_frame_free(&F->f);
+    sooc_model_ws_destroy(F->w);
     sooc_model_destroy(F->m);
 }
 
@@ -165,7 +168,7 @@ static double run_dec(dec_fixture *F, int backward, float *g_lam, float *g_lam0,
     c.backward = backward;
     c.g_lam = g_lam, c.g_lam0 = g_lam0, c.g_lay = g_lay, c.g_lay0 = g_lay0;
     c.zw_sg = use_sg ? F->zw_sg : NULL;
-    CHECK_OK(mdl_decode(F->m, &c));
+    CHECK_OK(mdl_decode(F->w, &c));
     if (backward)
         for (int k = 0; k < 2; k++)
             for (int i = 0; i < 3; i++) F->zw_sg[k * 3 + i] = c.zw[k][i];
@@ -200,8 +203,8 @@ static void test_decode(int use_box) {
     float g_lam[140] = {0}, g_lam0[140] = {0}, g_lay[64] = {0}, g_lay0[64] = {0};
     sooc_model_zero_grad(m);
     double L0 = run_dec(&F, 1, g_lam, g_lam0, g_lay, g_lay0, 1.0f, 0);
-    printf("decode loss %.4f (box %d, %d object rows)\n", L0, use_box, m->ws.nro);
-    CHECK(m->ws.nro > 0);
+    printf("decode loss %.4f (box %d, %d object rows)\n", L0, use_box, F.w->dec->nro);
+    CHECK(F.w->dec->nro > 0);
     /* the SG forward equals the plain forward at the base point */
     CHECK_CLOSE(run_dec(&F, 0, NULL, NULL, NULL, NULL, 0, 1), L0, 1e-6, 1e-6);
     double atol = 0.05, rtol = 0.03;
@@ -235,7 +238,8 @@ static void test_decode(int use_box) {
 }
 
 /* ---- refinement network: d(sum a*out)/d(weights, vector inputs) over two LSTM steps ---- */
-static double ref_run(sooc_model *m, const ref_net *n, ref_act a[2], const float *coef, int backward, float *gvec) {
+static double ref_run(sooc_model_ws *x, const ref_net *n, ref_act a[2], const float *coef, int backward, float *gvec) {
+    const sooc_model *m = x->m;
     int gw = m->cfg.ray_w, gh = m->cfg.ray_h, B = a[0].B, H = n->hid;
     float out[2][16 * 80];
     double f = 0;
@@ -246,13 +250,13 @@ static double ref_run(sooc_model *m, const ref_net *n, ref_act a[2], const float
             memcpy(a[1].h_prev, a[0].h, sizeof(float) * B * H);
             memcpy(a[1].c_prev, a[0].c, sizeof(float) * B * H);
         }
-        mdl_ref_forward(m, n, &a[s], gw, gh, out[s]);
+        mdl_ref_forward(x, n, &a[s], gw, gh, out[s]);
         for (int i = 0; i < B * n->nout; i++) f += coef[s * B * n->nout + i] * out[s][i];
     }
     if (backward) {
         float dh[16 * 128] = {0}, dc[16 * 128] = {0};
         for (int s = 1; s >= 0; s--)
-            mdl_ref_backward(m, n, &a[s], gw, gh, coef + s * B * n->nout, dh, dc, gvec + s * B * n->nvec);
+            mdl_ref_backward(x, n, &a[s], gw, gh, coef + s * B * n->nout, dh, dc, gvec + s * B * n->nvec);
     }
     return f;
 }
@@ -265,6 +269,8 @@ static void test_refine(int pooled) {
     if (pooled) c.img_w = c.img_h = c.ray_w = c.ray_h = 64;
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 11));
+    sooc_model_ws *x;
+    CHECK_OK(sooc_model_ws_create(&x, m));
     sooc_rng r;
     sooc_rng_seed(&r, 5, 0);
     /* the head starts at zero: give it weights so that gradients reach the trunk */
@@ -284,7 +290,7 @@ static void test_refine(int pooled) {
         float coef[2 * 16 * 80], gvec[2 * 16 * 160] = {0};
         for (int i = 0; i < 2 * B * n->nout; i++) coef[i] = (float)sooc_rng_normal(&r);
         sooc_model_zero_grad(m);
-        ref_run(m, n, a, coef, 1, gvec);
+        ref_run(x, n, a, coef, 1, gvec);
         worst w = {0};
         const char *pre = which ? "ref.lay" : "ref.obj";
         for (int t = 0; t < m->nt; t++) {
@@ -294,9 +300,9 @@ static void test_refine(int pooled) {
                 float keep = m->p[i];
                 double e = 1e-2;
                 m->p[i] = keep + (float)e;
-                double fp = ref_run(m, n, a, coef, 0, NULL);
+                double fp = ref_run(x, n, a, coef, 0, NULL);
                 m->p[i] = keep - (float)e;
-                double fm = ref_run(m, n, a, coef, 0, NULL);
+                double fm = ref_run(x, n, a, coef, 0, NULL);
                 m->p[i] = keep;
                 cmp(&w, m->t[t].name, (int)(i - m->t[t].offset), m->g[i], (fp - fm) / (2 * e), 1e-2, 2e-2);
             }
@@ -307,9 +313,9 @@ static void test_refine(int pooled) {
                     float *v = &a[s].xin[b * nin + n->fc + j], keep = *v;
                     double e = 1e-2;
                     *v = keep + (float)e;
-                    double fp = ref_run(m, n, a, coef, 0, NULL);
+                    double fp = ref_run(x, n, a, coef, 0, NULL);
                     *v = keep - (float)e;
-                    double fm = ref_run(m, n, a, coef, 0, NULL);
+                    double fm = ref_run(x, n, a, coef, 0, NULL);
                     *v = keep;
                     cmp(&w, "vec", j, gvec[(s * B + b) * n->nvec + j], (fp - fm) / (2 * e), 1e-2, 2e-2);
                 }
@@ -318,6 +324,7 @@ static void test_refine(int pooled) {
         mdl_ref_act_free(&a[0]);
         mdl_ref_act_free(&a[1]);
     }
+    sooc_model_ws_destroy(x);
     sooc_model_destroy(m);
 }
 

@@ -90,22 +90,22 @@ static void test_entry_convert(void) {
     for (int i = 0; i < 4; i++) e.what_mu[i] = 0.5f * (float)i, e.what_logvar[i] = -1.0f - (float)i;
     e.first_seen_ns = 10, e.last_seen_ns = 20, e.obs_count = 0;
     sooc_cogmap_entry ce;
-    sooc3d_mapper_entry_to_cogmap(&e, &ce);
+    sooc_map_entry_to_cogmap(&e, &ce);
     CHECK(ce.id == 42 && ce.X == 1.5 && ce.Z == -2.25 && ce.Theta == 0.5 && ce.dim == 4);
     CHECK(ce.obs_count == 1 && ce.last_view == -1 && ce.first_seen_ns == 10 && ce.last_seen_ns == 20);
     CHECK_CLOSE(ce.rho_t, 2 * log(0.25), 1e-6, 0);
     const float ext[3] = {1.2f, 1.0f, 1.2f};
-    sooc3d_mapper_entry_from_cogmap(&ce, ext, &back);
+    sooc_map_entry_from_cogmap(&ce, ext, &back);
     CHECK(back.id == 42 && back.x == 1.5 && back.latent_dim == 4 && back.obs_count == 1);
     CHECK_CLOSE(back.sigma_t, 0.25, 1e-6, 0);
     CHECK_CLOSE(back.sigma_yaw, 0.125, 1e-6, 0);
     CHECK_CLOSE(back.presence, 1.0 / (1.0 + exp(-2.0)), 1e-6, 0);
     CHECK(memcmp(back.what_logvar, e.what_logvar, 4 * sizeof(float)) == 0);
     CHECK(back.extent[0] == 1.2f && back.extent[1] == 1.0f && back.extent[2] == 1.2f);
-    sooc3d_mapper_entry_from_cogmap(&ce, NULL, &back);
+    sooc_map_entry_from_cogmap(&ce, NULL, &back);
     CHECK(back.extent[0] == 0 && back.extent[1] == 0);
     e.sigma_t = 0; /* floored at 1e-12, never log(0) */
-    sooc3d_mapper_entry_to_cogmap(&e, &ce);
+    sooc_map_entry_to_cogmap(&e, &ce);
     CHECK(isfinite(ce.rho_t));
 }
 

@@ -14,10 +14,13 @@
 #define OVERFIT_STEPS 150
 #define OVERFIT_FACTOR 1.0
 
+static sooc_model_ws *W;   /* the test runs the model: its workspace */
+
 static sooc_status overfit_step(sooc_model *m, const sooc_step_opts *o, sooc_rng *r, sooc_step_losses *ls,
                                 void *ctx) {
     const sooc_frame *F = ctx;
-    return sooc_model_train_step(m, F, 2, F + 2, 1, o, r, ls);
+    (void)m;
+    return sooc_model_train_step(W, F, 2, F + 2, 1, o, r, ls);
 }
 
 int main(void) {
@@ -26,6 +29,7 @@ int main(void) {
     steptest_overfit_cfg(&c);
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 2));
+    CHECK_OK(sooc_model_ws_create(&W, m));
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
     double T[3][16];
     synth_pose(T[0], 0, 1.5, 0, 0.1, -0.45);
@@ -41,6 +45,7 @@ int main(void) {
     CHECK(first - last >= OVERFIT_FACTOR * fabs(first));
     CHECK(dt < 120);
     for (int i = 0; i < 3; i++) sooc_frame_free(&F[i]);
+    sooc_model_ws_destroy(W);
     sooc_model_destroy(m);
     return check_report("test_model_overfit");
 }

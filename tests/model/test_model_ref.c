@@ -8,7 +8,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "model/model_internal.h"
+#include "model/step.h"
 
 static const uint8_t *rp;
 static size_t rleft;
@@ -82,6 +82,8 @@ static int run_ref(int unknown) {
     c.img_w = c.img_h = (int)lround(sqrt(Fl[12]));
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 1));
+    sooc_model_ws *w;
+    CHECK_OK(sooc_model_ws_create(&w, m));
     int NL = m->NL, P = 2 * N, C = K + 1;
     view_rays vr;
     CHECK_OK(mdl_rays_alloc(&vr, 16, 16));
@@ -121,18 +123,18 @@ static int run_ref(int unknown) {
     dc.tau = tau, dc.beta_kl = beta, dc.wgrad = 1.0f, dc.backward = 1;
     dc.g_lam = g_lam, dc.g_lam0 = g_lam0, dc.g_lay = g_lay, dc.g_lay0 = g_lay0;
     sooc_model_zero_grad(m);
-    CHECK_OK(mdl_decode(m, &dc));
+    CHECK_OK(mdl_decode(w, &dc));
     printf("test_model_ref: loss C %.6f ref %.6f | nll C %.6f ref %.6f | kl C %.6f ref %.6f | %d object rows\n",
-           dc.loss, ref3[0], dc.nll, ref3[1], dc.kl, ref3[2], m->ws.nro);
+           dc.loss, ref3[0], dc.nll, ref3[1], dc.kl, ref3[2], w->dec->nro);
     CHECK_CLOSE(dc.loss, ref3[0], 1e-3, 1e-5);
     CHECK_CLOSE(dc.nll, ref3[1], 1e-3, 1e-5);
     CHECK_CLOSE(dc.kl, ref3[2], 1e-4, 1e-5);
-    CHECK(m->ws.nro > 0);
+    CHECK(w->dec->nro > 0);
     /* outputs at used points */
     float *c_col = calloc(P * 3, 4);
     for (int p = 0; p < P; p++)
-        if ((p & 1) ? !vr.unk[p >> 1] : vr.surf[p >> 1]) memcpy(c_col + p * 3, m->ws.cc + p * 3, 12);
-    cmp_arr("sigma_hat", m->ws.sh, r_sh, (size_t)P * C, 1e-4);
+        if ((p & 1) ? !vr.unk[p >> 1] : vr.surf[p >> 1]) memcpy(c_col + p * 3, w->dec->cc + p * 3, 12);
+    cmp_arr("sigma_hat", w->dec->sh, r_sh, (size_t)P * C, 1e-4);
     cmp_arr("colour", c_col, r_col, (size_t)P * 3, 1e-4);
     cmp_arr("dL/dlam", g_lam, r_gl, (size_t)K * NL, 2e-3);
     cmp_arr("dL/dlam0", g_lam0, r_gl0, (size_t)K * NL, 2e-3);
@@ -144,6 +146,7 @@ static int run_ref(int unknown) {
         cmp_arr(m->t[t].name, m->g + m->t[t].offset, r_gw + o, m->t[t].count, 2e-3);
     }
     mdl_rays_free(&vr);
+    sooc_model_ws_destroy(w);
     sooc_model_destroy(m);
     free(surf), free(lam), free(lam0), free(lay), free(lay0), free(r_sh), free(r_col), free(r_gl), free(r_gl0);
     free(r_gy), free(r_gy0), free(r_gw), free(c_col);

@@ -29,8 +29,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/model_internal.h"
-#include "model/step_internal.h"
+#include "model/step.h"
 #include "model/synth.h"
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
@@ -116,7 +115,8 @@ static void fill(float *x, size_t n, sooc_rng *r, float s) {
 
 /* ------------------------------------------------------------ 1 + 2: the nets */
 
-static void nets(gold *g, sooc_model *m) {
+static void nets(gold *g, sooc_model_ws *w) {
+    sooc_model *m = w->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     int K = c->K, gw = c->ray_w, gh = c->ray_h, HW = gw * gh, H = c->ref_hidden;
     const ref_net *no = &m->robj, *nl = &m->rlay;
@@ -140,7 +140,7 @@ static void nets(gold *g, sooc_model *m) {
     fill(al.h_prev, (size_t)H, &r, 0.3f);
     fill(al.c_prev, (size_t)H, &r, 0.3f);
     float *out_o = calloc((size_t)K * no->nout, sizeof(float)), *out_l = calloc((size_t)nl->nout, sizeof(float));
-    mdl_ref_forward2(m, no, &ao, out_o, nl, &al, out_l, gw, gh);
+    mdl_ref_forward2(w, no, &ao, out_o, nl, &al, out_l, gw, gh);
     put_arr(g, "fwd.obj.out", out_o, (size_t)K * no->nout);
     put_digest(g, "fwd.obj.h", ao.h, (size_t)K * H);
     put_digest(g, "fwd.obj.c", ao.c, (size_t)K * H);
@@ -149,7 +149,7 @@ static void nets(gold *g, sooc_model *m) {
     put_digest(g, "fwd.lay.c", al.c, (size_t)H);
     /* the one-net entry point gives the same numbers */
     float *out1 = calloc((size_t)K * no->nout, sizeof(float));
-    mdl_ref_forward(m, no, &ao, gw, gh, out1);
+    mdl_ref_forward(w, no, &ao, gw, gh, out1);
     double d1 = 0;
     for (int i = 0; i < K * no->nout; i++) d1 = fmax(d1, fabs(out1[i] - out_o[i]));
     CHECK_MSG(d1 == 0, "mdl_ref_forward vs mdl_ref_forward2: max diff %.3g", d1);
@@ -166,8 +166,8 @@ static void nets(gold *g, sooc_model *m) {
     fill(dhl, (size_t)H, &r, 0.5f);
     fill(dcl, (size_t)H, &r, 0.5f);
     memset(m->g, 0, m->np * sizeof(float));
-    mdl_ref_backward(m, no, &ao, gw, gh, go, dh, dc, gvo);
-    mdl_ref_backward(m, nl, &al, gw, gh, gl, dhl, dcl, gvl);
+    mdl_ref_backward(w, no, &ao, gw, gh, go, dh, dc, gvo);
+    mdl_ref_backward(w, nl, &al, gw, gh, gl, dhl, dcl, gvl);
     put_digest(g, "bwd.obj.dh", dh, (size_t)K * H);
     put_digest(g, "bwd.obj.dc", dc, (size_t)K * H);
     put_digest(g, "bwd.obj.gvec", gvo, (size_t)K * no->nvec);
@@ -190,7 +190,8 @@ static void nets(gold *g, sooc_model *m) {
 
 /* ------------------------------------------------------------ 3: keyframe updates */
 
-static void keyframes(gold *g, sooc_model *m) {
+static void keyframes(gold *g, sooc_model_ws *w) {
+    sooc_model *m = w->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     int L = 3, NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
     sooc_cogmap_params cp;
@@ -203,7 +204,7 @@ static void keyframes(gold *g, sooc_model *m) {
     view_rec V;
     memset(&V, 0, sizeof V);
     CHECK_OK(mdl_view_alloc(m, &V, L));
-    step_state *S = mdl_step_state(m, 1, L);
+    step_state *S = mdl_step_state(w, 1, L);
     CHECK(S != NULL);
     if (!map || !S) return;
     synth_sphere sp[4] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}},
@@ -224,7 +225,7 @@ static void keyframes(gold *g, sooc_model *m) {
         o.L = L;
         o.mean_latents = 1;
         double lw = 0;
-        CHECK_OK(mdl_view_forward(m, S, &V, L, &o, 0, &rng, &lw, NULL));
+        CHECK_OK(mdl_view_forward(w, S, &V, L, &o, 0, &rng, &lw, NULL));
         char name[64];
         snprintf(name, sizeof name, "kf%d.lam", v);
         put_arr(g, name, V.lam + (size_t)L * c->K * NL, (size_t)c->K * NL);
@@ -260,13 +261,16 @@ int main(int argc, char **argv) {
     sooc_model *m;
     if (sooc_model_load(&m, SHIPPED, NULL, NULL)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
     sooc_model_set_threads(m, 2);
-    nets(&g, m);
+    sooc_model_ws *w;
+    if (sooc_model_ws_create(&w, m)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
+    nets(&g, w);
     /* the decoder's weight-gradient lanes depend on its thread count, and three
      * refinements amplify their rounding: the keyframes run on one thread */
     double worst_nets = g.worst;
     sooc_model_set_threads(m, 1);
     g.tol = TOL_KF;
-    keyframes(&g, m);
+    keyframes(&g, w);
+    sooc_model_ws_destroy(w);
     sooc_model_destroy(m);
     if (g.w) {
         fclose(g.w);

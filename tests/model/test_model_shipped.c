@@ -13,7 +13,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/model_internal.h"
+#include "model/step.h"
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
 #define NPT 16          /* points on the box's central column, 0 .. 0.5 m */

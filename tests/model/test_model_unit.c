@@ -17,7 +17,8 @@
 #include <string.h>
 
 #include "check.h"
-#include "model/step_internal.h"
+#include "model/step.h"
+#include "sooc3d/global.h"
 #include "steptest.h"
 #include "synth.h"
 
@@ -39,7 +40,7 @@ static void make_frames(void) {
     }
 }
 
-static double total_of(sooc_model *m, const sooc_frame *f, int global, sooc_step_losses *ls) {
+static double total_of(sooc_model_ws *m, const sooc_frame *f, int global, sooc_step_losses *ls) {
     sooc_rng r;
     sooc_rng_seed(&r, 77, 0);
     sooc_step_opts o;
@@ -51,9 +52,9 @@ static double total_of(sooc_model *m, const sooc_frame *f, int global, sooc_step
     if (ls) *ls = l;
     return l.total;
 }
-static double fd_total(sooc_model *m, void *ctx) {
-    (void)ctx;
-    return total_of(m, FU, 0, NULL);
+static double fd_total(sooc_model *m, void *ctx) {   /* ctx: m's workspace */
+    (void)m;
+    return total_of(ctx, FU, 0, NULL);
 }
 
 static void test_api(void) {
@@ -93,6 +94,9 @@ static void test_equivalence(int global) {
     sooc_model *m1, *mu;
     CHECK_OK(sooc_model_create(&m1, &c, 5));
     CHECK_OK(sooc_model_create(&mu, &c, 5));
+    sooc_model_ws *w1, *wu;
+    CHECK_OK(sooc_model_ws_create(&w1, m1));
+    CHECK_OK(sooc_model_ws_create(&wu, mu));
     sooc_rng r;
     sooc_rng_seed(&r, 9, 0);
     steptest_random_heads(m1, &r, 0.02f);
@@ -101,7 +105,7 @@ static void test_equivalence(int global) {
     sooc_model_zero_grad(m1);
     sooc_model_zero_grad(mu);
     sooc_step_losses a, b;
-    double L1 = total_of(m1, F1, global, &a), LU = total_of(mu, FU, global, &b);
+    double L1 = total_of(w1, F1, global, &a), LU = total_of(wu, FU, global, &b);
     double gmax = 0, gdiff = 0;
     for (size_t i = 0; i < m1->np; i++) {
         double g1 = m1->g[i], gu = mu->g[i];
@@ -121,9 +125,11 @@ static void test_equivalence(int global) {
     CHECK_MSG(gdiff <= 1e-3 * gmax, "gradients differ by %g (max |g| %g)", gdiff, gmax);
     /* a unit not matching the frames' scale is a different problem (the check can fail) */
     CHECK_OK(sooc_model_set_unit(mu, 1.0f));
-    double LW = total_of(mu, FU, global, NULL);
+    double LW = total_of(wu, FU, global, NULL);
     printf("  unit 1 on the frames x%.1f: %.9g\n", U, LW);
     CHECK(fabs(LW - L1) > 1e-2 * fabs(L1));
+    sooc_model_ws_destroy(w1);
+    sooc_model_ws_destroy(wu);
     sooc_model_destroy(m1);
     sooc_model_destroy(mu);
 }
@@ -137,21 +143,24 @@ static void test_fd(void) {
     c.unit_m = (float)U;
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 5));
+    sooc_model_ws *w;
+    CHECK_OK(sooc_model_ws_create(&w, m));
     sooc_rng r;
     sooc_rng_seed(&r, 9, 0);
     steptest_random_heads(m, &r, 0.02f);
     sooc_model_zero_grad(m);
-    double L0 = total_of(m, FU, 0, NULL);
+    double L0 = total_of(w, FU, 0, NULL);
     CHECK(isfinite(L0));
     float *g = sooc_malloc(m->np * sizeof(float));
     memcpy(g, m->g, m->np * sizeof(float));
-    step_state *S = m->step;
+    step_state *S = w->step;
     S->aux_replay = 1;
-    CHECK(total_of(m, FU, 0, NULL) == L0);
+    CHECK(total_of(w, FU, 0, NULL) == L0);
     steptest_fd_result fd;
-    steptest_fd_check(m, g, &r, 1, 4, fd_total, NULL, "train-step (unit_m 0.3)", &fd);
+    steptest_fd_check(m, g, &r, 1, 4, fd_total, w, "train-step (unit_m 0.3)", &fd);
     CHECK_MSG(fd.worst <= 1.0, "train-step gradient check with unit_m %g failed at %s", U, fd.wname);
     sooc_free(g);
+    sooc_model_ws_destroy(w);
     sooc_model_destroy(m);
 }
 

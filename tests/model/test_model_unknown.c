@@ -18,7 +18,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "model/step_internal.h"
+#include "model/step.h"
 #include "steptest.h"
 #include "synth.h"
 
@@ -76,6 +76,7 @@ static void test_api(void) {
 /* ---- one decode ---- */
 typedef struct fix {
     sooc_model *m;
+    sooc_model_ws *w;
     sooc_frame f;
     view_rays vr;
     dec_noise nz;
@@ -98,6 +99,7 @@ static void fix_init(fix *F, int mode, uint64_t seed) {
     synth_tiny_cfg(&c, 2, 0);
     c.invalid_depth = mode;
     CHECK_OK(sooc_model_create(&F->m, &c, seed));
+    CHECK_OK(sooc_model_ws_create(&F->w, F->m));
     double T[16], roll;
     synth_pose(T, 0, 1.5, 0, 0.1, -0.45);
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
@@ -123,6 +125,7 @@ static void fix_init(fix *F, int mode, uint64_t seed) {
 static void fix_free(fix *F) {
     mdl_rays_free(&F->vr);
     sooc_frame_free(&F->f);
+    sooc_model_ws_destroy(F->w);
     sooc_model_destroy(F->m);
 }
 
@@ -141,7 +144,7 @@ static double run(fix *F, int backward, float *g_lam, float *g_lam0, float *g_la
     /* forward-only runs replay the Gaussian trick's stop-gradient z^where of the
      * last backward run (as test_model_grad) */
     c.zw_sg = backward || !F->have_sg ? NULL : F->zw_sg;
-    CHECK_OK(mdl_decode(F->m, &c));
+    CHECK_OK(mdl_decode(F->w, &c));
     if (backward)
         for (int k = 0; k < 2; k++)
             for (int i = 0; i < 3; i++) F->zw_sg[k * 3 + i] = c.zw[k][i];
@@ -247,8 +250,8 @@ static void test_decode(void) {
     double L0 = run(&F, 1, g_lam, g_lam0, g_lay, g_lay0);
     float *g0 = sooc_malloc(m->np * sizeof(float));
     memcpy(g0, m->g, m->np * sizeof(float));
-    printf("decode (UNKNOWN, holes) loss %.4f, %d object rows\n", L0, m->ws.nro);
-    CHECK(m->ws.nro > 0);
+    printf("decode (UNKNOWN, holes) loss %.4f, %d object rows\n", L0, F.w->dec->nro);
+    CHECK(F.w->dec->nro > 0);
     /* finite differences */
     worst w = {0};
     float *vecs[4] = {F.lam, F.lam0, F.lay, F.lay0}, *grads[4] = {g_lam, g_lam0, g_lay, g_lay0};
@@ -288,6 +291,7 @@ static void test_decode(void) {
 
 /* ---- the whole training step ---- */
 static sooc_frame SF[3];
+static sooc_model_ws *SW;   /* test_step runs the model: its workspace */
 
 static double total_of(sooc_model *m, sooc_step_losses *ls) {
     sooc_rng r;
@@ -296,7 +300,8 @@ static double total_of(sooc_model *m, sooc_step_losses *ls) {
     sooc_step_opts_default(&o);
     o.tau = 0.8f;
     sooc_step_losses l;
-    CHECK_OK(sooc_model_train_step(m, SF, 2, SF + 2, 1, &o, &r, &l));
+    (void)m;
+    CHECK_OK(sooc_model_train_step(SW, SF, 2, SF + 2, 1, &o, &r, &l));
     if (ls) *ls = l;
     return l.total;
 }
@@ -323,6 +328,7 @@ static void test_step(void) {
     c.invalid_depth = SOOC_INVALID_DEPTH_UNKNOWN;
     sooc_model *m;
     CHECK_OK(sooc_model_create(&m, &c, 5));
+    CHECK_OK(sooc_model_ws_create(&SW, m));
     sooc_rng r;
     sooc_rng_seed(&r, 9, 0);
     steptest_random_heads(m, &r, 0.02f);
@@ -355,13 +361,14 @@ static void test_step(void) {
     /* FD of d(total)/d(params) with unknown rays present (aux inputs replayed) */
     sooc_model_zero_grad(m);
     CHECK(total_of(m, NULL) == L0);
-    step_state *S = m->step;
+    step_state *S = SW->step;
     S->aux_replay = 1;
     CHECK(total_of(m, NULL) == L0);
     steptest_fd_result fd;
     steptest_fd_check(m, g, &r, 1, 4, fd_total, NULL, "train-step (unknown rays)", &fd);
     CHECK_MSG(fd.worst <= 1.0, "train-step gradient check with unknown rays failed at %s", fd.wname);
     sooc_free(g);
+    sooc_model_ws_destroy(SW);
     sooc_model_destroy(m);
     for (int i = 0; i < 3; i++) sooc_frame_free(&SF[i]);
 }

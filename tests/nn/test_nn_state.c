@@ -1,6 +1,5 @@
 /*
  * nn state tests: Adam/AdamW vs hand calculation, clipping, schedules, arena,
- * checkpoint round trip and rejection of corrupt/truncated/mismatched files,
  * and the mid-forward (segment) gradient mechanism of the tape.
  */
 #include "check.h"
@@ -126,148 +125,6 @@ static void test_arena(void) {
     sooc_nn_arena_deinit(&a);
 }
 
-/* ----------------------------------------------------------- checkpoint */
-static void build_params(sooc_nn_params *p, int64_t second_dim) {
-    sooc_nn_params_init(p);
-    int64_t a[2] = {4, 3}, b[1] = {second_dim};
-    sooc_nn_params_add(p, "dec.l0.w", 2, a);
-    sooc_nn_params_add(p, "dec.l0.b", 1, b);
-    sooc_nn_params_alloc(p);
-}
-
-static int write_bytes(const char *path, const unsigned char *b, size_t n) {
-    FILE *f = fopen(path, "wb");
-    if (!f) return -1;
-    size_t w = fwrite(b, 1, n, f);
-    fclose(f);
-    return w == n ? 0 : -1;
-}
-
-static void test_ckpt(void) {
-    char dir[] = "/tmp/sooc_nn_ckpt_XXXXXX";
-    CHECK(mkdtemp(dir) != NULL);
-    char path[256], bad[256];
-    snprintf(path, sizeof path, "%s/a.ckpt", dir);
-    snprintf(bad, sizeof bad, "%s/bad.ckpt", dir);
-    sooc_nn_params p, q;
-    build_params(&p, 4);
-    sooc_rng r;
-    sooc_rng_seed(&r, 7, 0);
-    for (size_t i = 0; i < p.n_total; i++) {
-        p.w[i] = (float)sooc_rng_normal(&r);
-        p.m[i] = (float)sooc_rng_normal(&r);
-        p.v[i] = (float)sooc_rng_uniform(&r);
-    }
-    p.adam_t = 123;
-    const char cfg[] = "decoder: width 64\n";
-    unsigned char trainer[40];
-    for (int i = 0; i < 40; i++) trainer[i] = (unsigned char)(i * 7);
-    CHECK_OK(sooc_nn_ckpt_save(path, &p, cfg, sizeof cfg, trainer, sizeof trainer, 1));
-
-    void *c = NULL;
-    size_t cn = 0;
-    CHECK_OK(sooc_nn_ckpt_read_config(path, 1 << 20, &c, &cn));
-    CHECK(cn == sizeof cfg && c && memcmp(c, cfg, cn) == 0);
-    sooc_free(c);
-    CHECK(sooc_nn_ckpt_read_config(path, 4, &c, &cn) == SOOC_EFORMAT); /* over the caller's limit */
-
-    build_params(&q, 4);
-    unsigned char tb[64];
-    size_t tn = 0;
-    CHECK_OK(sooc_nn_ckpt_load(path, &q, cfg, sizeof cfg, tb, sizeof tb, &tn));
-    CHECK(tn == sizeof trainer && memcmp(tb, trainer, tn) == 0);
-    CHECK(memcmp(p.w, q.w, p.n_total * 4) == 0 && memcmp(p.m, q.m, p.n_total * 4) == 0 &&
-          memcmp(p.v, q.v, p.n_total * 4) == 0 && q.adam_t == 123);
-    /* without optimizer state */
-    CHECK_OK(sooc_nn_ckpt_save(path, &p, cfg, sizeof cfg, NULL, 0, 0));
-    CHECK_OK(sooc_nn_ckpt_load(path, &q, NULL, 0, NULL, 0, NULL));
-    CHECK(q.adam_t == 0 && q.m[0] == 0.f && memcmp(p.w, q.w, p.n_total * 4) == 0);
-    CHECK_OK(sooc_nn_ckpt_save(path, &p, cfg, sizeof cfg, trainer, sizeof trainer, 1));
-
-    void *raw = NULL;
-    size_t n = 0;
-    CHECK_OK(sooc_file_read_all(path, 1 << 24, &raw, &n));
-    unsigned char *b = raw;
-    float keep = q.w[0];
-    q.w[0] = 42.f;
-    /* every single-byte corruption is rejected, and q stays untouched */
-    int all_rejected = 1;
-    for (size_t i = 0; i < n; i += (i < 200 ? 1 : 17)) {
-        b[i] ^= 0x5a;
-        write_bytes(bad, b, n);
-        b[i] ^= 0x5a;
-        sooc_status s = sooc_nn_ckpt_load(bad, &q, cfg, sizeof cfg, tb, sizeof tb, &tn);
-        if (s == SOOC_OK || q.w[0] != 42.f) { all_rejected = 0; fprintf(stderr, "byte %zu accepted\n", i); }
-    }
-    CHECK_MSG(all_rejected, "a corrupted checkpoint was accepted");
-    /* truncation at every length */
-    int trunc_ok = 1;
-    for (size_t len = 0; len < n; len += (len < 120 ? 1 : 13)) {
-        write_bytes(bad, b, len);
-        if (sooc_nn_ckpt_load(bad, &q, NULL, 0, NULL, 0, NULL) == SOOC_OK) trunc_ok = 0;
-    }
-    CHECK_MSG(trunc_ok, "a truncated checkpoint was accepted");
-    write_bytes(bad, b, n - 1);
-    CHECK(sooc_nn_ckpt_load(bad, &q, NULL, 0, NULL, 0, NULL) == SOOC_EFORMAT);
-    printf("truncated: %s\n", sooc_errmsg());
-    CHECK(strstr(sooc_errmsg(), "truncated") != NULL);
-    /* corrupt */
-    b[n / 2] ^= 1;
-    write_bytes(bad, b, n);
-    CHECK(sooc_nn_ckpt_load(bad, &q, NULL, 0, NULL, 0, NULL) == SOOC_EFORMAT);
-    printf("corrupt:   %s\n", sooc_errmsg());
-    CHECK(strstr(sooc_errmsg(), "CRC") != NULL);
-    b[n / 2] ^= 1;
-    /* bad magic, future version */
-    b[0] = 'X';
-    write_bytes(bad, b, n);
-    CHECK(sooc_nn_ckpt_load(bad, &q, NULL, 0, NULL, 0, NULL) == SOOC_EFORMAT);
-    b[0] = 'S';
-    uint32_t ver = 99;
-    memcpy(b + 8, &ver, 4);
-    write_bytes(bad, b, n);
-    CHECK(sooc_nn_ckpt_load(bad, &q, NULL, 0, NULL, 0, NULL) == SOOC_EVERSION);
-    printf("version:   %s\n", sooc_errmsg());
-    ver = SOOC_NN_CKPT_VERSION;
-    memcpy(b + 8, &ver, 4);
-    /* absurd config size (with matching CRC): rejected before any allocation */
-    {
-        uint64_t huge = (uint64_t)1 << 60;
-        unsigned char *h = sooc_malloc(n);
-        memcpy(h, b, n);
-        memcpy(h + 32, &huge, 8); /* config_bytes */
-        uint32_t crc = sooc_crc32(0, h, n - 4);
-        memcpy(h + n - 4, &crc, 4);
-        write_bytes(bad, h, n);
-        sooc_alloc_stats st0, st1;
-        sooc_alloc_get_stats(&st0);
-        CHECK(sooc_nn_ckpt_read_config(bad, (size_t)-1, &c, &cn) == SOOC_EFORMAT);
-        sooc_alloc_get_stats(&st1);
-        CHECK(st1.n_alloc == st0.n_alloc);
-        printf("huge size: %s\n", sooc_errmsg());
-        sooc_free(h);
-    }
-    CHECK(q.w[0] == 42.f);
-    q.w[0] = keep;
-    /* layout mismatch, config mismatch, missing file */
-    sooc_nn_params o;
-    build_params(&o, 5);
-    CHECK(sooc_nn_ckpt_load(path, &o, NULL, 0, NULL, 0, NULL) == SOOC_EINVAL);
-    printf("layout:    %s\n", sooc_errmsg());
-    sooc_nn_params_deinit(&o);
-    CHECK(sooc_nn_ckpt_load(path, &q, "other", 5, NULL, 0, NULL) == SOOC_EINVAL);
-    printf("config:    %s\n", sooc_errmsg());
-    CHECK(sooc_nn_ckpt_load(path, &q, cfg, sizeof cfg, tb, 8, &tn) == SOOC_EINVAL); /* small buffer */
-    snprintf(bad, sizeof bad, "%s/missing.ckpt", dir);
-    CHECK(sooc_nn_ckpt_load(bad, &q, NULL, 0, NULL, 0, NULL) == SOOC_ENOTFOUND);
-    sooc_free(raw);
-    snprintf(bad, sizeof bad, "%s/bad.ckpt", dir);
-    unlink(bad);
-    unlink(path);
-    rmdir(dir);
-    sooc_nn_params_deinit(&p);
-    sooc_nn_params_deinit(&q);
-}
 
 /* ------------------------------------------------- mid-forward gradients */
 /* Segment: y1 = tanh(lam W1^T); y2 = tanh(y1 W2^T); L1 = sum(y2^2).
@@ -387,7 +244,6 @@ int main(void) {
     test_adam();
     test_schedule();
     test_arena();
-    test_ckpt();
     test_midforward();
     return check_report("test_nn_state");
 }

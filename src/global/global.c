@@ -2,35 +2,17 @@
  * the same networks as the shipped model, but every object lives in one
  * fixed set of slots in the WORLD frame, persisting across all views of a
  * scene (the posterior after view t is the prior of view t+1), no cognitive
- * map, no query/registration, one global layout latent. */
-#include "model/step_internal.h"
+ * map, no query/registration, one global layout latent.
+ *
+ * Its own module above src/model (issue 21): it runs the model's step layer
+ * (model/step.h: per-view records, forward, reverse sweep); the model never
+ * calls it. Its slot priors' initial spiral is the model's (model.c, a
+ * weights initialisation for config.global_frame). */
+#include "model/step.h"
+#include "sooc3d/global.h"
 
 #include <math.h>
 #include <string.h>
-
-/* Slot prior means: a Vogel (golden-angle) spiral over a disc of radius
- * global_radius around the world origin, so that every prefix of n slots is
- * spread evenly over a disc of radius R·sqrt(n/K) (a scene with fewer
- * objects uses fewer slots, see sooc_model_global_slots). */
-void mdl_global_init_priors(sooc_model *m) {
-    const sooc_model_config *c = &m->cfg;
-    int NL = m->NL;
-    const double ga = M_PI * (3.0 - sqrt(5.0));
-    for (int k = 0; k < c->K; k++) {
-        float *l = m->p + m->prior + (size_t)k * NL;
-        double r = c->global_radius * sqrt((k + 0.5) / c->K), a = ga * k;
-        l[0] = (float)(r * cos(a));
-        l[1] = (float)(r * sin(a));
-    }
-}
-
-int sooc_model_is_global(const sooc_model *m) { return m && m->cfg.global_frame; }
-
-int sooc_model_global_slots(const sooc_model *m, int n_objects) {
-    int K = m->cfg.K;
-    if (n_objects <= 0 || n_objects + 1 >= K) return K;
-    return n_objects + 1;
-}
 
 /* Rays of one view in the decoding frame W_t: world axes, origin (0, h_t, 0)
  * above the world origin (h_t = camera height), so that the floor is the
@@ -81,9 +63,10 @@ static void glob_view_start(sooc_model *m, view_rec *V, int n, int started, cons
     }
 }
 
-sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views, int T, const sooc_frame *queries,
+sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *views, int T, const sooc_frame *queries,
                                          int Q, int n_objects, const sooc_step_opts *opt, sooc_rng *rng,
                                          sooc_step_losses *out) {
+    sooc_model *m = x->m;
     sooc_step_opts od;
     if (!opt) {
         sooc_step_opts_default(&od);
@@ -97,7 +80,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
     int L = opt->L > 0 ? opt->L : c->L, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     int n = sooc_model_global_slots(m, n_objects);
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "global train step: L must be >= 1");
-    step_state *S = mdl_step_state(m, T + 1, L);
+    step_state *S = mdl_step_state(x, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "global train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_status st = SOOC_OK;
@@ -114,7 +97,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
             glob_view_start(m, V, n, 1, P->lam + (size_t)L * n * NL, P->lay + (size_t)L * D2);
             for (int k = 0; k < n; k++) V->src_view[k] = t - 1;
         }
-        if ((st = mdl_view_forward_train(m, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
+        if ((st = mdl_view_forward_train(x, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
         if (nonfinite) break;
         const float *lamL = V->lam + (size_t)L * n * NL;
         for (int k = 0; k < n; k++) {
@@ -134,7 +117,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
         for (int q = 0; q < Q; q++) {
             view_rec *V = &S->views[T];   /* scratch record */
             if ((st = glob_view_setup(m, V, &queries[q], rng))) goto fail;
-            if ((st = mdl_query_decode(m, S, V, q, n, lamF, layF, opt, rng, &total, out, &nonfinite))) goto fail;
+            if ((st = mdl_query_decode(x, S, V, q, n, lamF, layF, opt, rng, &total, out, &nonfinite))) goto fail;
             if (nonfinite) break;
             view_rec *W = &S->views[T - 1];
             for (int i = 0; i < n * NL; i++) W->G[i] += S->tmp0[i];
@@ -145,7 +128,7 @@ sooc_status sooc_model_global_train_step(sooc_model *m, const sooc_frame *views,
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
             view_rec *V = &S->views[t];
-            mdl_view_backward(m, S, V, L);
+            mdl_view_backward(x, S, V, L);
             if (t > 0) {
                 if (!opt->truncate_views) {
                     view_rec *P = &S->views[t - 1];
@@ -170,6 +153,7 @@ fail:
 
 struct sooc_global_mapper {
     sooc_model *m;
+    sooc_model_ws *ws;         /* the mapper's workspace (it runs the model) */
     sooc_cogmap *map;          /* the present slots (id = slot + 1) + the layout at block (0, 0) */
     view_rec V;
     int L, n, started, view_idx;
@@ -205,7 +189,8 @@ sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, i
     g->lay = sooc_calloc((size_t)2 * c->d_layout, sizeof(float));
     if (!st && (!g->lam || !g->lay)) st = SOOC_ENOMEM;
     if (!st) st = mdl_view_alloc(m, &g->V, g->L);
-    if (!st && !mdl_step_state(m, 1, g->L)) st = sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
+    if (!st) st = sooc_model_ws_create(&g->ws, m);
+    if (!st && !mdl_step_state(g->ws, 1, g->L)) st = sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
     if (st) {
         sooc_global_mapper_destroy(g);
         return st;
@@ -221,6 +206,7 @@ sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, i
 void sooc_global_mapper_destroy(sooc_global_mapper *g) {
     if (!g) return;
     if (g->V.buf) mdl_view_free(&g->V);
+    sooc_model_ws_destroy(g->ws);
     sooc_cogmap_destroy(g->map);
     sooc_model_destroy(g->m);
     sooc_free(g->lam);
@@ -247,7 +233,7 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
     if (f->width != c->img_w || f->height != c->img_h)
         return sooc_seterr(SOOC_EINVAL, "global mapper: frame %lld is %dx%d, the model needs %dx%d",
                            (long long)f->index, f->width, f->height, c->img_w, c->img_h);
-    step_state *S = mdl_step_state(m, 1, g->L);
+    step_state *S = mdl_step_state(g->ws, 1, g->L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
     S->aux_replay = 0;
     view_rec *V = &g->V;
@@ -260,7 +246,7 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
     o.mean_latents = !g->sample;
     o.L = g->L;
     double lw;
-    if ((s = mdl_view_forward(m, S, V, g->L, &o, 0, &g->rng, &lw, NULL))) return s;
+    if ((s = mdl_view_forward(g->ws, S, V, g->L, &o, 0, &g->rng, &lw, NULL))) return s;
     int NL = m->NL, D2 = 2 * c->d_layout, d = c->d_what, n = g->n;
     const float *lamL = V->lam + (size_t)g->L * n * NL, *layL = V->lay + (size_t)g->L * D2;
     for (int i = 0; i < n * NL; i++)
@@ -317,15 +303,7 @@ sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_ent
     const sooc_model_config *c = &g->m->cfg;
     float ext[3];
     sooc_model_box_extent(c, ext);
-    for (size_t i = 0; !s && i < got; i++) sooc3d_mapper_entry_from_cogmap(&tmp[i], ext, &out[i]);
+    for (size_t i = 0; !s && i < got; i++) sooc_map_entry_from_cogmap(&tmp[i], ext, &out[i]);
     *n = s ? 0 : got;
     return s;
-}
-
-/* Field helper (field.c, global branch): the world-frame λ of map entries. */
-void mdl_global_world_lam(const sooc_cogmap *map, uint64_t id, float *lam) {
-    sooc_cogmap_entry e;
-    sooc_floor_frame ident = {0, 0, 0};
-    if (sooc_cogmap_get(map, id, &e) == SOOC_OK) sooc_cogmap_lam_to_local(&ident, &e, lam);
-    else sooc_clearerr();
 }

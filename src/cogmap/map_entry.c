@@ -1,0 +1,44 @@
+/* Map entry <-> cognitive-map entry (sooc3d/map_entry.h). */
+#include "sooc3d/map_entry.h"
+
+#include <math.h>
+#include <string.h>
+
+void sooc_map_entry_from_cogmap(const sooc_cogmap_entry *c, const float extent[3], sooc_map_entry *e) {
+    memset(e, 0, sizeof *e);
+    e->id = c->id;
+    e->x = c->X;
+    e->z = c->Z;
+    e->yaw = c->Theta;
+    e->sigma_t = exp(0.5 * c->rho_t);
+    e->sigma_yaw = exp(0.5 * c->rho_theta);
+    e->presence_logit = c->pres_logit;
+    e->presence = 1.0f / (1.0f + expf(-c->pres_logit));
+    int d = c->dim < 0 ? 0 : c->dim > SOOC_MAP_LATENT_MAX ? SOOC_MAP_LATENT_MAX : c->dim;
+    e->latent_dim = d;
+    memcpy(e->what_mu, c->what_mu, sizeof(float) * (size_t)d);
+    memcpy(e->what_logvar, c->what_logvar, sizeof(float) * (size_t)d);
+    if (extent) memcpy(e->extent, extent, sizeof e->extent);
+    e->first_seen_ns = c->first_seen_ns;
+    e->last_seen_ns = c->last_seen_ns;
+    e->obs_count = c->obs_count;
+}
+
+void sooc_map_entry_to_cogmap(const sooc_map_entry *e, sooc_cogmap_entry *c) {
+    memset(c, 0, sizeof *c);
+    c->id = e->id;
+    c->X = e->x;
+    c->Z = e->z;
+    c->Theta = e->yaw;
+    c->rho_t = (float)(2.0 * log(e->sigma_t > 1e-12 ? e->sigma_t : 1e-12));
+    c->rho_theta = (float)(2.0 * log(e->sigma_yaw > 1e-12 ? e->sigma_yaw : 1e-12));
+    c->pres_logit = e->presence_logit;
+    int d = e->latent_dim < 0 ? 0 : e->latent_dim > SOOC_COGMAP_DIM_MAX ? SOOC_COGMAP_DIM_MAX : e->latent_dim;
+    c->dim = d;
+    memcpy(c->what_mu, e->what_mu, sizeof(float) * (size_t)d);
+    memcpy(c->what_logvar, e->what_logvar, sizeof(float) * (size_t)d);
+    c->first_seen_ns = e->first_seen_ns;
+    c->last_seen_ns = e->last_seen_ns;
+    c->obs_count = e->obs_count ? e->obs_count : 1;
+    c->last_view = -1;
+}

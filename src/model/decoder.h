@@ -1,0 +1,121 @@
+/* Layer 1 of src/model (docs/model.md "Layers"): the decoder (decoder.c:
+ * rays, the fused object/layout NeRF decode, likelihood and KL; dec_own.c:
+ * a decoder on its own weights; field.c: the render.h field). Includes only
+ * layer 0. Internal: not a public API. */
+#ifndef SOOC3D_MODEL_DECODER_H
+#define SOOC3D_MODEL_DECODER_H
+
+#include "model/weights.h"
+
+/* Rays of one view in G_t (origin at the camera centre). P = 2 N points:
+ * point 2r = surface sample, 2r + 1 = air sample. */
+typedef struct view_rays {
+    int N, gw, gh;                /* N = gw * gh, ray r <-> grid cell (r / gw, r % gw) */
+    float *dir;                   /* N x 3 unit direction in G                         */
+    float *rgb;                   /* N x 3 observed colour in [0, 1]                   */
+    float *depth;                 /* N Euclidean depth (valid rays)                    */
+    uint8_t *surf;                /* N 1 = surface visible (d <= d_clip)               */
+    uint8_t *unk;                 /* N 1 = depth unknown (invalid_depth UNKNOWN and no
+                                     valid depth): no surface, no air sample, no colour */
+    float *W;                     /* N air-sample importance weight                    */
+    float *pts;                   /* 2N x 3 points in G                                */
+    float h, pitch;               /* camera height, pitch                              */
+    float blk[3];                 /* active layout block origin in G (x, -h, z)        */
+} view_rays;
+
+/* Noise of one decode, shared with the reference. */
+typedef struct dec_noise {
+    float eps_where[SOOC_MODEL_K_MAX][3];
+    float eps_what[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX];
+    float logistic[SOOC_MODEL_K_MAX];
+    float eps_lay[SOOC_MODEL_D_MAX];
+} dec_noise;
+
+/* Workspace of the fused decoder (sized for P points and K slots at create). */
+struct dec_ws {
+    int Pmax, Kmax;
+    /* object rows */
+    int nro; int *ro_pt, *ro_slot; int cnt[SOOC_MODEL_K_MAX + 1];
+    float *o_pe, *o_a1, *o_a2, *o_a3, *o_ac, *o_sig, *o_col, *o_xk, *o_gf;
+    /* layout rows (one per point) */
+    float *l_pe, *l_a1, *l_a2, *l_a3, *l_ac, *l_sig, *l_col;
+    /* backward scratch */
+    float *gA, *gB, *gC, *gpe;
+    /* dense per point x component (comp 0 = layout, 1..K objects) */
+    float *sh, *ct, *gsh, *gct; int *rowof;
+    float *S, *Sb, *cc;           /* per point */
+    float *ll;                    /* per ray log-lik (ell_c + ell_d) */
+    float *ll_cf;                 /* N x (K+1) counterfactual ell - ell_{-k} */
+    int *lr_pt;                   /* layout row -> point */
+    float *tbuf;                  /* nthr x (dec_np + (K+1) H + 3K) thread-private grads */
+    size_t dec_np;                /* decoder parameters: slab offsets [0, dec_np) */
+    int nthr;
+    float *slot_bias;             /* (K+1) x H */
+    float *wt;                    /* nwt: transposed decoder weights for the backward GEMMs */
+    size_t nwt;
+    float *g_bias;                /* (K+1) x H */
+};
+typedef struct dec_ws dec_ws;
+
+/* One decode: inputs, outputs. */
+typedef struct dec_call {
+    const view_rays *rays;
+    int nslot;                    /* active object slots (<= K)                 */
+    const float *lam;             /* nslot x NL                                 */
+    const float *lam0;            /* nslot x NL prior (NULL: no KL, query view) */
+    const float *lay, *lay0;      /* 2 d_l (lay0 NULL: no layout KL)            */
+    const dec_noise *noise;
+    float tau, beta_kl, sigma_c;
+    const uint8_t *hard;          /* per slot: 0 relaxed, 1 straight-through hard, 2 forced one */
+    float wgrad;                  /* scale of decoder weight gradients (0: none)               */
+    const float *zw_sg;           /* TEST ONLY (nslot x 3): forward multiplies σ̂ by
+                                     w_g(Π(zw) x) / w_g(Π(zw_sg) x), i.e. the Gaussian trick
+                                     written as a forward, for finite-difference checks        */
+    int backward;                 /* 0: forward only                                           */
+    /* outputs */
+    double loss, nll, nll_d, nll_c, kl;
+    float *g_lam, *g_lam0, *g_lay, *g_lay0;   /* ACCUMULATED (+=) when non-NULL; UNWEIGHTED */
+    /* samples (outputs, for aux inputs) */
+    float zw[SOOC_MODEL_K_MAX][3], zwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX];
+    float zp[SOOC_MODEL_K_MAX], zp_soft[SOOC_MODEL_K_MAX], zlay[SOOC_MODEL_D_MAX];
+} dec_call;
+
+/* The decoder's part of a workspace (sized for the model's ray grid and K). */
+sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out);
+void mdl_dec_ws_destroy(dec_ws *w);   /* NULL-safe */
+
+void mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n);
+/* One decode on workspace x (its model, its decoder scratch and pool). */
+sooc_status mdl_decode(sooc_model_ws *x, dec_call *c);
+/* KL between two slot posteriors (accumulates gradients when non-NULL). */
+double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta,
+                   float *g_lam, float *g_lam0);
+double mdl_kl_gauss(int n, const float *mu, const float *rho, const float *mu0, const float *rho0,
+                    float rmin, float rmax, float beta, float *gmu, float *grho, float *gmu0,
+                    float *grho0);
+/* Rays of a frame: stratified grid with offset (ox, oy), samples from rng. */
+sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r,
+                          view_rays *vr, const double T_wg[16], double h, double pitch,
+                          const double blk_local[2]);
+sooc_status mdl_rays_alloc(view_rays *vr, int gw, int gh);
+void mdl_rays_free(view_rays *vr);
+/* Gaussian-trick density on a single point (exposed for tests):
+ * value = sig * zp; adds dL/dxk for upstream g into gxk (3). */
+void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]);
+/* Π: G point -> object-local; and its backward to (px, pz, th). */
+void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]);
+/* Π with cos/sin of θ precomputed (hot loops). */
+static inline void mdl_pi_cs(const float x[3], float px, float pz, float c, float s, float h, float xk[3]) {
+    float vx = x[0] - px, vz = x[2] - pz;
+    xk[0] = c * vx - s * vz;
+    xk[1] = x[1] + h;
+    xk[2] = s * vx + c * vz;
+}
+void mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
+
+void mdl_pe_row(const float *x, float inv, int nf, float *out);
+/* Layers 2.. of a decoder on R rows (serial), layer-1 pre-activation in a1. */
+void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+                          float *sig, float *col);
+
+#endif
