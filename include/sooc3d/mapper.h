@@ -88,7 +88,7 @@ typedef struct sooc3d_mapper_params {
 
 /* Creation-gate defaults (docs/cogmap.md "Revisits", rule 5; measured on the
  * looped replay and the 10-scene eval, see there) */
-#define SOOC3D_GATE_MIN_RAYS 0.01
+#define SOOC3D_GATE_MIN_RAYS 0.003
 #define SOOC3D_GATE_RATIO 0.5
 #define SOOC3D_GATE_PART 0.5
 
