@@ -17,14 +17,15 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d infer --model M --seq DIR --out DIR [--iterations L] [--seed S] [--threads T]\n"
             "                    [--every K] [--max-frames N] [--no-render] [--samples N] [--clip D]\n"
-            "                    [--merge R] [--latents mean|sample] [--slots N] [--trace]\n"
+            "                    [--merge R] [--revisit] [--latents mean|sample] [--slots N] [--trace]\n"
             "                    [--calib F] [--format NAME] [--depth-scale S] [--depth-shift N]\n"
             "                    [--min-depth M] [--max-depth M] [--up X,Y,Z] [--world W]\n\n"
             "Runs the online amortised variational update (query -> pad -> refine L times ->\n"
             "register) once per input frame of the sequence and writes\n"
             "  DIR/map.json, DIR/map.csv    the final cognitive map (world frame, ordered by id; map.json\n"
             "                               also holds the world frame: T_world_src and its source)\n"
-            "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, merged, ms)\n"
+            "  DIR/updates.csv              per-update stats (retrieved, registered, new, removed, merged, ms,\n"
+            "                               same_pose, retired, gated: docs/cogmap.md \"Revisits\")\n"
             "  DIR/trace.csv                with --trace: every map change of every update (frame,\n"
             "                               event reg|del, id, x, z, yaw, presence, obs_count)\n"
             "  DIR/render/%%06d_{rgb,depth,label}.png  renders of every frame from the final map\n"
@@ -43,6 +44,9 @@ static void usage(FILE *f) {
             "                merged, a new entry that close to an older one is dropped; 0 = never\n"
             "                (default: the paper registers without object matching); 0.35 measured\n"
             "                best (docs/cogmap.md)\n"
+            "  --revisit     with --merge: the node's revisit rules (hold entries that left the view,\n"
+            "                settled entries average, merge neighbours, retire entries the depth shows\n"
+            "                as free, the creation gate; docs/cogmap.md \"Revisits\")\n"
             "  --latents     refine on the posterior means (mean, default) or on one posterior sample\n"
             "                per iteration as in training (sample); docs/model.md\n"
             "  --slots       object slots per frame; 0 = the model's setting (default: its config slots,\n"
@@ -169,6 +173,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0, latents = SOOC3D_LATENTS_MEAN;
     int slots = 0;
     double clip = 0, merge = 0;
+    int revisit = 0;
     long long maxf = -1;
     uint64_t seed = 1;
     sooc_framepath_params fpp;
@@ -191,6 +196,7 @@ int sooc_cmd_infer(int argc, char **argv) {
                 return 2;
             }
         }
+        else if (!strcmp(a, "--revisit")) revisit = 1;
         else if (!strcmp(a, "--threads") && has) INTV(0, 256, &threads);
         else if (!strcmp(a, "--seed") && has) { if (!sooc_cli_u64_opt("infer", a, argv[++i], UINT64_MAX, &seed)) return 2; }
         else if (!strcmp(a, "--every") && has) INTV(1, 1000000, &every);
@@ -239,6 +245,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     sooc3d_mapper_params_default(&p);
     p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
     p.merge_radius = merge;
+    p.merge_neighbours = revisit && merge > 0;   /* the node's revisit rules, creation gate included */
     p.latents = latents;
     p.slots = slots;
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
@@ -254,7 +261,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", path);
         goto fail;
     }
-    fprintf(uc, "frame,t_ns,retrieved,registered,new,removed,merged,ms\n");
+    fprintf(uc, "frame,t_ns,retrieved,registered,new,removed,merged,ms,same_pose,retired,gated\n");
     if (trace) {
         snprintf(path, sizeof path, "%s/trace.csv", out);
         if (!(tc = fopen(path, "w"))) {
@@ -276,8 +283,9 @@ int sooc_cmd_infer(int argc, char **argv) {
         if ((st = sooc3d_mapper_update(mp, &f, &us))) goto fail;
         mapped++;
         ms_sum += us.elapsed_ms;
-        fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%d,%.3f\n", (long long)i, (long long)f.t_ns, us.n_retrieved,
-                us.n_registered, us.n_new, us.n_removed, us.n_merged, us.elapsed_ms);
+        fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%d,%.3f,%d,%d,%d\n", (long long)i, (long long)f.t_ns, us.n_retrieved,
+                us.n_registered, us.n_new, us.n_removed, us.n_merged, us.elapsed_ms, us.n_same_pose, us.n_retired,
+                us.n_gated);
         if (tc && (st = write_trace(tc, mp, i, born))) goto fail;
         char extra[96];
         size_t ne = 0;

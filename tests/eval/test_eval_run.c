@@ -497,6 +497,23 @@ static void test_infer(const char *bin, sooc_model *m0, const char *data) {
     sooc_frame_free(&fr);
     sooc_seq_close(sq);
     CHECK_MSG(uc && rows == n_in + 1, "updates.csv: header + one row per input frame");
+    CHECK_MSG(uc && !strncmp(uc, "frame,t_ns,retrieved,registered,new,removed,merged,ms,same_pose,retired,gated\n", 78),
+              "updates.csv header");
+    free(uc);
+    /* the node's revisit rules in infer (with --merge): every row carries the 11 columns */
+    snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s/scene_0000 --out %s/infr --merge 0.35 --revisit "
+             "--no-render --threads 1 > /dev/null 2>&1", bin, model, data, g_tmp);
+    CHECK(tc_run(cmd) == 0);
+    snprintf(p, sizeof p, "%s/infr/updates.csv", g_tmp);
+    uc = read_text(p);
+    int rows_r = 0, bad_r = 0;
+    for (char *c = uc ? strchr(uc, '\n') : NULL; c && c[1]; c = strchr(c + 1, '\n')) {
+        int commas = 0;
+        for (char *q = c + 1; *q && *q != '\n'; q++) commas += *q == ',';
+        rows_r++, bad_r += commas != 10;
+    }
+    CHECK_MSG(rows_r == n_in && bad_r == 0, "infer --revisit: %d rows (want %d), %d without 11 columns", rows_r, n_in,
+              bad_r);
     free(uc);
     snprintf(p, sizeof p, "%s/inf/render/%06d_label.png", g_tmp, n_all - 1);
     CHECK_MSG(png_ok(p), "render of the last frame");
