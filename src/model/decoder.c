@@ -610,23 +610,49 @@ static void dec_forward(dec_run *r) {
         for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
 }
 
+void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+    const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
+    float S = w->S[2 * rr], lmax = -1e30f, *lv = w->ll_cf + (size_t)rr * C;
+    for (int k = 0; k < C; k++) {
+        float e = 0;
+        for (int a = 0; a < 3; a++) {
+            float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
+            e += dd * dd;
+        }
+        lv[k] = mdl_logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
+        if (lv[k] > lmax) lmax = lv[k];
+    }
+    float z = 0;
+    for (int k = 0; k < C; k++) z += (lv[k] = mdl_expf_nonpos(lv[k] - lmax));
+    for (int k = 0; k < C; k++) lv[k] /= z;
+}
+
 /* 4. Dense σ̂, c̃ per point and component, composition, the two-sample
  * likelihood (c->nll, nll_d, nll_c), its gradients w.r.t. σ̂ and c̃ (gsh,
- * gct) and the per-ray log-likelihood (ll, for the auxiliary inputs). */
-static void dec_compose(dec_run *r) {
-    const sooc_model_config *cfg = r->cfg;
-    dec_call *c = r->c;
-    const view_rays *vr = r->vr;
-    dec_ws *w = r->w;
-    int N = r->N, C = r->C, nt = r->nt;
-    float sigc = r->sigc;
-    float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * cfg->sigma_max;
-    float scale = (float)(cfg->img_w * cfg->img_h) / (float)N;
-    float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)), is2 = 1.0f / (sigc * sigc);
-    double sum_d = 0, sum_c = 0;
-    (void)nt;
-MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, sum_c) if (N >= 4 * MDL_PAR_ROWS))
-    for (int rr = 0; rr < N; rr++) {
+ * gct), the per-ray log-likelihood (ll, for the auxiliary inputs) and, with
+ * c->aux_post, the auxiliary inputs' colour posterior (ll_cf). Rays in fixed
+ * blocks (pool tasks); each ray's likelihood terms go to w->lt and are summed
+ * in ray order afterwards, so the sums do not depend on the thread count. */
+#define COMPOSE_RAYS 64
+typedef struct comp_job {
+    const sooc_model_config *cfg;
+    const dec_call *c;
+    const view_rays *vr;
+    dec_ws *w;
+    int N, C;
+    float smax, eps_s, scale, lognorm, is2;
+} comp_job;
+
+static void comp_task(void *ctx, int blk, int tid) {
+    const comp_job *j = ctx;
+    const dec_call *c = j->c;
+    const view_rays *vr = j->vr;
+    dec_ws *w = j->w;
+    int C = j->C, r0 = blk * COMPOSE_RAYS, r1 = r0 + COMPOSE_RAYS < j->N ? r0 + COMPOSE_RAYS : j->N;
+    float smax = j->smax, eps_s = j->eps_s, scale = j->scale, lognorm = j->lognorm, is2 = j->is2;
+    (void)tid;
+    for (int rr = r0; rr < r1; rr++) {
+        float *lt = w->lt + (size_t)rr * 3;   /* surface density, surface colour, air density terms */
         for (int q = 0; q < 2; q++) {
             int pt = 2 * rr + q;
             float *sh = w->sh + (size_t)pt * C, *ct = w->ct + (size_t)pt * C * 3;
@@ -666,7 +692,7 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             float gSb, gc[3] = {0, 0, 0};
             if (q == 0) {
                 float v = smax * Sb + eps_s;
-                sum_d += logf(v);
+                lt[0] = logf(v);
                 gSb = -scale * smax / v;
                 float e = 0;
                 for (int a = 0; a < 3; a++) {
@@ -674,9 +700,9 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
                     e += dd * dd;
                     gc[a] = scale * (-dd) * is2;
                 }
-                sum_c += -0.5f * e * is2 - lognorm;
+                lt[1] = -0.5f * e * is2 - lognorm;
             } else {
-                sum_d += -vr->W[rr] * smax * Sb;
+                lt[2] = -vr->W[rr] * smax * Sb;
                 gSb = scale * vr->W[rr] * smax;
             }
             for (int k = 0; k < C; k++) {
@@ -702,9 +728,35 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             l += -0.5f * e * is2 - lognorm;
         }
         w->ll[rr] = l;
+        if (c->aux_post && vr->surf[rr]) mdl_aux_post_ray(w, vr, rr, C, is2);
     }
-    c->nll_d = -scale * sum_d;
-    c->nll_c = -scale * sum_c;
+}
+
+static void dec_compose(dec_run *r) {
+    const sooc_model_config *cfg = r->cfg;
+    dec_call *c = r->c;
+    const view_rays *vr = r->vr;
+    dec_ws *w = r->w;
+    int N = r->N;
+    float sigc = r->sigc;
+    comp_job j = {cfg, c, vr, w, N, r->C, cfg->sigma_max, cfg->eps_sigma_rel * cfg->sigma_max,
+                  (float)(cfg->img_w * cfg->img_h) / (float)N, 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)),
+                  1.0f / (sigc * sigc)};
+    int nb = (N + COMPOSE_RAYS - 1) / COMPOSE_RAYS;
+    if (N >= MDL_PAR_ROWS / 4 && r->nt > 1) mdl_par_run(r->x, nb, comp_task, &j);
+    else
+        for (int b = 0; b < nb; b++) comp_task(&j, b, 0);
+    double sum_d = 0, sum_c = 0;   /* ray order, as the terms were added one by one */
+    for (int rr = 0; rr < N; rr++) {
+        const float *lt = w->lt + (size_t)rr * 3;
+        if (vr->surf[rr]) {
+            sum_d += lt[0];
+            sum_c += lt[1];
+        }
+        if (!vr->unk[rr]) sum_d += lt[2];
+    }
+    c->nll_d = -j.scale * sum_d;
+    c->nll_c = -j.scale * sum_c;
     c->nll = c->nll_d + c->nll_c;
 }
 
@@ -973,6 +1025,7 @@ sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
     A(cc, (size_t)P * 3, float);
     A(ll, P, float);
     A(ll_cf, (size_t)P * C, float);
+    A(lt, (size_t)(P / 2) * 3, float);
     A(slot_bias, (size_t)C * H, float);
     A(lr_pt, P, int);
     w->dec_np = m->robj.cw[0];   /* both decoders come first in the slab */
@@ -991,7 +1044,7 @@ void mdl_dec_ws_destroy(dec_ws *w) {
     if (!w) return;
     float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
                     &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
-                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
+                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->lt, &w->slot_bias,
                     &w->g_bias, &w->wt};
     for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) sooc_free(*fp[i]);
     sooc_free(w->ro_pt);

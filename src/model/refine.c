@@ -8,59 +8,6 @@
 #include <math.h>
 #include <string.h>
 
-/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
- * relative error < 1e-7, like expf; the aux inputs' per-ray loops). */
-static inline float expf_nonpos(float x) {
-    x = x < -87.0f ? -87.0f : x;
-    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
-    uint32_t bi;
-    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
-    float fn = big - 12582912.0f;
-    float r = x - fn * 0.693359375f;
-    r = r + fn * 2.12194440e-4f;
-    float y = 1.9875691500e-4f;
-    y = y * r + 1.3981999507e-3f;
-    y = y * r + 8.3334519073e-3f;
-    y = y * r + 4.1665795894e-2f;
-    y = y * r + 1.6666665459e-1f;
-    y = y * r + 5.0000001201e-1f;
-    y = y * r * r + r + 1.0f;
-    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
-    float s;
-    memcpy(&s, &bits, sizeof s);
-    return y * s;
-}
-
-/* log(x) for normal x > 0 (Cephes logf polynomial on the mantissa in [sqrt(1/2), sqrt(2));
- * relative error ~1e-7, like logf; inlined in the per-ray loops of the aux inputs). */
-static inline float logf_pos(float x) {
-    if (!(x >= 1.17549435e-38f && x <= 3.40282347e38f)) return logf(x);   /* 0, subnormal, inf, NaN, < 0 */
-    uint32_t ix;
-    memcpy(&ix, &x, sizeof ix);
-    int e = (int)(ix >> 23) - 127;
-    ix = (ix & 0x007fffffu) | 0x3f800000u;
-    float mt;
-    memcpy(&mt, &ix, sizeof mt);   /* [1, 2) */
-    if (mt > 1.41421356237f) {
-        mt *= 0.5f;
-        e++;
-    }
-    float f = mt - 1.0f, z = f * f, fe = (float)e;
-    float y = 7.0376836292e-2f;
-    y = y * f - 1.1514610310e-1f;
-    y = y * f + 1.1676998740e-1f;
-    y = y * f - 1.2420140846e-1f;
-    y = y * f + 1.4249322787e-1f;
-    y = y * f - 1.6668057665e-1f;
-    y = y * f + 2.0000714765e-1f;
-    y = y * f - 2.4999993993e-1f;
-    y = y * f + 3.3333331174e-1f;
-    y = y * f * z;
-    y += -2.12194440e-4f * fe;
-    y += -0.5f * z;
-    return f + y + 0.693359375f * fe;
-}
-
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
 /* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
@@ -105,7 +52,7 @@ static void aux_task(void *ctx, int comp, int tid) {
             x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
             x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
             x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
-            wgc[rr] = surf ? expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+            wgc[rr] = surf ? mdl_expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
         }
         o += 4;
     } else {
@@ -158,7 +105,7 @@ static void aux_task(void *ctx, int comp, int tid) {
                 float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
                 if (S2 < 1e-8f) S2 = 1e-8f;
                 if (Q2 < 0) Q2 = 0;
-                lm += logf_pos(smax * Q2 / S2 + eps_s);
+                lm += mdl_logf_pos(smax * Q2 / S2 + eps_s);
                 float e = 0;
                 for (int a = 0; a < 3; a++) {
                     float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;
@@ -202,25 +149,12 @@ void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, con
     float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c, is2 = 1.0f / (sigc * sigc);
     float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI));
     float inv_rh = 1.0f / cfg->box_rh, inv_b = 1.0f / cfg->block_size, s2 = cfg->gauss_s * cfg->gauss_s;
-    /* colour-likelihood posterior softmax_k [log pi_k + log N(C; c_k, sigma_C^2)], once per ray */
-    float *post_all = w->ll_cf;   /* N x C scratch */
-    for (int rr = 0; rr < N; rr++) {
-        if (!vr->surf[rr]) continue;
-        const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
-        float S = w->S[2 * rr], lmax = -1e30f, *lv = post_all + (size_t)rr * C;
-        for (int k = 0; k < C; k++) {
-            float e = 0;
-            for (int a = 0; a < 3; a++) {
-                float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
-                e += dd * dd;
-            }
-            lv[k] = logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
-            if (lv[k] > lmax) lmax = lv[k];
-        }
-        float z = 0;
-        for (int k = 0; k < C; k++) z += (lv[k] = expf_nonpos(lv[k] - lmax));
-        for (int k = 0; k < C; k++) lv[k] /= z;
-    }
+    /* colour-likelihood posterior softmax_k [log pi_k + log N(C; c_k, sigma_C^2)], once per
+     * surface ray (during the composition when the decode was asked for it) */
+    float *post_all = w->ll_cf;   /* N x C */
+    if (!c->aux_post)
+        for (int rr = 0; rr < N; rr++)
+            if (vr->surf[rr]) mdl_aux_post_ray(x->dec, vr, rr, C, is2);
     /* Channels 0-7 (colour, depth, beyond-clip flag, ray direction) are the same for every
      * component: written once into the layout image, copied into each object's. */
     {
