@@ -391,7 +391,7 @@ typedef struct fwd_job {
     const sooc_model *m;
     const dec_ws *w;
     const view_rays *vr;
-    int nbo, nro, nrl;
+    int nbo, nro, nrl, lpe_keep;   /* lpe_keep: l_pe already holds the layout rows' PE */
     float inv_o, inv_l;
 } fwd_job;
 
@@ -415,7 +415,7 @@ static void fwd_task(void *ctx, int blk, int tid) {
                      w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
     } else {
         int r0 = (blk - nbo) * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nrl ? r0 + MDL_DYN_ROWS : nrl;
-        for (int r = r0; r < r1; r++) {
+        for (int r = r0; r < r1 && !j->lpe_keep; r++) {
             const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
             mdl_pe_row(xl, j->inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
@@ -604,10 +604,14 @@ static void dec_rows(dec_run *r) {
 static void dec_forward(dec_run *r) {
     int nro = r->nro, nrl = r->nrl;
     int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-    fwd_job fj = {r->m, r->w, r->vr, nbo, nro, nrl, r->inv_o, r->inv_l};
+    dec_ws *w = r->w;
+    int keep = r->c->same_rays && w->lpe_vr == r->vr && w->lpe_nrl == nrl;
+    fwd_job fj = {r->m, w, r->vr, nbo, nro, nrl, keep, r->inv_o, r->inv_l};
     if (nro + nrl >= MDL_PAR_ROWS && r->nt > 1) mdl_par_run(r->x, nbo + nbl, fwd_task, &fj);
     else
         for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
+    w->lpe_vr = r->vr;
+    w->lpe_nrl = nrl;
 }
 
 void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {

@@ -58,6 +58,8 @@ struct dec_ws {
     float *wt;                    /* nwt: transposed decoder weights for the backward GEMMs */
     size_t nwt;
     float *g_bias;                /* (K+1) x H */
+    const view_rays *lpe_vr;      /* the rays whose layout rows' PE (nrl rows) l_pe holds */
+    int lpe_nrl;
 };
 typedef struct dec_ws dec_ws;
 
@@ -76,6 +78,9 @@ typedef struct dec_call {
                                      w_g(Π(zw) x) / w_g(Π(zw_sg) x), i.e. the Gaussian trick
                                      written as a forward, for finite-difference checks        */
     int backward;                 /* 0: forward only                                           */
+    int same_rays;                /* 1: the rays have not changed since the previous decode on this
+                                     workspace (the next iteration of the same view): the layout
+                                     rows' positional encoding is kept                          */
     int aux_post;                 /* 1: also the aux inputs' colour posterior (w->ll_cf, per
                                      surface ray; mdl_aux_post_ray) during the composition      */
     /* outputs */
