@@ -10,6 +10,98 @@
 
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define AUX_AVX2 1
+#define TGT_AVX2 __attribute__((target("avx2")))
+
+/* mdl_logf_pos on 8 lanes (the same operations in the same order, no FMA: bitwise
+ * equal) for normal x > 0; the caller redoes the other lanes with logf. */
+static TGT_AVX2 inline __m256 logf_pos8(__m256 x) {
+    __m256i ix = _mm256_castps_si256(x);
+    __m256i e = _mm256_sub_epi32(_mm256_srli_epi32(ix, 23), _mm256_set1_epi32(127));
+    ix = _mm256_or_si256(_mm256_and_si256(ix, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000));
+    __m256 mt = _mm256_castsi256_ps(ix);
+    __m256 big = _mm256_cmp_ps(mt, _mm256_set1_ps(1.41421356237f), _CMP_GT_OQ);
+    mt = _mm256_blendv_ps(mt, _mm256_mul_ps(mt, _mm256_set1_ps(0.5f)), big);
+    e = _mm256_sub_epi32(e, _mm256_castps_si256(big));   /* mask -1: e + 1 */
+    __m256 f = _mm256_sub_ps(mt, _mm256_set1_ps(1.0f)), z = _mm256_mul_ps(f, f), fe = _mm256_cvtepi32_ps(e);
+    __m256 y = _mm256_set1_ps(7.0376836292e-2f);
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1514610310e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1676998740e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.2420140846e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.4249322787e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.6668057665e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.0000714765e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.4999993993e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(3.3333331174e-1f));
+    y = _mm256_mul_ps(_mm256_mul_ps(y, f), z);
+    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-2.12194440e-4f), fe));
+    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-0.5f), z));
+    return _mm256_add_ps(_mm256_add_ps(f, y), _mm256_mul_ps(_mm256_set1_ps(0.693359375f), fe));
+}
+
+/* The counterfactual channel (ell - ell_{-k}, aux_task below) of rays [0, n8), n8 a
+ * multiple of 8, on 8 lanes: the scalar loop's operations in its order (bitwise equal). */
+static TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int comp, int C, int n8, float smax, float eps_s,
+                                 float is2, float lognorm, float *d8) {
+    const __m256 tiny = _mm256_set1_ps(1e-8f), zero = _mm256_setzero_ps(), vsmax = _mm256_set1_ps(smax);
+    const __m256 veps = _mm256_set1_ps(eps_s), vis2 = _mm256_set1_ps(is2), vln = _mm256_set1_ps(lognorm);
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    for (int r0 = 0; r0 < n8; r0 += 8) {
+        __m256i rr = _mm256_add_epi32(_mm256_set1_epi32(r0), lane);
+        __m256i ps = _mm256_add_epi32(rr, rr), pa = _mm256_add_epi32(ps, _mm256_set1_epi32(1));
+        __m256i is = _mm256_add_epi32(_mm256_mullo_epi32(ps, _mm256_set1_epi32(C)), _mm256_set1_epi32(comp));
+        __m256i ia = _mm256_add_epi32(is, _mm256_set1_epi32(C));
+        __m256 shs = _mm256_i32gather_ps(w->sh, is, 4), sha = _mm256_i32gather_ps(w->sh, ia, 4);
+        __m256 S = _mm256_i32gather_ps(w->S, ps, 4), Sa = _mm256_i32gather_ps(w->S, pa, 4);
+        __m256 Qa = _mm256_mul_ps(_mm256_i32gather_ps(w->Sb, pa, 4), Sa);
+        __m256 Sa2 = _mm256_sub_ps(Sa, sha), Qa2 = _mm256_sub_ps(Qa, _mm256_mul_ps(sha, sha));
+        Sa2 = _mm256_blendv_ps(Sa2, tiny, _mm256_cmp_ps(Sa2, tiny, _CMP_LT_OQ));
+        Qa2 = _mm256_blendv_ps(Qa2, zero, _mm256_cmp_ps(Qa2, zero, _CMP_LT_OQ));
+        __m256 negw = _mm256_xor_ps(_mm256_loadu_ps(vr->W + r0), _mm256_set1_ps(-0.0f));   /* -W exactly (also for W = 0) */
+        __m256 lm = _mm256_div_ps(_mm256_mul_ps(_mm256_mul_ps(negw, vsmax), Qa2), Sa2);
+        __m128i sb = _mm_loadl_epi64((const __m128i *)(vr->surf + r0));
+        __m256 surf = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_cvtepu8_epi32(sb), _mm256_setzero_si256()));
+        if (_mm256_movemask_ps(surf)) {
+            __m256 Qs = _mm256_mul_ps(_mm256_i32gather_ps(w->Sb, ps, 4), S);
+            __m256 S2 = _mm256_sub_ps(S, shs), Q2 = _mm256_sub_ps(Qs, _mm256_mul_ps(shs, shs));
+            S2 = _mm256_blendv_ps(S2, tiny, _mm256_cmp_ps(S2, tiny, _CMP_LT_OQ));
+            Q2 = _mm256_blendv_ps(Q2, zero, _mm256_cmp_ps(Q2, zero, _CMP_LT_OQ));
+            __m256 lx = _mm256_add_ps(_mm256_div_ps(_mm256_mul_ps(vsmax, Q2), S2), veps);
+            __m256 lg = logf_pos8(lx);
+            __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
+                                      _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
+            int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, surf));
+            if (bad) {   /* 0, subnormal, inf, NaN: logf, as mdl_logf_pos */
+                float xs[8], ls[8];
+                _mm256_storeu_ps(xs, lx);
+                _mm256_storeu_ps(ls, lg);
+                for (int q = 0; q < 8; q++)
+                    if (bad >> q & 1) ls[q] = logf(xs[q]);
+                lg = _mm256_loadu_ps(ls);
+            }
+            __m256 e = zero;
+            __m256i i6 = _mm256_add_epi32(_mm256_add_epi32(ps, ps), ps), ic = _mm256_add_epi32(_mm256_add_epi32(is, is), is);
+            __m256i ir = _mm256_add_epi32(_mm256_add_epi32(rr, rr), rr);
+            for (int a = 0; a < 3; a++) {
+                __m256i va = _mm256_set1_epi32(a);
+                __m256 cc = _mm256_i32gather_ps(w->cc, _mm256_add_epi32(i6, va), 4);
+                __m256 ct = _mm256_i32gather_ps(w->ct, _mm256_add_epi32(ic, va), 4);
+                __m256 rgb = _mm256_i32gather_ps(vr->rgb, _mm256_add_epi32(ir, va), 4);
+                __m256 cm = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(cc, S), _mm256_mul_ps(shs, ct)), S2);
+                __m256 dd = _mm256_sub_ps(rgb, cm);
+                e = _mm256_add_ps(e, _mm256_mul_ps(dd, dd));
+            }
+            __m256 ls = _mm256_add_ps(lm, lg);
+            ls = _mm256_add_ps(ls, _mm256_sub_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(-0.5f), e), vis2), vln));
+            lm = _mm256_blendv_ps(lm, ls, surf);
+        }
+        _mm256_storeu_ps(d8 + r0, _mm256_sub_ps(_mm256_loadu_ps(w->ll + r0), lm));
+    }
+}
+#endif
+
 /* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
 typedef struct aux_job {
     const dec_ws *w;
@@ -91,7 +183,14 @@ static void aux_task(void *ctx, int comp, int tid) {
     /* counterfactual ell - ell_{-k} */
     {
         float *restrict d8 = CH(o + 8);
-        for (int rr = 0; rr < N; rr++) {
+        int rr0 = 0;
+#ifdef AUX_AVX2
+        if (mdl_kern_avx2()) {
+            rr0 = N & ~7;
+            aux_cf_avx2(w, vr, comp, C, rr0, smax, eps_s, is2, lognorm, d8);
+        }
+#endif
+        for (int rr = rr0; rr < N; rr++) {
             int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
             const float *sh_s = sh + (size_t)ps * C, *sh_a = sh + (size_t)pa * C;
             const float *ct_s = ctv + (size_t)ps * C * 3;
