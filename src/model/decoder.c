@@ -614,7 +614,103 @@ static void dec_forward(dec_run *r) {
     w->lpe_nrl = nrl;
 }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define POST_AVX2 1
+#define TGT_AVX2 __attribute__((target("avx2")))
+
+/* mdl_logf_pos on 8 lanes (its operations in its order, no FMA: bitwise equal) for
+ * normal x > 0; the caller redoes the other lanes with logf. */
+static TGT_AVX2 inline __m256 post_logf8(__m256 x) {
+    __m256i ix = _mm256_castps_si256(x);
+    __m256i e = _mm256_sub_epi32(_mm256_srli_epi32(ix, 23), _mm256_set1_epi32(127));
+    ix = _mm256_or_si256(_mm256_and_si256(ix, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000));
+    __m256 mt = _mm256_castsi256_ps(ix);
+    __m256 big = _mm256_cmp_ps(mt, _mm256_set1_ps(1.41421356237f), _CMP_GT_OQ);
+    mt = _mm256_blendv_ps(mt, _mm256_mul_ps(mt, _mm256_set1_ps(0.5f)), big);
+    e = _mm256_sub_epi32(e, _mm256_castps_si256(big));   /* mask -1: e + 1 */
+    __m256 f = _mm256_sub_ps(mt, _mm256_set1_ps(1.0f)), z = _mm256_mul_ps(f, f), fe = _mm256_cvtepi32_ps(e);
+    __m256 y = _mm256_set1_ps(7.0376836292e-2f);
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1514610310e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1676998740e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.2420140846e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.4249322787e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.6668057665e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.0000714765e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.4999993993e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(3.3333331174e-1f));
+    y = _mm256_mul_ps(_mm256_mul_ps(y, f), z);
+    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-2.12194440e-4f), fe));
+    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-0.5f), z));
+    return _mm256_add_ps(_mm256_add_ps(f, y), _mm256_mul_ps(_mm256_set1_ps(0.693359375f), fe));
+}
+
+/* mdl_expf_nonpos on 8 lanes (its operations in its order: bitwise equal). */
+static TGT_AVX2 inline __m256 post_expf8(__m256 x) {
+    x = _mm256_blendv_ps(x, _mm256_set1_ps(-87.0f), _mm256_cmp_ps(x, _mm256_set1_ps(-87.0f), _CMP_LT_OQ));   /* NaN stays */
+    __m256 big = _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(12582912.0f));
+    __m256i bi = _mm256_castps_si256(big);
+    __m256 fn = _mm256_sub_ps(big, _mm256_set1_ps(12582912.0f));
+    __m256 r = _mm256_sub_ps(x, _mm256_mul_ps(fn, _mm256_set1_ps(0.693359375f)));
+    r = _mm256_add_ps(r, _mm256_mul_ps(fn, _mm256_set1_ps(2.12194440e-4f)));
+    __m256 y = _mm256_set1_ps(1.9875691500e-4f);
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.3981999507e-3f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(8.3334519073e-3f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(4.1665795894e-2f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.6666665459e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(5.0000001201e-1f));
+    y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(y, r), r), r), _mm256_set1_ps(1.0f));
+    __m256 s = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(bi, _mm256_set1_epi32(127)), 23));
+    return _mm256_mul_ps(y, s);
+}
+
+/* mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
+ * the normaliser summed in component order: bitwise equal). */
+static TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+    const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
+    float S = w->S[2 * rr], *lv = w->ll_cf + (size_t)rr * C;
+    __m256i k = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    __m256i m = _mm256_cmpgt_epi32(_mm256_set1_epi32(C), k);
+    __m256 mf = _mm256_castsi256_ps(m), zero = _mm256_setzero_ps(), e = zero;
+    __m256i k3 = _mm256_add_epi32(_mm256_add_epi32(k, k), k);
+    for (int a = 0; a < 3; a++) {
+        __m256 ct = _mm256_mask_i32gather_ps(zero, ct_s + a, k3, mf, 4);
+        __m256 dd = _mm256_sub_ps(_mm256_set1_ps(vr->rgb[rr * 3 + a]), ct);
+        e = _mm256_add_ps(e, _mm256_mul_ps(dd, dd));
+    }
+    __m256 lx = _mm256_add_ps(_mm256_div_ps(_mm256_maskload_ps(sh_s, m), _mm256_set1_ps(S)), _mm256_set1_ps(1e-10f));
+    __m256 lg = post_logf8(lx);
+    __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
+                              _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
+    float xs[8], l[8];
+    int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, mf));
+    if (bad) {   /* 0, subnormal, inf, NaN: logf, as mdl_logf_pos */
+        _mm256_storeu_ps(xs, lx);
+        _mm256_storeu_ps(l, lg);
+        for (int q = 0; q < C; q++)
+            if (bad >> q & 1) l[q] = logf(xs[q]);
+        lg = _mm256_loadu_ps(l);
+    }
+    __m256 v = _mm256_sub_ps(lg, _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.5f), e), _mm256_set1_ps(is2)));
+    _mm256_storeu_ps(l, v);
+    float lmax = -1e30f;   /* the scalar loop's running maximum (NaN never counts) */
+    for (int q = 0; q < C; q++)
+        if (l[q] > lmax) lmax = l[q];
+    __m256 ex = post_expf8(_mm256_sub_ps(v, _mm256_set1_ps(lmax)));
+    _mm256_storeu_ps(l, ex);
+    float z = 0;
+    for (int q = 0; q < C; q++) z += l[q];
+    _mm256_maskstore_ps(lv, m, _mm256_div_ps(ex, _mm256_set1_ps(z)));
+}
+#endif
+
 void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+#ifdef POST_AVX2
+    if (C <= 8 && mdl_kern_avx2()) {
+        post_ray_avx2(w, vr, rr, C, is2);
+        return;
+    }
+#endif
     const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
     float S = w->S[2 * rr], lmax = -1e30f, *lv = w->ll_cf + (size_t)rr * C;
     for (int k = 0; k < C; k++) {
