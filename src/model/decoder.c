@@ -614,39 +614,11 @@ static void dec_forward(dec_run *r) {
     w->lpe_nrl = nrl;
 }
 
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
+#ifdef MDL_HAVE_AVX2_PATHS
 #define POST_AVX2 1
-#define TGT_AVX2 __attribute__((target("avx2")))
-
-/* mdl_logf_pos on 8 lanes (its operations in its order, no FMA: bitwise equal) for
- * normal x > 0; the caller redoes the other lanes with logf. */
-static TGT_AVX2 inline __m256 post_logf8(__m256 x) {
-    __m256i ix = _mm256_castps_si256(x);
-    __m256i e = _mm256_sub_epi32(_mm256_srli_epi32(ix, 23), _mm256_set1_epi32(127));
-    ix = _mm256_or_si256(_mm256_and_si256(ix, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000));
-    __m256 mt = _mm256_castsi256_ps(ix);
-    __m256 big = _mm256_cmp_ps(mt, _mm256_set1_ps(1.41421356237f), _CMP_GT_OQ);
-    mt = _mm256_blendv_ps(mt, _mm256_mul_ps(mt, _mm256_set1_ps(0.5f)), big);
-    e = _mm256_sub_epi32(e, _mm256_castps_si256(big));   /* mask -1: e + 1 */
-    __m256 f = _mm256_sub_ps(mt, _mm256_set1_ps(1.0f)), z = _mm256_mul_ps(f, f), fe = _mm256_cvtepi32_ps(e);
-    __m256 y = _mm256_set1_ps(7.0376836292e-2f);
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1514610310e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1676998740e-1f));
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.2420140846e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.4249322787e-1f));
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.6668057665e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.0000714765e-1f));
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.4999993993e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(3.3333331174e-1f));
-    y = _mm256_mul_ps(_mm256_mul_ps(y, f), z);
-    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-2.12194440e-4f), fe));
-    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-0.5f), z));
-    return _mm256_add_ps(_mm256_add_ps(f, y), _mm256_mul_ps(_mm256_set1_ps(0.693359375f), fe));
-}
 
 /* mdl_expf_nonpos on 8 lanes (its operations in its order: bitwise equal). */
-static TGT_AVX2 inline __m256 post_expf8(__m256 x) {
+static MDL_TGT_AVX2 inline __m256 post_expf8(__m256 x) {
     x = _mm256_blendv_ps(x, _mm256_set1_ps(-87.0f), _mm256_cmp_ps(x, _mm256_set1_ps(-87.0f), _CMP_LT_OQ));   /* NaN stays */
     __m256 big = _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(12582912.0f));
     __m256i bi = _mm256_castps_si256(big);
@@ -666,7 +638,7 @@ static TGT_AVX2 inline __m256 post_expf8(__m256 x) {
 
 /* mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
  * the normaliser summed in component order: bitwise equal). */
-static TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
     const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
     float S = w->S[2 * rr], *lv = w->ll_cf + (size_t)rr * C;
     __m256i k = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -679,7 +651,7 @@ static TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C
         e = _mm256_add_ps(e, _mm256_mul_ps(dd, dd));
     }
     __m256 lx = _mm256_add_ps(_mm256_div_ps(_mm256_maskload_ps(sh_s, m), _mm256_set1_ps(S)), _mm256_set1_ps(1e-10f));
-    __m256 lg = post_logf8(lx);
+    __m256 lg = mdl_logf_pos8(lx);
     __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
                               _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
     float xs[8], l[8];

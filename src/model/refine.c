@@ -10,40 +10,12 @@
 
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
 
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
+#ifdef MDL_HAVE_AVX2_PATHS
 #define AUX_AVX2 1
-#define TGT_AVX2 __attribute__((target("avx2")))
-
-/* mdl_logf_pos on 8 lanes (the same operations in the same order, no FMA: bitwise
- * equal) for normal x > 0; the caller redoes the other lanes with logf. */
-static TGT_AVX2 inline __m256 logf_pos8(__m256 x) {
-    __m256i ix = _mm256_castps_si256(x);
-    __m256i e = _mm256_sub_epi32(_mm256_srli_epi32(ix, 23), _mm256_set1_epi32(127));
-    ix = _mm256_or_si256(_mm256_and_si256(ix, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000));
-    __m256 mt = _mm256_castsi256_ps(ix);
-    __m256 big = _mm256_cmp_ps(mt, _mm256_set1_ps(1.41421356237f), _CMP_GT_OQ);
-    mt = _mm256_blendv_ps(mt, _mm256_mul_ps(mt, _mm256_set1_ps(0.5f)), big);
-    e = _mm256_sub_epi32(e, _mm256_castps_si256(big));   /* mask -1: e + 1 */
-    __m256 f = _mm256_sub_ps(mt, _mm256_set1_ps(1.0f)), z = _mm256_mul_ps(f, f), fe = _mm256_cvtepi32_ps(e);
-    __m256 y = _mm256_set1_ps(7.0376836292e-2f);
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1514610310e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1676998740e-1f));
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.2420140846e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.4249322787e-1f));
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.6668057665e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.0000714765e-1f));
-    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.4999993993e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(3.3333331174e-1f));
-    y = _mm256_mul_ps(_mm256_mul_ps(y, f), z);
-    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-2.12194440e-4f), fe));
-    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-0.5f), z));
-    return _mm256_add_ps(_mm256_add_ps(f, y), _mm256_mul_ps(_mm256_set1_ps(0.693359375f), fe));
-}
 
 /* The counterfactual channel (ell - ell_{-k}, aux_task below) of rays [0, n8), n8 a
  * multiple of 8, on 8 lanes: the scalar loop's operations in its order (bitwise equal). */
-static TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int comp, int C, int n8, float smax, float eps_s,
+static MDL_TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int comp, int C, int n8, float smax, float eps_s,
                                  float is2, float lognorm, float *d8) {
     const __m256 tiny = _mm256_set1_ps(1e-8f), zero = _mm256_setzero_ps(), vsmax = _mm256_set1_ps(smax);
     const __m256 veps = _mm256_set1_ps(eps_s), vis2 = _mm256_set1_ps(is2), vln = _mm256_set1_ps(lognorm);
@@ -69,7 +41,7 @@ static TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int comp,
             S2 = _mm256_blendv_ps(S2, tiny, _mm256_cmp_ps(S2, tiny, _CMP_LT_OQ));
             Q2 = _mm256_blendv_ps(Q2, zero, _mm256_cmp_ps(Q2, zero, _CMP_LT_OQ));
             __m256 lx = _mm256_add_ps(_mm256_div_ps(_mm256_mul_ps(vsmax, Q2), S2), veps);
-            __m256 lg = logf_pos8(lx);
+            __m256 lg = mdl_logf_pos8(lx);
             __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
                                       _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
             int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, surf));
