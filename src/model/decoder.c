@@ -391,7 +391,7 @@ typedef struct fwd_job {
     const sooc_model *m;
     const dec_ws *w;
     const view_rays *vr;
-    int nbo, nro, nrl;
+    int nbo, nro, nrl, lpe_keep;   /* lpe_keep: l_pe already holds the layout rows' PE */
     float inv_o, inv_l;
 } fwd_job;
 
@@ -415,7 +415,7 @@ static void fwd_task(void *ctx, int blk, int tid) {
                      w->o_ac + (size_t)r0 * no->Hc, w->o_sig + r0, w->o_col + (size_t)r0 * 3, 1);
     } else {
         int r0 = (blk - nbo) * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nrl ? r0 + MDL_DYN_ROWS : nrl;
-        for (int r = r0; r < r1; r++) {
+        for (int r = r0; r < r1 && !j->lpe_keep; r++) {
             const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
             mdl_pe_row(xl, j->inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
@@ -604,29 +604,127 @@ static void dec_rows(dec_run *r) {
 static void dec_forward(dec_run *r) {
     int nro = r->nro, nrl = r->nrl;
     int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-    fwd_job fj = {r->m, r->w, r->vr, nbo, nro, nrl, r->inv_o, r->inv_l};
+    dec_ws *w = r->w;
+    int keep = r->c->same_rays && w->lpe_vr == r->vr && w->lpe_nrl == nrl;
+    fwd_job fj = {r->m, w, r->vr, nbo, nro, nrl, keep, r->inv_o, r->inv_l};
     if (nro + nrl >= MDL_PAR_ROWS && r->nt > 1) mdl_par_run(r->x, nbo + nbl, fwd_task, &fj);
     else
         for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
+    w->lpe_vr = r->vr;
+    w->lpe_nrl = nrl;
+}
+
+#ifdef MDL_HAVE_AVX2_PATHS
+#define POST_AVX2 1
+
+/* mdl_expf_nonpos on 8 lanes (its operations in its order: bitwise equal). */
+static MDL_TGT_AVX2 inline __m256 post_expf8(__m256 x) {
+    x = _mm256_blendv_ps(x, _mm256_set1_ps(-87.0f), _mm256_cmp_ps(x, _mm256_set1_ps(-87.0f), _CMP_LT_OQ));   /* NaN stays */
+    __m256 big = _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(12582912.0f));
+    __m256i bi = _mm256_castps_si256(big);
+    __m256 fn = _mm256_sub_ps(big, _mm256_set1_ps(12582912.0f));
+    __m256 r = _mm256_sub_ps(x, _mm256_mul_ps(fn, _mm256_set1_ps(0.693359375f)));
+    r = _mm256_add_ps(r, _mm256_mul_ps(fn, _mm256_set1_ps(2.12194440e-4f)));
+    __m256 y = _mm256_set1_ps(1.9875691500e-4f);
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.3981999507e-3f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(8.3334519073e-3f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(4.1665795894e-2f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.6666665459e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(5.0000001201e-1f));
+    y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(y, r), r), r), _mm256_set1_ps(1.0f));
+    __m256 s = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(bi, _mm256_set1_epi32(127)), 23));
+    return _mm256_mul_ps(y, s);
+}
+
+/* mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
+ * the normaliser summed in component order: bitwise equal). */
+static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+    const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
+    float S = w->S[2 * rr], *lv = w->ll_cf + (size_t)rr * C;
+    __m256i k = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    __m256i m = _mm256_cmpgt_epi32(_mm256_set1_epi32(C), k);
+    __m256 mf = _mm256_castsi256_ps(m), zero = _mm256_setzero_ps(), e = zero;
+    __m256i k3 = _mm256_add_epi32(_mm256_add_epi32(k, k), k);
+    for (int a = 0; a < 3; a++) {
+        __m256 ct = _mm256_mask_i32gather_ps(zero, ct_s + a, k3, mf, 4);
+        __m256 dd = _mm256_sub_ps(_mm256_set1_ps(vr->rgb[rr * 3 + a]), ct);
+        e = _mm256_add_ps(e, _mm256_mul_ps(dd, dd));
+    }
+    __m256 lx = _mm256_add_ps(_mm256_div_ps(_mm256_maskload_ps(sh_s, m), _mm256_set1_ps(S)), _mm256_set1_ps(1e-10f));
+    __m256 lg = mdl_logf_pos8(lx);
+    __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
+                              _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
+    float xs[8], l[8];
+    int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, mf));
+    if (bad) {   /* 0, subnormal, inf, NaN: logf, as mdl_logf_pos */
+        _mm256_storeu_ps(xs, lx);
+        _mm256_storeu_ps(l, lg);
+        for (int q = 0; q < C; q++)
+            if (bad >> q & 1) l[q] = logf(xs[q]);
+        lg = _mm256_loadu_ps(l);
+    }
+    __m256 v = _mm256_sub_ps(lg, _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.5f), e), _mm256_set1_ps(is2)));
+    _mm256_storeu_ps(l, v);
+    float lmax = -1e30f;   /* the scalar loop's running maximum (NaN never counts) */
+    for (int q = 0; q < C; q++)
+        if (l[q] > lmax) lmax = l[q];
+    __m256 ex = post_expf8(_mm256_sub_ps(v, _mm256_set1_ps(lmax)));
+    _mm256_storeu_ps(l, ex);
+    float z = 0;
+    for (int q = 0; q < C; q++) z += l[q];
+    _mm256_maskstore_ps(lv, m, _mm256_div_ps(ex, _mm256_set1_ps(z)));
+}
+#endif
+
+void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+#ifdef POST_AVX2
+    if (C <= 8 && mdl_kern_avx2()) {
+        post_ray_avx2(w, vr, rr, C, is2);
+        return;
+    }
+#endif
+    const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
+    float S = w->S[2 * rr], lmax = -1e30f, *lv = w->ll_cf + (size_t)rr * C;
+    for (int k = 0; k < C; k++) {
+        float e = 0;
+        for (int a = 0; a < 3; a++) {
+            float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
+            e += dd * dd;
+        }
+        lv[k] = mdl_logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
+        if (lv[k] > lmax) lmax = lv[k];
+    }
+    float z = 0;
+    for (int k = 0; k < C; k++) z += (lv[k] = mdl_expf_nonpos(lv[k] - lmax));
+    for (int k = 0; k < C; k++) lv[k] /= z;
 }
 
 /* 4. Dense σ̂, c̃ per point and component, composition, the two-sample
  * likelihood (c->nll, nll_d, nll_c), its gradients w.r.t. σ̂ and c̃ (gsh,
- * gct) and the per-ray log-likelihood (ll, for the auxiliary inputs). */
-static void dec_compose(dec_run *r) {
-    const sooc_model_config *cfg = r->cfg;
-    dec_call *c = r->c;
-    const view_rays *vr = r->vr;
-    dec_ws *w = r->w;
-    int N = r->N, C = r->C, nt = r->nt;
-    float sigc = r->sigc;
-    float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * cfg->sigma_max;
-    float scale = (float)(cfg->img_w * cfg->img_h) / (float)N;
-    float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)), is2 = 1.0f / (sigc * sigc);
-    double sum_d = 0, sum_c = 0;
-    (void)nt;
-MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, sum_c) if (N >= 4 * MDL_PAR_ROWS))
-    for (int rr = 0; rr < N; rr++) {
+ * gct), the per-ray log-likelihood (ll, for the auxiliary inputs) and, with
+ * c->aux_post, the auxiliary inputs' colour posterior (ll_cf). Rays in fixed
+ * blocks (pool tasks); each ray's likelihood terms go to w->lt and are summed
+ * in ray order afterwards, so the sums do not depend on the thread count. */
+#define COMPOSE_RAYS 64
+typedef struct comp_job {
+    const sooc_model_config *cfg;
+    const dec_call *c;
+    const view_rays *vr;
+    dec_ws *w;
+    int N, C;
+    float smax, eps_s, scale, lognorm, is2;
+} comp_job;
+
+static void comp_task(void *ctx, int blk, int tid) {
+    const comp_job *j = ctx;
+    const dec_call *c = j->c;
+    const view_rays *vr = j->vr;
+    dec_ws *w = j->w;
+    int C = j->C, r0 = blk * COMPOSE_RAYS, r1 = r0 + COMPOSE_RAYS < j->N ? r0 + COMPOSE_RAYS : j->N;
+    float smax = j->smax, eps_s = j->eps_s, scale = j->scale, lognorm = j->lognorm, is2 = j->is2;
+    (void)tid;
+    for (int rr = r0; rr < r1; rr++) {
+        float *lt = w->lt + (size_t)rr * 3;   /* surface density, surface colour, air density terms */
         for (int q = 0; q < 2; q++) {
             int pt = 2 * rr + q;
             float *sh = w->sh + (size_t)pt * C, *ct = w->ct + (size_t)pt * C * 3;
@@ -666,7 +764,7 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             float gSb, gc[3] = {0, 0, 0};
             if (q == 0) {
                 float v = smax * Sb + eps_s;
-                sum_d += logf(v);
+                lt[0] = logf(v);
                 gSb = -scale * smax / v;
                 float e = 0;
                 for (int a = 0; a < 3; a++) {
@@ -674,9 +772,9 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
                     e += dd * dd;
                     gc[a] = scale * (-dd) * is2;
                 }
-                sum_c += -0.5f * e * is2 - lognorm;
+                lt[1] = -0.5f * e * is2 - lognorm;
             } else {
-                sum_d += -vr->W[rr] * smax * Sb;
+                lt[2] = -vr->W[rr] * smax * Sb;
                 gSb = scale * vr->W[rr] * smax;
             }
             for (int k = 0; k < C; k++) {
@@ -702,9 +800,35 @@ MDL_OMP(omp parallel for num_threads(nt) schedule(static) reduction(+ : sum_d, s
             l += -0.5f * e * is2 - lognorm;
         }
         w->ll[rr] = l;
+        if (c->aux_post && vr->surf[rr]) mdl_aux_post_ray(w, vr, rr, C, is2);
     }
-    c->nll_d = -scale * sum_d;
-    c->nll_c = -scale * sum_c;
+}
+
+static void dec_compose(dec_run *r) {
+    const sooc_model_config *cfg = r->cfg;
+    dec_call *c = r->c;
+    const view_rays *vr = r->vr;
+    dec_ws *w = r->w;
+    int N = r->N;
+    float sigc = r->sigc;
+    comp_job j = {cfg, c, vr, w, N, r->C, cfg->sigma_max, cfg->eps_sigma_rel * cfg->sigma_max,
+                  (float)(cfg->img_w * cfg->img_h) / (float)N, 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)),
+                  1.0f / (sigc * sigc)};
+    int nb = (N + COMPOSE_RAYS - 1) / COMPOSE_RAYS;
+    if (N >= MDL_PAR_ROWS / 4 && r->nt > 1) mdl_par_run(r->x, nb, comp_task, &j);
+    else
+        for (int b = 0; b < nb; b++) comp_task(&j, b, 0);
+    double sum_d = 0, sum_c = 0;   /* ray order, as the terms were added one by one */
+    for (int rr = 0; rr < N; rr++) {
+        const float *lt = w->lt + (size_t)rr * 3;
+        if (vr->surf[rr]) {
+            sum_d += lt[0];
+            sum_c += lt[1];
+        }
+        if (!vr->unk[rr]) sum_d += lt[2];
+    }
+    c->nll_d = -j.scale * sum_d;
+    c->nll_c = -j.scale * sum_c;
     c->nll = c->nll_d + c->nll_c;
 }
 
@@ -973,6 +1097,7 @@ sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
     A(cc, (size_t)P * 3, float);
     A(ll, P, float);
     A(ll_cf, (size_t)P * C, float);
+    A(lt, (size_t)(P / 2) * 3, float);
     A(slot_bias, (size_t)C * H, float);
     A(lr_pt, P, int);
     w->dec_np = m->robj.cw[0];   /* both decoders come first in the slab */
@@ -991,7 +1116,7 @@ void mdl_dec_ws_destroy(dec_ws *w) {
     if (!w) return;
     float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
                     &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,
-                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->slot_bias,
+                    &w->sh, &w->ct, &w->gsh, &w->gct, &w->S, &w->Sb, &w->cc, &w->ll, &w->ll_cf, &w->lt, &w->slot_bias,
                     &w->g_bias, &w->wt};
     for (size_t i = 0; i < sizeof fp / sizeof fp[0]; i++) sooc_free(*fp[i]);
     sooc_free(w->ro_pt);

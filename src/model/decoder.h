@@ -7,6 +7,9 @@
 
 #include "model/weights.h"
 
+#include <math.h>
+#include <string.h>
+
 /* Rays of one view in G_t (origin at the camera centre). P = 2 N points:
  * point 2r = surface sample, 2r + 1 = air sample. */
 typedef struct view_rays {
@@ -45,7 +48,8 @@ struct dec_ws {
     float *sh, *ct, *gsh, *gct; int *rowof;
     float *S, *Sb, *cc;           /* per point */
     float *ll;                    /* per ray log-lik (ell_c + ell_d) */
-    float *ll_cf;                 /* N x (K+1) counterfactual ell - ell_{-k} */
+    float *ll_cf;                 /* N x (K+1): the aux inputs' colour posterior (mdl_aux_post_ray) */
+    float *lt;                    /* N x 3 per-ray likelihood terms (surface density, colour, air) */
     int *lr_pt;                   /* layout row -> point */
     float *tbuf;                  /* nthr x (dec_np + (K+1) H + 3K) thread-private grads */
     size_t dec_np;                /* decoder parameters: slab offsets [0, dec_np) */
@@ -54,6 +58,8 @@ struct dec_ws {
     float *wt;                    /* nwt: transposed decoder weights for the backward GEMMs */
     size_t nwt;
     float *g_bias;                /* (K+1) x H */
+    const view_rays *lpe_vr;      /* the rays whose layout rows' PE (nrl rows) l_pe holds */
+    int lpe_nrl;
 };
 typedef struct dec_ws dec_ws;
 
@@ -72,6 +78,11 @@ typedef struct dec_call {
                                      w_g(Π(zw) x) / w_g(Π(zw_sg) x), i.e. the Gaussian trick
                                      written as a forward, for finite-difference checks        */
     int backward;                 /* 0: forward only                                           */
+    int same_rays;                /* 1: the rays have not changed since the previous decode on this
+                                     workspace (the next iteration of the same view): the layout
+                                     rows' positional encoding is kept                          */
+    int aux_post;                 /* 1: also the aux inputs' colour posterior (w->ll_cf, per
+                                     surface ray; mdl_aux_post_ray) during the composition      */
     /* outputs */
     double loss, nll, nll_d, nll_c, kl;
     float *g_lam, *g_lam0, *g_lay, *g_lay0;   /* ACCUMULATED (+=) when non-NULL; UNWEIGHTED */
@@ -114,6 +125,97 @@ static inline void mdl_pi_cs(const float x[3], float px, float pz, float c, floa
 void mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
 
 void mdl_pe_row(const float *x, float inv, int nf, float *out);
+
+/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
+ * relative error < 1e-7, like expf; per-ray loops of the aux inputs). */
+static inline float mdl_expf_nonpos(float x) {
+    x = x < -87.0f ? -87.0f : x;
+    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
+    uint32_t bi;
+    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
+    float fn = big - 12582912.0f;
+    float r = x - fn * 0.693359375f;
+    r = r + fn * 2.12194440e-4f;
+    float y = 1.9875691500e-4f;
+    y = y * r + 1.3981999507e-3f;
+    y = y * r + 8.3334519073e-3f;
+    y = y * r + 4.1665795894e-2f;
+    y = y * r + 1.6666665459e-1f;
+    y = y * r + 5.0000001201e-1f;
+    y = y * r * r + r + 1.0f;
+    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
+    float s;
+    memcpy(&s, &bits, sizeof s);
+    return y * s;
+}
+
+/* log(x) for normal x > 0 (Cephes logf polynomial on the mantissa in [sqrt(1/2), sqrt(2));
+ * relative error ~1e-7, like logf; per-ray loops of the aux inputs). */
+static inline float mdl_logf_pos(float x) {
+    if (!(x >= 1.17549435e-38f && x <= 3.40282347e38f)) return logf(x);   /* 0, subnormal, inf, NaN, < 0 */
+    uint32_t ix;
+    memcpy(&ix, &x, sizeof ix);
+    int e = (int)(ix >> 23) - 127;
+    ix = (ix & 0x007fffffu) | 0x3f800000u;
+    float mt;
+    memcpy(&mt, &ix, sizeof mt);   /* [1, 2) */
+    if (mt > 1.41421356237f) {
+        mt *= 0.5f;
+        e++;
+    }
+    float f = mt - 1.0f, z = f * f, fe = (float)e;
+    float y = 7.0376836292e-2f;
+    y = y * f - 1.1514610310e-1f;
+    y = y * f + 1.1676998740e-1f;
+    y = y * f - 1.2420140846e-1f;
+    y = y * f + 1.4249322787e-1f;
+    y = y * f - 1.6668057665e-1f;
+    y = y * f + 2.0000714765e-1f;
+    y = y * f - 2.4999993993e-1f;
+    y = y * f + 3.3333331174e-1f;
+    y = y * f * z;
+    y += -2.12194440e-4f * fe;
+    y += -0.5f * z;
+    return f + y + 0.693359375f * fe;
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define MDL_HAVE_AVX2_PATHS 1
+#define MDL_TGT_AVX2 __attribute__((target("avx2")))   /* no FMA: float operations round as in C */
+
+/* mdl_logf_pos on 8 lanes (its operations in its order, no FMA: bitwise equal) for
+ * normal x > 0; the caller redoes the other lanes with logf. */
+static MDL_TGT_AVX2 inline __m256 mdl_logf_pos8(__m256 x) {
+    __m256i ix = _mm256_castps_si256(x);
+    __m256i e = _mm256_sub_epi32(_mm256_srli_epi32(ix, 23), _mm256_set1_epi32(127));
+    ix = _mm256_or_si256(_mm256_and_si256(ix, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000));
+    __m256 mt = _mm256_castsi256_ps(ix);
+    __m256 big = _mm256_cmp_ps(mt, _mm256_set1_ps(1.41421356237f), _CMP_GT_OQ);
+    mt = _mm256_blendv_ps(mt, _mm256_mul_ps(mt, _mm256_set1_ps(0.5f)), big);
+    e = _mm256_sub_epi32(e, _mm256_castps_si256(big));   /* mask -1: e + 1 */
+    __m256 f = _mm256_sub_ps(mt, _mm256_set1_ps(1.0f)), z = _mm256_mul_ps(f, f), fe = _mm256_cvtepi32_ps(e);
+    __m256 y = _mm256_set1_ps(7.0376836292e-2f);
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1514610310e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.1676998740e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.2420140846e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.4249322787e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(1.6668057665e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.0000714765e-1f));
+    y = _mm256_sub_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(2.4999993993e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, f), _mm256_set1_ps(3.3333331174e-1f));
+    y = _mm256_mul_ps(_mm256_mul_ps(y, f), z);
+    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-2.12194440e-4f), fe));
+    y = _mm256_add_ps(y, _mm256_mul_ps(_mm256_set1_ps(-0.5f), z));
+    return _mm256_add_ps(_mm256_add_ps(f, y), _mm256_mul_ps(_mm256_set1_ps(0.693359375f), fe));
+}
+
+#endif
+
+/* The aux inputs' colour-likelihood posterior of surface ray rr after a composition:
+ * softmax_k [log pi_k + log N(C; c_k, sigma_C^2)] into w->ll_cf row rr (C components;
+ * is2 = 1 / sigma_C^2). */
+void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2);
 /* Layers 2.. of a decoder on R rows (serial), layer-1 pre-activation in a1. */
 void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col);

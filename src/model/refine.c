@@ -8,60 +8,71 @@
 #include <math.h>
 #include <string.h>
 
-/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
- * relative error < 1e-7, like expf; the aux inputs' per-ray loops). */
-static inline float expf_nonpos(float x) {
-    x = x < -87.0f ? -87.0f : x;
-    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
-    uint32_t bi;
-    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
-    float fn = big - 12582912.0f;
-    float r = x - fn * 0.693359375f;
-    r = r + fn * 2.12194440e-4f;
-    float y = 1.9875691500e-4f;
-    y = y * r + 1.3981999507e-3f;
-    y = y * r + 8.3334519073e-3f;
-    y = y * r + 4.1665795894e-2f;
-    y = y * r + 1.6666665459e-1f;
-    y = y * r + 5.0000001201e-1f;
-    y = y * r * r + r + 1.0f;
-    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
-    float s;
-    memcpy(&s, &bits, sizeof s);
-    return y * s;
-}
-
-/* log(x) for normal x > 0 (Cephes logf polynomial on the mantissa in [sqrt(1/2), sqrt(2));
- * relative error ~1e-7, like logf; inlined in the per-ray loops of the aux inputs). */
-static inline float logf_pos(float x) {
-    if (!(x >= 1.17549435e-38f && x <= 3.40282347e38f)) return logf(x);   /* 0, subnormal, inf, NaN, < 0 */
-    uint32_t ix;
-    memcpy(&ix, &x, sizeof ix);
-    int e = (int)(ix >> 23) - 127;
-    ix = (ix & 0x007fffffu) | 0x3f800000u;
-    float mt;
-    memcpy(&mt, &ix, sizeof mt);   /* [1, 2) */
-    if (mt > 1.41421356237f) {
-        mt *= 0.5f;
-        e++;
-    }
-    float f = mt - 1.0f, z = f * f, fe = (float)e;
-    float y = 7.0376836292e-2f;
-    y = y * f - 1.1514610310e-1f;
-    y = y * f + 1.1676998740e-1f;
-    y = y * f - 1.2420140846e-1f;
-    y = y * f + 1.4249322787e-1f;
-    y = y * f - 1.6668057665e-1f;
-    y = y * f + 2.0000714765e-1f;
-    y = y * f - 2.4999993993e-1f;
-    y = y * f + 3.3333331174e-1f;
-    y = y * f * z;
-    y += -2.12194440e-4f * fe;
-    y += -0.5f * z;
-    return f + y + 0.693359375f * fe;
-}
-
 static inline float clampf(float x, float a, float b) { return x < a ? a : x > b ? b : x; }
+
+#ifdef MDL_HAVE_AVX2_PATHS
+#define AUX_AVX2 1
+
+/* The counterfactual channel (ell - ell_{-k}, aux_task below) of rays [0, n8), n8 a
+ * multiple of 8, on 8 lanes: the scalar loop's operations in its order (bitwise equal). */
+static MDL_TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int comp, int C, int n8, float smax, float eps_s,
+                                 float is2, float lognorm, float *d8) {
+    const __m256 tiny = _mm256_set1_ps(1e-8f), zero = _mm256_setzero_ps(), vsmax = _mm256_set1_ps(smax);
+    const __m256 veps = _mm256_set1_ps(eps_s), vis2 = _mm256_set1_ps(is2), vln = _mm256_set1_ps(lognorm);
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    for (int r0 = 0; r0 < n8; r0 += 8) {
+        __m256i rr = _mm256_add_epi32(_mm256_set1_epi32(r0), lane);
+        __m256i ps = _mm256_add_epi32(rr, rr), pa = _mm256_add_epi32(ps, _mm256_set1_epi32(1));
+        __m256i is = _mm256_add_epi32(_mm256_mullo_epi32(ps, _mm256_set1_epi32(C)), _mm256_set1_epi32(comp));
+        __m256i ia = _mm256_add_epi32(is, _mm256_set1_epi32(C));
+        __m256 shs = _mm256_i32gather_ps(w->sh, is, 4), sha = _mm256_i32gather_ps(w->sh, ia, 4);
+        __m256 S = _mm256_i32gather_ps(w->S, ps, 4), Sa = _mm256_i32gather_ps(w->S, pa, 4);
+        __m256 Qa = _mm256_mul_ps(_mm256_i32gather_ps(w->Sb, pa, 4), Sa);
+        __m256 Sa2 = _mm256_sub_ps(Sa, sha), Qa2 = _mm256_sub_ps(Qa, _mm256_mul_ps(sha, sha));
+        Sa2 = _mm256_blendv_ps(Sa2, tiny, _mm256_cmp_ps(Sa2, tiny, _CMP_LT_OQ));
+        Qa2 = _mm256_blendv_ps(Qa2, zero, _mm256_cmp_ps(Qa2, zero, _CMP_LT_OQ));
+        __m256 negw = _mm256_xor_ps(_mm256_loadu_ps(vr->W + r0), _mm256_set1_ps(-0.0f));   /* -W exactly (also for W = 0) */
+        __m256 lm = _mm256_div_ps(_mm256_mul_ps(_mm256_mul_ps(negw, vsmax), Qa2), Sa2);
+        __m128i sb = _mm_loadl_epi64((const __m128i *)(vr->surf + r0));
+        __m256 surf = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_cvtepu8_epi32(sb), _mm256_setzero_si256()));
+        if (_mm256_movemask_ps(surf)) {
+            __m256 Qs = _mm256_mul_ps(_mm256_i32gather_ps(w->Sb, ps, 4), S);
+            __m256 S2 = _mm256_sub_ps(S, shs), Q2 = _mm256_sub_ps(Qs, _mm256_mul_ps(shs, shs));
+            S2 = _mm256_blendv_ps(S2, tiny, _mm256_cmp_ps(S2, tiny, _CMP_LT_OQ));
+            Q2 = _mm256_blendv_ps(Q2, zero, _mm256_cmp_ps(Q2, zero, _CMP_LT_OQ));
+            __m256 lx = _mm256_add_ps(_mm256_div_ps(_mm256_mul_ps(vsmax, Q2), S2), veps);
+            __m256 lg = mdl_logf_pos8(lx);
+            __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
+                                      _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
+            int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, surf));
+            if (bad) {   /* 0, subnormal, inf, NaN: logf, as mdl_logf_pos */
+                float xs[8], ls[8];
+                _mm256_storeu_ps(xs, lx);
+                _mm256_storeu_ps(ls, lg);
+                for (int q = 0; q < 8; q++)
+                    if (bad >> q & 1) ls[q] = logf(xs[q]);
+                lg = _mm256_loadu_ps(ls);
+            }
+            __m256 e = zero;
+            __m256i i6 = _mm256_add_epi32(_mm256_add_epi32(ps, ps), ps), ic = _mm256_add_epi32(_mm256_add_epi32(is, is), is);
+            __m256i ir = _mm256_add_epi32(_mm256_add_epi32(rr, rr), rr);
+            for (int a = 0; a < 3; a++) {
+                __m256i va = _mm256_set1_epi32(a);
+                __m256 cc = _mm256_i32gather_ps(w->cc, _mm256_add_epi32(i6, va), 4);
+                __m256 ct = _mm256_i32gather_ps(w->ct, _mm256_add_epi32(ic, va), 4);
+                __m256 rgb = _mm256_i32gather_ps(vr->rgb, _mm256_add_epi32(ir, va), 4);
+                __m256 cm = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(cc, S), _mm256_mul_ps(shs, ct)), S2);
+                __m256 dd = _mm256_sub_ps(rgb, cm);
+                e = _mm256_add_ps(e, _mm256_mul_ps(dd, dd));
+            }
+            __m256 ls = _mm256_add_ps(lm, lg);
+            ls = _mm256_add_ps(ls, _mm256_sub_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(-0.5f), e), vis2), vln));
+            lm = _mm256_blendv_ps(lm, ls, surf);
+        }
+        _mm256_storeu_ps(d8 + r0, _mm256_sub_ps(_mm256_loadu_ps(w->ll + r0), lm));
+    }
+}
+#endif
 
 /* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
 typedef struct aux_job {
@@ -105,7 +116,7 @@ static void aux_task(void *ctx, int comp, int tid) {
             x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
             x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
             x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
-            wgc[rr] = surf ? expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+            wgc[rr] = surf ? mdl_expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
         }
         o += 4;
     } else {
@@ -144,7 +155,14 @@ static void aux_task(void *ctx, int comp, int tid) {
     /* counterfactual ell - ell_{-k} */
     {
         float *restrict d8 = CH(o + 8);
-        for (int rr = 0; rr < N; rr++) {
+        int rr0 = 0;
+#ifdef AUX_AVX2
+        if (mdl_kern_avx2()) {
+            rr0 = N & ~7;
+            aux_cf_avx2(w, vr, comp, C, rr0, smax, eps_s, is2, lognorm, d8);
+        }
+#endif
+        for (int rr = rr0; rr < N; rr++) {
             int ps = 2 * rr, pa = ps + 1, surf = vr->surf[rr];
             const float *sh_s = sh + (size_t)ps * C, *sh_a = sh + (size_t)pa * C;
             const float *ct_s = ctv + (size_t)ps * C * 3;
@@ -158,7 +176,7 @@ static void aux_task(void *ctx, int comp, int tid) {
                 float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
                 if (S2 < 1e-8f) S2 = 1e-8f;
                 if (Q2 < 0) Q2 = 0;
-                lm += logf_pos(smax * Q2 / S2 + eps_s);
+                lm += mdl_logf_pos(smax * Q2 / S2 + eps_s);
                 float e = 0;
                 for (int a = 0; a < 3; a++) {
                     float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;
@@ -202,25 +220,12 @@ void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, con
     float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c, is2 = 1.0f / (sigc * sigc);
     float lognorm = 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI));
     float inv_rh = 1.0f / cfg->box_rh, inv_b = 1.0f / cfg->block_size, s2 = cfg->gauss_s * cfg->gauss_s;
-    /* colour-likelihood posterior softmax_k [log pi_k + log N(C; c_k, sigma_C^2)], once per ray */
-    float *post_all = w->ll_cf;   /* N x C scratch */
-    for (int rr = 0; rr < N; rr++) {
-        if (!vr->surf[rr]) continue;
-        const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
-        float S = w->S[2 * rr], lmax = -1e30f, *lv = post_all + (size_t)rr * C;
-        for (int k = 0; k < C; k++) {
-            float e = 0;
-            for (int a = 0; a < 3; a++) {
-                float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
-                e += dd * dd;
-            }
-            lv[k] = logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
-            if (lv[k] > lmax) lmax = lv[k];
-        }
-        float z = 0;
-        for (int k = 0; k < C; k++) z += (lv[k] = expf_nonpos(lv[k] - lmax));
-        for (int k = 0; k < C; k++) lv[k] /= z;
-    }
+    /* colour-likelihood posterior softmax_k [log pi_k + log N(C; c_k, sigma_C^2)], once per
+     * surface ray (during the composition when the decode was asked for it) */
+    float *post_all = w->ll_cf;   /* N x C */
+    if (!c->aux_post)
+        for (int rr = 0; rr < N; rr++)
+            if (vr->surf[rr]) mdl_aux_post_ray(x->dec, vr, rr, C, is2);
     /* Channels 0-7 (colour, depth, beyond-clip flag, ray direction) are the same for every
      * component: written once into the layout image, copied into each object's. */
     {

@@ -297,6 +297,8 @@ sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L
         dc.hard = hard;
         dc.wgrad = train ? wl : 0.0f;
         dc.backward = 1;
+        dc.same_rays = l > 0;   /* the view's rays, unchanged since its previous decode */
+        dc.aux_post = l < L && !S->aux_replay;   /* a refinement follows: its inputs' colour posterior */
         dc.g_lam = glam, dc.g_lay = glay;
         memset(S->tmp0, 0, (size_t)K * NL * sizeof(float));
         memset(S->tmpl0, 0, D2 * sizeof(float));

@@ -44,12 +44,48 @@ static inline float expf_nonpos(float x) {
 
 float sooc_nn_r_elu1(float x) { return x > 0 ? x : expf_nonpos(x) - 1.0f; }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+/* The SSE2 rows below on 8 lanes (AVX2 without FMA: the same operations in the same
+ * order, bitwise equal); returns the elements done. */
+__attribute__((target("avx2"))) static int64_t elu_bias_avx2(float *y, int64_t n, float bias) {
+    int64_t j = 0;
+    const __m256 vb = _mm256_set1_ps(bias), lo = _mm256_set1_ps(-87.0f), zero = _mm256_setzero_ps();
+    const __m256 one = _mm256_set1_ps(1.0f), l2e = _mm256_set1_ps(1.44269504088896341f);
+    const __m256 c1 = _mm256_set1_ps(0.693359375f), c2 = _mm256_set1_ps(2.12194440e-4f);
+    for (; j + 8 <= n; j += 8) {
+        __m256 x = _mm256_add_ps(_mm256_loadu_ps(y + j), vb);
+        __m256 xn = _mm256_max_ps(_mm256_min_ps(x, zero), lo);
+        __m256i ni = _mm256_cvtps_epi32(_mm256_mul_ps(xn, l2e));   /* round to nearest (default MXCSR) */
+        __m256 fn = _mm256_cvtepi32_ps(ni);
+        __m256 r = _mm256_sub_ps(xn, _mm256_mul_ps(fn, c1));
+        r = _mm256_add_ps(r, _mm256_mul_ps(fn, c2));
+        __m256 p = _mm256_set1_ps(1.9875691500e-4f);
+        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.3981999507e-3f));
+        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(8.3334519073e-3f));
+        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(4.1665795894e-2f));
+        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.6666665459e-1f));
+        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(5.0000001201e-1f));
+        p = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, r), r), r), one);
+        __m256 s = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(ni, _mm256_set1_epi32(127)), 23));
+        __m256 e = _mm256_sub_ps(_mm256_mul_ps(p, s), one);
+        __m256 pos = _mm256_cmp_ps(x, zero, _CMP_GT_OQ);
+        _mm256_storeu_ps(y + j, _mm256_blendv_ps(e, x, pos));
+    }
+    return j;
+}
+#define NN_ELU_AVX2 1
+#endif
+
 void sooc_nn_r_elu_bias(float *y, int64_t n, float bias) {
     int64_t j = 0;
+#ifdef NN_ELU_AVX2
+    if (sooc_nn_gemm_avx2()) j = elu_bias_avx2(y, n, bias);
+#endif
 #ifdef __SSE2__
     const __m128 vb = _mm_set1_ps(bias), lo = _mm_set1_ps(-87.0f), zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
     const __m128 l2e = _mm_set1_ps(1.44269504088896341f), c1 = _mm_set1_ps(0.693359375f), c2 = _mm_set1_ps(2.12194440e-4f);
-    for (; j + 4 <= n; j += 4) {
+    for (; j + 4 <= n; j += 4) {   /* (after the AVX2 rows: the last < 8) */
         __m128 x = _mm_add_ps(_mm_loadu_ps(y + j), vb);
         __m128 xn = _mm_max_ps(_mm_min_ps(x, zero), lo);
         __m128i ni = _mm_cvtps_epi32(_mm_mul_ps(xn, l2e));   /* round to nearest (default MXCSR) */
@@ -140,12 +176,83 @@ static inline void col2im_row(float *restrict x, int Wo, const float *restrict r
     }
 }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+/* deint_row on 8 outputs per step into nd (1 or 2) destination triples (rows of
+ * columns fed by the same input row): d[t][0..2]. Copies only: bitwise the same. */
+__attribute__((target("avx2"))) static inline void deint_row_avx2(const float *restrict xr, int Wo, float *d[2][3],
+                                                                   int nd) {
+    int ox = 0;
+    const __m256i rot = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 0);
+    for (; ox + 8 <= Wo; ox += 8) {
+        __m256 a = _mm256_loadu_ps(xr + 2 * ox), b = _mm256_loadu_ps(xr + 2 * ox + 8);
+        __m256 e = _mm256_castpd_ps(
+            _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))), 0xD8));
+        __m256 o = _mm256_castpd_ps(
+            _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))), 0xD8));
+        __m256 e2;
+        if (ox + 8 < Wo) {   /* reads up to x[2 ox + 17] <= x[2 Wo - 1] */
+            __m256 c = _mm256_loadu_ps(xr + 2 * ox + 2), f = _mm256_loadu_ps(xr + 2 * ox + 10);
+            e2 = _mm256_castpd_ps(
+                _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(c, f, _MM_SHUFFLE(2, 0, 2, 0))), 0xD8));
+        } else {   /* the last block: the evens shifted down one lane, the pad zero last */
+            e2 = _mm256_blend_ps(_mm256_permutevar8x32_ps(e, rot), _mm256_setzero_ps(), 0x80);
+        }
+        for (int t = 0; t < nd; t++) {
+            _mm256_storeu_ps(d[t][0] + ox, e);
+            _mm256_storeu_ps(d[t][1] + ox, o);
+            _mm256_storeu_ps(d[t][2] + ox, e2);
+        }
+    }
+    if (ox < Wo)
+        for (int t = 0; t < nd; t++) deint_row(xr + 2 * ox, Wo - ox, d[t][0] + ox, d[t][1] + ox, d[t][2] + ox);
+}
+
+/* sooc_nn_rconv_im2col with 8-wide rows (an input row deinterleaved once for both
+ * its output rows). */
+__attribute__((target("avx2"))) static void im2col_avx2(const float *x, int c0, int nc, int B, int b0, int b1, int Hi,
+                                                       int Wi, float *cols) {
+    int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
+    size_t No = (size_t)(b1 - b0) * HWo;
+    for (int cc = 0; cc < nc; cc++)
+        for (int b = b0; b < b1; b++) {
+            const float *xb = x + ((size_t)(c0 + cc) * B + b) * Hi * Wi;
+            float *base = cols + (size_t)cc * 9 * No + (size_t)(b - b0) * HWo;
+            for (int kx = 0; kx < 3; kx++) {
+                float *restrict r = base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo;
+                for (int ox = 0; ox < Wo; ox++) r[ox] = 0.0f;
+            }
+            for (int iy = 0; iy < Hi; iy++) {
+                float *d[2][3];
+                int nd = 0, ky[2], oy[2];
+                if (iy & 1) {
+                    ky[nd] = 1, oy[nd++] = iy >> 1;
+                } else {
+                    ky[nd] = 0, oy[nd++] = iy >> 1;
+                    if (iy >= 2) ky[nd] = 2, oy[nd++] = (iy >> 1) - 1;
+                }
+                for (int t = 0; t < nd; t++) {
+                    float *r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
+                    d[t][0] = r0, d[t][1] = r0 + No, d[t][2] = r0 + 2 * No;
+                }
+                deint_row_avx2(xb + (size_t)iy * Wi, Wo, d, nd);
+            }
+        }
+}
+#define NN_IM2COL_AVX2 1
+#endif
+
 /* Each input row feeds one or two output rows per kx (even columns, odd columns,
  * even columns shifted by one with the pad last), written by plain loops. */
 void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int Hi, int Wi, float *cols) {
     int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
     size_t No = (size_t)(b1 - b0) * HWo;
     SOOC_ASSERT(Hi % 2 == 0 && Wi % 2 == 0);
+#ifdef NN_IM2COL_AVX2
+    if (Wo >= 8 && sooc_nn_gemm_avx2()) {
+        im2col_avx2(x, c0, nc, B, b0, b1, Hi, Wi, cols);
+        return;
+    }
+#endif
     for (int cc = 0; cc < nc; cc++)
         for (int b = b0; b < b1; b++) {
             const float *xb = x + ((size_t)(c0 + cc) * B + b) * Hi * Wi;
