@@ -246,7 +246,7 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
     sooc3d_gate_verdict v[SOOC_MODEL_K_MAX];
     int refused = sooc3d_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
     static const char *why[] = {"not new", "created", "refused: too few rays of its own",
-                                "refused: part of a retrieved entry"};
+                                "refused: part of a mapped entry (retrieved slot, or box of an unretrieved entry: id 0)"};
     for (int i = 0; i < K; i++) {
         if (role[i] != SOOC3D_GATE_NEW) continue;
         float *lam = mp->lam_reg + (size_t)i * NL;
@@ -255,10 +255,13 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
             sooc_cogmap_lam_to_world(&V->gf, d, lam, &e);
             double dj = -1;
             uint64_t idj = 0;
-            if (v[i].part >= 0) {
+            if (v[i].part >= 0 && v[i].part < K) {   /* a registered retrieved slot */
                 sooc_cogmap_lam_to_world(&V->gf, d, mp->lam_reg + (size_t)v[i].part * NL, &ej);
                 dj = hypot(e.X - ej.X, e.Z - ej.Z);
                 idj = mp->src_reg[v[i].part];
+            } else if (v[i].part >= K) {   /* an unretrieved map entry's box (model units, G frame) */
+                const float *b = mp->gate_boxes + 3 * (v[i].part - K), *l = mp->lam_gate + (size_t)i * NL;
+                dj = c->unit_m * hypot(l[SOOC_LAM_X] - b[0], l[SOOC_LAM_Z] - b[1]);
             }
             sooc_log(SOOC_LOG_DEBUG,
                      "mapper gate: view %d slot %d new at (%.2f, %.2f): owns %d rays, %d alone (of %d, need %.0f); "
