@@ -24,9 +24,69 @@
 
 #include "sooc3d/core.h"
 
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* ========================================================= scalar math */
+
+/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
+ * relative error < 1e-7, like expf; the ELU of the refinement convs and the per-ray loops of
+ * the decoder's aux inputs). */
+static inline float sooc_nn_expf_nonpos(float x) {
+    x = x < -87.0f ? -87.0f : x;
+    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
+    uint32_t bi;
+    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
+    float fn = big - 12582912.0f;
+    float r = x - fn * 0.693359375f;
+    r = r + fn * 2.12194440e-4f;
+    float y = 1.9875691500e-4f;
+    y = y * r + 1.3981999507e-3f;
+    y = y * r + 8.3334519073e-3f;
+    y = y * r + 4.1665795894e-2f;
+    y = y * r + 1.6666665459e-1f;
+    y = y * r + 5.0000001201e-1f;
+    y = y * r * r + r + 1.0f;
+    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
+    float s;
+    memcpy(&s, &bits, sizeof s);
+    return y * s;
+}
+
+/* log(x) for normal x > 0 (Cephes logf polynomial on the mantissa in [sqrt(1/2), sqrt(2));
+ * relative error ~1e-7, like logf; the decoder's per-ray loops). */
+static inline float sooc_nn_logf_pos(float x) {
+    if (!(x >= 1.17549435e-38f && x <= 3.40282347e38f)) return logf(x);   /* 0, subnormal, inf, NaN, < 0 */
+    uint32_t ix;
+    memcpy(&ix, &x, sizeof ix);
+    int e = (int)(ix >> 23) - 127;
+    ix = (ix & 0x007fffffu) | 0x3f800000u;
+    float mt;
+    memcpy(&mt, &ix, sizeof mt);   /* [1, 2) */
+    if (mt > 1.41421356237f) {
+        mt *= 0.5f;
+        e++;
+    }
+    float f = mt - 1.0f, z = f * f, fe = (float)e;
+    float y = 7.0376836292e-2f;
+    y = y * f - 1.1514610310e-1f;
+    y = y * f + 1.1676998740e-1f;
+    y = y * f - 1.2420140846e-1f;
+    y = y * f + 1.4249322787e-1f;
+    y = y * f - 1.6668057665e-1f;
+    y = y * f + 2.0000714765e-1f;
+    y = y * f - 2.4999993993e-1f;
+    y = y * f + 3.3333331174e-1f;
+    y = y * f * z;
+    y += -2.12194440e-4f * fe;
+    y += -0.5f * z;
+    return f + y + 0.693359375f * fe;
+}
 
 /* ================================================================== GEMM */
 

@@ -617,7 +617,7 @@ static void dec_forward(dec_run *r) {
 #ifdef MDL_HAVE_AVX2_PATHS
 #define POST_AVX2 1
 
-/* mdl_expf_nonpos on 8 lanes (its operations in its order: bitwise equal). */
+/* sooc_nn_expf_nonpos on 8 lanes (its operations in its order: bitwise equal). */
 static MDL_TGT_AVX2 inline __m256 post_expf8(__m256 x) {
     x = _mm256_blendv_ps(x, _mm256_set1_ps(-87.0f), _mm256_cmp_ps(x, _mm256_set1_ps(-87.0f), _CMP_LT_OQ));   /* NaN stays */
     __m256 big = _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(12582912.0f));
@@ -656,7 +656,7 @@ static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, i
                               _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
     float xs[8], l[8];
     int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, mf));
-    if (bad) {   /* 0, subnormal, inf, NaN: logf, as mdl_logf_pos */
+    if (bad) {   /* 0, subnormal, inf, NaN: logf, as sooc_nn_logf_pos */
         _mm256_storeu_ps(xs, lx);
         _mm256_storeu_ps(l, lg);
         for (int q = 0; q < C; q++)
@@ -691,11 +691,11 @@ void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) 
             float dd = vr->rgb[rr * 3 + a] - ct_s[k * 3 + a];
             e += dd * dd;
         }
-        lv[k] = mdl_logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
+        lv[k] = sooc_nn_logf_pos(sh_s[k] / S + 1e-10f) - 0.5f * e * is2;
         if (lv[k] > lmax) lmax = lv[k];
     }
     float z = 0;
-    for (int k = 0; k < C; k++) z += (lv[k] = mdl_expf_nonpos(lv[k] - lmax));
+    for (int k = 0; k < C; k++) z += (lv[k] = sooc_nn_expf_nonpos(lv[k] - lmax));
     for (int k = 0; k < C; k++) lv[k] /= z;
 }
 

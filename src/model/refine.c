@@ -45,7 +45,7 @@ static MDL_TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int c
             __m256 ok = _mm256_and_ps(_mm256_cmp_ps(lx, _mm256_set1_ps(1.17549435e-38f), _CMP_GE_OQ),
                                       _mm256_cmp_ps(lx, _mm256_set1_ps(3.40282347e38f), _CMP_LE_OQ));
             int bad = _mm256_movemask_ps(_mm256_andnot_ps(ok, surf));
-            if (bad) {   /* 0, subnormal, inf, NaN: logf, as mdl_logf_pos */
+            if (bad) {   /* 0, subnormal, inf, NaN: logf, as sooc_nn_logf_pos */
                 float xs[8], ls[8];
                 _mm256_storeu_ps(xs, lx);
                 _mm256_storeu_ps(ls, lg);
@@ -116,7 +116,7 @@ static void aux_task(void *ctx, int comp, int tid) {
             x0[rr] = clampf(xk[0] * inv_rh, -3, 3);
             x1[rr] = clampf(xk[1] * inv_rh, -3, 3);
             x2[rr] = clampf(xk[2] * inv_rh, -3, 3);
-            wgc[rr] = surf ? mdl_expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
+            wgc[rr] = surf ? sooc_nn_expf_nonpos(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2 * s2)) : 0.0f;
         }
         o += 4;
     } else {
@@ -176,7 +176,7 @@ static void aux_task(void *ctx, int comp, int tid) {
                 float Qs = w->Sb[ps] * S, S2 = S - sh_s[comp], Q2 = Qs - sh_s[comp] * sh_s[comp];
                 if (S2 < 1e-8f) S2 = 1e-8f;
                 if (Q2 < 0) Q2 = 0;
-                lm += mdl_logf_pos(smax * Q2 / S2 + eps_s);
+                lm += sooc_nn_logf_pos(smax * Q2 / S2 + eps_s);
                 float e = 0;
                 for (int a = 0; a < 3; a++) {
                     float cm = (w->cc[(size_t)ps * 3 + a] * S - sh_s[comp] * ct_s[comp * 3 + a]) / S2;

@@ -18,31 +18,9 @@
 
 /* ------------------------------------------------------------------ ELU */
 
-/* exp(x) for x <= 0 (Cephes expf polynomial after range reduction to |r| <= ln2/2;
- * relative error < 1e-7, like expf). The SSE2 rows below compute the same
- * operations in the same order (bitwise equal). */
-static inline float expf_nonpos(float x) {
-    x = x < -87.0f ? -87.0f : x;
-    float big = x * 1.44269504088896341f + 12582912.0f;   /* 1.5 * 2^23: rounds to the nearest n */
-    uint32_t bi;
-    memcpy(&bi, &big, sizeof bi);                          /* bits = 0x4B400000 + n */
-    float fn = big - 12582912.0f;
-    float r = x - fn * 0.693359375f;
-    r = r + fn * 2.12194440e-4f;
-    float y = 1.9875691500e-4f;
-    y = y * r + 1.3981999507e-3f;
-    y = y * r + 8.3334519073e-3f;
-    y = y * r + 4.1665795894e-2f;
-    y = y * r + 1.6666665459e-1f;
-    y = y * r + 5.0000001201e-1f;
-    y = y * r * r + r + 1.0f;
-    uint32_t bits = (bi + 127u) << 23;                     /* 2^n (0x4B400000 << 23 wraps to 0) */
-    float s;
-    memcpy(&s, &bits, sizeof s);
-    return y * s;
-}
-
-float sooc_nn_r_elu1(float x) { return x > 0 ? x : expf_nonpos(x) - 1.0f; }
+/* The SSE2 and AVX2 rows below compute sooc_nn_expf_nonpos's operations in the same
+ * order (bitwise equal; nn_kern.h). */
+float sooc_nn_r_elu1(float x) { return x > 0 ? x : sooc_nn_expf_nonpos(x) - 1.0f; }
 
 #if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
