@@ -88,6 +88,30 @@ static inline float sooc_nn_logf_pos(float x) {
     return f + y + 0.693359375f * fe;
 }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define SOOC_NN_HAVE_EXPF8 1
+/* sooc_nn_expf_nonpos on 8 lanes (its operations in its order, AVX2 without FMA: bitwise
+ * equal; NaN lanes stay NaN). Callers check sooc_nn_gemm_avx2() first. */
+static __attribute__((target("avx2"))) inline __m256 sooc_nn_expf_nonpos8(__m256 x) {
+    x = _mm256_blendv_ps(x, _mm256_set1_ps(-87.0f), _mm256_cmp_ps(x, _mm256_set1_ps(-87.0f), _CMP_LT_OQ));   /* NaN stays */
+    __m256 big = _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(12582912.0f));
+    __m256i bi = _mm256_castps_si256(big);
+    __m256 fn = _mm256_sub_ps(big, _mm256_set1_ps(12582912.0f));
+    __m256 r = _mm256_sub_ps(x, _mm256_mul_ps(fn, _mm256_set1_ps(0.693359375f)));
+    r = _mm256_add_ps(r, _mm256_mul_ps(fn, _mm256_set1_ps(2.12194440e-4f)));
+    __m256 y = _mm256_set1_ps(1.9875691500e-4f);
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.3981999507e-3f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(8.3334519073e-3f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(4.1665795894e-2f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.6666665459e-1f));
+    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(5.0000001201e-1f));
+    y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(y, r), r), r), _mm256_set1_ps(1.0f));
+    __m256 s = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(bi, _mm256_set1_epi32(127)), 23));
+    return _mm256_mul_ps(y, s);
+}
+#endif
+
 /* ================================================================== GEMM */
 
 /* C[M x N] = init + A[M x K] B[K x N], row-major with leading dimensions

@@ -617,25 +617,6 @@ static void dec_forward(dec_run *r) {
 #ifdef MDL_HAVE_AVX2_PATHS
 #define POST_AVX2 1
 
-/* sooc_nn_expf_nonpos on 8 lanes (its operations in its order: bitwise equal). */
-static MDL_TGT_AVX2 inline __m256 post_expf8(__m256 x) {
-    x = _mm256_blendv_ps(x, _mm256_set1_ps(-87.0f), _mm256_cmp_ps(x, _mm256_set1_ps(-87.0f), _CMP_LT_OQ));   /* NaN stays */
-    __m256 big = _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(12582912.0f));
-    __m256i bi = _mm256_castps_si256(big);
-    __m256 fn = _mm256_sub_ps(big, _mm256_set1_ps(12582912.0f));
-    __m256 r = _mm256_sub_ps(x, _mm256_mul_ps(fn, _mm256_set1_ps(0.693359375f)));
-    r = _mm256_add_ps(r, _mm256_mul_ps(fn, _mm256_set1_ps(2.12194440e-4f)));
-    __m256 y = _mm256_set1_ps(1.9875691500e-4f);
-    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.3981999507e-3f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(8.3334519073e-3f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(4.1665795894e-2f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(1.6666665459e-1f));
-    y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(5.0000001201e-1f));
-    y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(y, r), r), r), _mm256_set1_ps(1.0f));
-    __m256 s = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(bi, _mm256_set1_epi32(127)), 23));
-    return _mm256_mul_ps(y, s);
-}
-
 /* mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
  * the normaliser summed in component order: bitwise equal). */
 static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
@@ -668,7 +649,7 @@ static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, i
     float lmax = -1e30f;   /* the scalar loop's running maximum (NaN never counts) */
     for (int q = 0; q < C; q++)
         if (l[q] > lmax) lmax = l[q];
-    __m256 ex = post_expf8(_mm256_sub_ps(v, _mm256_set1_ps(lmax)));
+    __m256 ex = sooc_nn_expf_nonpos8(_mm256_sub_ps(v, _mm256_set1_ps(lmax)));
     _mm256_storeu_ps(l, ex);
     float z = 0;
     for (int q = 0; q < C; q++) z += l[q];

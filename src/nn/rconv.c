@@ -22,31 +22,17 @@
  * order (bitwise equal; nn_kern.h). */
 float sooc_nn_r_elu1(float x) { return x > 0 ? x : sooc_nn_expf_nonpos(x) - 1.0f; }
 
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
-/* The SSE2 rows below on 8 lanes (AVX2 without FMA: the same operations in the same
- * order, bitwise equal); returns the elements done. */
+#ifdef SOOC_NN_HAVE_EXPF8
+/* The SSE2 rows below on 8 lanes through sooc_nn_expf_nonpos8 (nn_kern.h; its magic-number
+ * rounding gives the same n as the SSE2 rows' cvtps for |x log2 e| < 2^22, and x is
+ * clamped to [-87, 0] first: bitwise equal); returns the elements done. */
 __attribute__((target("avx2"))) static int64_t elu_bias_avx2(float *y, int64_t n, float bias) {
     int64_t j = 0;
     const __m256 vb = _mm256_set1_ps(bias), lo = _mm256_set1_ps(-87.0f), zero = _mm256_setzero_ps();
-    const __m256 one = _mm256_set1_ps(1.0f), l2e = _mm256_set1_ps(1.44269504088896341f);
-    const __m256 c1 = _mm256_set1_ps(0.693359375f), c2 = _mm256_set1_ps(2.12194440e-4f);
+    const __m256 one = _mm256_set1_ps(1.0f);
     for (; j + 8 <= n; j += 8) {
         __m256 x = _mm256_add_ps(_mm256_loadu_ps(y + j), vb);
-        __m256 xn = _mm256_max_ps(_mm256_min_ps(x, zero), lo);
-        __m256i ni = _mm256_cvtps_epi32(_mm256_mul_ps(xn, l2e));   /* round to nearest (default MXCSR) */
-        __m256 fn = _mm256_cvtepi32_ps(ni);
-        __m256 r = _mm256_sub_ps(xn, _mm256_mul_ps(fn, c1));
-        r = _mm256_add_ps(r, _mm256_mul_ps(fn, c2));
-        __m256 p = _mm256_set1_ps(1.9875691500e-4f);
-        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.3981999507e-3f));
-        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(8.3334519073e-3f));
-        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(4.1665795894e-2f));
-        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.6666665459e-1f));
-        p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(5.0000001201e-1f));
-        p = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, r), r), r), one);
-        __m256 s = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(ni, _mm256_set1_epi32(127)), 23));
-        __m256 e = _mm256_sub_ps(_mm256_mul_ps(p, s), one);
+        __m256 e = _mm256_sub_ps(sooc_nn_expf_nonpos8(_mm256_max_ps(_mm256_min_ps(x, zero), lo)), one);
         __m256 pos = _mm256_cmp_ps(x, zero, _CMP_GT_OQ);
         _mm256_storeu_ps(y + j, _mm256_blendv_ps(e, x, pos));
     }
