@@ -243,13 +243,17 @@ int sooc_cmd_eval(int argc, char **argv) {
         }
         else if (!strcmp(a, "--revisit")) ro.revisit = 1;
         else if (!strcmp(a, "--gate") && has) {
-            const char *g = argv[++i];
-            char *e1 = NULL, *e2 = NULL, *e3 = NULL;
-            ro.gate[0] = strtod(g, &e1);
-            ro.gate[1] = *e1 == ',' ? strtod(e1 + 1, &e2) : NAN;
-            ro.gate[2] = e2 && *e2 == ',' ? strtod(e2 + 1, &e3) : NAN;
-            if (!e3 || *e3 || e1 == g || !(ro.gate[0] >= -1 && ro.gate[0] <= 1) || !(ro.gate[1] >= -1 && ro.gate[1] <= 100) ||
-                !(ro.gate[2] >= -1 && ro.gate[2] <= 1)) {
+            /* three comma-separated numbers, each non-empty and in range (launch keys model.gate_*) */
+            const char *g = argv[++i], *q = g;
+            static const double lo[3] = {-1, -1, -1}, hi[3] = {1, 100, 1};
+            int ok = 1;
+            for (int t = 0; t < 3 && ok; t++) {
+                char *e = NULL;
+                ro.gate[t] = strtod(q, &e);
+                ok = e != q && ro.gate[t] >= lo[t] && ro.gate[t] <= hi[t] && *e == (t < 2 ? ',' : '\0');
+                q = e + 1;
+            }
+            if (!ok) {
                 fprintf(stderr, "sooc3d eval: --gate wants MIN_RAYS,RATIO,PART (e.g. 0.02,0.5,0.4; 0 = default, -1 = off), "
                                 "got '%s'\n", g);
                 return 2;

@@ -575,6 +575,23 @@ static void test_cli(const char *bin, const char *model, const char *data) {
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --merge 0.3x 2>/dev/null", bin, model,
              data, g_tmp);
     CHECK(tc_run(cmd) == 2);
+    /* --gate: three numbers in range, else a usage error naming the value; nothing written */
+    {
+        static const char *badg[] = {"abc", "0.1,0.5", "0.1,0.5,0.5,1", "0.1,,0.5", "2,0.5,0.5", "0.1,0.5,x", ""};
+        for (size_t k = 0; k < sizeof badg / sizeof badg[0]; k++) {
+            snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/g.json --gate '%s' > %s/g.txt 2>&1", bin,
+                     model, data, g_tmp, badg[k], g_tmp);
+            CHECK_MSG(tc_run(cmd) == 2, "eval --gate '%s': exit status", badg[k]);
+            snprintf(p, sizeof p, "%s/g.txt", g_tmp);
+            char *gt = read_text(p);
+            char want[96];
+            snprintf(want, sizeof want, "--gate wants MIN_RAYS,RATIO,PART");
+            CHECK_MSG(gt && strstr(gt, want), "eval --gate '%s' names the option", badg[k]);
+            free(gt);
+            snprintf(p, sizeof p, "%s/g.json", g_tmp);
+            CHECK_MSG(access(p, F_OK) != 0, "eval --gate '%s': nothing written", badg[k]);
+        }
+    }
     snprintf(cmd, sizeof cmd, "%s eval --model %s --data %s --json %s/m.json --latents median 2>/dev/null", bin,
              model, data, g_tmp);
     CHECK(tc_run(cmd) == 2);
