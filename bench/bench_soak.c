@@ -6,7 +6,13 @@
  * memory (VmRSS) and open file descriptors after the first pass, after 10% of
  * the keyframes and at the end, and the map size at every 1,000th keyframe
  * (entries_per_1000: the count moves as duplicates appear and are merged or
- * retired, so one end value says little). Prints a JSON object as its last line.
+ * retired, so one end value says little). The generated scene gives ground
+ * truth: a separate one-pass run into its own map.db and the looped map are
+ * both scored (gt_*: each entry against the nearest object centre on the
+ * floor; within 0.6 m it maps that object, the first such entry counts and
+ * later ones are duplicates, farther ones are "far": a wall or a ghost), and
+ * the median of the entries' distances to their objects (drift). Prints a
+ * JSON object as its last line.
  *
  *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] [--model PATH] [--out DIR]
  *              [--gate-min F] [--gate-ratio F] [--gate-part F] [--log debug|info|warn]
@@ -16,9 +22,12 @@
  *
  * Run from the repository root (the default model path is relative to it). */
 #include "sooc3d/gen.h"
+#include "sooc3d/mapstore.h"
 #include "sooc3d/node.h"
+#include "sooc3d/scene.h"
 
 #include <dirent.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -84,6 +93,96 @@ static void *monitor(void *arg) {
     return NULL;
 }
 
+/* Ground truth of a map: the entries of db against the scene's objects. */
+typedef struct gt_score {
+    int entries, objects, mapped, dups, far;
+    double med_dist;   /* median distance of the entries within reach to their object (m) */
+} gt_score;
+typedef struct gt_visit {
+    const sooc_scene *sc;
+    int *hits, n;
+    double d[4096];
+} gt_visit;
+#define GT_REACH 0.6
+
+static int gt_visit_fn(void *user, const sooc_cogmap_entry *e) {
+    gt_visit *g = user;
+    int best = -1;
+    double bd = 1e30;
+    for (int i = 0; i < g->sc->n_objects; i++) {
+        double d = hypot(e->X - g->sc->objects[i].x, e->Z - g->sc->objects[i].z);
+        if (d < bd) bd = d, best = i;
+    }
+    if (best >= 0 && bd < GT_REACH) {
+        g->hits[best]++;
+        if (g->n < 4096) g->d[g->n++] = bd;
+    } else
+        g->hits[g->sc->n_objects]++;
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static int gt_score_db(const sooc_scene *sc, const char *db, gt_score *out) {
+    memset(out, 0, sizeof *out);
+    sooc_mapstore_params mp;
+    sooc_mapstore_params_default(&mp);
+    mp.readonly = 1;
+    sooc_mapstore *ms = NULL;
+    if (sooc_mapstore_open(&ms, db, &mp)) return 1;
+    static gt_visit g;
+    memset(&g, 0, sizeof g);
+    g.sc = sc;
+    g.hits = calloc((size_t)sc->n_objects + 1, sizeof *g.hits);
+    if (!g.hits) {
+        sooc_mapstore_close(ms);
+        return 1;
+    }
+    sooc_status st = sooc_mapstore_foreach(ms, gt_visit_fn, &g);
+    sooc_mapstore_close(ms);
+    out->objects = sc->n_objects;
+    out->far = g.hits[sc->n_objects];
+    out->entries = out->far;
+    for (int i = 0; i < sc->n_objects; i++) {
+        out->entries += g.hits[i];
+        out->mapped += g.hits[i] > 0;
+        out->dups += g.hits[i] > 1 ? g.hits[i] - 1 : 0;
+    }
+    qsort(g.d, (size_t)g.n, sizeof *g.d, cmp_double);
+    out->med_dist = g.n ? g.d[g.n / 2] : 0.0;
+    free(g.hits);
+    return st != SOOC_OK;
+}
+
+static int node_config(sooc_node_config *c, const char *gen_dir, const char *model, const char *db, double merge,
+                       double clip, const double gate[3], sooc_log_level lvl) {
+    char text[2048];
+    int len = snprintf(text, sizeof text,
+                       "sensor: {driver: replay, path: '%s/scene_0000', speed: fast, loop: true}\n"
+                       "pose: {source: sensor}\n"
+                       "model: {path: '%s'}\n"
+                       "keyframe: {translation_m: 0.25, rotation_deg: 15, time_s: 0}\n"
+                       "map: {db: '%s', resume: true}\n"
+                       "world: {up: +y, floor: 0.0}\n"
+                       "pipeline: {block_when_full: true, stats_period_s: 0}\n"
+                       "log: {level: warn}\n",
+                       gen_dir, model, db);
+    if (sooc_node_config_parse(c, text, (size_t)len, "bench_soak.yaml")) {
+        fprintf(stderr, "bench_soak: %s\n", sooc_errmsg());
+        return 1;
+    }
+    if (merge >= 0) c->merge_m = merge;
+    if (clip > 0) c->clip_m = clip;
+    c->gate_min_rays = gate[0];
+    c->gate_ratio = gate[1];
+    c->gate_part = gate[2];
+    c->log_level = lvl;
+    return 0;
+}
+
 static void log_stderr(void *user, sooc_log_level level, const char *msg) {
     (void)user;
     (void)level;
@@ -141,37 +240,31 @@ int main(int argc, char **argv) {
         fprintf(stderr, "bench_soak: gen: %s\n", sooc_errmsg());
         return 1;
     }
-    snprintf(db, sizeof db, "%s/map.sqlite", dir);
-    char text[2048];
-    int len = snprintf(text, sizeof text,
-                       "sensor: {driver: replay, path: '%s/scene_0000', speed: fast, loop: true}\n"
-                       "pose: {source: sensor}\n"
-                       "model: {path: '%s'}\n"
-                       "keyframe: {translation_m: 0.25, rotation_deg: 15, time_s: 0}\n"
-                       "map: {db: '%s', resume: true}\n"
-                       "world: {up: +y, floor: 0.0}\n"
-                       "pipeline: {block_when_full: true, stats_period_s: 0}\n"
-                       "log: {level: warn}\n",
-                       gen_dir, model, db);
-    sooc_node_config c;
-    if (sooc_node_config_parse(&c, text, (size_t)len, "bench_soak.yaml")) {
-        fprintf(stderr, "bench_soak: %s\n", sooc_errmsg());
-        return 1;
-    }
-    if (merge >= 0) c.merge_m = merge;
-    if (clip > 0) c.clip_m = clip;
-    c.gate_min_rays = gate[0];
-    c.gate_ratio = gate[1];
-    c.gate_part = gate[2];
-    c.log_level = lvl;
+    int views = sooc_gen_views(&gp);   /* a pass replays the input and the query views */
+    views += gp.n_query >= 0 ? gp.n_query : (views / 5 > 2 ? views / 5 : 2);
     sooc_log_set_level(lvl);
     sooc_log_set_callback(log_stderr, NULL);
-    long rss0 = rss_kb();
-    int fds0 = open_fds();
+    /* the reference: one pass into its own map */
+    char db1[700];
+    snprintf(db1, sizeof db1, "%s/map_pass1.sqlite", dir);
+    sooc_node_config c;
+    if (node_config(&c, gen_dir, model, db1, merge, clip, gate, lvl)) return 1;
     sooc_node_options o;
     memset(&o, 0, sizeof o);
-    o.max_keyframes = (uint64_t)keyframes;
+    o.max_keyframes = (uint64_t)views;
     sooc_node *n = NULL;
+    if (sooc_node_create(&n, &c, &o) || sooc_node_run(n)) {
+        fprintf(stderr, "bench_soak: one pass: %s\n", sooc_errmsg());
+        sooc_node_destroy(n);
+        return 1;
+    }
+    sooc_node_destroy(n);
+    n = NULL;
+    snprintf(db, sizeof db, "%s/map.sqlite", dir);
+    if (node_config(&c, gen_dir, model, db, merge, clip, gate, lvl)) return 1;
+    long rss0 = rss_kb();
+    int fds0 = open_fds();
+    o.max_keyframes = (uint64_t)keyframes;
     if (sooc_node_create(&n, &c, &o)) {
         fprintf(stderr, "bench_soak: %s\n", sooc_errmsg());
         return 1;
@@ -180,8 +273,6 @@ int main(int argc, char **argv) {
     memset(&m, 0, sizeof m);
     m.node = n;
     atomic_init(&m.done, 0);
-    int views = sooc_gen_views(&gp);   /* a pass replays the input and the query views */
-    views += gp.n_query >= 0 ? gp.n_query : (views / 5 > 2 ? views / 5 : 2);
     m.first_pass_kf = (uint64_t)views;
     m.tenth_kf = (uint64_t)(keyframes / 10 > views ? keyframes / 10 : views);
     pthread_t th;
@@ -203,6 +294,19 @@ int main(int argc, char **argv) {
     sooc_node_destroy(n);
     int fds_after = open_fds();
     double growth = m.entries_first ? (double)s.n_objects / (double)m.entries_first - 1.0 : 0.0;
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    gt_score g1, g2;
+    memset(&g1, 0, sizeof g1);
+    memset(&g2, 0, sizeof g2);
+    if (sooc_gen_scene(&sc, &gp, 0) || gt_score_db(&sc, db1, &g1) || gt_score_db(&sc, db, &g2))
+        fprintf(stderr, "bench_soak: ground truth: %s\n", sooc_errmsg());
+    sooc_scene_free(&sc);
+    fprintf(stderr,
+            "bench_soak: ground truth (%d objects): one pass %d entries = %d objects + %d duplicates + %d far, "
+            "median %.3f m off; loop end %d = %d + %d + %d, median %.3f m off\n",
+            g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries, g2.mapped, g2.dups, g2.far,
+            g2.med_dist);
     fprintf(stderr,
             "bench_soak: %llu keyframes in %.0f s, entries %llu after the first pass (%d views), %llu at the end "
             "(%+.1f%%), max %llu; RSS %ld -> %ld -> %ld kB; fds %d -> %d -> %d (%d after destroy)\n",
@@ -215,12 +319,15 @@ int main(int argc, char **argv) {
            "\"entries_end\": %llu, \"entries_max\": %llu, \"entries_per_1000\": [%s], \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
            "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
            "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
-           "\"status\": \"%s\"}\n",
+           "\"gt_objects\": %d, \"gt_one_pass\": {\"entries\": %d, \"objects\": %d, \"duplicates\": %d, \"far\": %d, "
+           "\"median_offset_m\": %.4f}, \"gt_end\": {\"entries\": %d, \"objects\": %d, \"duplicates\": %d, \"far\": %d, "
+           "\"median_offset_m\": %.4f}, \"status\": \"%s\"}\n",
            scale, (unsigned long long)seed, views, c.merge_m, c.clip_m, gate[0], gate[1], gate[2],
            (unsigned long long)s.keyframes, secs,
            (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
            (unsigned long long)m.entries_max, perk, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
-           m.fds_tenth, fds_end, fds_after, sooc_status_str(st));
+           m.fds_tenth, fds_end, fds_after, g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries,
+           g2.mapped, g2.dups, g2.far, g2.med_dist, sooc_status_str(st));
     if (!out) {
         char cmd[600];
         snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
