@@ -42,6 +42,9 @@ typedef struct sooc_gen_params {
     double fov_deg;       /* horizontal FOV (default 60)                               */
     double clip_depth;    /* d_clip (default 8 m)                                      */
     double density;       /* objects per m^2 (default 0.2)                            */
+    double wall_h[2];     /* unity/blender: walls in every scene, heights uniform in
+                             [wall_h[0], wall_h[1]] m; 0 = the default (walls in half
+                             the scenes, 0.3-0.8 m high)                              */
     double depth_scale;   /* metres per depth PNG unit (default 2e-4: 13.1 m range)   */
     int threads;          /* OpenMP threads for sooc_gen_run (0 = runtime default)     */
     int write_meshes;     /* write meshes/ (default 1)                                 */

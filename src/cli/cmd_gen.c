@@ -28,6 +28,8 @@ static void usage(FILE *f) {
             "  --query      held-out query views per scene (default max(2, views/5))\n"
             "  --width/--height  image size (default 64x64), 60 degree horizontal FOV\n"
             "  --density    objects per square metre (default 0.2; unity and blender only)\n"
+            "  --walls MIN,MAX  walls in every room, MIN-MAX m high (default: half the rooms,\n"
+            "               0.3-0.8 m; unity and blender only; e.g. 2.2,3.0 for rooms like recordings)\n"
             "  --noise      sensor noise on depth and colour: none | kinect (axial sigma\n"
             "               0.0012 + 0.0019 (z - 0.4)^2 m, disparity quantisation, shadows, edge\n"
             "               dropout, exposure, colour noise); exact depth kept in depth_gt/\n"
@@ -112,6 +114,15 @@ int sooc_cmd_gen(int argc, char **argv) {
         else if (!strcmp(a, "--query")) INTV(0, 10000, &p.n_query);
         else if (!strcmp(a, "--threads")) INTV(0, 256, &p.threads);
         else if (!strcmp(a, "--density")) DBLV(0.001, 4.99, &p.density);
+        else if (!strcmp(a, "--walls")) {
+            NEEDV();
+            char tail;
+            if (sscanf(v, "%lf,%lf%c", &p.wall_h[0], &p.wall_h[1], &tail) != 2 || !(p.wall_h[0] > 0) ||
+                !(p.wall_h[0] <= p.wall_h[1]) || !(p.wall_h[1] <= 20)) {
+                fprintf(stderr, "sooc3d gen: --walls: expected MIN,MAX in metres, 0 < MIN <= MAX <= 20, got '%s'\n", v);
+                return 2;
+            }
+        }
         else if (!strcmp(a, "--clip")) DBLV(0.01, 65535 * p.depth_scale, &p.clip_depth); /* 16-bit depth PNGs */
         else if (!strcmp(a, "--noise")) {
             NEEDV();

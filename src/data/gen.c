@@ -187,6 +187,9 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
         return sooc_seterr(SOOC_EINVAL, "gen: fov %g out of range", p->fov_deg);
     if (!(p->density > 0 && p->density < 5))
         return sooc_seterr(SOOC_EINVAL, "gen: density %g out of range (0, 5)", p->density);
+    if (p->wall_h[1] != 0 && !(p->wall_h[0] > 0 && p->wall_h[0] <= p->wall_h[1] && p->wall_h[1] <= 20))
+        return sooc_seterr(SOOC_EINVAL, "gen: wall heights %g,%g: need 0 < min <= max <= 20 m", p->wall_h[0],
+                           p->wall_h[1]);
     if (p->preset == SOOC_GEN_TABLETOP) return sooc_gen_tabletop_scene(sc, p, index);
     sooc_rng rng;
     sooc_rng_seed(&rng, p->seed, (uint64_t)index);
@@ -205,6 +208,10 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
     /* appearance */
     sc->walls = sooc_rng_uniform(r) < 0.5;
     sc->wall_height = U(r, 0.3, 0.8);
+    if (p->wall_h[1] > 0) {   /* tall walls (rooms like recorded ones): same draws, then rescaled */
+        sc->walls = 1;
+        sc->wall_height = p->wall_h[0] + (sc->wall_height - 0.3) / 0.5 * (p->wall_h[1] - p->wall_h[0]);
+    }
     hsv2rgb(sooc_rng_uniform(r), U(r, 0.1, 0.3), U(r, 0.55, 0.8), sc->wall_color);
     float sky[3];
     hsv2rgb(U(r, 0.55, 0.62), U(r, 0.3, 0.5), U(r, 0.85, 1.0), sky);

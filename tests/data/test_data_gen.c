@@ -258,7 +258,43 @@ static void test_scales(void) {
     CHECK(counts[1] > 2 * counts[0] && counts[2] > 6 * counts[1] && counts[3] > 3 * counts[2]);
 }
 
+/* --walls MIN,MAX: walls in every room within the heights; everything else
+ * (objects, cameras) as without it; out-of-range heights are refused */
+static void test_walls(void) {
+    sooc_gen_params p;
+    sooc_gen_params_default(&p);
+    p.scale = SOOC_GEN_M;
+    int with_walls = 0;
+    for (int i = 0; i < 8; i++) {
+        sooc_scene a, b;
+        sooc_scene_init(&a);
+        sooc_scene_init(&b);
+        p.wall_h[0] = p.wall_h[1] = 0;
+        CHECK_OK(sooc_gen_scene(&a, &p, i));
+        p.wall_h[0] = 2.2, p.wall_h[1] = 3.0;
+        CHECK_OK(sooc_gen_scene(&b, &p, i));
+        with_walls += a.walls;
+        CHECK(a.wall_height >= 0.3 && a.wall_height <= 0.8);
+        CHECK_MSG(b.walls && b.wall_height >= 2.2 && b.wall_height <= 3.0, "scene %d: walls %d height %g", i, b.walls,
+                  b.wall_height);
+        CHECK(a.n_objects == b.n_objects && a.n_views == b.n_views);
+        for (int k = 0; k < a.n_objects && k < b.n_objects; k++)
+            CHECK(a.objects[k].x == b.objects[k].x && a.objects[k].z == b.objects[k].z);
+        for (int v = 0; v < a.n_views && v < b.n_views; v++) CHECK(!memcmp(a.view_T_wc + 16 * v, b.view_T_wc + 16 * v, 16 * sizeof(double)));
+        sooc_scene_free(&a);
+        sooc_scene_free(&b);
+    }
+    CHECK_MSG(with_walls > 0 && with_walls < 8, "default: walls in %d of 8 rooms", with_walls);
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    p.wall_h[0] = 3.0, p.wall_h[1] = 2.0;
+    CHECK(sooc_gen_scene(&sc, &p, 0) == SOOC_EINVAL);
+    sooc_clearerr();
+    sooc_scene_free(&sc);
+}
+
 int main(void) {
+    test_walls();
     test_determinism();
     test_geometry();
     test_roundtrip();
