@@ -29,6 +29,10 @@ if [ "${TABLETOP:-0}" = 1 ]; then
     tt --scale $sc --scenes 20 --seed 9002 --out "$OUT/tabletop_test_$sc"
   done
 fi
+# Tall-walled unity m rooms for room recordings (models/sooc3d_real): WALLS=1 bash scripts/make_datasets.sh.
+if [ "${WALLS:-0}" = 1 ]; then
+  gen --scale m --density 0.35 --walls 2.2,3.0 --scenes 400 --seed 1002 --out "$OUT/train_m_walls"
+fi
 # Blender sets (issue 19, the paper's Table 2): textured floors, shadows and specular highlights,
 # same scales and densities as unity; BLENDER=1 bash scripts/make_datasets.sh.
 if [ "${BLENDER:-0}" = 1 ]; then
