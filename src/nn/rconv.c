@@ -171,51 +171,18 @@ __attribute__((target("avx2"))) static inline void deint_row_avx2(const float *r
         for (int t = 0; t < nd; t++) deint_row(xr + 2 * ox, Wo - ox, d[t][0] + ox, d[t][1] + ox, d[t][2] + ox);
 }
 
-/* sooc_nn_rconv_im2col with 8-wide rows (an input row deinterleaved once for both
- * its output rows). */
-__attribute__((target("avx2"))) static void im2col_avx2(const float *x, int c0, int nc, int B, int b0, int b1, int Hi,
-                                                       int Wi, float *cols) {
-    int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
-    size_t No = (size_t)(b1 - b0) * HWo;
-    for (int cc = 0; cc < nc; cc++)
-        for (int b = b0; b < b1; b++) {
-            const float *xb = x + ((size_t)(c0 + cc) * B + b) * Hi * Wi;
-            float *base = cols + (size_t)cc * 9 * No + (size_t)(b - b0) * HWo;
-            for (int kx = 0; kx < 3; kx++) {
-                float *restrict r = base + (size_t)(6 + kx) * No + (size_t)(Ho - 1) * Wo;
-                for (int ox = 0; ox < Wo; ox++) r[ox] = 0.0f;
-            }
-            for (int iy = 0; iy < Hi; iy++) {
-                float *d[2][3];
-                int nd = 0, ky[2], oy[2];
-                if (iy & 1) {
-                    ky[nd] = 1, oy[nd++] = iy >> 1;
-                } else {
-                    ky[nd] = 0, oy[nd++] = iy >> 1;
-                    if (iy >= 2) ky[nd] = 2, oy[nd++] = (iy >> 1) - 1;
-                }
-                for (int t = 0; t < nd; t++) {
-                    float *r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
-                    d[t][0] = r0, d[t][1] = r0 + No, d[t][2] = r0 + 2 * No;
-                }
-                deint_row_avx2(xb + (size_t)iy * Wi, Wo, d, nd);
-            }
-        }
-}
 #define NN_IM2COL_AVX2 1
 #endif
 
 /* Each input row feeds one or two output rows per kx (even columns, odd columns,
- * even columns shifted by one with the pad last), written by plain loops. */
+ * even columns shifted by one with the pad last): deint_row_avx2 writes both
+ * at once 8 wide when the AVX2 kernels run, else deint_row per output row. */
 void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int Hi, int Wi, float *cols) {
     int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
     size_t No = (size_t)(b1 - b0) * HWo;
     SOOC_ASSERT(Hi % 2 == 0 && Wi % 2 == 0);
 #ifdef NN_IM2COL_AVX2
-    if (Wo >= 8 && sooc_nn_gemm_avx2()) {
-        im2col_avx2(x, c0, nc, B, b0, b1, Hi, Wi, cols);
-        return;
-    }
+    const int avx2 = Wo >= 8 && sooc_nn_gemm_avx2();
 #endif
     for (int cc = 0; cc < nc; cc++)
         for (int b = b0; b < b1; b++) {
@@ -227,6 +194,7 @@ void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1,
             }
             for (int iy = 0; iy < Hi; iy++) {
                 const float *restrict xr = xb + (size_t)iy * Wi;
+                float *d[2][3];
                 int ky[2], oy[2], nt = 0;
                 if (iy & 1) {
                     ky[nt] = 1, oy[nt++] = iy >> 1;
@@ -236,8 +204,15 @@ void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1,
                 }
                 for (int t = 0; t < nt; t++) {
                     float *r0 = base + (size_t)ky[t] * 3 * No + (size_t)oy[t] * Wo;
-                    deint_row(xr, Wo, r0, r0 + No, r0 + 2 * No);
+                    d[t][0] = r0, d[t][1] = r0 + No, d[t][2] = r0 + 2 * No;
                 }
+#ifdef NN_IM2COL_AVX2
+                if (avx2) {
+                    deint_row_avx2(xr, Wo, d, nt);
+                    continue;
+                }
+#endif
+                for (int t = 0; t < nt; t++) deint_row(xr, Wo, d[t][0], d[t][1], d[t][2]);
             }
         }
 }
