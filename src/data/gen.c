@@ -206,12 +206,9 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
     sc->height = p->height;
     sc->fov_deg = p->fov_deg;
     /* appearance */
-    sc->walls = sooc_rng_uniform(r) < 0.5;
-    sc->wall_height = U(r, 0.3, 0.8);
-    if (p->wall_h[1] > 0) {   /* tall walls (rooms like recorded ones): same draws, then rescaled */
-        sc->walls = 1;
-        sc->wall_height = p->wall_h[0] + (sc->wall_height - 0.3) / 0.5 * (p->wall_h[1] - p->wall_h[0]);
-    }
+    int tall = p->wall_h[1] > 0;   /* --walls (rooms like recorded ones): the same draws, its range */
+    sc->walls = sooc_rng_uniform(r) < 0.5 || tall;
+    sc->wall_height = tall ? U(r, p->wall_h[0], p->wall_h[1]) : U(r, 0.3, 0.8);
     hsv2rgb(sooc_rng_uniform(r), U(r, 0.1, 0.3), U(r, 0.55, 0.8), sc->wall_color);
     float sky[3];
     hsv2rgb(U(r, 0.55, 0.62), U(r, 0.3, 0.5), U(r, 0.85, 1.0), sky);
