@@ -175,6 +175,33 @@ static int test_labelfusion(const char *bin) {
     return 1;
 }
 
+/* sooc3d gen --walls MIN,MAX: bad values are a usage error naming the option
+ * and write nothing; a good one writes rooms with walls in that range */
+static void test_gen_walls(const char *bin) {
+    static const char *bad[] = {"3,2", "0,1", "-1,2", "1", "1,", ",2", "1,2,3", "1,2x", "1,30", "a,b"};
+    char cmd[2400], out[700], log[800];
+    snprintf(out, sizeof out, "%s/walls", g_tmp);
+    snprintf(log, sizeof log, "%s/walls.txt", g_tmp);
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        snprintf(cmd, sizeof cmd, "%s gen --preset unity --scale s --scenes 1 --walls '%s' --out %s 2>%s", bin, bad[i],
+                 out, log);
+        CHECK_MSG(tc_run(cmd) == 2, "--walls %s accepted", bad[i]);
+        char *t = tc_slurp(log);
+        CHECK_MSG(t && strstr(t, "--walls"), "--walls %s: %s", bad[i], t ? t : "");
+        sooc_free(t);
+        CHECK_MSG(access(out, F_OK) != 0, "--walls %s wrote %s", bad[i], out);
+    }
+    snprintf(cmd, sizeof cmd, "%s gen --preset unity --scale s --scenes 1 --no-sheet --walls 2.2,3.0 --out %s >/dev/null",
+             bin, out);
+    CHECK(tc_run(cmd) == 0);
+    snprintf(log, sizeof log, "%s/scene_0000/scene.yaml", out);
+    char *t = tc_slurp(log);
+    const char *w = t ? strstr(t, "wall_height: ") : NULL;
+    double h = w ? atof(w + 13) : 0;
+    CHECK_MSG(t && strstr(t, "walls: true") && h >= 2.2 && h <= 3.0, "scene.yaml: walls / height %g", h);
+    sooc_free(t);
+}
+
 int main(void) {
     const char *bin = getenv("SOOC_BIN");
     if (!bin || access(bin, X_OK) != 0) {
@@ -185,6 +212,7 @@ int main(void) {
     CHECK_OK(sooc_mkdirs(g_tmp));
     test_synthetic(bin);
     test_labelfusion(bin);
+    test_gen_walls(bin);
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", g_tmp);
     if (!getenv("SOOC_KEEP_TMP") && system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_tmp);
