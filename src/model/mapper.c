@@ -172,11 +172,21 @@ static int hold_unseen(sooc3d_mapper *mp, const sooc_frame *f, const view_rec *V
     return held;
 }
 
-/* Map entries that are not among the keyframe's slots, within reach of a new
- * slot: their floor boxes join the gate's part test (the keyframe did not
- * retrieve them, e.g. their centre is just outside the view, but the surface
- * a new slot claims lies in their box). Nearest first is not needed: the cap
- * is far above the entries one box can touch. */
+/* An entry registered this many times has settled: revisit rule 2
+ * (blend_revisits) damps its moves, so the map keeps it where it is stored. */
+#define REVISIT_SETTLED 8
+
+/* Map entries within reach of a new slot whose floor boxes join the gate's
+ * part test, box test only: entries that are not among the keyframe's slots
+ * (the keyframe did not retrieve them, e.g. their centre is just outside the
+ * view, but the surface a new slot claims lies in their box), and settled
+ * retrieved entries at their stored pose. A settled entry's slot may wander
+ * in one keyframe's refinement (the object half in view), and its box with
+ * it, while registration leaves the entry where it is: a prior slot that
+ * claims the object there is its duplicate (a looped replay created such
+ * copies 0.3-0.4 m from a large sphere's entry; docs/cogmap.md "Drift").
+ * Nearest first is not needed: the cap is far above the entries one box can
+ * touch. */
 typedef struct gate_near {
     const view_rec *V;
     const uint64_t *src;
@@ -188,8 +198,8 @@ typedef struct gate_near {
 static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
     gate_near *g = user;
     if (g->n >= SOOC3D_GATE_MAX_BOXES) return 1;
-    for (int i = 0; i < g->K; i++)
-        if (g->src[i] == e->id) return 0;
+    for (int i = 0; i < g->K; i++)   /* a retrieved entry: its slot's box, unless it has settled */
+        if (g->src[i] == e->id && e->obs_count < REVISIT_SETTLED) return 0;
     int close = 0;
     for (int i = 0; i < g->n_new && !close; i++) close = hypot(e->X - g->nx[i], e->Z - g->nz[i]) < g->reach;
     if (!close) return 0;
@@ -288,7 +298,6 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
  * depth evidence (part 4) and mapped anew. Younger entries take the
  * refinement as it is (one pass over a scene is mapped as before). Variances
  * and presence are the refined ones. */
-#define REVISIT_SETTLED 8
 static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
     for (int i = 0; i < K; i++) {
