@@ -6,7 +6,9 @@
  *   half a spare prior slot claims 0.5 m away: no new entry (part of it);
  * - a genuinely new object 1.1 m beside a known one: a new entry;
  * - a present new slot that owns no ray: no new entry (too few rays);
- * - the box test follows the decoder's frame (mdl_pi_cs) at any yaw. */
+ * - the box test follows the decoder's frame (mdl_pi_cs) at any yaw;
+ * - map-entry boxes: an unretrieved entry's, and a settled entry's stored box
+ *   when its slot wandered off in the refinement. */
 #include "check.h"
 #include "model/step.h"
 #include "sooc3d/mapper.h"
@@ -194,5 +196,26 @@ int main(void) {
     CHECK(v[1].create == 0 && v[1].reason == SOOC3D_GATE_PART_OF);
     n_boxes = 1;   /* only the far one */
     CHECK(run(v, SOOC3D_GATE_MIN_RAYS, SOOC3D_GATE_RATIO, SOOC3D_GATE_PART) == 0 && v[1].part == -1);
+
+    /* 6. A settled retrieved entry whose slot wandered in this keyframe's
+     * refinement (the looped replay of docs/cogmap.md "Drift": the sphere's
+     * slot 0.83 m off, its box no longer holding the sphere). Registration
+     * damps a settled entry, so it stays at its stored pose; the mapper passes
+     * that pose as a box. With the wandered slot alone the spare slot on the
+     * sphere is created (a copy); with the stored box it is part of it. */
+    reset();
+    role[0] = SOOC3D_GATE_KNOWN;
+    role[1] = SOOC3D_GATE_NEW;
+    set_pose(0, -0.75, 4.35, 0.3);   /* the wandered slot */
+    set_pose(1, 0.35, 4.35, -0.4);
+    hit(0, 60, 0.0, 4.0, 0.37, -M_PI, -M_PI / 2, 1, 1.0f, 2, 0.2f);
+    hit(60, 60, 0.0, 4.0, 0.37, -M_PI / 2, 0.0, 2, 1.0f, 1, 0.1f);
+    CHECK(run(v, SOOC3D_GATE_MIN_RAYS, SOOC3D_GATE_RATIO, SOOC3D_GATE_PART) == 0);
+    CHECK_MSG(v[1].create == 1 && v[1].part_share < SOOC3D_GATE_PART, "share %g", (double)v[1].part_share);
+    boxes[0] = 0.0f, boxes[1] = 4.0f, boxes[2] = 0.3f;   /* the entry as stored */
+    n_boxes = 1;
+    CHECK(run(v, SOOC3D_GATE_MIN_RAYS, SOOC3D_GATE_RATIO, SOOC3D_GATE_PART) == 1);
+    CHECK_MSG(v[1].part == K && v[1].part_share == 1.0f, "part %d share %g", v[1].part, (double)v[1].part_share);
+    CHECK(v[1].create == 0 && v[1].reason == SOOC3D_GATE_PART_OF);
     return check_report("test_mapper_gate");
 }
