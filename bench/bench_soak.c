@@ -14,8 +14,14 @@
  * the median of the entries' distances to their objects (drift). Prints a
  * JSON object as its last line.
  *
- *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] [--model PATH] [--out DIR]
- *              [--gate-min F] [--gate-ratio F] [--gate-part F] [--log debug|info|warn]
+ * --seq PATH loops a recorded sequence instead (any replay format, e.g.
+ * ../shared/real/7scenes_redkitchen) with its own poses and the support plane
+ * estimated (world.floor: estimate); the reference pass runs to the end of
+ * the sequence once, and its keyframe count is the pass length. No ground
+ * truth (gt_* are null; "scale": "real").
+ *
+ *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--seq PATH] [--slots K] [--merge R] [--clip M] [--model PATH]
+ *              [--out DIR] [--gate-min F] [--gate-ratio F] [--gate-part F] [--log debug|info|warn]
  *
  * --gate-*: the creation gate's model.gate_* (0 = default, -1 = that test off);
  * --log debug prints the gate's verdict on every new slot (docs/cogmap.md).
@@ -27,12 +33,14 @@
 #include "sooc3d/scene.h"
 
 #include <dirent.h>
+#include <errno.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static long rss_kb(void) {
@@ -61,7 +69,7 @@ typedef struct mon {
     sooc_node *node;
     atomic_int done;
     uint64_t first_pass_kf, tenth_kf;
-    uint64_t entries_first, entries_max, entries_tenth;
+    uint64_t entries_first, entries_max, entries_tenth, entries_min;   /* min: after the first pass */
     long rss_first, rss_tenth;
     int fds_first, fds_tenth;
     int have_first, have_tenth;
@@ -75,9 +83,10 @@ static void *monitor(void *arg) {
         sooc_node_stats s;
         sooc_node_get_stats(m->node, &s);
         if (s.n_objects > m->entries_max) m->entries_max = s.n_objects;
+        if (m->have_first && s.n_objects < m->entries_min) m->entries_min = s.n_objects;
         while (m->n_per_k < 101 && s.keyframes >= (uint64_t)m->n_per_k * 1000) m->per_k[m->n_per_k++] = s.n_objects;
         if (!m->have_first && s.keyframes >= m->first_pass_kf) {
-            m->entries_first = s.n_objects;
+            m->entries_first = m->entries_min = s.n_objects;
             m->rss_first = rss_kb();
             m->fds_first = open_fds();
             m->have_first = 1;
@@ -157,19 +166,22 @@ static int gt_score_db(const sooc_scene *sc, const char *db, gt_score *out) {
     return st != SOOC_OK;
 }
 
-static int node_config(sooc_node_config *c, const char *gen_dir, const char *model, const char *db, double merge,
-                       double clip, const double gate[3], sooc_log_level lvl) {
+/* The node's configuration: the generated scene (seq NULL: its frame is the
+ * world's, floor at 0) or a recorded sequence (its support plane estimated). */
+static int node_config(sooc_node_config *c, const char *gen_dir, const char *seq, int loop, const char *model,
+                       const char *db, double merge, double clip, const double gate[3], int slots, sooc_log_level lvl) {
     char text[2048];
     int len = snprintf(text, sizeof text,
-                       "sensor: {driver: replay, path: '%s/scene_0000', speed: fast, loop: true}\n"
+                       "sensor: {driver: replay, path: '%s%s', speed: fast, loop: %s}\n"
                        "pose: {source: sensor}\n"
                        "model: {path: '%s'}\n"
                        "keyframe: {translation_m: 0.25, rotation_deg: 15, time_s: 0}\n"
                        "map: {db: '%s', resume: true}\n"
-                       "world: {up: +y, floor: 0.0}\n"
+                       "world: %s\n"
                        "pipeline: {block_when_full: true, stats_period_s: 0}\n"
                        "log: {level: warn}\n",
-                       gen_dir, model, db);
+                       seq ? seq : gen_dir, seq ? "" : "/scene_0000", loop ? "true" : "false", model, db,
+                       seq ? "{floor: estimate}" : "{up: +y, floor: 0.0}");
     if (sooc_node_config_parse(c, text, (size_t)len, "bench_soak.yaml")) {
         fprintf(stderr, "bench_soak: %s\n", sooc_errmsg());
         return 1;
@@ -179,6 +191,7 @@ static int node_config(sooc_node_config *c, const char *gen_dir, const char *mod
     c->gate_min_rays = gate[0];
     c->gate_ratio = gate[1];
     c->gate_part = gate[2];
+    c->slots = slots;
     c->log_level = lvl;
     return 0;
 }
@@ -194,11 +207,15 @@ int main(int argc, char **argv) {
     const char *scale = "m", *model = "models/sooc3d_unity/model.bin", *out = NULL;
     uint64_t seed = 7;
     double merge = -1, clip = 0, gate[3] = {0, 0, 0};
+    const char *seq = NULL;   /* --seq: a recorded sequence instead of a generated scene */
+    int slots = 0;            /* --slots: model.slots (0 = the model's K) */
     sooc_log_level lvl = SOOC_LOG_WARN;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--keyframes") && i + 1 < argc) keyframes = atoll(argv[++i]);
         else if (!strcmp(argv[i], "--scale") && i + 1 < argc) scale = argv[++i];
         else if (!strcmp(argv[i], "--seed") && i + 1 < argc) seed = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--seq") && i + 1 < argc) seq = argv[++i];
+        else if (!strcmp(argv[i], "--slots") && i + 1 < argc) slots = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--merge") && i + 1 < argc) merge = atof(argv[++i]);
         else if (!strcmp(argv[i], "--clip") && i + 1 < argc) clip = atof(argv[++i]);
         else if (!strcmp(argv[i], "--model") && i + 1 < argc) model = argv[++i];
@@ -208,7 +225,7 @@ int main(int argc, char **argv) {
         else if (!strcmp(argv[i], "--gate-part") && i + 1 < argc) gate[2] = atof(argv[++i]);
         else if (!strcmp(argv[i], "--log") && i + 1 < argc && !sooc_log_level_parse(argv[i + 1], &lvl)) i++;
         else {
-            fprintf(stderr, "usage: bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--merge R] [--clip M] "
+            fprintf(stderr, "usage: bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--seq PATH] [--slots K] [--merge R] [--clip M] "
                             "[--model P] [--out DIR] [--gate-min F] [--gate-ratio F] [--gate-part F] "
                             "[--log debug|info|warn]\n");
             return 2;
@@ -220,7 +237,13 @@ int main(int argc, char **argv) {
         return 2;
     }
     char dir[512];
-    if (out) snprintf(dir, sizeof dir, "%s", out);
+    if (out) {
+        snprintf(dir, sizeof dir, "%s", out);
+        if (mkdir(dir, 0755) && errno != EEXIST) {
+            fprintf(stderr, "bench_soak: cannot create %s: %s\n", dir, strerror(errno));
+            return 1;
+        }
+    }
     else {
         snprintf(dir, sizeof dir, "/tmp/bench_soak_XXXXXX");
         if (!mkdtemp(dir)) return 1;
@@ -236,32 +259,47 @@ int main(int argc, char **argv) {
     gp.contact_sheet = 0;
     char gen_dir[600], db[700];
     snprintf(gen_dir, sizeof gen_dir, "%s/gen", dir);
-    if (sooc_gen_run(&gp, gen_dir, NULL, NULL, NULL)) {
+    if (seq && access(seq, R_OK)) {
+        fprintf(stderr, "bench_soak: SKIP: no sequence at %s\n", seq);
+        return 77;
+    }
+    if (!seq && sooc_gen_run(&gp, gen_dir, NULL, NULL, NULL)) {
         fprintf(stderr, "bench_soak: gen: %s\n", sooc_errmsg());
         return 1;
     }
     int views = sooc_gen_views(&gp);   /* a pass replays the input and the query views */
     views += gp.n_query >= 0 ? gp.n_query : (views / 5 > 2 ? views / 5 : 2);
+    if (seq) views = 0;   /* the reference pass's keyframes */
     sooc_log_set_level(lvl);
     sooc_log_set_callback(log_stderr, NULL);
     /* the reference: one pass into its own map */
     char db1[700];
     snprintf(db1, sizeof db1, "%s/map_pass1.sqlite", dir);
     sooc_node_config c;
-    if (node_config(&c, gen_dir, model, db1, merge, clip, gate, lvl)) return 1;
+    if (node_config(&c, gen_dir, seq, !seq, model, db1, merge, clip, gate, slots, lvl)) return 1;
     sooc_node_options o;
     memset(&o, 0, sizeof o);
-    o.max_keyframes = (uint64_t)views;
+    o.max_keyframes = (uint64_t)views;   /* a recorded sequence: to its end */
     sooc_node *n = NULL;
     if (sooc_node_create(&n, &c, &o) || sooc_node_run(n)) {
         fprintf(stderr, "bench_soak: one pass: %s\n", sooc_errmsg());
         sooc_node_destroy(n);
         return 1;
     }
+    if (seq) {
+        sooc_node_stats s1;
+        sooc_node_get_stats(n, &s1);
+        views = (int)s1.keyframes;
+        if (views < 1) {
+            fprintf(stderr, "bench_soak: %s: one pass mapped no keyframe\n", seq);
+            sooc_node_destroy(n);
+            return 1;
+        }
+    }
     sooc_node_destroy(n);
     n = NULL;
     snprintf(db, sizeof db, "%s/map.sqlite", dir);
-    if (node_config(&c, gen_dir, model, db, merge, clip, gate, lvl)) return 1;
+    if (node_config(&c, gen_dir, seq, 1, model, db, merge, clip, gate, slots, lvl)) return 1;
     long rss0 = rss_kb();
     int fds0 = open_fds();
     o.max_keyframes = (uint64_t)keyframes;
@@ -299,35 +337,42 @@ int main(int argc, char **argv) {
     gt_score g1, g2;
     memset(&g1, 0, sizeof g1);
     memset(&g2, 0, sizeof g2);
-    if (sooc_gen_scene(&sc, &gp, 0) || gt_score_db(&sc, db1, &g1) || gt_score_db(&sc, db, &g2))
+    if (!seq && (sooc_gen_scene(&sc, &gp, 0) || gt_score_db(&sc, db1, &g1) || gt_score_db(&sc, db, &g2)))
         fprintf(stderr, "bench_soak: ground truth: %s\n", sooc_errmsg());
     sooc_scene_free(&sc);
-    fprintf(stderr,
+    char gt[512] = "\"gt_objects\": null, \"gt_one_pass\": null, \"gt_end\": null";
+    if (!seq) {
+        snprintf(gt, sizeof gt,
+                 "\"gt_objects\": %d, \"gt_one_pass\": {\"entries\": %d, \"objects\": %d, \"duplicates\": %d, "
+                 "\"far\": %d, \"median_offset_m\": %.4f}, \"gt_end\": {\"entries\": %d, \"objects\": %d, "
+                 "\"duplicates\": %d, \"far\": %d, \"median_offset_m\": %.4f}",
+                 g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries, g2.mapped, g2.dups, g2.far,
+                 g2.med_dist);
+        fprintf(stderr,
             "bench_soak: ground truth (%d objects): one pass %d entries = %d objects + %d duplicates + %d far, "
             "median %.3f m off; loop end %d = %d + %d + %d, median %.3f m off\n",
-            g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries, g2.mapped, g2.dups, g2.far,
-            g2.med_dist);
+                g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries, g2.mapped, g2.dups, g2.far,
+                g2.med_dist);
+    }
     fprintf(stderr,
             "bench_soak: %llu keyframes in %.0f s, entries %llu after the first pass (%d views), %llu at the end "
-            "(%+.1f%%), max %llu; RSS %ld -> %ld -> %ld kB; fds %d -> %d -> %d (%d after destroy)\n",
+            "(%+.1f%%), max %llu, min %llu; RSS %ld -> %ld -> %ld kB; fds %d -> %d -> %d (%d after destroy)\n",
             (unsigned long long)s.keyframes, secs, (unsigned long long)m.entries_first, views,
-            (unsigned long long)s.n_objects, 100 * growth, (unsigned long long)m.entries_max, m.rss_first,
+            (unsigned long long)s.n_objects, 100 * growth, (unsigned long long)m.entries_max,
+            (unsigned long long)m.entries_min, m.rss_first,
             m.rss_tenth, rss_end, m.fds_first, m.fds_tenth, fds_end, fds_after);
-    printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"views_per_pass\": %d, \"merge_m\": %g, \"clip_m\": %g, "
-           "\"gate\": [%g, %g, %g], "
+    printf("{\"bench\": \"soak\", \"scale\": \"%s\", \"seed\": %llu, \"seq\": \"%s\", \"views_per_pass\": %d, \"merge_m\": %g, \"clip_m\": %g, "
+           "\"gate\": [%g, %g, %g], \"slots\": %d, "
            "\"keyframes\": %llu, \"seconds\": %.1f, \"entries_first_pass\": %llu, \"entries_tenth\": %llu, "
-           "\"entries_end\": %llu, \"entries_max\": %llu, \"entries_per_1000\": [%s], \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
+           "\"entries_end\": %llu, \"entries_max\": %llu, \"entries_min\": %llu, \"entries_per_1000\": [%s], \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
            "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
            "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
-           "\"gt_objects\": %d, \"gt_one_pass\": {\"entries\": %d, \"objects\": %d, \"duplicates\": %d, \"far\": %d, "
-           "\"median_offset_m\": %.4f}, \"gt_end\": {\"entries\": %d, \"objects\": %d, \"duplicates\": %d, \"far\": %d, "
-           "\"median_offset_m\": %.4f}, \"status\": \"%s\"}\n",
-           scale, (unsigned long long)seed, views, c.merge_m, c.clip_m, gate[0], gate[1], gate[2],
+           "%s, \"status\": \"%s\"}\n",
+           seq ? "real" : scale, (unsigned long long)seed, seq ? seq : "", views, c.merge_m, c.clip_m, gate[0], gate[1], gate[2], c.slots,
            (unsigned long long)s.keyframes, secs,
            (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
-           (unsigned long long)m.entries_max, perk, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
-           m.fds_tenth, fds_end, fds_after, g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries,
-           g2.mapped, g2.dups, g2.far, g2.med_dist, sooc_status_str(st));
+           (unsigned long long)m.entries_max, (unsigned long long)m.entries_min, perk, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
+           m.fds_tenth, fds_end, fds_after, gt, sooc_status_str(st));
     if (!out) {
         char cmd[600];
         snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
