@@ -267,9 +267,13 @@ int main(int argc, char **argv) {
         fprintf(stderr, "bench_soak: gen: %s\n", sooc_errmsg());
         return 1;
     }
-    int views = sooc_gen_views(&gp);   /* a pass replays the input and the query views */
-    views += gp.n_query >= 0 ? gp.n_query : (views / 5 > 2 ? views / 5 : 2);
-    if (seq) views = 0;   /* the reference pass's keyframes */
+    /* a generated pass replays the input and the query views; a recording's
+     * pass length is the reference pass's keyframe count (below) */
+    int views = 0;
+    if (!seq) {
+        views = sooc_gen_views(&gp);
+        views += gp.n_query >= 0 ? gp.n_query : (views / 5 > 2 ? views / 5 : 2);
+    }
     sooc_log_set_level(lvl);
     sooc_log_set_callback(log_stderr, NULL);
     /* the reference: one pass into its own map */
@@ -349,8 +353,8 @@ int main(int argc, char **argv) {
                  g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries, g2.mapped, g2.dups, g2.far,
                  g2.med_dist);
         fprintf(stderr,
-            "bench_soak: ground truth (%d objects): one pass %d entries = %d objects + %d duplicates + %d far, "
-            "median %.3f m off; loop end %d = %d + %d + %d, median %.3f m off\n",
+                "bench_soak: ground truth (%d objects): one pass %d entries = %d objects + %d duplicates + %d far, "
+                "median %.3f m off; loop end %d = %d + %d + %d, median %.3f m off\n",
                 g1.objects, g1.entries, g1.mapped, g1.dups, g1.far, g1.med_dist, g2.entries, g2.mapped, g2.dups, g2.far,
                 g2.med_dist);
     }

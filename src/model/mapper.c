@@ -51,6 +51,7 @@ struct sooc3d_mapper {
     float lam_gate[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
     dec_noise gate_noise;
     float gate_boxes[SOOC3D_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
+    uint64_t gate_box_ids[SOOC3D_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -193,6 +194,7 @@ typedef struct gate_near {
     int K, d, n, n_new;
     double unit, reach, nx[SOOC_MODEL_K_MAX], nz[SOOC_MODEL_K_MAX];
     float *out;
+    uint64_t *ids;
 } gate_near;
 
 static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
@@ -205,6 +207,7 @@ static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
     if (!close) return 0;
     float lam[SOOC_LAM_MAX];
     sooc_cogmap_lam_to_local(&g->V->gf, e, lam);   /* metres in G -> model units, as the slots' poses */
+    g->ids[g->n] = e->id;
     float *b = g->out + 3 * g->n++;
     b[0] = (float)(lam[SOOC_LAM_X] / g->unit), b[1] = (float)(lam[SOOC_LAM_Z] / g->unit), b[2] = lam[SOOC_LAM_TH];
     return 0;
@@ -242,7 +245,8 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
     dc.tau = MAPPER_TAU;
     if ((*err = mdl_decode(mp->ws, &dc))) return 0;
     const int C = K + 1;
-    gate_near near = {.V = V, .src = mp->src_reg, .K = K, .d = d, .unit = c->unit_m, .out = mp->gate_boxes};
+    gate_near near = {.V = V, .src = mp->src_reg, .K = K, .d = d, .unit = c->unit_m, .out = mp->gate_boxes,
+                      .ids = mp->gate_box_ids};
     near.reach = 2.0 * M_SQRT2 * c->box_rh * c->unit_m;   /* a box corner can reach the new slot's points */
     for (int i = 0; i < K; i++)
         if (role[i] == SOOC3D_GATE_NEW) {
@@ -256,7 +260,7 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
     sooc3d_gate_verdict v[SOOC_MODEL_K_MAX];
     int refused = sooc3d_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
     static const char *why[] = {"not new", "created", "refused: too few rays of its own",
-                                "refused: part of a mapped entry (retrieved slot, or box of an unretrieved entry: id 0)"};
+                                "refused: part of a mapped entry"};
     for (int i = 0; i < K; i++) {
         if (role[i] != SOOC3D_GATE_NEW) continue;
         float *lam = mp->lam_reg + (size_t)i * NL;
@@ -269,16 +273,18 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
                 sooc_cogmap_lam_to_world(&V->gf, d, mp->lam_reg + (size_t)v[i].part * NL, &ej);
                 dj = hypot(e.X - ej.X, e.Z - ej.Z);
                 idj = mp->src_reg[v[i].part];
-            } else if (v[i].part >= K) {   /* an unretrieved map entry's box (model units, G frame) */
+            } else if (v[i].part >= K) {   /* a map entry's box: unretrieved, or settled as stored */
                 const float *b = mp->gate_boxes + 3 * (v[i].part - K), *l = mp->lam_gate + (size_t)i * NL;
                 dj = c->unit_m * hypot(l[SOOC_LAM_X] - b[0], l[SOOC_LAM_Z] - b[1]);
+                idj = mp->gate_box_ids[v[i].part - K];
             }
             sooc_log(SOOC_LOG_DEBUG,
-                     "mapper gate: view %d slot %d new at (%.2f, %.2f): owns %d rays, %d alone (of %d, need %.0f); "
-                     "part share %.2f ratio %.3f of entry %llu %.2f m away -> %s",
+                     "mapper gate: view %d slot %d new at (%.2f, %.2f): owns %d rays, %d alone (of %d, need %.2f); "
+                     "part share %.2f ratio %.3f of entry %llu (%s) %.2f m away -> %s",
                      mp->view_idx, i, e.X, e.Z, v[i].owned, v[i].alone, V->vr.N,
                      mp->gate_min >= 0 ? mp->gate_min * V->vr.N : -1.0, (double)v[i].part_share, (double)v[i].part_ratio,
-                     (unsigned long long)idj, dj, why[v[i].reason]);
+                     (unsigned long long)idj, v[i].part < 0 ? "none" : v[i].part < K ? "its slot" : "its map box", dj,
+                     why[v[i].reason]);
         }
         if (!v[i].create) lam[PA] = -1.0f;
     }
