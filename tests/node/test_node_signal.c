@@ -51,6 +51,28 @@ static pid_t spawn(const char *bin, const char *launch, const char *delay_ms, in
     return pid;
 }
 
+/* Waits until node.log holds `n` "node: resumed" lines: the child then has its
+ * signal handlers installed and its database open. A fixed sleep raced a slow
+ * start (ThreadSanitizer on a loaded machine took > 0.8 s to get there, so the
+ * SIGINT killed it before it had a handler). */
+static int wait_resumed(int n, double timeout_s) {
+    char logp[512], line[1024];
+    snprintf(logp, sizeof logp, "%s/node.log", g_tmp);
+    double t0 = sooc_seconds();
+    while (sooc_seconds() - t0 < timeout_s) {
+        FILE *f = fopen(logp, "r");
+        int c = 0;
+        if (f) {
+            while (fgets(line, sizeof line, f))
+                if (strstr(line, "node: resumed ")) c++;
+            fclose(f);
+        }
+        if (c >= n) return 0;
+        usleep(20000);
+    }
+    return -1;
+}
+
 static void write_launch(const char *path, const char *db, int unlink_on_exit) {
     FILE *f = fopen(path, "w");
     fprintf(f,
@@ -128,7 +150,8 @@ int main(void) {
 
     /* 2. second signal during a slow keyframe: immediate exit, non-zero */
     pid = spawn(bin, launch, "3000", 1);
-    usleep(1500 * 1000);   /* resume + the first (3 s) keyframe under way */
+    CHECK_MSG(wait_resumed(1, 30) == 0, "second run never resumed (see %s/node.log)", g_tmp);
+    usleep(500 * 1000);   /* the first (3 s) keyframe under way */
     kill(pid, SIGTERM);
     usleep(200 * 1000);
     double ts = sooc_seconds();
@@ -142,7 +165,8 @@ int main(void) {
     /* 3. unlink_on_exit: true removes the shm object on a clean exit */
     write_launch(launch, db, 1);
     pid = spawn(bin, launch, NULL, 0);
-    usleep(800 * 1000);
+    CHECK_MSG(wait_resumed(2, 30) == 0, "third run never resumed (see %s/node.log)", g_tmp);
+    usleep(300 * 1000);
     kill(pid, SIGINT);
     waitpid(pid, &status, 0);
     CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
