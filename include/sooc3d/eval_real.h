@@ -13,8 +13,9 @@
  *   - growth: the same input frames mapped a second time into the same map;
  *   - spread: the RMS position and circular yaw spread of persistent entries
  *     over the keyframes that registered them;
- *   - seen: whether each final entry's centre lies where the sensor saw free
- *     space, a surface, or never looked (sooc_eval_point_seen).
+ *   - seen: whether each final entry lies where the sensor saw free space, a
+ *     surface, or never looked (sooc_eval_point_seen at the entry's probe
+ *     point, sooc_eval_entry_probe).
  *
  * Every building block is a plain function testable on hand-made frames.
  * No function prints or exits; errors are sooc_status codes with messages.
@@ -25,6 +26,7 @@
 #include "sooc3d/core.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/frame.h"
+#include "sooc3d/map_entry.h"
 #include "sooc3d/metrics.h"
 #include "sooc3d/model.h"
 
@@ -71,6 +73,28 @@ typedef struct sooc_seen_votes {
  * without a pose are skipped. */
 sooc_status sooc_eval_point_seen(const double p_w[3], const sooc_frame *frames, int n, double tol,
                                  sooc_seen_votes *out);
+
+/* Where an entry lies, for the seen test (world, y up, support plane y = 0).
+ * An entry with a tight box of its own density (geom.flags TIGHT and not
+ * EMPTY; objgeom.h) is probed at 7 points: the box's centre and the centres
+ * of its 6 faces (the box is tight, so a face centre sits on or next to the
+ * density's surface), carried by its floor pose, X + R_y(yaw) p. An entry
+ * without one (not computed, or EMPTY: no density at the surface level) is
+ * probed at one point, (X, seen_height, Z). sooc_eval_entry_probes writes
+ * the points to p_w (room for SOOC_ENTRY_PROBES_MAX) and returns their count.
+ * An object's density may sit anywhere up its locality box (a counter 0.9 m
+ * high stands on the floor its frame stands on), and its centre lies up to
+ * half its depth behind its visible face, so a fixed height, or the centre
+ * alone, would probe where no camera can look. */
+#define SOOC_ENTRY_PROBES_MAX 7
+int sooc_eval_entry_probes(const sooc_map_entry *e, double seen_height, double p_w[][3]);
+
+/* The seen class of an entry: SURFACE when any of its probe points is a
+ * surface point (sooc_eval_point_seen), else FREE when any is free, else
+ * NEVER. The counts of `out` are summed over the points, min_behind is the
+ * smallest over them. */
+sooc_status sooc_eval_entry_seen(const sooc_map_entry *e, double seen_height, const sooc_frame *frames, int n,
+                                 double tol, sooc_seen_votes *out);
 
 /* ------------------------------------------------------------- spread */
 
@@ -137,8 +161,8 @@ typedef struct sooc_eval_real_opts {
     int query_every;           /* the query rule's N (>= 2)                (SOOC_REAL_QUERY_EVERY) */
     int second_pass;           /* 1 = map the input frames again (growth)                  (1) */
     double seen_tol;           /* depth band of a surface (m)                            (0.25) */
-    double seen_height;        /* height above the support plane of the tested entry centre
-                                  (m; the world frame has y up, support plane y = 0)     (0.1) */
+    double seen_height;        /* height above the support plane at which an entry without a
+                                  tight box is tested (sooc_eval_entry_probes; m)         (0.1) */
     int persist_min;           /* entries registered by at least this many keyframes (and in
                                   the final map) are persistent                            (3) */
 } sooc_eval_real_opts;
@@ -157,6 +181,9 @@ typedef struct sooc_eval_real_result {
     double pos_spread_m;           /* mean over persistent entries (NaN if none)         */
     double yaw_spread_deg;
     int n_seen[3];                 /* final entries by sooc_seen_class                   */
+    int n_seen_box;                /* of them, probed over their tight box                 */
+    int n_empty;                   /* final entries whose density reaches the surface level
+                                      nowhere (objgeom EMPTY): they render nothing         */
     double never_behind_med_m;     /* median min_behind of the never-seen entries that some
                                       frame measured a surface in front of (NaN if none)  */
     int n_never_behind;            /* their number                                       */

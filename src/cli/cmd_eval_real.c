@@ -26,7 +26,8 @@ const char *const sooc_eval_real_cli_help =
     "  --query-every N   N of the query rule (default 5)\n"
     "  --no-second-pass  skip the growth pass\n"
     "  --seen-tol M      surface band of the free-space test in m (default 0.25)\n"
-    "  --seen-height M   height of the tested entry centre above the support plane in m (default 0.1)\n"
+    "  --seen-height M   entries without a tight box of their density are tested at this height above\n"
+    "                    the support plane in m (default 0.1); the others over their box\n"
     "  --persist-min K   registrations that make an entry persistent for the spread (default 3)\n"
     "  --panels DIR      DIR/<sequence>/<model>/: a panel PNG (GT | reconstruction | segmentation |\n"
     "                    ... ) and a views.csv row (per-view metrics) per query frame\n";
@@ -293,8 +294,9 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                  "valid depth <= the clip; mIoU best-match with background (labelled sequences only); growth = "
                  "entries after a second pass over the same frames / entries after the first - 1; spread: RMS floor "
                  "position (m) and circular yaw std (deg) of entries registered by >= %d keyframes; free / never "
-                 "seen: fraction of final entries whose centre (%.2f m above the support plane) the frames saw as "
-                 "free space / never saw (surface band +-%.2f m). Seed %llu. docs/metrics.md \"Real sequences\".",
+                 "seen: fraction of final entries the frames saw as free space / never saw, probed at their tight "
+                 "box's centre and face centres (entries without a box at %.2f m above the support plane; surface "
+                 "band +-%.2f m). Seed %llu. docs/metrics.md \"Real sequences\".",
                  a->opts.query_every, a->opts.query_every, a->opts.query_every / 2, a->opts.persist_min,
                  a->opts.seen_height, a->opts.seen_tol, (unsigned long long)a->opts.run.seed);
         md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n*%s*\n", note);

@@ -5,6 +5,7 @@
 #include "sooc3d/eval_real.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/image.h"
+#include "sooc3d/geom.h"
 #include "sooc3d/global.h"
 #include "sooc3d/mapper.h"
 
@@ -61,6 +62,43 @@ sooc_status sooc_eval_point_seen(const double p_w[3], const sooc_frame *frames, 
     }
     if (out->n_free + out->n_surface == 0) out->cls = SOOC_SEEN_NEVER;
     else out->cls = out->n_free > out->n_surface ? SOOC_SEEN_FREE : SOOC_SEEN_SURFACE;
+    return SOOC_OK;
+}
+
+int sooc_eval_entry_probes(const sooc_map_entry *e, double seen_height, double p_w[][3]) {
+    const sooc_map_geometry *g = &e->geom;
+    if (!(g->flags & SOOC_GEOM_TIGHT) || (g->flags & SOOC_GEOM_EMPTY)) {
+        p_w[0][0] = e->x, p_w[0][1] = seen_height, p_w[0][2] = e->z;
+        return 1;
+    }
+    double R[9];
+    sooc_m3_rot_y(R, e->yaw);
+    for (int i = 0; i < SOOC_ENTRY_PROBES_MAX; i++) {
+        double c[3] = {g->centre[0], g->centre[1], g->centre[2]}, w[3];
+        if (i > 0) c[(i - 1) / 2] += ((i - 1) % 2 ? 0.5 : -0.5) * e->extent[(i - 1) / 2];
+        sooc_m3_mulv(w, R, c);
+        p_w[i][0] = e->x + w[0], p_w[i][1] = w[1], p_w[i][2] = e->z + w[2];
+    }
+    return SOOC_ENTRY_PROBES_MAX;
+}
+
+sooc_status sooc_eval_entry_seen(const sooc_map_entry *e, double seen_height, const sooc_frame *frames, int n,
+                                 double tol, sooc_seen_votes *out) {
+    if (!e || !out) return sooc_seterr(SOOC_EINVAL, "entry_seen: NULL argument");
+    double p[SOOC_ENTRY_PROBES_MAX][3];
+    int np = sooc_eval_entry_probes(e, seen_height, p), any[3] = {0, 0, 0};
+    memset(out, 0, sizeof *out);
+    out->min_behind = NAN;
+    for (int i = 0; i < np; i++) {
+        sooc_seen_votes v;
+        sooc_status st = sooc_eval_point_seen(p[i], frames, n, tol, &v);
+        if (st) return st;
+        out->n_in_view += v.n_in_view, out->n_free += v.n_free;
+        out->n_surface += v.n_surface, out->n_behind += v.n_behind;
+        if (!isnan(v.min_behind) && !(v.min_behind >= out->min_behind)) out->min_behind = v.min_behind;
+        any[v.cls] = 1;
+    }
+    out->cls = any[SOOC_SEEN_SURFACE] ? SOOC_SEEN_SURFACE : any[SOOC_SEEN_FREE] ? SOOC_SEEN_FREE : SOOC_SEEN_NEVER;
     return SOOC_OK;
 }
 
@@ -400,9 +438,12 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     }
     if (st) goto done;
 
-    /* persistent entries and the free-space test on the pass-1 map */
+    /* persistent entries and the free-space test on the pass-1 map (every
+     * entry's tight box brought up to date first: the mapper computes a
+     * bounded number per keyframe) */
     {
         size_t ne = 0;
+        if (C.mp && (st = sooc3d_mapper_refresh_geometry(C.mp, -1, NULL))) goto done;
         if ((st = C.gm ? sooc_global_mapper_entries(C.gm, NULL, 0, &ne) : sooc3d_mapper_entries(C.mp, NULL, 0, &ne)))
             goto done;
         if (!(ent = sooc_calloc(ne ? ne : 1, sizeof *ent))) {
@@ -425,9 +466,11 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
                 ps += pr, ys += yr;
                 res->n_persistent++;
             }
-            double p[3] = {ent[k].x, o->seen_height, ent[k].z};
+            const sooc_map_geometry *g = &ent[k].geom;
+            res->n_seen_box += (g->flags & SOOC_GEOM_TIGHT) && !(g->flags & SOOC_GEOM_EMPTY);
+            res->n_empty += (g->flags & SOOC_GEOM_EMPTY) != 0;
             sooc_seen_votes sv;
-            if ((st = sooc_eval_point_seen(p, frames, n_frames, o->seen_tol, &sv))) {
+            if ((st = sooc_eval_entry_seen(&ent[k], o->seen_height, frames, n_frames, o->seen_tol, &sv))) {
                 sooc_free(beh);
                 goto done;
             }
@@ -553,6 +596,7 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     jb_num(&b, "yaw_spread_deg", r->yaw_spread_deg);
     double ne = (double)(r->n_seen[0] + r->n_seen[1] + r->n_seen[2]);
     jb_num(&b, "free_frac", ne > 0 ? r->n_seen[SOOC_SEEN_FREE] / ne : NAN);
+    jb_printf(&b, ", \"seen_box_n\": %d, \"empty_n\": %d", r->n_seen_box, r->n_empty);
     jb_num(&b, "never_seen_frac", ne > 0 ? r->n_seen[SOOC_SEEN_NEVER] / ne : NAN);
     jb_num(&b, "surface_frac", ne > 0 ? r->n_seen[SOOC_SEEN_SURFACE] / ne : NAN);
     jb_printf(&b, ", \"never_seen_behind_n\": %d", r->n_never_behind);

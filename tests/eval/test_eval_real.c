@@ -6,6 +6,7 @@
 #include "../data/util.h"
 #include "sooc3d/eval_real.h"
 #include "sooc3d/image.h"
+#include "sooc3d/render.h"
 
 #include <math.h>
 #include <string.h>
@@ -106,6 +107,68 @@ static void test_point_seen(void) {
 }
 
 /* ------------------------------------------------------------- spread */
+/* The probe points of an entry: its tight box's centre and face centres
+ * carried to the world by the renderer's own object-box transform; one point
+ * at the fixed height without a box (or with an empty one). Then the class
+ * rule on a wall seen by one camera. */
+static void test_entry_probe(void) {
+    sooc_map_entry e;
+    memset(&e, 0, sizeof e);
+    e.x = 1.0, e.z = 2.0, e.yaw = 0.7;
+    double p[SOOC_ENTRY_PROBES_MAX][3];
+    CHECK(sooc_eval_entry_probes(&e, 0.1, p) == 1);
+    CHECK(p[0][0] == 1.0 && p[0][1] == 0.1 && p[0][2] == 2.0);
+    e.geom.flags = SOOC_GEOM_TIGHT;
+    const float c[3] = {0.25f, 0.9f, -0.1f}, ext[3] = {0.4f, 0.2f, 0.6f};
+    memcpy(e.geom.centre, c, sizeof c);
+    memcpy(e.extent, ext, sizeof ext);
+    CHECK(sooc_eval_entry_probes(&e, 0.1, p) == 7);
+    sooc_render_box b;
+    sooc_render_box_object(&b, e.x, e.z, e.yaw, 0.0, 0.6, 1.2);
+    for (int i = 0; i < 7; i++) {
+        double o[3] = {c[0], c[1], c[2]}, q[3];
+        if (i) o[(i - 1) / 2] += ((i - 1) % 2 ? 0.5 : -0.5) * ext[(i - 1) / 2];
+        for (int r = 0; r < 3; r++)
+            q[r] = b.T_fb[4 * r] * o[0] + b.T_fb[4 * r + 1] * o[1] + b.T_fb[4 * r + 2] * o[2] + b.T_fb[4 * r + 3];
+        for (int r = 0; r < 3; r++) CHECK_CLOSE(p[i][r], q[r], 1e-6, 0);
+    }
+    CHECK_CLOSE(p[0][1], 0.9, 1e-6, 0);
+    CHECK_CLOSE(p[3][1], 0.8, 1e-6, 0);   /* the bottom face */
+    CHECK(fabs(p[0][0] - 1.0) > 0.05);    /* the box's offset is used, rotated */
+    e.geom.flags = SOOC_GEOM_TIGHT | SOOC_GEOM_EMPTY;
+    CHECK(sooc_eval_entry_probes(&e, 0.3, p) == 1);
+    CHECK(p[0][0] == 1.0 && p[0][1] == 0.3 && p[0][2] == 2.0);
+
+    /* one camera at the origin looking down +z at a wall 4 m away (the
+     * frame of test_point_seen) */
+    sooc_frame f;
+    memset(&f, 0, sizeof f);
+    const double c0[3] = {0, 0, 0};
+    make_frame(&f, 16, 16, c0, 0, 4.0f);
+    sooc_seen_votes v;
+    memset(&e, 0, sizeof e);
+    e.geom.flags = SOOC_GEOM_TIGHT;
+    e.extent[0] = e.extent[1] = e.extent[2] = 1.0f;
+    e.z = 4.45;   /* centre 0.45 m behind the wall, front face 0.05 m behind it: surface */
+    CHECK_OK(sooc_eval_entry_seen(&e, 0.1, &f, 1, 0.25, &v));
+    CHECK(v.cls == SOOC_SEEN_SURFACE && v.n_surface >= 1);
+    sooc_seen_votes vc;
+    double pc[3] = {0, 0, 4.45};
+    CHECK_OK(sooc_eval_point_seen(pc, &f, 1, 0.25, &vc));
+    CHECK(vc.cls == SOOC_SEEN_NEVER);   /* the centre alone is occluded */
+    e.z = 5.5;    /* wholly behind the wall: never, 1.0 m behind at the front face */
+    CHECK_OK(sooc_eval_entry_seen(&e, 0.1, &f, 1, 0.25, &v));
+    CHECK(v.cls == SOOC_SEEN_NEVER);
+    CHECK_CLOSE(v.min_behind, 1.0, 1e-6, 0);
+    e.z = 2.0;    /* in the air in front of the wall: free */
+    CHECK_OK(sooc_eval_entry_seen(&e, 0.1, &f, 1, 0.25, &v));
+    CHECK(v.cls == SOOC_SEEN_FREE && v.n_surface == 0 && v.n_free >= 1);
+    e.geom.flags |= SOOC_GEOM_EMPTY;   /* no box: the floor point (0, 0.1, 2) only, free as well */
+    CHECK_OK(sooc_eval_entry_seen(&e, 0.1, &f, 1, 0.25, &v));
+    CHECK(v.cls == SOOC_SEEN_FREE && v.n_free == 1);
+    sooc_frame_free(&f);
+}
+
 static void test_spread(void) {
     sooc_track t;
     memset(&t, 0, sizeof t);
@@ -449,6 +512,7 @@ static void test_runner(void) {
 int main(void) {
     test_query_rule();
     test_point_seen();
+    test_entry_probe();
     test_spread();
     test_churn();
     test_obj_iou();
