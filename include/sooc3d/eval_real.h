@@ -25,6 +25,7 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/eval.h"
+#include "sooc3d/finetune.h"
 #include "sooc3d/frame.h"
 #include "sooc3d/map_entry.h"
 #include "sooc3d/metrics.h"
@@ -165,6 +166,11 @@ typedef struct sooc_eval_real_opts {
                                   tight box is tested (sooc_eval_entry_probes; m)         (0.1) */
     int persist_min;           /* entries registered by at least this many keyframes (and in
                                   the final map) are persistent                            (3) */
+    const sooc_finetune_params *finetune;   /* non-NULL: SOOC3D+. After pass 1 every entry and
+                                  layout block of the map is finetuned by EM on the mapped
+                                  frames (finetune.h), then the query frames, spreads and the
+                                  seen test are scored on the finetuned map; no second pass
+                                  (SOOC3D models only)                                  (NULL) */
 } sooc_eval_real_opts;
 void sooc_eval_real_opts_default(sooc_eval_real_opts *o);
 
@@ -188,6 +194,7 @@ typedef struct sooc_eval_real_result {
                                       frame measured a surface in front of (NaN if none)  */
     int n_never_behind;            /* their number                                       */
     double update_s, render_s;
+    double finetune_s;             /* with opts.finetune: the finetuning's wall time      */
 } sooc_eval_real_result;
 
 /* Run one recorded sequence. frames[0..n_frames): sequence order, all posed,

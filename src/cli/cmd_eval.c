@@ -47,7 +47,9 @@ static void usage(FILE *f) {
             "  --iterations    refinement updates per input view (default: the model's L)\n"
             "  --finetune      SOOC3D+: also a '<name>+ft' row per model: online inference as for the\n"
             "                  base row, then per-object NeRF finetuning by EM on the input views\n"
-            "                  (sooc3d finetune), then the same views scored from the finetuned map\n"
+            "                  (sooc3d finetune), then the same views scored from the finetuned map;\n"
+            "                  on a recorded sequence: the mapped frames finetune, the held-out query\n"
+            "                  frames score (a '<name>+ft' cell, no second pass)\n"
             "  --ft-iterations, --ft-rays, --ft-lr   finetuning steps per object / block, rays per\n"
             "                  step, Adam learning rate (defaults: those of sooc3d finetune)\n"
             "  --mesh-res N    mesh accuracy / completeness (JSON mesh_acc_cm, mesh_comp_cm; Atlas,\n"
@@ -330,7 +332,9 @@ int sooc_cmd_eval(int argc, char **argv) {
             }
             rel.run = ro;
             rel.run.seed = seed;
-            sooc_eval_real_cli rc = {models, rnp, n_models, dirs, n_dirs, json, md, rel, fpp, panels, quiet};
+            ftp.seed = seed;
+            sooc_eval_real_cli rc = {models, rnp, n_models, dirs, n_dirs, json, md, rel, fpp, panels, quiet,
+                                   finetune ? &ftp : NULL};
             return sooc_cmd_eval_real(&rc);
         }
     }

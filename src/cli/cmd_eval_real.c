@@ -175,7 +175,7 @@ static void fmt_num(char *b, size_t cap, double v, int dec) {
 }
 
 /* One row of the text / Markdown table. */
-static void row_cells(const sooc_eval_real_result *r, const sooc_eval_real_opts *o, char c[10][48]) {
+static void row_cells(const sooc_eval_real_result *r, int pass2, char c[10][48]) {
     sooc_metric_means mm;
     sooc_metric_sums_means(&r->query, &mm);
     double ne = (double)(r->n_seen[0] + r->n_seen[1] + r->n_seen[2]);
@@ -184,7 +184,7 @@ static void row_cells(const sooc_eval_real_result *r, const sooc_eval_real_opts 
     fmt_num(c[2], 48, mm.rgb_rmse, 3);
     fmt_num(c[3], 48, r->has_labels ? mm.miou_best : NAN, 3);
     snprintf(c[4], 48, "%zu/%ld", r->entries_final, r->churn.created);
-    if (o->second_pass && r->entries_final)
+    if (pass2 && r->entries_final)
         snprintf(c[5], 48, "%+.2f", ((double)r->entries_pass2 - (double)r->entries_final) / (double)r->entries_final);
     else snprintf(c[5], 48, "-");
     fmt_num(c[6], 48, r->pos_spread_m, 3);
@@ -196,6 +196,37 @@ static void row_cells(const sooc_eval_real_result *r, const sooc_eval_real_opts 
 static const char *const k_cols[10] = {"mapped/query", "depth RMSE", "RGB RMSE", "mIoU",     "entries end/created",
                                        "growth",       "pos spread", "yaw spread", "free", "never seen"};
 
+/* One (model, sequence) cell: the run, its panels and its JSON. */
+static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const char *name, const char *dir,
+                            const sooc_eval_real_opts *o, sooc_frame *fr, int nfr, sooc_eval_real_result *r,
+                            char **cell) {
+    const sooc_model_config *c = sooc_model_get_config(m);
+    char sn[256], pdir[4096];
+    seq_name(dir, sn, sizeof sn);
+    panel_ctx pc = {pdir, NULL, o->run.d_clip > 0 ? o->run.d_clip : c->d_clip * c->unit_m};
+    sooc_status st;
+    if (a->panels) {
+        snprintf(pdir, sizeof pdir, "%s/%s/%s", a->panels, sn, name);
+        char cp[4200];
+        snprintf(cp, sizeof cp, "%s/views.csv", pdir);
+        if ((st = sooc_mkdirs(pdir))) return st;
+        if (!(pc.csv = fopen(cp, "w"))) return sooc_seterr(SOOC_EIO, "%s: cannot open for writing", cp);
+        fprintf(pc.csv, "frame,position,n_comp,miou_best,miou_hung,rgb_rmse,depth_rmse,valid_pixels\n");
+    }
+    st = sooc_eval_real_run(m, fr, nfr, o, pc.csv ? on_query : NULL, &pc, r);
+    if (pc.csv && fclose(pc.csv) && !st) st = sooc_seterr(SOOC_EIO, "%s/views.csv: write failed", pdir);
+    if (st) return sooc_adderr(st, "%s", dir);
+    if ((st = sooc_eval_real_json(name, sn, dir, o, r, cell))) return st;
+    if (!a->quiet) {
+        fprintf(stderr, "eval: %s on %s: %d mapped, %d query frames, %.1f s mapping (%s), %.1f s rendering", name, sn,
+                r->n_mapped, r->n_query, r->update_s, o->second_pass && !o->finetune ? "two passes" : "one pass",
+                r->render_s);
+        if (o->finetune) fprintf(stderr, ", %.1f s finetuning", r->finetune_s);
+        fputc('\n', stderr);
+    }
+    return SOOC_OK;
+}
+
 int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
     sooc_status st = SOOC_OK;
     sooc_model *m = NULL;
@@ -206,15 +237,19 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
     char *md = NULL;
     size_t md_len = 0, md_cap = 0;
     sooc_eval_real_result *res = NULL;
-    if (!(cells = calloc((size_t)a->n_models * (size_t)a->n_dirs, sizeof *cells))) return sooc_cli_fail("eval", SOOC_ENOMEM);
-    if (!(res = calloc((size_t)a->n_models * (size_t)a->n_dirs, sizeof *res))) {
+    typedef struct { char model[160], seq[256]; int ft; } row_name;
+    row_name *rn = NULL;
+    size_t cap = 2 * (size_t)a->n_models * (size_t)a->n_dirs;   /* a base and a +ft row each */
+    if (!(cells = calloc(cap, sizeof *cells)) || !(res = calloc(cap, sizeof *res)) || !(rn = calloc(cap, sizeof *rn))) {
         free(cells);
+        free(res);
         return sooc_cli_fail("eval", SOOC_ENOMEM);
     }
-    double t0 = sooc_seconds();
+    double t0 = sooc_seconds(), ft_s = 0;
     for (int mi = 0; mi < a->n_models && !st; mi++) {
         if ((st = sooc_model_load(&m, a->models[mi], NULL, NULL))) break;
         const sooc_model_config *c = sooc_model_get_config(m);
+        int with_ft = a->ft && !sooc_model_is_global(m);
         for (int d = 0; d < a->n_dirs && !st; d++) {
             lab_src lab;
             if ((st = load_sequence(a->dirs[d], &a->fp, c->img_w, c->img_h, a->opts.query_every, &fr, &nfr, &lab))) {
@@ -224,38 +259,19 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
             if (!a->quiet)
                 fprintf(stderr, "eval: %s on %s: %d frames at %dx%d, labels: %s\n", a->names[mi], a->dirs[d], nfr,
                         c->img_w, c->img_h, lab_name(lab));
-            sooc_eval_real_result *r = &res[n_cells];
-            char sn[256], pdir[4096];
-            seq_name(a->dirs[d], sn, sizeof sn);
-            panel_ctx pc = {pdir, NULL, a->opts.run.d_clip > 0 ? a->opts.run.d_clip : c->d_clip * c->unit_m};
-            if (a->panels) {
-                snprintf(pdir, sizeof pdir, "%s/%s/%s", a->panels, sn, a->names[mi]);
-                char cp[4200];
-                snprintf(cp, sizeof cp, "%s/views.csv", pdir);
-                if ((st = sooc_mkdirs(pdir))) break;
-                if (!(pc.csv = fopen(cp, "w"))) {
-                    st = sooc_seterr(SOOC_EIO, "%s: cannot open for writing", cp);
-                    break;
-                }
-                fprintf(pc.csv, "frame,position,n_comp,miou_best,miou_hung,rgb_rmse,depth_rmse,valid_pixels\n");
+            for (int ft = 0; ft <= with_ft && !st; ft++) {
+                sooc_eval_real_opts o = a->opts;
+                o.finetune = ft ? a->ft : NULL;
+                row_name *r = &rn[n_cells];
+                snprintf(r->model, sizeof r->model, "%.150s%s", a->names[mi], ft ? "+ft" : "");
+                seq_name(a->dirs[d], r->seq, sizeof r->seq);
+                r->ft = ft;
+                st = run_cell(a, m, r->model, a->dirs[d], &o, fr, nfr, &res[n_cells], &cells[n_cells]);
+                if (!st) ft_s += res[n_cells++].finetune_s;
             }
-            st = sooc_eval_real_run(m, fr, nfr, &a->opts, pc.csv ? on_query : NULL, &pc, r);
-            if (pc.csv && fclose(pc.csv) && !st) st = sooc_seterr(SOOC_EIO, "%s/views.csv: write failed", pdir);
             for (int i = 0; i < nfr; i++) sooc_frame_free(&fr[i]);
             sooc_free(fr);
             fr = NULL;
-            if (st) {
-                sooc_adderr(st, "%s", a->dirs[d]);
-                break;
-            }
-            if ((st = sooc_eval_real_json(a->names[mi], sn, a->dirs[d], &a->opts, r,
-                                          &cells[n_cells])))
-                break;
-            n_cells++;
-            if (!a->quiet)
-                fprintf(stderr, "eval: %s on %s: %d mapped, %d query frames, %.1f s mapping (%s), %.1f s rendering\n",
-                        a->names[mi], sn, r->n_mapped, r->n_query, r->update_s,
-                        a->opts.second_pass ? "two passes" : "one pass", r->render_s);
         }
         sooc_model_destroy(m);
         m = NULL;
@@ -274,19 +290,16 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                                    k_cols[7], k_cols[8], k_cols[9]);
         printf("%-16s %-20s %12s %10s %9s %6s %19s %7s %10s %10s %5s %10s\n", "model", "sequence", k_cols[0], k_cols[1],
                k_cols[2], k_cols[3], k_cols[4], k_cols[5], k_cols[6], k_cols[7], k_cols[8], k_cols[9]);
-        int k = 0;
-        for (int mi = 0; mi < a->n_models; mi++)
-            for (int d = 0; d < a->n_dirs; d++, k++) {
-                char cc[10][48], sn[256];
-                row_cells(&res[k], &a->opts, cc);
-                seq_name(a->dirs[d], sn, sizeof sn);
-                printf("%-16s %-20s %12s %10s %9s %6s %19s %7s %10s %10s %5s %10s\n", a->names[mi], sn, cc[0], cc[1],
-                       cc[2], cc[3], cc[4], cc[5], cc[6], cc[7], cc[8], cc[9]);
-                md_len += (size_t)snprintf(md + md_len, md_cap - md_len,
-                                           "| %.60s | %.60s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n",
-                                           a->names[mi], sn, cc[0], cc[1], cc[2], cc[3], cc[4], cc[5], cc[6], cc[7],
-                                           cc[8], cc[9]);
-            }
+        for (int k = 0; k < n_cells; k++) {
+            char cc[10][48];
+            row_cells(&res[k], a->opts.second_pass && !rn[k].ft, cc);
+            printf("%-16s %-20s %12s %10s %9s %6s %19s %7s %10s %10s %5s %10s\n", rn[k].model, rn[k].seq, cc[0], cc[1],
+                   cc[2], cc[3], cc[4], cc[5], cc[6], cc[7], cc[8], cc[9]);
+            md_len += (size_t)snprintf(md + md_len, md_cap - md_len,
+                                       "| %.60s | %.60s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n",
+                                       rn[k].model, rn[k].seq, cc[0], cc[1], cc[2], cc[3], cc[4], cc[5], cc[6], cc[7],
+                                       cc[8], cc[9]);
+        }
         char note[1024];
         snprintf(note, sizeof note,
                  "Recorded sequences: query frames = every %d-th frame (position %% %d == %d), never mapped, rendered "
@@ -302,6 +315,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
         md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n*%s*\n", note);
         printf("\n%s\n", note);
         printf("\neval: %d cell%s in %.1f s\n", n_cells, n_cells == 1 ? "" : "s", sooc_seconds() - t0);
+        if (a->ft) printf("eval: finetuning (+ft rows) %.1f s in all\n", ft_s);
 
         size_t jl = 0;
         for (int i = 0; i < n_cells; i++) jl += strlen(cells[i]) + 8;
@@ -328,9 +342,10 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
         printf("eval: wrote %s%s%s\n", a->json, a->md ? " and " : "", a->md ? a->md : "");
     }
 fail:
-    for (int i = 0; i < a->n_models * a->n_dirs; i++) sooc_free(cells[i]);
+    for (size_t i = 0; i < cap; i++) sooc_free(cells[i]);
     free(cells);
     free(res);
+    free(rn);
     free(md);
     sooc_model_destroy(m);
     return st ? sooc_cli_fail("eval", st) : 0;

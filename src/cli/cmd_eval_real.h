@@ -20,6 +20,8 @@ typedef struct sooc_eval_real_cli {
     const char *panels;           /* NULL, or DIR: DIR/<sequence>/<model>/ gets a panel PNG
                                      and views.csv row per query frame      */
     int quiet;
+    const sooc_finetune_params *ft;   /* non-NULL (--finetune): also a '<name>+ft' row per SOOC3D
+                                     model and sequence (opts.finetune)     */
 } sooc_eval_real_cli;
 
 /* The usage text of the recorded-sequence options. */

@@ -386,6 +386,8 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     sooc_render_out rout;
     memset(&rout, 0, sizeof rout);
     int global = sooc_model_is_global(m);
+    if (global && o->finetune)
+        return sooc_seterr(SOOC_EINVAL, "eval real: finetuning needs a SOOC3D model, not the global-frame baseline");
     sooc_status st = sooc_model_copy_slots(m, global ? 0 : o->run.slots, &copy);
     if (st) return sooc_adderr(st, "eval real: model copy");
     if ((o->run.d_clip > 0 && (st = sooc_model_set_clip(copy, (float)o->run.d_clip))) ||
@@ -413,6 +415,21 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     /* pass 1 */
     if ((st = map_pass(&C, frames, n_frames, o->query_every, 1, &res->churn, res))) goto done;
     res->entries_final = sooc_cogmap_count(ctx_map(&C));
+
+    /* SOOC3D+: finetune the pass-1 map on the mapped frames (the decoders go
+     * into the mapper's map as payloads; its tight boxes are stale after) */
+    if (o->finetune) {
+        double t0 = sooc_seconds();
+        sooc_finetune *ft = NULL;
+        st = sooc_finetune_create(&ft, ctx_model(&C), (sooc_cogmap *)ctx_map(&C), o->finetune);
+        for (int i = 0; i < n_frames && !st; i++)
+            if (!sooc_eval_real_is_query(i, o->query_every)) st = sooc_finetune_add_view(ft, &frames[i]);
+        if (!st) st = sooc_finetune_run_all(ft, NULL, NULL, 0);
+        sooc_finetune_destroy(ft);
+        res->finetune_s = sooc_seconds() - t0;
+        if (st) goto done;
+        sooc3d_mapper_geometry_invalidate(C.mp);
+    }
 
     /* query frames from the pass-1 map */
     for (int i = 0; i < n_frames && !st; i++) {
@@ -487,7 +504,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     }
 
     /* pass 2: the same input frames again, into the same map */
-    if (o->second_pass && (st = map_pass(&C, frames, n_frames, o->query_every, 0, &res->churn2, res))) goto done;
+    if (o->second_pass && !o->finetune && (st = map_pass(&C, frames, n_frames, o->query_every, 0, &res->churn2, res))) goto done;
     res->entries_pass2 = sooc_cogmap_count(ctx_map(&C));
 
 done:
@@ -585,10 +602,11 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     }
     jb_printf(&b, ", \"entries_removed\": %ld", r->churn.removed);
     jb_num(&b, "churn", r->churn.created ? (double)r->churn.removed / (double)r->churn.created : NAN);
+    int pass2 = o->second_pass && !o->finetune;
     jb_printf(&b, ", \"second_pass\": %d, \"entries_pass2\": %zu, \"entries_created_pass2\": %ld, "
                   "\"entries_removed_pass2\": %ld",
-              o->second_pass, r->entries_pass2, r->churn2.created, r->churn2.removed);
-    jb_num(&b, "growth", o->second_pass && r->entries_final
+              pass2, r->entries_pass2, r->churn2.created, r->churn2.removed);
+    jb_num(&b, "growth", pass2 && r->entries_final
                              ? ((double)r->entries_pass2 - (double)r->entries_final) / (double)r->entries_final
                              : NAN);
     jb_printf(&b, ", \"persistent\": %d, \"persist_min\": %d", r->n_persistent, o->persist_min);
@@ -606,7 +624,11 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     jb_printf(&b, ", \"frames\": %d, \"frames_mapped\": %d, \"frames_query\": %d, \"query_every\": %d", r->n_frames,
               r->n_mapped, r->n_query, o->query_every);
     jb_printf(&b, ", \"views_depth\": %ld, \"views_rgb\": %ld", r->query.n_depth, r->query.n_rgb);
-    jb_num(&b, "update_ms", r->n_mapped ? 1e3 * r->update_s / (double)(r->n_mapped * (o->second_pass ? 2 : 1)) : NAN);
+    jb_num(&b, "update_ms", r->n_mapped ? 1e3 * r->update_s / (double)(r->n_mapped * (pass2 ? 2 : 1)) : NAN);
+    jb_printf(&b, ", \"finetuned\": %s", o->finetune ? "true" : "false");
+    if (o->finetune)
+        jb_printf(&b, ", \"ft_iterations\": %d, \"ft_rays\": %d, \"ft_lr\": %g, \"finetune_s\": %.3f",
+                  o->finetune->iterations, o->finetune->rays, (double)o->finetune->lr, r->finetune_s);
     jb_printf(&b, "}");
     if (b.oom) {
         sooc_free(b.p);
