@@ -47,6 +47,8 @@ typedef struct sooc_finetune_params {
     int rays;             /* rays per step (0 = every ray of the unit, full batch) (512) */
     float lr;             /* Adam learning rate of the decoder weights           (1e-3) */
     float lr_z;           /* Adam learning rate of z^what / the layout latent    (1e-3) */
+    float lr_final;       /* the rates fall by a half cosine over a unit's steps to
+                             lr_final x their start; 1 = constant                    (1) */
     float sigma_c;        /* colour std; 0 = the model's config                     (0) */
     int layout;           /* 1 = finetune the layout blocks too                     (1) */
     int max_obj;          /* components per view (top by presence), as the renderer (63) */
@@ -54,6 +56,9 @@ typedef struct sooc_finetune_params {
     uint64_t seed;        /* ray batches and samples                                 (1) */
 } sooc_finetune_params;
 void sooc_finetune_params_default(sooc_finetune_params *p);
+/* The learning-rate factor of step it (0-based) of a unit's `iterations`
+ * steps: lr_final + (1 - lr_final) (1 + cos(pi it / iterations)) / 2. */
+float sooc_finetune_lr_scale(const sooc_finetune_params *p, int it);
 
 typedef struct sooc_finetune sooc_finetune;
 

@@ -50,8 +50,9 @@ static void usage(FILE *f) {
             "                  (sooc3d finetune), then the same views scored from the finetuned map;\n"
             "                  on a recorded sequence: the mapped frames finetune, the held-out query\n"
             "                  frames score (a '<name>+ft' cell, no second pass)\n"
-            "  --ft-iterations, --ft-rays, --ft-lr   finetuning steps per object / block, rays per\n"
-            "                  step, Adam learning rate (defaults: those of sooc3d finetune)\n"
+            "  --ft-iterations, --ft-rays, --ft-lr, --ft-lr-final   finetuning steps per object /\n"
+            "                  block, rays per step, Adam learning rate, its final fraction after a\n"
+            "                  half-cosine decay (defaults: those of sooc3d finetune)\n"
             "  --mesh-res N    mesh accuracy / completeness (JSON mesh_acc_cm, mesh_comp_cm; Atlas,\n"
             "                  docs/mesh.md): marching cubes with N samples per object box axis\n"
             "                  (default 64); 0 = no mesh metrics\n"
@@ -232,7 +233,11 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--finetune")) finetune = 1;
         else if (!strcmp(a, "--ft-iterations") && has) INTV(0, 1000000, &ftp.iterations);
         else if (!strcmp(a, "--ft-rays") && has) INTV(1, 1 << 20, &ftp.rays);
-        else if (!strcmp(a, "--ft-lr") && has) {
+        else if (!strcmp(a, "--ft-lr-final") && has) {
+            double d;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &d)) return 2;
+            ftp.lr_final = (float)d;
+        } else if (!strcmp(a, "--ft-lr") && has) {
             double d;
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &d)) return 2;
             ftp.lr = ftp.lr_z = (float)d;

@@ -21,9 +21,15 @@ void sooc_finetune_params_default(sooc_finetune_params *p) {
     p->rays = 512;
     p->lr = 1e-3f;
     p->lr_z = 1e-3f;
+    p->lr_final = 1.0f;
     p->layout = 1;
     p->max_obj = SOOC_COGMAP_K_MAX - 1;
     p->seed = 1;
+}
+
+float sooc_finetune_lr_scale(const sooc_finetune_params *p, int it) {
+    float f = p->lr_final, T = (float)(p->iterations > 0 ? p->iterations : 1);
+    return f + (1.0f - f) * 0.5f * (1.0f + cosf(3.14159265f * (float)it / T));
 }
 
 /* ------------------------------------------------------------ components */
@@ -106,9 +112,10 @@ sooc_status sooc_finetune_create(sooc_finetune **out, sooc_model *m, sooc_cogmap
     sooc_finetune_params p;
     if (pp) p = *pp;
     else sooc_finetune_params_default(&p);
-    if (p.iterations < 0 || p.rays < 0 || !(p.lr >= 0) || !(p.lr_z >= 0) || !(p.sigma_c >= 0))
-        return sooc_seterr(SOOC_EINVAL, "finetune: bad parameters (iterations %d, rays %d, lr %g, lr_z %g)",
-                           p.iterations, p.rays, p.lr, p.lr_z);
+    if (p.iterations < 0 || p.rays < 0 || !(p.lr >= 0) || !(p.lr_z >= 0) || !(p.sigma_c >= 0) ||
+        !(p.lr_final >= 0 && p.lr_final <= 1))
+        return sooc_seterr(SOOC_EINVAL, "finetune: bad parameters (iterations %d, rays %d, lr %g, lr_z %g, lr_final %g)",
+                           p.iterations, p.rays, p.lr, p.lr_z, p.lr_final);
     if (p.max_obj <= 0 || p.max_obj > SOOC_COGMAP_K_MAX - 1) p.max_obj = SOOC_COGMAP_K_MAX - 1;
     if (p.max_obj > SOOC_RENDER_MAX_COMP - 1) p.max_obj = SOOC_RENDER_MAX_COMP - 1;
     if (sooc_cogmap_dim(map) != m->cfg.d_what)
@@ -663,12 +670,13 @@ sooc_status sooc_finetune_unit_run(sooc_finetune *ft, int u, sooc_finetune_progr
         /* Adam ascent on ℓ (mean over the batch) */
         float ib = 1.0f / (float)(B ? B : 1);
         float bc1 = 1.0f - powf(b1, (float)(it + 1)), bc2 = 1.0f - powf(b2, (float)(it + 1));
+        float sch = sooc_finetune_lr_scale(&ft->p, it), lr_w = ft->p.lr * sch, lr_zz = ft->p.lr_z * sch;
         for (size_t i = 0; i < nw + (size_t)dz; i++) {
             float g = -(i < nw ? ft->gw[i] : gz[i - nw]) * ib;
             float *mm = &ft->am[i], *vv = &ft->av[i];
             *mm = b1 * *mm + (1 - b1) * g;
             *vv = b2 * *vv + (1 - b2) * g * g;
-            float step = (i < nw ? ft->p.lr : ft->p.lr_z) * (*mm / bc1) / (sqrtf(*vv / bc2) + eps);
+            float step = (i < nw ? lr_w : lr_zz) * (*mm / bc1) / (sqrtf(*vv / bc2) + eps);
             if (i < nw) c->w[i] -= step;
             else c->z[i - nw] -= step;
         }

@@ -231,6 +231,23 @@ int main(void) {
     printf("rendering RGB RMSE of the views: %.4f base -> %.4f finetuned\n", err0, err1);
     CHECK(isfinite(err0) && isfinite(err1));
     CHECK_MSG(err1 < 0.9 * err0, "RMSE %.4f -> %.4f", err0, err1);
+    /* the learning-rate schedule: constant by default, a half cosine from 1
+     * to lr_final otherwise; an lr_final outside [0, 1] is refused */
+    {
+        sooc_finetune_params q;
+        sooc_finetune_params_default(&q);
+        q.iterations = 100;
+        CHECK(sooc_finetune_lr_scale(&q, 0) == 1.0f && sooc_finetune_lr_scale(&q, 99) == 1.0f);
+        q.lr_final = 0.1f;
+        CHECK_CLOSE(sooc_finetune_lr_scale(&q, 0), 1.0, 1e-6, 0);
+        CHECK_CLOSE(sooc_finetune_lr_scale(&q, 50), 0.55, 1e-5, 0);
+        CHECK(sooc_finetune_lr_scale(&q, 99) < 0.101f && sooc_finetune_lr_scale(&q, 99) > 0.1f);
+        for (int i = 1; i < 100; i++) CHECK(sooc_finetune_lr_scale(&q, i) < sooc_finetune_lr_scale(&q, i - 1));
+        q.lr_final = 1.5f;
+        sooc_finetune *bad = NULL;
+        CHECK(sooc_finetune_create(&bad, m, map, &q) == SOOC_EINVAL && bad == NULL);
+        sooc_clearerr();
+    }
     /* the model's own weights are untouched */
     sooc_model *m2 = NULL;
     CHECK_OK(sooc_model_create(&m2, &cfg, 3));
