@@ -171,6 +171,8 @@ typedef struct sooc_eval_real_opts {
                                   frames (finetune.h), then the query frames, spreads and the
                                   seen test are scored on the finetuned map; no second pass
                                   (SOOC3D models only)                                  (NULL) */
+    sooc_finetune_progress_fn ft_progress;  /* with finetune: called every 50 steps (NULL) */
+    void *ft_user;
 } sooc_eval_real_opts;
 void sooc_eval_real_opts_default(sooc_eval_real_opts *o);
 

@@ -196,6 +196,15 @@ static void row_cells(const sooc_eval_real_result *r, int pass2, char c[10][48])
 static const char *const k_cols[10] = {"mapped/query", "depth RMSE", "RGB RMSE", "mIoU",     "entries end/created",
                                        "growth",       "pos spread", "yaw spread", "free", "never seen"};
 
+/* --finetune progress: one overwritten line per unit. */
+static int on_ft_progress(void *user, const sooc_finetune_progress *p) {
+    (void)user;
+    fprintf(stderr, "\reval: finetuning unit %d/%d: step %d/%d loss %.4f %.0f steps/s ETA %.0f s   ", p->unit + 1,
+            p->n_units, p->iter, p->iterations, p->loss, p->steps_per_s, p->eta_s);
+    if (p->iter == p->iterations && p->unit + 1 == p->n_units) fputc('\n', stderr);
+    return 0;
+}
+
 /* One (model, sequence) cell: the run, its panels and its JSON. */
 static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const char *name, const char *dir,
                             const sooc_eval_real_opts *o, sooc_frame *fr, int nfr, sooc_eval_real_result *r,
@@ -262,6 +271,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
             for (int ft = 0; ft <= with_ft && !st; ft++) {
                 sooc_eval_real_opts o = a->opts;
                 o.finetune = ft ? a->ft : NULL;
+                o.ft_progress = ft && !a->quiet ? on_ft_progress : NULL;
                 row_name *r = &rn[n_cells];
                 snprintf(r->model, sizeof r->model, "%.150s%s", a->names[mi], ft ? "+ft" : "");
                 seq_name(a->dirs[d], r->seq, sizeof r->seq);

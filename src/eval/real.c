@@ -424,7 +424,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         st = sooc_finetune_create(&ft, ctx_model(&C), (sooc_cogmap *)ctx_map(&C), o->finetune);
         for (int i = 0; i < n_frames && !st; i++)
             if (!sooc_eval_real_is_query(i, o->query_every)) st = sooc_finetune_add_view(ft, &frames[i]);
-        if (!st) st = sooc_finetune_run_all(ft, NULL, NULL, 0);
+        if (!st) st = sooc_finetune_run_all(ft, o->ft_progress, o->ft_user, o->ft_progress ? 50 : 0);
         sooc_finetune_destroy(ft);
         res->finetune_s = sooc_seconds() - t0;
         if (st) goto done;
