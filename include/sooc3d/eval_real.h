@@ -14,8 +14,8 @@
  *   - spread: the RMS position and circular yaw spread of persistent entries
  *     over the keyframes that registered them;
  *   - seen: whether each final entry lies where the sensor saw free space, a
- *     surface, or never looked (sooc_eval_point_seen at the entry's probe
- *     point, sooc_eval_entry_probe).
+ *     surface, or never looked (sooc_eval_entry_seen: sooc_eval_point_seen
+ *     at the entry's probe points, sooc_eval_entry_probes).
  *
  * Every building block is a plain function testable on hand-made frames.
  * No function prints or exits; errors are sooc_status codes with messages.
@@ -175,6 +175,9 @@ typedef struct sooc_eval_real_opts {
     void *ft_user;
 } sooc_eval_real_opts;
 void sooc_eval_real_opts_default(sooc_eval_real_opts *o);
+/* 1 when the runner maps the input frames a second time (growth): asked for,
+ * and not a finetuned run. */
+static inline int sooc_eval_real_second_pass(const sooc_eval_real_opts *o) { return o->second_pass && !o->finetune; }
 
 typedef struct sooc_eval_real_result {
     int n_frames, n_mapped, n_query;

@@ -228,7 +228,7 @@ static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const ch
     if ((st = sooc_eval_real_json(name, sn, dir, o, r, cell))) return st;
     if (!a->quiet) {
         fprintf(stderr, "eval: %s on %s: %d mapped, %d query frames, %.1f s mapping (%s), %.1f s rendering", name, sn,
-                r->n_mapped, r->n_query, r->update_s, o->second_pass && !o->finetune ? "two passes" : "one pass",
+                r->n_mapped, r->n_query, r->update_s, sooc_eval_real_second_pass(o) ? "two passes" : "one pass",
                 r->render_s);
         if (o->finetune) fprintf(stderr, ", %.1f s finetuning", r->finetune_s);
         fputc('\n', stderr);
@@ -246,7 +246,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
     char *md = NULL;
     size_t md_len = 0, md_cap = 0;
     sooc_eval_real_result *res = NULL;
-    typedef struct { char model[160], seq[256]; int ft; } row_name;
+    typedef struct { char model[160], seq[256]; int pass2; } row_name;
     row_name *rn = NULL;
     size_t cap = 2 * (size_t)a->n_models * (size_t)a->n_dirs;   /* a base and a +ft row each */
     if (!(cells = calloc(cap, sizeof *cells)) || !(res = calloc(cap, sizeof *res)) || !(rn = calloc(cap, sizeof *rn))) {
@@ -275,7 +275,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                 row_name *r = &rn[n_cells];
                 snprintf(r->model, sizeof r->model, "%.150s%s", a->names[mi], ft ? "+ft" : "");
                 seq_name(a->dirs[d], r->seq, sizeof r->seq);
-                r->ft = ft;
+                r->pass2 = sooc_eval_real_second_pass(&o);
                 st = run_cell(a, m, r->model, a->dirs[d], &o, fr, nfr, &res[n_cells], &cells[n_cells]);
                 if (!st) ft_s += res[n_cells++].finetune_s;
             }
@@ -302,7 +302,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                k_cols[2], k_cols[3], k_cols[4], k_cols[5], k_cols[6], k_cols[7], k_cols[8], k_cols[9]);
         for (int k = 0; k < n_cells; k++) {
             char cc[10][48];
-            row_cells(&res[k], a->opts.second_pass && !rn[k].ft, cc);
+            row_cells(&res[k], rn[k].pass2, cc);
             printf("%-16s %-20s %12s %10s %9s %6s %19s %7s %10s %10s %5s %10s\n", rn[k].model, rn[k].seq, cc[0], cc[1],
                    cc[2], cc[3], cc[4], cc[5], cc[6], cc[7], cc[8], cc[9]);
             md_len += (size_t)snprintf(md + md_len, md_cap - md_len,

@@ -504,7 +504,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     }
 
     /* pass 2: the same input frames again, into the same map */
-    if (o->second_pass && !o->finetune && (st = map_pass(&C, frames, n_frames, o->query_every, 0, &res->churn2, res))) goto done;
+    if (sooc_eval_real_second_pass(o) && (st = map_pass(&C, frames, n_frames, o->query_every, 0, &res->churn2, res))) goto done;
     res->entries_pass2 = sooc_cogmap_count(ctx_map(&C));
 
 done:
@@ -602,7 +602,7 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     }
     jb_printf(&b, ", \"entries_removed\": %ld", r->churn.removed);
     jb_num(&b, "churn", r->churn.created ? (double)r->churn.removed / (double)r->churn.created : NAN);
-    int pass2 = o->second_pass && !o->finetune;
+    int pass2 = sooc_eval_real_second_pass(o);
     jb_printf(&b, ", \"second_pass\": %d, \"entries_pass2\": %zu, \"entries_created_pass2\": %ld, "
                   "\"entries_removed_pass2\": %ld",
               pass2, r->entries_pass2, r->churn2.created, r->churn2.removed);
