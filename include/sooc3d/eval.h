@@ -235,6 +235,9 @@ typedef struct sooc_eval_run_opts {
      * layout block of the map by EM on the input views (finetune.h), then score
      * the views from the finetuned map; NULL = no finetuning              (NULL) */
     const struct sooc_finetune_params *finetune;
+    /* with finetune: births first (finetune.h "births"): entries for what the
+     * map does not draw in the input views; NULL = none                  (NULL) */
+    const struct sooc_birth_params *birth;
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 
@@ -277,6 +280,7 @@ typedef struct sooc_eval_scene_result {
     double mesh_s;                   /* time in the mesh metric (opts.scene)               */
     int mesh_objects, mesh_empty;    /* objects it averaged / matched with an empty mesh   */
     double finetune_s;               /* time in finetuning (opts.finetune)                */
+    int n_born;                      /* entries born before finetuning (opts.birth)       */
 } sooc_eval_scene_result;
 
 /* Run one scene (see above). frames[0..n_frames): trajectory order, input

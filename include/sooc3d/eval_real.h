@@ -147,6 +147,11 @@ double sooc_obj_iou_mean(const sooc_obj_iou_acc *a, int k);
  * (re)allocated with sooc_realloc (pass NULL or an earlier buffer). RGB
  * images are refused with a message naming the file. */
 sooc_status sooc_eval_labels_read(const char *path, uint16_t **ids, int *w, int *h);
+/* Births (finetune.h) on `map` from the frames with use[i] != 0 (use NULL:
+ * every frame that is not is_query): the eval runners' step before
+ * finetuning. *n_born = entries inserted. */
+sooc_status sooc_eval_births(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
+                             const uint8_t *use, const sooc_birth_params *p, int threads, int *n_born);
 /* Nearest-neighbour resample of a label map: destination pixel (u, v) of a
  * dw x dh image takes source pixel (x0 + floor((u + 0.5) cw / dw),
  * y0 + floor((v + 0.5) ch / dh)), i.e. the crop [x0, x0+cw) x [y0, y0+ch)
@@ -200,6 +205,8 @@ typedef struct sooc_eval_real_result {
     int n_never_behind;            /* their number                                       */
     double update_s, render_s;
     double finetune_s;             /* with opts.finetune: the finetuning's wall time      */
+    int n_born;                    /* with opts.run.birth: entries born before finetuning
+                                      (counted in churn.created and entries_final)        */
 } sooc_eval_real_result;
 
 /* Run one recorded sequence. frames[0..n_frames): sequence order, all posed,

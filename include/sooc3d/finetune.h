@@ -116,6 +116,46 @@ sooc_status sooc_finetune_unit_payload(const sooc_finetune *ft, int u, const flo
  * *n_rays = rays summed (may be NULL). */
 sooc_status sooc_finetune_loglik(sooc_finetune *ft, uint64_t seed, double *ll, size_t *n_rays);
 
+/* ------------------------------------------------------------ births
+ *
+ * Online inference can miss an object: nothing in the map draws it, so EM
+ * has no component to fit to it (the "birth" move of EM mixture fitting).
+ * Before finetuning, sooc_birth renders every view from the map and keeps
+ * the pixels whose sensor surface lies more than depth_margin in front of
+ * the rendered one, between min_height and the object box's height above
+ * the floor. Their world points are clustered on the floor (cell, min_cell,
+ * 8-connected; clusters wider than an object box are cut into box-sized
+ * tiles), and each cluster seen in min_views views with min_pixels points,
+ * not within dup_radius of an entry, becomes a new map entry at its points'
+ * mean (yaw 0, z^what the mean of the slot priors). Lengths are in model
+ * units (config.unit_m). The finetuning made afterwards on the same map fits
+ * the new entries with the others. docs/finetune.md "Births". */
+typedef struct sooc_birth_params {
+    float depth_margin;   /* rendered surface this far behind the sensor's (0.15) */
+    float min_height;     /* points this high above the floor at least      (0.05) */
+    float cell;           /* floor grid cell                                (0.1)  */
+    int min_cell;         /* points per grid cell to join a cluster           (3)  */
+    int min_pixels;       /* points per new entry                            (40)  */
+    int min_views;        /* views that see a new entry                       (2)  */
+    float dup_radius;     /* no birth this close to an entry                (0.15) */
+    int max_births;       /* at most this many new entries                   (32)  */
+    int n_coarse, n_fine; /* render samples per ray                       (64, 16) */
+} sooc_birth_params;
+void sooc_birth_params_default(sooc_birth_params *p);
+
+typedef struct sooc_birth sooc_birth;
+/* For model m and map (borrowed; new entries are inserted into it). */
+sooc_status sooc_birth_create(sooc_birth **out, sooc_model *m, sooc_cogmap *map, const sooc_birth_params *p,
+                              int threads);
+void sooc_birth_destroy(sooc_birth *b);   /* NULL-safe */
+/* Render view f from the map and keep its unexplained points (the frame at
+ * any resolution, posed, planar depth in metres, 0 = invalid). */
+sooc_status sooc_birth_add_view(sooc_birth *b, const sooc_frame *f);
+size_t sooc_birth_n_points(const sooc_birth *b);   /* unexplained points so far */
+/* Cluster the points and insert the new entries; their ids go to ids[0..cap)
+ * (may be NULL), their number to *n_born. */
+sooc_status sooc_birth_run(sooc_birth *b, uint64_t *ids, int cap, int *n_born);
+
 #ifdef __cplusplus
 }
 #endif

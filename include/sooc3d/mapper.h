@@ -256,7 +256,10 @@ sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, 
  * stale boxes now (< 0 = all; e.g. before reading a final map); *n_done
  * (may be NULL) = boxes computed. entries() / changed() fill extent and geom. */
 void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *m, int per_update);
-/* Mark every cached tight box stale (the decoders changed, e.g. finetuning). */
+/* Mark every cached tight box stale (the decoders changed, e.g. finetuning),
+ * and take up the entries someone else put into the mapper's map (births
+ * before finetuning, finetune.h): their statistics start from their current
+ * pose, their boxes are computed by the next refresh. */
 void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *m);
 sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *m, int max_objects, int *n_done);
 

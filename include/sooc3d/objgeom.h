@@ -121,6 +121,8 @@ size_t sooc_objgeom_cache_count(const sooc_objgeom_cache *c);
  * mark its box stale if new or drifted. May grow the cache (amortised). */
 sooc_status sooc_objgeom_cache_observe(sooc_objgeom_cache *c, const sooc_cogmap_entry *e);
 void sooc_objgeom_cache_remove(sooc_objgeom_cache *c, uint64_t id);
+/* 1 if the cache holds entry id. */
+int sooc_objgeom_cache_has(const sooc_objgeom_cache *c, uint64_t id);
 /* Mark every box stale (recomputed by the next refresh). */
 void sooc_objgeom_cache_invalidate(sooc_objgeom_cache *c);
 /* Resume: take a stored entry's geometry (e->geom, e->extent) as cached for

@@ -53,6 +53,10 @@ static void usage(FILE *f) {
             "  --ft-iterations, --ft-rays, --ft-lr, --ft-lr-final   finetuning steps per object /\n"
             "                  block, rays per step, Adam learning rate, its final fraction after a\n"
             "                  half-cosine decay (defaults: those of sooc3d finetune)\n"
+            "  --ft-birth      before finetuning, new entries where the input views show a surface\n"
+            "                  that the map does not draw (births, docs/finetune.md \"Births\")\n"
+            "  --ft-birth-margin U   births: how far behind the sensor's surface the rendered one\n"
+            "                  must lie, model units (default 0.15; implies --ft-birth)\n"
             "  --mesh-res N    mesh accuracy / completeness (JSON mesh_acc_cm, mesh_comp_cm; Atlas,\n"
             "                  docs/mesh.md): marching cubes with N samples per object box axis\n"
             "                  (default 64); 0 = no mesh metrics\n"
@@ -188,6 +192,8 @@ int sooc_cmd_eval(int argc, char **argv) {
     int runs = 1, max_scenes = -1, quiet = 0, timing = SOOC_EVAL_FINAL, finetune = 0;
     sooc_finetune_params ftp;
     sooc_finetune_params_default(&ftp);
+    sooc_birth_params bp;
+    sooc_birth_params_default(&bp);
     uint64_t seed = 1;
     int mesh_res = SOOC_MESH_RES_DEFAULT;
     sooc_eval_run_opts ro;
@@ -231,6 +237,13 @@ int sooc_cmd_eval(int argc, char **argv) {
         } else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--finetune")) finetune = 1;
+        else if (!strcmp(a, "--ft-birth")) ro.birth = &bp;
+        else if (!strcmp(a, "--ft-birth-margin") && has) {
+            double d;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 100, &d)) return 2;
+            bp.depth_margin = (float)d;
+            ro.birth = &bp;
+        }
         else if (!strcmp(a, "--ft-iterations") && has) INTV(0, 1000000, &ftp.iterations);
         else if (!strcmp(a, "--ft-rays") && has) INTV(1, 1 << 20, &ftp.rays);
         else if (!strcmp(a, "--ft-lr-final") && has) {
@@ -430,6 +443,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     pc.t0 = sooc_seconds();
     if (!quiet) sooc_progress_begin(&pc.pr, "eval", total);
     double upd_s = 0, ren_s = 0, ft_s = 0;
+    long n_born = 0;
     long n_upd = 0;
     for (int d = 0; d < n_dirs; d++) {
         for (int s = 0; s < n_sc[d]; s++) {
@@ -494,6 +508,7 @@ int sooc_cmd_eval(int argc, char **argv) {
                         }
                         ren_s += res.render_s;
                         ft_s += res.finetune_s;
+                        n_born += res.n_born;
                         if ((st = sooc_eval_table_add_sums(tab, fname[mi], scale, r, 0, &res.input_final))) goto fail;
                         if ((st = sooc_eval_table_add_sums(tab, fname[mi], scale, r, 1, &res.query))) goto fail;
                     }
@@ -528,7 +543,8 @@ int sooc_cmd_eval(int argc, char **argv) {
            total_scenes, total_scenes == 1 ? "" : "s", n_models, n_models == 1 ? "" : "s", runs, runs == 1 ? "" : "s",
            (unsigned long long)pc.done, el, el > 0 ? (double)pc.done / el : 0.0, n_upd ? 1e3 * upd_s / (double)n_upd : 0.0,
            ren_s);
-    if (finetune) printf("eval: finetuning (+ft rows) %.1f s in all\n", ft_s);
+    if (finetune) printf("eval: finetuning (+ft rows) %.1f s in all%s", ft_s, ro.birth ? "" : "\n");
+    if (finetune && ro.birth) printf(", %ld entries born before it\n", n_born);
     if (mesh_res > 0)
         printf("eval: mesh metric (base rows) over %ld matched objects (%ld more with an empty mesh), %d^3 per box, "
                "%.1f s\n", mesh_obj, mesh_empty, mesh_res, mesh_s);

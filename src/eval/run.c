@@ -150,6 +150,18 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
     return st;
 }
 
+sooc_status sooc_eval_births(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
+                             const uint8_t *use, const sooc_birth_params *p, int threads, int *n_born) {
+    *n_born = 0;
+    sooc_birth *b = NULL;
+    sooc_status st = sooc_birth_create(&b, m, map, p, threads);
+    for (int i = 0; i < n_frames && !st; i++)
+        if (use ? use[i] != 0 : !frames[i].is_query) st = sooc_birth_add_view(b, &frames[i]);
+    if (!st) st = sooc_birth_run(b, NULL, 0, n_born);
+    sooc_birth_destroy(b);
+    return st;
+}
+
 /* ------------------------------------------------------------- the runner */
 
 static double dist2_cam(const sooc_frame *a, const sooc_frame *b) {
@@ -338,8 +350,17 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     if (!st && o->finetune && mp) {
         double t0 = sooc_seconds();
         sooc_finetune *ft = NULL;
+        if (o->birth) {
+            uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
+            if (!inp) st = SOOC_ENOMEM;
+            for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
+            if (!st)
+                st = sooc_eval_births(C.model, (sooc_cogmap *)C.map, frames, n_frames, inp, o->birth, o->threads,
+                                      &res->n_born);
+            sooc_free(inp);
+        }
         /* the mapper owns its map; the finetuned decoders go into it as payloads */
-        st = sooc_finetune_create(&ft, C.model, (sooc_cogmap *)C.map, o->finetune);
+        if (!st) st = sooc_finetune_create(&ft, C.model, (sooc_cogmap *)C.map, o->finetune);
         for (int i = 0; i < n_frames && !st; i++)
             if (use[i] && !frames[i].is_query) st = sooc_finetune_add_view(ft, &frames[i]);
         if (!st) st = sooc_finetune_run_all(ft, NULL, NULL, 0);

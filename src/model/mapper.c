@@ -505,7 +505,15 @@ sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *mp, int max_objects, i
     return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, max_objects, n_done, NULL);
 }
 
-void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) { sooc_objgeom_cache_invalidate(mp->geo); }
+static int adopt_entry(void *user, const sooc_cogmap_entry *e) {
+    sooc_objgeom_cache *c = user;
+    return !sooc_objgeom_cache_has(c, e->id) && sooc_objgeom_cache_observe(c, e) != SOOC_OK;
+}
+
+void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) {
+    if (sooc_cogmap_foreach(mp->map, adopt_entry, mp->geo)) sooc_clearerr();   /* out of memory: no box for it */
+    sooc_objgeom_cache_invalidate(mp->geo);
+}
 
 void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *mp, int per_update) {
     mp->geo_budget = per_update < 0 ? -1 : per_update;

@@ -575,6 +575,8 @@ void sooc_objgeom_cache_remove(sooc_objgeom_cache *c, uint64_t id) {
     }
 }
 
+int sooc_objgeom_cache_has(const sooc_objgeom_cache *c, uint64_t id) { return og_find(c, id) != NULL; }
+
 void sooc_objgeom_cache_invalidate(sooc_objgeom_cache *c) {
     for (size_t i = 0; i < c->cap; i++)
         if (c->s[i].id) c->s[i].stale = 1, c->s[i].drift = INFINITY;
