@@ -25,7 +25,7 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d finetune --map DB --model M --seq DIR [--iterations N] [--rays N] [--lr X]\n"
             "                       [--lr-z X] [--lr-final F] [--no-layout] [--restart] [--seed S] [--every K]\n"
-            "                       [--quiet] [--max-views N] [frame-path options]\n\n"
+            "                       [--quiet] [--max-views N] [--birth] [--birth-margin U] [frame-path options]\n\n"
             "Per-object NeRF finetuning by EM (docs/finetune.md): every object of the map DB\n"
             "gets its own copy of the model's object decoder and a free z^what (z^where fixed), every\n"
             "layout block its own layout decoder and latent; each is fitted by Adam to the responsibility-\n"
@@ -46,8 +46,29 @@ static void usage(FILE *f) {
             "  --restart     delete the stored finetuned decoders first and start over\n"
             "  --max-views   use at most N views (evenly spread; 0 = all)\n"
             "  --every       progress line every K steps (default 20)\n"
+            "  --birth       first add entries where the views show a surface the map does not draw\n"
+            "                (objects online inference missed; stored in DB in one transaction, once,\n"
+            "                before the first finetuned object; docs/finetune.md \"Births\")\n"
+            "  --birth-margin U  how far (model units) the rendered surface must lie behind the\n"
+            "                sensor's for a pixel to count as unexplained (default 0.15; implies --birth)\n"
             "%s",
             300, 512, 1e-3, 1e-3, sooc_cli_framepath_help);
+}
+
+/* View k of the nv views (keyframe or frame numbers) into *f; *use = 0 when
+ * --max-views skips it or it has no pose or is a query view. */
+static sooc_status read_view(sooc_framepath *sq, const int64_t *views, size_t nv, size_t k, int max_views, int64_t nf,
+                             const char *db, const char *seq, sooc_frame *f, int *use) {
+    *use = 0;
+    if (max_views > 0 && nv > (size_t)max_views && (k * (size_t)max_views) / nv == ((k + 1) * (size_t)max_views) / nv)
+        return SOOC_OK;
+    if (views[k] < 0 || views[k] >= nf)
+        return sooc_seterr(SOOC_EINVAL, "%s: keyframe view %lld is not a frame of %s (%lld frames): wrong --seq?", db,
+                           (long long)views[k], seq, (long long)nf);
+    sooc_status st = sooc_framepath_read(sq, views[k], f);
+    if (st) return st;
+    *use = f->has_pose && !f->is_query;
+    return SOOC_OK;
 }
 
 typedef struct prog_ctx {
@@ -70,7 +91,9 @@ int sooc_cmd_finetune(int argc, char **argv) {
         return 0;
     }
     const char *db = NULL, *model = NULL, *seq = NULL;
-    int quiet = 0, restart = 0, every = 20, max_views = 0;
+    int quiet = 0, restart = 0, every = 20, max_views = 0, birth = 0;
+    sooc_birth_params bp;
+    sooc_birth_params_default(&bp);
     sooc_finetune_params fp;
     sooc_finetune_params_default(&fp);
     sooc_framepath_params fpp;
@@ -104,6 +127,12 @@ int sooc_cmd_finetune(int argc, char **argv) {
             if (!sooc_cli_int_opt("finetune", a, argv[++i], 0, 1000000, &max_views)) return 2;
         } else if (!strcmp(a, "--no-layout")) fp.layout = 0;
         else if (!strcmp(a, "--restart")) restart = 1;
+        else if (!strcmp(a, "--birth")) birth = 1;
+        else if (!strcmp(a, "--birth-margin") && has) {
+            if (!sooc_cli_double_opt("finetune", a, argv[++i], 1e-3, 100, &d)) return 2;
+            bp.depth_margin = (float)d;
+            birth = 1;
+        }
         else if (!strcmp(a, "--quiet")) quiet = 1;
         else if ((fo = sooc_cli_framepath_opt("finetune", argc, argv, &i, &fpp)) != 0) {
             if (fo < 0) return 2;
@@ -162,23 +191,52 @@ int sooc_cmd_finetune(int argc, char **argv) {
     } else {
         for (size_t i = 0; i < nv; i++) views[i] = (int64_t)i;
     }
-    if ((st = sooc_finetune_create(&ft, m, map, &fp))) goto fail;
-    size_t used = 0, step = max_views > 0 && nv > (size_t)max_views ? nv : 0;
-    for (size_t k = 0; k < nv; k++) {
-        if (step && (k * (size_t)max_views) / nv == ((k + 1) * (size_t)max_views) / nv) continue;
-        if (views[k] < 0 || views[k] >= nf) {
-            st = sooc_seterr(SOOC_EINVAL, "%s: keyframe view %lld is not a frame of %s (%lld frames): wrong --seq?",
-                             db, (long long)views[k], seq, (long long)nf);
-            goto fail;
+    uint64_t n_obj = 0, n_blk = 0;
+    if ((st = sooc_mapstore_ft_count(ms, &n_obj, &n_blk))) goto fail;
+    /* births: once, before the first unit is stored (a resumed run does not birth again) */
+    int n_born = 0;
+    if (birth && !n_obj && !n_blk) {
+        sooc_birth *b = NULL;
+        if ((st = sooc_birth_create(&b, m, map, &bp, 0))) goto fail;
+        size_t bv = 0;
+        for (size_t k = 0; k < nv && !st; k++) {
+            int use = 0;
+            if (!(st = read_view(sq, views, nv, k, max_views, nf, db, seq, &f, &use)) && use) {
+                st = sooc_birth_add_view(b, &f);
+                bv++;
+            }
         }
-        if ((st = sooc_framepath_read(sq, views[k], &f))) goto fail;
-        if (!f.has_pose || f.is_query) continue;
+        uint64_t ids[256];
+        if (!st && bp.max_births > 256) bp.max_births = 256;
+        if (!st) st = sooc_birth_run(b, ids, 256, &n_born);
+        size_t npts = sooc_birth_n_points(b);
+        sooc_birth_destroy(b);
+        if (st) goto fail;
+        if (n_born) {   /* the new entries go into the DB in one transaction */
+            sooc_cogmap_entry be[256];
+            for (int k = 0; k < n_born && !st; k++) st = sooc_cogmap_get(map, ids[k], &be[k]);
+            if (!st && !(st = sooc_mapstore_begin(ms))) {
+                if (!(st = sooc_mapstore_put_entries(ms, be, (size_t)n_born)) &&
+                    !(st = sooc_mapstore_set_next_id(ms, sooc_cogmap_next_id(map))))
+                    st = sooc_mapstore_commit(ms);
+                if (st) sooc_mapstore_rollback(ms);
+            }
+            if (st) goto fail;
+        }
+        if (!quiet)
+            printf("finetune: births: %zu unexplained surface points in %zu views, %d new entries\n",
+                   npts, bv, n_born);
+    }
+    if ((st = sooc_finetune_create(&ft, m, map, &fp))) goto fail;
+    size_t used = 0;
+    for (size_t k = 0; k < nv; k++) {
+        int use = 0;
+        if ((st = read_view(sq, views, nv, k, max_views, nf, db, seq, &f, &use))) goto fail;
+        if (!use) continue;
         if ((st = sooc_finetune_add_view(ft, &f))) goto fail;
         used++;
     }
     int nu = sooc_finetune_n_units(ft);
-    uint64_t n_obj = 0, n_blk = 0;
-    if ((st = sooc_mapstore_ft_count(ms, &n_obj, &n_blk))) goto fail;
     if (!quiet)
         printf("finetune: %s: %zu entries, %zu views (%s), %d units (objects, then layout blocks); %llu objects and "
                "%llu blocks already finetuned\n",
