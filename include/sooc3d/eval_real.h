@@ -147,11 +147,14 @@ double sooc_obj_iou_mean(const sooc_obj_iou_acc *a, int k);
  * (re)allocated with sooc_realloc (pass NULL or an earlier buffer). RGB
  * images are refused with a message naming the file. */
 sooc_status sooc_eval_labels_read(const char *path, uint16_t **ids, int *w, int *h);
-/* Births (finetune.h) on `map` from the frames with use[i] != 0 (use NULL:
- * every frame that is not is_query): the eval runners' step before
- * finetuning. *n_born = entries inserted. */
-sooc_status sooc_eval_births(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
-                             const uint8_t *use, const sooc_birth_params *p, int threads, int *n_born);
+/* SOOC3D+ on a runner's map (both runners' +ft step): births (bp != NULL,
+ * finetune.h), then finetuning by EM on the frames with use[i] != 0, then
+ * the born entries that explain nothing are removed (sooc_birth_prune).
+ * cb (may be NULL) gets progress every 50 steps. *n_born / *n_pruned: entries
+ * born / born and removed again. */
+sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
+                                   const uint8_t *use, const sooc_finetune_params *fp, const sooc_birth_params *bp,
+                                   int threads, sooc_finetune_progress_fn cb, void *user, int *n_born, int *n_pruned);
 /* Nearest-neighbour resample of a label map: destination pixel (u, v) of a
  * dw x dh image takes source pixel (x0 + floor((u + 0.5) cw / dw),
  * y0 + floor((v + 0.5) ch / dh)), i.e. the crop [x0, x0+cw) x [y0, y0+ch)
@@ -206,7 +209,8 @@ typedef struct sooc_eval_real_result {
     double update_s, render_s;
     double finetune_s;             /* with opts.finetune: the finetuning's wall time      */
     int n_born;                    /* with opts.run.birth: entries born before finetuning
-                                      (counted in churn.created and entries_final)        */
+                                      (counted in churn.created)                          */
+    int n_pruned;                  /* of them, removed after it (counted in churn.removed) */
 } sooc_eval_real_result;
 
 /* Run one recorded sequence. frames[0..n_frames): sequence order, all posed,

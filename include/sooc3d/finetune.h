@@ -155,6 +155,11 @@ size_t sooc_birth_n_points(const sooc_birth *b);   /* unexplained points so far 
 /* Cluster the points and insert the new entries; their ids go to ids[0..cap)
  * (may be NULL), their number to *n_born. */
 sooc_status sooc_birth_run(sooc_birth *b, uint64_t *ids, int cap, int *n_born);
+/* After finetuning: remove the born entries ids[0..*n) whose own density
+ * reaches the surface level nowhere (objgeom.h EMPTY; a birth that explains
+ * nothing dies). The kept ids move to the front, *n = their number,
+ * *n_pruned = entries removed. */
+sooc_status sooc_birth_prune(sooc_model *m, sooc_cogmap *map, uint64_t *ids, int *n, int *n_pruned);
 
 #ifdef __cplusplus
 }

@@ -443,7 +443,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     pc.t0 = sooc_seconds();
     if (!quiet) sooc_progress_begin(&pc.pr, "eval", total);
     double upd_s = 0, ren_s = 0, ft_s = 0;
-    long n_born = 0;
+    long n_born = 0, n_pruned = 0;
     long n_upd = 0;
     for (int d = 0; d < n_dirs; d++) {
         for (int s = 0; s < n_sc[d]; s++) {
@@ -508,7 +508,7 @@ int sooc_cmd_eval(int argc, char **argv) {
                         }
                         ren_s += res.render_s;
                         ft_s += res.finetune_s;
-                        n_born += res.n_born;
+                        n_born += res.n_born, n_pruned += res.n_pruned;
                         if ((st = sooc_eval_table_add_sums(tab, fname[mi], scale, r, 0, &res.input_final))) goto fail;
                         if ((st = sooc_eval_table_add_sums(tab, fname[mi], scale, r, 1, &res.query))) goto fail;
                     }
@@ -544,7 +544,8 @@ int sooc_cmd_eval(int argc, char **argv) {
            (unsigned long long)pc.done, el, el > 0 ? (double)pc.done / el : 0.0, n_upd ? 1e3 * upd_s / (double)n_upd : 0.0,
            ren_s);
     if (finetune) printf("eval: finetuning (+ft rows) %.1f s in all%s", ft_s, ro.birth ? "" : "\n");
-    if (finetune && ro.birth) printf(", %ld entries born before it\n", n_born);
+    if (finetune && ro.birth)
+        printf(", %ld entries born before it, %ld of them removed after it (no density)\n", n_born, n_pruned);
     if (mesh_res > 0)
         printf("eval: mesh metric (base rows) over %ld matched objects (%ld more with an empty mesh), %d^3 per box, "
                "%.1f s\n", mesh_obj, mesh_empty, mesh_res, mesh_s);

@@ -194,7 +194,8 @@ int sooc_cmd_finetune(int argc, char **argv) {
     uint64_t n_obj = 0, n_blk = 0;
     if ((st = sooc_mapstore_ft_count(ms, &n_obj, &n_blk))) goto fail;
     /* births: once, before the first unit is stored (a resumed run does not birth again) */
-    int n_born = 0;
+    int n_born = 0, pruned = 0;
+    uint64_t born_ids[256];
     if (birth && !n_obj && !n_blk) {
         sooc_birth *b = NULL;
         if ((st = sooc_birth_create(&b, m, map, &bp, 0))) goto fail;
@@ -206,15 +207,14 @@ int sooc_cmd_finetune(int argc, char **argv) {
                 bv++;
             }
         }
-        uint64_t ids[256];
         if (!st && bp.max_births > 256) bp.max_births = 256;
-        if (!st) st = sooc_birth_run(b, ids, 256, &n_born);
+        if (!st) st = sooc_birth_run(b, born_ids, 256, &n_born);
         size_t npts = sooc_birth_n_points(b);
         sooc_birth_destroy(b);
         if (st) goto fail;
         if (n_born) {   /* the new entries go into the DB in one transaction */
             sooc_cogmap_entry be[256];
-            for (int k = 0; k < n_born && !st; k++) st = sooc_cogmap_get(map, ids[k], &be[k]);
+            for (int k = 0; k < n_born && !st; k++) st = sooc_cogmap_get(map, born_ids[k], &be[k]);
             if (!st && !(st = sooc_mapstore_begin(ms))) {
                 if (!(st = sooc_mapstore_put_entries(ms, be, (size_t)n_born)) &&
                     !(st = sooc_mapstore_set_next_id(ms, sooc_cogmap_next_id(map))))
@@ -271,6 +271,21 @@ int sooc_cmd_finetune(int argc, char **argv) {
             break;
         }
         if (st) break;
+        int was_born = 0;
+        for (int k = 0; k < n_born && !is_blk; k++) was_born |= born_ids[k] == un.id;
+        if (was_born) {   /* a born entry that explains nothing dies (docs/finetune.md "Births") */
+            uint64_t id = un.id;
+            int nk = 1, np = 0;
+            if ((st = sooc_birth_prune(m, map, &id, &nk, &np))) break;
+            if (np) {
+                if ((st = sooc_mapstore_remove_entries(ms, &id, 1))) break;
+                pruned++;
+                if (!quiet)
+                    fprintf(stderr, "\rfinetune [%d/%d] %s: born, draws nothing after %d steps: removed%*s\n", u + 1,
+                            nu, what, res.steps, 24, "");
+                continue;
+            }
+        }
         const float *v = NULL;
         size_t n = 0;
         if ((st = sooc_finetune_unit_payload(ft, u, &v, &n))) break;
@@ -284,7 +299,8 @@ int sooc_cmd_finetune(int argc, char **argv) {
     signal(SIGINT, old);
     if (st) goto fail;
     printf("finetune: %d finetuned and stored, %d already stored, %d left%s (%.1f s)\n", done, skipped,
-           nu - done - skipped, interrupted ? " (interrupted: run again to continue)" : "", sooc_seconds() - t0);
+           nu - done - skipped - pruned, interrupted ? " (interrupted: run again to continue)" : "", sooc_seconds() - t0);
+    if (n_born) printf("finetune: %d entries born, %d of them removed again (no density after finetuning)\n", n_born, pruned);
     sooc_frame_free(&f);
     free(views);
     sooc_finetune_destroy(ft);

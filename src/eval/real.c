@@ -420,23 +420,17 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
      * into the mapper's map as payloads; its tight boxes are stale after) */
     if (o->finetune) {
         double t0 = sooc_seconds();
-        sooc_finetune *ft = NULL;
-        if (o->run.birth) {
-            uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
-            if (!inp) st = SOOC_ENOMEM;
-            for (int i = 0; i < n_frames && inp; i++) inp[i] = !sooc_eval_real_is_query(i, o->query_every);
-            if (!st)
-                st = sooc_eval_births(ctx_model(&C), (sooc_cogmap *)ctx_map(&C), frames, n_frames, inp, o->run.birth,
-                                      o->run.threads, &res->n_born);
-            sooc_free(inp);
-            res->churn.created += res->n_born;
-            res->entries_final += (size_t)res->n_born;
-        }
-        if (!st) st = sooc_finetune_create(&ft, ctx_model(&C), (sooc_cogmap *)ctx_map(&C), o->finetune);
-        for (int i = 0; i < n_frames && !st; i++)
-            if (!sooc_eval_real_is_query(i, o->query_every)) st = sooc_finetune_add_view(ft, &frames[i]);
-        if (!st) st = sooc_finetune_run_all(ft, o->ft_progress, o->ft_user, o->ft_progress ? 50 : 0);
-        sooc_finetune_destroy(ft);
+        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
+        if (!inp) st = SOOC_ENOMEM;
+        for (int i = 0; i < n_frames && inp; i++) inp[i] = !sooc_eval_real_is_query(i, o->query_every);
+        if (!st)
+            st = sooc_eval_finetune_map(ctx_model(&C), (sooc_cogmap *)ctx_map(&C), frames, n_frames, inp, o->finetune,
+                                        o->run.birth, o->run.threads, o->ft_progress, o->ft_user, &res->n_born,
+                                        &res->n_pruned);
+        sooc_free(inp);
+        res->churn.created += res->n_born;
+        res->churn.removed += res->n_pruned;
+        res->entries_final = sooc_cogmap_count(ctx_map(&C));
         res->finetune_s = sooc_seconds() - t0;
         if (st) goto done;
         sooc3d_mapper_geometry_invalidate(C.mp);
@@ -640,7 +634,9 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     if (o->finetune)
         jb_printf(&b, ", \"ft_iterations\": %d, \"ft_rays\": %d, \"ft_lr\": %g, \"finetune_s\": %.3f",
                   o->finetune->iterations, o->finetune->rays, (double)o->finetune->lr, r->finetune_s);
-    if (o->finetune) jb_printf(&b, ", \"births\": %s, \"born\": %d", o->run.birth ? "true" : "false", r->n_born);
+    if (o->finetune)
+        jb_printf(&b, ", \"births\": %s, \"born\": %d, \"born_pruned\": %d", o->run.birth ? "true" : "false",
+                  r->n_born, r->n_pruned);
     jb_printf(&b, "}");
     if (b.oom) {
         sooc_free(b.p);

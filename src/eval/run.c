@@ -150,15 +150,31 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
     return st;
 }
 
-sooc_status sooc_eval_births(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
-                             const uint8_t *use, const sooc_birth_params *p, int threads, int *n_born) {
-    *n_born = 0;
-    sooc_birth *b = NULL;
-    sooc_status st = sooc_birth_create(&b, m, map, p, threads);
+sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
+                                   const uint8_t *use, const sooc_finetune_params *fp, const sooc_birth_params *bp,
+                                   int threads, sooc_finetune_progress_fn cb, void *user, int *n_born, int *n_pruned) {
+    *n_born = *n_pruned = 0;
+    sooc_status st = SOOC_OK;
+    uint64_t *born = NULL;
+    if (bp) {
+        int cap = bp->max_births > 0 ? bp->max_births : 1;
+        sooc_birth *b = NULL;
+        if (!(born = sooc_malloc((size_t)cap * sizeof *born))) return SOOC_ENOMEM;
+        st = sooc_birth_create(&b, m, map, bp, threads);
+        for (int i = 0; i < n_frames && !st; i++)
+            if (use[i]) st = sooc_birth_add_view(b, &frames[i]);
+        if (!st) st = sooc_birth_run(b, born, cap, n_born);
+        sooc_birth_destroy(b);
+    }
+    sooc_finetune *ft = NULL;
+    if (!st) st = sooc_finetune_create(&ft, m, map, fp);
     for (int i = 0; i < n_frames && !st; i++)
-        if (use ? use[i] != 0 : !frames[i].is_query) st = sooc_birth_add_view(b, &frames[i]);
-    if (!st) st = sooc_birth_run(b, NULL, 0, n_born);
-    sooc_birth_destroy(b);
+        if (use[i]) st = sooc_finetune_add_view(ft, &frames[i]);
+    if (!st) st = sooc_finetune_run_all(ft, cb, user, cb ? 50 : 0);
+    sooc_finetune_destroy(ft);
+    int kept = *n_born;
+    if (!st && kept) st = sooc_birth_prune(m, map, born, &kept, n_pruned);
+    sooc_free(born);
     return st;
 }
 
@@ -349,22 +365,14 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     /* SOOC3D+: finetune the final map's objects and blocks on the mapped input views */
     if (!st && o->finetune && mp) {
         double t0 = sooc_seconds();
-        sooc_finetune *ft = NULL;
-        if (o->birth) {
-            uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
-            if (!inp) st = SOOC_ENOMEM;
-            for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
-            if (!st)
-                st = sooc_eval_births(C.model, (sooc_cogmap *)C.map, frames, n_frames, inp, o->birth, o->threads,
-                                      &res->n_born);
-            sooc_free(inp);
-        }
+        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
+        if (!inp) st = SOOC_ENOMEM;
+        for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
         /* the mapper owns its map; the finetuned decoders go into it as payloads */
-        if (!st) st = sooc_finetune_create(&ft, C.model, (sooc_cogmap *)C.map, o->finetune);
-        for (int i = 0; i < n_frames && !st; i++)
-            if (use[i] && !frames[i].is_query) st = sooc_finetune_add_view(ft, &frames[i]);
-        if (!st) st = sooc_finetune_run_all(ft, NULL, NULL, 0);
-        sooc_finetune_destroy(ft);
+        if (!st)
+            st = sooc_eval_finetune_map(C.model, (sooc_cogmap *)C.map, frames, n_frames, inp, o->finetune, o->birth,
+                                        o->threads, NULL, NULL, &res->n_born, &res->n_pruned);
+        sooc_free(inp);
         res->finetune_s = sooc_seconds() - t0;
     }
     /* everything else from the final map */

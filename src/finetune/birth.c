@@ -11,10 +11,13 @@
  * tile seen by `min_views` views with `min_pixels` points, whose centre is
  * not within `dup_radius` of an entry, becomes a new entry at the mean of its
  * points, yaw 0, with the mean of the model's slot priors as its z^what; the
- * finetuning that follows fits its decoder copy like any other entry's. */
+ * finetuning that follows fits its decoder copy like any other entry's, and
+ * sooc_birth_prune afterwards removes a born entry whose finetuned density
+ * reaches the surface level nowhere (objgeom EMPTY): it explains nothing. */
 #include "finetune/finetune_impl.h"
 #include "model/weights.h"
 #include "sooc3d/geom.h"
+#include "sooc3d/objgeom.h"
 #include "sooc3d/render.h"
 
 #include <math.h>
@@ -282,4 +285,30 @@ done:
     sooc_free(tl);
     sooc_free(ent);
     return st;
+}
+
+sooc_status sooc_birth_prune(sooc_model *m, sooc_cogmap *map, uint64_t *ids, int *n, int *n_pruned) {
+    *n_pruned = 0;
+    sooc_objgeom_opts o;
+    sooc_objgeom_opts_default(&o);
+    int k = 0;
+    for (int i = 0; i < *n; i++) {
+        sooc_objgeom_box b;
+        sooc_status st = sooc_objgeom_entry_box(m, map, ids[i], &o, &b);
+        if (st == SOOC_ENOTFOUND) {   /* gone, or no field reaches it: keep what is there */
+            sooc_clearerr();
+            if (sooc_cogmap_get(map, ids[i], &(sooc_cogmap_entry){0}) == SOOC_OK) ids[k++] = ids[i];
+            else sooc_clearerr();
+            continue;
+        }
+        if (st) return st;
+        if (b.flags & SOOC_GEOM_EMPTY) {
+            if ((st = sooc_cogmap_remove(map, ids[i]))) return st;
+            (*n_pruned)++;
+        } else {
+            ids[k++] = ids[i];
+        }
+    }
+    *n = k;
+    return SOOC_OK;
 }

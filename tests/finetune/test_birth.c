@@ -9,7 +9,9 @@
  *  3. An entry that draws nothing near sphere 0: within dup_radius no birth
  *     there, outside it a birth.
  *  4. min_views above the number of views, or min_pixels above the points:
- *     no births. Bad parameters are refused. */
+ *     no births. Bad parameters are refused.
+ *  5. sooc_birth_prune: born entries that draw nothing are removed, those
+ *     that draw their box are kept. */
 #include "check.h"
 #include "finetune/finetune_impl.h"
 #include "model/synth.h"
@@ -53,6 +55,8 @@ static void put_entry(sooc_cogmap *map, int d, double X, double Z) {
 }
 
 /* Births on `map` from the four views; returns their number, positions in xz. */
+static uint64_t g_ids[8];
+
 static int births(sooc_model *m, sooc_cogmap *map, const sooc_frame *fr, const sooc_birth_params *p, double xz[][2],
                   size_t *n_pts) {
     sooc_birth *b = NULL;
@@ -64,6 +68,7 @@ static int births(sooc_model *m, sooc_cogmap *map, const sooc_frame *fr, const s
     int n = 0;
     CHECK_OK(sooc_birth_run(b, ids, 8, &n));
     sooc_birth_destroy(b);
+    memcpy(g_ids, ids, sizeof ids);
     for (int i = 0; i < n && i < 8; i++) {
         sooc_cogmap_entry e;
         CHECK_OK(sooc_cogmap_get(map, ids[i], &e));
@@ -114,7 +119,10 @@ int main(void) {
     }
     CHECK(hit[0] == 1 && hit[1] == 1);
     CHECK(sooc_cogmap_count(map) == 2);
-    /* the floor is never a candidate: every point is above min_height */
+    /* 5. they draw nothing: pruned */
+    int nk = n, npr = 0;
+    CHECK_OK(sooc_birth_prune(m, map, g_ids, &nk, &npr));
+    CHECK(nk == 0 && npr == 2 && sooc_cogmap_count(map) == 0);
     sooc_cogmap_destroy(map);
 
     /* 2. an entry at sphere 0 drawing its whole box: sphere 0 is explained */
@@ -125,6 +133,10 @@ int main(void) {
     printf("solid box at sphere 0: %zu unexplained points, %d births\n", npts, n);
     CHECK(n == 1);
     if (n == 1) CHECK(near_sphere(xz[0], k_sp[1].r + 0.1) == 1);
+    /* 5. the born entry draws its box: kept */
+    nk = n, npr = 0;
+    CHECK_OK(sooc_birth_prune(m, map, g_ids, &nk, &npr));
+    CHECK(nk == 1 && npr == 0 && sooc_cogmap_count(map) == 2);
     sooc_cogmap_destroy(map);
 
     /* 3. an entry drawing nothing beside sphere 0: within dup_radius of the

@@ -10,7 +10,8 @@
  *  3. sooc3d map list and map export --ply (meshes through the field, which
  *     draws the stored decoders) read the map; bad arguments exit 2.
  *  4. --birth on a fresh copy: the new entries are stored with the others and
- *     finetuned like them; a second run with --birth adds none. */
+ *     finetuned like them, those left with no density are removed again; a
+ *     second run with --birth adds none. */
 #include "check.h"
 #include "cli_util.h"
 #include "sooc3d/core.h"
@@ -143,8 +144,8 @@ int main(void) {
     char db2[256];
     snprintf(db2, sizeof db2, "%s/map_birth.sqlite", tmp);
     snprintf(cmd, sizeof cmd, "cp tests/finetune/map_v1_unity_m.sqlite %s && %s finetune --map %s --model %s "
-             "--seq %s/seq/scene_0000 --iterations %d --rays 64 --birth > %s 2>&1",
-             db2, bin, db2, SHIPPED, tmp, asan ? 4 : 10, out);
+             "--seq %s/seq/scene_0000 --iterations %d --rays 128 --birth > %s 2>&1",
+             db2, bin, db2, SHIPPED, tmp, asan ? 30 : 150, out);
     CHECK(tc_run(cmd) == 0);
     txt = tc_slurp(out);
     int born = -1;
@@ -154,20 +155,24 @@ int main(void) {
         while (bl > txt && bl[-1] >= '0' && bl[-1] <= '9') bl--;
         born = atoi(bl);
     }
-    printf("births run: %d new entries\n", born);
-    CHECK_MSG(born >= 1 && born <= 32, "%s", txt ? txt : "(no output)");
+    int pruned = -1;
+    const char *pl = txt ? strstr(txt, "entries born, ") : NULL;
+    if (pl) pruned = atoi(pl + strlen("entries born, "));
+    printf("births run: %d new entries, %d removed again\n", born, pruned);
+    CHECK_MSG(born >= 1 && born <= 32 && pruned >= 0 && pruned <= born, "%s", txt ? txt : "(no output)");
+    if (!asan) CHECK(pruned < born);   /* 150 steps: some births take shape (6 born, 1 kept when written) */
     sooc_free(txt);
     CHECK(is_ok(db2));
-    CHECK(q1(db2, "SELECT count(*) FROM entries") == 10 + born);
-    CHECK(q1(db2, "SELECT count(*) FROM ft_objects") == 10 + born);
+    CHECK(q1(db2, "SELECT count(*) FROM entries") == 10 + born - pruned);
+    CHECK(q1(db2, "SELECT count(*) FROM ft_objects") == 10 + born - pruned);
     long long max0 = q1("tests/finetune/map_v1_unity_m.sqlite", "SELECT max(id) FROM entries");
     char sql[128];
     snprintf(sql, sizeof sql, "SELECT count(*) FROM entries WHERE id > %lld", max0);
-    CHECK(max0 > 0 && q1(db2, sql) == born);   /* fresh ids above the old ones */
+    CHECK(max0 > 0 && q1(db2, sql) == born - pruned);   /* fresh ids above the old ones */
     snprintf(cmd, sizeof cmd, "%s finetune --map %s --model %s --seq %s/seq/scene_0000 --iterations 4 --rays 64 --birth "
              "> %s 2>&1", bin, db2, SHIPPED, tmp, out);
     CHECK(tc_run(cmd) == 0);
-    CHECK(q1(db2, "SELECT count(*) FROM entries") == 10 + born);
+    CHECK(q1(db2, "SELECT count(*) FROM entries") == 10 + born - pruned);
 
     if (!getenv("SOOC_KEEP_TMP")) {
         snprintf(cmd, sizeof cmd, "rm -rf %s", tmp);
