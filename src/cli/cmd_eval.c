@@ -53,10 +53,11 @@ static void usage(FILE *f) {
             "  --ft-iterations, --ft-rays, --ft-lr, --ft-lr-final   finetuning steps per object /\n"
             "                  block, rays per step, Adam learning rate, its final fraction after a\n"
             "                  half-cosine decay (defaults: those of sooc3d finetune)\n"
-            "  --ft-birth      before finetuning, new entries where the input views show a surface\n"
-            "                  that the map does not draw (births, docs/finetune.md \"Births\")\n"
+            "  --ft-no-birth   no births: by default, before finetuning, new entries go where the\n"
+            "                  input views show a surface the map does not draw, and those still\n"
+            "                  drawing nothing after it are removed (docs/finetune.md \"Births\")\n"
             "  --ft-birth-margin U   births: how far behind the sensor's surface the rendered one\n"
-            "                  must lie, model units (default 0.15; implies --ft-birth)\n"
+            "                  must lie, model units (default 0.15)\n"
             "  --mesh-res N    mesh accuracy / completeness (JSON mesh_acc_cm, mesh_comp_cm; Atlas,\n"
             "                  docs/mesh.md): marching cubes with N samples per object box axis\n"
             "                  (default 64); 0 = no mesh metrics\n"
@@ -194,6 +195,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     sooc_finetune_params_default(&ftp);
     sooc_birth_params bp;
     sooc_birth_params_default(&bp);
+    int no_birth = 0;
     uint64_t seed = 1;
     int mesh_res = SOOC_MESH_RES_DEFAULT;
     sooc_eval_run_opts ro;
@@ -237,12 +239,11 @@ int sooc_cmd_eval(int argc, char **argv) {
         } else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--finetune")) finetune = 1;
-        else if (!strcmp(a, "--ft-birth")) ro.birth = &bp;
+        else if (!strcmp(a, "--ft-no-birth")) no_birth = 1;
         else if (!strcmp(a, "--ft-birth-margin") && has) {
             double d;
             if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 100, &d)) return 2;
             bp.depth_margin = (float)d;
-            ro.birth = &bp;
         }
         else if (!strcmp(a, "--ft-iterations") && has) INTV(0, 1000000, &ftp.iterations);
         else if (!strcmp(a, "--ft-rays") && has) INTV(1, 1 << 20, &ftp.rays);
@@ -328,6 +329,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     }
     if (!sooc_cli_framepath_check("eval", &fpp)) return 2;
     ro.timing = (sooc_eval_timing)timing;
+    ro.birth = finetune && !no_birth ? &bp : NULL;   /* only the +ft rows birth */
     {   /* recorded sequences: cmd_eval_real.c, docs/metrics.md "Real sequences" */
         int n_rec = 0;
         for (int d = 0; d < n_dirs; d++) n_rec += sooc_eval_dir_is_recorded(dirs[d]);

@@ -25,7 +25,7 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d finetune --map DB --model M --seq DIR [--iterations N] [--rays N] [--lr X]\n"
             "                       [--lr-z X] [--lr-final F] [--no-layout] [--restart] [--seed S] [--every K]\n"
-            "                       [--quiet] [--max-views N] [--birth] [--birth-margin U] [frame-path options]\n\n"
+            "                       [--quiet] [--max-views N] [--no-birth] [--birth-margin U] [frame-path options]\n\n"
             "Per-object NeRF finetuning by EM (docs/finetune.md): every object of the map DB\n"
             "gets its own copy of the model's object decoder and a free z^what (z^where fixed), every\n"
             "layout block its own layout decoder and latent; each is fitted by Adam to the responsibility-\n"
@@ -46,11 +46,12 @@ static void usage(FILE *f) {
             "  --restart     delete the stored finetuned decoders first and start over\n"
             "  --max-views   use at most N views (evenly spread; 0 = all)\n"
             "  --every       progress line every K steps (default 20)\n"
-            "  --birth       first add entries where the views show a surface the map does not draw\n"
-            "                (objects online inference missed; stored in DB in one transaction, once,\n"
-            "                before the first finetuned object; docs/finetune.md \"Births\")\n"
+            "  --no-birth    no births. By default a run that starts with nothing finetuned first adds\n"
+            "                entries where the views show a surface the map does not draw (objects\n"
+            "                online inference missed; stored in DB in one transaction), and removes\n"
+            "                those that still draw nothing once finetuned (docs/finetune.md \"Births\")\n"
             "  --birth-margin U  how far (model units) the rendered surface must lie behind the\n"
-            "                sensor's for a pixel to count as unexplained (default 0.15; implies --birth)\n"
+            "                sensor's for a pixel to count as unexplained (default 0.15)\n"
             "%s",
             300, 512, 1e-3, 1e-3, sooc_cli_framepath_help);
 }
@@ -91,7 +92,7 @@ int sooc_cmd_finetune(int argc, char **argv) {
         return 0;
     }
     const char *db = NULL, *model = NULL, *seq = NULL;
-    int quiet = 0, restart = 0, every = 20, max_views = 0, birth = 0;
+    int quiet = 0, restart = 0, every = 20, max_views = 0, birth = 1;
     sooc_birth_params bp;
     sooc_birth_params_default(&bp);
     sooc_finetune_params fp;
@@ -127,11 +128,10 @@ int sooc_cmd_finetune(int argc, char **argv) {
             if (!sooc_cli_int_opt("finetune", a, argv[++i], 0, 1000000, &max_views)) return 2;
         } else if (!strcmp(a, "--no-layout")) fp.layout = 0;
         else if (!strcmp(a, "--restart")) restart = 1;
-        else if (!strcmp(a, "--birth")) birth = 1;
+        else if (!strcmp(a, "--no-birth")) birth = 0;
         else if (!strcmp(a, "--birth-margin") && has) {
             if (!sooc_cli_double_opt("finetune", a, argv[++i], 1e-3, 100, &d)) return 2;
             bp.depth_margin = (float)d;
-            birth = 1;
         }
         else if (!strcmp(a, "--quiet")) quiet = 1;
         else if ((fo = sooc_cli_framepath_opt("finetune", argc, argv, &i, &fpp)) != 0) {

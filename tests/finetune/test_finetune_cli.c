@@ -9,9 +9,9 @@
  *     untouched) and the rest finetuned -> every object and block stored.
  *  3. sooc3d map list and map export --ply (meshes through the field, which
  *     draws the stored decoders) read the map; bad arguments exit 2.
- *  4. --birth on a fresh copy: the new entries are stored with the others and
- *     finetuned like them, those left with no density are removed again; a
- *     second run with --birth adds none. */
+ *  4. births (the default; steps 1-3 run with --no-birth) on a fresh copy:
+ *     the new entries are stored with the others and finetuned like them,
+ *     those left with no density are removed again; a second run adds none. */
 #include "check.h"
 #include "cli_util.h"
 #include "sooc3d/core.h"
@@ -70,8 +70,9 @@ int main(void) {
     CHECK(tc_run(cmd) == 0);
     char args[1024];
     /* small runs under ASan (about 10x slower) */
-    snprintf(args, sizeof args, "finetune --map %s --model %s --seq %s/seq/scene_0000 --iterations %d --rays %d --every 1",
-             db, SHIPPED, tmp, asan ? 12 : 40, asan ? 64 : 128);
+    snprintf(args, sizeof args,
+             "finetune --map %s --model %s --seq %s/seq/scene_0000 --iterations %d --rays %d --every 1 --no-birth", db,
+             SHIPPED, tmp, asan ? 12 : 40, asan ? 64 : 128);
 
     /* 1. SIGINT once two units are stored */
     pid_t pid = fork();
@@ -144,7 +145,7 @@ int main(void) {
     char db2[256];
     snprintf(db2, sizeof db2, "%s/map_birth.sqlite", tmp);
     snprintf(cmd, sizeof cmd, "cp tests/finetune/map_v1_unity_m.sqlite %s && %s finetune --map %s --model %s "
-             "--seq %s/seq/scene_0000 --iterations %d --rays 128 --birth > %s 2>&1",
+             "--seq %s/seq/scene_0000 --iterations %d --rays 128 > %s 2>&1",
              db2, bin, db2, SHIPPED, tmp, asan ? 30 : 150, out);
     CHECK(tc_run(cmd) == 0);
     txt = tc_slurp(out);
@@ -169,7 +170,7 @@ int main(void) {
     char sql[128];
     snprintf(sql, sizeof sql, "SELECT count(*) FROM entries WHERE id > %lld", max0);
     CHECK(max0 > 0 && q1(db2, sql) == born - pruned);   /* fresh ids above the old ones */
-    snprintf(cmd, sizeof cmd, "%s finetune --map %s --model %s --seq %s/seq/scene_0000 --iterations 4 --rays 64 --birth "
+    snprintf(cmd, sizeof cmd, "%s finetune --map %s --model %s --seq %s/seq/scene_0000 --iterations 4 --rays 64 "
              "> %s 2>&1", bin, db2, SHIPPED, tmp, out);
     CHECK(tc_run(cmd) == 0);
     CHECK(q1(db2, "SELECT count(*) FROM entries") == 10 + born - pruned);
