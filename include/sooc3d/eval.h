@@ -281,7 +281,7 @@ typedef struct sooc_eval_scene_result {
     int mesh_objects, mesh_empty;    /* objects it averaged / matched with an empty mesh   */
     double finetune_s;               /* time in finetuning (opts.finetune)                */
     int n_born;                      /* entries born before finetuning (opts.birth)       */
-    int n_pruned;                    /* of them, removed after it                          */
+    int n_pruned;                    /* entries removed after it (no density; with births) */
 } sooc_eval_scene_result;
 
 /* Run one scene (see above). frames[0..n_frames): trajectory order, input

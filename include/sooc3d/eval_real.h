@@ -149,9 +149,11 @@ double sooc_obj_iou_mean(const sooc_obj_iou_acc *a, int k);
 sooc_status sooc_eval_labels_read(const char *path, uint16_t **ids, int *w, int *h);
 /* SOOC3D+ on a runner's map (both runners' +ft step): births (bp != NULL,
  * finetune.h), then finetuning by EM on the frames with use[i] != 0, then
- * the born entries that explain nothing are removed (sooc_birth_prune).
- * cb (may be NULL) gets progress every 50 steps. *n_born / *n_pruned: entries
- * born / born and removed again. */
+ * (with births) every entry that explains nothing is removed
+ * (sooc_eval_prune_all). cb (may be NULL) gets progress every 50 steps.
+ * *n_born / *n_pruned: entries born / removed after finetuning. */
+/* Deaths: sooc_birth_prune over every entry of the map. */
+sooc_status sooc_eval_prune_all(sooc_model *m, sooc_cogmap *map, int *n_pruned);
 sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
                                    const uint8_t *use, const sooc_finetune_params *fp, const sooc_birth_params *bp,
                                    int threads, sooc_finetune_progress_fn cb, void *user, int *n_born, int *n_pruned);
@@ -210,7 +212,8 @@ typedef struct sooc_eval_real_result {
     double finetune_s;             /* with opts.finetune: the finetuning's wall time      */
     int n_born;                    /* with opts.run.birth: entries born before finetuning
                                       (counted in churn.created)                          */
-    int n_pruned;                  /* of them, removed after it (counted in churn.removed) */
+    int n_pruned;                  /* entries removed after it, born or not: no density
+                                      (counted in churn.removed)                          */
 } sooc_eval_real_result;
 
 /* Run one recorded sequence. frames[0..n_frames): sequence order, all posed,

@@ -547,7 +547,7 @@ int sooc_cmd_eval(int argc, char **argv) {
            ren_s);
     if (finetune) printf("eval: finetuning (+ft rows) %.1f s in all%s", ft_s, ro.birth ? "" : "\n");
     if (finetune && ro.birth)
-        printf(", %ld entries born before it, %ld of them removed after it (no density)\n", n_born, n_pruned);
+        printf(", %ld entries born before it, %ld entries removed after it (no density)\n", n_born, n_pruned);
     if (mesh_res > 0)
         printf("eval: mesh metric (base rows) over %ld matched objects (%ld more with an empty mesh), %d^3 per box, "
                "%.1f s\n", mesh_obj, mesh_empty, mesh_res, mesh_s);

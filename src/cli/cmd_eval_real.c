@@ -231,7 +231,7 @@ static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const ch
                 r->n_mapped, r->n_query, r->update_s, sooc_eval_real_second_pass(o) ? "two passes" : "one pass",
                 r->render_s);
         if (o->finetune) fprintf(stderr, ", %.1f s finetuning", r->finetune_s);
-        if (o->finetune && o->run.birth) fprintf(stderr, " (%d entries born, %d removed again)", r->n_born, r->n_pruned);
+        if (o->finetune && o->run.birth) fprintf(stderr, " (%d entries born, %d removed after it)", r->n_born, r->n_pruned);
         fputc('\n', stderr);
     }
     return SOOC_OK;

@@ -271,21 +271,6 @@ int sooc_cmd_finetune(int argc, char **argv) {
             break;
         }
         if (st) break;
-        int was_born = 0;
-        for (int k = 0; k < n_born && !is_blk; k++) was_born |= born_ids[k] == un.id;
-        if (was_born) {   /* a born entry that explains nothing dies (docs/finetune.md "Births") */
-            uint64_t id = un.id;
-            int nk = 1, np = 0;
-            if ((st = sooc_birth_prune(m, map, &id, &nk, &np))) break;
-            if (np) {
-                if ((st = sooc_mapstore_remove_entries(ms, &id, 1))) break;
-                pruned++;
-                if (!quiet)
-                    fprintf(stderr, "\rfinetune [%d/%d] %s: born, draws nothing after %d steps: removed%*s\n", u + 1,
-                            nu, what, res.steps, 24, "");
-                continue;
-            }
-        }
         const float *v = NULL;
         size_t n = 0;
         if ((st = sooc_finetune_unit_payload(ft, u, &v, &n))) break;
@@ -298,9 +283,33 @@ int sooc_cmd_finetune(int argc, char **argv) {
     }
     signal(SIGINT, old);
     if (st) goto fail;
+    /* deaths: once every unit is stored, the entries whose finetuned density
+     * reaches the surface level nowhere are removed (docs/finetune.md "Births") */
+    if (birth && !interrupted) {
+        size_t ne = sooc_cogmap_count(map);
+        uint64_t *ids = malloc((ne ? ne : 1) * sizeof *ids);
+        sooc_cogmap_entry *es = malloc((ne ? ne : 1) * sizeof *es);
+        int k = 0;
+        if (!ids || !es) st = SOOC_ENOMEM;
+        if (!st) st = sooc_cogmap_entries(map, es, ne, &ne);
+        for (size_t i = 0; !st && i < ne; i++) ids[i] = es[i].id;
+        k = (int)ne;
+        if (!st) st = sooc_birth_prune(m, map, ids, &k, &pruned);
+        if (!st && pruned) {   /* removed = the ids no longer in the map */
+            size_t nr = 0;
+            sooc_cogmap_entry tmp;
+            for (size_t i = 0; i < ne; i++)
+                if (sooc_cogmap_get(map, es[i].id, &tmp) != SOOC_OK) sooc_clearerr(), ids[nr++] = es[i].id;
+            st = sooc_mapstore_remove_entries(ms, ids, nr);
+        }
+        free(ids);
+        free(es);
+        if (st) goto fail;
+    }
     printf("finetune: %d finetuned and stored, %d already stored, %d left%s (%.1f s)\n", done, skipped,
-           nu - done - skipped - pruned, interrupted ? " (interrupted: run again to continue)" : "", sooc_seconds() - t0);
-    if (n_born) printf("finetune: %d entries born, %d of them removed again (no density after finetuning)\n", n_born, pruned);
+           nu - done - skipped, interrupted ? " (interrupted: run again to continue)" : "", sooc_seconds() - t0);
+    if (birth && (n_born || pruned))
+        printf("finetune: %d entries born, %d entries removed (no density after finetuning)\n", n_born, pruned);
     sooc_frame_free(&f);
     free(views);
     sooc_finetune_destroy(ft);

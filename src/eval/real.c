@@ -635,7 +635,7 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
         jb_printf(&b, ", \"ft_iterations\": %d, \"ft_rays\": %d, \"ft_lr\": %g, \"finetune_s\": %.3f",
                   o->finetune->iterations, o->finetune->rays, (double)o->finetune->lr, r->finetune_s);
     if (o->finetune)
-        jb_printf(&b, ", \"births\": %s, \"born\": %d, \"born_pruned\": %d", o->run.birth ? "true" : "false",
+        jb_printf(&b, ", \"births\": %s, \"born\": %d, \"ft_removed\": %d", o->run.birth ? "true" : "false",
                   r->n_born, r->n_pruned);
     jb_printf(&b, "}");
     if (b.oom) {

@@ -11,7 +11,8 @@
  *     draws the stored decoders) read the map; bad arguments exit 2.
  *  4. births (the default; steps 1-3 run with --no-birth) on a fresh copy:
  *     the new entries are stored with the others and finetuned like them,
- *     those left with no density are removed again; a second run adds none. */
+ *     and the entries left with no density are removed (born or not); a
+ *     second run adds none. */
 #include "check.h"
 #include "cli_util.h"
 #include "sooc3d/core.h"
@@ -157,11 +158,10 @@ int main(void) {
         born = atoi(bl);
     }
     int pruned = -1;
-    const char *pl = txt ? strstr(txt, "entries born, ") : NULL;
+    const char *pl = txt ? strstr(txt, "entries born, ") : NULL;   /* "N entries born, M entries removed" */
     if (pl) pruned = atoi(pl + strlen("entries born, "));
-    printf("births run: %d new entries, %d removed again\n", born, pruned);
+    printf("births run: %d new entries, %d entries removed after finetuning\n", born, pruned);
     CHECK_MSG(born >= 1 && born <= 32 && pruned >= 0 && pruned <= born, "%s", txt ? txt : "(no output)");
-    if (!asan) CHECK(pruned < born);   /* 150 steps: some births take shape (6 born, 1 kept when written) */
     sooc_free(txt);
     CHECK(is_ok(db2));
     CHECK(q1(db2, "SELECT count(*) FROM entries") == 10 + born - pruned);
@@ -169,7 +169,10 @@ int main(void) {
     long long max0 = q1("tests/finetune/map_v1_unity_m.sqlite", "SELECT max(id) FROM entries");
     char sql[128];
     snprintf(sql, sizeof sql, "SELECT count(*) FROM entries WHERE id > %lld", max0);
-    CHECK(max0 > 0 && q1(db2, sql) == born - pruned);   /* fresh ids above the old ones */
+    long long kept = q1(db2, sql);   /* born entries (fresh ids above the old ones) still there */
+    printf("births run: %lld born entries kept\n", kept);
+    CHECK(max0 > 0 && kept >= 0 && kept <= born);
+    if (!asan) CHECK(kept >= 1);   /* 150 steps: some births take shape */
     snprintf(cmd, sizeof cmd, "%s finetune --map %s --model %s --seq %s/seq/scene_0000 --iterations 4 --rays 64 "
              "> %s 2>&1", bin, db2, SHIPPED, tmp, out);
     CHECK(tc_run(cmd) == 0);
