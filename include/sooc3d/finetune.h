@@ -129,7 +129,8 @@ sooc_status sooc_finetune_loglik(sooc_finetune *ft, uint64_t seed, double *ll, s
  * not within dup_radius of an entry, becomes a new map entry at its points'
  * mean (yaw 0, z^what the mean of the slot priors). Lengths are in model
  * units (config.unit_m). The finetuning made afterwards on the same map fits
- * the new entries with the others. docs/finetune.md "Births". */
+ * the new entries with the others; sooc_birth_prune then removes every entry
+ * whose finetuned density is empty. docs/finetune.md "Births and deaths". */
 typedef struct sooc_birth_params {
     float depth_margin;   /* rendered surface this far behind the sensor's (0.15) */
     float min_height;     /* points this high above the floor at least      (0.05) */
@@ -155,9 +156,9 @@ size_t sooc_birth_n_points(const sooc_birth *b);   /* unexplained points so far 
 /* Cluster the points and insert the new entries; their ids go to ids[0..cap)
  * (may be NULL), their number to *n_born. */
 sooc_status sooc_birth_run(sooc_birth *b, uint64_t *ids, int cap, int *n_born);
-/* After finetuning: remove the born entries ids[0..*n) whose own density
- * reaches the surface level nowhere (objgeom.h EMPTY; a birth that explains
- * nothing dies). The kept ids move to the front, *n = their number,
+/* Deaths, after finetuning: remove the entries ids[0..*n) (born or not)
+ * whose own density reaches the surface level nowhere (objgeom.h EMPTY: they
+ * explain nothing). The kept ids move to the front, *n = their number,
  * *n_pruned = entries removed. */
 sooc_status sooc_birth_prune(sooc_model *m, sooc_cogmap *map, uint64_t *ids, int *n, int *n_pruned);
 

@@ -46,10 +46,11 @@ static void usage(FILE *f) {
             "  --restart     delete the stored finetuned decoders first and start over\n"
             "  --max-views   use at most N views (evenly spread; 0 = all)\n"
             "  --every       progress line every K steps (default 20)\n"
-            "  --no-birth    no births. By default a run that starts with nothing finetuned first adds\n"
-            "                entries where the views show a surface the map does not draw (objects\n"
-            "                online inference missed; stored in DB in one transaction), and removes\n"
-            "                those that still draw nothing once finetuned (docs/finetune.md \"Births\")\n"
+            "  --no-birth    no births and deaths. By default a run that starts with nothing finetuned\n"
+            "                first adds entries where the views show a surface the map does not draw\n"
+            "                (objects online inference missed; stored in DB in one transaction), and\n"
+            "                once every unit is stored, removes the entries (born or not) whose\n"
+            "                density is empty (docs/finetune.md \"Births and deaths\")\n"
             "  --birth-margin U  how far (model units) the rendered surface must lie behind the\n"
             "                sensor's for a pixel to count as unexplained (default 0.15)\n"
             "%s",
@@ -284,7 +285,7 @@ int sooc_cmd_finetune(int argc, char **argv) {
     signal(SIGINT, old);
     if (st) goto fail;
     /* deaths: once every unit is stored, the entries whose finetuned density
-     * reaches the surface level nowhere are removed (docs/finetune.md "Births") */
+     * reaches the surface level nowhere are removed (docs/finetune.md "Births and deaths") */
     if (birth && !interrupted) {
         size_t ne = sooc_cogmap_count(map);
         uint64_t *ids = malloc((ne ? ne : 1) * sizeof *ids);

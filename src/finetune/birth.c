@@ -1,4 +1,4 @@
-/* Births before finetuning (include/sooc3d/finetune.h "Births").
+/* Births before finetuning (include/sooc3d/finetune.h "births").
  *
  * Every view is rendered from the map as it stands (the dense renderer, the
  * model's field). A pixel is unexplained when its sensor depth is valid and
@@ -12,8 +12,9 @@
  * not within `dup_radius` of an entry, becomes a new entry at the mean of its
  * points, yaw 0, with the mean of the model's slot priors as its z^what; the
  * finetuning that follows fits its decoder copy like any other entry's, and
- * sooc_birth_prune afterwards removes a born entry whose finetuned density
- * reaches the surface level nowhere (objgeom EMPTY): it explains nothing. */
+ * sooc_birth_prune afterwards removes any entry (born or not) whose finetuned
+ * density reaches the surface level nowhere (objgeom EMPTY): it explains
+ * nothing. */
 #include "finetune/finetune_impl.h"
 #include "model/weights.h"
 #include "sooc3d/geom.h"
