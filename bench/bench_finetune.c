@@ -33,20 +33,6 @@ typedef struct scene_run {
     double birth_s, death_s;
 } scene_run;
 
-/* Deaths over every entry of the map (sooc_birth_prune). */
-static sooc_status prune_all(sooc_model *m, sooc_cogmap *map, int *removed) {
-    size_t n = sooc_cogmap_count(map);
-    sooc_cogmap_entry *e = calloc(n + 1, sizeof *e);
-    uint64_t *ids = calloc(n + 1, sizeof *ids);
-    sooc_status st = e && ids ? sooc_cogmap_entries(map, e, n, &n) : SOOC_ENOMEM;
-    for (size_t i = 0; !st && i < n; i++) ids[i] = e[i].id;
-    int k = (int)n;
-    if (!st) st = sooc_birth_prune(m, map, ids, &k, removed);
-    free(e);
-    free(ids);
-    return st;
-}
-
 static sooc_status run_scene(const char *model, sooc_gen_scale scale, int index, const sooc_finetune_params *fp,
                              int birth, scene_run *out) {
     memset(out, 0, sizeof *out);
@@ -118,7 +104,7 @@ static sooc_status run_scene(const char *model, sooc_gen_scale scale, int index,
     out->ll_after = nr ? ll / (double)nr : 0;
     if (birth) {
         double td = sooc_seconds();
-        if ((st = prune_all(mm, map, &out->removed))) goto done;
+        if ((st = sooc_birth_prune_all(mm, map, NULL, &out->removed))) goto done;
         out->death_s = sooc_seconds() - td;
     }
     out->n_views = nfr, out->n_units = nu, out->n_entries = (int)sooc_cogmap_count(map);

@@ -150,10 +150,8 @@ sooc_status sooc_eval_labels_read(const char *path, uint16_t **ids, int *w, int 
 /* SOOC3D+ on a runner's map (both runners' +ft step): births (bp != NULL,
  * finetune.h), then finetuning by EM on the frames with use[i] != 0, then
  * (with births) every entry that explains nothing is removed
- * (sooc_eval_prune_all). cb (may be NULL) gets progress every 50 steps.
+ * (sooc_birth_prune_all). cb (may be NULL) gets progress every 50 steps.
  * *n_born / *n_pruned: entries born / removed after finetuning. */
-/* Deaths: sooc_birth_prune over every entry of the map. */
-sooc_status sooc_eval_prune_all(sooc_model *m, sooc_cogmap *map, int *n_pruned);
 sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
                                    const uint8_t *use, const sooc_finetune_params *fp, const sooc_birth_params *bp,
                                    int threads, sooc_finetune_progress_fn cb, void *user, int *n_born, int *n_pruned);

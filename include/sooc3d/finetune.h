@@ -161,6 +161,9 @@ sooc_status sooc_birth_run(sooc_birth *b, uint64_t *ids, int cap, int *n_born);
  * explain nothing). The kept ids move to the front, *n = their number,
  * *n_pruned = entries removed. */
 sooc_status sooc_birth_prune(sooc_model *m, sooc_cogmap *map, uint64_t *ids, int *n, int *n_pruned);
+/* The same over every entry of the map. removed (may be NULL): *removed =
+ * the removed ids in id order, sooc_malloc'd (caller frees; NULL if none). */
+sooc_status sooc_birth_prune_all(sooc_model *m, sooc_cogmap *map, uint64_t **removed, int *n_pruned);
 
 #ifdef __cplusplus
 }

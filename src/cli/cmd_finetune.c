@@ -287,24 +287,10 @@ int sooc_cmd_finetune(int argc, char **argv) {
     /* deaths: once every unit is stored, the entries whose finetuned density
      * reaches the surface level nowhere are removed (docs/finetune.md "Births and deaths") */
     if (birth && !interrupted) {
-        size_t ne = sooc_cogmap_count(map);
-        uint64_t *ids = malloc((ne ? ne : 1) * sizeof *ids);
-        sooc_cogmap_entry *es = malloc((ne ? ne : 1) * sizeof *es);
-        int k = 0;
-        if (!ids || !es) st = SOOC_ENOMEM;
-        if (!st) st = sooc_cogmap_entries(map, es, ne, &ne);
-        for (size_t i = 0; !st && i < ne; i++) ids[i] = es[i].id;
-        k = (int)ne;
-        if (!st) st = sooc_birth_prune(m, map, ids, &k, &pruned);
-        if (!st && pruned) {   /* removed = the ids no longer in the map */
-            size_t nr = 0;
-            sooc_cogmap_entry tmp;
-            for (size_t i = 0; i < ne; i++)
-                if (sooc_cogmap_get(map, es[i].id, &tmp) != SOOC_OK) sooc_clearerr(), ids[nr++] = es[i].id;
-            st = sooc_mapstore_remove_entries(ms, ids, nr);
-        }
-        free(ids);
-        free(es);
+        uint64_t *gone = NULL;
+        st = sooc_birth_prune_all(m, map, &gone, &pruned);
+        if (!st && pruned) st = sooc_mapstore_remove_entries(ms, gone, (size_t)pruned);
+        sooc_free(gone);
         if (st) goto fail;
     }
     printf("finetune: %d finetuned and stored, %d already stored, %d left%s (%.1f s)\n", done, skipped,

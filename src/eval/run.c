@@ -150,23 +150,6 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
     return st;
 }
 
-sooc_status sooc_eval_prune_all(sooc_model *m, sooc_cogmap *map, int *n_pruned) {
-    *n_pruned = 0;
-    size_t n = 0;
-    sooc_status st = sooc_cogmap_entries(map, NULL, 0, &n);
-    if (st || !n) return st;
-    sooc_cogmap_entry *e = sooc_malloc(n * sizeof *e);
-    uint64_t *ids = sooc_malloc(n * sizeof *ids);
-    if (!e || !ids) st = SOOC_ENOMEM;
-    if (!st) st = sooc_cogmap_entries(map, e, n, &n);
-    for (size_t i = 0; !st && i < n; i++) ids[i] = e[i].id;
-    int k = (int)n;
-    if (!st) st = sooc_birth_prune(m, map, ids, &k, n_pruned);
-    sooc_free(e);
-    sooc_free(ids);
-    return st;
-}
-
 sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_frame *frames, int n_frames,
                                    const uint8_t *use, const sooc_finetune_params *fp, const sooc_birth_params *bp,
                                    int threads, sooc_finetune_progress_fn cb, void *user, int *n_born, int *n_pruned) {
@@ -190,7 +173,7 @@ sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_f
     if (!st) st = sooc_finetune_run_all(ft, cb, user, cb ? 50 : 0);
     sooc_finetune_destroy(ft);
     sooc_free(born);
-    if (!st && bp) st = sooc_eval_prune_all(m, map, n_pruned);
+    if (!st && bp) st = sooc_birth_prune_all(m, map, NULL, n_pruned);
     return st;
 }
 

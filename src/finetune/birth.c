@@ -313,3 +313,29 @@ sooc_status sooc_birth_prune(sooc_model *m, sooc_cogmap *map, uint64_t *ids, int
     *n = k;
     return SOOC_OK;
 }
+
+sooc_status sooc_birth_prune_all(sooc_model *m, sooc_cogmap *map, uint64_t **removed, int *n_pruned) {
+    *n_pruned = 0;
+    if (removed) *removed = NULL;
+    size_t n = 0;
+    sooc_status st = sooc_cogmap_entries(map, NULL, 0, &n);
+    if (st || !n) return st;
+    sooc_cogmap_entry *e = sooc_malloc(n * sizeof *e);
+    uint64_t *ids = sooc_malloc(n * sizeof *ids), *gone = sooc_malloc(n * sizeof *gone);
+    if (!e || !ids || !gone) st = SOOC_ENOMEM;
+    if (!st) st = sooc_cogmap_entries(map, e, n, &n);
+    for (size_t i = 0; !st && i < n; i++) ids[i] = e[i].id;
+    int k = (int)n;
+    if (!st) st = sooc_birth_prune(m, map, ids, &k, n_pruned);
+    if (!st && removed) {   /* the ids that are no longer there, in id order */
+        int j = 0, g = 0;
+        for (size_t i = 0; i < n; i++)
+            if (j < k && ids[j] == e[i].id) j++;
+            else gone[g++] = e[i].id;
+        *removed = gone, gone = NULL;
+    }
+    sooc_free(e);
+    sooc_free(ids);
+    sooc_free(gone);
+    return st;
+}

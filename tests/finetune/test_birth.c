@@ -10,8 +10,8 @@
  *     there, outside it a birth.
  *  4. min_views above the number of views, or min_pixels above the points:
  *     no births. Bad parameters are refused.
- *  5. sooc_birth_prune: born entries that draw nothing are removed, those
- *     that draw their box are kept. */
+ *  5. Deaths (sooc_birth_prune, _prune_all): entries that draw nothing are
+ *     removed, those that draw their box are kept. */
 #include "check.h"
 #include "finetune/finetune_impl.h"
 #include "toy_scene.h"
@@ -119,6 +119,8 @@ int main(void) {
     nk = n, npr = 0;
     CHECK_OK(sooc_birth_prune(m, map, g_ids, &nk, &npr));
     CHECK(nk == 1 && npr == 0 && sooc_cogmap_count(map) == 2);
+    CHECK_OK(sooc_birth_prune_all(m, map, NULL, &npr));
+    CHECK(npr == 0 && sooc_cogmap_count(map) == 2);
     sooc_cogmap_destroy(map);
 
     /* 3. an entry drawing nothing beside sphere 0: within dup_radius of the
@@ -131,6 +133,12 @@ int main(void) {
     printf("empty entry at sphere 0, dup radius 0.6: %d births\n", n);
     CHECK(n == 1);
     if (n == 1) CHECK(near_sphere(xz[0], k_sp[1].r + 0.1) == 1);
+    /* 5. deaths over the whole map: the entry and the birth both draw nothing */
+    uint64_t *gone = NULL;
+    npr = 0;
+    CHECK_OK(sooc_birth_prune_all(m, map, &gone, &npr));
+    CHECK(npr == 2 && sooc_cogmap_count(map) == 0 && gone && gone[0] == 1 && gone[1] == g_ids[0]);
+    sooc_free(gone);
     sooc_cogmap_destroy(map);
     map = new_map(&cfg);
     put_entry(map, cfg.d_what, k_sp[0].c[0] - 1.5, k_sp[0].c[2]);
