@@ -546,9 +546,11 @@ int sooc_cmd_eval(int argc, char **argv) {
            total_scenes, total_scenes == 1 ? "" : "s", n_models, n_models == 1 ? "" : "s", runs, runs == 1 ? "" : "s",
            (unsigned long long)pc.done, el, el > 0 ? (double)pc.done / el : 0.0, n_upd ? 1e3 * upd_s / (double)n_upd : 0.0,
            ren_s);
-    if (finetune) printf("eval: finetuning (+ft rows) %.1f s in all%s", ft_s, ro.birth ? "" : "\n");
-    if (finetune && ro.birth)
-        printf(", %ld entries born before it, %ld entries removed after it (no density)\n", n_born, n_pruned);
+    if (finetune) {
+        printf("eval: finetuning (+ft rows) %.1f s in all", ft_s);
+        if (ro.birth) printf(", %ld entries born before it, %ld entries removed after it (no density)", n_born, n_pruned);
+        printf("\n");
+    }
     if (mesh_res > 0)
         printf("eval: mesh metric (base rows) over %ld matched objects (%ld more with an empty mesh), %d^3 per box, "
                "%.1f s\n", mesh_obj, mesh_empty, mesh_res, mesh_s);

@@ -632,11 +632,11 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     jb_num(&b, "update_ms", r->n_mapped ? 1e3 * r->update_s / (double)(r->n_mapped * (pass2 ? 2 : 1)) : NAN);
     jb_printf(&b, ", \"finetuned\": %s", o->finetune ? "true" : "false");
     if (o->finetune)
-        jb_printf(&b, ", \"ft_iterations\": %d, \"ft_rays\": %d, \"ft_lr\": %g, \"finetune_s\": %.3f",
-                  o->finetune->iterations, o->finetune->rays, (double)o->finetune->lr, r->finetune_s);
-    if (o->finetune)
-        jb_printf(&b, ", \"births\": %s, \"born\": %d, \"ft_removed\": %d", o->run.birth ? "true" : "false",
-                  r->n_born, r->n_pruned);
+        jb_printf(&b,
+                  ", \"ft_iterations\": %d, \"ft_rays\": %d, \"ft_lr\": %g, \"finetune_s\": %.3f, \"births\": %s, "
+                  "\"born\": %d, \"ft_removed\": %d",
+                  o->finetune->iterations, o->finetune->rays, (double)o->finetune->lr, r->finetune_s,
+                  o->run.birth ? "true" : "false", r->n_born, r->n_pruned);
     jb_printf(&b, "}");
     if (b.oom) {
         sooc_free(b.p);

@@ -155,15 +155,12 @@ sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_f
                                    int threads, sooc_finetune_progress_fn cb, void *user, int *n_born, int *n_pruned) {
     *n_born = *n_pruned = 0;
     sooc_status st = SOOC_OK;
-    uint64_t *born = NULL;
     if (bp) {
-        int cap = bp->max_births > 0 ? bp->max_births : 1;
         sooc_birth *b = NULL;
-        if (!(born = sooc_malloc((size_t)cap * sizeof *born))) return SOOC_ENOMEM;
         st = sooc_birth_create(&b, m, map, bp, threads);
         for (int i = 0; i < n_frames && !st; i++)
             if (use[i]) st = sooc_birth_add_view(b, &frames[i]);
-        if (!st) st = sooc_birth_run(b, born, cap, n_born);
+        if (!st) st = sooc_birth_run(b, NULL, 0, n_born);
         sooc_birth_destroy(b);
     }
     sooc_finetune *ft = NULL;
@@ -172,7 +169,6 @@ sooc_status sooc_eval_finetune_map(sooc_model *m, sooc_cogmap *map, const sooc_f
         if (use[i]) st = sooc_finetune_add_view(ft, &frames[i]);
     if (!st) st = sooc_finetune_run_all(ft, cb, user, cb ? 50 : 0);
     sooc_finetune_destroy(ft);
-    sooc_free(born);
     if (!st && bp) st = sooc_birth_prune_all(m, map, NULL, n_pruned);
     return st;
 }

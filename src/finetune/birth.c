@@ -51,7 +51,6 @@ struct sooc_birth {
     bpt *pts;
     size_t n, cap;
     int nv;
-    size_t n_px;                 /* valid surface pixels seen */
     sooc_render_out rout;
 };
 
@@ -109,18 +108,16 @@ sooc_status sooc_birth_add_view(sooc_birth *b, const sooc_frame *f) {
     if (st) return sooc_adderr(st, "birth: rendering frame %lld", (long long)f->index);
     double margin = (double)b->p.depth_margin * u, ymin = (double)b->p.min_height * u, ymax = (double)c->box_hb * u;
     double dmin = (double)c->t_near * u, dmax = (double)c->d_clip * u;
-    const double *T = f->T_wc;
     for (int y = 0; y < f->height; y++)
         for (int x = 0; x < f->width; x++) {
             size_t pix = (size_t)y * f->width + x;
             float zd = f->depth[pix];
             if ((f->valid && !f->valid[pix]) || !(zd > dmin && zd <= dmax)) continue;
-            b->n_px++;
             if (!((double)b->rout.depth[pix] > zd + margin)) continue;
             double dc[3];
             double uz = sooc_cam_ray(&K, x, y, dc), s = zd / uz;
             double pc[3] = {dc[0] * s, dc[1] * s, dc[2] * s}, pw[3];
-            for (int a = 0; a < 3; a++) pw[a] = T[4 * a] * pc[0] + T[4 * a + 1] * pc[1] + T[4 * a + 2] * pc[2] + T[4 * a + 3];
+            sooc_se3_apply(pw, f->T_wc, pc);
             if (pw[1] < ymin || pw[1] > ymax) continue;
             if (b->n == b->cap) {
                 size_t nc = b->cap ? 2 * b->cap : 4096;
@@ -164,8 +161,10 @@ static void birth_entry(const sooc_model *m, double X, double Z, int views, sooc
     for (int k = 0; k < K; k++) {
         const float *l = m->p + m->prior + (size_t)k * NL;
         rt += l[SOOC_LAM_RHO_T], rth += l[SOOC_LAM_RHO_TH];
-        for (int i = 0; i < d; i++)
-            e->what_mu[i] += l[SOOC_LAM_WHAT_MU + i] / (float)K, e->what_logvar[i] += l[SOOC_LAM_WHAT_LV(d) + i] / (float)K;
+        for (int i = 0; i < d; i++) {
+            e->what_mu[i] += l[SOOC_LAM_WHAT_MU + i] / (float)K;
+            e->what_logvar[i] += l[SOOC_LAM_WHAT_LV(d) + i] / (float)K;
+        }
     }
     e->rho_t = (float)(rt / K + 2.0 * log((double)c->unit_m));
     e->rho_theta = (float)(rth / K);
@@ -194,7 +193,8 @@ sooc_status sooc_birth_run(sooc_birth *b, uint64_t *ids, int cap, int *n_born) {
     while (((x1 - x0) / cs + 3) * ((z1 - z0) / cs + 3) > 4e6) cs *= 2;
     int gw = (int)((x1 - x0) / cs) + 3, gh = (int)((z1 - z0) / cs) + 3;
     size_t ng = (size_t)gw * gh;
-    int *cnt = sooc_calloc(ng, sizeof(int)), *lab = sooc_malloc(ng * sizeof(int)), *stack = sooc_malloc(ng * sizeof(int));
+    int *cnt = sooc_calloc(ng, sizeof(int)), *lab = sooc_malloc(ng * sizeof(int));
+    int *stack = sooc_malloc(ng * sizeof(int));
     sooc_cogmap_entry *ent = NULL;
     bcand *cl = NULL, *tl = NULL;
     sooc_status st = SOOC_OK;
