@@ -135,6 +135,13 @@ int main(void) {
     CHECK(tc_run(cmd) == 0);
     snprintf(cmd, sizeof cmd, "%s finetune --map %s --model %s > /dev/null 2>&1", bin, db, SHIPPED);
     CHECK(tc_run(cmd) == 2);
+    /* a births margin outside (0, 100] model units is refused by name */
+    snprintf(cmd, sizeof cmd, "%s finetune --map %s --model %s --seq %s/seq/scene_0000 --birth-margin 0 > %s 2>&1", bin,
+             db, SHIPPED, tmp, out);
+    CHECK(tc_run(cmd) == 2);
+    txt = tc_slurp(out);
+    CHECK_MSG(txt && strstr(txt, "--birth-margin"), "%s", txt ? txt : "");
+    sooc_free(txt);
     snprintf(cmd, sizeof cmd, "%s finetune --map %s/none.sqlite --model %s --seq %s/seq/scene_0000 > %s 2>&1", bin, tmp,
              SHIPPED, tmp, out);
     CHECK(tc_run(cmd) != 0);
