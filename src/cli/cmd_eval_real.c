@@ -1,6 +1,6 @@
 /* `sooc3d eval` on recorded sequences: read each sequence through the one
  * frame path (framepath.h) at the model's resolution, attach labels
- * (label-fusion segm.png or the generic instance/ layout, resized with the
+ * (label-fusion segm.png or mask.png, or the generic instance/ layout, resized with the
  * frames' crop), run sooc_eval_real_run per (model, sequence), and write one
  * JSON cell per pair (docs/metrics.md "Real sequences"). */
 #include "cli.h"
@@ -20,9 +20,9 @@ const char *const sooc_eval_real_cli_help =
     "...; docs/metrics.md \"Real sequences\"): every N-th frame is a held-out query frame (position\n"
     "% N == N/2; never mapped), the others are mapped in order with a fresh map; the query frames are\n"
     "rendered from the map and scored (depth / RGB RMSE; mIoU and per-object IoU when the sequence has\n"
-    "labels: frame-NNNNNN.segm.png or instance/, docs/formats.md); then churn, growth on a second pass\n"
-    "over the same frames, yaw / position spread of persistent entries and the free-space / never-seen\n"
-    "fractions. One JSON cell per (model, sequence) with \"scale\": \"real\", \"view\": \"Q\".\n"
+    "labels: frame-NNNNNN.segm.png, frame-NNNNNN.mask.png or instance/, docs/formats.md); then churn,\n"
+    "growth on a second pass over the same frames, yaw / position spread of persistent entries and the\n"
+    "free-space / never-seen fractions. One JSON cell per (model, sequence) with \"scale\": \"real\", \"view\": \"Q\".\n"
     "  --query-every N   N of the query rule (default 5)\n"
     "  --no-second-pass  skip the growth pass\n"
     "  --seen-tol M      surface band of the free-space test in m (default 0.25)\n"
@@ -46,11 +46,12 @@ int sooc_eval_dir_is_recorded(const char *dir) {
     return rec;
 }
 
-typedef enum { LAB_NONE = 0, LAB_READER, LAB_SEGM, LAB_INSTANCE } lab_src;
+typedef enum { LAB_NONE = 0, LAB_READER, LAB_SEGM, LAB_MASK, LAB_INSTANCE } lab_src;
 static const char *lab_name(lab_src s) {
     switch (s) {
     case LAB_READER: return "instance/ (sequence reader)";
     case LAB_SEGM: return "frame-NNNNNN.segm.png (label-fusion)";
+    case LAB_MASK: return "frame-NNNNNN.mask.png (label-fusion masks, one object)";
     case LAB_INSTANCE: return "instance/frame-NNNNNN.png";
     default: return "none";
     }
@@ -87,6 +88,8 @@ static sooc_status load_sequence(const char *dir, const sooc_framepath_params *f
             else {
                 snprintf(p, sizeof p, "%s/frame-%06lld.segm.png", dir, (long long)fr[0].index);
                 if (sooc_file_exists(p)) *lab = LAB_SEGM;
+                snprintf(p, sizeof p, "%s/frame-%06lld.mask.png", dir, (long long)fr[0].index);
+                if (*lab == LAB_NONE && sooc_file_exists(p)) *lab = LAB_MASK;
             }
         }
         if (fr[i].instance && i == 0) *lab = LAB_READER;
@@ -94,8 +97,11 @@ static sooc_status load_sequence(const char *dir, const sooc_framepath_params *f
             st = sooc_seterr(SOOC_EFORMAT, "%s: frame %d has no instance image while frame 0 has one", dir, i);
             goto done;
         }
-        if ((*lab != LAB_SEGM && *lab != LAB_INSTANCE) || !sooc_eval_real_is_query(i, every)) continue;
-        if (*lab == LAB_SEGM) snprintf(p, sizeof p, "%s/frame-%06lld.segm.png", dir, (long long)fr[i].index);
+        if ((*lab != LAB_SEGM && *lab != LAB_MASK && *lab != LAB_INSTANCE) || !sooc_eval_real_is_query(i, every))
+            continue;
+        if (*lab == LAB_SEGM || *lab == LAB_MASK)
+            snprintf(p, sizeof p, "%s/frame-%06lld.%s.png", dir, (long long)fr[i].index,
+                     *lab == LAB_SEGM ? "segm" : "mask");
         else snprintf(p, sizeof p, "%s/instance/frame-%06lld.png", dir, (long long)fr[i].index);
         int lw = 0, lh = 0;
         if ((st = sooc_eval_labels_read(p, &ids, &lw, &lh))) goto done;

@@ -7,7 +7,8 @@
  *    frame; a missing label file is an error naming it; mixing a recorded
  *    sequence with a gen dataset is a usage error;
  *  - label-fusion from ../shared/real (skipped when absent): segm.png labels
- *    give obj_ids [48, 132] over 3 query frames. */
+ *    give obj_ids [48, 132] over 3 query frames; the masks set's mask.png
+ *    labels give one object, id 255. */
 #include "../data/util.h"
 #include "../cli_util.h"
 #include "sooc3d/geom.h"
@@ -236,6 +237,24 @@ int main(void) {
         CHECK_MSG(js && strstr(js, "\"obj_ids\": [48, 132]") && strstr(js, "\"obj_views\": [3, 3]") &&
                       strstr(js, "\"frames_query\": 3") && strstr(js, "\"frames_mapped\": 12"),
                   "lf.json: %s", js ? js : "(missing)");
+        sooc_free(js);
+    }
+    /* label-fusion's masks set: frame-NNNNNN.mask.png, one object (255) */
+    snprintf(lf, sizeof lf, "%s/label_fusion/data/masks", real ? real : "");
+    snprintf(p, sizeof p, "%s/frame-000000.mask.png", lf);
+    if (!real || !sooc_file_exists(p)) {
+        printf("test_eval_real_cli: label-fusion masks part SKIPPED: %s not found\n", p);
+    } else {
+        snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/lfm.json --samples 16,0 --quiet "
+                 "--no-second-pass", bin, model, lf, tmp);
+        rc = tc_run(cmd);
+        CHECK_MSG(rc == 0, "eval on label-fusion masks: exit %d", rc);
+        snprintf(p, sizeof p, "%s/lfm.json", tmp);
+        js = tc_slurp(p);
+        check_keys(js, "label-fusion masks");
+        CHECK_MSG(js && strstr(js, "\"obj_ids\": [255]") && strstr(js, "\"obj_views\": [3]") &&
+                      strstr(js, "\"frames_query\": 3"),
+                  "lfm.json: %s", js ? js : "(missing)");
         sooc_free(js);
     }
     tu_rm_rf(tmp);
