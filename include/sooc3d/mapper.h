@@ -192,6 +192,10 @@ void sooc3d_mapper_destroy(sooc3d_mapper *m);   /* NULL-safe */
 
 /* Model input resolution (frames passed to update must have this size). */
 void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *width, int *height);
+/* The camera heights above the support plane the model was trained at, metres
+ * (its config cam_h_min / cam_h_max times unit_m): the node's support-plane
+ * warning range unless the launch file sets one. */
+void sooc3d_mapper_cam_heights(const sooc3d_mapper *m, double *lo_m, double *hi_m);
 
 typedef struct sooc3d_update_stats {
     int n_retrieved;           /* in-view entries retrieved from the map  */

@@ -98,6 +98,11 @@ typedef struct sooc_model_config {
                                 in model units; frames, poses and the cognitive map are
                                 in metres and the model divides what comes in by unit_m
                                 and multiplies what goes out                      (1) */
+    /* appended in checkpoint version 6 (older files load with 1.2, 2.0) */
+    float cam_h_min, cam_h_max; /* camera heights above the support plane the model was
+                                trained at, model units: `sooc3d train` stores the range
+                                of its training views; the frame path and the node warn
+                                outside it                                  (1.2, 2.0) */
 } sooc_model_config;
 
 /* config.invalid_depth (docs/model.md "Invalid depth"). Under UNKNOWN a ray
@@ -145,6 +150,10 @@ sooc_status sooc_model_set_invalid_depth(sooc_model *m, int mode);
  * The clip depth in metres becomes d_clip * unit_m. SOOC_EINVAL unless
  * 1e-3 <= unit_m <= 1e3. */
 sooc_status sooc_model_set_unit(sooc_model *m, float unit_m);
+/* The trained camera-height range (config cam_h_min / cam_h_max) in metres,
+ * and setting it from metres (0 < lo < hi; SOOC_EINVAL otherwise). */
+void sooc_model_cam_heights_m(const sooc_model_config *c, double *lo_m, double *hi_m);
+sooc_status sooc_model_set_cam_heights(sooc_model *m, double lo_m, double hi_m);
 /* A copy of m that samples its rays on a ray_w x ray_h grid of each view
  * instead of its config's (e.g. every pixel of a 64x64 frame: 64x64 instead
  * of the stratified 32x32 sub-grid). No weight depends on the grid (above

@@ -142,7 +142,8 @@ typedef struct sooc_node_config {
     double max_tilt_deg;                     /* world.max_tilt_deg, default 30 */
     int support_frames;                      /* world.support_frames: frames the estimate uses (8) */
     double cam_height_min_m, cam_height_max_m; /* world.camera_height_min_m / _max_m: the heights the
-                                                model was trained for (1.2 / 2.0: the unity generator) */
+                                                model was trained for; 0 (default) = the model's own
+                                                range (config cam_h_min / cam_h_max) */
 
     /* pipeline: */
     int ring_capacity;                       /* default 8 */

@@ -94,6 +94,11 @@ const char *sooc_dataset_scene_path(const sooc_dataset *d, int scene);
  * stored); is_query marks query views. */
 int sooc_dataset_n_views(const sooc_dataset *d, int scene);
 const sooc_frame *sooc_dataset_view(const sooc_dataset *d, int scene, int view);
+/* The lowest and highest camera height above the support plane (y of the
+ * camera centre in the views' gravity-aligned frame, metres) over every posed
+ * view; returns the number of views counted (0: *lo = *hi = 0). `sooc3d train`
+ * stores this range in the model (config cam_h_min / cam_h_max). */
+int sooc_dataset_cam_heights(const sooc_dataset *d, double *lo, double *hi);
 int sooc_dataset_n_inputs(const sooc_dataset *d, int scene);
 /* Ground-truth objects of a scene (world floor position, for L2 and recall). */
 int sooc_dataset_n_objects(const sooc_dataset *d, int scene);

@@ -63,5 +63,9 @@ void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
 extern const char *const sooc_cli_framepath_help;
 int sooc_cli_framepath_opt(const char *cmd, int argc, char **argv, int *i, sooc_framepath_params *p);
 int sooc_cli_framepath_check(const char *cmd, const sooc_framepath_params *p);
+/* The frame path for model c: input size w x h, and c's trained camera-height range
+ * (config cam_h_min / cam_h_max) for the support-plane warning. */
+#include "sooc3d/model.h"
+void sooc_cli_framepath_model(sooc_framepath_params *p, const sooc_model_config *c, int w, int h);
 
 #endif

@@ -59,10 +59,11 @@ static const char *lab_name(lab_src s) {
 
 /* Read every frame of dir at w x h into *frames (count *n) with labels on the
  * query frames of the rule when the sequence has them. */
-static sooc_status load_sequence(const char *dir, const sooc_framepath_params *fpp0, int w, int h, int every,
+static sooc_status load_sequence(const char *dir, const sooc_framepath_params *fpp0, const sooc_model_config *c, int every,
                                  sooc_frame **frames, int *n_out, lab_src *lab) {
     sooc_framepath_params fpp = *fpp0;
-    fpp.width = w, fpp.height = h;
+    sooc_cli_framepath_model(&fpp, c, c->img_w, c->img_h);
+    int w = c->img_w, h = c->img_h;
     sooc_framepath *fp = NULL;
     sooc_frame *fr = NULL;
     int n = 0;
@@ -268,7 +269,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
         int with_ft = a->ft && !sooc_model_is_global(m);
         for (int d = 0; d < a->n_dirs && !st; d++) {
             lab_src lab;
-            if ((st = load_sequence(a->dirs[d], &a->fp, c->img_w, c->img_h, a->opts.query_every, &fr, &nfr, &lab))) {
+            if ((st = load_sequence(a->dirs[d], &a->fp, c, a->opts.query_every, &fr, &nfr, &lab))) {
                 sooc_adderr(st, "%s", a->dirs[d]);
                 break;
             }

@@ -10,7 +10,8 @@
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d model M [--slots N] [--rays R] [--invalid-depth free|unknown] [--unit-m U] [--out F]\n\n"
+            "usage: sooc3d model M [--slots N] [--rays R] [--invalid-depth free|unknown] [--unit-m U]\n"
+            "                    [--cam-heights MIN,MAX] [--out F]\n\n"
             "Print checkpoint M's configuration (resolution, slots, latent sizes, clip depth,\n"
             "parameter count). With --out, write a copy of M changed by:\n"
             "  --slots N  inference slot count: the mapper and `sooc3d eval`/`infer` then run it\n"
@@ -27,6 +28,9 @@ static void usage(FILE *f) {
             "             camera positions by U and multiplies the map's positions, sizes and the\n"
             "             rendered depth back; e.g. 0.2857 (= 1/3.5) runs a model trained on scenes\n"
             "             shown 3.5x larger on metric tabletop frames (docs/model.md \"Model unit\")\n"
+            "  --cam-heights MIN,MAX  the camera heights above the support plane the model was\n"
+            "             trained at, metres at the (new) unit; `sooc3d train` stores its training\n"
+            "             views' range, the frame path and the node warn outside it\n"
             "The weights and any trainer state are copied unchanged; F is written atomically and\n"
             "may be M itself.\n");
 }
@@ -38,7 +42,7 @@ int sooc_cmd_model(int argc, char **argv) {
     }
     const char *path = NULL, *out = NULL;
     int slots = -1, rays = -1, invalid = -1;
-    double unit = -1;
+    double unit = -1, hts[2] = {0, 0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (!strcmp(a, "--slots") && i + 1 < argc) {
@@ -58,6 +62,15 @@ int sooc_cmd_model(int argc, char **argv) {
             }
         } else if (!strcmp(a, "--unit-m") && i + 1 < argc) {
             if (!sooc_cli_double_opt("model", a, argv[++i], 0.001, 1000, &unit)) return 2;
+        } else if (!strcmp(a, "--cam-heights") && i + 1 < argc) {
+            const char *v = argv[++i];
+            char tail;
+            if (sscanf(v, "%lf,%lf%c", &hts[0], &hts[1], &tail) != 2 || !(hts[0] > 0) || !(hts[1] > hts[0]) ||
+                !(hts[1] < 1e3)) {
+                fprintf(stderr, "sooc3d model: --cam-heights wants MIN,MAX in metres, 0 < MIN < MAX < 1000 (got '%s')\n",
+                        v);
+                return 2;
+            }
         } else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
         else if (a[0] != '-' && !path) path = a;
         else {
@@ -66,7 +79,7 @@ int sooc_cmd_model(int argc, char **argv) {
             return 2;
         }
     }
-    if (!path || (slots >= 0 || rays >= 0 || invalid >= 0 || unit > 0) != (out != NULL)) {
+    if (!path || (slots >= 0 || rays >= 0 || invalid >= 0 || unit > 0 || hts[0] > 0) != (out != NULL)) {
         usage(stderr);
         return 2;
     }
@@ -86,6 +99,7 @@ int sooc_cmd_model(int argc, char **argv) {
         if (!st && slots >= 0) st = sooc_model_set_slots(m, slots);
         if (!st && invalid >= 0) st = sooc_model_set_invalid_depth(m, invalid);
         if (!st && unit > 0) st = sooc_model_set_unit(m, (float)unit);
+        if (!st && hts[0] > 0) st = sooc_model_set_cam_heights(m, hts[0], hts[1]);
         if (!st) st = sooc_model_save(m, out, blob, bs);
         if (st) sooc_adderr(st, "%s", out);
     }
@@ -99,6 +113,9 @@ int sooc_cmd_model(int argc, char **argv) {
         printf("  latents     d_what %d, d_layout %d, L = %d refinement updates\n", c->d_what, c->d_layout, c->L);
         printf("  clip        %g m (near %g m)\n", (double)(c->d_clip * c->unit_m), (double)(c->t_near * c->unit_m));
         printf("  unit        %g m per model unit\n", (double)c->unit_m);
+        double hl, hh;
+        sooc_model_cam_heights_m(c, &hl, &hh);
+        printf("  cameras     trained at %.2f-%.2f m above the support plane\n", hl, hh);
         printf("  no depth    %s\n", c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN
                                          ? "unknown (sensor holes masked out of the likelihood)"
                                          : "free (no surface up to the clip depth)");

@@ -151,6 +151,13 @@ int sooc_cmd_train(int argc, char **argv) {
     if (rank == 0 && (s = sooc_dist_bcast(&ready, sizeof ready, "dataset loaded on rank 0"))) return train_fail(s);
     sooc_dataset_set_unit(train, mc.unit_m);   /* query choice in model units (docs/model.md "Model unit") */
     if (valset) sooc_dataset_set_unit(valset, mc.unit_m);
+    /* the camera heights this run trains at, stored in the model for the
+     * frame path's and the node's warning (config cam_h_min / cam_h_max) */
+    double hlo, hhi;
+    if (sooc_dataset_cam_heights(train, &hlo, &hhi) > 0 && hlo > 0 && hhi > hlo) {
+        mc.cam_h_min = (float)(hlo / mc.unit_m), mc.cam_h_max = (float)(hhi / mc.unit_m);
+        if (rank == 0) fprintf(stderr, "training cameras %.2f-%.2f m above the support plane\n", hlo, hhi);
+    }
     if (rank == 0)
         fprintf(stderr, "%d training scenes (%d recorded), %d validation scenes; %lld steps -> %s\n",
             sooc_dataset_n_scenes(train), sooc_dataset_n_recorded(train), valset ? sooc_dataset_n_scenes(valset) : 0,

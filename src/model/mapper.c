@@ -142,6 +142,10 @@ void sooc3d_mapper_input_size(const sooc3d_mapper *mp, int *w, int *h) {
     *h = c->img_h;
 }
 
+void sooc3d_mapper_cam_heights(const sooc3d_mapper *mp, double *lo_m, double *hi_m) {
+    sooc_model_cam_heights_m(sooc_model_get_config(mp->m), lo_m, hi_m);
+}
+
 /* The node's revisit rule (merge_neighbours; docs/cogmap.md "Revisits"): a
  * present slot whose refined centre left the keyframe's view is not evidence
  * of this view. A retrieved entry keeps its stored values (the slot is not

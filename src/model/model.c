@@ -45,6 +45,8 @@ void sooc_model_config_default(sooc_model_config *c) {
     c->slots = 0;
     c->invalid_depth = SOOC_INVALID_DEPTH_FREE;
     c->unit_m = 1.0f;
+    c->cam_h_min = 1.2f;   /* src/data/gen.c: unity / blender cameras 1.2-2.0 m above the floor */
+    c->cam_h_max = 2.0f;
 }
 
 sooc_status sooc_model_config_check(const sooc_model_config *c) {
@@ -81,7 +83,8 @@ sooc_status sooc_model_config_check(const sooc_model_config *c) {
         !isfinite(c->prior_pres_logit) || !isfinite(c->rho_min) || !isfinite(c->rho_max) || !(c->block_size < 1e4) ||
         (c->use_box != 0 && c->use_box != 1) || (c->global_frame != 0 && c->global_frame != 1) ||
         (c->invalid_depth != SOOC_INVALID_DEPTH_FREE && c->invalid_depth != SOOC_INVALID_DEPTH_UNKNOWN) ||
-        !(c->global_radius > 0 && c->global_radius < 1e4) || !(c->unit_m >= 1e-3f && c->unit_m <= 1e3f))
+        !(c->global_radius > 0 && c->global_radius < 1e4) || !(c->unit_m >= 1e-3f && c->unit_m <= 1e3f) ||
+        !(c->cam_h_min > 0 && c->cam_h_max > c->cam_h_min && c->cam_h_max < 1e4f))
         return sooc_seterr(SOOC_EINVAL, "model config: constant out of range or non-finite");
     if (!(c->sigma_max > 0) || !(c->sigma_c > 0) || !(c->air_cut > 0 && c->air_cut < 1) || !(c->d_clip > c->t_near) ||
         !(c->box_rh > 0) || !(c->box_hb > 0) || !(c->gauss_s > 0) || !(c->block_size > 0) ||
@@ -296,6 +299,19 @@ sooc_status sooc_model_set_unit(sooc_model *m, float unit_m) {
     m->cfg.unit_m = unit_m;
     return SOOC_OK;
 }
+void sooc_model_cam_heights_m(const sooc_model_config *c, double *lo_m, double *hi_m) {
+    *lo_m = (double)c->cam_h_min * c->unit_m;
+    *hi_m = (double)c->cam_h_max * c->unit_m;
+}
+sooc_status sooc_model_set_cam_heights(sooc_model *m, double lo_m, double hi_m) {
+    if (!m) return sooc_seterr(SOOC_EINVAL, "model: no model");
+    double u = m->cfg.unit_m;
+    if (!(lo_m > 0 && hi_m > lo_m && hi_m / u < 1e4))
+        return sooc_seterr(SOOC_EINVAL, "model: camera heights %g .. %g m: need 0 < min < max", lo_m, hi_m);
+    m->cfg.cam_h_min = (float)(lo_m / u);
+    m->cfg.cam_h_max = (float)(hi_m / u);
+    return SOOC_OK;
+}
 void mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL) {
     float u = c->unit_m;
     if (u == 1.0f) return;   /* bit-identical for the unit model */
@@ -441,12 +457,14 @@ void sooc_step_opts_default(sooc_step_opts *o) {
 /* ------------------------------------------------------------ checkpoint */
 
 #define MDL_MAGIC "SOOCMDL1"
-#define MDL_VERSION 5u   /* 2: config gained global_frame, global_radius; 3: slots; 4: invalid_depth; 5: unit_m (appended) */
+#define MDL_VERSION 6u   /* 2: config gained global_frame, global_radius; 3: slots; 4: invalid_depth; 5: unit_m;
+                            6: cam_h_min, cam_h_max (appended) */
 /* older files: the config without the fields appended since */
 #define MDL_V1_CONFIG_SIZE offsetof(sooc_model_config, global_frame)
 #define MDL_V2_CONFIG_SIZE offsetof(sooc_model_config, slots)
 #define MDL_V3_CONFIG_SIZE offsetof(sooc_model_config, invalid_depth)
 #define MDL_V4_CONFIG_SIZE offsetof(sooc_model_config, unit_m)
+#define MDL_V5_CONFIG_SIZE offsetof(sooc_model_config, cam_h_min)
 
 sooc_status sooc_model_save(const sooc_model *m, const char *path, const void *blob, size_t blob_size) {
     sooc_afile f;
@@ -498,13 +516,14 @@ sooc_status sooc_model_load(sooc_model **out, const char *path, void **blob, siz
     memcpy(&ver, b + 8, 4);
     memcpy(&csz, b + 12, 4);
     int v1 = (ver == 1u && csz == MDL_V1_CONFIG_SIZE) || (ver == 2u && csz == MDL_V2_CONFIG_SIZE) ||
-             (ver == 3u && csz == MDL_V3_CONFIG_SIZE) || (ver == 4u && csz == MDL_V4_CONFIG_SIZE);
+             (ver == 3u && csz == MDL_V3_CONFIG_SIZE) || (ver == 4u && csz == MDL_V4_CONFIG_SIZE) ||
+             (ver == 5u && csz == MDL_V5_CONFIG_SIZE);
     if (!v1 && (ver != MDL_VERSION || csz != sizeof cfg)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: model file version %u / config size %u, expected %u / %zu", path, ver,
                          csz, MDL_VERSION, sizeof cfg);
         goto done;
     }
-    if (v1) {                              /* version 1 to 4 */
+    if (v1) {                              /* version 1 to 5 */
         sooc_model_config_default(&cfg);   /* appended fields keep their defaults */
         if (n < 8 + 4 + 4 + (size_t)csz + 8 + 8 + 4) {
             st = sooc_seterr(SOOC_EFORMAT, "%s: too short", path);

@@ -32,8 +32,8 @@ void sooc_node_config_default(sooc_node_config *c) {
      * (docs/cogmap.md "Revisits"; 0 turns it off as in `sooc3d infer/eval`) */
     c->merge_m = 0.35;
     c->support_frames = 8;
-    c->cam_height_min_m = 1.2;   /* src/data/gen.c: cameras 1.2-2.0 m above the floor */
-    c->cam_height_max_m = 2.0;
+    c->cam_height_min_m = 0;   /* 0: the model's trained range (sooc_model_cam_heights_m) */
+    c->cam_height_max_m = 0;
     c->ring_capacity = 8;
     c->stats_period_s = 5.0;
     c->min_depth_m = 0.1;
@@ -626,6 +626,11 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
         st = sooc_seterr(SOOC_EINVAL, "%s: pipeline.min_depth_m: must be below max_depth_m", name);
     if (!st && (c->input_width > 0) != (c->input_height > 0))
         st = sooc_seterr(SOOC_EINVAL, "%s: model.width/height: give both or neither", name);
+    if (!st && (c->cam_height_min_m > 0) != (c->cam_height_max_m > 0))
+        st = sooc_seterr(SOOC_EINVAL, "%s: world.camera_height_min_m/_max_m: give both or neither (neither: the "
+                                      "model's trained range)", name);
+    if (!st && c->cam_height_min_m > 0 && c->cam_height_min_m >= c->cam_height_max_m)
+        st = sooc_seterr(SOOC_EINVAL, "%s: world.camera_height_min_m: must be below camera_height_max_m", name);
     if (!st && strcmp(c->driver, "replay") && c->pose_kind == SOOC_NODE_POSE_SENSOR)
         st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: live driver '%s' carries no poses; use file, socket or odometry",
                          name, c->driver);

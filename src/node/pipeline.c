@@ -926,8 +926,12 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
     sp.threshold_m = c->floor_ransac_threshold_m;
     sp.iterations = c->floor_ransac_iterations;
     sp.max_frames = n->n_sup;
-    sp.cam_height_min_m = c->cam_height_min_m;
-    sp.cam_height_max_m = c->cam_height_max_m;
+    if (c->cam_height_min_m > 0 && c->cam_height_max_m > c->cam_height_min_m) {
+        sp.cam_height_min_m = c->cam_height_min_m;
+        sp.cam_height_max_m = c->cam_height_max_m;
+    } else {   /* the model's trained range */
+        sooc3d_mapper_cam_heights(n->mapper, &sp.cam_height_min_m, &sp.cam_height_max_m);
+    }
     sp.seed = c->seed + 1;
     const sooc_frame *fp[32];
     for (int i = 0; i < n->n_sup; i++) fp[i] = &n->sup_f[i];
@@ -965,7 +969,7 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
         sooc_log(SOOC_LOG_WARN,
                  "node: the camera is %.2f m above the support plane, outside the %.2f-%.2f m the model was trained "
                  "for (world.camera_height_min_m / _max_m); objects may be mapped at the wrong scale",
-                 sup.cam_height_m, c->cam_height_min_m, c->cam_height_max_m);
+                 sup.cam_height_m, sp.cam_height_min_m, sp.cam_height_max_m);
 #if SOOC_NODE_HAVE_MAPSTORE
     sooc_map_frame mf;
     memset(&mf, 0, sizeof mf);

@@ -334,6 +334,20 @@ int sooc_dataset_n_scenes(const sooc_dataset *d) { return d->n; }
 const char *sooc_dataset_scene_path(const sooc_dataset *d, int s) { return d->scenes[s].path; }
 int sooc_dataset_n_views(const sooc_dataset *d, int s) { return d->scenes[s].n_views; }
 const sooc_frame *sooc_dataset_view(const sooc_dataset *d, int s, int v) { return &d->scenes[s].views[v]; }
+int sooc_dataset_cam_heights(const sooc_dataset *d, double *lo, double *hi) {
+    int n = 0;
+    *lo = *hi = 0;
+    for (int s = 0; s < d->n; s++)
+        for (int v = 0; v < d->scenes[s].n_views; v++) {
+            const sooc_frame *f = &d->scenes[s].views[v];
+            if (!f->has_pose) continue;
+            double h = f->T_wc[7];
+            if (!n || h < *lo) *lo = h;
+            if (!n || h > *hi) *hi = h;
+            n++;
+        }
+    return n;
+}
 int sooc_dataset_n_inputs(const sooc_dataset *d, int s) { return d->scenes[s].n_inputs; }
 int sooc_dataset_n_objects(const sooc_dataset *d, int s) { return d->scenes[s].n_obj; }
 void sooc_dataset_object(const sooc_dataset *d, int s, int i, uint16_t *id, double *x, double *z) {

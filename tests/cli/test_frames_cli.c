@@ -172,6 +172,26 @@ static int test_labelfusion(const char *bin) {
     CHECK_MSG(views_finite(p, &rows) && rows == 4, "%s: %d rows, not all finite", p, rows);
     snprintf(p, sizeof p, "%s/lf_render/cogmap/cogmap_sheet.png", g_tmp);
     CHECK(access(p, R_OK) == 0);
+    /* the camera-height warning takes the model's trained range: the unity model
+     * (1.2-2.0 m) warns about the arm camera 0.16-0.19 m above the bin bottom, a
+     * copy told it was trained at 0.1-0.5 m does not */
+    char hm[1200], log[1200];
+    snprintf(hm, sizeof hm, "%s/unity_low.bin", g_tmp);
+    snprintf(log, sizeof log, "%s/lf_height.txt", g_tmp);
+    snprintf(cmd, sizeof cmd, "%s model %s --cam-heights 0.1,0.5 --out %s >/dev/null", bin, model, hm);
+    CHECK(tc_run(cmd) == 0);
+    for (int k = 0; k < 2; k++) {
+        snprintf(cmd, sizeof cmd, "%s infer --model %s --seq %s --out %s/lf_h --max-frames 2 --no-render --samples 16 2>%s",
+                 bin, k ? hm : model, lf, g_tmp, log);
+        CHECK(tc_run(cmd) == 0);
+        t = tc_slurp(log);
+        const char *w = t ? strstr(t, "outside the range the model was trained for") : NULL;
+        if (k == 0) CHECK_MSG(w && strstr(w, "(1.20 .. 2.00 m)"), "unity model, no height warning: %s", t ? t : "");
+        else CHECK_MSG(t && !w, "model trained at 0.1-0.5 m still warns: %s", t ? t : "");
+        sooc_free(t);
+    }
+    snprintf(cmd, sizeof cmd, "%s model %s --cam-heights 0.5,0.1 --out %s 2>/dev/null", bin, model, hm);
+    CHECK(tc_run(cmd) == 2);
     return 1;
 }
 

@@ -15,6 +15,8 @@
  *     (steptest.h harness, as test_model_step). */
 #include <stdio.h>
 #include <string.h>
+#include <stddef.h>
+#include <unistd.h>
 
 #include "check.h"
 #include "model/step.h"
@@ -81,6 +83,88 @@ static void test_api(void) {
     CHECK(mc->d_clip == 4.0f);
     CHECK(sooc_model_set_clip(m, 0.02f) == SOOC_EINVAL);   /* 0.08 units: inside t_near 0.1 */
     sooc_model_destroy(m);
+}
+
+/* config cam_h_min / cam_h_max (version 6): defaults, checks, metres at the
+ * model's unit, a save / load round trip, and a version-5 file (the config
+ * cut before cam_h_min) loading with the unity generator's 1.2-2.0. */
+static void test_cam_heights(void) {
+    sooc_model_config c;
+    sooc_model_config_default(&c);
+    CHECK(c.cam_h_min == 1.2f && c.cam_h_max == 2.0f);
+    c.cam_h_min = 2.5f;
+    CHECK(sooc_model_config_check(&c) == SOOC_EINVAL);
+    c.cam_h_min = 0.0f;
+    CHECK(sooc_model_config_check(&c) == SOOC_EINVAL);
+    synth_tiny_cfg(&c, 2, 1);
+    sooc_model *m = NULL, *l = NULL;
+    CHECK_OK(sooc_model_create(&m, &c, 1));
+    CHECK_OK(sooc_model_set_unit(m, 0.25f));
+    double lo, hi;
+    sooc_model_cam_heights_m(sooc_model_get_config(m), &lo, &hi);
+    CHECK_CLOSE(lo, 0.3, 1e-6, 0);   /* 1.2 units of 0.25 m */
+    CHECK_CLOSE(hi, 0.5, 1e-6, 0);
+    CHECK(sooc_model_set_cam_heights(m, 0.5, 0.4) == SOOC_EINVAL);
+    CHECK(sooc_model_set_cam_heights(m, 0.0, 0.4) == SOOC_EINVAL);
+    CHECK_OK(sooc_model_set_cam_heights(m, 0.15, 0.95));
+    CHECK_CLOSE(sooc_model_get_config(m)->cam_h_min, 0.6, 1e-6, 0);
+    char p[256], p5[256];
+    snprintf(p, sizeof p, "/tmp/test_model_unit_h_%ld.bin", (long)getpid());
+    snprintf(p5, sizeof p5, "/tmp/test_model_unit_h5_%ld.bin", (long)getpid());
+    CHECK_OK(sooc_model_save(m, p, NULL, 0));
+    CHECK_OK(sooc_model_load(&l, p, NULL, NULL));
+    if (l) {
+        sooc_model_cam_heights_m(sooc_model_get_config(l), &lo, &hi);
+        CHECK_CLOSE(lo, 0.15, 1e-6, 0);
+        CHECK_CLOSE(hi, 0.95, 1e-6, 0);
+    }
+    sooc_model_destroy(l);
+    l = NULL;
+    void *buf = NULL;
+    size_t n = 0;
+    CHECK_OK(sooc_file_read_all(p, (size_t)1 << 30, &buf, &n));
+    uint8_t *b = buf;
+    uint32_t csz, ver = 5, csz5 = (uint32_t)offsetof(sooc_model_config, cam_h_min);
+    memcpy(&csz, b + 12, 4);
+    CHECK(csz == sizeof(sooc_model_config) && csz5 < csz);
+    uint8_t *o = sooc_malloc(n);
+    memcpy(o, b, 16 + csz5);
+    memcpy(o + 8, &ver, 4);
+    memcpy(o + 12, &csz5, 4);
+    memcpy(o + 16 + csz5, b + 16 + csz, n - 16 - csz);
+    size_t n5 = n - (csz - csz5);
+    uint32_t crc = sooc_crc32(0, o, n5 - 4);
+    memcpy(o + n5 - 4, &crc, 4);
+    FILE *fp = fopen(p5, "wb");
+    CHECK(fp != NULL);
+    if (fp) {
+        CHECK(fwrite(o, 1, n5, fp) == n5);
+        fclose(fp);
+    }
+    CHECK_OK(sooc_model_load(&l, p5, NULL, NULL));
+    if (l) {
+        const sooc_model_config *lc = sooc_model_get_config(l);
+        CHECK(lc->cam_h_min == 1.2f && lc->cam_h_max == 2.0f && lc->unit_m == 0.25f);
+        CHECK(!memcmp(sooc_model_params(l), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
+    }
+    /* the same bytes claiming version 6: a clear version error, not a misread */
+    ver = 6;
+    memcpy(o + 8, &ver, 4);
+    crc = sooc_crc32(0, o, n5 - 4);
+    memcpy(o + n5 - 4, &crc, 4);
+    fp = fopen(p5, "wb");
+    if (fp) {
+        CHECK(fwrite(o, 1, n5, fp) == n5);
+        fclose(fp);
+    }
+    sooc_model *bad = NULL;
+    CHECK(sooc_model_load(&bad, p5, NULL, NULL) == SOOC_EVERSION);
+    sooc_model_destroy(l);
+    sooc_model_destroy(m);
+    sooc_free(o);
+    sooc_free(buf);
+    remove(p);
+    remove(p5);
 }
 
 /* step on FU with unit_m = U vs step on F1 with unit_m = 1 */
@@ -167,6 +251,7 @@ static void test_fd(void) {
 int main(void) {
     make_frames();
     test_api();
+    test_cam_heights();
     test_equivalence(0);
     test_equivalence(1);
     test_fd();

@@ -72,6 +72,11 @@ void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *w, int *h) {
     *h = FAKE_H;
 }
 
+void sooc3d_mapper_cam_heights(const sooc3d_mapper *m, double *lo_m, double *hi_m) {
+    (void)m;
+    *lo_m = 1.2, *hi_m = 2.0;   /* the unity generator's, as a model without a stored range */
+}
+
 static sooc_status push(sooc3d_mapper *m, const sooc_map_entry *e) {
     if (m->n == m->cap) {
         size_t nc = m->cap ? 2 * m->cap : 16;

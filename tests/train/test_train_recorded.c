@@ -264,12 +264,24 @@ static void test_cli(const char *rec, const char *synth) {
                "  ray_h: 16\n  dec_width: 16\n  dec_color_width: 8\n  ref_ch: [8, 8, 8, 8]\n  ref_fc: 16\n"
                "  ref_hidden: 16\n");
     fclose(f);
-    snprintf(cmd, sizeof cmd, "%s train --config %s --init %s --data %s %s --out %s --max-seconds 2 2>&1", bin, cfg,
-             init, rec, synth, out);
+    snprintf(cmd, sizeof cmd, "%s train --config %s --init %s --data %s %s --out %s --max-seconds 2 >%s/budget.txt 2>&1",
+             bin, cfg, init, rec, synth, out, g_dir);
     CHECK(tc_run(cmd) == 0);
     snprintf(path, sizeof path, "%s/last.bin", out);
     sooc_model *m = NULL;
     CHECK_OK(sooc_model_load(&m, path, NULL, NULL));
+    /* the model keeps the camera heights of its training views (config
+     * cam_h_min / cam_h_max), the range the run printed, not the default */
+    snprintf(path, sizeof path, "%s/budget.txt", g_dir);
+    char *txt = tc_slurp(path);
+    const char *hl = txt ? strstr(txt, "training cameras ") : NULL;
+    double lo = 0, hi = 0, mlo = 0, mhi = 0;
+    CHECK_MSG(hl && sscanf(hl, "training cameras %lf-%lf", &lo, &hi) == 2, "no camera-height line: %s",
+              txt ? txt : "");
+    if (m) sooc_model_cam_heights_m(sooc_model_get_config(m), &mlo, &mhi);
+    CHECK_MSG(fabs(mlo - lo) < 0.006 && fabs(mhi - hi) < 0.006 && lo > 0 && hi > lo && !(lo == 1.2 && hi == 2.0),
+              "stored %g-%g m, printed %g-%g m", mlo, mhi, lo, hi);
+    sooc_free(txt);
     sooc_model_destroy(m);
     /* it stopped on the budget: far fewer than the 1,000,000 steps, at least one */
     snprintf(path, sizeof path, "%s/log.csv", out);

@@ -12,6 +12,10 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
 }
 void sooc3d_mapper_destroy(sooc3d_mapper *m) { (void)m; }
 void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *w, int *h) { (void)m; *w = *h = 0; }
+void sooc3d_mapper_cam_heights(const sooc3d_mapper *m, double *lo_m, double *hi_m) {
+    (void)m;
+    *lo_m = 1.2, *hi_m = 2.0;
+}
 sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st) {
     (void)m; (void)f; (void)st;
     return sooc_seterr(SOOC_EUNSUPPORTED, "no model");
