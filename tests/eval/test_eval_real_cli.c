@@ -78,6 +78,30 @@ static void check_keys(const char *js, const char *what) {
               "%s: RMSE not finite", what);
 }
 
+/* `sooc3d eval` on ../shared/real/label_fusion/data/<set> (skipped when absent):
+ * its <kind>.png labels on the 3 query frames give the expected ids / views. */
+static void eval_labelfusion(const char *bin, const char *model, const char *tmp, const char *real, const char *set,
+                             const char *kind, const char *ids, const char *views) {
+    char dir[1200], p[1400], cmd[4096];
+    snprintf(dir, sizeof dir, "%s/label_fusion/data/%s", real ? real : "", set);
+    snprintf(p, sizeof p, "%s/frame-000000.%s.png", dir, kind);
+    if (!real || !sooc_file_exists(p)) {
+        printf("test_eval_real_cli: label-fusion %s part SKIPPED: %s not found\n", set, p);
+        return;
+    }
+    snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/lf_%s.json --samples 16,0 --quiet",
+             bin, model, dir, tmp, set);
+    int rc = tc_run(cmd);
+    CHECK_MSG(rc == 0, "eval on label-fusion %s: exit %d", set, rc);
+    snprintf(p, sizeof p, "%s/lf_%s.json", tmp, set);
+    char *js = tc_slurp(p);
+    check_keys(js, set);
+    CHECK_MSG(js && strstr(js, ids) && strstr(js, views) && strstr(js, "\"frames_query\": 3") &&
+                  strstr(js, "\"frames_mapped\": 12"),
+              "%s: %s", p, js ? js : "(missing)");
+    sooc_free(js);
+}
+
 int main(void) {
     const char *bin = getenv("SOOC_BIN");
     if (!bin || access(bin, X_OK)) {
@@ -219,44 +243,12 @@ int main(void) {
         sooc_free(js);
     }
 
-    /* label-fusion */
+    /* label-fusion: the labels set (segm.png, two objects) and the masks set
+     * (mask.png, one object, id 255) */
     const char *real = tu_real_dir();
-    char lf[1200];
-    snprintf(lf, sizeof lf, "%s/label_fusion/data/labels", real ? real : "");
-    snprintf(p, sizeof p, "%s/frame-000000.segm.png", lf);
-    if (!real || !sooc_file_exists(p)) {
-        printf("test_eval_real_cli: label-fusion part SKIPPED: %s not found\n", p);
-    } else {
-        snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/lf.json --samples 16,0 --quiet",
-                 bin, model, lf, tmp);
-        rc = tc_run(cmd);
-        CHECK_MSG(rc == 0, "eval on label-fusion: exit %d", rc);
-        snprintf(p, sizeof p, "%s/lf.json", tmp);
-        js = tc_slurp(p);
-        check_keys(js, "label-fusion");
-        CHECK_MSG(js && strstr(js, "\"obj_ids\": [48, 132]") && strstr(js, "\"obj_views\": [3, 3]") &&
-                      strstr(js, "\"frames_query\": 3") && strstr(js, "\"frames_mapped\": 12"),
-                  "lf.json: %s", js ? js : "(missing)");
-        sooc_free(js);
-    }
-    /* label-fusion's masks set: frame-NNNNNN.mask.png, one object (255) */
-    snprintf(lf, sizeof lf, "%s/label_fusion/data/masks", real ? real : "");
-    snprintf(p, sizeof p, "%s/frame-000000.mask.png", lf);
-    if (!real || !sooc_file_exists(p)) {
-        printf("test_eval_real_cli: label-fusion masks part SKIPPED: %s not found\n", p);
-    } else {
-        snprintf(cmd, sizeof cmd, "%s eval --model %s --name tiny --data %s --json %s/lfm.json --samples 16,0 --quiet "
-                 "--no-second-pass", bin, model, lf, tmp);
-        rc = tc_run(cmd);
-        CHECK_MSG(rc == 0, "eval on label-fusion masks: exit %d", rc);
-        snprintf(p, sizeof p, "%s/lfm.json", tmp);
-        js = tc_slurp(p);
-        check_keys(js, "label-fusion masks");
-        CHECK_MSG(js && strstr(js, "\"obj_ids\": [255]") && strstr(js, "\"obj_views\": [3]") &&
-                      strstr(js, "\"frames_query\": 3"),
-                  "lfm.json: %s", js ? js : "(missing)");
-        sooc_free(js);
-    }
+    eval_labelfusion(bin, model, tmp, real, "labels", "segm",
+                     "\"obj_ids\": [48, 132]", "\"obj_views\": [3, 3]");
+    eval_labelfusion(bin, model, tmp, real, "masks", "mask", "\"obj_ids\": [255]", "\"obj_views\": [3]");
     tu_rm_rf(tmp);
     return check_report("test_eval_real_cli");
 }

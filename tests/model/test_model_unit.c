@@ -22,6 +22,7 @@
 #include "model/step.h"
 #include "sooc3d/global.h"
 #include "steptest.h"
+#include "oldver.h"
 #include "synth.h"
 
 #define U 0.3
@@ -120,27 +121,9 @@ static void test_cam_heights(void) {
     }
     sooc_model_destroy(l);
     l = NULL;
-    void *buf = NULL;
-    size_t n = 0;
-    CHECK_OK(sooc_file_read_all(p, (size_t)1 << 30, &buf, &n));
-    uint8_t *b = buf;
-    uint32_t csz, ver = 5, csz5 = (uint32_t)offsetof(sooc_model_config, cam_h_min);
-    memcpy(&csz, b + 12, 4);
-    CHECK(csz == sizeof(sooc_model_config) && csz5 < csz);
-    uint8_t *o = sooc_malloc(n);
-    memcpy(o, b, 16 + csz5);
-    memcpy(o + 8, &ver, 4);
-    memcpy(o + 12, &csz5, 4);
-    memcpy(o + 16 + csz5, b + 16 + csz, n - 16 - csz);
-    size_t n5 = n - (csz - csz5);
-    uint32_t crc = sooc_crc32(0, o, n5 - 4);
-    memcpy(o + n5 - 4, &crc, 4);
-    FILE *fp = fopen(p5, "wb");
-    CHECK(fp != NULL);
-    if (fp) {
-        CHECK(fwrite(o, 1, n5, fp) == n5);
-        fclose(fp);
-    }
+    uint32_t csz5 = (uint32_t)offsetof(sooc_model_config, cam_h_min);
+    CHECK(csz5 < sizeof(sooc_model_config));
+    CHECK(tm_write_old_version(p, p5, 5, csz5) == 0);
     CHECK_OK(sooc_model_load(&l, p5, NULL, NULL));
     if (l) {
         const sooc_model_config *lc = sooc_model_get_config(l);
@@ -148,21 +131,11 @@ static void test_cam_heights(void) {
         CHECK(!memcmp(sooc_model_params(l), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
     }
     /* the same bytes claiming version 6: a clear version error, not a misread */
-    ver = 6;
-    memcpy(o + 8, &ver, 4);
-    crc = sooc_crc32(0, o, n5 - 4);
-    memcpy(o + n5 - 4, &crc, 4);
-    fp = fopen(p5, "wb");
-    if (fp) {
-        CHECK(fwrite(o, 1, n5, fp) == n5);
-        fclose(fp);
-    }
+    CHECK(tm_write_old_version(p, p5, 6, csz5) == 0);
     sooc_model *bad = NULL;
     CHECK(sooc_model_load(&bad, p5, NULL, NULL) == SOOC_EVERSION);
     sooc_model_destroy(l);
     sooc_model_destroy(m);
-    sooc_free(o);
-    sooc_free(buf);
     remove(p);
     remove(p5);
 }

@@ -20,6 +20,7 @@
 #include "check.h"
 #include "model/step.h"
 #include "steptest.h"
+#include "oldver.h"
 #include "synth.h"
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
@@ -404,46 +405,17 @@ static void test_checkpoint(void) {
     mpp.invalid_depth = 7;
     CHECK(sooc3d_mapper_create(&mp, &mpp) == SOOC_EINVAL);
     /* a version-3 file: the same bytes with the config cut before invalid_depth */
-    void *buf = NULL;
-    size_t n = 0;
-    CHECK_OK(sooc_file_read_all(p, (size_t)1 << 30, &buf, &n));
-    uint8_t *b = buf;
-    uint32_t csz, ver = 3, csz3 = (uint32_t)offsetof(sooc_model_config, invalid_depth);
-    memcpy(&csz, b + 12, 4);
-    CHECK(csz == sizeof(sooc_model_config) && csz3 < csz);   /* later versions appended more */
-    uint8_t *o = sooc_malloc(n);
-    memcpy(o, b, 16 + csz3);
-    memcpy(o + 8, &ver, 4);
-    memcpy(o + 12, &csz3, 4);
-    memcpy(o + 16 + csz3, b + 16 + csz, n - 16 - csz);
-    size_t n3 = n - (csz - csz3);
-    uint32_t crc = sooc_crc32(0, o, n3 - 4);
-    memcpy(o + n3 - 4, &crc, 4);
-    FILE *fp = fopen(p3, "wb");
-    CHECK(fp != NULL);
-    if (fp) {
-        CHECK(fwrite(o, 1, n3, fp) == n3);
-        fclose(fp);
-    }
+    uint32_t csz3 = (uint32_t)offsetof(sooc_model_config, invalid_depth);
+    CHECK(csz3 < sizeof(sooc_model_config));   /* later versions appended more */
+    CHECK(tm_write_old_version(p, p3, 3, csz3) == 0);
     CHECK_OK(sooc_model_load(&l, p3, NULL, NULL));
     CHECK(sooc_model_get_config(l)->invalid_depth == SOOC_INVALID_DEPTH_FREE);
     CHECK(!memcmp(sooc_model_params(l), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
     sooc_model_destroy(l);
-    /* a version-3 header with a version-4 config size is rejected, naming the file */
-    ver = 3;
-    memcpy(b + 8, &ver, 4);
-    crc = sooc_crc32(0, b, n - 4);
-    memcpy(b + n - 4, &crc, 4);
-    fp = fopen(p3, "wb");
-    CHECK(fp != NULL);
-    if (fp) {
-        CHECK(fwrite(b, 1, n, fp) == n);
-        fclose(fp);
-    }
+    /* a version-3 header with the current config size is rejected, naming the file */
+    CHECK(tm_write_old_version(p, p3, 3, (uint32_t)sizeof(sooc_model_config)) == 0);
     CHECK(sooc_model_load(&l, p3, NULL, NULL) == SOOC_EVERSION);
     CHECK(strstr(sooc_errmsg(), p3) != NULL);
-    sooc_free(o);
-    sooc_free(buf);
     remove(p);
     remove(p3);
     sooc_model_destroy(m);
