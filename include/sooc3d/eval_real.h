@@ -97,6 +97,17 @@ int sooc_eval_entry_probes(const sooc_map_entry *e, double seen_height, double p
 sooc_status sooc_eval_entry_seen(const sooc_map_entry *e, double seen_height, const sooc_frame *frames, int n,
                                  double tol, sooc_seen_votes *out);
 
+/* The seen class of a surface given as points (an entry's own mesh vertices,
+ * xyz[3 i], world frame): up to max_probes of the n points, evenly spaced
+ * in index, each tested by sooc_eval_point_seen. pts[class] counts the probed
+ * points by class; *cls is SURFACE when at least as many points are surface
+ * points as free ones and some are, FREE when more are free, NEVER when none
+ * is either (n = 0 included). Open shapes (a chair, a table's edge) and boxes
+ * larger than their contents have box probes in the air around a surface
+ * the sensor saw; their own surface does not. */
+sooc_status sooc_eval_points_seen(const float *xyz, size_t n, int max_probes, const sooc_frame *frames, int n_frames,
+                                  double tol, int pts[3], sooc_seen_class *cls);
+
 /* ------------------------------------------------------------- spread */
 
 /* Position / yaw track of one entry over the keyframes that registered it
@@ -174,6 +185,9 @@ typedef struct sooc_eval_real_opts {
                                   tight box is tested (sooc_eval_entry_probes; m)         (0.1) */
     int persist_min;           /* entries registered by at least this many keyframes (and in
                                   the final map) are persistent                            (3) */
+    int own_surface;           /* 1 = the seen test also by each final entry's own surface:
+                                  its mesh (sooc_mesh_object, 32 samples per axis) probed at
+                                  up to 64 vertices (sooc_eval_points_seen; SOOC3D only)   (1) */
     const sooc_finetune_params *finetune;   /* non-NULL: SOOC3D+. After pass 1 every entry and
                                   layout block of the map is finetuned by EM on the mapped
                                   frames (finetune.h), then the query frames, spreads and the
@@ -201,6 +215,10 @@ typedef struct sooc_eval_real_result {
     double yaw_spread_deg;
     int n_seen[3];                 /* final entries by sooc_seen_class                   */
     int n_seen_box;                /* of them, probed over their tight box                 */
+    int n_seen_own[3];             /* final entries by the class of their own surface
+                                      (sooc_eval_points_seen over the vertices of their
+                                      mesh; opts.own_surface)                              */
+    int n_own_mesh;                /* of them, with a mesh (the others: their box class)  */
     int n_empty;                   /* final entries whose density reaches the surface level
                                       nowhere (objgeom EMPTY): they render nothing         */
     double never_behind_med_m;     /* median min_behind of the never-seen entries that some

@@ -310,6 +310,7 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--quiet")) quiet = 1;
         else if (!strcmp(a, "--query-every") && has) INTV(2, 1000000, &rel.query_every);
         else if (!strcmp(a, "--no-second-pass")) rel.second_pass = 0;
+        else if (!strcmp(a, "--no-own-surface")) rel.own_surface = 0;
         else if (!strcmp(a, "--seen-tol") && has) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0.001, 100, &rel.seen_tol)) return 2;
         } else if (!strcmp(a, "--seen-height") && has) {

@@ -28,6 +28,8 @@ const char *const sooc_eval_real_cli_help =
     "  --seen-tol M      surface band of the free-space test in m (default 0.25)\n"
     "  --seen-height M   entries without a tight box of their density are tested at this height above\n"
     "                    the support plane in m (default 0.1); the others over their box\n"
+    "  --no-own-surface  skip the second free-space test, by each entry's own surface (its mesh's\n"
+    "                    vertices: JSON free_frac_own, never_seen_frac_own)\n"
     "  --persist-min K   registrations that make an entry persistent for the spread (default 3)\n"
     "  --panels DIR      DIR/<sequence>/<model>/: a panel PNG (GT | reconstruction | segmentation |\n"
     "                    ... ) and a views.csv row (per-view metrics) per query frame\n";
@@ -327,7 +329,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                  "position (m) and circular yaw std (deg) of entries registered by >= %d keyframes; free / never "
                  "seen: fraction of final entries the frames saw as free space / never saw, probed at their tight "
                  "box's centre and face centres (entries without a box at %.2f m above the support plane; surface "
-                 "band +-%.2f m). Seed %llu. docs/metrics.md \"Real sequences\".",
+                 "band +-%.2f m); the _own figures by the majority of up to 64 vertices of each entry's own mesh. Seed %llu. docs/metrics.md \"Real sequences\".",
                  a->opts.query_every, a->opts.query_every, a->opts.query_every / 2, a->opts.persist_min,
                  a->opts.seen_height, a->opts.seen_tol, (unsigned long long)a->opts.run.seed);
         md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n*%s*\n", note);

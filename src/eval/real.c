@@ -8,6 +8,7 @@
 #include "sooc3d/geom.h"
 #include "sooc3d/global.h"
 #include "sooc3d/mapper.h"
+#include "sooc3d/mesh.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -100,6 +101,41 @@ sooc_status sooc_eval_entry_seen(const sooc_map_entry *e, double seen_height, co
     }
     out->cls = any[SOOC_SEEN_SURFACE] ? SOOC_SEEN_SURFACE : any[SOOC_SEEN_FREE] ? SOOC_SEEN_FREE : SOOC_SEEN_NEVER;
     return SOOC_OK;
+}
+
+sooc_status sooc_eval_points_seen(const float *xyz, size_t n, int max_probes, const sooc_frame *frames, int n_frames,
+                                  double tol, int pts[3], sooc_seen_class *cls) {
+    if ((n && !xyz) || !pts || !cls || max_probes < 1)
+        return sooc_seterr(SOOC_EINVAL, "points_seen: bad arguments (n %zu, max probes %d)", n, max_probes);
+    pts[0] = pts[1] = pts[2] = 0;
+    size_t step = n / (size_t)max_probes + 1;
+    for (size_t i = 0; i < n; i += step) {
+        double p[3] = {xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]};
+        sooc_seen_votes v;
+        sooc_status st = sooc_eval_point_seen(p, frames, n_frames, tol, &v);
+        if (st) return st;
+        pts[v.cls]++;
+    }
+    int s = pts[SOOC_SEEN_SURFACE], f = pts[SOOC_SEEN_FREE];
+    *cls = s && s >= f ? SOOC_SEEN_SURFACE : f > s ? SOOC_SEEN_FREE : SOOC_SEEN_NEVER;
+    return SOOC_OK;
+}
+
+/* The own-surface class of entry id (opts.own_surface): its mesh's vertices,
+ * or `fallback` (its box class) when its density makes no mesh. */
+static sooc_status own_surface_seen(sooc_model *m, const sooc_cogmap *map, uint64_t id, const sooc_frame *frames,
+                                    int n_frames, double tol, sooc_seen_class fallback, sooc_mesh *me,
+                                    sooc_seen_class *cls, int *meshed) {
+    sooc_mesh_opts mo;
+    sooc_mesh_opts_default(&mo);
+    mo.res = 32;
+    *cls = fallback, *meshed = 0;
+    sooc_status st = sooc_mesh_object(m, map, id, &mo, me);
+    if (st) return sooc_adderr(st, "eval real: mesh of entry %llu", (unsigned long long)id);
+    if (!me->n_vert) return SOOC_OK;
+    int pts[3];
+    *meshed = 1;
+    return sooc_eval_points_seen(me->xyz, me->n_vert, 64, frames, n_frames, tol, pts, cls);
 }
 
 /* ------------------------------------------------------------- spread */
@@ -234,6 +270,7 @@ void sooc_eval_real_opts_default(sooc_eval_real_opts *o) {
     o->seen_tol = 0.25;
     o->seen_height = 0.1;
     o->persist_min = 3;
+    o->own_surface = 1;
 }
 
 typedef struct real_ctx {
@@ -497,6 +534,21 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
                 goto done;
             }
             res->n_seen[sv.cls]++;
+            if (o->own_surface && C.mp) {
+                sooc_mesh me;
+                memset(&me, 0, sizeof me);
+                sooc_seen_class oc;
+                int meshed;
+                st = own_surface_seen(ctx_model(&C), ctx_map(&C), id, frames, n_frames, o->seen_tol, sv.cls, &me,
+                                      &oc, &meshed);
+                sooc_mesh_free(&me);
+                if (st) {
+                    sooc_free(beh);
+                    goto done;
+                }
+                res->n_seen_own[oc]++;
+                res->n_own_mesh += meshed;
+            }
             if (sv.cls == SOOC_SEEN_NEVER && isfinite(sv.min_behind)) beh[nb++] = sv.min_behind;
         }
         res->n_never_behind = nb;
@@ -622,6 +674,12 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     jb_printf(&b, ", \"seen_box_n\": %d, \"empty_n\": %d", r->n_seen_box, r->n_empty);
     jb_num(&b, "never_seen_frac", ne > 0 ? r->n_seen[SOOC_SEEN_NEVER] / ne : NAN);
     jb_num(&b, "surface_frac", ne > 0 ? r->n_seen[SOOC_SEEN_SURFACE] / ne : NAN);
+    double no = (double)(r->n_seen_own[0] + r->n_seen_own[1] + r->n_seen_own[2]);
+    if (no > 0) {   /* the own-surface rule (opts.own_surface) */
+        jb_num(&b, "free_frac_own", r->n_seen_own[SOOC_SEEN_FREE] / no);
+        jb_num(&b, "never_seen_frac_own", r->n_seen_own[SOOC_SEEN_NEVER] / no);
+        jb_printf(&b, ", \"own_mesh_n\": %d", r->n_own_mesh);
+    }
     jb_printf(&b, ", \"never_seen_behind_n\": %d", r->n_never_behind);
     jb_num(&b, "never_seen_behind_median_m", r->never_behind_med_m);
     jb_num(&b, "seen_tol_m", o->seen_tol);

@@ -408,6 +408,9 @@ static void test_runner(void) {
     CHECK(ra.churn.updates == 9 && ra.churn2.updates == 9);
     CHECK((size_t)(ra.n_seen[0] + ra.n_seen[1] + ra.n_seen[2]) == ra.entries_final);
     CHECK(ra.n_never_behind <= ra.n_seen[SOOC_SEEN_NEVER]);
+    /* the own-surface rule classes every final entry too (by its box without a mesh) */
+    CHECK((size_t)(ra.n_seen_own[0] + ra.n_seen_own[1] + ra.n_seen_own[2]) == ra.entries_final);
+    CHECK(ra.n_own_mesh >= 0 && (size_t)ra.n_own_mesh <= ra.entries_final);
     CHECK(ra.n_never_behind == 0 ? isnan(ra.never_behind_med_m) : ra.never_behind_med_m > o.seen_tol);
     CHECK(ra.n_persistent >= 0 && (size_t)ra.n_persistent <= ra.entries_final);
     if (ra.n_persistent) CHECK(isfinite(ra.pos_spread_m) && isfinite(ra.yaw_spread_deg));
@@ -479,6 +482,7 @@ static void test_runner(void) {
             CHECK((long)rg.entries_final == rg.churn.created - rg.churn.removed);
             CHECK((long)rg.entries_pass2 == (long)rg.entries_final + rg.churn2.created - rg.churn2.removed);
             CHECK((size_t)(rg.n_seen[0] + rg.n_seen[1] + rg.n_seen[2]) == rg.entries_final);
+            CHECK(rg.n_seen_own[0] + rg.n_seen_own[1] + rg.n_seen_own[2] == 0);   /* no own meshes: SOOC3D only */
             CHECK(rg.query.n_depth == 3 && rg.obj.n == 1);
             printf("baseline: %zu slots present (%ld created, %ld removed), pass 2: %zu, persistent %d\n",
                    rg.entries_final, rg.churn.created, rg.churn.removed, rg.entries_pass2, rg.n_persistent);
@@ -509,9 +513,49 @@ static void test_runner(void) {
     sooc_model_destroy(m);
 }
 
+/* sooc_eval_points_seen: the class of a surface given as points, by the
+ * majority of its probed points. A camera at the origin looks along +z at a
+ * wall 2 m away. */
+static void test_points_seen(void) {
+    sooc_frame f;
+    memset(&f, 0, sizeof f);
+    const double c0[3] = {0, 0, 0};
+    make_frame(&f, 16, 16, c0, 0, 2.0f);
+    /* 10 points: 6 on the wall, 4 in the air in front of it */
+    float xyz[30];
+    for (int i = 0; i < 10; i++) {
+        xyz[3 * i] = 0.05f * (float)(i - 5), xyz[3 * i + 1] = 0.0f;
+        xyz[3 * i + 2] = i < 6 ? 2.05f : 1.0f;
+    }
+    int pts[3];
+    sooc_seen_class cls;
+    CHECK_OK(sooc_eval_points_seen(xyz, 10, 64, &f, 1, 0.1, pts, &cls));
+    CHECK(pts[SOOC_SEEN_SURFACE] == 6 && pts[SOOC_SEEN_FREE] == 4 && pts[SOOC_SEEN_NEVER] == 0);
+    CHECK(cls == SOOC_SEEN_SURFACE);
+    /* only the air points: free */
+    CHECK_OK(sooc_eval_points_seen(xyz + 18, 4, 64, &f, 1, 0.1, pts, &cls));
+    CHECK(cls == SOOC_SEEN_FREE && pts[SOOC_SEEN_FREE] == 4);
+    /* a tie is a surface */
+    CHECK_OK(sooc_eval_points_seen(xyz + 12, 4, 64, &f, 1, 0.1, pts, &cls));
+    CHECK(pts[SOOC_SEEN_SURFACE] == 2 && pts[SOOC_SEEN_FREE] == 2 && cls == SOOC_SEEN_SURFACE);
+    /* max_probes 2 of 10: points 0 and 6 (index step 6): one surface, one free */
+    CHECK_OK(sooc_eval_points_seen(xyz, 10, 2, &f, 1, 0.1, pts, &cls));
+    CHECK(pts[SOOC_SEEN_SURFACE] + pts[SOOC_SEEN_FREE] + pts[SOOC_SEEN_NEVER] == 2);
+    CHECK(pts[SOOC_SEEN_SURFACE] == 1 && pts[SOOC_SEEN_FREE] == 1);
+    /* behind the wall, or no points at all: never */
+    float behind[3] = {0, 0, 3.0f};
+    CHECK_OK(sooc_eval_points_seen(behind, 1, 64, &f, 1, 0.1, pts, &cls));
+    CHECK(cls == SOOC_SEEN_NEVER && pts[SOOC_SEEN_NEVER] == 1);
+    CHECK_OK(sooc_eval_points_seen(NULL, 0, 64, &f, 1, 0.1, pts, &cls));
+    CHECK(cls == SOOC_SEEN_NEVER && pts[0] + pts[1] + pts[2] == 0);
+    CHECK(sooc_eval_points_seen(xyz, 10, 0, &f, 1, 0.1, pts, &cls) == SOOC_EINVAL);
+    sooc_frame_free(&f);
+}
+
 int main(void) {
     test_query_rule();
     test_point_seen();
+    test_points_seen();
     test_entry_probe();
     test_spread();
     test_churn();
