@@ -139,6 +139,17 @@ static void test_launch(void) {
                NULL);
     expect_bad("sensor: {driver: v4l2, depth_device: /dev/video0}\n", "pose.source", NULL);
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  width: 64\n", "model.width", NULL);
+    /* the camera-height range: 0 / 0 (default) = the model's; both or neither; min below max */
+    CHECK(c.cam_height_min_m == 0 && c.cam_height_max_m == 0);
+    const char *hts = "sensor: {driver: replay, path: x}\nworld:\n  camera_height_min_m: 0.3\n"
+                      "  camera_height_max_m: 0.9\n";
+    CHECK_OK(sooc_node_config_parse(&c, hts, strlen(hts), "h.yaml"));
+    CHECK_CLOSE(c.cam_height_min_m, 0.3, 0, 0);
+    CHECK_CLOSE(c.cam_height_max_m, 0.9, 0, 0);
+    expect_bad("sensor: {driver: replay, path: x}\nworld:\n  camera_height_min_m: 0.3\n",
+               "camera_height_min_m/_max_m", "both or neither");
+    expect_bad("sensor: {driver: replay, path: x}\nworld:\n  camera_height_min_m: 0.9\n  camera_height_max_m: 0.3\n",
+               "camera_height_min_m", "below");
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  colour: red\n", "t.yaml:3", "model.colour");
     expect_bad("sensor: {driver: replay, path: x}\nmap: {db: a, db: b}\n", "t.yaml:2", "map.db");
     /* duplicate keys are errors at every level (libyaml keeps both) */
