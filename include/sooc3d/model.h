@@ -98,12 +98,17 @@ typedef struct sooc_model_config {
                                 in model units; frames, poses and the cognitive map are
                                 in metres and the model divides what comes in by unit_m
                                 and multiplies what goes out                      (1) */
-    /* appended in checkpoint version 6 (older files load with 1.2, 2.0) */
+    /* appended in checkpoint version 6 (older files load with SOOC_MODEL_CAM_H_MIN / _MAX) */
     float cam_h_min, cam_h_max; /* camera heights above the support plane the model was
                                 trained at, model units: `sooc3d train` stores the range
                                 of its training views; the frame path and the node warn
                                 outside it                                  (1.2, 2.0) */
 } sooc_model_config;
+/* The camera heights of the unity and blender generators (src/data/gen.c), model
+ * units: the default of cam_h_min / cam_h_max and of checkpoints older than
+ * version 6. */
+#define SOOC_MODEL_CAM_H_MIN 1.2f
+#define SOOC_MODEL_CAM_H_MAX 2.0f
 
 /* config.invalid_depth (docs/model.md "Invalid depth"). Under UNKNOWN a ray
  * whose depth is invalid (valid = 0, z <= 0 or non-finite) or nearer than

@@ -60,12 +60,12 @@ void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
  * 1 = consumed (with its value, *i advanced), 0 = not one of them, -1 = bad value
  * (message printed). sooc_cli_framepath_check: the range is not empty (0 + message). */
 #include "sooc3d/framepath.h"
+#include "sooc3d/model.h"
 extern const char *const sooc_cli_framepath_help;
 int sooc_cli_framepath_opt(const char *cmd, int argc, char **argv, int *i, sooc_framepath_params *p);
 int sooc_cli_framepath_check(const char *cmd, const sooc_framepath_params *p);
-/* The frame path for model c: input size w x h, and c's trained camera-height range
- * (config cam_h_min / cam_h_max) for the support-plane warning. */
-#include "sooc3d/model.h"
-void sooc_cli_framepath_model(sooc_framepath_params *p, const sooc_model_config *c, int w, int h);
+/* The frame path for model c: its input size (img_w x img_h) and its trained
+ * camera-height range (config cam_h_min / cam_h_max) for the support-plane warning. */
+void sooc_cli_framepath_model(sooc_framepath_params *p, const sooc_model_config *c);
 
 #endif

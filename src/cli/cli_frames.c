@@ -81,7 +81,7 @@ int sooc_cli_framepath_check(const char *cmd, const sooc_framepath_params *p) {
     return 1;
 }
 
-void sooc_cli_framepath_model(sooc_framepath_params *p, const sooc_model_config *c, int w, int h) {
-    p->width = w, p->height = h;
+void sooc_cli_framepath_model(sooc_framepath_params *p, const sooc_model_config *c) {
+    p->width = c->img_w, p->height = c->img_h;
     sooc_model_cam_heights_m(c, &p->cam_height_min_m, &p->cam_height_max_m);
 }

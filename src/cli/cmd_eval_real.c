@@ -22,7 +22,8 @@ const char *const sooc_eval_real_cli_help =
     "rendered from the map and scored (depth / RGB RMSE; mIoU and per-object IoU when the sequence has\n"
     "labels: frame-NNNNNN.segm.png, frame-NNNNNN.mask.png or instance/, docs/formats.md); then churn,\n"
     "growth on a second pass over the same frames, yaw / position spread of persistent entries and the\n"
-    "free-space / never-seen fractions. One JSON cell per (model, sequence) with \"scale\": \"real\", \"view\": \"Q\".\n"
+    "free-space / never-seen fractions. One JSON cell per (model, sequence) with \"scale\": \"real\",\n"
+    "\"view\": \"Q\".\n"
     "  --query-every N   N of the query rule (default 5)\n"
     "  --no-second-pass  skip the growth pass\n"
     "  --seen-tol M      surface band of the free-space test in m (default 0.25)\n"
@@ -59,12 +60,12 @@ static const char *lab_name(lab_src s) {
     }
 }
 
-/* Read every frame of dir at w x h into *frames (count *n) with labels on the
- * query frames of the rule when the sequence has them. */
-static sooc_status load_sequence(const char *dir, const sooc_framepath_params *fpp0, const sooc_model_config *c, int every,
-                                 sooc_frame **frames, int *n_out, lab_src *lab) {
+/* Read every frame of dir at model c's input size into *frames (count *n)
+ * with labels on the query frames of the rule when the sequence has them. */
+static sooc_status load_sequence(const char *dir, const sooc_framepath_params *fpp0, const sooc_model_config *c,
+                                 int every, sooc_frame **frames, int *n_out, lab_src *lab) {
     sooc_framepath_params fpp = *fpp0;
-    sooc_cli_framepath_model(&fpp, c, c->img_w, c->img_h);
+    sooc_cli_framepath_model(&fpp, c);
     int w = c->img_w, h = c->img_h;
     sooc_framepath *fp = NULL;
     sooc_frame *fr = NULL;
@@ -329,7 +330,8 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                  "position (m) and circular yaw std (deg) of entries registered by >= %d keyframes; free / never "
                  "seen: fraction of final entries the frames saw as free space / never saw, probed at their tight "
                  "box's centre and face centres (entries without a box at %.2f m above the support plane; surface "
-                 "band +-%.2f m); the _own figures by the majority of up to 64 vertices of each entry's own mesh. Seed %llu. docs/metrics.md \"Real sequences\".",
+                 "band +-%.2f m); the _own figures by the majority of up to 64 vertices of each entry's own mesh. "
+                 "Seed %llu. docs/metrics.md \"Real sequences\".",
                  a->opts.query_every, a->opts.query_every, a->opts.query_every / 2, a->opts.persist_min,
                  a->opts.seen_height, a->opts.seen_tol, (unsigned long long)a->opts.run.seed);
         md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n*%s*\n", note);

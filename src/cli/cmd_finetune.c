@@ -174,7 +174,7 @@ int sooc_cmd_finetune(int argc, char **argv) {
     if ((st = sooc_mapstore_load_map(ms, map))) goto fail;
 
     /* the views: the map's keyframes, else every posed input frame */
-    sooc_cli_framepath_model(&fpp, mc, mc->img_w, mc->img_h);
+    sooc_cli_framepath_model(&fpp, mc);
     fpp.map_db = db;
     if ((st = sooc_framepath_open(&sq, seq, &fpp))) goto fail;
     int64_t nf = sooc_framepath_count(sq);

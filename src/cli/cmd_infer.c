@@ -249,9 +249,7 @@ int sooc_cmd_infer(int argc, char **argv) {
     p.latents = latents;
     p.slots = slots;
     if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
-    int mw, mh;
-    sooc3d_mapper_input_size(mp, &mw, &mh);
-    sooc_cli_framepath_model(&fpp, sooc_model_get_config(sooc3d_mapper_model(mp)), mw, mh);
+    sooc_cli_framepath_model(&fpp, sooc_model_get_config(sooc3d_mapper_model(mp)));
     if ((st = sooc_framepath_open(&sq, seq, &fpp))) goto fail;
     int64_t n = sooc_framepath_count(sq);
     if (maxf >= 0 && maxf < n) n = maxf;

@@ -250,7 +250,7 @@ int sooc_cmd_render(int argc, char **argv) {
     if ((st = sooc_model_load(&m, model, NULL, NULL))) goto fail;
     if (clip > 0 && (st = sooc_model_set_clip(m, (float)clip))) goto fail;
     const sooc_model_config *mc = sooc_model_get_config(m);
-    sooc_cli_framepath_model(&fpp, mc, mc->img_w, mc->img_h);
+    sooc_cli_framepath_model(&fpp, mc);
     fpp.map_db = mappath;
     int64_t n_empty = 0;
     if ((st = read_frames(seqdir, &fpp, maxf, &fr, &nf, &resized, &n_empty))) goto fail;

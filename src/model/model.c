@@ -45,8 +45,8 @@ void sooc_model_config_default(sooc_model_config *c) {
     c->slots = 0;
     c->invalid_depth = SOOC_INVALID_DEPTH_FREE;
     c->unit_m = 1.0f;
-    c->cam_h_min = 1.2f;   /* src/data/gen.c: unity / blender cameras 1.2-2.0 m above the floor */
-    c->cam_h_max = 2.0f;
+    c->cam_h_min = SOOC_MODEL_CAM_H_MIN;
+    c->cam_h_max = SOOC_MODEL_CAM_H_MAX;
 }
 
 sooc_status sooc_model_config_check(const sooc_model_config *c) {

@@ -926,7 +926,7 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
     sp.threshold_m = c->floor_ransac_threshold_m;
     sp.iterations = c->floor_ransac_iterations;
     sp.max_frames = n->n_sup;
-    if (c->cam_height_min_m > 0 && c->cam_height_max_m > c->cam_height_min_m) {
+    if (c->cam_height_min_m > 0) {   /* the launch file's (both given, min < max: launch.c) */
         sp.cam_height_min_m = c->cam_height_min_m;
         sp.cam_height_max_m = c->cam_height_max_m;
     } else {   /* the model's trained range */

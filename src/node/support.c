@@ -19,6 +19,7 @@
  */
 #include "sooc3d/support.h"
 
+#include "sooc3d/model.h"
 #include "sooc3d/node.h"
 
 #include <lapacke.h>
@@ -46,10 +47,10 @@ void sooc_support_params_default(sooc_support_params *p) {
     p->iterations = 300;
     p->max_frames = 8;
     p->pixel_step = 4;
-    /* the unity/blender generators (src/data/gen.c) place cameras 1.2-2.0 m
-     * above the floor */
-    p->cam_height_min_m = 1.2;
-    p->cam_height_max_m = 2.0;
+    /* a default model's trained range at unit 1 (the unity/blender generators'
+     * cameras); callers with a model pass its own (sooc_model_cam_heights_m) */
+    p->cam_height_min_m = SOOC_MODEL_CAM_H_MIN;
+    p->cam_height_max_m = SOOC_MODEL_CAM_H_MAX;
     p->seed = 1;
     p->max_tilt_camera_deg = 45.0;
     p->min_support_frac = 0.03;

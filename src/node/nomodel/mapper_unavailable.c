@@ -1,6 +1,7 @@
 /* Linked into sooc3d_node only when the model module does not implement the
  * mapper yet: every call fails with a clear message instead of a link error. */
 #include "sooc3d/mapper.h"
+#include "sooc3d/model.h"
 
 #include <string.h>
 
@@ -14,7 +15,7 @@ void sooc3d_mapper_destroy(sooc3d_mapper *m) { (void)m; }
 void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *w, int *h) { (void)m; *w = *h = 0; }
 void sooc3d_mapper_cam_heights(const sooc3d_mapper *m, double *lo_m, double *hi_m) {
     (void)m;
-    *lo_m = 1.2, *hi_m = 2.0;
+    *lo_m = SOOC_MODEL_CAM_H_MIN, *hi_m = SOOC_MODEL_CAM_H_MAX;   /* a default model's, at unit 1 */
 }
 sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st) {
     (void)m; (void)f; (void)st;
