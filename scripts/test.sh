@@ -15,6 +15,23 @@ run() {
   (cd "$dir" && ctest --output-on-failure -j"$JOBS" ${filter:+-R "$filter"})
 }
 run build-ci-omp "" -DCMAKE_BUILD_TYPE=Release -DSOOC_OPENMP=ON -DSOOC_BUILD_FUZZ=ON
+# The numerics tests once more under every OpenBLAS kernel family this CPU can
+# run (Debian's OpenBLAS picks one at run time; OPENBLAS_CORETYPE forces it), so
+# that a test that depends on the BLAS kernel fails on any machine, not only on
+# the CPU it was tuned on (docs/engine.md "Determinism contract").
+coretypes=()
+flags=" $(grep -m1 '^flags' /proc/cpuinfo 2>/dev/null | cut -d: -f2) "
+has() { [[ "$flags" == *" $1 "* ]]; }
+has pni && coretypes+=(Prescott)
+has sse4_2 && coretypes+=(Nehalem)
+has avx && coretypes+=(Sandybridge)
+has avx2 && has fma && coretypes+=(Haswell Zen)
+has avx512f && coretypes+=(SkylakeX Cooperlake)
+[ ${#coretypes[@]} -gt 0 ] || echo "test.sh: no x86 OpenBLAS core types on this CPU; the per-kernel pass is skipped"
+for ct in "${coretypes[@]}"; do
+  echo "== numerics tests with OPENBLAS_CORETYPE=$ct"
+  (cd build-ci-omp && OPENBLAS_CORETYPE=$ct ctest --output-on-failure -j"$JOBS" -R '^test_(nn|model)_')
+done
 run build-ci-asan "" -DCMAKE_BUILD_TYPE=Debug -DSOOC_OPENMP=OFF -DSOOC_ASAN=ON -DSOOC_BUILD_BENCH=OFF -DSOOC_BUILD_FUZZ=ON
 run build-ci-asan-omp "^test_(model|nn|eval|render|node_model|node_e2e)" -DCMAKE_BUILD_TYPE=Debug -DSOOC_OPENMP=ON \
   -DSOOC_ASAN=ON -DSOOC_BUILD_BENCH=OFF

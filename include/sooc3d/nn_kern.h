@@ -4,7 +4,8 @@
  *  - sooc_nn_gemm / sooc_nn_gemm_tn: row-major GEMMs for narrow layers
  *    (N = 16..64 outputs, K = 33..576) with the bias / accumulate init and a
  *    ReLU or ReLU-backward epilogue applied on the registers (AVX2/FMA kernel
- *    chosen at run time, OpenBLAS otherwise).
+ *    chosen at run time, the portable C kernel otherwise; no BLAS library);
+ *    sooc_nn_gemm_nt for input gradients (C = A B^T).
  *  - sooc_nn_pool: a small pthread task pool whose caller waits only for the
  *    tasks a helper has claimed (robust on a loaded machine).
  *  - the decoder MLP layers (model.md 3.3) as forward / backward pairs:
@@ -12,9 +13,10 @@
  *    sooc_nn_nerf_heads_* (the density and colour sigmoid heads), and their
  *    composition sooc_nn_nerf_tail_* (layers 2.. of the decoder).
  *
- * Determinism: every output element of every kernel here is one FMA chain
- * over the reduction index in order, whatever the row blocking, so results
- * do not depend on how callers split rows across threads. No kernel
+ * Determinism (docs/engine.md "Determinism contract"): every output element
+ * of every kernel here is one multiply-add chain over the reduction index in
+ * order, whatever the row blocking, so results do not depend on how callers
+ * split rows across threads, nor on the BLAS library or its kernel. No kernel
  * allocates; none is multi-threaded by itself (callers split rows).
  * Backward kernels ACCUMULATE (+=) weight gradients, scaled by alpha;
  * any weight-gradient pointer may be NULL to skip it.
@@ -118,7 +120,8 @@ static __attribute__((target("avx2"))) inline __m256 sooc_nn_expf_nonpos8(__m256
  * lda, ldb, ldc; init = C (acc != 0), else the row vector bias[N] (NULL: 0);
  * then the epilogue ep: SOOC_NN_EP_RELU max(0, .), SOOC_NN_EP_MASK zero where
  * mask[i ldm + j] <= 0 (ReLU backward on a post-activation). AVX2/FMA when the
- * CPU has it (SOOC_NO_AVX2 in the environment forces the OpenBLAS path). */
+ * CPU has it, the project's portable C kernel otherwise (SOOC_NO_AVX2 in the
+ * environment forces it). */
 enum { SOOC_NN_EP_NONE = 0, SOOC_NN_EP_RELU = 1, SOOC_NN_EP_MASK = 2 };
 void sooc_nn_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
                   const float *bias, int acc, int ep, const float *mask, int ldm);
@@ -126,8 +129,17 @@ void sooc_nn_gemm(int M, int N, int K, const float *A, int lda, const float *B, 
  * gradient of a layer over R rows. Each element sums r = 0..R-1 in order. */
 void sooc_nn_gemm_tn(int M, int N, int R, float alpha, const float *A, int lda, const float *B, int ldb, float *C,
                      int ldc);
+/* C[M x N] = init + A[M x K] B^T with B [N x K] (ldb), e.g. the input gradient
+ * dz W^T of a layer whose weights W are [in x out]; init = C (acc != 0) or 0,
+ * then the epilogue ep as sooc_nn_gemm. Each element sums k = 0..K-1 in order. */
+void sooc_nn_gemm_nt(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                     int acc, int ep, const float *mask, int ldm);
 /* 1 when the AVX2/FMA kernels run (CPU support and SOOC_NO_AVX2 unset). */
 int sooc_nn_gemm_avx2(void);
+/* Choose the kernel for the whole process: 1 AVX2/FMA (where the CPU has it),
+ * 0 the portable one; returns the previous choice. For tests and benchmarks
+ * that compare the two; not thread-safe against running GEMMs. */
+int sooc_nn_gemm_set_kernel(int avx2);
 /* Put OpenBLAS in single-thread mode once per process (the engine splits rows
  * across its own threads); later calls are a relaxed atomic load. */
 void sooc_nn_blas_single_once(void);

@@ -13,11 +13,11 @@
  *   linear  w[I][O] (y = x w, torch's weight transposed), b[O];
  *   LSTM    wx[I][4G], wh[G][4G], one bias b[4G], gate order i, f, g, o.
  *
- * Every float32 forward computes each output as ONE fused multiply-add chain
- * over the reduction index in order, starting from zero (sooc_nn_gemm of
- * sooc3d/nn_kern.h: AVX2/FMA, or OpenBLAS under SOOC_NO_AVX2), then
- * adds the bias and applies the activation; results do not depend on how items
- * are split across threads. ELU is exp(x) - 1 with a Cephes polynomial
+ * Every float32 kernel, forward and backward, computes each output as ONE
+ * multiply-add chain over the reduction index in order (sooc_nn_gemm,
+ * _gemm_tn and _gemm_nt of sooc3d/nn_kern.h: AVX2/FMA, or the portable C
+ * kernel), then adds the bias and applies the activation; results do not
+ * depend on how items are split across threads nor on the BLAS library. ELU is exp(x) - 1 with a Cephes polynomial
  * (relative error < 1e-7, like expf).
  *
  * Each pair also has a plain float64 version (suffix _f64, same arguments in

@@ -861,8 +861,8 @@ static void dec_backward_rows(dec_run *r) {
     int loff = merged ? nro : 0;   /* first scratch row of the layout rows */
     int nrt = merged ? nro + nrl : (nro > nrl ? nro : nrl);
     float *gsig = w->gC, *gcol = w->gC + (size_t)nrt;   /* gC has >= Rall*H >= 4 nrt floats */
-    /* transposed weights for the backward GEMMs (OpenBLAS on the untransposed weights
-     * without AVX2) */
+    /* transposed weights for the backward GEMMs (without AVX2 the portable kernel's
+     * sooc_nn_gemm_nt reads the untransposed ones) */
     dec_wt wto, wtl;
     const dec_wt *pwo = NULL, *pwl = NULL;
     if (mdl_kern_avx2() && wt_floats(no, 1) + wt_floats(nl, 0) <= w->nwt) {

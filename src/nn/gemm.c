@@ -1,19 +1,23 @@
-/* Small row-major GEMMs for the decoder MLPs and the refinement convs
- * (sooc3d/nn_kern.h; moved here from src/model/kern.c). The layers are
- * narrow (N = 16..64 outputs, K = 33..576), so OpenBLAS spends a good part of
- * its time packing A and B and in its beta pass; these kernels read A and B in
- * place (B rows are contiguous in N, A elements are broadcast), start from the
- * bias, the existing C or zero, and apply the epilogue (ReLU or a
- * ReLU-backward mask) on the registers before the single store.
+/* Small row-major GEMMs for the decoder MLPs and the refinement network
+ * (sooc3d/nn_kern.h). The layers are narrow (N = 16..64 outputs, K = 3..576),
+ * so a general BLAS spends a good part of its time packing A and B and in its
+ * beta pass; these kernels read A and B in place (B rows are contiguous in N,
+ * A elements are broadcast), start from the bias, the existing C or zero, and
+ * apply the epilogue (ReLU or a ReLU-backward mask) before the single store.
  *
- * sooc_nn_gemm_tn (weight gradients, C += alpha A^T B) runs the same register
- * kernels with A read down its columns: element (i, k) of A^T is A[k lda + i].
+ * sooc_nn_gemm_tn (weight gradients, C += alpha A^T B) runs the same kernels
+ * with A read down its columns: element (i, k) of A^T is A[k lda + i].
+ * sooc_nn_gemm_nt (input gradients, C = A B^T) copies K x 16 panels of B^T to
+ * the stack and runs sooc_nn_gemm on them, chunk after chunk along K.
  *
- * Every C element is accumulated as one FMA chain over k = 0..K-1 in order,
- * whatever the row or column blocking, so results do not depend on how rows
- * are split across threads. The AVX2/FMA kernels are selected at run time
- * (GCC/Clang on x86-64, CPUs with AVX2 and FMA); elsewhere OpenBLAS runs
- * instead (different rounding, also independent of the thread split). */
+ * Determinism (docs/engine.md "Determinism contract"): every C element is
+ * accumulated as one multiply-add chain over k = 0..K-1 in order, whatever the
+ * row or column blocking, so results do not depend on how rows are split
+ * across threads. Two kernels, both the project's own: AVX2/FMA (GCC/Clang on
+ * x86-64, CPUs with AVX2 and FMA, chosen at run time; fused multiply-adds) and
+ * a portable C kernel (separate multiply and add: this file is compiled with
+ * -ffp-contract=off), which every other CPU and SOOC_NO_AVX2 run. Neither
+ * depends on which BLAS library or kernel is installed. */
 #include "nn_impl.h"
 #include "sooc3d/nn_kern.h"
 
@@ -34,20 +38,68 @@ void sooc_nn_blas_single_once(void) {
 
 /* ------------------------------------------------------------ portable path */
 
-/* OpenBLAS, then the epilogue as a separate pass */
-static void gemm_blas(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
-                      const float *bias, int acc, int ep, const float *mask, int ldm) {
-    if (!acc && bias)
-        for (int i = 0; i < M; i++) memcpy(C + (size_t)i * ldc, bias, (size_t)N * sizeof(float));
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, N, K, 1.0f, A, lda, B, ldb, acc || bias ? 1.0f : 0.0f,
-                C, ldc);
-    if (ep == SOOC_NN_EP_NONE) return;
-    for (int i = 0; i < M; i++) {
-        float *restrict c = C + (size_t)i * ldc;
-        if (ep == SOOC_NN_EP_RELU)
-            for (int j = 0; j < N; j++) c[j] = c[j] > 0 ? c[j] : 0;
-        else
-            for (int j = 0; j < N; j++) c[j] = mask[(size_t)i * ldm + j] > 0 ? c[j] : 0;
+/* Shared parameters of one register-tile call. A's element (row r, k) is
+ * A[r ra + k ka] (ra = lda, ka = 1 for A; ra = 1, ka = lda for A^T).
+ * init: 0 zero, 1 bias, 2 C. addc: the tile is C += alpha * sum (init zero). */
+typedef struct tile {
+    int K, ra, ka, ldb, ldc, ldm, init, ep, addc;
+    float alpha;
+} tile;
+
+/* MR x NR tile of C in a local array (MR <= 4, NR <= 16). With constant MR and
+ * NR (the inlined full tile) the compiler vectorises the column loop; a lane's
+ * arithmetic is the same scalar chain either way. */
+static inline __attribute__((always_inline)) void kport(int MR, int NR, const tile *t, const float *A,
+                                                        const float *B, float *C, const float *bias,
+                                                        const float *mask) {
+    float c[4][16];
+    int K = t->K, ra = t->ra, ka = t->ka, ldb = t->ldb, ldc = t->ldc;
+    for (int r = 0; r < MR; r++)
+        for (int j = 0; j < NR; j++)
+            c[r][j] = t->init == 2 ? C[(size_t)r * ldc + j] : t->init == 1 ? bias[j] : 0.0f;
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb, *a = A + (size_t)k * ka;
+        for (int r = 0; r < MR; r++) {
+            float av = a[(size_t)r * ra];
+            for (int j = 0; j < NR; j++) c[r][j] += av * b[j];
+        }
+    }
+    for (int r = 0; r < MR; r++) {
+        float *cr = C + (size_t)r * ldc;
+        const float *mr = mask ? mask + (size_t)r * t->ldm : NULL;
+        for (int j = 0; j < NR; j++) {
+            float v = c[r][j];
+            if (t->addc) v = t->alpha * v + cr[j];
+            if (t->ep == SOOC_NN_EP_RELU) v = v > 0 ? v : 0.0f;
+            else if (t->ep == SOOC_NN_EP_MASK) v = mr[j] > 0 ? v : 0.0f;
+            cr[j] = v;
+        }
+    }
+}
+
+static void kport_full(const tile *t, const float *A, const float *B, float *C, const float *bias,
+                       const float *mask) {
+    kport(4, 16, t, A, B, C, bias, mask);
+}
+
+static void kport_any(int MR, int NR, const tile *t, const float *A, const float *B, float *C, const float *bias,
+                      const float *mask) {
+    kport(MR, NR, t, A, B, C, bias, mask);
+}
+
+static void gemm_port(int M, int N, const tile *t, const float *A, const float *B, float *C, const float *bias,
+                      const float *mask) {
+    for (int j = 0; j < N; j += 16) {
+        int nr = N - j < 16 ? N - j : 16;
+        const float *Bj = B + j, *bj = bias ? bias + j : NULL, *mj = mask ? mask + j : NULL;
+        float *Cj = C + j;
+        for (int i = 0; i < M; i += 4) {
+            int mr = M - i < 4 ? M - i : 4;
+            const float *Ai = A + (size_t)i * t->ra, *Mi = mj ? mj + (size_t)i * t->ldm : NULL;
+            float *Ci = Cj + (size_t)i * t->ldc;
+            if (mr == 4 && nr == 16) kport_full(t, Ai, Bj, Ci, bj, Mi);
+            else kport_any(mr, nr, t, Ai, Bj, Ci, bj, Mi);
+        }
     }
 }
 
@@ -57,14 +109,6 @@ static void gemm_blas(int M, int N, int K, const float *A, int lda, const float 
 
 #define TGT __attribute__((target("avx2,fma")))
 #define AI __attribute__((always_inline)) inline
-
-/* Shared parameters of one register-tile call. A's element (row r, k) is
- * A[r ra + k ka] (ra = lda, ka = 1 for A; ra = 1, ka = lda for A^T).
- * init: 0 zero, 1 bias, 2 C. addc: the tile is C += alpha * sum (init zero). */
-typedef struct tile {
-    int K, ra, ka, ldb, ldc, ldm, init, ep, addc;
-    float alpha;
-} tile;
 
 /* MR rows x 16 columns (two vectors); m0/m1: column masks of the two vectors
  * (full = 1: no masks, plain loads). */
@@ -215,39 +259,74 @@ int sooc_nn_gemm_avx2(void) {
     return mode;
 }
 
-void sooc_nn_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
-                  const float *bias, int acc, int ep, const float *mask, int ldm) {
-    if (M <= 0 || N <= 0) return;
+/* One GEMM on the kernel this CPU runs. */
+static void gemm_run(int M, int N, const tile *t, const float *A, const float *B, float *C, const float *bias,
+                     const float *mask) {
 #ifdef NN_KERN_X86
     if (sooc_nn_gemm_avx2()) {
-        tile t = {K, lda, 1, ldb, ldc, ldm, acc ? 2 : bias ? 1 : 0, ep, 0, 1.0f};
-        gemm_avx2(M, N, &t, A, B, C, bias, mask);
+        gemm_avx2(M, N, t, A, B, C, bias, mask);
         return;
     }
 #endif
-    gemm_blas(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
+    gemm_port(M, N, t, A, B, C, bias, mask);
+}
+
+int sooc_nn_gemm_set_kernel(int avx2) {
+    int prev = sooc_nn_gemm_avx2(), can = 0;
+#ifdef NN_KERN_X86
+    can = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#endif
+    atomic_store_explicit(&kern_mode, avx2 && can, memory_order_relaxed);
+    return prev;
+}
+
+void sooc_nn_gemm(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                  const float *bias, int acc, int ep, const float *mask, int ldm) {
+    if (M <= 0 || N <= 0) return;
+    tile t = {K, lda, 1, ldb, ldc, ldm, acc ? 2 : bias ? 1 : 0, ep, 0, 1.0f};
+    gemm_run(M, N, &t, A, B, C, bias, mask);
 }
 
 void sooc_nn_gemm_tn(int M, int N, int R, float alpha, const float *A, int lda, const float *B, int ldb, float *C,
                      int ldc) {
     if (M <= 0 || N <= 0 || R <= 0) return;
-#ifdef NN_KERN_X86
-    if (sooc_nn_gemm_avx2()) {
-        /* A read in place down its columns (element (i, k) of A^T is A[k lda + i]),
-         * R in chunks of TN_ROWS rows so that a chunk's rows of A and B stay in L1
-         * while every register tile of C passes over them (64 x 64 x 256, CPU time
-         * on this machine: one pass over all R 95 GFLOP/s, chunks of 32-64 rows
-         * 104-106, 16 rows 94; a transposed copy of A cost more than it saved).
-         * C += alpha (chunk sum) per chunk, chunks in order: the result does not
-         * depend on how callers split rows. */
-        enum { TN_ROWS = 64 };
-        for (int r0 = 0; r0 < R; r0 += TN_ROWS) {
-            int n = R - r0 < TN_ROWS ? R - r0 : TN_ROWS;
-            tile t = {n, 1, lda, ldb, ldc, 0, 0, SOOC_NN_EP_NONE, 1, alpha};
-            gemm_avx2(M, N, &t, A + (size_t)r0 * lda, B + (size_t)r0 * ldb, C, NULL, NULL);
-        }
-        return;
+    /* A read in place down its columns (element (i, k) of A^T is A[k lda + i]),
+     * R in chunks of TN_ROWS rows so that a chunk's rows of A and B stay in L1
+     * while every register tile of C passes over them (64 x 64 x 256, AVX2, CPU
+     * time: one pass over all R 95 GFLOP/s, chunks of 32-64 rows 104-106, 16
+     * rows 94; a transposed copy of A cost more than it saved).
+     * C += alpha (chunk sum) per chunk, chunks in order. */
+    enum { TN_ROWS = 64 };
+    for (int r0 = 0; r0 < R; r0 += TN_ROWS) {
+        int n = R - r0 < TN_ROWS ? R - r0 : TN_ROWS;
+        tile t = {n, 1, lda, ldb, ldc, 0, 0, SOOC_NN_EP_NONE, 1, alpha};
+        gemm_run(M, N, &t, A + (size_t)r0 * lda, B + (size_t)r0 * ldb, C, NULL, NULL);
     }
-#endif
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, M, N, R, alpha, A, lda, B, ldb, 1.0f, C, ldc);
+}
+
+void sooc_nn_gemm_nt(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc,
+                     int acc, int ep, const float *mask, int ldm) {
+    if (M <= 0 || N <= 0) return;
+    /* B^T panel: NT_K rows of K by 16 columns of N (4 KB on the stack); the
+     * chain of a C element goes on through the chunks (init = C after the
+     * first), so the chunking does not change its rounding. */
+    enum { NT_K = 64 };
+    float bt[NT_K * 16];
+    for (int j0 = 0; j0 < N; j0 += 16) {
+        int nr = N - j0 < 16 ? N - j0 : 16;
+        if (K <= 0) {   /* C = 0 (or C) with the epilogue */
+            tile t = {0, lda, 1, 16, ldc, ldm, acc ? 2 : 0, ep, 0, 1.0f};
+            gemm_run(M, nr, &t, A, bt, C + j0, NULL, mask ? mask + j0 : NULL);
+            continue;
+        }
+        for (int k0 = 0; k0 < K; k0 += NT_K) {
+            int kc = K - k0 < NT_K ? K - k0 : NT_K, last = k0 + kc == K;
+            for (int j = 0; j < nr; j++) {
+                const float *bj = B + (size_t)(j0 + j) * ldb + k0;
+                for (int k = 0; k < kc; k++) bt[k * 16 + j] = bj[k];
+            }
+            tile t = {kc, lda, 1, 16, ldc, ldm, k0 > 0 || acc ? 2 : 0, last ? ep : SOOC_NN_EP_NONE, 0, 1.0f};
+            gemm_run(M, nr, &t, A + k0, bt, C + j0, NULL, last && mask ? mask + j0 : NULL);
+        }
+    }
 }

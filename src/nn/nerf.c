@@ -45,13 +45,7 @@ void sooc_nn_dense_backward(int R, int I, int O, const float *dz, int ldz, const
                      ldx);
         return;
     }
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, R, I, O, 1.0f, dz, ldz, W, O, acc_dx ? 1.0f : 0.0f, dx, lddx);
-    if (xmask)
-        for (int r = 0; r < R; r++) {
-            float *restrict d = dx + (size_t)r * lddx;
-            const float *restrict q = xmask + (size_t)r * ldx;
-            for (int i = 0; i < I; i++) d[i] = q[i] > 0 ? d[i] : 0;
-        }
+    sooc_nn_gemm_nt(R, I, O, dz, ldz, W, O, dx, lddx, acc_dx, xmask ? SOOC_NN_EP_MASK : SOOC_NN_EP_NONE, xmask, ldx);
 }
 
 /* ---------------------------------------------------------------- heads */

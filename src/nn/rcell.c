@@ -125,12 +125,11 @@ void sooc_nn_rlinear_backward(float *dx, float *dw, float *db, float *dy, const 
                               const float *w, int M, int K, int N, sooc_nn_act act) {
     if (act == SOOC_NN_ACT_ELU)
         for (size_t i = 0; i < (size_t)M * N; i++) dy[i] *= y[i] > 0 ? 1.0f : y[i] + 1.0f;
-    sooc_nn_blas_single();
-    if (dw) cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, K, N, M, 1.0f, x, ldx, dy, N, 1.0f, dw, N);
+    if (dw) sooc_nn_gemm_tn(K, N, M, 1.0f, x, ldx, dy, N, dw, N);
     if (db)
         for (int i = 0; i < M; i++)
             for (int j = 0; j < N; j++) db[j] += dy[(size_t)i * N + j];
-    if (dx) cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, M, K, N, 1.0f, dy, N, w, N, 1.0f, dx, ldx);
+    if (dx) sooc_nn_gemm_nt(M, K, N, dy, N, w, N, dx, ldx, 1, SOOC_NN_EP_NONE, NULL, 0);
 }
 
 void sooc_nn_rlinear_forward_f64(double *y, const double *x, int ldx, const double *w, const double *b, int M, int K,
@@ -200,14 +199,13 @@ void sooc_nn_rlstm_backward(float *dx, float *dh0, float *dc0, float *dwx, float
             if (dc0) dc0[i] += gc * gf;
         }
     }
-    sooc_nn_blas_single();
-    if (dwx) cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, I, G4, B, 1.0f, x, I, dz, G4, 1.0f, dwx, G4);
-    if (dwh && h0) cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, G, G4, B, 1.0f, h0, G, dz, G4, 1.0f, dwh, G4);
+    if (dwx) sooc_nn_gemm_tn(I, G4, B, 1.0f, x, I, dz, G4, dwx, G4);
+    if (dwh && h0) sooc_nn_gemm_tn(G, G4, B, 1.0f, h0, G, dz, G4, dwh, G4);
     if (db)
         for (int bb = 0; bb < B; bb++)
             for (int j = 0; j < G4; j++) db[j] += dz[(size_t)bb * G4 + j];
-    if (dh0) cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, G, G4, 1.0f, dz, G4, wh, G4, 1.0f, dh0, G);
-    if (dx) cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, I, G4, 1.0f, dz, G4, wx, G4, 1.0f, dx, I);
+    if (dh0) sooc_nn_gemm_nt(B, G, G4, dz, G4, wh, G4, dh0, G, 1, SOOC_NN_EP_NONE, NULL, 0);
+    if (dx) sooc_nn_gemm_nt(B, I, G4, dz, G4, wx, G4, dx, I, 1, SOOC_NN_EP_NONE, NULL, 0);
 }
 
 void sooc_nn_rlstm_forward_f64(double *h1, double *c1, double *gates, const double *x, const double *h0,

@@ -6,8 +6,8 @@
  * The forward GEMM (sooc_nn_gemm, sooc3d/nn_kern.h) keeps every output one
  * FMA chain over k in order, so splitting items across threads, or taking the shared leading
  * channels' share from a precomputed ysh, never changes a result. The
- * backward's two GEMMs go to OpenBLAS (single-threaded) in a fixed number
- * of output blocks that OpenMP threads take.
+ * backward's two GEMMs (sooc_nn_gemm_nt for dw, sooc_nn_gemm_tn for the
+ * columns' gradient) keep the same rule.
  */
 #include "rnet_impl.h"
 
@@ -300,13 +300,13 @@ void sooc_nn_rconv_backward(float *dx, float *dw, float *db, float *dy, const fl
             db[co] += (float)((s4[0] + s4[2]) + (s4[1] + s4[3]));
         }
     }
-    sooc_nn_blas_single();
     sooc_nn_rconv_im2col(x, 0, Ci, B, b0, b1, H, W, cols);
     /* dw[Co][Kc] += dz[Co][N] cols[Kc][N]^T */
-    if (dw) cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, Co, Kc, N, 1.0f, g0, ldy, cols, N, 1.0f, dw, Kc);
+    if (dw) sooc_nn_gemm_nt(Co, Kc, N, g0, ldy, cols, N, dw, Kc, 1, SOOC_NN_EP_NONE, NULL, 0);
     if (!dx) return;
     /* dcols[Kc][N] = w^T dz, then back onto the items' pixels */
-    cblas_sgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Kc, N, Co, 1.0f, w, Kc, g0, ldy, 0.0f, dcols, N);
+    memset(dcols, 0, sizeof(float) * (size_t)Kc * N);
+    sooc_nn_gemm_tn(Kc, N, Co, 1.0f, w, Kc, g0, ldy, dcols, N);
     for (int ci = 0; ci < Ci; ci++) col2im_ch(dcols, ci, B, b0, b1, H, W, dx);
 }
 
