@@ -46,29 +46,16 @@ typedef struct tile {
     float alpha;
 } tile;
 
-/* MR x NR tile of C in a local array (MR <= 4, NR <= 16). With constant MR and
- * NR (the inlined full tile) the compiler vectorises the column loop; a lane's
- * arithmetic is the same scalar chain either way. */
-static inline __attribute__((always_inline)) void kport(int MR, int NR, const tile *t, const float *A,
-                                                        const float *B, float *C, const float *bias,
-                                                        const float *mask) {
-    float c[4][16];
-    int K = t->K, ra = t->ra, ka = t->ka, ldb = t->ldb, ldc = t->ldc;
-    for (int r = 0; r < MR; r++)
-        for (int j = 0; j < NR; j++)
-            c[r][j] = t->init == 2 ? C[(size_t)r * ldc + j] : t->init == 1 ? bias[j] : 0.0f;
-    for (int k = 0; k < K; k++) {
-        const float *b = B + (size_t)k * ldb, *a = A + (size_t)k * ka;
-        for (int r = 0; r < MR; r++) {
-            float av = a[(size_t)r * ra];
-            for (int j = 0; j < NR; j++) c[r][j] += av * b[j];
-        }
-    }
+enum { PORT_MR = 4, PORT_NR = 8 };   /* the portable register tile: 4 rows x 8 columns */
+
+/* Epilogue and store of an MR x NR tile held in c (row stride PORT_NR). */
+static inline __attribute__((always_inline)) void kport_store(int MR, int NR, const tile *t, const float *c, float *C,
+                                                              const float *mask) {
     for (int r = 0; r < MR; r++) {
-        float *cr = C + (size_t)r * ldc;
+        float *cr = C + (size_t)r * t->ldc;
         const float *mr = mask ? mask + (size_t)r * t->ldm : NULL;
         for (int j = 0; j < NR; j++) {
-            float v = c[r][j];
+            float v = c[r * PORT_NR + j];
             if (t->addc) v = t->alpha * v + cr[j];
             if (t->ep == SOOC_NN_EP_RELU) v = v > 0 ? v : 0.0f;
             else if (t->ep == SOOC_NN_EP_MASK) v = mr[j] > 0 ? v : 0.0f;
@@ -77,31 +64,75 @@ static inline __attribute__((always_inline)) void kport(int MR, int NR, const ti
     }
 }
 
-static void kport_full(const tile *t, const float *A, const float *B, float *C, const float *bias,
-                       const float *mask) {
-    kport(4, 16, t, A, B, C, bias, mask);
-}
-
+/* Edge tiles (MR <= PORT_MR, NR <= PORT_NR), scalar: per element the same
+ * operations in the same order as kport_full's lanes. */
 static void kport_any(int MR, int NR, const tile *t, const float *A, const float *B, float *C, const float *bias,
                       const float *mask) {
-    kport(MR, NR, t, A, B, C, bias, mask);
+    float c[PORT_MR * PORT_NR];
+    int K = t->K, ra = t->ra, ka = t->ka, ldb = t->ldb, ldc = t->ldc;
+    for (int r = 0; r < MR; r++)
+        for (int j = 0; j < NR; j++)
+            c[r * PORT_NR + j] = t->init == 2 ? C[(size_t)r * ldc + j] : t->init == 1 ? bias[j] : 0.0f;
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb, *a = A + (size_t)k * ka;
+        for (int r = 0; r < MR; r++) {
+            float av = a[(size_t)r * ra];
+            for (int j = 0; j < NR; j++) c[r * PORT_NR + j] = c[r * PORT_NR + j] + av * b[j];
+        }
+    }
+    kport_store(MR, NR, t, c, C, mask);
+}
+
+/* Full 4 x 8 tiles on GCC/Clang vector extensions (SSE2 on x86-64, NEON on
+ * aarch64, scalar elsewhere): lane-wise multiply then add, as kport_any. */
+typedef float v4f __attribute__((vector_size(16)));
+
+static inline v4f v4_load(const float *p) {
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static void kport_full(const tile *t, const float *A, const float *B, float *C, const float *bias,
+                       const float *mask) {
+    v4f c[PORT_MR][2];
+    int K = t->K, ra = t->ra, ka = t->ka, ldb = t->ldb, ldc = t->ldc;
+    for (int r = 0; r < PORT_MR; r++) {
+        const float *src = t->init == 2 ? C + (size_t)r * ldc : bias;
+        c[r][0] = t->init ? v4_load(src) : (v4f){0, 0, 0, 0};
+        c[r][1] = t->init ? v4_load(src + 4) : (v4f){0, 0, 0, 0};
+    }
+    for (int k = 0; k < K; k++) {
+        const float *b = B + (size_t)k * ldb, *a = A + (size_t)k * ka;
+        v4f b0 = v4_load(b), b1 = v4_load(b + 4);
+        for (int r = 0; r < PORT_MR; r++) {
+            float x = a[(size_t)r * ra];
+            v4f av = {x, x, x, x};
+            c[r][0] = c[r][0] + av * b0;
+            c[r][1] = c[r][1] + av * b1;
+        }
+    }
+    float out[PORT_MR * PORT_NR];
+    for (int r = 0; r < PORT_MR; r++) memcpy(out + r * PORT_NR, c[r], sizeof c[r]);
+    kport_store(PORT_MR, PORT_NR, t, out, C, mask);
 }
 
 static void gemm_port(int M, int N, const tile *t, const float *A, const float *B, float *C, const float *bias,
                       const float *mask) {
-    for (int j = 0; j < N; j += 16) {
-        int nr = N - j < 16 ? N - j : 16;
+    for (int j = 0; j < N; j += PORT_NR) {
+        int nr = N - j < PORT_NR ? N - j : PORT_NR;
         const float *Bj = B + j, *bj = bias ? bias + j : NULL, *mj = mask ? mask + j : NULL;
         float *Cj = C + j;
-        for (int i = 0; i < M; i += 4) {
-            int mr = M - i < 4 ? M - i : 4;
+        for (int i = 0; i < M; i += PORT_MR) {
+            int mr = M - i < PORT_MR ? M - i : PORT_MR;
             const float *Ai = A + (size_t)i * t->ra, *Mi = mj ? mj + (size_t)i * t->ldm : NULL;
             float *Ci = Cj + (size_t)i * t->ldc;
-            if (mr == 4 && nr == 16) kport_full(t, Ai, Bj, Ci, bj, Mi);
+            if (mr == PORT_MR && nr == PORT_NR) kport_full(t, Ai, Bj, Ci, bj, Mi);
             else kport_any(mr, nr, t, Ai, Bj, Ci, bj, Mi);
         }
     }
 }
+
 
 #if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
 #define NN_KERN_X86 1
