@@ -151,6 +151,7 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     double nred = K + 1 + 2;
     for (int q = 0; q < 2; q++) nred += 2.0 * ((double)dn[q]->din + dn[q]->dz + 3.0 * dn[q]->H + dn[q]->Hc + 3.0);
     const double TOL = 2.0 * gamma_n(nred);
+    printf("  decode bound: 2 gamma_n with n = %.0f: %.3g of the group's scale\n", nred, TOL);
     view_rays vr;
     CHECK_OK(mdl_rays_alloc(&vr, c->ray_w, c->ray_h));
     sooc_rng r;
