@@ -32,6 +32,11 @@ static int g_check_fail = 0, g_check_n = 0;
         }                                                                              \
     } while (0)
 
+/* gamma_n = n u / (1 - n u), u = 2^-24: a float32 sum of n products in any
+ * order lies within gamma_n sum |terms| of the exact value (Higham, Accuracy
+ * and Stability of Numerical Algorithms, 2nd ed., eq. 3.5). */
+static inline double check_gamma_n(double n) { return n / 16777216.0 / (1.0 - n / 16777216.0); }
+
 /* |a - b| <= atol + rtol * max(|a|, |b|) */
 #define CHECK_CLOSE(a, b, atol, rtol)                                                  \
     do {                                                                               \

@@ -140,9 +140,6 @@ int sooc_nn_gemm_avx2(void);
  * 0 the portable one; returns the previous choice. For tests and benchmarks
  * that compare the two; not thread-safe against running GEMMs. */
 int sooc_nn_gemm_set_kernel(int avx2);
-/* Put OpenBLAS in single-thread mode once per process (the engine splits rows
- * across its own threads); later calls are a relaxed atomic load. */
-void sooc_nn_blas_single_once(void);
 
 /* ============================================================ task pool */
 
@@ -205,7 +202,7 @@ void sooc_nn_nerf_heads_backward(int R, int H, int Hc, const float *h, const flo
 typedef struct sooc_nn_nerf_tail {
     int H, Hc;
     const float *W2, *b2, *W3, *b3, *Wd, *bd, *Wc1, *bc1, *Wc2, *bc2;
-    /* transposed copies for the backward's input gradients (NULL: OpenBLAS on W):
+    /* transposed copies for the backward's input gradients (NULL: sooc_nn_gemm_nt on W):
        W2t, W3t [H x H], Wc1t [Hc x H] */
     const float *W2t, *W3t, *Wc1t;
 } sooc_nn_nerf_tail;

@@ -1005,7 +1005,6 @@ sooc_status mdl_decode(sooc_model_ws *x, dec_call *c) {
     r->d = cfg->d_what, r->dl = cfg->d_layout, r->NL = m->NL, r->H = cfg->dec_width, r->nt = nthreads(m);
     SOOC_ASSERT(r->P <= r->w->Pmax && r->K <= r->w->Kmax);
     MDL_PT(tprof);
-    sooc_nn_blas_single_once();   /* threads split rows; BLAS (the portable path) runs serially inside */
     r->rmin = cfg->rho_min, r->rmax = cfg->rho_max, r->tau = c->tau > 0 ? c->tau : 1.0f;
     r->sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c;
     r->inv_o = 1.0f / cfg->box_rh, r->inv_l = 1.0f / cfg->block_size;

@@ -27,7 +27,6 @@ int mdl_par_threads(sooc_model_ws *w) {
     if (nt < 2) return 1;
     if (sooc_nn_pool_size(w->pool) == nt) return sooc_nn_pool_threads(w->pool);
     mdl_pool_free(w);
-    sooc_nn_blas_single_once();   /* the pool's threads split rows; BLAS runs serially inside */
     if (sooc_nn_pool_create(&w->pool, nt)) return 1;   /* serial */
     return sooc_nn_pool_threads(w->pool);
 }

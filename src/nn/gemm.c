@@ -26,16 +26,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* ------------------------------------------------------------ OpenBLAS threads */
-
-static atomic_int blas_single_done;
-
-void sooc_nn_blas_single_once(void) {
-    if (atomic_load_explicit(&blas_single_done, memory_order_relaxed)) return;
-    sooc_nn_blas_single();
-    atomic_store_explicit(&blas_single_done, 1, memory_order_relaxed);
-}
-
 /* ------------------------------------------------------------ portable path */
 
 /* Shared parameters of one register-tile call. A's element (row r, k) is
@@ -132,7 +122,6 @@ static void gemm_port(int M, int N, const tile *t, const float *A, const float *
         }
     }
 }
-
 
 #if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
 #define NN_KERN_X86 1

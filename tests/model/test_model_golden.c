@@ -47,6 +47,7 @@
 #include "sooc3d/global.h"
 #include "sooc3d/nn_kern.h"
 #include "model/synth.h"
+#include "model/chain.h"
 
 #define GOLDEN "tests/model/data/golden.txt"
 #define GOLDEN_PORTABLE "tests/model/data/golden_portable.txt"
@@ -77,8 +78,6 @@ static void grp_begin(const char *model, const char *what) {
 static void grp_add(double v) {
     if (g_cur.n < MAXV) g_cur.v[g_cur.n++] = v;
 }
-
-static double gamma_n(double n) { return n / 16777216.0 / (1.0 - n / 16777216.0); }
 
 /* Scalars: each within tol max(1, |ref|). Vectors ("scale" set): each within tol max(1, max |ref|).
  * ref: the reference text; controls: also run the one-ulp and wrong-sign controls. */
@@ -147,10 +146,8 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     /* a ray's chain: both decoders (layer 1 on the positional code and the slot
      * latent, two hidden layers, the colour layer, the heads; forward and
      * backward), the K + 1 components, the two depth samples */
-    const dec_net *dn[2] = {&m->dobj, &m->dlay};
-    double nred = K + 1 + 2;
-    for (int q = 0; q < 2; q++) nred += 2.0 * ((double)dn[q]->din + dn[q]->dz + 3.0 * dn[q]->H + dn[q]->Hc + 3.0);
-    const double TOL = 2.0 * gamma_n(nred);
+    double nred = K + 1 + 2 + dec_chain_n(&m->dobj) + dec_chain_n(&m->dlay);
+    const double TOL = 2.0 * check_gamma_n(nred);
     printf("  decode bound: 2 gamma_n with n = %.0f: %.3g of the group's scale\n", nred, TOL);
     view_rays vr;
     CHECK_OK(mdl_rays_alloc(&vr, c->ray_w, c->ray_h));

@@ -50,11 +50,11 @@
 #include "check.h"
 #include "model/step.h"
 #include "model/synth.h"
+#include "model/chain.h"
 
 #define SHIPPED "models/sooc3d_unity/model.bin"
 #define GOLDEN "tests/model/data/refine_golden.txt"
 #define NSAMP 16
-#define U_F32 (1.0 / 16777216.0)   /* unit roundoff of float32, 2^-24 */
 
 /* negative controls: how the values are corrupted before they are checked */
 enum { MUT_NONE, MUT_ULP, MUT_SIGN, MUT_DROP };
@@ -73,8 +73,6 @@ typedef struct gold {
     size_t nfail;            /* values outside their bound                   */
 } gold;
 
-static double gamma_n(double n) { return n * U_F32 / (1.0 - n * U_F32); }
-
 /* x against the next reference value: |x - r| <= 2 gamma_n M */
 static void put(gold *g, const char *what, double x, double n, double M) {
     if (g->w) {
@@ -85,7 +83,7 @@ static void put(gold *g, const char *what, double x, double n, double M) {
         CHECK_MSG(0, "%s: golden file has only %zu values", what, g->n);
         return;
     }
-    double r = g->v[g->pos++], bound = 2.0 * gamma_n(n) * M, e = fabs(x - r);
+    double r = g->v[g->pos++], bound = 2.0 * check_gamma_n(n) * M, e = fabs(x - r);
     int ok = e <= bound;
     g->nfail += !ok;
     if (g->probe) return;
@@ -164,11 +162,6 @@ static double wgrad_n(const char *name, int B, int gw, int gh) {
     return B;
 }
 
-/* The decoder's chain: layer 1 on the positional code and the slot latent, two
- * hidden layers, the colour layer and the heads; the backward the same way. */
-static double dec_chain_n(const dec_net *d) {
-    return 2.0 * ((double)d->din + d->dz + 3.0 * d->H + d->Hc + 3.0);
-}
 
 static int load_golden(gold *g) {
     FILE *f = fopen(GOLDEN, "r");
@@ -278,13 +271,14 @@ static void nets(gold *g, sooc_model_ws *w) {
 
 /* ------------------------------------------------------------ 3: keyframe updates */
 
-/* The refined latents of both keyframes, also copied to out (n floats). */
-static void keyframes(gold *g, sooc_model_ws *w, float *out, size_t *n) {
+/* The refined latents of both keyframes, also copied to out (n floats, at most cap). */
+static void keyframes(gold *g, sooc_model_ws *w, float *out, size_t cap, size_t *n) {
     sooc_model *m = w->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     int L = 3, NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
     /* per iteration: both decoders, both refinement nets and their weight-free
      * input gradients; the iterations' first-order errors add */
+    SOOC_ASSERT((size_t)2 * (c->K * NL + D2) <= cap);
     double n_kf = L * (dec_chain_n(&m->dobj) + dec_chain_n(&m->dlay) + chain_n(&m->robj) + chain_n(&m->rlay));
     sooc_cogmap_params cp;
     sooc_cogmap_params_default(&cp);
@@ -380,13 +374,13 @@ int main(int argc, char **argv) {
     static float kf1[1 << 14], kf2[1 << 14];
     size_t n1 = 0, n2 = 0;
     sooc_model_set_threads(m, 1);
-    keyframes(&g, w, kf1, &n1);
+    keyframes(&g, w, kf1, sizeof kf1 / sizeof *kf1, &n1);
     if (!g.w) {
         gold c = g;
         c.probe = 1;
         c.pos -= n1;
         sooc_model_set_threads(m, 2);
-        keyframes(&c, w, kf2, &n2);
+        keyframes(&c, w, kf2, sizeof kf2 / sizeof *kf2, &n2);
         CHECK_MSG(n1 == n2 && !memcmp(kf1, kf2, n1 * sizeof(float)),
                   "the keyframe latents differ between one and two threads");
     }

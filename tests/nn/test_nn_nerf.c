@@ -339,13 +339,10 @@ static void test_tail(int transposed) {
 
 /* ------------------------------------------------------------ GEMMs */
 
-/* gamma_n = n u / (1 - n u), u = 2^-24: a float32 sum of n products in ANY
- * order lies within gamma_n sum |terms| of the exact value (Higham, Accuracy
- * and Stability of Numerical Algorithms, eq. 3.5). Every check of a GEMM below
- * is this bound, element by element, with n = K + 1 (the products and the
- * init) and the terms' magnitudes computed in float64; it holds for every
- * summation order, so for every kernel. */
-static double gam(int n) { return n / 16777216.0 / (1.0 - n / 16777216.0); }
+/* Every check of a GEMM below is the float error bound of a dot product
+ * (check_gamma_n, tests/check.h), element by element, with n the products,
+ * the init and the chunk additions, and the terms' magnitudes computed in
+ * float64; it holds for every summation order, so for every kernel. */
 
 enum { GL = 64 };
 typedef struct gcase {
@@ -401,7 +398,7 @@ static double gemm_err(const gcase *g, const float *A, const float *B, const flo
             int ep = g->kind == 1 ? 0 : g->mode;
             if (ep == 2 && g->kind == 0) want = want > 0 ? want : 0;
             if (ep == 3 && !(mask[i * GL + j] > 0)) want = 0;
-            double e = fabs(C[i * GL + j] - want), bound = gam(n) * mag + 1e-45;
+            double e = fabs(C[i * GL + j] - want), bound = check_gamma_n(n) * mag + 1e-45;
             worst = fmax(worst, e / bound);
         }
     return worst;
