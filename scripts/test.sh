@@ -18,7 +18,7 @@ run build-ci-omp "" -DCMAKE_BUILD_TYPE=Release -DSOOC_OPENMP=ON -DSOOC_BUILD_FUZ
 # The numerics tests once more under every OpenBLAS kernel family this CPU can
 # run (Debian's OpenBLAS picks one at run time; OPENBLAS_CORETYPE forces it), so
 # that a test that depends on the BLAS kernel fails on any machine, not only on
-# the CPU it was tuned on (docs/engine.md "Determinism contract").
+# CPUs whose default kernel happens to suit it (docs/engine.md "Determinism contract").
 coretypes=()
 flags=" $(grep -m1 '^flags' /proc/cpuinfo 2>/dev/null | cut -d: -f2) "
 has() { [[ "$flags" == *" $1 "* ]]; }

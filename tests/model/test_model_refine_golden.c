@@ -1,8 +1,8 @@
 /* The refinement network of the shipped unity model (models/sooc3d_unity/model.bin)
- * against reference numbers recorded before the network moved onto the src/nn
- * kernel pairs (issue 21; tests/model/data/refine_golden.txt, written by this
- * program with --write at commit 71da594, the last refine.c with its own conv,
- * ELU, layer norm and LSTM, and OpenBLAS in its backward):
+ * against reference numbers of an independent implementation
+ * (tests/model/data/refine_golden.txt, written by this program with --write at
+ * commit 71da594: refine.c with its own conv, ELU, layer norm and LSTM, and
+ * OpenBLAS in its backward):
  *
  *   1. mdl_ref_forward2 of the object net (K = 7 items, the 8 shared leading
  *      channels stored once) and the layout net on fixed pseudo-random inputs:
