@@ -238,6 +238,9 @@ typedef struct sooc_eval_run_opts {
     /* with finetune: births first (finetune.h "births"): entries for what the
      * map does not draw in the input views; NULL = none                  (NULL) */
     const struct sooc_birth_params *birth;
+    /* SOOC3D mapper: geometric proposals for the new slots (mapper.h
+     * sooc3d_mapper_set_proposals; docs/cluster.md); NULL = off       (NULL) */
+    const struct sooc3d_proposal_params *proposals;
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 
@@ -293,6 +296,16 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
                                 const sooc_gt_object *gt, int n_gt, const sooc_eval_run_opts *o,
                                 sooc_eval_view_fn view_cb, sooc_eval_step_fn step_cb, void *user,
                                 sooc_eval_scene_result *res);
+
+/* The geometric baseline on one scene (cluster.h, docs/cluster.md): the
+ * input views (is_query 0) go into one support-plane cluster map; every view
+ * is rendered from it (label 0 the plane and the surround, 1.. its objects)
+ * and scored by sooc_metric_view with clip d_clip (m), into res->input_final
+ * and res->query; n_entries = its objects. cp NULL = defaults. */
+struct sooc_cluster_params;
+sooc_status sooc_eval_geometric_scene(const sooc_frame *frames, int n_frames, const sooc_gt_object *gt, int n_gt,
+                                      const struct sooc_cluster_params *cp, double d_clip,
+                                      sooc_eval_scene_result *res);
 
 /* Render and score one view from a given map (what the runner does per view;
  * `sooc3d render --map` uses it with a map loaded from SQLite). `detail` asks

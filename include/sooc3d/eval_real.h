@@ -246,6 +246,17 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
                                const sooc_eval_real_opts *o, sooc_eval_view_fn view_cb, void *user,
                                sooc_eval_real_result *res);
 
+/* The geometric baseline on the same sequence (cluster.h, docs/cluster.md):
+ * the mapped frames of the query rule go into one support-plane cluster map,
+ * each query frame is rendered from it (label 0 the plane and the surround,
+ * 1.. its objects) and scored by sooc_metric_view with clip d_clip (m), as a
+ * learnt map is. The result's entries are its objects; spreads, growth and
+ * the seen test are not computed (NaN / 0). cp NULL = defaults. */
+struct sooc_cluster_params;
+sooc_status sooc_eval_geometric_run(const sooc_frame *frames, int n_frames, const sooc_eval_real_opts *o,
+                                    const struct sooc_cluster_params *cp, double d_clip, sooc_eval_view_fn view_cb,
+                                    void *user, sooc_eval_real_result *res);
+
 /* One JSON object (no trailing newline) for cell (model, sequence): the
  * contract keys "scale": "real", "view": "Q", depth_rmse, rgb_rmse,
  * entries_final, entries_created, plus miou and obj_iou (list, with obj_ids

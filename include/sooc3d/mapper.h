@@ -16,6 +16,7 @@
 #define SOOC3D_MAPPER_H
 
 #include "sooc3d/cogmap.h"
+#include "sooc3d/cluster.h"
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
 #include "sooc3d/map_entry.h"
@@ -210,6 +211,8 @@ typedef struct sooc3d_update_stats {
                                   revisit rules, sooc3d_mapper_free_space)    */
     int n_gated;               /* new slots the creation gate refused (revisit
                                   rule 5, sooc3d_mapper_gate)                 */
+    int n_proposed;            /* prior slots placed on the keyframe's support-plane
+                                  clusters (sooc3d_mapper_set_proposals)       */
     double elapsed_ms;
 } sooc3d_update_stats;
 
@@ -273,6 +276,21 @@ void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on);
 /* The creation gate's parameters of a live mapper (same meaning as the
  * gate_* parameters: 0 = default, < 0 = off). */
 void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part);
+
+/* Geometric proposals (docs/cluster.md "Proposals"): each keyframe's
+ * support-plane clusters (cluster.h) place the slots the view pads with
+ * priors, before the refinement. A cluster that a retrieved slot covers (its
+ * centre within the cluster's half-diagonal + cover_m) proposes nothing. */
+typedef struct sooc3d_proposal_params {
+    int on;                      /* 0 = off (the default)                                  */
+    sooc_cluster_params cluster; /* the clustering of one keyframe                         */
+    double cover_m;              /* (0.02)                                                 */
+    double sigma_frac;           /* position std of a placed slot = this x the cluster's
+                                    half-diagonal; <= 0: the prior's (0)                   */
+    double pres_logit;           /* presence logit of a placed slot; NaN: the prior's (NaN) */
+} sooc3d_proposal_params;
+void sooc3d_proposal_params_default(sooc3d_proposal_params *p);
+sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal_params *p);
 void sooc3d_mapper_set_merge_radius(sooc3d_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC3D_LATENTS_*). */
 void sooc3d_mapper_set_latents(sooc3d_mapper *m, int latents);

@@ -45,6 +45,11 @@ static void usage(FILE *f) {
             "  --samples       coarse,fine samples per ray (96,32)\n"
             "  --threads       model/renderer threads (0 = OpenMP default)\n"
             "  --iterations    refinement updates per input view (default: the model's L)\n"
+            "  --baseline geometric  also a 'geometric' row: the support plane, then Euclidean clustering of\n"
+            "                  the points above it over the mapped frames, each cluster an object\n"
+            "                  (docs/cluster.md); scored on the same views as the models\n"
+            "  --proposals     the mapper places the slots it pads with priors on each keyframe's\n"
+            "                  support-plane clusters (docs/cluster.md \"Proposals\")\n"
             "  --finetune      SOOC3D+: also a '<name>+ft' row per model: online inference as for the\n"
             "                  base row, then per-object NeRF finetuning by EM on the input views\n"
             "                  (sooc3d finetune), then the same views scored from the finetuned map;\n"
@@ -196,7 +201,8 @@ int sooc_cmd_eval(int argc, char **argv) {
     sooc_finetune_params_default(&ftp);
     sooc_birth_params bp;
     sooc_birth_params_default(&bp);
-    int no_birth = 0;
+    int no_birth = 0, geometric = 0;
+    sooc3d_proposal_params prop;
     uint64_t seed = 1;
     int mesh_res = SOOC_MESH_RES_DEFAULT;
     sooc_eval_run_opts ro;
@@ -240,6 +246,14 @@ int sooc_cmd_eval(int argc, char **argv) {
         } else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--finetune")) finetune = 1;
+        else if (!strcmp(a, "--proposals")) sooc3d_proposal_params_default(&prop), prop.on = 1, ro.proposals = &prop;
+        else if (!strcmp(a, "--baseline") && has) {
+            if (strcmp(argv[++i], "geometric")) {
+                fprintf(stderr, "sooc3d eval: unknown baseline '%s' (known: geometric)\n", argv[i]);
+                return 2;
+            }
+            geometric = 1;
+        }
         else if (!strcmp(a, "--ft-no-birth")) no_birth = 1;
         else if (!strcmp(a, "--ft-birth-margin") && has) {
             double d;
@@ -356,7 +370,7 @@ int sooc_cmd_eval(int argc, char **argv) {
             rel.run.seed = seed;
             ftp.seed = seed;
             sooc_eval_real_cli rc = {models, rnp, n_models, dirs, n_dirs, json, md, rel, fpp, panels, quiet,
-                                   finetune ? &ftp : NULL};
+                                   finetune ? &ftp : NULL, geometric};
             return sooc_cmd_eval_real(&rc);
         }
     }
@@ -390,6 +404,10 @@ int sooc_cmd_eval(int argc, char **argv) {
         else model_name(models[i], mname[i], sizeof mname[i]);
         snprintf(oname[i], sizeof oname[i], "%.127s online", mname[i]);
         snprintf(fname[i], sizeof fname[i], "%.127s+ft", mname[i]);
+        if (geometric && !strcmp(mname[i], "geometric")) {
+            st = sooc_seterr(SOOC_EINVAL, "a model is named 'geometric', the baseline's row: use --name");
+            goto fail;
+        }
         for (int j = 0; j < i; j++)
             if (!strcmp(mname[i], mname[j])) {
                 st = sooc_seterr(SOOC_EINVAL, "two models are named '%s': use --name", mname[i]);
@@ -474,6 +492,20 @@ int sooc_cmd_eval(int argc, char **argv) {
                     goto fail;
                 ro.scene = &scn, ro.mesh_res = mesh_res;
             }
+            if (geometric) {   /* the baseline: deterministic, one run */
+                const sooc_model_config *c0 = sooc_model_get_config(mdl[0]);
+                sooc_eval_scene_result res;
+                st = sooc_eval_geometric_scene(fr, nv, gt, no, NULL, ro.d_clip > 0 ? ro.d_clip : c0->d_clip * c0->unit_m,
+                                               &res);
+                if (st) {
+                    sooc_adderr(st, "%s", sooc_dataset_scene_path(ds[d], s));
+                    goto fail;
+                }
+                for (int r = 0; r < runs; r++)
+                    if ((st = sooc_eval_table_add_sums(tab, "geometric", scale, r, 0, &res.input_final)) ||
+                        (st = sooc_eval_table_add_sums(tab, "geometric", scale, r, 1, &res.query)))
+                        goto fail;
+            }
             for (int mi = 0; mi < n_models; mi++) {
                 for (int r = 0; r < runs; r++) {
                     /* A long model name may be cut: this is only the progress line. */
@@ -529,7 +561,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     if ((st = sooc_eval_table_text(tab, &text))) goto fail;
     printf("%s", text);
     {
-        char rows[3 * MAX_MODELS][160];
+        char rows[3 * MAX_MODELS + 1][160];
         int nr = 0, used[SOOC_N_SCALES] = {0};
         for (int d = 0; d < n_dirs; d++)
             for (int s = 0; s < n_sc[d]; s++) used[scale_of[d][s]] = 1;
@@ -539,6 +571,7 @@ int sooc_cmd_eval(int argc, char **argv) {
                 snprintf(rows[nr++], sizeof rows[0], "%.150s", ro.timing == SOOC_EVAL_BOTH ? oname[i] : mname[i]);
             if (finetune && !sooc_model_is_global(mdl[i])) snprintf(rows[nr++], sizeof rows[0], "%.150s", fname[i]);
         }
+        if (geometric) snprintf(rows[nr++], sizeof rows[0], "geometric");
         print_supp(tab, rows, nr, used, runs);
         print_geom(tab, rows, nr, used, runs);
     }

@@ -5,6 +5,7 @@
  * JSON cell per pair (docs/metrics.md "Real sequences"). */
 #include "cli.h"
 #include "cmd_eval_real.h"
+#include "sooc3d/cluster.h"
 #include "sooc3d/image.h"
 #include "sooc3d/model.h"
 #include "sooc3d/seq.h"
@@ -216,10 +217,12 @@ static int on_ft_progress(void *user, const sooc_finetune_progress *p) {
 }
 
 /* One (model, sequence) cell: the run, its panels and its JSON. */
-static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const char *name, const char *dir,
+/* m NULL: the geometric baseline, with the clip of model clip_of */
+static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, sooc_model *clip_of, const char *name,
+                            const char *dir,
                             const sooc_eval_real_opts *o, sooc_frame *fr, int nfr, sooc_eval_real_result *r,
                             char **cell) {
-    const sooc_model_config *c = sooc_model_get_config(m);
+    const sooc_model_config *c = sooc_model_get_config(m ? m : clip_of);
     char sn[256], pdir[4096];
     seq_name(dir, sn, sizeof sn);
     panel_ctx pc = {pdir, NULL, o->run.d_clip > 0 ? o->run.d_clip : c->d_clip * c->unit_m};
@@ -232,7 +235,8 @@ static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const ch
         if (!(pc.csv = fopen(cp, "w"))) return sooc_seterr(SOOC_EIO, "%s: cannot open for writing", cp);
         fprintf(pc.csv, "frame,position,n_comp,miou_best,miou_hung,rgb_rmse,depth_rmse,valid_pixels\n");
     }
-    st = sooc_eval_real_run(m, fr, nfr, o, pc.csv ? on_query : NULL, &pc, r);
+    if (m) st = sooc_eval_real_run(m, fr, nfr, o, pc.csv ? on_query : NULL, &pc, r);
+    else st = sooc_eval_geometric_run(fr, nfr, o, NULL, pc.d_clip, pc.csv ? on_query : NULL, &pc, r);
     if (pc.csv && fclose(pc.csv) && !st) st = sooc_seterr(SOOC_EIO, "%s/views.csv: write failed", pdir);
     if (st) return sooc_adderr(st, "%s", dir);
     if ((st = sooc_eval_real_json(name, sn, dir, o, r, cell))) return st;
@@ -241,6 +245,7 @@ static sooc_status run_cell(const sooc_eval_real_cli *a, sooc_model *m, const ch
                 r->n_mapped, r->n_query, r->update_s, sooc_eval_real_second_pass(o) ? "two passes" : "one pass",
                 r->render_s);
         if (o->finetune) fprintf(stderr, ", %.1f s finetuning", r->finetune_s);
+        if (!m) fprintf(stderr, " (geometric: %zu objects)", r->entries_final);
         if (o->finetune && o->run.birth) fprintf(stderr, " (%d entries born, %d removed after it)", r->n_born, r->n_pruned);
         fputc('\n', stderr);
     }
@@ -259,7 +264,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
     sooc_eval_real_result *res = NULL;
     typedef struct { char model[160], seq[256]; int pass2; } row_name;
     row_name *rn = NULL;
-    size_t cap = 2 * (size_t)a->n_models * (size_t)a->n_dirs;   /* a base and a +ft row each */
+    size_t cap = (2 * (size_t)a->n_models + 1) * (size_t)a->n_dirs;   /* a base and a +ft row each, geometric */
     if (!(cells = calloc(cap, sizeof *cells)) || !(res = calloc(cap, sizeof *res)) || !(rn = calloc(cap, sizeof *rn))) {
         free(cells);
         free(res);
@@ -287,8 +292,16 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                 snprintf(r->model, sizeof r->model, "%.150s%s", a->names[mi], ft ? "+ft" : "");
                 seq_name(a->dirs[d], r->seq, sizeof r->seq);
                 r->pass2 = sooc_eval_real_second_pass(&o);
-                st = run_cell(a, m, r->model, a->dirs[d], &o, fr, nfr, &res[n_cells], &cells[n_cells]);
+                st = run_cell(a, m, m, r->model, a->dirs[d], &o, fr, nfr, &res[n_cells], &cells[n_cells]);
                 if (!st) ft_s += res[n_cells++].finetune_s;
+            }
+            if (a->geometric && mi == 0 && !st) {   /* the baseline on the first model's frames */
+                row_name *r = &rn[n_cells];
+                snprintf(r->model, sizeof r->model, "geometric");
+                seq_name(a->dirs[d], r->seq, sizeof r->seq);
+                r->pass2 = 0;
+                st = run_cell(a, NULL, m, r->model, a->dirs[d], &a->opts, fr, nfr, &res[n_cells], &cells[n_cells]);
+                if (!st) n_cells++;
             }
             for (int i = 0; i < nfr; i++) sooc_frame_free(&fr[i]);
             sooc_free(fr);

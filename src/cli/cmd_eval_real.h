@@ -22,6 +22,8 @@ typedef struct sooc_eval_real_cli {
     int quiet;
     const sooc_finetune_params *ft;   /* non-NULL (--finetune): also a '<name>+ft' row per SOOC3D
                                      model and sequence (opts.finetune)     */
+    int geometric;                /* 1 (--baseline geometric): a 'geometric' row per sequence,
+                                     on the frames of the first model       */
 } sooc_eval_real_cli;
 
 /* The usage text of the recorded-sequence options. */

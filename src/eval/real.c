@@ -447,6 +447,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         sooc3d_mapper_set_merge_neighbours(C.mp, o->run.revisit);
         sooc3d_mapper_set_gate(C.mp, o->run.gate[0], o->run.gate[1], o->run.gate[2]);
         sooc3d_mapper_set_latents(C.mp, o->run.latents);
+        if (o->run.proposals && (st = sooc3d_mapper_set_proposals(C.mp, o->run.proposals))) goto done;
     }
 
     /* pass 1 */

@@ -323,6 +323,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         sooc3d_mapper_set_merge_neighbours(mp, o->revisit);
         sooc3d_mapper_set_gate(mp, o->gate[0], o->gate[1], o->gate[2]);
         sooc3d_mapper_set_latents(mp, o->latents);
+        if (o->proposals && (st = sooc3d_mapper_set_proposals(mp, o->proposals))) goto done;
         C.model = sooc3d_mapper_model(mp);
         C.map = sooc3d_mapper_cogmap(mp);
     }

@@ -7,6 +7,7 @@
 #include <string.h>
 #include <stdio.h>
 
+#include "model/mapper_prop.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
 #include "sooc3d/objgeom.h"
@@ -52,6 +53,8 @@ struct sooc3d_mapper {
     dec_noise gate_noise;
     float gate_boxes[SOOC3D_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
     uint64_t gate_box_ids[SOOC3D_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
+    sooc_cluster_map *prop;    /* geometric proposals (mapper_prop.c): the keyframe's clusters; NULL = off */
+    mdl_prop_params prop_p;
 };
 
 void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
@@ -128,6 +131,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
 
 void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
     if (!mp) return;
+    sooc_cluster_map_destroy(mp->prop);
     if (mp->V.buf) mdl_view_free(&mp->V);
     sooc_model_ws_destroy(mp->ws);
     sooc_cogmap_destroy(mp->map);
@@ -519,6 +523,31 @@ void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) {
     sooc_objgeom_cache_invalidate(mp->geo);
 }
 
+sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal_params *p) {
+    if (!p || !p->on) {
+        sooc_cluster_map_destroy(mp->prop);
+        mp->prop = NULL;
+        return SOOC_OK;
+    }
+    sooc_cluster_map *cm = NULL;
+    sooc_status st = sooc_cluster_map_create(&cm, &p->cluster);
+    if (st) return sooc_adderr(st, "mapper: proposals");
+    sooc_cluster_map_destroy(mp->prop);
+    mp->prop = cm;
+    mp->prop_p.cover_m = p->cover_m;
+    mp->prop_p.sigma_frac = p->sigma_frac;
+    mp->prop_p.pres_logit = p->pres_logit;
+    return SOOC_OK;
+}
+
+void sooc3d_proposal_params_default(sooc3d_proposal_params *p) {
+    memset(p, 0, sizeof *p);
+    sooc_cluster_params_default(&p->cluster);
+    p->cover_m = 0.02;
+    p->sigma_frac = 0;
+    p->pres_logit = NAN;
+}
+
 void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *mp, int per_update) {
     mp->geo_budget = per_update < 0 ? -1 : per_update;
 }
@@ -541,6 +570,10 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     view_rec *V = &mp->V;
     sooc_status s = mdl_view_setup(m, mp->map, V, f, 1, &mp->rng, NULL);
     if (s) return s;
+    if (mp->prop) {
+        st->n_proposed = mdl_mapper_propose(mp->prop, c, MDL_NL(c->d_what), f, V, &mp->prop_p, &s);
+        if (s) return sooc_adderr(s, "mapper: proposals of frame %lld", (long long)f->index);
+    }
     sooc_step_opts o;
     sooc_step_opts_default(&o);
     o.tau = MAPPER_TAU;

@@ -1,0 +1,423 @@
+/* Support-plane clustering (cluster.h, docs/cluster.md): a voxel grid of the
+ * keyframes' depth points in the world frame, connected components of the
+ * voxels above the support plane, boxes, and a depth-tested render of the
+ * grid into any view. */
+#include "sooc3d/cluster.h"
+#include "sooc3d/geom.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct voxel {
+    double s[3];     /* summed world coordinates */
+    float c[3];      /* summed colour 0..1       */
+    uint32_t n;
+    int32_t comp;    /* object label, -1 = background */
+} voxel;
+
+struct sooc_cluster_map {
+    sooc_cluster_params p;
+    uint64_t *keys;  /* open addressing, key 0 = empty (keys are stored + 1) */
+    int32_t *slot;   /* voxel index of each key */
+    size_t hcap;     /* power of two */
+    voxel *vox;
+    size_t n, cap;
+    sooc_cluster_object *obj;
+    int n_obj, obj_cap;
+    int segmented;
+};
+
+void sooc_cluster_params_default(sooc_cluster_params *p) {
+    p->voxel_m = 0.004;
+    p->dist_m = 0.02;
+    p->min_height_m = 0.012;
+    p->max_height_m = 0.6;
+    p->max_depth_m = 3.0;
+    p->min_voxels = 12;
+    p->max_extent_m = 0.5;
+    p->pixel_step = 1;
+}
+
+static sooc_status check_params(const sooc_cluster_params *p) {
+    if (!(p->voxel_m > 0) || !(p->dist_m >= p->voxel_m) || !(p->max_height_m > p->min_height_m) ||
+        !(p->max_depth_m > 0) || p->min_voxels < 1 || !(p->max_extent_m > 0) || p->pixel_step < 1 ||
+        !isfinite(p->voxel_m + p->dist_m + p->min_height_m + p->max_height_m + p->max_depth_m + p->max_extent_m))
+        return sooc_seterr(SOOC_EINVAL,
+                           "cluster: bad parameters (voxel %g m, dist %g m, heights %g..%g m, depth %g m, "
+                           "min voxels %d, extent %g m, step %d)",
+                           p->voxel_m, p->dist_m, p->min_height_m, p->max_height_m, p->max_depth_m, p->min_voxels,
+                           p->max_extent_m, p->pixel_step);
+    return SOOC_OK;
+}
+
+sooc_status sooc_cluster_map_create(sooc_cluster_map **out, const sooc_cluster_params *p) {
+    if (!out) return sooc_seterr(SOOC_EINVAL, "cluster: no output");
+    *out = NULL;
+    sooc_cluster_params d;
+    if (!p) sooc_cluster_params_default(&d), p = &d;
+    sooc_status st = check_params(p);
+    if (st) return st;
+    sooc_cluster_map *m = sooc_calloc(1, sizeof *m);
+    if (!m) return sooc_seterr(SOOC_ENOMEM, "cluster: out of memory");
+    m->p = *p;
+    *out = m;
+    return SOOC_OK;
+}
+
+void sooc_cluster_map_destroy(sooc_cluster_map *m) {
+    if (!m) return;
+    sooc_free(m->keys);
+    sooc_free(m->slot);
+    sooc_free(m->vox);
+    sooc_free(m->obj);
+    sooc_free(m);
+}
+
+void sooc_cluster_map_clear(sooc_cluster_map *m) {
+    if (!m) return;
+    if (m->keys) memset(m->keys, 0, m->hcap * sizeof *m->keys);
+    m->n = 0;
+    m->n_obj = 0;
+    m->segmented = 0;
+}
+
+size_t sooc_cluster_map_voxels(const sooc_cluster_map *m) { return m ? m->n : 0; }
+
+/* 21 bits per axis, offset so that +-4 km at 4 mm fits */
+static uint64_t pack(int64_t i, int64_t j, int64_t k) {
+    const int64_t o = 1 << 20;
+    return ((uint64_t)(i + o) & 0x1fffff) << 42 | ((uint64_t)(j + o) & 0x1fffff) << 21 | ((uint64_t)(k + o) & 0x1fffff);
+}
+
+static size_t hash64(uint64_t k) {
+    k ^= k >> 33;
+    k *= 0xff51afd7ed558ccdULL;
+    k ^= k >> 33;
+    k *= 0xc4ceb9fe1a85ec53ULL;
+    k ^= k >> 33;
+    return (size_t)k;
+}
+
+static sooc_status rehash(sooc_cluster_map *m, size_t cap) {
+    uint64_t *k = sooc_calloc(cap, sizeof *k);
+    int32_t *s = sooc_malloc(cap * sizeof *s);
+    if (!k || !s) {
+        sooc_free(k), sooc_free(s);
+        return sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu grid cells", cap);
+    }
+    for (size_t i = 0; i < m->hcap; i++) {
+        if (!m->keys[i]) continue;
+        size_t h = hash64(m->keys[i]) & (cap - 1);
+        while (k[h]) h = (h + 1) & (cap - 1);
+        k[h] = m->keys[i], s[h] = m->slot[i];
+    }
+    sooc_free(m->keys), sooc_free(m->slot);
+    m->keys = k, m->slot = s, m->hcap = cap;
+    return SOOC_OK;
+}
+
+/* the voxel of key (created empty when absent), -1 on allocation failure */
+static int32_t voxel_of(sooc_cluster_map *m, uint64_t key) {
+    uint64_t kk = key + 1;
+    size_t h = hash64(kk) & (m->hcap - 1);
+    while (m->keys[h]) {
+        if (m->keys[h] == kk) return m->slot[h];
+        h = (h + 1) & (m->hcap - 1);
+    }
+    if (m->n == m->cap) {
+        size_t nc = m->cap ? 2 * m->cap : 4096;
+        voxel *v = sooc_realloc(m->vox, nc * sizeof *v);
+        if (!v) return -1;
+        m->vox = v, m->cap = nc;
+    }
+    voxel *v = &m->vox[m->n];
+    memset(v, 0, sizeof *v);
+    v->comp = -1;
+    m->keys[h] = kk, m->slot[h] = (int32_t)m->n;
+    return (int32_t)m->n++;
+}
+
+sooc_status sooc_cluster_map_add_frame(sooc_cluster_map *m, const sooc_frame *f) {
+    if (!m || !f || !f->depth || f->width < 1 || f->height < 1)
+        return sooc_seterr(SOOC_EINVAL, "cluster: add_frame: bad arguments");
+    if (!f->has_pose)
+        return sooc_seterr(SOOC_EINVAL, "cluster: frame %lld has no pose", (long long)f->index);
+    if (!(f->K.fx > 0) || !(f->K.fy > 0))
+        return sooc_seterr(SOOC_EINVAL, "cluster: frame %lld has no intrinsics", (long long)f->index);
+    const sooc_cluster_params *p = &m->p;
+    size_t need = m->n + (size_t)f->width * (size_t)f->height / ((size_t)p->pixel_step * p->pixel_step) + 1;
+    if (need > (size_t)INT32_MAX / 2) return sooc_seterr(SOOC_EINVAL, "cluster: grid over %d voxels", INT32_MAX / 2);
+    size_t hc = m->hcap ? m->hcap : 8192;
+    while (hc < 2 * need) hc *= 2;
+    sooc_status st;
+    if (hc != m->hcap && (st = rehash(m, hc))) return st;
+    const double *T = f->T_wc, inv = 1.0 / p->voxel_m;
+    for (int v = 0; v < f->height; v += p->pixel_step) {
+        for (int u = 0; u < f->width; u += p->pixel_step) {
+            size_t k = (size_t)v * f->width + u;
+            float d = f->depth[k];
+            if ((f->valid && !f->valid[k]) || !(d > 0) || !(d <= p->max_depth_m)) continue;
+            double xc = (u + 0.5 - f->K.cx) / f->K.fx * d, yc = (v + 0.5 - f->K.cy) / f->K.fy * d;
+            double w[3];
+            for (int r = 0; r < 3; r++) w[r] = T[4 * r] * xc + T[4 * r + 1] * yc + T[4 * r + 2] * d + T[4 * r + 3];
+            int32_t i = voxel_of(m, pack((int64_t)floor(w[0] * inv), (int64_t)floor(w[1] * inv),
+                                         (int64_t)floor(w[2] * inv)));
+            if (i < 0) return sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu voxels", m->n + 1);
+            voxel *vx = &m->vox[i];
+            vx->s[0] += w[0], vx->s[1] += w[1], vx->s[2] += w[2];
+            if (f->rgb)
+                for (int c = 0; c < 3; c++) vx->c[c] += f->rgb[3 * k + c] * (1.0f / 255.0f);
+            vx->n++;
+        }
+    }
+    m->segmented = 0;
+    return SOOC_OK;
+}
+
+/* ------------------------------------------------------------ components */
+
+static int32_t uf_find(int32_t *par, int32_t i) {
+    while (par[i] != i) {
+        par[i] = par[par[i]];
+        i = par[i];
+    }
+    return i;
+}
+
+typedef struct cell_ref {
+    uint64_t key;
+    int32_t vox;
+} cell_ref;
+
+static int cmp_cell(const void *a, const void *b) {
+    const cell_ref *x = a, *y = b;
+    return x->key < y->key ? -1 : x->key > y->key ? 1 : (x->vox > y->vox) - (x->vox < y->vox);
+}
+
+/* first index in r[0..n) with key >= k */
+static size_t lower(const cell_ref *r, size_t n, uint64_t k) {
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (r[mid].key < k) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+typedef struct comp_acc {
+    int32_t root;
+    int n;
+    double s[3], ymax;
+    double c[3];
+} comp_acc;
+
+static int cmp_comp(const void *a, const void *b) {
+    const comp_acc *x = a, *y = b;
+    return (y->n > x->n) - (y->n < x->n);
+}
+
+static void centroid(const voxel *v, double c[3]) {
+    for (int r = 0; r < 3; r++) c[r] = v->s[r] / v->n;
+}
+
+sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
+    if (!m) return sooc_seterr(SOOC_EINVAL, "cluster: segment: no map");
+    const sooc_cluster_params *p = &m->p;
+    sooc_status st = SOOC_OK;
+    size_t nf = 0;
+    for (size_t i = 0; i < m->n; i++) {
+        voxel *v = &m->vox[i];
+        v->comp = -1;
+        double y = v->s[1] / v->n;
+        nf += y >= p->min_height_m && y <= p->max_height_m;
+    }
+    cell_ref *ref = sooc_malloc((nf ? nf : 1) * sizeof *ref);
+    int32_t *par = sooc_malloc((m->n ? m->n : 1) * sizeof *par);
+    comp_acc *acc = NULL;
+    if (!ref || !par) {
+        st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu voxels", m->n);
+        goto done;
+    }
+    const double inv = 1.0 / p->dist_m, d2 = p->dist_m * p->dist_m;
+    size_t nr = 0;
+    for (size_t i = 0; i < m->n; i++) {
+        par[i] = (int32_t)i;
+        double c[3];
+        centroid(&m->vox[i], c);
+        if (!(c[1] >= p->min_height_m && c[1] <= p->max_height_m)) continue;
+        ref[nr].key = pack((int64_t)floor(c[0] * inv), (int64_t)floor(c[1] * inv), (int64_t)floor(c[2] * inv));
+        ref[nr++].vox = (int32_t)i;
+    }
+    qsort(ref, nr, sizeof *ref, cmp_cell);
+    /* join every pair closer than dist_m: candidates in the 27 cells of side dist_m around each voxel */
+    for (size_t a = 0; a < nr; a++) {
+        double ca[3];
+        int32_t ia = ref[a].vox;
+        centroid(&m->vox[ia], ca);
+        int64_t gi = (int64_t)floor(ca[0] * inv), gj = (int64_t)floor(ca[1] * inv), gk = (int64_t)floor(ca[2] * inv);
+        for (int di = -1; di <= 1; di++)
+            for (int dj = -1; dj <= 1; dj++)
+                for (int dk = -1; dk <= 1; dk++) {
+                    uint64_t key = pack(gi + di, gj + dj, gk + dk);
+                    for (size_t b = lower(ref, nr, key); b < nr && ref[b].key == key; b++) {
+                        int32_t ib = ref[b].vox;
+                        if (ib <= ia) continue;
+                        double cb[3];
+                        centroid(&m->vox[ib], cb);
+                        double dx = ca[0] - cb[0], dy = ca[1] - cb[1], dz = ca[2] - cb[2];
+                        if (dx * dx + dy * dy + dz * dz > d2) continue;
+                        int32_t ra = uf_find(par, ia), rb = uf_find(par, ib);
+                        if (ra != rb) par[ra > rb ? ra : rb] = ra < rb ? ra : rb;
+                    }
+                }
+    }
+    /* components: sizes and moments, keyed by root */
+    size_t na = 0;
+    if (!(acc = sooc_calloc(nr ? nr : 1, sizeof *acc))) {
+        st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu components", nr);
+        goto done;
+    }
+    for (size_t a = 0; a < nr; a++) {   /* reuse ref[].key as the component slot of each voxel */
+        int32_t i = ref[a].vox, r = uf_find(par, i);
+        int32_t *slot = &m->vox[r].comp;   /* roots hold their accumulator index + 1 for now */
+        if (*slot < 0) {
+            *slot = (int32_t)na;
+            acc[na].root = r;
+            acc[na].ymax = -INFINITY;
+            na++;
+        }
+        comp_acc *c = &acc[*slot];
+        double w[3];
+        centroid(&m->vox[i], w);
+        c->n++;
+        for (int q = 0; q < 3; q++) c->s[q] += w[q], c->c[q] += m->vox[i].c[q] / m->vox[i].n;
+        if (w[1] > c->ymax) c->ymax = w[1];
+    }
+    qsort(acc, na, sizeof *acc, cmp_comp);
+    m->n_obj = 0;
+    for (size_t k = 0; k < na; k++) m->vox[acc[k].root].comp = -1;
+    int cap_needed = (int)(na < 32768 ? na : 32768);
+    if (cap_needed > m->obj_cap) {
+        sooc_cluster_object *o = sooc_realloc(m->obj, (size_t)cap_needed * sizeof *o);
+        if (!o) {
+            st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %d objects", cap_needed);
+            goto done;
+        }
+        m->obj = o, m->obj_cap = cap_needed;
+    }
+    for (size_t k = 0; k < na && m->n_obj < m->obj_cap; k++) {
+        comp_acc *c = &acc[k];
+        if (c->n < p->min_voxels) break;   /* sorted by size */
+        double mx = c->s[0] / c->n, mz = c->s[2] / c->n;
+        /* the heading of the smallest-area floor rectangle around the voxels (1 degree steps over a
+         * quarter turn: a rectangle repeats itself every 90 degrees) */
+        double th = 0, best = INFINITY, lo[2] = {0, 0}, hi[2] = {0, 0};
+        for (int step = 0; step < 90; step++) {
+            double t = step * (M_PI / 180.0), ca = cos(t), sa = sin(t);
+            double l0 = INFINITY, l1 = INFINITY, h0 = -INFINITY, h1 = -INFINITY;
+            for (size_t a = 0; a < nr; a++) {
+                int32_t i = ref[a].vox;
+                if (uf_find(par, i) != c->root) continue;
+                double w[3];
+                centroid(&m->vox[i], w);
+                double s = (w[0] - mx) * ca + (w[2] - mz) * sa, q = -(w[0] - mx) * sa + (w[2] - mz) * ca;
+                l0 = s < l0 ? s : l0, h0 = s > h0 ? s : h0;
+                l1 = q < l1 ? q : l1, h1 = q > h1 ? q : h1;
+            }
+            double area = (h0 - l0) * (h1 - l1);
+            if (area < best - 1e-12) best = area, th = t, lo[0] = l0, lo[1] = l1, hi[0] = h0, hi[1] = h1;
+        }
+        double ax = cos(th), az = sin(th);
+        double ex = hi[0] - lo[0] + p->voxel_m, ez = hi[1] - lo[1] + p->voxel_m;
+        if (ex > p->max_extent_m || ez > p->max_extent_m) continue;
+        sooc_cluster_object *o = &m->obj[m->n_obj];
+        memset(o, 0, sizeof *o);
+        o->label = m->n_obj;
+        double s0 = 0.5 * (lo[0] + hi[0]), t0 = 0.5 * (lo[1] + hi[1]);
+        o->x = mx + s0 * ax - t0 * az;
+        o->z = mz + s0 * az + t0 * ax;
+        /* the box's x axis in the world is (cos yaw, 0, -sin yaw) (R_y) */
+        o->yaw = atan2(-az, ax);
+        o->extent[0] = ex, o->extent[2] = ez;
+        o->extent[1] = c->ymax + 0.5 * p->voxel_m;   /* objects stand on the plane */
+        o->centre_y = 0.5 * o->extent[1];
+        for (int q = 0; q < 3; q++) o->rgb[q] = c->c[q] / c->n;
+        o->n_voxels = c->n;
+        m->vox[c->root].comp = m->n_obj++;
+    }
+    /* every voxel takes its root's label */
+    for (size_t a = 0; a < nr; a++) {
+        int32_t i = ref[a].vox, r = uf_find(par, i);
+        if (i != r) m->vox[i].comp = m->vox[r].comp;
+    }
+    m->segmented = 1;
+    if (n_objects) *n_objects = m->n_obj;
+done:
+    sooc_free(acc);
+    sooc_free(ref);
+    sooc_free(par);
+    return st;
+}
+
+sooc_status sooc_cluster_map_objects(const sooc_cluster_map *m, sooc_cluster_object *out, int cap, int *n) {
+    if (!m || !n || cap < 0 || (cap && !out)) return sooc_seterr(SOOC_EINVAL, "cluster: objects: bad arguments");
+    if (!m->segmented) return sooc_seterr(SOOC_EINVAL, "cluster: objects before segment");
+    int k = m->n_obj < cap ? m->n_obj : cap;
+    if (k) memcpy(out, m->obj, (size_t)k * sizeof *out);
+    *n = m->n_obj;
+    return SOOC_OK;
+}
+
+/* ------------------------------------------------------------ render */
+
+sooc_status sooc_cluster_map_render(const sooc_cluster_map *m, const double T_wc[16], const sooc_intrinsics *K,
+                                    int w, int h, int16_t *label, float *depth, float *rgb) {
+    if (!m || !T_wc || !K || w < 1 || h < 1 || !label)
+        return sooc_seterr(SOOC_EINVAL, "cluster: render: bad arguments");
+    if (!m->segmented) return sooc_seterr(SOOC_EINVAL, "cluster: render before segment");
+    size_t np = (size_t)w * h;
+    float *z = sooc_malloc(np * sizeof *z);
+    int32_t *vid = sooc_malloc(np * sizeof *vid);
+    if (!z || !vid) {
+        sooc_free(z), sooc_free(vid);
+        return sooc_seterr(SOOC_ENOMEM, "cluster: render: out of memory for %dx%d", w, h);
+    }
+    for (size_t k = 0; k < np; k++) z[k] = INFINITY, vid[k] = -1;
+    double T[16];
+    sooc_se3_inverse(T, T_wc);
+    for (size_t i = 0; i < m->n; i++) {
+        double c[3], pc[3];
+        centroid(&m->vox[i], c);
+        for (int r = 0; r < 3; r++) pc[r] = T[4 * r] * c[0] + T[4 * r + 1] * c[1] + T[4 * r + 2] * c[2] + T[4 * r + 3];
+        if (pc[2] < 0.05) continue;
+        double u = K->fx * pc[0] / pc[2] + K->cx, v = K->fy * pc[1] / pc[2] + K->cy;
+        if (!(u >= 0 && v >= 0 && u < w && v < h)) continue;
+        size_t k = (size_t)(int)v * w + (size_t)(int)u;
+        if (pc[2] < z[k]) z[k] = (float)pc[2], vid[k] = (int32_t)i;
+    }
+    /* holes: the nearest in depth of the 8 neighbours (from the splatted image only) */
+    for (int v = 0; v < h; v++)
+        for (int u = 0; u < w; u++) {
+            size_t k = (size_t)v * w + u;
+            float zk = z[k];
+            int32_t ik = vid[k];
+            if (ik < 0)
+                for (int dv = -1; dv <= 1; dv++)
+                    for (int du = -1; du <= 1; du++) {
+                        int uu = u + du, vv = v + dv;
+                        if (uu < 0 || vv < 0 || uu >= w || vv >= h) continue;
+                        size_t q = (size_t)vv * w + uu;
+                        if (vid[q] >= 0 && z[q] < zk) zk = z[q], ik = vid[q];
+                    }
+            const voxel *vx = ik >= 0 ? &m->vox[ik] : NULL;
+            label[k] = vx ? (int16_t)vx->comp : -1;
+            if (depth) depth[k] = vx ? zk : 0.0f;
+            if (rgb)
+                for (int c = 0; c < 3; c++) rgb[3 * k + c] = vx ? vx->c[c] / vx->n : 0.0f;
+        }
+    sooc_free(z);
+    sooc_free(vid);
+    return SOOC_OK;
+}

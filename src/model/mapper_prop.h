@@ -1,0 +1,22 @@
+/* Geometric proposals for the mapper's new slots (mapper_prop.c). Internal
+ * to src/model: the mapper layer includes it. */
+#ifndef SOOC3D_MODEL_MAPPER_PROP_H
+#define SOOC3D_MODEL_MAPPER_PROP_H
+
+#include "model/step.h"
+#include "sooc3d/cluster.h"
+
+typedef struct mdl_prop_params {
+    double cover_m;      /* a retrieved slot within the cluster's half-diagonal + this covers it (m) */
+    double sigma_frac;   /* position std of a proposed slot = this x the half-diagonal (<= 0: the prior's) */
+    double pres_logit;   /* presence logit of a proposed slot (NaN: the prior's)                     */
+} mdl_prop_params;
+
+/* Place the prior slots of view V (set up by mdl_view_setup with padding)
+ * on the support-plane clusters of keyframe f (world frame). cm is the
+ * caller's scratch map (cleared here). Returns the slots placed; *st the
+ * status (0 placed on failure). */
+int mdl_mapper_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, view_rec *V,
+                       const mdl_prop_params *pp, sooc_status *st);
+
+#endif

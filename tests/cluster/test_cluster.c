@@ -1,0 +1,239 @@
+/* Support-plane clustering (cluster.h): boxes on a plane, ray-cast from known
+ * cameras. Two boxes with a gap wider than the join distance are two objects
+ * with their boxes; closer than it, one. A slab wider than max_extent_m is
+ * the surround. A held-out view rendered from the map reproduces the
+ * ray-cast labels. The mapper's proposals (mapper_prop.c) put prior slots on
+ * the clusters and leave covered ones alone. Bad input is refused. */
+#include "check.h"
+#include "model/mapper_prop.h"
+#include "sooc3d/cluster.h"
+#include "sooc3d/geom.h"
+
+#include <math.h>
+#include <string.h>
+
+typedef struct box { double lo[3], hi[3]; } box;
+
+#define W 128
+#define H 96
+
+/* camera at c looking at t: T_wc with OpenCV axes (x right, y down, z forward) */
+static void look_at(double T[16], const double c[3], const double t[3]) {
+    double z[3] = {t[0] - c[0], t[1] - c[1], t[2] - c[2]}, up[3] = {0, 1, 0}, x[3], y[3];
+    double n = sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
+    for (int i = 0; i < 3; i++) z[i] /= n;
+    x[0] = z[1] * up[2] - z[2] * up[1], x[1] = z[2] * up[0] - z[0] * up[2], x[2] = z[0] * up[1] - z[1] * up[0];
+    n = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    for (int i = 0; i < 3; i++) x[i] /= n;
+    y[0] = z[1] * x[2] - z[2] * x[1], y[1] = z[2] * x[0] - z[0] * x[2], y[2] = z[0] * x[1] - z[1] * x[0];
+    memset(T, 0, 16 * sizeof *T);
+    for (int r = 0; r < 3; r++) T[4 * r] = x[r], T[4 * r + 1] = y[r], T[4 * r + 2] = z[r], T[4 * r + 3] = c[r];
+    T[15] = 1;
+}
+
+/* ray-box slab test: entry distance or INFINITY */
+static double hit_box(const box *b, const double o[3], const double d[3]) {
+    double t0 = 0, t1 = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        if (fabs(d[a]) < 1e-12) {
+            if (o[a] < b->lo[a] || o[a] > b->hi[a]) return INFINITY;
+            continue;
+        }
+        double ta = (b->lo[a] - o[a]) / d[a], tb = (b->hi[a] - o[a]) / d[a];
+        if (ta > tb) { double s = ta; ta = tb; tb = s; }
+        if (ta > t0) t0 = ta;
+        if (tb < t1) t1 = tb;
+    }
+    return t0 <= t1 ? t0 : INFINITY;
+}
+
+/* Ray-cast the plane y = 0 and the boxes into f (labels: 0 plane, i + 1 box i). */
+static void cast(sooc_frame *f, const double c[3], const double t[3], const box *bx, int nb) {
+    look_at(f->T_wc, c, t);
+    f->has_pose = 1;
+    f->K.width = W, f->K.height = H;
+    f->K.fx = f->K.fy = 100, f->K.cx = W / 2.0, f->K.cy = H / 2.0;
+    for (int v = 0; v < H; v++)
+        for (int u = 0; u < W; u++) {
+            double dc[3] = {(u + 0.5 - f->K.cx) / f->K.fx, (v + 0.5 - f->K.cy) / f->K.fy, 1}, d[3];
+            sooc_se3_rotate(d, f->T_wc, dc);   /* t along d = planar depth */
+            double best = d[1] < 0 ? -c[1] / d[1] : INFINITY;
+            int lab = 0;
+            for (int i = 0; i < nb; i++) {
+                double th = hit_box(&bx[i], c, d);
+                if (th < best) best = th, lab = i + 1;
+            }
+            size_t k = (size_t)v * W + u;
+            int ok = isfinite(best) && best < 5;
+            f->depth[k] = ok ? (float)best : 0;
+            f->valid[k] = (uint8_t)ok;
+            f->instance[k] = (uint16_t)(ok ? lab : 0);
+            f->rgb[3 * k] = (uint8_t)(lab * 60), f->rgb[3 * k + 1] = 100, f->rgb[3 * k + 2] = 50;
+        }
+}
+
+static const double g_cams[4][3] = {{0.0, 0.55, -0.55}, {0.45, 0.5, -0.35}, {-0.45, 0.5, -0.35}, {0.1, 0.6, -0.45}};
+
+/* Two 8 x 10 x 6 cm boxes side by side along x with a gap, 3 mapped views. */
+static void two_boxes(double gap, box b[2]) {
+    double w = 0.08;
+    b[0] = (box){{-gap / 2 - w, 0, -0.03}, {-gap / 2, 0.10, 0.03}};
+    b[1] = (box){{gap / 2, 0, -0.03}, {gap / 2 + w, 0.10, 0.03}};
+}
+
+static int map_scene(sooc_cluster_map *m, sooc_frame *f, const box *b, int nb) {
+    const double t[3] = {0, 0.04, 0};
+    sooc_cluster_map_clear(m);
+    for (int i = 0; i < 3; i++) {
+        cast(f, g_cams[i], t, b, nb);
+        if (sooc_cluster_map_add_frame(m, f)) return -1;
+    }
+    int n = -1;
+    if (sooc_cluster_map_segment(m, &n)) return -1;
+    return n;
+}
+
+int main(void) {
+    sooc_frame f, q;
+    CHECK(sooc_frame_alloc(&f, W, H, 1) == SOOC_OK);
+    CHECK(sooc_frame_alloc(&q, W, H, 1) == SOOC_OK);
+    sooc_cluster_params p;
+    sooc_cluster_params_default(&p);
+    sooc_cluster_map *m = NULL;
+    CHECK(sooc_cluster_map_create(&m, &p) == SOOC_OK);
+    box b[3];
+
+    /* a gap wider than the join distance: two objects with their boxes */
+    two_boxes(0.035, b);
+    int n = map_scene(m, &f, b, 2);
+    CHECK_MSG(n == 2, "gap 3.5 cm: %d objects (want 2)", n);
+    sooc_cluster_object o[4];
+    int no = 0;
+    CHECK(sooc_cluster_map_objects(m, o, 4, &no) == SOOC_OK && no == n);
+    for (int i = 0; i < no && n == 2; i++) {
+        const box *t = &b[o[i].x < 0 ? 0 : 1];
+        double cx = 0.5 * (t->lo[0] + t->hi[0]), cz = 0.5 * (t->lo[2] + t->hi[2]);
+        /* the box's heading is axis-aligned up to its symmetry (pi / 2) */
+        double yaw = fmod(fabs(o[i].yaw), M_PI / 2);
+        int swap = fabs(fmod(fabs(o[i].yaw), M_PI) - M_PI / 2) < M_PI / 4;
+        double ex = swap ? o[i].extent[2] : o[i].extent[0], ez = swap ? o[i].extent[0] : o[i].extent[2];
+        printf("object %d: (%.3f, %.3f) yaw %.3f extent %.3f x %.3f x %.3f, %d voxels\n", i, o[i].x, o[i].z,
+               o[i].yaw, ex, o[i].extent[1], ez, o[i].n_voxels);
+        CHECK_MSG(fabs(o[i].x - cx) < 0.01 && fabs(o[i].z - cz) < 0.01, "centre (%.3f, %.3f) vs (%.3f, %.3f)",
+                  o[i].x, o[i].z, cx, cz);
+        CHECK_MSG(yaw < 0.05 || yaw > M_PI / 2 - 0.05, "yaw %.3f not axis-aligned", o[i].yaw);
+        /* the boxes' back faces are hidden from every camera: the seen extent is at most the true one */
+        CHECK_MSG(fabs(ex - 0.08) < 0.012 && ez > 0.03 && ez < 0.07 && fabs(o[i].extent[1] - 0.10) < 0.01,
+                  "extent %.3f x %.3f x %.3f vs 0.08 x 0.10 x 0.06", ex, o[i].extent[1], ez);
+    }
+
+    /* a held-out view rendered from the map: per-object IoU with the ray-cast labels */
+    {
+        const double c[3] = {-0.2, 0.45, -0.5}, t[3] = {0, 0.04, 0};
+        cast(&q, c, t, b, 2);
+        int16_t lab[W * H];
+        float dep[W * H];
+        CHECK(sooc_cluster_map_render(m, q.T_wc, &q.K, W, H, lab, dep, NULL) == SOOC_OK);
+        for (int i = 0; i < no && n == 2; i++) {
+            int gt_id = o[i].x < 0 ? 1 : 2, inter = 0, uni = 0;
+            double derr = 0;
+            int nd = 0;
+            for (int k = 0; k < W * H; k++) {
+                int a = lab[k] == o[i].label, g = q.instance[k] == gt_id && q.valid[k];
+                inter += a && g, uni += a || g;
+                if (g && a) derr += fabs(dep[k] - q.depth[k]), nd++;
+            }
+            double iou = uni ? (double)inter / uni : 0;
+            printf("held-out view: object %d IoU %.3f, mean depth error %.4f m\n", i, iou, nd ? derr / nd : NAN);
+            CHECK_MSG(iou > 0.8, "held-out IoU %.3f", iou);
+            CHECK(nd && derr / nd < 0.01);
+        }
+        /* negative control: the labels of the other object do not match */
+        int inter = 0, uni = 0;
+        for (int k = 0; k < W * H && n == 2; k++) {
+            int a = lab[k] == o[0].label, g = q.instance[k] == (o[0].x < 0 ? 2 : 1);
+            inter += a && g, uni += a || g;
+        }
+        CHECK(uni && (double)inter / uni < 0.05);
+    }
+
+    /* the mapper's proposals: prior slots move onto the clusters; a covered one stays */
+    {
+        sooc_model_config c;
+        memset(&c, 0, sizeof c);
+        c.K = 4, c.d_what = 2, c.unit_m = 0.5;
+        int NL = SOOC_LAM_SIZE(c.d_what);
+        view_rec V;
+        memset(&V, 0, sizeof V);
+        float lam[4 * SOOC_LAM_SIZE(2)];
+        memset(lam, 0, sizeof lam);
+        V.lam0 = lam;
+        V.n_ret = 1, V.nslot = 4;
+        V.gf.X = 0.1, V.gf.Z = -0.2, V.gf.psi = 0.3;   /* a G frame off the world's */
+        for (int k = 0; k < 4; k++) lam[k * NL + SOOC_LAM_X] = (float)k, lam[k * NL + SOOC_LAM_Z] = 3;
+        sooc_cluster_map *pm = NULL;
+        CHECK(sooc_cluster_map_create(&pm, &p) == SOOC_OK);
+        cast(&f, g_cams[0], (double[3]){0, 0.04, 0}, b, 2);
+        mdl_prop_params pp = {0.02, 0.5, 1.5};
+        sooc_status st;
+        int placed = mdl_mapper_propose(pm, &c, NL, &f, &V, &pp, &st);
+        CHECK_MSG(st == SOOC_OK && placed == 2, "placed %d (want 2)", placed);
+        int found[2] = {0, 0};
+        for (int k = 1; k < 4; k++) {
+            double l[3] = {lam[k * NL + SOOC_LAM_X] * c.unit_m, lam[k * NL + SOOC_LAM_Z] * c.unit_m, 0}, w[3];
+            sooc_floor_to_world(&V.gf, l, w);
+            for (int j = 0; j < 2; j++) {
+                double cx = 0.5 * (b[j].lo[0] + b[j].hi[0]);
+                if (fabs(w[0] - cx) < 0.015 && fabs(w[1]) < 0.02) {
+                    found[j]++;
+                    CHECK(fabs(lam[k * NL + SOOC_LAM_PRES(c.d_what)] - 1.5f) < 1e-6);
+                }
+            }
+        }
+        CHECK_MSG(found[0] == 1 && found[1] == 1, "proposed slots at the boxes: %d, %d", found[0], found[1]);
+        /* the retrieved slot (slot 0) now sits on box 0: that cluster is covered */
+        double wb[3] = {0.5 * (b[0].lo[0] + b[0].hi[0]), 0, 0}, lb[3];
+        sooc_floor_to_local(&V.gf, wb, lb);
+        for (int k = 0; k < 4; k++) lam[k * NL + SOOC_LAM_X] = (float)k + 5, lam[k * NL + SOOC_LAM_Z] = 3;
+        lam[SOOC_LAM_X] = (float)(lb[0] / c.unit_m), lam[SOOC_LAM_Z] = (float)(lb[1] / c.unit_m);
+        placed = mdl_mapper_propose(pm, &c, NL, &f, &V, &pp, &st);
+        CHECK_MSG(st == SOOC_OK && placed == 1, "with box 0 retrieved: placed %d (want 1)", placed);
+        sooc_cluster_map_destroy(pm);
+    }
+
+    /* closer than the join distance: one object */
+    two_boxes(0.01, b);
+    n = map_scene(m, &f, b, 2);
+    CHECK_MSG(n == 1, "gap 1 cm: %d objects (want 1)", n);
+
+    /* a slab wider than max_extent_m is the surround, the box on its own is kept */
+    b[0] = (box){{-0.5, 0, 0.15}, {0.5, 0.3, 0.2}};
+    b[1] = (box){{-0.04, 0, -0.1}, {0.04, 0.08, -0.04}};
+    n = map_scene(m, &f, b, 2);
+    CHECK_MSG(n == 1, "slab + box: %d objects (want 1)", n);
+    if (n == 1 && sooc_cluster_map_objects(m, o, 4, &no) == SOOC_OK)
+        CHECK_MSG(fabs(o[0].z + 0.07) < 0.01, "kept object at z %.3f (the box is at -0.07)", o[0].z);
+
+    /* bad input */
+    sooc_cluster_map *bad = NULL;
+    sooc_cluster_params bp = p;
+    bp.dist_m = p.voxel_m / 2;
+    CHECK(sooc_cluster_map_create(&bad, &bp) == SOOC_EINVAL && !bad);
+    bp = p, bp.min_voxels = 0;
+    CHECK(sooc_cluster_map_create(&bad, &bp) == SOOC_EINVAL);
+    f.has_pose = 0;
+    CHECK(sooc_cluster_map_add_frame(m, &f) == SOOC_EINVAL);
+    f.has_pose = 1;
+    sooc_cluster_map *fresh = NULL;
+    CHECK(sooc_cluster_map_create(&fresh, NULL) == SOOC_OK);
+    int16_t l1[W * H];
+    CHECK(sooc_cluster_map_render(fresh, f.T_wc, &f.K, W, H, l1, NULL, NULL) == SOOC_EINVAL);   /* before segment */
+    CHECK(sooc_cluster_map_segment(fresh, &n) == SOOC_OK && n == 0);   /* empty map: no objects */
+    sooc_cluster_map_destroy(fresh);
+
+    sooc_cluster_map_destroy(m);
+    sooc_frame_free(&f);
+    sooc_frame_free(&q);
+    printf("test_cluster: %d checks, %d failed\n", g_check_n, g_check_fail);
+    return g_check_fail != 0;
+}
