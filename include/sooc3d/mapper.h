@@ -85,7 +85,20 @@ typedef struct sooc3d_mapper_params {
                                   points inside one registered retrieved slot's floor
                                   box (side 2 R_h) at or above which it is that
                                   object's part (no new entry)                        */
+    /* The geometric object map instead of the model (docs/cluster.md "In the node";
+     * launch `model: {kind: geometric}`): each keyframe goes into a support-plane
+     * cluster map, its clusters are the entries (matched to the entries they
+     * continue by floor position; entries in view that no cluster continues are
+     * removed). model_path, the model and refinement settings are not used.   */
+    int kind;                  /* SOOC3D_MAPPER_LEARNT (0) or SOOC3D_MAPPER_GEOMETRIC      */
+    sooc_cluster_params cluster;   /* geometric: the clustering (defaults: sooc3d_mapper_params_default) */
+    int input_width, input_height; /* geometric: the frame size it maps at (160 x 120)      */
 } sooc3d_mapper_params;
+
+enum { SOOC3D_MAPPER_LEARNT = 0, SOOC3D_MAPPER_GEOMETRIC = 1 };
+int sooc3d_mapper_kind(const sooc3d_mapper *mp);   /* SOOC3D_MAPPER_* */
+/* A geometric entry's appearance latent is its mean colour (RGB, 0..1). */
+#define SOOC3D_GEOMETRIC_LATENT_DIM 3
 
 /* Creation-gate defaults (docs/cogmap.md "Revisits", rule 5; measured on the
  * looped replay and the 10-scene eval, see there) */

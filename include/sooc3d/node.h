@@ -97,6 +97,11 @@ typedef struct sooc_node_config {
     char calib_path[SOOC_NODE_PATH_MAX];
 
     /* model: */
+    int model_kind;                          /* model.kind: SOOC3D_MAPPER_LEARNT (learnt, default) or
+                                                SOOC3D_MAPPER_GEOMETRIC (geometric: the support plane
+                                                and Euclidean clustering, docs/cluster.md) */
+    double geo_voxel_m, geo_join_m;          /* geometric: model.voxel_m (0.004), model.join_m (0.02) */
+    double geo_min_height_m, geo_max_extent_m; /* geometric: model.min_height_m (0.012), max_extent_m (0.5) */
     char model_path[SOOC_NODE_PATH_MAX];
     int input_width, input_height;           /* 0 = ask the model */
     int iterations, threads;

@@ -7,6 +7,7 @@
 #include <string.h>
 #include <stdio.h>
 
+#include "model/mapper_geo.h"
 #include "model/mapper_prop.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
@@ -53,6 +54,7 @@ struct sooc3d_mapper {
     dec_noise gate_noise;
     float gate_boxes[SOOC3D_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
     uint64_t gate_box_ids[SOOC3D_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
+    mdl_geo *gm;               /* kind geometric (mapper_geo.c): the cluster map instead of the model */
     sooc_cluster_map *prop;    /* geometric proposals (mapper_prop.c): the keyframe's clusters; NULL = off */
     mdl_prop_params prop_p;
 };
@@ -61,6 +63,8 @@ void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
     memset(p, 0, sizeof *p);
     p->model_path = "models/default/model.bin";
     p->seed = 1;
+    sooc_cluster_params_default(&p->cluster);
+    p->input_width = 160, p->input_height = 120;
 }
 
 sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads);
@@ -99,6 +103,15 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
 
 sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params *p) {
     *out = NULL;
+    if (p->kind == SOOC3D_MAPPER_GEOMETRIC) {
+        sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
+        if (!mp) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
+        sooc_status st = mdl_geo_create(&mp->gm, p);
+        if (st) sooc_free(mp);
+        else *out = mp;
+        return st;
+    }
+    if (p->kind != SOOC3D_MAPPER_LEARNT) return sooc_seterr(SOOC_EINVAL, "mapper: unknown kind %d", p->kind);
     sooc_model *m;
     sooc_status st = sooc_model_load(&m, p->model_path, NULL, NULL);
     if (st) return sooc_adderr(st, "mapper");
@@ -131,6 +144,7 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
 
 void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
     if (!mp) return;
+    mdl_geo_destroy(mp->gm);
     sooc_cluster_map_destroy(mp->prop);
     if (mp->V.buf) mdl_view_free(&mp->V);
     sooc_model_ws_destroy(mp->ws);
@@ -141,12 +155,20 @@ void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
 }
 
 void sooc3d_mapper_input_size(const sooc3d_mapper *mp, int *w, int *h) {
+    if (mp->gm) {
+        mdl_geo_input_size(mp->gm, w, h);
+        return;
+    }
     const sooc_model_config *c = sooc_model_get_config(mp->m);
     *w = c->img_w;
     *h = c->img_h;
 }
 
 void sooc3d_mapper_cam_heights(const sooc3d_mapper *mp, double *lo_m, double *hi_m) {
+    if (mp->gm) {   /* no trained range */
+        *lo_m = *hi_m = 0;
+        return;
+    }
     sooc_model_cam_heights_m(sooc_model_get_config(mp->m), lo_m, hi_m);
 }
 
@@ -508,6 +530,10 @@ static sooc_status mapper_geometry(sooc3d_mapper *mp) {
 }
 
 sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *mp, int max_objects, int *n_done) {
+    if (mp->gm) {   /* its boxes are always up to date */
+        if (n_done) *n_done = 0;
+        return SOOC_OK;
+    }
     sooc_objgeom_opts o;
     sooc_objgeom_opts_default(&o);
     return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, max_objects, n_done, NULL);
@@ -519,11 +545,13 @@ static int adopt_entry(void *user, const sooc_cogmap_entry *e) {
 }
 
 void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) {
+    if (mp->gm) return;
     if (sooc_cogmap_foreach(mp->map, adopt_entry, mp->geo)) sooc_clearerr();   /* out of memory: no box for it */
     sooc_objgeom_cache_invalidate(mp->geo);
 }
 
 sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal_params *p) {
+    if (mp->gm) return sooc_seterr(SOOC_EINVAL, "mapper: proposals need a learnt model, not the geometric map");
     if (!p || !p->on) {
         sooc_cluster_map_destroy(mp->prop);
         mp->prop = NULL;
@@ -556,6 +584,10 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     double t0 = sooc_seconds();
     sooc3d_update_stats st0;
     sooc3d_update_stats *st = stp ? stp : &st0;
+    if (mp->gm) {
+        if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld has no pose", (long long)f->index);
+        return mdl_geo_update(mp->gm, f, st);
+    }
     memset(st, 0, sizeof *st);
     mp->n_chg = mp->n_rem = mp->has_block = 0;
     sooc_model *m = mp->m;
@@ -678,6 +710,7 @@ int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double 
 }
 
 sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
+    if (mp->gm) return mdl_geo_entries(mp->gm, out, cap, n);
     size_t cnt = sooc_cogmap_count(mp->map);
     if (!out) {
         *n = cnt;
@@ -700,6 +733,7 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
 }
 
 sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *e, size_t n) {
+    if (mp->gm) return mdl_geo_load_entries(mp->gm, e, n);
     const sooc_model_config *c = sooc_model_get_config(mp->m);
     sooc_cogmap_entry *tmp = sooc_calloc(n ? n : 1, sizeof *tmp);
     if (!tmp) return SOOC_ENOMEM;
@@ -722,6 +756,7 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
 
 sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n,
                                   uint64_t *removed_ids, size_t cap_r, size_t *n_removed) {
+    if (mp->gm) return mdl_geo_changed(mp->gm, out, cap, n, removed_ids, cap_r, n_removed);
     size_t nc = (size_t)mp->n_chg, nr = (size_t)mp->n_rem;
     if (n) *n = nc;
     if (n_removed) *n_removed = nr;
@@ -741,11 +776,14 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
     return SOOC_OK;
 }
 
-int sooc3d_mapper_layout_dim(const sooc3d_mapper *mp) { return sooc_model_get_config(mp->m)->d_layout; }
-int sooc3d_mapper_latent_dim(const sooc3d_mapper *mp) { return sooc_model_get_config(mp->m)->d_what; }
+int sooc3d_mapper_layout_dim(const sooc3d_mapper *mp) { return mp->gm ? 0 : sooc_model_get_config(mp->m)->d_layout; }
+int sooc3d_mapper_latent_dim(const sooc3d_mapper *mp) {
+    return mp->gm ? SOOC3D_GEOMETRIC_LATENT_DIM : sooc_model_get_config(mp->m)->d_what;
+}
+int sooc3d_mapper_kind(const sooc3d_mapper *mp) { return mp->gm ? SOOC3D_MAPPER_GEOMETRIC : SOOC3D_MAPPER_LEARNT; }
 
 sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *mp, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
-    if (!mp->has_block) return SOOC_ENOTFOUND;
+    if (mp->gm || !mp->has_block) return SOOC_ENOTFOUND;
     *bi = mp->bi;
     *bj = mp->bj;
     return sooc_cogmap_layout_get(mp->map, mp->bi, mp->bj, mu, logvar);
@@ -753,10 +791,14 @@ sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *mp, int32_t *bi, int3
 
 sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar) {
+    if (mp->gm) return SOOC_OK;   /* no layout */
     return sooc_cogmap_layout_set(mp->map, bi, bj, mu, logvar);
 }
 
-void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) { sooc_cogmap_reserve_ids(mp->map, next_id); }
+void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) {
+    if (mp->gm) mdl_geo_reserve_ids(mp->gm, next_id);
+    else sooc_cogmap_reserve_ids(mp->map, next_id);
+}
 void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on) { mp->merge_nb = on != 0; }
 void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part) {
     mp->gate_min = min_rays == 0 ? SOOC3D_GATE_MIN_RAYS : min_rays < 0 ? -1.0 : min_rays;
@@ -768,7 +810,9 @@ void sooc3d_mapper_set_merge_radius(sooc3d_mapper *mp, double radius) {
     mp->merge_r = radius > 0 ? radius : 0;
 }
 void sooc3d_mapper_set_latents(sooc3d_mapper *mp, int latents) { mp->sample = latents == SOOC3D_LATENTS_SAMPLE; }
-uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *mp) { return sooc_cogmap_next_id(mp->map); }
+uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *mp) {
+    return mp->gm ? mdl_geo_next_id(mp->gm) : sooc_cogmap_next_id(mp->map);
+}
 
 sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp) { return mp->m; }
 const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp) { return mp->map; }

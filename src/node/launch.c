@@ -2,6 +2,8 @@
  * -> sooc_node_config. Sections are read through key tables (field, type,
  * range). Every error names the file, the line and the key (section.key). */
 #include "sooc3d/node.h"
+#include "sooc3d/cluster.h"
+#include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
 #include "sooc3d/seq.h"
 #include "data/yaml_doc.h"
@@ -31,6 +33,12 @@ void sooc_node_config_default(sooc_node_config *c) {
     /* revisits refine instead of duplicating: the mapper's duplicate merge at the measured radius
      * (docs/cogmap.md "Revisits"; 0 turns it off as in `sooc3d infer/eval`) */
     c->merge_m = 0.35;
+    {
+        sooc_cluster_params cp;
+        sooc_cluster_params_default(&cp);
+        c->geo_voxel_m = cp.voxel_m, c->geo_join_m = cp.dist_m;
+        c->geo_min_height_m = cp.min_height_m, c->geo_max_extent_m = cp.max_extent_m;
+    }
     c->support_frames = 8;
     c->cam_height_min_m = 0;   /* 0: the model's trained range (sooc_model_cam_heights_m) */
     c->cam_height_max_m = 0;
@@ -466,6 +474,11 @@ static const kspec g_keys[] = {
     KV("odometry", "color_tx", KV_NUM, odom_color_tx, -1, 1),
     KV("odometry", "color_ty", KV_NUM, odom_color_ty, -1, 1),
     KV("odometry", "color_tz", KV_NUM, odom_color_tz, -1, 1),
+    KV_CH("model", "kind", model_kind, "learnt|geometric"),   /* order of SOOC3D_MAPPER_* */
+    KV("model", "voxel_m", KV_NUM, geo_voxel_m, 0.0005, 1),
+    KV("model", "join_m", KV_NUM, geo_join_m, 0.0005, 1),
+    KV("model", "min_height_m", KV_NUM, geo_min_height_m, 0, 10),
+    KV("model", "max_extent_m", KV_NUM, geo_max_extent_m, 0.01, 100),
     KV("model", "path", KV_STR, model_path, 0, 0),
     KV("model", "width", KV_INT, input_width, 0, 8192),
     KV("model", "height", KV_INT, input_height, 0, 8192),
@@ -624,6 +637,9 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
         st = sooc_seterr(SOOC_EINVAL, "%s: odometry.color_fx/color_fy: give both or neither", name);
     if (!st && c->min_depth_m >= c->max_depth_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: pipeline.min_depth_m: must be below max_depth_m", name);
+    if (!st && c->model_kind == SOOC3D_MAPPER_GEOMETRIC && c->geo_join_m < c->geo_voxel_m)
+        st = sooc_seterr(SOOC_EINVAL, "%s: model.join_m %g: must be at least model.voxel_m %g", name, c->geo_join_m,
+                         c->geo_voxel_m);
     if (!st && (c->input_width > 0) != (c->input_height > 0))
         st = sooc_seterr(SOOC_EINVAL, "%s: model.width/height: give both or neither", name);
     if (!st && (c->cam_height_min_m > 0) != (c->cam_height_max_m > 0))
@@ -673,10 +689,11 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
             c->odom_color_fx, c->odom_color_fy, c->odom_color_cx, c->odom_color_cy, c->odom_color_tx,
             c->odom_color_ty, c->odom_color_tz);
     }
-    OUT("calib: '%s'\nmodel: {path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
+    OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s, gate_min_rays: %g, "
         "gate_ratio: %g, gate_part: %g}\n",
-        c->calib_path, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
+        c->calib_path, c->model_kind == SOOC3D_MAPPER_GEOMETRIC ? "geometric" : "learnt", c->geo_voxel_m, c->geo_join_m,
+        c->geo_min_height_m, c->geo_max_extent_m, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
         c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
         c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model", c->gate_min_rays,

@@ -675,30 +675,47 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.gate_min_rays = c->gate_min_rays;   /* the creation gate (revisit rule 5): 0 = default */
         mp.gate_ratio = c->gate_ratio;
         mp.gate_part = c->gate_part;
-        if (!c->model_path[0]) {
-            st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
-            goto fail;
-        }
-        if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
-            sooc_adderr(st, "%s: model.path %s", c->path, c->model_path);
-            goto fail;
-        }
-        n->own_mapper = 1;
-        /* the model's identity is its checkpoint's content, not its path */
-        void *buf = NULL;
-        size_t nb = 0;
-        if (sooc_file_read_all(c->model_path, (size_t)1 << 31, &buf, &nb) == SOOC_OK) {
-            /* 64-bit FNV-1a of every byte. Not a CRC32 of the file: a checkpoint
-             * ends with its own CRC32, which makes that of the whole file a constant */
-            uint64_t h = 0xcbf29ce484222325ull;
-            for (size_t i = 0; i < nb; i++) h = (h ^ ((const unsigned char *)buf)[i]) * 0x100000001b3ull;
-            sooc_free(buf);
-            n->model_id = h;
-            snprintf(n->model_id_str, sizeof n->model_id_str, "fnv1a64:%016llx bytes:%zu",
-                     (unsigned long long)h, nb);
-        } else { /* a mapper that does not read model.path as a file (tests): no model check */
-            sooc_log(SOOC_LOG_DEBUG, "%s: model.path %s: %s: map.db model_id not set", c->path, c->model_path,
-                     sooc_errmsg());
+        if (c->model_kind == SOOC3D_MAPPER_GEOMETRIC) {   /* the geometric map (docs/cluster.md "In the node") */
+            mp.kind = SOOC3D_MAPPER_GEOMETRIC;
+            mp.cluster.voxel_m = c->geo_voxel_m, mp.cluster.dist_m = c->geo_join_m;
+            mp.cluster.min_height_m = c->geo_min_height_m, mp.cluster.max_extent_m = c->geo_max_extent_m;
+            mp.cluster.max_depth_m = c->max_depth_m < 3.0 ? c->max_depth_m : 3.0;
+            if (c->input_width > 0) mp.input_width = c->input_width, mp.input_height = c->input_height;
+            if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+                sooc_adderr(st, "%s: model.kind geometric", c->path);
+                goto fail;
+            }
+            n->own_mapper = 1;
+            /* the map's identity: the clustering that made it (voxel, join, min height, max extent in m) */
+            snprintf(n->model_id_str, sizeof n->model_id_str,
+                     "geometric %.4g %.4g %.4g %.4g", mp.cluster.voxel_m,
+                     mp.cluster.dist_m, mp.cluster.min_height_m, mp.cluster.max_extent_m);
+        } else {
+            if (!c->model_path[0]) {
+                st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
+                goto fail;
+            }
+            if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+                sooc_adderr(st, "%s: model.path %s", c->path, c->model_path);
+                goto fail;
+            }
+            n->own_mapper = 1;
+            /* the model's identity is its checkpoint's content, not its path */
+            void *buf = NULL;
+            size_t nb = 0;
+            if (sooc_file_read_all(c->model_path, (size_t)1 << 31, &buf, &nb) == SOOC_OK) {
+                /* 64-bit FNV-1a of every byte. Not a CRC32 of the file: a checkpoint
+                 * ends with its own CRC32, which makes that of the whole file a constant */
+                uint64_t h = 0xcbf29ce484222325ull;
+                for (size_t i = 0; i < nb; i++) h = (h ^ ((const unsigned char *)buf)[i]) * 0x100000001b3ull;
+                sooc_free(buf);
+                n->model_id = h;
+                snprintf(n->model_id_str, sizeof n->model_id_str, "fnv1a64:%016llx bytes:%zu",
+                         (unsigned long long)h, nb);
+            } else { /* a mapper that does not read model.path as a file (tests): no model check */
+                sooc_log(SOOC_LOG_DEBUG, "%s: model.path %s: %s: map.db model_id not set", c->path, c->model_path,
+                         sooc_errmsg());
+            }
         }
     }
     sooc3d_mapper_input_size(n->mapper, &n->tw, &n->th);

@@ -1,0 +1,261 @@
+/* The geometric object map behind the mapper's interface (docs/cluster.md
+ * "In the node"): every keyframe goes into one support-plane cluster map
+ * (cluster.h); after it, the map's clusters are matched to the entries by
+ * floor position (nearest first, within the larger of the two floor
+ * half-diagonals plus match_m). A matched entry takes the cluster's box; a
+ * cluster without an entry becomes one; an entry whose centre is in the
+ * keyframe's view that no cluster continues is removed (out of view, an
+ * entry stays: a resumed map, or the far end of a large scene). The change
+ * set of one update holds at most SOOC_MAPPER_CHANGED_MAX entries and as many
+ * removals; the rest wait for the next updates (oldest change first). */
+#include "model/mapper_geo.h"
+#include "sooc3d/cluster.h"
+#include "sooc3d/geom.h"
+
+#include <math.h>
+#include <string.h>
+
+#define GEO_MATCH_M 0.03     /* match distance beyond the half-diagonals (m)        */
+#define GEO_MOVED_M 0.003    /* a box that moves or grows less than this is unchanged */
+#define GEO_LOGIT 6.9f       /* presence of a cluster: sigmoid(6.9) = 0.999         */
+
+typedef struct geo_entry {
+    sooc_map_entry e;
+    uint64_t dirty;          /* 0 = published; else the update that changed it (oldest first) */
+} geo_entry;
+
+struct mdl_geo {
+    sooc_cluster_params cp;
+    sooc_cluster_map *cm;
+    int w, h;
+    geo_entry *ent;
+    size_t n, cap;
+    uint64_t next_id, upd;
+    uint64_t *rem;           /* removals not yet reported */
+    size_t n_rem, cap_rem;
+    sooc_cluster_object *obj;
+    int obj_cap;
+    uint64_t chg[SOOC_MAPPER_CHANGED_MAX], rep_rem[SOOC_MAPPER_CHANGED_MAX];
+    size_t n_chg, n_rep_rem;
+};
+
+sooc_status mdl_geo_create(mdl_geo **out, const sooc3d_mapper_params *p) {
+    *out = NULL;
+    if (p->input_width < 8 || p->input_height < 8 || p->input_width > 8192 || p->input_height > 8192)
+        return sooc_seterr(SOOC_EINVAL, "mapper (geometric): input size %dx%d (8..8192)", p->input_width,
+                           p->input_height);
+    mdl_geo *g = sooc_calloc(1, sizeof *g);
+    if (!g) return sooc_seterr(SOOC_ENOMEM, "mapper (geometric): out of memory");
+    g->cp = p->cluster;
+    g->w = p->input_width, g->h = p->input_height;
+    g->next_id = 1;
+    sooc_status st = sooc_cluster_map_create(&g->cm, &g->cp);
+    if (st) {
+        sooc_free(g);
+        return sooc_adderr(st, "mapper (geometric)");
+    }
+    *out = g;
+    return SOOC_OK;
+}
+
+void mdl_geo_destroy(mdl_geo *g) {
+    if (!g) return;
+    sooc_cluster_map_destroy(g->cm);
+    sooc_free(g->ent);
+    sooc_free(g->rem);
+    sooc_free(g->obj);
+    sooc_free(g);
+}
+
+void mdl_geo_input_size(const mdl_geo *g, int *w, int *h) { *w = g->w, *h = g->h; }
+uint64_t mdl_geo_next_id(const mdl_geo *g) { return g->next_id; }
+void mdl_geo_reserve_ids(mdl_geo *g, uint64_t next_id) {
+    if (next_id > g->next_id) g->next_id = next_id;
+}
+
+static sooc_status grow(void **p, size_t *cap, size_t need, size_t sz) {
+    if (need <= *cap) return SOOC_OK;
+    size_t c = *cap ? *cap : 64;
+    while (c < need) c *= 2;
+    void *q = sooc_realloc(*p, c * sz);
+    if (!q) return sooc_seterr(SOOC_ENOMEM, "mapper (geometric): out of memory for %zu entries", c);
+    *p = q, *cap = c;
+    return SOOC_OK;
+}
+
+/* the entry's centre is in the keyframe's image, in front of the camera, within the depth range */
+static int in_view(const sooc_frame *f, const sooc_map_entry *e, double max_depth) {
+    double T[16], w[3] = {e->x, e->geom.centre[1], e->z}, c[3];
+    sooc_se3_inverse(T, f->T_wc);
+    sooc_se3_apply(c, T, w);
+    if (!(c[2] > 0.05) || c[2] > max_depth) return 0;
+    double u = f->K.fx * c[0] / c[2] + f->K.cx, v = f->K.fy * c[1] / c[2] + f->K.cy;
+    return u >= 0 && v >= 0 && u < f->width && v < f->height;
+}
+
+/* An entry from a cluster: box, pose, colour as the latent; the registration
+ * statistics (Welford) over the updates that matched it. */
+static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc_frame *f, double voxel,
+                         uint64_t upd) {
+    sooc_map_entry *e = &ge->e;
+    int moved = fabs(e->x - o->x) > GEO_MOVED_M || fabs(e->z - o->z) > GEO_MOVED_M ||
+                fabs(e->extent[0] - o->extent[0]) > GEO_MOVED_M || fabs(e->extent[1] - o->extent[1]) > GEO_MOVED_M ||
+                fabs(e->extent[2] - o->extent[2]) > GEO_MOVED_M || fabs(sooc_wrap_angle(e->yaw - o->yaw)) > 0.02;
+    e->x = o->x, e->z = o->z, e->yaw = o->yaw;
+    for (int i = 0; i < 3; i++) e->extent[i] = (float)o->extent[i];
+    e->presence = 1.0f / (1.0f + expf(-GEO_LOGIT));
+    e->presence_logit = GEO_LOGIT;
+    e->latent_dim = SOOC3D_GEOMETRIC_LATENT_DIM;
+    for (int i = 0; i < 3; i++) e->what_mu[i] = (float)o->rgb[i], e->what_logvar[i] = 0;
+    if (!e->obs_count) e->first_seen_ns = f->t_ns;
+    e->last_seen_ns = f->t_ns;
+    e->obs_count++;
+    sooc_map_geometry *g = &e->geom;
+    g->flags = SOOC_GEOM_TIGHT;
+    g->centre[0] = g->centre[2] = 0;
+    g->centre[1] = (float)o->centre_y;
+    g->sym_iou = 0;
+    /* spread of the registered floor positions and headings (Welford; headings mod pi / 2, a box's symmetry) */
+    g->reg_n++;
+    double dx = e->x - g->reg_mean[0], dz = e->z - g->reg_mean[1];
+    g->reg_mean[0] += dx / g->reg_n, g->reg_mean[1] += dz / g->reg_n;
+    g->reg_m2[0] += dx * (e->x - g->reg_mean[0]);
+    g->reg_m2[1] += dx * (e->z - g->reg_mean[1]);
+    g->reg_m2[2] += dz * (e->z - g->reg_mean[1]);
+    g->reg_cs[0] += cos(4 * e->yaw), g->reg_cs[1] += sin(4 * e->yaw);
+    /* the position's std: the registrations' spread, at least half a voxel */
+    double v0 = 0.25 * voxel * voxel, n = (double)g->reg_n;
+    g->cov_xz[0] = fmax(g->reg_m2[0] / n, v0);
+    g->cov_xz[1] = g->reg_m2[1] / n;
+    g->cov_xz[2] = fmax(g->reg_m2[2] / n, v0);
+    e->sigma_t = sqrt(0.5 * (g->cov_xz[0] + g->cov_xz[2]));
+    double r = hypot(g->reg_cs[0], g->reg_cs[1]) / n;
+    double sd = r < 1 ? sqrt(-2.0 * log(r > 1e-12 ? r : 1e-12)) / 4 : 0;   /* circular std of 4 yaw, / 4 */
+    e->sigma_yaw = fmax(sd, 0.5 * M_PI / 180.0);   /* the 1 degree search step */
+    g->var_yaw = e->sigma_yaw * e->sigma_yaw;
+    if (moved && !ge->dirty) ge->dirty = upd;
+}
+
+sooc_status mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc3d_update_stats *us) {
+    double t0 = sooc_seconds();
+    memset(us, 0, sizeof *us);
+    g->upd++;
+    int n = 0;
+    sooc_status st = sooc_cluster_map_add_frame(g->cm, f);
+    if (!st) st = sooc_cluster_map_segment(g->cm, &n);
+    if (!st && n > g->obj_cap) {
+        sooc_cluster_object *o = sooc_realloc(g->obj, (size_t)n * sizeof *o);
+        if (!o) st = sooc_seterr(SOOC_ENOMEM, "mapper (geometric): out of memory for %d objects", n);
+        else g->obj = o, g->obj_cap = n;
+    }
+    if (!st) st = sooc_cluster_map_objects(g->cm, g->obj, n, &n);
+    if (!st) st = grow((void **)&g->ent, &g->cap, g->n + (size_t)n, sizeof *g->ent);
+    if (st) return sooc_adderr(st, "mapper (geometric): frame %lld", (long long)f->index);
+    /* match clusters to entries, nearest pairs first (n and the entries are small) */
+    size_t ne0 = g->n;
+    uint8_t used_e[4096], *ue = ne0 <= sizeof used_e ? used_e : sooc_calloc(ne0, 1);
+    if (!ue) return sooc_seterr(SOOC_ENOMEM, "mapper (geometric): out of memory");
+    memset(ue, 0, ne0 <= sizeof used_e ? ne0 : 0);
+    for (int i = 0; i < n; i++) {
+        const sooc_cluster_object *o = &g->obj[i];
+        double ho = 0.5 * hypot(o->extent[0], o->extent[2]), best = INFINITY;
+        size_t bj = (size_t)-1;
+        for (size_t j = 0; j < ne0; j++) {
+            if (ue[j]) continue;
+            const sooc_map_entry *e = &g->ent[j].e;
+            double d = hypot(e->x - o->x, e->z - o->z);
+            double reach = fmax(ho, 0.5 * hypot(e->extent[0], e->extent[2])) + GEO_MATCH_M;
+            if (d < reach && d < best) best = d, bj = j;
+        }
+        if (bj != (size_t)-1) {
+            ue[bj] = 1;
+            us->n_registered++;
+            take_cluster(&g->ent[bj], o, f, g->cp.voxel_m, g->upd);
+        } else {
+            geo_entry *ge = &g->ent[g->n++];
+            memset(ge, 0, sizeof *ge);
+            ge->e.id = g->next_id++;
+            ge->dirty = g->upd;
+            take_cluster(ge, o, f, g->cp.voxel_m, g->upd);
+            us->n_registered++, us->n_new++;
+        }
+    }
+    /* entries in view that no cluster continues */
+    size_t k = 0;
+    for (size_t j = 0; j < g->n && !st; j++) {
+        int keep = j >= ne0 || ue[j] || !in_view(f, &g->ent[j].e, g->cp.max_depth_m);
+        if (keep) {
+            g->ent[k++] = g->ent[j];
+            continue;
+        }
+        if ((st = grow((void **)&g->rem, &g->cap_rem, g->n_rem + 1, sizeof *g->rem))) break;
+        g->rem[g->n_rem++] = g->ent[j].e.id;
+        us->n_removed++;
+    }
+    if (ue != used_e) sooc_free(ue);
+    if (st) return st;
+    g->n = k;
+    /* this update's change set: the oldest changes first */
+    g->n_chg = 0;
+    for (;;) {
+        size_t bj = (size_t)-1;
+        for (size_t j = 0; j < g->n; j++)
+            if (g->ent[j].dirty && (bj == (size_t)-1 || g->ent[j].dirty < g->ent[bj].dirty)) bj = j;
+        if (bj == (size_t)-1 || g->n_chg == SOOC_MAPPER_CHANGED_MAX) break;
+        g->chg[g->n_chg++] = g->ent[bj].e.id;
+        g->ent[bj].dirty = 0;
+    }
+    g->n_rep_rem = g->n_rem < SOOC_MAPPER_CHANGED_MAX ? g->n_rem : SOOC_MAPPER_CHANGED_MAX;
+    memcpy(g->rep_rem, g->rem, g->n_rep_rem * sizeof *g->rem);
+    memmove(g->rem, g->rem + g->n_rep_rem, (g->n_rem - g->n_rep_rem) * sizeof *g->rem);
+    g->n_rem -= g->n_rep_rem;
+    us->elapsed_ms = 1e3 * (sooc_seconds() - t0);
+    return SOOC_OK;
+}
+
+sooc_status mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n) {
+    if (!out) {
+        *n = g->n;
+        return SOOC_OK;
+    }
+    size_t k = g->n < cap ? g->n : cap;
+    for (size_t i = 0; i < k; i++) out[i] = g->ent[i].e;
+    *n = k;
+    return SOOC_OK;
+}
+
+sooc_status mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_t n) {
+    for (size_t i = 0; i < n; i++)
+        if (e[i].latent_dim != SOOC3D_GEOMETRIC_LATENT_DIM || !e[i].id)
+            return sooc_seterr(SOOC_EINVAL, "mapper (geometric): entry %llu has latent_dim %d, a geometric map's "
+                                            "entries have %d (a map made by a learnt model?)",
+                               (unsigned long long)e[i].id, e[i].latent_dim, SOOC3D_GEOMETRIC_LATENT_DIM);
+    g->n = 0;
+    sooc_status st = grow((void **)&g->ent, &g->cap, n, sizeof *g->ent);
+    if (st) return st;
+    for (size_t i = 0; i < n; i++) {
+        memset(&g->ent[i], 0, sizeof g->ent[i]);
+        g->ent[i].e = e[i];
+        if (e[i].id >= g->next_id) g->next_id = e[i].id + 1;
+    }
+    g->n = n;
+    g->n_chg = g->n_rep_rem = g->n_rem = 0;
+    return SOOC_OK;
+}
+
+sooc_status mdl_geo_changed(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
+                            size_t cap_r, size_t *n_removed) {
+    if (n) *n = g->n_chg;
+    if (n_removed) *n_removed = g->n_rep_rem;
+    if ((out && g->n_chg > cap) || (removed_ids && g->n_rep_rem > cap_r))
+        return sooc_seterr(SOOC_EINVAL, "mapper changed: %zu changed / %zu removed do not fit in %zu / %zu", g->n_chg,
+                           g->n_rep_rem, cap, cap_r);
+    for (size_t i = 0; out && i < g->n_chg; i++) {
+        size_t j = 0;
+        while (j < g->n && g->ent[j].e.id != g->chg[i]) j++;
+        if (j == g->n) return sooc_seterr(SOOC_EINVAL, "mapper changed: entry %llu gone", (unsigned long long)g->chg[i]);
+        out[i] = g->ent[j].e;
+    }
+    if (removed_ids) memcpy(removed_ids, g->rep_rem, g->n_rep_rem * sizeof *removed_ids);
+    return SOOC_OK;
+}
