@@ -1,0 +1,83 @@
+/* Helpers of the log tests: the fixtures folder, temp dirs, damaged copies. */
+#ifndef SOOC3D_TEST_LOGS_UTIL_H
+#define SOOC3D_TEST_LOGS_UTIL_H
+
+#include "check.h"
+#include "sooc3d/core.h"
+#include "sooc3d/log.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* ../shared/bags (SOOC_SHARED_BAGS), or NULL after printing why the test skips. */
+static inline const char *lu_bags(const char *test) {
+    const char *d = getenv("SOOC_SHARED_BAGS");
+    static char buf[1024];
+    if (!d || !*d) d = "../shared/bags";
+    snprintf(buf, sizeof buf, "%s/librealsense/single_depth_color_640x480.bag", d);
+    struct stat sb;
+    if (stat(buf, &sb) != 0) {
+        printf("%s: SKIP: the log fixtures are not at %s (set SOOC_SHARED_BAGS)\n", test, d);
+        return NULL;
+    }
+    return d;
+}
+
+static inline char *lu_path(const char *a, const char *b) {
+    static char bufs[16][1024];
+    static int k = 0;
+    char *p = bufs[k++ % 16];
+    snprintf(p, 1024, "%s/%s", a, b);
+    return p;
+}
+
+static inline char *lu_tmpdir(const char *tag) {
+    static char b[512];
+    const char *t = getenv("TMPDIR");
+    snprintf(b, sizeof b, "%s/sooc_%s_XXXXXX", t && *t ? t : "/tmp", tag);
+    if (!mkdtemp(b)) { perror("mkdtemp"); exit(1); }
+    return b;
+}
+
+static inline uint8_t *lu_read(const char *path, size_t *n) {
+    void *d = NULL;
+    if (sooc_file_read_all(path, (size_t)1 << 30, &d, n)) return NULL;
+    return d;
+}
+
+static inline void lu_write(const char *path, const void *d, size_t n) {
+    FILE *f = fopen(path, "wb");
+    if (!f || (n && fwrite(d, 1, n, f) != n)) { perror(path); exit(1); }
+    fclose(f);
+}
+
+/* Offset of the first occurrence of needle (n bytes) in d, or -1. */
+static inline long lu_find(const uint8_t *d, size_t nd, const void *needle, size_t n) {
+    for (size_t i = 0; i + n <= nd; i++)
+        if (!memcmp(d + i, needle, n)) return (long)i;
+    return -1;
+}
+
+static inline uint32_t logs_u32_le(const uint8_t *p) {
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
+}
+static inline uint64_t logs_u64_le(const uint8_t *p) { return logs_u32_le(p) | ((uint64_t)logs_u32_le(p + 4) << 32); }
+
+/* Open must fail with status st and a message containing every given piece. */
+static inline void lu_open_fails(const char *path, sooc_status st, const char *a, const char *b) {
+    sooc_logfile *lf = NULL;
+    sooc_status got = sooc_logfile_open(&lf, path);
+    CHECK_MSG(got == st, "%s: opened with %s, expected %s (%s)", path, sooc_status_str(got), sooc_status_str(st),
+              sooc_errmsg());
+    CHECK(lf == NULL);
+    CHECK_MSG(strstr(sooc_errmsg(), path) != NULL, "message does not name the file: %s", sooc_errmsg());
+    if (a) CHECK_MSG(strstr(sooc_errmsg(), a) != NULL, "message lacks '%s': %s", a, sooc_errmsg());
+    if (b) CHECK_MSG(strstr(sooc_errmsg(), b) != NULL, "message lacks '%s': %s", b, sooc_errmsg());
+    printf("  %s -> %s\n", sooc_status_str(got), sooc_errmsg());
+    sooc_logfile_close(lf);
+}
+
+#endif
