@@ -66,6 +66,9 @@ sooc_status sooc_png_info(const char *path, int *w, int *h, sooc_pixfmt *fmt);
 /* Write a PNG via a temp file + rename (no fsync). `level` is the zlib level
  * 0..9, or -1 for the default (6). Output bytes are deterministic. */
 sooc_status sooc_png_write(const char *path, const sooc_image *img, int level);
+/* Decode n bytes of PNG in memory (ROS CompressedImage messages) with the
+ * reader's conversions and limits; `name` (may be NULL) is used in messages. */
+sooc_status sooc_png_decode(const void *buf, size_t n, const char *name, sooc_image *out);
 /* Encode to a sooc_malloc'd buffer (*out, *n); the caller frees. */
 sooc_status sooc_png_encode(const sooc_image *img, int level, void **out, size_t *n);
 

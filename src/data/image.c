@@ -115,27 +115,41 @@ static FILE *png_open(const char *path, sooc_status *st) {
     return fp;
 }
 
-static sooc_status png_read_impl(const char *path, sooc_image *out, int header_only, int *pw,
-                                 int *ph, sooc_pixfmt *pfmt) {
+/* Bytes of a PNG held in memory (sooc_png_decode). */
+typedef struct png_mem_src {
+    const unsigned char *p;
+    size_t n, pos;
+} png_mem_src;
+
+static void png_mem_read(png_structp png, png_bytep data, png_size_t n) {
+    png_mem_src *m = png_get_io_ptr(png);
+    if (n > m->n - m->pos) png_error(png, "unexpected end of data");
+    memcpy(data, m->p + m->pos, n);
+    m->pos += n;
+}
+
+/* Decode from the open file fp (after its signature) or, when fp is NULL,
+ * from mem (path names it in messages). */
+static sooc_status png_decode_impl(const char *path, FILE *fp, png_mem_src *mem, sooc_image *out, int header_only,
+                                   int *pw, int *ph, sooc_pixfmt *pfmt) {
     sooc_status st = SOOC_OK;
-    FILE *fp = png_open(path, &st);
-    if (!fp) return st;
     png_err_ctx ectx = {{0}};
     png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ectx, png_err_cb, png_warn_cb);
     png_infop info = png ? png_create_info_struct(png) : NULL;
     png_bytep *volatile rows = NULL; /* volatile: set after setjmp, freed after a longjmp */
     if (!png || !info) {
         if (png) png_destroy_read_struct(&png, NULL, NULL);
-        fclose(fp);
+        if (fp) fclose(fp);
         return sooc_seterr(SOOC_ENOMEM, "%s: libpng init failed", path);
     }
     if (setjmp(png_jmpbuf(png))) {
         png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
+        if (fp) fclose(fp);
         free(rows);
         return sooc_seterr(SOOC_EFORMAT, "%s: corrupt PNG: %s", path, ectx.msg);
     }
-    png_init_io(png, fp);
+    if (fp) png_init_io(png, fp);
+    else png_set_read_fn(png, mem, png_mem_read);
     png_set_sig_bytes(png, 8);
     png_set_user_limits(png, 32768, 32768);
     png_read_info(png, info);
@@ -151,14 +165,14 @@ static sooc_status png_read_impl(const char *path, sooc_image *out, int header_o
      * takes at least one bit of the inflated stream), so a tiny file cannot
      * claim a huge image. */
     struct stat sb;
-    size_t fsize = fstat(fileno(fp), &sb) == 0 && sb.st_size > 0 ? (size_t)sb.st_size : 0;
+    size_t fsize = !fp ? mem->n : fstat(fileno(fp), &sb) == 0 && sb.st_size > 0 ? (size_t)sb.st_size : 0;
     st = check_read_size(path, "PNG", w, h, (size_t)sooc_pixfmt_bytes(fmt));
     if (!st && (size_t)w * h > (size_t)8 * 1100 * (fsize + 1024))
         st = sooc_seterr(SOOC_EFORMAT, "%s: corrupt PNG: %ux%u pixels cannot fit in a %zu-byte file", path,
                          (unsigned)w, (unsigned)h, fsize);
     if (st) {
         png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
+        if (fp) fclose(fp);
         return st;
     }
     if (pw) *pw = (int)w;
@@ -166,7 +180,7 @@ static sooc_status png_read_impl(const char *path, sooc_image *out, int header_o
     if (pfmt) *pfmt = fmt;
     if (header_only) {
         png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
+        if (fp) fclose(fp);
         return SOOC_OK;
     }
     if (ctype == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
@@ -181,14 +195,14 @@ static sooc_status png_read_impl(const char *path, sooc_image *out, int header_o
     size_t bpp = (size_t)sooc_pixfmt_bytes(fmt);
     if (rowbytes != (size_t)w * bpp) {
         png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
+        if (fp) fclose(fp);
         return sooc_seterr(SOOC_EFORMAT, "%s: unsupported PNG layout (row %zu bytes for %u px)", path,
                            rowbytes, (unsigned)w);
     }
     st = sooc_image_alloc(out, (int)w, (int)h, fmt);
     if (st) {
         png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
+        if (fp) fclose(fp);
         return sooc_adderr(st, "%s", path);
     }
     rows = malloc(sizeof(png_bytep) * h);
@@ -198,8 +212,15 @@ static sooc_status png_read_impl(const char *path, sooc_image *out, int header_o
     png_read_end(png, NULL);
     free(rows);
     png_destroy_read_struct(&png, &info, NULL);
-    fclose(fp);
+    if (fp) fclose(fp);
     return SOOC_OK;
+}
+
+static sooc_status png_read_impl(const char *path, sooc_image *out, int header_only, int *pw, int *ph,
+                                 sooc_pixfmt *pfmt) {
+    sooc_status st = SOOC_OK;
+    FILE *fp = png_open(path, &st);
+    return fp ? png_decode_impl(path, fp, NULL, out, header_only, pw, ph, pfmt) : st;
 }
 
 sooc_status sooc_png_read(const char *path, sooc_image *out) {
@@ -208,6 +229,14 @@ sooc_status sooc_png_read(const char *path, sooc_image *out) {
 
 sooc_status sooc_png_info(const char *path, int *w, int *h, sooc_pixfmt *fmt) {
     return png_read_impl(path, NULL, 1, w, h, fmt);
+}
+
+sooc_status sooc_png_decode(const void *buf, size_t n, const char *name, sooc_image *out) {
+    if (!name) name = "PNG data";
+    if (!buf || n < 8 || png_sig_cmp((png_const_bytep)buf, 0, 8))
+        return sooc_seterr(SOOC_EFORMAT, "%s: not a PNG image", name);
+    png_mem_src m = {buf, n, 8};
+    return png_decode_impl(name, NULL, &m, out, 0, NULL, NULL, NULL);
 }
 
 typedef struct membuf {
