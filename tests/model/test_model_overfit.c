@@ -42,8 +42,7 @@ int main(void) {
     double dt = sooc_seconds() - t0;
     printf("overfit: mean loss first 10 steps %.1f, last 10 steps %.1f: drop %.2fx |first| (need >= %.2f) in %d steps, %.1f s\n",
            first, last, (first - last) / fabs(first), OVERFIT_FACTOR, OVERFIT_STEPS, dt);
-    CHECK(first - last >= OVERFIT_FACTOR * fabs(first));
-    CHECK(dt < 120);
+    CHECK(first - last >= OVERFIT_FACTOR * fabs(first));   /* the time budget is the test's TIMEOUT (120 s) */
     for (int i = 0; i < 3; i++) sooc_frame_free(&F[i]);
     sooc_model_ws_destroy(W);
     sooc_model_destroy(m);
