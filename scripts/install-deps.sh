@@ -6,7 +6,7 @@ set -euo pipefail
 PKGS=(
   build-essential cmake pkg-config git
   libopenblas-dev liblapacke-dev
-  libpng-dev libjpeg62-turbo-dev libyaml-dev libsqlite3-dev sqlite3
+  libpng-dev libjpeg62-turbo-dev libyaml-dev libsqlite3-dev sqlite3 libmatio-dev
   libopenni2-dev libopenni2-0
   libfreenect-dev libfreenect-bin
   libv4l-dev

@@ -195,6 +195,9 @@ typedef struct sooc_eval_real_opts {
                                   (SOOC3D models only)                                  (NULL) */
     sooc_finetune_progress_fn ft_progress;  /* with finetune: called every 50 steps (NULL) */
     void *ft_user;
+    int labels_predicted;      /* 1: the labels are a network's predictions (APC masks,
+                                  sooc_seq_labels_predicted): the JSON says "labels":
+                                  "predicted" and its scores are agreement with them  (0) */
 } sooc_eval_real_opts;
 void sooc_eval_real_opts_default(sooc_eval_real_opts *o);
 /* 1 when the runner maps the input frames a second time (growth): asked for,
@@ -259,8 +262,10 @@ sooc_status sooc_eval_geometric_run(const sooc_frame *frames, int n_frames, cons
 
 /* One JSON object (no trailing newline) for cell (model, sequence): the
  * contract keys "scale": "real", "view": "Q", depth_rmse, rgb_rmse,
- * entries_final, entries_created, plus miou and obj_iou (list, with obj_ids
- * and obj_views) when labelled, and the churn, growth, spread and seen
+ * entries_final, entries_created, plus "labels" ("ground_truth", or
+ * "predicted" with o->labels_predicted: the scores are agreement with a
+ * network's masks), miou and obj_iou (list, with obj_ids and obj_views) when
+ * labelled, and the churn, growth, spread and seen
  * figures. *out is sooc_malloc'd (caller frees). */
 sooc_status sooc_eval_real_json(const char *model, const char *sequence, const char *path,
                                 const sooc_eval_real_opts *o, const sooc_eval_real_result *r, char **out);

@@ -2,7 +2,10 @@
  * sooc3d RGB-D sequence readers and the synthetic-layout writer
  * (docs/formats.md §Sequences).
  *
- * Formats (auto-detected in this order, or forced):
+ * Formats (forced, or detected: rgb.txt -> TUM, traj.txt -> Replica,
+ * pose.txt -> slambook2, cam.info.txt -> APC, then the first of
+ * frame-NNNNNN.color.* -> 7-Scenes / label-fusion and NNNNNN-color.png ->
+ * YCB-Video in the directory):
  *  - TUM / sooc3d synthetic: rgb.txt, depth.txt, groundtruth.txt
  *    (`t tx ty tz qx qy qz qw`, camera-to-world), rgb/, depth/ (16-bit PNG),
  *    calib.yaml (depth_scale); optional instance/ (16-bit ids) and
@@ -23,9 +26,26 @@
  *  slambook2 and Replica name frame i after line i of their pose list; a
  *  line whose colour and depth files are both absent is skipped (a trimmed
  *  copy), one with only one of them is an error.
+ *  - YCB-Video as shipped (PoseCNN, DenseFusion, BOP YCB-V): NNNNNN-color.png,
+ *    NNNNNN-depth.png (metres = value / factor_depth), NNNNNN-label.png
+ *    (8-bit class index = instance id, ground truth; optional) and
+ *    NNNNNN-meta.mat (MATLAB v5, read with libmatio: intrinsic_matrix,
+ *    factor_depth, rotation_translation_matrix = world-to-camera 3x4; T_wc is
+ *    its inverse); a calibration YAML, when given, overrides its intrinsics
+ *    and depth scale.
+ *  - APC (apc-vision-toolbox): cam.info.txt (colour and depth intrinsics,
+ *    depth-to-colour, bin-to-world, then one camera-to-world 4x4 per frame,
+ *    which lists the frames), frame-NNNNNN.color.png, frame-NNNNNN.depth.png
+ *    (aligned to colour; the 16 bits rotated right by 3, then 1e-4 m), and
+ *    optional masks/frame-NNNNNN.<object>.mask.png (16-bit confidence) with
+ *    masks/<object>.thresh.txt: the instance label of a pixel is the object
+ *    whose confidence passes its threshold, the highest when several do;
+ *    object k of the "# Objects:" line has id k + 1 (sooc_seq_label_name).
+ *    These labels are predictions (sooc_seq_labels_predicted).
  *
  * Colour may be PNG or JPEG whatever the extension (read by content).
- * Depth: metres = (raw >> depth_shift) * depth_scale; raw 0 and raw ==
+ * Depth: metres = (raw >> depth_shift) * depth_scale (APC: a right rotation
+ * of the 16 bits instead of the shift); raw 0 and raw ==
  * depth_invalid (before the shift) are invalid. Each of the three comes from
  * the open parameters, else the calibration YAML, else the format's default
  * (sooc_seq_formats(): 7-Scenes mm with 65535 invalid, label-fusion
@@ -62,9 +82,11 @@ typedef enum sooc_seq_format {
     SOOC_SEQ_7SCENES,    /* frame-%06d.* (7-Scenes)                  */
     SOOC_SEQ_SLAMBOOK,   /* pose.txt + color/ + depth/               */
     SOOC_SEQ_REPLICA,    /* NICE-SLAM Replica traj.txt + results/    */
-    SOOC_SEQ_LABELFUSION /* the 7-Scenes layout, label-fusion depth  */
+    SOOC_SEQ_LABELFUSION,/* the 7-Scenes layout, label-fusion depth  */
+    SOOC_SEQ_YCB,        /* YCB-Video: %06d-{color,depth,label}.png, -meta.mat */
+    SOOC_SEQ_APC         /* APC: cam.info.txt, frame-%06d.*, masks/  */
 } sooc_seq_format;
-#define SOOC_SEQ_FORMAT_COUNT 6
+#define SOOC_SEQ_FORMAT_COUNT 8
 
 /* One row of the format-name table: the only place format names live. The
  * launch parser, the CLI and the replay driver use the functions below. */
@@ -76,6 +98,9 @@ typedef struct sooc_seq_format_info {
     double depth_scale;       /* default metres per (shifted) unit; 0 = from calib   */
     int depth_shift;          /* default right shift of raw depth                    */
     int depth_invalid;        /* default raw "no depth" value besides 0 (0 = none)   */
+    int depth_circular;       /* 1: the shift rotates the 16 bits right (APC)        */
+    int labels_predicted;     /* 1: the layout's labels are a network's predictions
+                                 (scores against them measure agreement)           */
 } sooc_seq_format_info;
 
 /* The table (SOOC_SEQ_FORMAT_COUNT rows, row i = enum value i). */
@@ -83,11 +108,12 @@ const sooc_seq_format_info *sooc_seq_formats(int *n);
 /* The row of f, or NULL when f is out of range. */
 const sooc_seq_format_info *sooc_seq_format_info_of(sooc_seq_format f);
 /* Canonical name: "auto", "tum", "7scenes", "slambook", "replica",
- * "label-fusion" ("?" when out of range). */
+ * "label-fusion", "ycb-video", "apc" ("?" when out of range). */
 const char *sooc_seq_format_name(sooc_seq_format f);
 /* Any name or alias, case-insensitive: auto; tum, sooc, tum-rgbd; 7scenes,
  * sevenscenes, 7-scenes; slambook, slambook2; replica, nice-slam;
- * label-fusion, labelfusion, label_fusion. Unknown -> EINVAL listing them. */
+ * label-fusion, labelfusion, label_fusion; ycb-video, ycb, ycbv, ycb_video;
+ * apc, apc-shelf, apc_shelf. Unknown -> EINVAL listing them. */
 sooc_status sooc_seq_format_parse(const char *s, sooc_seq_format *out);
 /* Writes "auto, tum (sooc, tum-rgbd), 7scenes (...), ..." for messages and
  * help texts; returns the full length (like snprintf). */
@@ -117,7 +143,7 @@ int64_t sooc_seq_count(const sooc_seq *s);
 /* Read frame i (0 <= i < count) into f. f must be zero-initialised or hold a
  * frame from an earlier call (its buffers are reused when the size matches).
  * Fills rgb, depth (planar metres, 0 = invalid), valid, instance (synthetic
- * layout only, else NULL), t_ns, has_pose/T_wc, K, index (the frame's number
+ * layout, YCB-Video label.png, APC masks; else NULL), t_ns, has_pose/T_wc, K, index (the frame's number
  * in its file names, = i for TUM), is_query. On error (a missing, truncated
  * or corrupt image, named in the message) f may hold a partial frame: do not
  * use it; nothing else changes and later frames can still be read. */
@@ -133,8 +159,20 @@ int64_t sooc_seq_frame_time(const sooc_seq *s, int64_t i);
 const char *sooc_seq_color_path(const sooc_seq *s, int64_t i);
 const char *sooc_seq_depth_path(const sooc_seq *s, int64_t i);
 /* The depth decoding in use: metres = (raw >> shift) * scale, raw 0 and raw ==
- * invalid (when > 0) are invalid. */
+ * invalid (when > 0) are invalid. With sooc_seq_depth_circular(s) == 1 the
+ * shift is a right rotation of the 16 bits: (raw >> shift) | (raw << (16 -
+ * shift)) on 16 bits (APC). */
 void sooc_seq_depth_decoding(const sooc_seq *s, double *scale, int *shift, int *invalid);
+int sooc_seq_depth_circular(const sooc_seq *s);
+/* 1 when the frames carry instance ids (sooc_seq_read fills f->instance). */
+int sooc_seq_has_labels(const sooc_seq *s);
+/* 1 when those ids are predictions (APC: a segmentation network's masks), not
+ * ground truth: scores against them measure agreement, not accuracy. 0 for
+ * ground truth or no labels. */
+int sooc_seq_labels_predicted(const sooc_seq *s);
+/* The name of label id (APC: the object of the "# Objects:" line; YCB-Video:
+ * the class, e.g. "025_mug"), or NULL when the layout names none. */
+const char *sooc_seq_label_name(const sooc_seq *s, int id);
 const sooc_calib *sooc_seq_calib(const sooc_seq *s);
 /* Number of rgb entries dropped because no depth matched (TUM). */
 int64_t sooc_seq_dropped(const sooc_seq *s);

@@ -21,7 +21,8 @@ const char *const sooc_eval_real_cli_help =
     "...; docs/metrics.md \"Real sequences\"): every N-th frame is a held-out query frame (position\n"
     "% N == N/2; never mapped), the others are mapped in order with a fresh map; the query frames are\n"
     "rendered from the map and scored (depth / RGB RMSE; mIoU and per-object IoU when the sequence has\n"
-    "labels: frame-NNNNNN.segm.png, frame-NNNNNN.mask.png or instance/, docs/formats.md); then churn,\n"
+    "labels: frame-NNNNNN.segm.png, frame-NNNNNN.mask.png, instance/, YCB-Video NNNNNN-label.png, or\n"
+    "APC masks/, which are predictions: scores against them are agreement; docs/formats.md); then churn,\n"
     "growth on a second pass over the same frames, yaw / position spread of persistent entries and the\n"
     "free-space / never-seen fractions. One JSON cell per (model, sequence) with \"scale\": \"real\",\n"
     "\"view\": \"Q\".\n"
@@ -53,7 +54,7 @@ int sooc_eval_dir_is_recorded(const char *dir) {
 typedef enum { LAB_NONE = 0, LAB_READER, LAB_SEGM, LAB_MASK, LAB_INSTANCE } lab_src;
 static const char *lab_name(lab_src s) {
     switch (s) {
-    case LAB_READER: return "instance/ (sequence reader)";
+    case LAB_READER: return "the sequence reader (instance/, YCB-Video label.png, APC masks)";
     case LAB_SEGM: return "frame-NNNNNN.segm.png (label-fusion)";
     case LAB_MASK: return "frame-NNNNNN.mask.png (label-fusion masks, one object)";
     case LAB_INSTANCE: return "instance/frame-NNNNNN.png";
@@ -61,10 +62,32 @@ static const char *lab_name(lab_src s) {
     }
 }
 
+/* "1 name, 2 name, ..." for the ids of the frames' labels that the reader
+ * names (APC objects, YCB-Video classes); "" when it names none. */
+static void reader_label_names(const sooc_seq *s, const sooc_frame *fr, int n, char *buf, size_t cap) {
+    static uint8_t seen[65536];
+    memset(seen, 0, sizeof seen);
+    for (int i = 0; i < n; i++)
+        for (int k = 0; fr[i].instance && k < fr[i].width * fr[i].height; k++) seen[fr[i].instance[k]] = 1;
+    size_t m = 0;
+    buf[0] = 0;
+    for (int id = 1; id < 65536 && m + 1 < cap; id++) {
+        const char *nm = seen[id] ? sooc_seq_label_name(s, id) : NULL;
+        if (nm) {
+            int k = snprintf(buf + m, cap - m, "%s%d %s", m ? ", " : "", id, nm);
+            if (k < 0) break;
+            m += (size_t)k;
+        }
+    }
+}
+
 /* Read every frame of dir at model c's input size into *frames (count *n)
- * with labels on the query frames of the rule when the sequence has them. */
+ * with labels on the query frames of the rule when the sequence has them;
+ * *pred = 1 when the reader's labels are predictions (APC masks), names =
+ * the reader's names of the label ids. */
 static sooc_status load_sequence(const char *dir, const sooc_framepath_params *fpp0, const sooc_model_config *c,
-                                 int every, sooc_frame **frames, int *n_out, lab_src *lab) {
+                                 int every, sooc_frame **frames, int *n_out, lab_src *lab, int *pred, char *names,
+                                 size_t ncap) {
     sooc_framepath_params fpp = *fpp0;
     sooc_cli_framepath_model(&fpp, c);
     int w = c->img_w, h = c->img_h;
@@ -73,6 +96,8 @@ static sooc_status load_sequence(const char *dir, const sooc_framepath_params *f
     int n = 0;
     uint16_t *ids = NULL;
     *lab = LAB_NONE;
+    *pred = 0;
+    names[0] = 0;
     sooc_status st = sooc_framepath_open(&fp, dir, &fpp);
     if (st) return st;
     int64_t cnt = sooc_framepath_count(fp);
@@ -120,6 +145,10 @@ static sooc_status load_sequence(const char *dir, const sooc_framepath_params *f
             sooc_adderr(st, "%s", p);
             goto done;
         }
+    }
+    if (*lab == LAB_READER) {
+        *pred = sooc_seq_labels_predicted(sooc_framepath_seq(fp));
+        reader_label_names(sooc_framepath_seq(fp), fr, n, names, ncap);
     }
     if (sooc_framepath_empty_depth(fp) > 0)
         sooc_log(SOOC_LOG_WARN, "%s: %lld frames have no valid depth after preprocessing (depth scale or range?)", dir,
@@ -262,7 +291,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
     char *md = NULL;
     size_t md_len = 0, md_cap = 0;
     sooc_eval_real_result *res = NULL;
-    typedef struct { char model[160], seq[256]; int pass2; } row_name;
+    typedef struct { char model[160], seq[256]; int pass2, pred; } row_name;
     row_name *rn = NULL;
     size_t cap = (2 * (size_t)a->n_models + 1) * (size_t)a->n_dirs;   /* a base and a +ft row each, geometric */
     if (!(cells = calloc(cap, sizeof *cells)) || !(res = calloc(cap, sizeof *res)) || !(rn = calloc(cap, sizeof *rn))) {
@@ -277,21 +306,29 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
         int with_ft = a->ft && !sooc_model_is_global(m);
         for (int d = 0; d < a->n_dirs && !st; d++) {
             lab_src lab;
-            if ((st = load_sequence(a->dirs[d], &a->fp, c, a->opts.query_every, &fr, &nfr, &lab))) {
+            int pred;
+            char lnames[2048];
+            if ((st = load_sequence(a->dirs[d], &a->fp, c, a->opts.query_every, &fr, &nfr, &lab, &pred, lnames,
+                                    sizeof lnames))) {
                 sooc_adderr(st, "%s", a->dirs[d]);
                 break;
             }
             if (!a->quiet)
-                fprintf(stderr, "eval: %s on %s: %d frames at %dx%d, labels: %s\n", a->names[mi], a->dirs[d], nfr,
-                        c->img_w, c->img_h, lab_name(lab));
+                fprintf(stderr, "eval: %s on %s: %d frames at %dx%d, labels: %s%s%s%s\n", a->names[mi], a->dirs[d],
+                        nfr, c->img_w, c->img_h, lab_name(lab),
+                        pred ? ", PREDICTED masks (scores are agreement with them, not accuracy)" : "",
+                        lnames[0] ? "; ids: " : "", lnames);
+            sooc_eval_real_opts og = a->opts;   /* the geometric row's */
+            og.labels_predicted = pred;
             for (int ft = 0; ft <= with_ft && !st; ft++) {
-                sooc_eval_real_opts o = a->opts;
+                sooc_eval_real_opts o = og;
                 o.finetune = ft ? a->ft : NULL;
                 o.ft_progress = ft && !a->quiet ? on_ft_progress : NULL;
                 row_name *r = &rn[n_cells];
                 snprintf(r->model, sizeof r->model, "%.150s%s", a->names[mi], ft ? "+ft" : "");
                 seq_name(a->dirs[d], r->seq, sizeof r->seq);
                 r->pass2 = sooc_eval_real_second_pass(&o);
+                r->pred = pred;
                 st = run_cell(a, m, m, r->model, a->dirs[d], &o, fr, nfr, &res[n_cells], &cells[n_cells]);
                 if (!st) ft_s += res[n_cells++].finetune_s;
             }
@@ -300,7 +337,8 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                 snprintf(r->model, sizeof r->model, "geometric");
                 seq_name(a->dirs[d], r->seq, sizeof r->seq);
                 r->pass2 = 0;
-                st = run_cell(a, NULL, m, r->model, a->dirs[d], &a->opts, fr, nfr, &res[n_cells], &cells[n_cells]);
+                r->pred = pred;
+                st = run_cell(a, NULL, m, r->model, a->dirs[d], &og, fr, nfr, &res[n_cells], &cells[n_cells]);
                 if (!st) n_cells++;
             }
             for (int i = 0; i < nfr; i++) sooc_frame_free(&fr[i]);
@@ -314,7 +352,7 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
 
     /* text table on stdout, Markdown alongside */
     {
-        size_t need = 4096 + (size_t)n_cells * 512;
+        size_t need = 4096 + (size_t)n_cells * 1600;   /* a row and a per-object IoU line each */
         if (!(md = malloc(need))) { st = SOOC_ENOMEM; goto fail; }
         md_cap = need;
         md_len += (size_t)snprintf(md + md_len, md_cap - md_len,
@@ -333,6 +371,36 @@ int sooc_cmd_eval_real(const sooc_eval_real_cli *a) {
                                        "| %.60s | %.60s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n",
                                        rn[k].model, rn[k].seq, cc[0], cc[1], cc[2], cc[3], cc[4], cc[5], cc[6], cc[7],
                                        cc[8], cc[9]);
+        }
+        /* per-object IoU of the labelled cells, and what it measures */
+        md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n");
+        char pseq[512] = "";
+        for (int k = 0; k < n_cells; k++) {
+            const sooc_eval_real_result *r = &res[k];
+            if (!r->has_labels || !r->obj.n) continue;
+            char line[1024];
+            size_t m = 0;
+            double sum = 0;
+            int cnt = 0;
+            m += (size_t)snprintf(line, sizeof line, "per-object IoU%s, %s on %s (id IoU):",
+                                  rn[k].pred ? " (agreement with predicted masks)" : "", rn[k].model, rn[k].seq);
+            for (int j = 0; j < r->obj.n && m < sizeof line - 32; j++) {
+                double v = sooc_obj_iou_mean(&r->obj, j);
+                m += (size_t)snprintf(line + m, sizeof line - m, " %u %.3f", (unsigned)r->obj.id[j], v);
+                if (isfinite(v)) sum += v, cnt++;
+            }
+            if (cnt) snprintf(line + m, sizeof line - m, "; mean %.3f", sum / cnt);
+            printf("%s\n", line);
+            md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "%s  \n", line);
+            if (rn[k].pred && !strstr(pseq, rn[k].seq) && strlen(pseq) + strlen(rn[k].seq) + 3 < sizeof pseq)
+                snprintf(pseq + strlen(pseq), sizeof pseq - strlen(pseq), "%s%s", pseq[0] ? ", " : "", rn[k].seq);
+        }
+        if (pseq[0]) {
+            char pn[768];
+            snprintf(pn, sizeof pn, "Labels of %s are PREDICTED masks (a segmentation network's, APC layout): its mIoU "
+                     "and per-object IoU are agreement with predicted masks, not accuracy against ground truth.", pseq);
+            printf("\n%s\n", pn);
+            md_len += (size_t)snprintf(md + md_len, md_cap - md_len, "\n*%s*\n", pn);
         }
         char note[1024];
         snprintf(note, sizeof note,

@@ -1,9 +1,12 @@
-/* RGB-D sequence readers (TUM/synthetic, 7-Scenes/label-fusion, slambook2,
- * Replica/NICE-SLAM) with strict validation, and the synthetic writer. */
+/* RGB-D sequences: the format-name table, detection, the TUM/synthetic and
+ * 7-Scenes/label-fusion readers, and the frame read every layout shares
+ * (seq_list.c: slambook2, Replica; seq_ycb.c: YCB-Video; seq_apc.c: APC;
+ * seq_write.c: the synthetic writer). */
 #include "sooc3d/seq.h"
 #include "sooc3d/image.h"
 #include "sooc3d/scene.h"
 #include "data_impl.h"
+#include "seq_impl.h"
 
 #include <dirent.h>
 #include <math.h>
@@ -11,50 +14,30 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct seq_entry {
-    char *rgb, *depth, *inst;     /* full paths (inst may be NULL) */
-    int64_t t_ns;
-    int has_pose;
-    double T[16];
-    int line;                     /* line in `src` that listed this frame (0 = none) */
-    int64_t number;               /* the frame's number in its file names (TUM: list order) */
-    const char *src;              /* file that listed it (points into seq->srcnames) */
-    int is_query;
-} seq_entry;
-
-struct sooc_seq {
-    sooc_seq_format fmt;
-    char dir[2048];
-    char srcname[2][4096];        /* list files named in messages */
-    sooc_calib calib;
-    double depth_scale, max_depth;
-    int depth_shift, depth_invalid;
-    int flip_y;
-    int has_gravity;
-    double gravity[3];            /* unit vector in the world frame */
-    seq_entry *e;
-    int64_t n, cap, dropped;
-    sooc_image img_rgb, img_depth, img_inst;
-};
-
 /* The one table of sequence format names (docs/formats.md §Format names).
  * The launch parser, the CLI and the replay driver read names only through
  * sooc_seq_format_parse / sooc_seq_format_name / sooc_seq_formats. Row i
  * holds the enum value i. Depth defaults apply when neither the open
  * parameters nor the calibration give a value. */
 static const sooc_seq_format_info g_formats[SOOC_SEQ_FORMAT_COUNT] = {
-    {SOOC_SEQ_AUTO, "auto", "", "detect the layout (and the label-fusion depth encoding) from the files", 0, 0, 65535},
+    {SOOC_SEQ_AUTO, "auto", "", "detect the layout (and the label-fusion depth encoding) from the files", 0, 0, 65535,
+     0, 0},
     {SOOC_SEQ_TUM, "tum", "sooc|tum-rgbd",
-     "TUM RGB-D and the sooc3d synthetic layout: rgb.txt, depth.txt, groundtruth.txt, calib.yaml", 0, 0, 65535},
+     "TUM RGB-D and the sooc3d synthetic layout: rgb.txt, depth.txt, groundtruth.txt, calib.yaml", 0, 0, 65535, 0, 0},
     {SOOC_SEQ_7SCENES, "7scenes", "sevenscenes|7-scenes",
      "Microsoft 7-Scenes: frame-NNNNNN.{color.jpg|color.png, depth.png, pose.txt}; depth mm, 65535 invalid",
-     0.001, 0, 65535},
+     0.001, 0, 65535, 0, 0},
     {SOOC_SEQ_SLAMBOOK, "slambook", "slambook2", "slambook2: pose.txt, color/N.png, depth/N.pgm; needs a calib YAML",
-     0, 0, 65535},
+     0, 0, 65535, 0, 0},
     {SOOC_SEQ_REPLICA, "replica", "nice-slam", "Replica (NICE-SLAM): traj.txt, results/frameNNNNNN.jpg, depthNNNNNN.png",
-     1.0 / 6553.5, 0, 65535},
+     1.0 / 6553.5, 0, 65535, 0, 0},
     {SOOC_SEQ_LABELFUSION, "label-fusion", "labelfusion|label_fusion",
-     "label-fusion: the 7-Scenes layout with depth (raw >> 3) * 1e-4 m", 1e-4, 3, 0},
+     "label-fusion: the 7-Scenes layout with depth (raw >> 3) * 1e-4 m", 1e-4, 3, 0, 0, 0},
+    {SOOC_SEQ_YCB, "ycb-video", "ycb|ycbv|ycb_video",
+     "YCB-Video: NNNNNN-{color.png, depth.png, label.png, meta.mat}; depth 1 / factor_depth m", 0, 0, 0, 0, 0},
+    {SOOC_SEQ_APC, "apc", "apc-shelf|apc_shelf",
+     "APC shelf&tote: cam.info.txt, frame-NNNNNN.{color,depth}.png, masks/ (predicted); depth rotated right 3, "
+     "1e-4 m", 1e-4, 3, 0, 1, 1},
 };
 
 const sooc_seq_format_info *sooc_seq_formats(int *n) {
@@ -134,16 +117,16 @@ void sooc_seq_open_params_default(sooc_seq_open_params *p) {
 
 /* ------------------------------------------------------------ helpers */
 
-static char *join_dup(const char *a, const char *b) {
+char *sooc_seqi_join_dup(const char *a, const char *b) {
     char buf[4096];
     if (sooc_path_join(buf, sizeof buf, a, b)) return NULL;
     return sooc_strdup(buf);
 }
 
-static sooc_status push_entry(sooc_seq *s, seq_entry **out) {
+sooc_status sooc_seqi_push(sooc_seq *s, sooc_seqi_entry **out) {
     if (s->n == s->cap) {
         int64_t cap = s->cap ? s->cap * 2 : 256;
-        seq_entry *e = sooc_realloc(s->e, sizeof *e * (size_t)cap);
+        sooc_seqi_entry *e = sooc_realloc(s->e, sizeof *e * (size_t)cap);
         if (!e) return SOOC_ENOMEM;
         s->e = e;
         s->cap = cap;
@@ -155,7 +138,7 @@ static sooc_status push_entry(sooc_seq *s, seq_entry **out) {
 }
 
 /* Split `line` in place into at most `max` whitespace-separated tokens. */
-static int tokenize(char *line, char **tok, int max) {
+int sooc_seqi_tokenize(char *line, char **tok, int max) {
     int n = 0;
     char *p = line;
     while (*p) {
@@ -169,7 +152,7 @@ static int tokenize(char *line, char **tok, int max) {
     return n;
 }
 
-static int parse_double(const char *t, double *v) {
+int sooc_seqi_parse_double(const char *t, double *v) {
     char *end;
     *v = strtod(t, &end);
     return end != t && *end == 0 && isfinite(*v);
@@ -197,7 +180,7 @@ static int parse_time_ns(const char *t, int64_t *ns) {
     }
     if (*p || nd == 0) {
         double v;
-        if (!parse_double(t, &v) || fabs(v) > 9e9) return 0;
+        if (!sooc_seqi_parse_double(t, &v) || fabs(v) > 9e9) return 0;
         *ns = (int64_t)llround(v * 1e9);
         return 1;
     }
@@ -208,8 +191,7 @@ static int parse_time_ns(const char *t, int64_t *ns) {
 
 /* Iterate the lines of a text file: calls fn(user, lineno, line) for each
  * line that is not empty and not a # comment. */
-typedef sooc_status (*line_fn)(void *user, int lineno, char *line);
-static sooc_status for_lines(const char *path, line_fn fn, void *user) {
+sooc_status sooc_seqi_for_lines(const char *path, sooc_seqi_line_fn fn, void *user) {
     void *buf;
     size_t n;
     sooc_status s = sooc_file_read_all(path, (size_t)256 << 20, &buf, &n);
@@ -242,7 +224,7 @@ static sooc_status check_rotation(const char *file, int line, const double R[9],
 
 /* A 4x4 row-major pose from a file: rotation block orthonormal (reported at
  * line_r), last row 0 0 0 1 (reported at line_last). */
-static sooc_status check_pose4(const char *file, int line_r, int line_last, const double T[16], double tol) {
+sooc_status sooc_seqi_check_pose4(const char *file, int line_r, int line_last, const double T[16], double tol) {
     double R[9], t[3];
     sooc_se3_to_rt(R, t, T);
     sooc_status s = check_rotation(file, line_r, R, tol);
@@ -252,10 +234,10 @@ static sooc_status check_pose4(const char *file, int line_r, int line_last, cons
     return SOOC_OK;
 }
 
-static sooc_status quat_pose(const char *file, int line, char **tok, double T[16], double tol) {
+sooc_status sooc_seqi_quat_pose(const char *file, int line, char **tok, double T[16], double tol) {
     double v[7];
     for (int k = 0; k < 7; k++)
-        if (!parse_double(tok[k], &v[k]))
+        if (!sooc_seqi_parse_double(tok[k], &v[k]))
             return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a number", file, line, tok[k]);
     double qn = sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (fabs(qn - 1) > tol)
@@ -268,7 +250,7 @@ static sooc_status quat_pose(const char *file, int line, char **tok, double T[16
     return SOOC_OK;
 }
 
-static sooc_status need_file(const char *list, int line, const char *path) {
+sooc_status sooc_seqi_need_file(const char *list, int line, const char *path) {
     if (!sooc_file_exists(path)) {
         if (line > 0) return sooc_seterr(SOOC_ENOTFOUND, "%s:%d: %s: missing file", list, line, path);
         return sooc_seterr(SOOC_ENOTFOUND, "%s: missing file", path);
@@ -278,16 +260,16 @@ static sooc_status need_file(const char *list, int line, const char *path) {
 
 /* <dir>/<prefix><i zero-padded to width digits><ext>; when that file does
  * not exist and alt_ext is given, the same name with alt_ext instead if that
- * one exists (else the first name, which need_file then reports). NULL if
+ * one exists (else the first name, which sooc_seqi_need_file then reports). NULL if
  * out of memory or too long. */
-static char *frame_path(const char *dir, const char *prefix, int width, int64_t i, const char *ext,
-                        const char *alt_ext) {
+char *sooc_seqi_frame_path(const char *dir, const char *prefix, int width, int64_t i, const char *ext,
+                           const char *alt_ext) {
     char name[128];
     snprintf(name, sizeof name, "%s%0*lld%s", prefix, width, (long long)i, ext);
-    char *path = join_dup(dir, name);
+    char *path = sooc_seqi_join_dup(dir, name);
     if (path && alt_ext && !sooc_file_exists(path)) {
         snprintf(name, sizeof name, "%s%0*lld%s", prefix, width, (long long)i, alt_ext);
-        char *alt = join_dup(dir, name);
+        char *alt = sooc_seqi_join_dup(dir, name);
         if (alt && sooc_file_exists(alt)) {
             sooc_free(path);
             return alt;
@@ -299,7 +281,7 @@ static char *frame_path(const char *dir, const char *prefix, int width, int64_t 
 
 /* Load calibration: explicit path, else <dir>/calib.yaml. Returns
  * ENOTFOUND (without error text) when neither exists and !required. */
-static sooc_status load_calib(sooc_seq *s, const sooc_seq_open_params *p, int required) {
+sooc_status sooc_seqi_load_calib(sooc_seq *s, const sooc_seq_open_params *p, int required) {
     char path[4096];
     if (p->calib_path) return sooc_calib_load(p->calib_path, &s->calib);
     sooc_status st = sooc_path_join(path, sizeof path, s->dir, "calib.yaml");
@@ -327,7 +309,7 @@ typedef struct tlist {
 static sooc_status tlist_line(void *user, int lineno, char *line) {
     tlist *L = user;
     char *tok[10];
-    int nt = tokenize(line, tok, 9);
+    int nt = sooc_seqi_tokenize(line, tok, 9);
     int want = L->is_gt ? 8 : 2;
     if (nt != want)
         return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected %d columns (%s), got %d", L->file, lineno, want,
@@ -358,12 +340,12 @@ static sooc_status tlist_line(void *user, int lineno, char *line) {
         L->cap = cap;
     }
     if (L->is_gt) {
-        sooc_status s = quat_pose(L->file, lineno, tok + 1, L->T + 16 * L->n, L->tol);
+        sooc_status s = sooc_seqi_quat_pose(L->file, lineno, tok + 1, L->T + 16 * L->n, L->tol);
         if (s) return s;
     } else {
-        char *full = join_dup(L->dir, tok[1]);
+        char *full = sooc_seqi_join_dup(L->dir, tok[1]);
         if (!full) return sooc_seterr(SOOC_ENOMEM, "%s:%d: path too long", L->file, lineno);
-        sooc_status s = need_file(L->file, lineno, full);
+        sooc_status s = sooc_seqi_need_file(L->file, lineno, full);
         if (s) { sooc_free(full); return s; }
         L->path[L->n] = full;
     }
@@ -413,10 +395,10 @@ static sooc_status open_tum(sooc_seq *s, const sooc_seq_open_params *p) {
         L[k].dir = s->dir;
         L[k].is_gt = k == 2;
         L[k].tol = p->rot_tol;
-        st = for_lines(files[k], tlist_line, &L[k]);
+        st = sooc_seqi_for_lines(files[k], tlist_line, &L[k]);
         if (!st && L[k].n == 0 && k < 2) st = sooc_seterr(SOOC_EFORMAT, "%s: no entries", files[k]);
     }
-    if (!st) st = load_calib(s, p, 1);
+    if (!st) st = sooc_seqi_load_calib(s, p, 1);
     snprintf(s->srcname[0], sizeof s->srcname[0], "%s", files[0]);
     snprintf(s->srcname[1], sizeof s->srcname[1], "%s", files[1]);
     int64_t tol = (int64_t)llround(p->max_dt * 1e9);
@@ -430,8 +412,8 @@ static sooc_status open_tum(sooc_seq *s, const sooc_seq_open_params *p) {
         int jd = nearest(L[1].t, L[1].n, L[0].t[i]);
         int64_t dd = jd < 0 ? INT64_MAX : llabs(L[1].t[jd] - L[0].t[i]);
         if (dd > tol) { s->dropped++; continue; }
-        seq_entry *e;
-        st = push_entry(s, &e);
+        sooc_seqi_entry *e;
+        st = sooc_seqi_push(s, &e);
         if (st) break;
         e->rgb = L[0].path[i];
         L[0].path[i] = NULL;
@@ -447,9 +429,9 @@ static sooc_status open_tum(sooc_seq *s, const sooc_seq_open_params *p) {
         }
         if (have_inst) {
             const char *base = strrchr(e->rgb, '/');
-            e->inst = join_dup(idir, base ? base + 1 : e->rgb);
+            e->inst = sooc_seqi_join_dup(idir, base ? base + 1 : e->rgb);
             if (!e->inst) { st = SOOC_ENOMEM; break; }
-            st = need_file(s->srcname[0], e->line, e->inst);
+            st = sooc_seqi_need_file(s->srcname[0], e->line, e->inst);
         }
         if (!e->depth) st = SOOC_ENOMEM;
     }
@@ -484,13 +466,13 @@ typedef struct mat_ctx {
 static sooc_status mat_line(void *user, int lineno, char *line) {
     mat_ctx *m = user;
     char *tok[20];
-    int nt = tokenize(line, tok, 16);
+    int nt = sooc_seqi_tokenize(line, tok, 16);
     if (m->rows >= 4 || (m->rows >= 1 && m->ncols == 3 && m->rows >= 3))
         return sooc_seterr(SOOC_EFORMAT, "%s:%d: too many rows", m->file, lineno);
     if (nt != m->ncols)
         return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected %d numbers, got %d", m->file, lineno, m->ncols, nt);
     for (int k = 0; k < nt; k++)
-        if (!parse_double(tok[k], &m->v[m->rows * m->ncols + k]))
+        if (!sooc_seqi_parse_double(tok[k], &m->v[m->rows * m->ncols + k]))
             return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a finite number", m->file, lineno, tok[k]);
     m->lines[m->rows] = lineno;
     m->rows++;
@@ -502,11 +484,11 @@ static sooc_status read_pose4(const char *file, double T[16], double tol) {
     memset(&m, 0, sizeof m);
     m.file = file;
     m.ncols = 4;
-    sooc_status s = for_lines(file, mat_line, &m);
+    sooc_status s = sooc_seqi_for_lines(file, mat_line, &m);
     if (s) return s;
     if (m.rows != 4) return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 4 rows of 4 numbers, got %d", file, m.rows ? m.lines[m.rows - 1] : 1, m.rows);
     memcpy(T, m.v, sizeof m.v);
-    s = check_pose4(file, m.lines[0], m.lines[3], T, tol);
+    s = sooc_seqi_check_pose4(file, m.lines[0], m.lines[3], T, tol);
     if (s) return s;
     T[12] = T[13] = T[14] = 0;
     T[15] = 1;
@@ -614,7 +596,7 @@ static sooc_status read_intrinsics_txt(sooc_seq *s, const char *kpath, int w, in
     memset(&m, 0, sizeof m);
     m.file = kpath;
     m.ncols = 3;
-    sooc_status st = for_lines(kpath, mat_line, &m);
+    sooc_status st = sooc_seqi_for_lines(kpath, mat_line, &m);
     if (st) return st;
     if (m.rows != 3) return sooc_seterr(SOOC_EFORMAT, "%s: expected a 3x3 matrix, got %d rows", kpath, m.rows);
     if (m.v[0] == 0 || m.v[4] == 0 || m.v[1] != 0 || m.v[3] != 0 || m.v[6] != 0 || m.v[7] != 0 || m.v[8] != 1)
@@ -630,15 +612,15 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
     if (!st && n == 0)
         st = sooc_seterr(SOOC_ENOTFOUND, "%s: no frames (expected frame-NNNNNN.color.jpg or .color.png)", s->dir);
     for (int i = 0; i < n && !st; i++) {
-        seq_entry *e;
-        st = push_entry(s, &e);
+        sooc_seqi_entry *e;
+        st = sooc_seqi_push(s, &e);
         if (st) break;
-        e->rgb = join_dup(s->dir, fl[i].name);
-        e->depth = frame_path(s->dir, "frame-", 6, fl[i].number, ".depth.png", NULL);
-        char *pose = frame_path(s->dir, "frame-", 6, fl[i].number, ".pose.txt", NULL);
+        e->rgb = sooc_seqi_join_dup(s->dir, fl[i].name);
+        e->depth = sooc_seqi_frame_path(s->dir, "frame-", 6, fl[i].number, ".depth.png", NULL);
+        char *pose = sooc_seqi_frame_path(s->dir, "frame-", 6, fl[i].number, ".pose.txt", NULL);
         if (!e->rgb || !e->depth || !pose) { sooc_free(pose); st = SOOC_ENOMEM; break; }
-        st = need_file(NULL, 0, e->depth);
-        if (!st) st = need_file(NULL, 0, pose);
+        st = sooc_seqi_need_file(NULL, 0, e->depth);
+        if (!st) st = sooc_seqi_need_file(NULL, 0, pose);
         if (!st) st = read_pose4(pose, e->T, p->rot_tol);
         sooc_free(pose);
         e->has_pose = 1;
@@ -652,7 +634,7 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
         sooc_log(SOOC_LOG_INFO, "%s: depth samples are multiples of 8: reading as label-fusion "
                  "((raw >> 3) * 1e-4 m; give format 7scenes to override)", s->dir);
     }
-    st = load_calib(s, p, 0);
+    st = sooc_seqi_load_calib(s, p, 0);
     if (st != SOOC_ENOTFOUND) return st;
     int w, h;
     sooc_pixfmt fmt;
@@ -672,123 +654,6 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
     return SOOC_OK;
 }
 
-/* ------------------------------------------- pose lists: slambook, Replica */
-
-/* slambook2 and Replica list one pose a line in one file and name each
- * frame's images by its number; neither has timestamps (30 Hz by index). */
-typedef struct list_ctx {
-    sooc_seq *s;
-    const char *file;
-    double tol;
-    int64_t lines;    /* pose lines read so far (frame number of the next = lines + first) */
-    int64_t skipped;  /* lines whose colour and depth files are both absent */
-} list_ctx;
-
-/* Fills the fields every listed frame shares (its pose has been read) and
- * checks that both images exist; rgb and depth are set by the caller. A line
- * whose colour and depth files are both missing is dropped (a trimmed or
- * subsampled copy); only one of them missing is an error. */
-static sooc_status list_entry_done(list_ctx *c, int lineno, seq_entry *e, int64_t number) {
-    e->has_pose = 1;
-    e->line = lineno;
-    e->src = c->s->srcname[0];
-    e->number = number;
-    e->t_ns = number * 33333333LL;
-    if (!e->rgb || !e->depth) return SOOC_ENOMEM;
-    if (!sooc_file_exists(e->rgb) && !sooc_file_exists(e->depth)) {
-        sooc_free(e->rgb);
-        sooc_free(e->depth);
-        c->s->n--;
-        c->skipped++;
-        return SOOC_OK;
-    }
-    sooc_status st = need_file(c->file, lineno, e->rgb);
-    if (!st) st = need_file(c->file, lineno, e->depth);
-    return st;
-}
-
-/* Reads the pose list <dir>/<name> with fn (one frame a line; at least
- * one). The list's path goes to s->srcname[0] for per-frame messages. */
-static sooc_status read_pose_list(sooc_seq *s, const sooc_seq_open_params *p, const char *name, int need,
-                                  line_fn fn) {
-    char path[4096];
-    sooc_status st = sooc_path_join(path, sizeof path, s->dir, name);
-    if (st) return st;
-    if (need) {
-        st = need_file(NULL, 0, path);
-        if (st) return st;
-    }
-    snprintf(s->srcname[0], sizeof s->srcname[0], "%s", path);
-    list_ctx c = {s, s->srcname[0], p->rot_tol, 0, 0};
-    st = for_lines(path, fn, &c);
-    if (!st && s->n == 0)
-        st = sooc_seterr(SOOC_EFORMAT, c.lines ? "%s: none of its %lld frames has its images" : "%s: no poses", path,
-                         (long long)c.lines);
-    if (!st && c.skipped)
-        sooc_log(SOOC_LOG_INFO, "%s: %lld of %lld listed frames have no images (trimmed copy): skipped", path,
-                 (long long)c.skipped, (long long)c.lines);
-    return st;
-}
-
-/* slambook2: pose.txt "tx ty tz qx qy qz qw"; color/<n>.png and
- * depth/<n>.pgm (or .png), n from 1. */
-static sooc_status sb_line(void *user, int lineno, char *line) {
-    list_ctx *c = user;
-    char *tok[10];
-    int nt = tokenize(line, tok, 8);
-    if (nt != 7)
-        return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 7 numbers (tx ty tz qx qy qz qw), got %d", c->file,
-                           lineno, nt);
-    seq_entry *e;
-    sooc_status st = push_entry(c->s, &e);
-    if (st) return st;
-    st = quat_pose(c->file, lineno, tok, e->T, c->tol);
-    if (st) return st;
-    int64_t k = ++c->lines; /* numbered from 1 */
-    e->rgb = frame_path(c->s->dir, "color/", 0, k, ".png", ".jpg");
-    e->depth = frame_path(c->s->dir, "depth/", 0, k, ".pgm", ".png");
-    return list_entry_done(c, lineno, e, k);
-}
-
-static sooc_status open_slambook(sooc_seq *s, const sooc_seq_open_params *p) {
-    sooc_status st = read_pose_list(s, p, "pose.txt", 1, sb_line);
-    if (!st) st = load_calib(s, p, 1);
-    return st;
-}
-
-/* Replica (NICE-SLAM): traj.txt, a row-major 4x4 a line;
- * results/frame<i>.png (or .jpg) and results/depth<i>.png, i from 0. */
-static sooc_status rp_line(void *user, int lineno, char *line) {
-    list_ctx *c = user;
-    char *tok[20];
-    int nt = tokenize(line, tok, 16);
-    if (nt != 16)
-        return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 16 numbers (row-major 4x4), got %d", c->file, lineno, nt);
-    seq_entry *e;
-    sooc_status st = push_entry(c->s, &e);
-    if (st) return st;
-    for (int k = 0; k < 16; k++)
-        if (!parse_double(tok[k], &e->T[k]))
-            return sooc_seterr(SOOC_EINVAL, "%s:%d: '%s' is not a finite number", c->file, lineno, tok[k]);
-    st = check_pose4(c->file, lineno, lineno, e->T, c->tol);
-    if (st) return st;
-    int64_t i = c->lines++; /* numbered from 0 */
-    e->rgb = frame_path(c->s->dir, "results/frame", 6, i, ".jpg", ".png");
-    e->depth = frame_path(c->s->dir, "results/depth", 6, i, ".png", NULL);
-    return list_entry_done(c, lineno, e, i);
-}
-
-static sooc_status open_replica(sooc_seq *s, const sooc_seq_open_params *p) {
-    sooc_status st = read_pose_list(s, p, "traj.txt", 0, rp_line);
-    if (st) return st;
-    st = load_calib(s, p, 0);
-    if (st == SOOC_ENOTFOUND) {
-        /* NICE-SLAM Replica camera (configs/Replica/replica.yaml) */
-        sooc_calib_pinhole(&s->calib, 1200, 680, 600, 600, 599.5, 339.5);
-        st = SOOC_OK; /* depth: the format default, 1 / 6553.5 m */
-    }
-    return st;
-}
 
 /* gravity-direction.txt (7-Scenes): three numbers, the direction of gravity
  * in the world frame. Absent -> no gravity; malformed -> error. */
@@ -801,11 +666,11 @@ typedef struct grav_ctx {
 static sooc_status grav_line(void *user, int lineno, char *line) {
     grav_ctx *g = user;
     char *tok[4];
-    int nt = tokenize(line, tok, 3);
+    int nt = sooc_seqi_tokenize(line, tok, 3);
     for (int k = 0; k < nt; k++) {
         if (g->n >= 3 || nt > 3)
             return sooc_seterr(SOOC_EFORMAT, "%s:%d: expected 3 numbers (gravity x y z), got more", g->file, lineno);
-        if (!parse_double(tok[k], &g->v[g->n]))
+        if (!sooc_seqi_parse_double(tok[k], &g->v[g->n]))
             return sooc_seterr(SOOC_EFORMAT, "%s:%d: '%s' is not a finite number", g->file, lineno, tok[k]);
         g->n++;
     }
@@ -819,7 +684,7 @@ static sooc_status load_gravity(sooc_seq *s) {
     grav_ctx g;
     memset(&g, 0, sizeof g);
     g.file = path;
-    st = for_lines(path, grav_line, &g);
+    st = sooc_seqi_for_lines(path, grav_line, &g);
     if (st) return st;
     if (g.n != 3) return sooc_seterr(SOOC_EFORMAT, "%s: expected 3 numbers (gravity x y z), got %d", path, g.n);
     double nrm = sqrt(g.v[0] * g.v[0] + g.v[1] * g.v[1] + g.v[2] * g.v[2]);
@@ -843,15 +708,19 @@ static sooc_seq_format detect(const char *dir) {
     if (!sooc_path_join(p, sizeof p, dir, "rgb.txt") && sooc_file_exists(p)) return SOOC_SEQ_TUM;
     if (!sooc_path_join(p, sizeof p, dir, "traj.txt") && sooc_file_exists(p)) return SOOC_SEQ_REPLICA;
     if (!sooc_path_join(p, sizeof p, dir, "pose.txt") && sooc_file_exists(p)) return SOOC_SEQ_SLAMBOOK;
+    if (!sooc_path_join(p, sizeof p, dir, "cam.info.txt") && sooc_file_exists(p)) return SOOC_SEQ_APC;
+    sooc_seq_format f = SOOC_SEQ_AUTO;
     DIR *d = opendir(dir);
     if (d) {
         struct dirent *de;
         int ext;
-        while ((de = readdir(d)))
-            if (scenes_color_number(de->d_name, &ext) >= 0) { closedir(d); return SOOC_SEQ_7SCENES; }
+        while (f == SOOC_SEQ_AUTO && (de = readdir(d))) {
+            if (scenes_color_number(de->d_name, &ext) >= 0) f = SOOC_SEQ_7SCENES;
+            else if (sooc_seqi_ycb_color_number(de->d_name) >= 0) f = SOOC_SEQ_YCB;
+        }
         closedir(d);
     }
-    return SOOC_SEQ_AUTO;
+    return f;
 }
 
 sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_params *pp) {
@@ -873,11 +742,13 @@ sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_p
     case SOOC_SEQ_TUM: st = open_tum(s, &p); break;
     case SOOC_SEQ_7SCENES:
     case SOOC_SEQ_LABELFUSION: st = open_7scenes(s, &p); break;
-    case SOOC_SEQ_SLAMBOOK: st = open_slambook(s, &p); break;
-    case SOOC_SEQ_REPLICA: st = open_replica(s, &p); break;
+    case SOOC_SEQ_SLAMBOOK: st = sooc_seqi_open_slambook(s, &p); break;
+    case SOOC_SEQ_REPLICA: st = sooc_seqi_open_replica(s, &p); break;
+    case SOOC_SEQ_YCB: st = sooc_seqi_open_ycb(s, &p); break;
+    case SOOC_SEQ_APC: st = sooc_seqi_open_apc(s, &p); break;
     default:
-        st = sooc_seterr(SOOC_ENOTFOUND, "%s: no sequence found (need rgb.txt, traj.txt, pose.txt or "
-                         "frame-NNNNNN.color.jpg/.png)", dir);
+        st = sooc_seterr(SOOC_ENOTFOUND, "%s: no sequence found (need rgb.txt, traj.txt, pose.txt, cam.info.txt, "
+                         "frame-NNNNNN.color.jpg/.png or NNNNNN-color.png)", dir);
     }
     if (!st) st = load_gravity(s);
     if (!st) {
@@ -892,6 +763,7 @@ sooc_status sooc_seq_open(sooc_seq **out, const char *dir, const sooc_seq_open_p
                          : s->calib.depth_shift >= 0 ? s->calib.depth_shift : fi->depth_shift;
         s->depth_invalid = p.depth_invalid >= 0 ? p.depth_invalid
                            : s->calib.depth_invalid >= 0 ? s->calib.depth_invalid : fi->depth_invalid;
+        s->depth_circular = fi->depth_circular;
         if (!st && (s->depth_shift > 15 || s->depth_invalid > 65535))
             st = sooc_seterr(SOOC_EINVAL, "%s: depth_shift %d / depth_invalid %d out of range ([0, 15] / [0, 65535])",
                              dir, s->depth_shift, s->depth_invalid);
@@ -932,6 +804,12 @@ void sooc_seq_depth_decoding(const sooc_seq *s, double *scale, int *shift, int *
     if (shift) *shift = s->depth_shift;
     if (invalid) *invalid = s->depth_invalid;
 }
+int sooc_seq_depth_circular(const sooc_seq *s) { return s ? s->depth_circular : 0; }
+int sooc_seq_has_labels(const sooc_seq *s) { return s && (s->labels_fn || (s->n > 0 && s->e[0].inst)); }
+int sooc_seq_labels_predicted(const sooc_seq *s) { return sooc_seq_has_labels(s) ? s->labels_predicted : 0; }
+const char *sooc_seq_label_name(const sooc_seq *s, int id) {
+    return s && s->label_name_fn ? s->label_name_fn(s, id) : NULL;
+}
 const sooc_calib *sooc_seq_calib(const sooc_seq *s) { return &s->calib; }
 int64_t sooc_seq_dropped(const sooc_seq *s) { return s->dropped; }
 
@@ -946,11 +824,12 @@ void sooc_seq_close(sooc_seq *s) {
     sooc_image_free(&s->img_rgb);
     sooc_image_free(&s->img_depth);
     sooc_image_free(&s->img_inst);
+    if (s->priv_free) s->priv_free(s->priv);
     sooc_free(s);
 }
 
 /* "<list>:<line>: " context for per-frame messages. */
-static void ctx_of(const seq_entry *e, char *buf, size_t n) {
+static void ctx_of(const sooc_seqi_entry *e, char *buf, size_t n) {
     if (e->src && e->line > 0) snprintf(buf, n, "%s:%d: ", e->src, e->line);
     else buf[0] = 0;
 }
@@ -959,7 +838,7 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
     if (!s || i < 0 || i >= s->n)
         return sooc_seterr(SOOC_EINVAL, "seq read: frame %lld out of range [0, %lld)", (long long)i,
                            (long long)(s ? s->n : 0));
-    const seq_entry *e = &s->e[i];
+    const sooc_seqi_entry *e = &s->e[i];
     char ctx[4400];
     ctx_of(e, ctx, sizeof ctx);
     sooc_status st = sooc_image_read(e->rgb, &s->img_rgb);
@@ -979,12 +858,14 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
     if (W != s->calib.K.width || H != s->calib.K.height)
         return sooc_seterr(SOOC_EFORMAT, "%s%s: image is %dx%d but the calibration says %dx%d", ctx, e->rgb,
                            W, H, s->calib.K.width, s->calib.K.height);
-    int with_inst = e->inst != NULL;
-    if (with_inst) {
+    int with_inst = e->inst != NULL || s->labels_fn != NULL;
+    if (e->inst) {   /* 16-bit ids, or 8-bit (YCB-Video class indices) */
         st = sooc_png_read(e->inst, &s->img_inst);
         if (st) return sooc_adderr(st, "%s", ctx[0] ? ctx : "seq");
-        if (s->img_inst.fmt != SOOC_PIX_GRAY16 || s->img_inst.width != W || s->img_inst.height != H)
-            return sooc_seterr(SOOC_EFORMAT, "%s%s: instance image must be 16-bit %dx%d", ctx, e->inst, W, H);
+        if ((s->img_inst.fmt != SOOC_PIX_GRAY16 && s->img_inst.fmt != SOOC_PIX_GRAY8) || s->img_inst.width != W ||
+            s->img_inst.height != H)
+            return sooc_seterr(SOOC_EFORMAT, "%s%s: instance image is %s %dx%d, expected 8- or 16-bit %dx%d", ctx,
+                               e->inst, sooc_pixfmt_name(s->img_inst.fmt), s->img_inst.width, s->img_inst.height, W, H);
     }
     if (!f->rgb || f->width != W || f->height != H || (with_inst != (f->instance != NULL))) {
         sooc_frame_free(f);
@@ -994,15 +875,20 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
     size_t np = (size_t)W * (size_t)H;
     memcpy(f->rgb, s->img_rgb.data, np * 3);
     const uint16_t *dr = s->img_depth.data;
-    const int inv = s->depth_invalid > 0 ? s->depth_invalid : -1;
+    const int inv = s->depth_invalid > 0 ? s->depth_invalid : -1, sh = s->depth_shift;
+    const int rot = s->depth_circular && sh > 0;
     for (size_t k = 0; k < np; k++) {
         uint16_t raw = dr[k];
-        float z = raw == 0 || raw == inv ? 0.0f : (float)((double)(raw >> s->depth_shift) * s->depth_scale);
+        unsigned v = rot ? ((unsigned)(raw >> sh) | ((unsigned)raw << (16 - sh))) & 0xffffu : (unsigned)(raw >> sh);
+        float z = raw == 0 || raw == inv ? 0.0f : (float)((double)v * s->depth_scale);
         if (s->max_depth > 0 && z > s->max_depth) z = 0;
         f->depth[k] = z;
         f->valid[k] = z > 0;
     }
-    if (with_inst) memcpy(f->instance, s->img_inst.data, np * sizeof(uint16_t));
+    if (e->inst && s->img_inst.fmt == SOOC_PIX_GRAY16) memcpy(f->instance, s->img_inst.data, np * sizeof(uint16_t));
+    else if (e->inst)
+        for (size_t k = 0; k < np; k++) f->instance[k] = ((const uint8_t *)s->img_inst.data)[k];
+    else if (s->labels_fn && (st = s->labels_fn(s, i, f->instance, W, H))) return st;
     f->t_ns = e->t_ns;
     f->has_pose = e->has_pose;
     memcpy(f->T_wc, e->T, sizeof f->T_wc);
@@ -1016,138 +902,4 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
     f->index = e->number;
     f->is_query = e->is_query;
     return SOOC_OK;
-}
-
-/* --------------------------------------------------------------- writer */
-
-struct sooc_seq_writer {
-    char dir[2048];
-    sooc_calib calib;
-    int64_t n;
-    uint8_t *done;
-    int64_t *t_ns;
-    double *T;
-    int *has_pose;
-};
-
-sooc_status sooc_seq_writer_create(sooc_seq_writer **out, const char *dir, const sooc_calib *calib,
-                                   int64_t n_frames) {
-    *out = NULL;
-    if (!(calib->depth_scale > 0)) return sooc_seterr(SOOC_EINVAL, "%s: writer needs depth_scale > 0", dir);
-    if (n_frames <= 0 || n_frames > 100000000) return sooc_seterr(SOOC_EINVAL, "%s: bad frame count", dir);
-    if (strlen(dir) >= 2000) return sooc_seterr(SOOC_EINVAL, "%s: path too long", dir);
-    sooc_seq_writer *w = sooc_calloc(1, sizeof *w);
-    if (!w) return SOOC_ENOMEM;
-    snprintf(w->dir, sizeof w->dir, "%s", dir);
-    w->calib = *calib;
-    w->n = n_frames;
-    w->done = sooc_calloc((size_t)n_frames, 1);
-    w->t_ns = sooc_calloc((size_t)n_frames, sizeof(int64_t));
-    w->T = sooc_calloc((size_t)n_frames * 16, sizeof(double));
-    w->has_pose = sooc_calloc((size_t)n_frames, sizeof(int));
-    if (!w->done || !w->t_ns || !w->T || !w->has_pose) { sooc_seq_writer_destroy(w); return SOOC_ENOMEM; }
-    static const char *sub[] = {"rgb", "depth"};
-    for (int k = 0; k < 2; k++) {
-        char p[4096];
-        sooc_status s = sooc_path_join(p, sizeof p, dir, sub[k]);
-        if (!s) s = sooc_mkdirs(p);
-        if (s) { sooc_seq_writer_destroy(w); return s; }
-    }
-    *out = w;
-    return SOOC_OK;
-}
-
-sooc_status sooc_seq_writer_put(sooc_seq_writer *w, int64_t i, const sooc_frame *f) {
-    if (i < 0 || i >= w->n) return sooc_seterr(SOOC_EINVAL, "%s: writer slot %lld out of range", w->dir, (long long)i);
-    if (f->width != w->calib.K.width || f->height != w->calib.K.height)
-        return sooc_seterr(SOOC_EINVAL, "%s: frame %lld is %dx%d, calibration %dx%d", w->dir, (long long)i,
-                           f->width, f->height, w->calib.K.width, w->calib.K.height);
-    char name[64], path[4096];
-    sooc_image img = {0};
-    sooc_status s = sooc_image_alloc(&img, f->width, f->height, SOOC_PIX_RGB8);
-    size_t np = (size_t)f->width * (size_t)f->height;
-    if (!s) {
-        memcpy(img.data, f->rgb, np * 3);
-        snprintf(name, sizeof name, "rgb/%06lld.png", (long long)i);
-        s = sooc_path_join(path, sizeof path, w->dir, name);
-        if (!s) s = sooc_png_write(path, &img, 6);
-    }
-    if (!s) s = sooc_image_alloc(&img, f->width, f->height, SOOC_PIX_GRAY16);
-    if (!s) {
-        uint16_t *d = img.data;
-        for (size_t k = 0; k < np; k++) {
-            double q = f->valid[k] && f->depth[k] > 0 ? floor(f->depth[k] / w->calib.depth_scale + 0.5) : 0;
-            d[k] = q > 65535 ? 0 : (uint16_t)q;
-        }
-        snprintf(name, sizeof name, "depth/%06lld.png", (long long)i);
-        s = sooc_path_join(path, sizeof path, w->dir, name);
-        if (!s) s = sooc_png_write(path, &img, 6);
-    }
-    if (!s && f->instance) {
-        memcpy(img.data, f->instance, np * sizeof(uint16_t));
-        s = sooc_path_join(path, sizeof path, w->dir, "instance");
-        if (!s) s = sooc_mkdirs(path); /* safe to race: EEXIST is fine */
-        snprintf(name, sizeof name, "instance/%06lld.png", (long long)i);
-        if (!s) s = sooc_path_join(path, sizeof path, w->dir, name);
-        if (!s) s = sooc_png_write(path, &img, 6);
-    }
-    sooc_image_free(&img);
-    if (s) return s;
-    w->t_ns[i] = f->t_ns;
-    w->has_pose[i] = f->has_pose;
-    memcpy(w->T + 16 * i, f->T_wc, sizeof f->T_wc);
-    w->done[i] = 1;
-    return SOOC_OK;
-}
-
-sooc_status sooc_seq_writer_finish(sooc_seq_writer *w) {
-    for (int64_t i = 0; i < w->n; i++) {
-        if (!w->done[i]) return sooc_seterr(SOOC_EINVAL, "%s: frame %lld was never written", w->dir, (long long)i);
-        if (i > 0 && w->t_ns[i] <= w->t_ns[i - 1])
-            return sooc_seterr(SOOC_EINVAL, "%s: frame %lld: timestamps must increase", w->dir, (long long)i);
-    }
-    static const char *files[] = {"rgb.txt", "depth.txt", "groundtruth.txt"};
-    sooc_status s = SOOC_OK;
-    size_t cap = 256 + (size_t)w->n * 160;
-    char *b = sooc_malloc(cap);
-    if (!b) return SOOC_ENOMEM;
-    for (int k = 0; k < 3 && !s; k++) {
-        size_t n = 0;
-        n += (size_t)snprintf(b + n, cap - n, "# %s\n# written by sooc3d (synthetic layout, docs/formats.md)\n# %s\n",
-                              files[k], k == 2 ? "timestamp tx ty tz qx qy qz qw (camera-to-world)" : "timestamp filename");
-        for (int64_t i = 0; i < w->n; i++) {
-            int64_t t = w->t_ns[i];
-            char ts[48];
-            snprintf(ts, sizeof ts, "%s%lld.%06lld", t < 0 ? "-" : "", llabs(t) / 1000000000LL,
-                     (llabs(t) % 1000000000LL) / 1000);
-            if (k < 2) {
-                n += (size_t)snprintf(b + n, cap - n, "%s %s/%06lld.png\n", ts, k ? "depth" : "rgb", (long long)i);
-            } else if (w->has_pose[i]) {
-                double R[9], t3[3], q[4];
-                sooc_se3_to_rt(R, t3, w->T + 16 * i);
-                sooc_m3_to_quat(q, R);
-                n += (size_t)snprintf(b + n, cap - n, "%s %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", ts, t3[0], t3[1],
-                                      t3[2], q[0], q[1], q[2], q[3]);
-            }
-        }
-        char path[4096];
-        s = sooc_path_join(path, sizeof path, w->dir, files[k]);
-        if (!s) s = sooc_data_write_file(path, b, n);
-    }
-    sooc_free(b);
-    if (!s) {
-        char path[4096];
-        s = sooc_path_join(path, sizeof path, w->dir, "calib.yaml");
-        if (!s) s = sooc_calib_save(path, &w->calib);
-    }
-    return s;
-}
-
-void sooc_seq_writer_destroy(sooc_seq_writer *w) {
-    if (!w) return;
-    sooc_free(w->done);
-    sooc_free(w->t_ns);
-    sooc_free(w->T);
-    sooc_free(w->has_pose);
-    sooc_free(w);
 }

@@ -643,6 +643,7 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
     jb_num(&b, "rgb_rmse", mm.rgb_rmse);
     jb_printf(&b, ", \"entries_final\": %zu, \"entries_created\": %ld", r->entries_final, r->churn.created);
     if (r->has_labels) {
+        jb_printf(&b, ", \"labels\": \"%s\"", o->labels_predicted ? "predicted" : "ground_truth");
         jb_num(&b, "miou", mm.miou_best);
         jb_num(&b, "miou_hungarian", mm.miou_hung);
         jb_printf(&b, ", \"obj_ids\": [");

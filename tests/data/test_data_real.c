@@ -10,38 +10,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-/* Median |z_pred - z_meas| / z_meas when frame a's points are moved into
- * frame b: a multi-view check that the depth scale and poses agree. */
-static double reproj_err(const sooc_frame *a, const sooc_frame *b) {
-    static float errs[640 * 480];
-    int n = 0;
-    double Tba[16], Tbw[16];
-    sooc_se3_inverse(Tbw, b->T_wc);
-    sooc_se3_mul(Tba, Tbw, a->T_wc);
-    for (int v = 0; v < a->height; v += 4)
-        for (int u = 0; u < a->width; u += 4) {
-            size_t i = (size_t)v * a->width + u;
-            if (!a->valid[i]) continue;
-            double pa[3] = {(u - a->K.cx) / a->K.fx * a->depth[i], (v - a->K.cy) / a->K.fy * a->depth[i], a->depth[i]}, pb[3];
-            sooc_se3_apply(pb, Tba, pa);
-            if (pb[2] <= 0.1) continue;
-            int ub = (int)lround(b->K.fx * pb[0] / pb[2] + b->K.cx), vb = (int)lround(b->K.fy * pb[1] / pb[2] + b->K.cy);
-            if (ub < 0 || vb < 0 || ub >= b->width || vb >= b->height) continue;
-            size_t j = (size_t)vb * b->width + ub;
-            if (!b->valid[j]) continue;
-            errs[n++] = (float)(fabs(pb[2] - b->depth[j]) / b->depth[j]);
-        }
-    if (n < 50) return -1;
-    /* median by partial selection */
-    for (int k = 0; k <= n / 2; k++) {
-        int m = k;
-        for (int j = k + 1; j < n; j++) if (errs[j] < errs[m]) m = j;
-        float t = errs[k]; errs[k] = errs[m]; errs[m] = t;
-        if (k == n / 2) break;
-    }
-    return errs[n / 2];
-}
-
 static void read_all(const char *dir, const sooc_seq_open_params *p, int expect_n, double zmin, double zmax,
                      double max_reproj, int step) {
     sooc_seq *s = NULL;
@@ -60,7 +28,7 @@ static void read_all(const char *dir, const sooc_seq_open_params *p, int expect_
         }
         if (i == 0) CHECK_OK(sooc_frame_copy(&f0, &f));
         else {
-            double e = reproj_err(&f0, &f);
+            double e = tu_reproj_err(&f0, &f);
             if (e > worst) worst = e;
         }
     }
@@ -145,7 +113,7 @@ static void test_7scenes(const char *real, const char *tmp) {
     CHECK(rgbsum / (640.0 * 480 * 3) > 20 && rgbsum / (640.0 * 480 * 3) < 235);
     /* frames 0, 2, 4 (every 2nd stored) agree through the poses */
     CHECK_OK(sooc_seq_read(s, 2, &g));
-    double e = reproj_err(&f, &g);
+    double e = tu_reproj_err(&f, &g);
     printf("7-Scenes frames 0 -> 4: median reprojection depth error %.1f%%\n", 100 * e);
     CHECK_MSG(e >= 0 && e < 0.05, "reprojection %.3f", e);
     sooc_seq_close(s);

@@ -1,10 +1,13 @@
-/* Helpers for the data module tests: temp dirs, small files, message checks. */
+/* Helpers for the data module tests: temp dirs, small files, message checks,
+ * the multi-view depth check of the real-data tests. */
 #ifndef SOOC3D_TEST_DATA_UTIL_H
 #define SOOC3D_TEST_DATA_UTIL_H
 
 #include "check.h"
 #include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -67,6 +70,38 @@ static inline const char *tu_real_dir(void) {
     char probe[1100];
     snprintf(probe, sizeof probe, "%s/README.md", buf);
     return access(probe, R_OK) == 0 ? buf : NULL;
+}
+
+/* Median |z_pred - z_meas| / z_meas when frame a's points are moved into
+ * frame b: a multi-view check that the depth scale and poses agree. */
+static inline double tu_reproj_err(const sooc_frame *a, const sooc_frame *b) {
+    static float errs[640 * 480];
+    int n = 0;
+    double Tba[16], Tbw[16];
+    sooc_se3_inverse(Tbw, b->T_wc);
+    sooc_se3_mul(Tba, Tbw, a->T_wc);
+    for (int v = 0; v < a->height; v += 4)
+        for (int u = 0; u < a->width; u += 4) {
+            size_t i = (size_t)v * a->width + u;
+            if (!a->valid[i]) continue;
+            double pa[3] = {(u - a->K.cx) / a->K.fx * a->depth[i], (v - a->K.cy) / a->K.fy * a->depth[i], a->depth[i]}, pb[3];
+            sooc_se3_apply(pb, Tba, pa);
+            if (pb[2] <= 0.1) continue;
+            int ub = (int)lround(b->K.fx * pb[0] / pb[2] + b->K.cx), vb = (int)lround(b->K.fy * pb[1] / pb[2] + b->K.cy);
+            if (ub < 0 || vb < 0 || ub >= b->width || vb >= b->height) continue;
+            size_t j = (size_t)vb * b->width + ub;
+            if (!b->valid[j]) continue;
+            errs[n++] = (float)(fabs(pb[2] - b->depth[j]) / b->depth[j]);
+        }
+    if (n < 50) return -1;
+    /* median by partial selection */
+    for (int k = 0; k <= n / 2; k++) {
+        int m = k;
+        for (int j = k + 1; j < n; j++) if (errs[j] < errs[m]) m = j;
+        float t = errs[k]; errs[k] = errs[m]; errs[m] = t;
+        if (k == n / 2) break;
+    }
+    return errs[n / 2];
 }
 
 #endif

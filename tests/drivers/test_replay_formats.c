@@ -16,6 +16,8 @@
 #include "sooc3d/node.h"
 #include "sooc3d/seq.h"
 
+#include <matio.h>
+
 #define W 32
 #define H 24
 
@@ -110,6 +112,35 @@ static const char *make_seq(sooc_seq_format f, double *z) {
         snprintf(p, sizeof p, "%s/traj.txt", d); wtext(p, "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\n");
         snprintf(p, sizeof p, "%s/calib.yaml", d); calib_yaml(p, ""); /* depth: the format default */
         *z = 5243 / 6553.5;
+        break;
+    case SOOC_SEQ_YCB: {   /* meta.mat written with libmatio (column-major), depth / factor_depth */
+        snprintf(p, sizeof p, "%s/000001-color.png", d); put_rgb(p, 90, 0);
+        snprintf(p, sizeof p, "%s/000001-depth.png", d); put_depth(p, 5000, 0);
+        snprintf(p, sizeof p, "%s/000001-meta.mat", d);
+        mat_t *m = Mat_CreateVer(p, NULL, MAT_FT_MAT5);
+        if (!m) exit(1);
+        size_t d33[2] = {3, 3}, d11[2] = {1, 1}, d34[2] = {3, 4};
+        double K[9] = {30, 0, 0, 0, 30, 0, 16, 12, 1}, fd = 10000, RT[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+        matvar_t *v = Mat_VarCreate("intrinsic_matrix", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, d33, K, 0);
+        Mat_VarWrite(m, v, MAT_COMPRESSION_NONE);
+        Mat_VarFree(v);
+        v = Mat_VarCreate("factor_depth", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, d11, &fd, 0);
+        Mat_VarWrite(m, v, MAT_COMPRESSION_NONE);
+        Mat_VarFree(v);
+        v = Mat_VarCreate("rotation_translation_matrix", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, d34, RT, 0);
+        Mat_VarWrite(m, v, MAT_COMPRESSION_NONE);
+        Mat_VarFree(v);
+        Mat_Close(m);
+        *z = 0.5;
+        break;
+    }
+    case SOOC_SEQ_APC:   /* 9000 (0.9 m) rotated left by 3 on 16 bits is 6465 */
+        snprintf(p, sizeof p, "%s/frame-000000.color.png", d); put_rgb(p, 100, 0);
+        snprintf(p, sizeof p, "%s/frame-000000.depth.png", d); put_depth(p, 6465, 0);
+        snprintf(p, sizeof p, "%s/cam.info.txt", d);
+        wtext(p, "# Color camera intrinsic matrix\n30 0 16\n0 30 12\n0 0 1\n\n"
+                 "# Camera-to-world extrinsic matrix (camera pose) for frame-000000\n%s", pose4);
+        *z = 0.9;
         break;
     }
     zs[f] = *z;
