@@ -1,5 +1,5 @@
 /*
- * sooc3d support-plane clustering: the geometric object map (docs/cluster.md).
+ * sooc3d support-plane clustering: the geometric object map (docs/geometric.md).
  *
  * The floor every learnt map must beat, and a mode users can pick
  * (`model: {kind: geometric}`, `sooc3d eval --baseline geometric`): in the

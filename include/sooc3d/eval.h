@@ -239,7 +239,7 @@ typedef struct sooc_eval_run_opts {
      * map does not draw in the input views; NULL = none                  (NULL) */
     const struct sooc_birth_params *birth;
     /* SOOC3D mapper: geometric proposals for the new slots (mapper.h
-     * sooc3d_mapper_set_proposals; docs/cluster.md); NULL = off       (NULL) */
+     * sooc3d_mapper_set_proposals; docs/geometric.md); NULL = off       (NULL) */
     const struct sooc3d_proposal_params *proposals;
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
@@ -297,7 +297,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
                                 sooc_eval_view_fn view_cb, sooc_eval_step_fn step_cb, void *user,
                                 sooc_eval_scene_result *res);
 
-/* The geometric baseline on one scene (cluster.h, docs/cluster.md): the
+/* The geometric baseline on one scene (cluster.h, docs/geometric.md): the
  * input views (is_query 0) go into one support-plane cluster map; every view
  * is rendered from it (label 0 the plane and the surround, 1.. its objects)
  * and scored by sooc_metric_view with clip d_clip (m), into res->input_final

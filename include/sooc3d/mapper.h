@@ -85,7 +85,7 @@ typedef struct sooc3d_mapper_params {
                                   points inside one registered retrieved slot's floor
                                   box (side 2 R_h) at or above which it is that
                                   object's part (no new entry)                        */
-    /* The geometric object map instead of the model (docs/cluster.md "In the node";
+    /* The geometric object map instead of the model (docs/geometric.md "In the node";
      * launch `model: {kind: geometric}`): each keyframe goes into a support-plane
      * cluster map, its clusters are the entries (matched to the entries they
      * continue by floor position; entries in view that no cluster continues are
@@ -290,7 +290,7 @@ void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on);
  * gate_* parameters: 0 = default, < 0 = off). */
 void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part);
 
-/* Geometric proposals (docs/cluster.md "Proposals"): each keyframe's
+/* Geometric proposals (docs/geometric.md "Proposals"): each keyframe's
  * support-plane clusters (cluster.h) place the slots the view pads with
  * priors, before the refinement. A cluster that a retrieved slot covers (its
  * centre within the cluster's half-diagonal + cover_m) proposes nothing. */
@@ -301,6 +301,8 @@ typedef struct sooc3d_proposal_params {
     double sigma_frac;           /* position std of a placed slot = this x the cluster's
                                     half-diagonal; <= 0: the prior's (0)                   */
     double pres_logit;           /* presence logit of a placed slot; NaN: the prior's (NaN) */
+    double rest_logit;           /* presence logit of the prior slots no cluster placed; NaN:
+                                    the prior's (NaN)                                        */
 } sooc3d_proposal_params;
 void sooc3d_proposal_params_default(sooc3d_proposal_params *p);
 sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal_params *p);

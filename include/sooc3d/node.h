@@ -99,7 +99,7 @@ typedef struct sooc_node_config {
     /* model: */
     int model_kind;                          /* model.kind: SOOC3D_MAPPER_LEARNT (learnt, default) or
                                                 SOOC3D_MAPPER_GEOMETRIC (geometric: the support plane
-                                                and Euclidean clustering, docs/cluster.md) */
+                                                and Euclidean clustering, docs/geometric.md) */
     double geo_voxel_m, geo_join_m;          /* geometric: model.voxel_m (0.004), model.join_m (0.02) */
     double geo_min_height_m, geo_max_extent_m; /* geometric: model.min_height_m (0.012), max_extent_m (0.5) */
     char model_path[SOOC_NODE_PATH_MAX];

@@ -47,9 +47,9 @@ static void usage(FILE *f) {
             "  --iterations    refinement updates per input view (default: the model's L)\n"
             "  --baseline geometric  also a 'geometric' row: the support plane, then Euclidean clustering of\n"
             "                  the points above it over the mapped frames, each cluster an object\n"
-            "                  (docs/cluster.md); scored on the same views as the models\n"
+            "                  (docs/geometric.md); scored on the same views as the models\n"
             "  --proposals     the mapper places the slots it pads with priors on each keyframe's\n"
-            "                  support-plane clusters (docs/cluster.md \"Proposals\")\n"
+            "                  support-plane clusters (docs/geometric.md \"Proposals\")\n"
             "  --finetune      SOOC3D+: also a '<name>+ft' row per model: online inference as for the\n"
             "                  base row, then per-object NeRF finetuning by EM on the input views\n"
             "                  (sooc3d finetune), then the same views scored from the finetuned map;\n"
@@ -203,6 +203,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     sooc_birth_params_default(&bp);
     int no_birth = 0, geometric = 0;
     sooc3d_proposal_params prop;
+    memset(&prop, 0, sizeof prop);
     uint64_t seed = 1;
     int mesh_res = SOOC_MESH_RES_DEFAULT;
     sooc_eval_run_opts ro;
@@ -246,7 +247,21 @@ int sooc_cmd_eval(int argc, char **argv) {
         } else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--finetune")) finetune = 1;
-        else if (!strcmp(a, "--proposals")) sooc3d_proposal_params_default(&prop), prop.on = 1, ro.proposals = &prop;
+        else if (!strcmp(a, "--proposals")) {
+            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            ro.proposals = &prop;
+        } else if (!strcmp(a, "--prop-only")) {   /* only proposals make new entries */
+            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            prop.rest_logit = -20, ro.proposals = &prop;
+        } else if (!strcmp(a, "--prop-join") && has) {
+            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 1, &prop.cluster.dist_m)) return 2;
+            ro.proposals = &prop;
+        } else if (!strcmp(a, "--prop-logit") && has) {
+            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], -20, 20, &prop.pres_logit)) return 2;
+            ro.proposals = &prop;
+        }
         else if (!strcmp(a, "--baseline") && has) {
             if (strcmp(argv[++i], "geometric")) {
                 fprintf(stderr, "sooc3d eval: unknown baseline '%s' (known: geometric)\n", argv[i]);

@@ -1,4 +1,4 @@
-/* Support-plane clustering (cluster.h, docs/cluster.md): a voxel grid of the
+/* Support-plane clustering (cluster.h, docs/geometric.md): a voxel grid of the
  * keyframes' depth points in the world frame, connected components of the
  * voxels above the support plane, boxes, and a depth-tested render of the
  * grid into any view. */

@@ -1,5 +1,5 @@
 /* The geometric baseline (eval.h sooc_eval_geometric_scene, eval_real.h
- * sooc_eval_geometric_run; docs/cluster.md): the mapped frames go into one
+ * sooc_eval_geometric_run; docs/geometric.md): the mapped frames go into one
  * support-plane cluster map, every scored view is rendered from it and
  * scored as a learnt map's render is (sooc_metric_view: the same valid mask,
  * the same best-match IoU, L2 over the objects' floor positions), and its

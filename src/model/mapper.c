@@ -565,6 +565,7 @@ sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal
     mp->prop_p.cover_m = p->cover_m;
     mp->prop_p.sigma_frac = p->sigma_frac;
     mp->prop_p.pres_logit = p->pres_logit;
+    mp->prop_p.rest_logit = p->rest_logit;
     return SOOC_OK;
 }
 
@@ -574,6 +575,7 @@ void sooc3d_proposal_params_default(sooc3d_proposal_params *p) {
     p->cover_m = 0.02;
     p->sigma_frac = 0;
     p->pres_logit = NAN;
+    p->rest_logit = NAN;
 }
 
 void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *mp, int per_update) {

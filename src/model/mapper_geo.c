@@ -1,4 +1,4 @@
-/* The geometric object map behind the mapper's interface (docs/cluster.md
+/* The geometric object map behind the mapper's interface (docs/geometric.md
  * "In the node"): every keyframe goes into one support-plane cluster map
  * (cluster.h); after it, the map's clusters are matched to the entries by
  * floor position (nearest first, within the larger of the two floor

@@ -1,11 +1,12 @@
-/* Geometric proposals for the mapper's new slots (docs/cluster.md
+/* Geometric proposals for the mapper's new slots (docs/geometric.md
  * "Proposals"; mapper.h sooc3d_mapper_set_proposals): the keyframe's own
  * support-plane clusters (cluster.h) place the slots that the view pads
  * with priors. A cluster that a retrieved slot already covers (its centre
  * within the cluster's half-diagonal plus cover_m) proposes nothing; each
  * other cluster, largest first, moves the nearest unused prior slot to its
  * centre on the floor, with the position variance of its box and the
- * presence logit pres_logit. Appearance, heading and the rest stay the
+ * presence logit pres_logit; the prior slots no cluster placed start with
+ * rest_logit (so that only proposals make new entries). Appearance, heading and the rest stay the
  * prior's: the refinement iterations fit them to the keyframe. */
 #include "model/mapper_prop.h"
 
@@ -56,5 +57,8 @@ int mdl_mapper_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL,
         if (isfinite(pp->pres_logit)) r[SOOC_LAM_PRES(c->d_what)] = (float)pp->pres_logit;
         placed++;
     }
+    if (isfinite(pp->rest_logit))
+        for (int k = V->n_ret; k < V->nslot; k++)
+            if (!used[k]) V->lam0[(size_t)k * NL + SOOC_LAM_PRES(c->d_what)] = (float)pp->rest_logit;
     return placed;
 }

@@ -10,6 +10,7 @@ typedef struct mdl_prop_params {
     double cover_m;      /* a retrieved slot within the cluster's half-diagonal + this covers it (m) */
     double sigma_frac;   /* position std of a proposed slot = this x the half-diagonal (<= 0: the prior's) */
     double pres_logit;   /* presence logit of a proposed slot (NaN: the prior's)                     */
+    double rest_logit;   /* presence logit of the prior slots no cluster placed (NaN: the prior's)   */
 } mdl_prop_params;
 
 /* Place the prior slots of view V (set up by mdl_view_setup with padding)

@@ -675,7 +675,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.gate_min_rays = c->gate_min_rays;   /* the creation gate (revisit rule 5): 0 = default */
         mp.gate_ratio = c->gate_ratio;
         mp.gate_part = c->gate_part;
-        if (c->model_kind == SOOC3D_MAPPER_GEOMETRIC) {   /* the geometric map (docs/cluster.md "In the node") */
+        if (c->model_kind == SOOC3D_MAPPER_GEOMETRIC) {   /* the geometric map (docs/geometric.md "In the node") */
             mp.kind = SOOC3D_MAPPER_GEOMETRIC;
             mp.cluster.voxel_m = c->geo_voxel_m, mp.cluster.dist_m = c->geo_join_m;
             mp.cluster.min_height_m = c->geo_min_height_m, mp.cluster.max_extent_m = c->geo_max_extent_m;

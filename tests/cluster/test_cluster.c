@@ -174,7 +174,7 @@ int main(void) {
         sooc_cluster_map *pm = NULL;
         CHECK(sooc_cluster_map_create(&pm, &p) == SOOC_OK);
         cast(&f, g_cams[0], (double[3]){0, 0.04, 0}, b, 2);
-        mdl_prop_params pp = {0.02, 0.5, 1.5};
+        mdl_prop_params pp = {0.02, 0.5, 1.5, NAN};
         sooc_status st;
         int placed = mdl_mapper_propose(pm, &c, NL, &f, &V, &pp, &st);
         CHECK_MSG(st == SOOC_OK && placed == 2, "placed %d (want 2)", placed);
