@@ -281,7 +281,7 @@ typedef struct sooc_logseq_desc {
     int64_t tf_transforms;     /* transforms read from /tf and /tf_static                 */
     int64_t n_frames, n_unpaired; /* colour images paired with depth / without a partner  */
     double nearest_unpaired_s; /* smallest colour-depth gap of an unpaired colour image   */
-    int64_t n_unposed;         /* frames without a pose (when a pose source is set)       */
+    int64_t n_unposed;         /* frames without a pose at their log time (pose source set) */
 } sooc_logseq_desc;
 
 /* Open a log and pair its colour and depth images (from the index: no image
