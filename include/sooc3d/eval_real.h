@@ -249,7 +249,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
                                const sooc_eval_real_opts *o, sooc_eval_view_fn view_cb, void *user,
                                sooc_eval_real_result *res);
 
-/* The geometric baseline on the same sequence (cluster.h, docs/cluster.md):
+/* The geometric baseline on the same sequence (cluster.h, docs/geometric.md):
  * the mapped frames of the query rule go into one support-plane cluster map,
  * each query frame is rendered from it (label 0 the plane and the surround,
  * 1.. its objects) and scored by sooc_metric_view with clip d_clip (m), as a

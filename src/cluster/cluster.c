@@ -188,6 +188,7 @@ static int32_t uf_find(int32_t *par, int32_t i) {
 typedef struct cell_ref {
     uint64_t key;
     int32_t vox;
+    float c[3];      /* its centroid (float: mm-level, the join test's precision) */
 } cell_ref;
 
 static int cmp_cell(const void *a, const void *b) {
@@ -209,6 +210,7 @@ static size_t lower(const cell_ref *r, size_t n, uint64_t k) {
 typedef struct comp_acc {
     int32_t root;
     int n;
+    size_t first;    /* its voxels: mem[first .. first + n) */
     double s[3], ymax;
     double c[3];
 } comp_acc;
@@ -216,6 +218,37 @@ typedef struct comp_acc {
 static int cmp_comp(const void *a, const void *b) {
     const comp_acc *x = a, *y = b;
     return (y->n > x->n) - (y->n < x->n);
+}
+
+static int cmp_pt(const void *a, const void *b) {
+    const double *p = a, *q = b;
+    return p[0] < q[0] ? -1 : p[0] > q[0] ? 1 : (p[1] > q[1]) - (p[1] < q[1]);
+}
+
+static double cross2(const double *o, const double *a, const double *b) {
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+}
+
+/* Convex hull of n points (x, z pairs) in place (Andrew's monotone chain):
+ * returns the hull's vertex count, its vertices first in p. */
+static int hull2(double *p, int n) {
+    if (n < 3) return n;
+    qsort(p, (size_t)n, 2 * sizeof *p, cmp_pt);
+    double *h = sooc_malloc((size_t)(2 * n) * 2 * sizeof *h);
+    if (!h) return n;   /* out of memory: every point (the box is the same, the search slower) */
+    int k = 0;
+    for (int i = 0; i < n; i++) {
+        while (k >= 2 && cross2(&h[2 * (k - 2)], &h[2 * (k - 1)], &p[2 * i]) <= 0) k--;
+        h[2 * k] = p[2 * i], h[2 * k + 1] = p[2 * i + 1], k++;
+    }
+    for (int i = n - 2, t = k + 1; i >= 0; i--) {
+        while (k >= t && cross2(&h[2 * (k - 2)], &h[2 * (k - 1)], &p[2 * i]) <= 0) k--;
+        h[2 * k] = p[2 * i], h[2 * k + 1] = p[2 * i + 1], k++;
+    }
+    k--;   /* the last point is the first */
+    memcpy(p, h, (size_t)k * 2 * sizeof *p);
+    sooc_free(h);
+    return k;
 }
 
 static void centroid(const voxel *v, double c[3]) {
@@ -234,7 +267,8 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         nf += y >= p->min_height_m && y <= p->max_height_m;
     }
     cell_ref *ref = sooc_malloc((nf ? nf : 1) * sizeof *ref);
-    int32_t *par = sooc_malloc((m->n ? m->n : 1) * sizeof *par);
+    int32_t *par = sooc_malloc((m->n ? m->n : 1) * sizeof *par), *mem = NULL;
+    double *pts = NULL;
     comp_acc *acc = NULL;
     if (!ref || !par) {
         st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu voxels", m->n);
@@ -248,14 +282,14 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         centroid(&m->vox[i], c);
         if (!(c[1] >= p->min_height_m && c[1] <= p->max_height_m)) continue;
         ref[nr].key = pack((int64_t)floor(c[0] * inv), (int64_t)floor(c[1] * inv), (int64_t)floor(c[2] * inv));
+        for (int q = 0; q < 3; q++) ref[nr].c[q] = (float)c[q];
         ref[nr++].vox = (int32_t)i;
     }
     qsort(ref, nr, sizeof *ref, cmp_cell);
     /* join every pair closer than dist_m: candidates in the 27 cells of side dist_m around each voxel */
     for (size_t a = 0; a < nr; a++) {
-        double ca[3];
+        const float *ca = ref[a].c;
         int32_t ia = ref[a].vox;
-        centroid(&m->vox[ia], ca);
         int64_t gi = (int64_t)floor(ca[0] * inv), gj = (int64_t)floor(ca[1] * inv), gk = (int64_t)floor(ca[2] * inv);
         for (int di = -1; di <= 1; di++)
             for (int dj = -1; dj <= 1; dj++)
@@ -264,8 +298,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
                     for (size_t b = lower(ref, nr, key); b < nr && ref[b].key == key; b++) {
                         int32_t ib = ref[b].vox;
                         if (ib <= ia) continue;
-                        double cb[3];
-                        centroid(&m->vox[ib], cb);
+                        const float *cb = ref[b].c;
                         double dx = ca[0] - cb[0], dy = ca[1] - cb[1], dz = ca[2] - cb[2];
                         if (dx * dx + dy * dy + dz * dz > d2) continue;
                         int32_t ra = uf_find(par, ia), rb = uf_find(par, ib);
@@ -279,9 +312,9 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu components", nr);
         goto done;
     }
-    for (size_t a = 0; a < nr; a++) {   /* reuse ref[].key as the component slot of each voxel */
+    for (size_t a = 0; a < nr; a++) {   /* ref[].key becomes the component slot of each voxel */
         int32_t i = ref[a].vox, r = uf_find(par, i);
-        int32_t *slot = &m->vox[r].comp;   /* roots hold their accumulator index + 1 for now */
+        int32_t *slot = &m->vox[r].comp;   /* roots hold their accumulator index for now */
         if (*slot < 0) {
             *slot = (int32_t)na;
             acc[na].root = r;
@@ -289,11 +322,25 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
             na++;
         }
         comp_acc *c = &acc[*slot];
+        ref[a].key = (uint64_t)*slot;
         double w[3];
         centroid(&m->vox[i], w);
         c->n++;
         for (int q = 0; q < 3; q++) c->s[q] += w[q], c->c[q] += m->vox[i].c[q] / m->vox[i].n;
         if (w[1] > c->ymax) c->ymax = w[1];
+    }
+    /* each component's voxels together (counting sort by slot), floor points for its box */
+    if (!(mem = sooc_malloc((nr ? nr : 1) * sizeof *mem)) || !(pts = sooc_malloc((nr ? nr : 1) * 2 * sizeof *pts))) {
+        st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu voxels", nr);
+        goto done;
+    }
+    {
+        size_t off = 0;
+        for (size_t k = 0; k < na; k++) acc[k].first = off, off += (size_t)acc[k].n, acc[k].n = 0;
+        for (size_t a = 0; a < nr; a++) {
+            comp_acc *c = &acc[ref[a].key];
+            mem[c->first + (size_t)c->n++] = ref[a].vox;
+        }
     }
     qsort(acc, na, sizeof *acc, cmp_comp);
     m->n_obj = 0;
@@ -312,17 +359,19 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         if (c->n < p->min_voxels) break;   /* sorted by size */
         double mx = c->s[0] / c->n, mz = c->s[2] / c->n;
         /* the heading of the smallest-area floor rectangle around the voxels (1 degree steps over a
-         * quarter turn: a rectangle repeats itself every 90 degrees) */
+         * quarter turn: a rectangle repeats itself every 90 degrees), over their floor hull */
+        for (int j = 0; j < c->n; j++) {
+            double w[3];
+            centroid(&m->vox[mem[c->first + (size_t)j]], w);
+            pts[2 * j] = w[0] - mx, pts[2 * j + 1] = w[2] - mz;
+        }
+        int nh = hull2(pts, c->n);
         double th = 0, best = INFINITY, lo[2] = {0, 0}, hi[2] = {0, 0};
         for (int step = 0; step < 90; step++) {
             double t = step * (M_PI / 180.0), ca = cos(t), sa = sin(t);
             double l0 = INFINITY, l1 = INFINITY, h0 = -INFINITY, h1 = -INFINITY;
-            for (size_t a = 0; a < nr; a++) {
-                int32_t i = ref[a].vox;
-                if (uf_find(par, i) != c->root) continue;
-                double w[3];
-                centroid(&m->vox[i], w);
-                double s = (w[0] - mx) * ca + (w[2] - mz) * sa, q = -(w[0] - mx) * sa + (w[2] - mz) * ca;
+            for (int j = 0; j < nh; j++) {
+                double s = pts[2 * j] * ca + pts[2 * j + 1] * sa, q = -pts[2 * j] * sa + pts[2 * j + 1] * ca;
                 l0 = s < l0 ? s : l0, h0 = s > h0 ? s : h0;
                 l1 = q < l1 ? q : l1, h1 = q > h1 ? q : h1;
             }
@@ -355,6 +404,8 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     m->segmented = 1;
     if (n_objects) *n_objects = m->n_obj;
 done:
+    sooc_free(mem);
+    sooc_free(pts);
     sooc_free(acc);
     sooc_free(ref);
     sooc_free(par);
