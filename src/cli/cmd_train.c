@@ -1,6 +1,7 @@
 /* sooc3d train: train a SOOC3D model on synthetic scenes. */
 #include "cli.h"
 #include "sooc3d/dist.h"
+#include "sooc3d/model.h"
 #include "sooc3d/train.h"
 
 #include <signal.h>
@@ -129,6 +130,15 @@ int sooc_cmd_train(int argc, char **argv) {
                 nranks * cfg.accum);
     if (rank == 0) fprintf(stderr, "loading %d training folder(s)...\n", n_data);
     fpp.width = mc.img_w, fpp.height = mc.img_h;
+    /* the support-plane warning of recorded sequences compares the camera's height with the range
+     * the weights were trained at: the --init model's; a new model has none yet */
+    fpp.cam_height_min_m = 1e-3, fpp.cam_height_max_m = 1e3;
+    if (init) {
+        sooc_model *im = NULL;
+        if ((s = sooc_model_load(&im, init, NULL, NULL))) return train_fail(sooc_adderr(s, "--init %s", init));
+        sooc_model_cam_heights_m(sooc_model_get_config(im), &fpp.cam_height_min_m, &fpp.cam_height_max_m);
+        sooc_model_destroy(im);
+    }
     /* recorded sequences: the view rule of the config (view_min_cm / view_min_deg),
      * eval's held-out frames never sampled, support plane kept in OUT/world
      * (docs/training.md "Training from recordings") */
