@@ -112,7 +112,7 @@ TABLES = {
                                 "mlp_vs_sgemm_peak", "pct"),
                                ("`bench_engine` decoder MLP GFLOP/s (sgemm peak)", "bench_engine.json",
                                 ("mlp_gflops", "sgemm_peak_gflops"), "{:.1f} ({:.1f})"),
-                               ("`bench_keyframe` vs PyTorch of the same update", "bench_keyframe.json",
+                               ("`bench_keyframe` (64×64, K = 7, L = 3) vs PyTorch of the same update", "bench_keyframe.json",
                                 "speedup_vs_torch", "{:.2f}×"),
                                ("`bench_keyframe` median update (PyTorch)", "bench_keyframe.json",
                                 ("median_ms", "torch_median_ms"), "{:.1f} ms ({:.1f} ms)")]),
