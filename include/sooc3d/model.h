@@ -234,6 +234,12 @@ typedef struct sooc_step_opts {
     float sigma_c;         /* 0 = config sigma_c (for likelihood annealing)           (0)  */
     int mean_latents;      /* 1 = decode the posterior means in the refinement loop
                               (no reparameterisation noise; inference only)        (0)  */
+    int proposals;         /* 1 = each input view's padded slots start on its support-plane
+                              clusters (docs/geometric.md "Proposals"); those slots take no
+                              gradient to the learnt priors                         (0)  */
+    double prop_join_m;    /* the clusters' join distance; 0 = cluster.h's default  (0)  */
+    double prop_logit;     /* presence logit of a proposed slot; NaN = the prior's (NaN) */
+    double prop_rest_logit;/* presence logit of the other padded slots; NaN = the prior's (NaN) */
 } sooc_step_opts;
 void sooc_step_opts_default(sooc_step_opts *o);
 

@@ -149,6 +149,11 @@ typedef struct sooc_train_config {
     float view_min_cm;      /* input/query baseline, centimetres                   (5) */
     float view_min_deg;     /* ... or degrees between optical axes                 (5) */
     float recorded_frac;    /* share of draws from recorded sequences (0 = uniform) (0) */
+    /* geometric proposals for the input views' padded slots (sooc_step_opts.proposals;
+     * docs/geometric.md "Proposals") */
+    int proposals;          /* 1 = on                                             (0) */
+    float prop_join_m;      /* the clusters' join distance, 0 = default (0.02 m)  (0) */
+    float prop_logit;       /* presence logit of a proposed slot, 0 = the prior's (0) */
 } sooc_train_config;
 
 void sooc_train_config_default(sooc_train_config *c);

@@ -8,7 +8,7 @@
 #include <stdio.h>
 
 #include "model/mapper_geo.h"
-#include "model/mapper_prop.h"
+#include "model/propose.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
 #include "sooc3d/objgeom.h"
@@ -55,7 +55,7 @@ struct sooc3d_mapper {
     float gate_boxes[SOOC3D_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
     uint64_t gate_box_ids[SOOC3D_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
     mdl_geo *gm;               /* kind geometric (mapper_geo.c): the cluster map instead of the model */
-    sooc_cluster_map *prop;    /* geometric proposals (mapper_prop.c): the keyframe's clusters; NULL = off */
+    sooc_cluster_map *prop;    /* geometric proposals (propose.c): the keyframe's clusters; NULL = off */
     mdl_prop_params prop_p;
 };
 
@@ -605,7 +605,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     sooc_status s = mdl_view_setup(m, mp->map, V, f, 1, &mp->rng, NULL);
     if (s) return s;
     if (mp->prop) {
-        st->n_proposed = mdl_mapper_propose(mp->prop, c, MDL_NL(c->d_what), f, V, &mp->prop_p, &s);
+        st->n_proposed = mdl_propose(mp->prop, c, MDL_NL(c->d_what), f, V, &mp->prop_p, &s);
         if (s) return sooc_adderr(s, "mapper: proposals of frame %lld", (long long)f->index);
     }
     sooc_step_opts o;

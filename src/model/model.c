@@ -452,6 +452,7 @@ void sooc_step_opts_default(sooc_step_opts *o) {
     o->tau = 1.0f;
     o->beta_kl = 1.0f;
     o->pres_mode = SOOC_PRES_RELAXED;
+    o->prop_logit = o->prop_rest_logit = NAN;
 }
 
 /* ------------------------------------------------------------ checkpoint */

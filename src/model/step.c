@@ -3,6 +3,7 @@
  * with a cognitive map, then Q query views decoded from the final map; one
  * local backward per decode, then a reverse sweep over the λ chain and the
  * refinement activations, routing gradients through the map's transforms. */
+#include "model/propose.h"
 #include "model/step.h"
 
 #include <math.h>
@@ -113,6 +114,7 @@ void mdl_step_free(step_state *S) {
     for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
     sooc_free(S->views);
     sooc_cogmap_destroy(S->map);
+    sooc_cluster_map_destroy(S->prop);
     sooc_free(S->vec_o);
     sooc_free(S->vec_l);
     sooc_free(S->gvec);
@@ -421,6 +423,27 @@ static int lay_find(const step_state *S, int32_t bi, int32_t bj) {
     return -1;
 }
 
+/* Proposals for an input view in training: its padded slots on its clusters; a
+ * slot so placed starts at a constant (no gradient to the learnt priors). */
+static sooc_status view_propose(sooc_model *m, step_state *S, view_rec *V, const sooc_frame *f,
+                                const sooc_step_opts *opt) {
+    mdl_prop_params pp;
+    sooc_cluster_params cp;
+    mdl_prop_from_opts(opt, &pp, &cp);
+    sooc_status st;
+    if (!S->prop && (st = sooc_cluster_map_create(&S->prop, &cp))) return st;
+    float before[SOOC_MODEL_K_MAX][2];
+    for (int k = 0; k < V->nslot; k++)
+        before[k][0] = V->lam0[(size_t)k * m->NL + SOOC_LAM_X], before[k][1] = V->lam0[(size_t)k * m->NL + SOOC_LAM_Z];
+    mdl_propose(S->prop, &m->cfg, m->NL, f, V, &pp, &st);
+    if (st) return st;
+    for (int k = V->n_ret; k < V->nslot; k++)
+        if (V->lam0[(size_t)k * m->NL + SOOC_LAM_X] != before[k][0] ||
+            V->lam0[(size_t)k * m->NL + SOOC_LAM_Z] != before[k][1])
+            V->prior_idx[k] = -1;
+    return SOOC_OK;
+}
+
 sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int T, const sooc_frame *queries, int Q,
                                   const sooc_step_opts *opt, sooc_rng *rng, sooc_step_losses *out) {
     sooc_model *m = x->m;
@@ -447,6 +470,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     for (int t = 0; t < T; t++) {
         view_rec *V = &S->views[t];
         if ((st = mdl_view_setup(m, S->map, V, &views[t], 1, rng, NULL))) goto fail;
+        if (opt->proposals && (st = view_propose(m, S, V, &views[t], opt))) goto fail;
         int li = lay_find(S, V->bi, V->bj);
         V->lay_src = li >= 0 ? S->lay_view[li] : -1;
         for (int k = 0; k < V->n_ret; k++) {

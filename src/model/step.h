@@ -7,6 +7,7 @@
 #define SOOC3D_MODEL_STEP_H
 
 #include "model/refine.h"
+#include "sooc3d/cluster.h"
 #include "sooc3d/cogmap.h"
 
 #define STEP_MAX_LAY 256
@@ -42,6 +43,7 @@ struct step_state {
     int32_t lay_bi[STEP_MAX_LAY], lay_bj[STEP_MAX_LAY];
     int lay_view[STEP_MAX_LAY];
     float zq[64][SOOC_MODEL_K_MAX * 3];   /* query-view z^where samples (test replay) */
+    sooc_cluster_map *prop;       /* proposals' scratch map (sooc_step_opts.proposals), made on first use */
     int aux_replay;               /* TEST ONLY: 1 = keep the stored auxiliary inputs (stop-gradient
                                      as a forward, for finite-difference checks); only the λ part
                                      of the refinement vector input is refreshed; the Gaussian

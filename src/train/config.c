@@ -67,6 +67,7 @@ static const field g_train_fields[] = {
     TF(ckpt_every, F_I64, 1, 1e9), TF(val_every, F_I64, 0, 1e9), TF(val_scenes, F_INT, 1, 100000),
     TF(val_max_seconds, F_FLOAT, 0, 1e9),
     TF(view_min_cm, F_FLOAT, 0, 1e4), TF(view_min_deg, F_FLOAT, 0, 180), TF(recorded_frac, F_FLOAT, 0, 1),
+    TF(proposals, F_INT, 0, 1), TF(prop_join_m, F_FLOAT, 0, 1), TF(prop_logit, F_FLOAT, -20, 20),
 };
 #define MF(n, t, lo, hi) {#n, t, offsetof(sooc_model_config, n), lo, hi}
 static const field g_model_fields[] = {

@@ -392,6 +392,9 @@ sooc_status sooc_train_run(const sooc_train_config *cfg, const sooc_model_config
         o.beta_kl = cfg->kl_warmup > 0 ? fminf(1.0f, (float)(step + 1) / (float)cfg->kl_warmup) : 1.0f;
         o.pres_mode = step < cfg->burnin ? SOOC_PRES_ST_ONE
                       : cfg->st_retrieved ? SOOC_PRES_ST_RETRIEVED : SOOC_PRES_RELAXED;
+        o.proposals = cfg->proposals;
+        o.prop_join_m = cfg->prop_join_m;
+        if (cfg->prop_logit != 0) o.prop_logit = cfg->prop_logit;
         sooc_model_zero_grad(tr.model);
         sooc_step_losses sum;
         memset(&sum, 0, sizeof sum);

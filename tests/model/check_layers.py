@@ -30,8 +30,8 @@ LAYERS = [
     ("weights", ["model", "kern"], ["weights.h"]),
     ("decoder", ["decoder", "dec_own", "field"], ["decoder.h", "dec_own.h"]),
     ("refine", ["refine"], ["refine.h"]),
-    ("step", ["step", "workspace"], ["step.h"]),
-    ("mapper", ["mapper", "mapper_gate", "objgeom"], []),
+    ("step", ["step", "workspace", "propose"], ["step.h", "propose.h"]),
+    ("mapper", ["mapper", "mapper_gate", "mapper_geo", "objgeom"], ["mapper_geo.h"]),
     ("global", ["global"], []),
 ]
 FILE_LAYER = {f: i for i, (_, files, _) in enumerate(LAYERS) for f in files}

@@ -1,7 +1,8 @@
-/* Geometric proposals for the mapper's new slots (mapper_prop.c). Internal
- * to src/model: the mapper layer includes it. */
-#ifndef SOOC3D_MODEL_MAPPER_PROP_H
-#define SOOC3D_MODEL_MAPPER_PROP_H
+/* Geometric proposals for a view's padded slots (propose.c): the online
+ * mapper's keyframes and, with sooc_step_opts.proposals, the training
+ * step's input views. Internal to src/model (the step layer). */
+#ifndef SOOC3D_MODEL_PROPOSE_H
+#define SOOC3D_MODEL_PROPOSE_H
 
 #include "model/step.h"
 #include "sooc3d/cluster.h"
@@ -17,7 +18,10 @@ typedef struct mdl_prop_params {
  * on the support-plane clusters of keyframe f (world frame). cm is the
  * caller's scratch map (cleared here). Returns the slots placed; *st the
  * status (0 placed on failure). */
-int mdl_mapper_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, view_rec *V,
+/* The step options' proposal settings as parameters (cover 2 cm, no sigma change). */
+void mdl_prop_from_opts(const sooc_step_opts *o, mdl_prop_params *pp, sooc_cluster_params *cp);
+
+int mdl_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, view_rec *V,
                        const mdl_prop_params *pp, sooc_status *st);
 
 #endif

@@ -8,12 +8,12 @@
  * presence logit pres_logit; the prior slots no cluster placed start with
  * rest_logit (so that only proposals make new entries). Appearance, heading and the rest stay the
  * prior's: the refinement iterations fit them to the keyframe. */
-#include "model/mapper_prop.h"
+#include "model/propose.h"
 
 #include <math.h>
 #include <string.h>
 
-int mdl_mapper_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, view_rec *V,
+int mdl_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, view_rec *V,
                        const mdl_prop_params *pp, sooc_status *st) {
     *st = SOOC_OK;
     sooc_cluster_map_clear(cm);
@@ -61,4 +61,13 @@ int mdl_mapper_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL,
         for (int k = V->n_ret; k < V->nslot; k++)
             if (!used[k]) V->lam0[(size_t)k * NL + SOOC_LAM_PRES(c->d_what)] = (float)pp->rest_logit;
     return placed;
+}
+
+void mdl_prop_from_opts(const sooc_step_opts *o, mdl_prop_params *pp, sooc_cluster_params *cp) {
+    sooc_cluster_params_default(cp);
+    if (o->prop_join_m > 0) cp->dist_m = o->prop_join_m;
+    pp->cover_m = 0.02;
+    pp->sigma_frac = 0;
+    pp->pres_logit = o->prop_logit;
+    pp->rest_logit = o->prop_rest_logit;
 }
