@@ -171,6 +171,11 @@ void sooc_afile_abort(sooc_afile *f);
 /* Read a whole file into a sooc_malloc'd buffer (NUL-terminated for text use).
  * Refuses files larger than max_bytes with SOOC_EFORMAT. */
 sooc_status sooc_file_read_all(const char *path, size_t max_bytes, void **out, size_t *n);
+/* A file's content identity, as a map database stores its model's
+ * (mapstore model_id): "fnv1a64:<16 hex> bytes:<n>", the 64-bit FNV-1a of
+ * every byte (of a checkpoint too: a CRC32 of a file that ends with its own
+ * CRC32 is a constant). cap >= 48; *hash may be NULL. Files up to 2 GiB. */
+sooc_status sooc_file_id(const char *path, char *id, size_t cap, uint64_t *hash);
 int sooc_file_exists(const char *path);
 int sooc_dir_exists(const char *path);
 /* mkdir -p */

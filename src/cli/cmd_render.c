@@ -316,6 +316,9 @@ int sooc_cmd_render(int argc, char **argv) {
         sooc_mapstore_params_default(&mp);
         mp.create = 0;
         mp.readonly = 1;
+        char mid[128];   /* the map must have been built with this model (as the node checks on resume) */
+        if ((st = sooc_file_id(model, mid, sizeof mid, NULL))) goto fail;
+        mp.model_id = mid;
         if ((st = sooc_mapstore_open(&ms, mappath, &mp))) goto fail;
         sooc_cogmap_params cp;
         sooc_cogmap_params_default(&cp);

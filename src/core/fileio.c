@@ -161,3 +161,17 @@ sooc_status sooc_path_join(char *out, size_t cap, const char *a, const char *b) 
     if (n < 0 || (size_t)n >= cap) return sooc_seterr(SOOC_EINVAL, "path too long: %s/%s", a, b);
     return SOOC_OK;
 }
+
+sooc_status sooc_file_id(const char *path, char *id, size_t cap, uint64_t *hash) {
+    if (!path || !id || cap < 48) return sooc_seterr(SOOC_EINVAL, "file id: bad arguments");
+    void *buf = NULL;
+    size_t nb = 0;
+    sooc_status st = sooc_file_read_all(path, (size_t)1 << 31, &buf, &nb);
+    if (st) return st;
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (size_t i = 0; i < nb; i++) h = (h ^ ((const unsigned char *)buf)[i]) * 0x100000001b3ull;
+    sooc_free(buf);
+    snprintf(id, cap, "fnv1a64:%016llx bytes:%zu", (unsigned long long)h, nb);
+    if (hash) *hash = h;
+    return SOOC_OK;
+}

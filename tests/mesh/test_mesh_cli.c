@@ -176,6 +176,38 @@ int main(void) {
     snprintf(cmd, sizeof cmd, "'%s' map list --db '%s' --model '%s' 2>/dev/null", bin, db, model);
     CHECK(tc_run(cmd) == 2);
 
+    /* a map built with another model: mesh and map export --ply refuse it, naming both ids */
+    {
+        char other[1200], mid[128];
+        snprintf(other, sizeof other, "%s/other.sqlite", dir);
+        sooc_mapstore_params op = sp;
+        op.model_id = "fnv1a64:0123456789abcdef bytes:1";
+        sooc_mapstore *so = NULL;
+        CHECK_OK(sooc_mapstore_open(&so, other, &op));
+        if (so) CHECK_OK(sooc_mapstore_save_map(so, map));
+        sooc_mapstore_close(so);
+        CHECK_OK(sooc_file_id(model, mid, sizeof mid, NULL));
+        snprintf(cmd, sizeof cmd, "'%s' mesh --map '%s' --model '%s' --out '%s/o' 2>'%s/err.txt'", bin, other, model,
+                 dir, dir);
+        CHECK(tc_run(cmd) == 1);
+        err = tc_slurp(path);
+        CHECK_MSG(err && strstr(err, "0123456789abcdef") && strstr(err, mid), "mesh with another model: %s",
+                  err ? err : "");
+        sooc_free(err);
+        snprintf(cmd, sizeof cmd, "'%s' map export --db '%s' --ply '%s/o2' --model '%s' 2>/dev/null", bin, other, dir,
+                 model);
+        CHECK(tc_run(cmd) == 1);
+        /* the same map with this model's id is accepted */
+        op.model_id = mid;
+        snprintf(other, sizeof other, "%s/same.sqlite", dir);
+        CHECK_OK(sooc_mapstore_open(&so, other, &op));
+        if (so) CHECK_OK(sooc_mapstore_save_map(so, map));
+        sooc_mapstore_close(so);
+        snprintf(cmd, sizeof cmd, "'%s' mesh --map '%s' --model '%s' --out '%s/o3' --res 12 > /dev/null", bin, other,
+                 model, dir);
+        CHECK(tc_run(cmd) == 0);
+    }
+
     /* the metric: GT boxes the size of the locality box at the entries' poses */
     {
         sooc_scene sc;
