@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Dataset recipe for the shipped unity model (models/sooc3d_unity/).
 # Training: dense small and medium unity scenes, so that views often hold as
-# many objects as the K = 7 slots (model.md "Measured findings", third round).
+# many objects as the model has slots (models/sooc3d_unity/README.md).
 # Validation and test use seeds never used in training.
 #   bash scripts/make_datasets.sh [OUT_DIR]      (default out/data)
 set -euo pipefail
@@ -16,10 +16,10 @@ gen --scale m --scenes 8  --seed 8001 --out "$OUT/val_m"
 for sc in s m l xl; do
   gen --scale $sc --scenes 20 --seed 9001 --out "$OUT/test_$sc"
 done
-# diagnostic (docs/training.md, session 4): the same l rooms walked as densely per m² as m rooms
+# diagnostic (models/experiments/README.md "Large scenes"): the same l rooms walked as densely per m² as m rooms
 gen --scale l --views 180 --scenes 20 --seed 9001 --out "$OUT/test_l_v180"
-# Tabletop sets (issue 18): TABLETOP=1 bash scripts/make_datasets.sh also writes train/val/test
-# tabletop scenes with Kinect sensor noise (docs/formats.md 5.1-5.2); no model is trained on them yet.
+# Tabletop sets (models/sooc3d_tabletop): TABLETOP=1 bash scripts/make_datasets.sh also writes
+# train/val/test tabletop scenes with Kinect sensor noise (docs/formats.md 5.1-5.2).
 if [ "${TABLETOP:-0}" = 1 ]; then
   tt() { "$BIN" gen --preset tabletop --no-sheet "$@"; }
   tt --scale s --scenes 800 --seed 2001 --out "$OUT/tabletop_train_s"
@@ -33,7 +33,7 @@ fi
 if [ "${WALLS:-0}" = 1 ]; then
   gen --scale m --density 0.35 --walls 2.2,3.0 --scenes 400 --seed 1002 --out "$OUT/train_m_walls"
 fi
-# Blender sets (issue 19, the paper's Table 2): textured floors, shadows and specular highlights,
+# Blender sets (models/sooc3d_blender; the paper's Table 2): textured floors, shadows and specular highlights,
 # same scales and densities as unity; BLENDER=1 bash scripts/make_datasets.sh.
 if [ "${BLENDER:-0}" = 1 ]; then
   bl() { "$BIN" gen --preset blender --no-sheet "$@"; }

@@ -1,4 +1,4 @@
-# Experiment tool (session 9, docs/training.md "Session 9"): a copy of a folder of generated scenes
+# Experiment tool (models/experiments/README.md "Tabletops"): a copy of a folder of generated scenes
 # seen at S times their size. Each scene's calib.yaml depth_scale, groundtruth.txt camera translations
 # and scene.yaml clip_depth are multiplied by S; every other file is a symlink to the original. Object
 # poses in scene.yaml are not scaled, so L2 figures on the copy are meaningless; masks and depth are.

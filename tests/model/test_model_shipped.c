@@ -4,10 +4,11 @@
  * The colour check inverts the decoder: for a few saturated target colours,
  * gradient descent on z_what alone (decoder weights fixed) minimises the colour
  * error along the box's central column, and the reached colour must lie within
- * COL_TOL of the target in every channel. The sessions 6-7 model (commit
- * a46bc87) drew every object grey and fails here (max channel error
- * 0.31-0.43); the session-8 model passes (0.06-0.11; docs/training.md
- * "Session 8"). About 1 s in Release, well under a minute under ASan. */
+ * COL_TOL of the target in every channel. The unity model without its colour
+ * stage (git show a46bc87:models/sooc3d_unity/model.bin) draws every object
+ * grey and fails here (max channel error 0.31-0.43); the shipped model passes
+ * (0.06-0.11; models/experiments/README.md "Colour"). About 1 s in Release,
+ * well under a minute under ASan. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
