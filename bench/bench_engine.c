@@ -3,7 +3,7 @@
  * OpenBLAS sgemm peak and PyTorch on the same shapes, all measured in this run:
  * the decoder MLP as a training step runs it (bench_engine_mlp.c, on the
  * engine's sooc3d/nn_kern.h pairs and task pool, 2 threads) and the
- * refinement conv encoder (model.md 3.2) as src/model/refine.c runs it
+ * refinement conv encoder as src/model/refine.c runs it
  * (bench_engine_conv.c, on the sooc3d/nn_refine.h pairs).
  *
  *   bench_engine [--no-torch] [--reps N]

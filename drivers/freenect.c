@@ -1,4 +1,4 @@
-/* libfreenect driver (Kinect v1), node.md §0.5 and §3.2.
+/* libfreenect driver (Kinect v1), docs/drivers.md "freenect".
  *
  * Depth modes: on real hardware FREENECT_DEPTH_REGISTERED (mm, registered to
  * colour); under Debian's fakenect (FAKENECT_PATH set) only 11-bit raw

@@ -1,5 +1,5 @@
 // libcamera behind a C interface (lcshim.h). The project's only C++:
-// node.md §3.4 gives the call sequence. One CameraManager per process
+// The call sequence is libcamera's (docs/drivers.md "libcamera"). One CameraManager per process
 // (libcamera allows no more), shared by reference count.
 #include "lcshim.h"
 

@@ -1,7 +1,7 @@
 /* libcamera driver (colour only) through the C++ shim (lcshim.h). Frames
  * arrive on libcamera's thread and are copied into a one-slot mailbox; the
  * newest frame wins (older unread frames count as dropped). Depth is all
- * invalid: libcamera is for RGB cameras (e.g. CSI), node.md §3.4. */
+ * invalid: libcamera is for RGB cameras (e.g. CSI), docs/drivers.md. */
 #include <pthread.h>
 #include <stdio.h>
 #include <string.h>

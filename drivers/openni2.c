@@ -1,11 +1,11 @@
-/* OpenNI2 driver through the C API (node.md §0.1, §0.2, §3.1).
+/* OpenNI2 driver through the C API (docs/drivers.md "openni2").
  *
  * - OniCAPI.h is C++-only as shipped: the typedefs below make it C11.
  * - Depth DEPTH_1_MM + colour RGB888, registration depth->colour when the
  *   device supports it, depth/colour frame sync, mirroring off.
  * - Intrinsics from the stream FOV (f = size / (2 tan(fov/2))); when the
  *   property is NOT_IMPLEMENTED (DummyDevice, some forks) the PS1080 defaults
- *   of node.md §2.3 are used, scaled to the resolution.
+ *   of calib/xtion.yaml are used, scaled to the resolution.
  * - Depth and colour are paired by arrival time within half a frame period
  *   (device stamps of the two streams need not share an origin); t_ns is
  *   the depth frame's device stamp.
@@ -94,7 +94,7 @@ static void fov_intrinsics(OniStreamHandle s, int w, int h, int registered, sooc
         *from_fov = 1;
         return;
     }
-    /* PS1080 defaults at 640x480 (node.md §2.3): depth/IR f = 575.8, colour 525. */
+    /* PS1080 defaults at 640x480 (calib/xtion.yaml): depth/IR f = 575.8, colour 525. */
     double f = (registered ? 525.0 : 575.8157348632812) * (double)w / 640.0;
     K->fx = K->fy = f;
 }

@@ -137,7 +137,7 @@ static sooc_status tum_open(replay *r, sooc_sensor *s, const sooc_sensor_params 
         if ((st = sooc_pose_open_file(&r->gt, gt, NULL))) return st;
     }
     r->depth_scale = p->depth_scale > 0 ? p->depth_scale : 1.0 / 5000.0;
-    /* Intrinsics by TUM camera (node.md §1.1), "ROS default" otherwise. */
+    /* Intrinsics by TUM camera (docs/formats.md §2.1), "ROS default" otherwise. */
     sooc_intrinsics K = {640, 480, 525.0, 525.0, 319.5, 239.5, SOOC_DIST_NONE, {0}};
     if (strstr(dir, "freiburg1")) { K.fx = 517.3; K.fy = 516.5; K.cx = 318.6; K.cy = 255.3; }
     else if (strstr(dir, "freiburg2")) { K.fx = 520.9; K.fy = 521.0; K.cx = 325.1; K.cy = 249.7; }

@@ -1,7 +1,7 @@
 /* V4L2 driver: raw mmap streaming from a depth node (Z16, or Y16 when
  * configured) paired by timestamp with an optional colour node (RGB24, BGR24,
  * YUYV, or MJPEG decoded with libjpeg-turbo through sooc_jpeg_decode when the
- * data module is built: SOOC_V4L2_MJPEG), node.md §3.3. A corrupt or
+ * data module is built: SOOC_V4L2_MJPEG), docs/drivers.md "v4l2". A corrupt or
  * truncated MJPEG frame is counted in stats.errors and dropped; the stream
  * goes on. All syscalls go through a sooc_v4l2_ops table so
  * tests can replace the device with a fake (tests/drivers/test_v4l2.c).

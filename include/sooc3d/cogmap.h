@@ -1,5 +1,5 @@
 /*
- * sooc3d cognitive map (model.md §2.3, §2.4, §2.10): the posterior λ of every
+ * sooc3d cognitive map (docs/cogmap.md; the SOOC3D paper): the posterior λ of every
  * registered object in the WORLD frame, a spatial hash grid on the floor plane,
  * the per-view query (in-view test, top-K by presence, world -> G_t) and the
  * registration after a view (G_t -> world, overwrite by id / append / remove).
@@ -7,11 +7,11 @@
  *
  * Frames (geom.h): world +y up, floor y = 0. A λ handed to / returned by the
  * model is expressed in the gravity-aligned camera frame G_t of its view; the
- * map stores (X, Z, Θ) in the world. Means transform rigidly (model.md §2.1),
+ * map stores (X, Z, Θ) in the world. Means transform rigidly,
  * log-variances are unchanged (σ_t is shared by x and z, so this is exact),
  * angles are wrapped to (-pi, pi].
  *
- * Flat λ layout (float, model.md §2.4; d = latent dim of the map, <= 32):
+ * Flat λ layout (float, docs/cogmap.md; d = latent dim of the map, <= 32):
  *   [0] mu_x  [1] mu_z  [2] mu_theta  [3] rho_t  [4] rho_theta
  *   [5, 5+d)      what mean      [5+d, 5+2d)  what log-variance
  *   [5+2d]        presence logit a           size SOOC_LAM_SIZE(d) = 6 + 2d
@@ -230,7 +230,7 @@ sooc_status sooc_cogmap_merge_neighbours(sooc_cogmap *m, uint64_t *ids, int k, d
  * its origin is the block centre on the floor. */
 void sooc_cogmap_block_of(const sooc_cogmap *m, double X, double Z, int32_t *bi, int32_t *bj);
 void sooc_cogmap_block_origin(const sooc_cogmap *m, int32_t bi, int32_t bj, double *X, double *Z);
-/* The single active block of a view (model.md §2.10): the block holding the
+/* The single active block of a view (docs/cogmap.md): the block holding the
  * ground point at d_clip/2 along the camera's horizontal forward direction.
  * origin_local (may be NULL) = the block origin (x, z) in G_t. */
 sooc_status sooc_cogmap_active_block(const sooc_cogmap *m, const double T_wc[16], double d_clip,

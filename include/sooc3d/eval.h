@@ -167,7 +167,7 @@ sooc_status sooc_eval_plot_csv(const char *csv_path, const char *png_path, const
  * (sooc_eval_view):
  *   - query views always from the FINAL map;
  *   - input views from the final map (SOOC_EVAL_FINAL), right after their own
- *     update (SOOC_EVAL_ONLINE, MulMON's protocol), or both (model.md §6.14).
+ *     update (SOOC_EVAL_ONLINE, MulMON's protocol), or both (docs/metrics.md).
  * L2: the components matched to GT objects by that view's best-match mIoU
  * (IoU >= 0.05) take the world floor position (X, Z) of their map entry
  * (sooc_model_field_comp_id -> sooc_cogmap_get), compared with the GT
@@ -204,7 +204,7 @@ typedef struct sooc_eval_run_opts {
                                   them plus the query views whose nearest input camera is
                                   one of them; 0 = all views                             (0) */
     int max_obj;               /* > 0: render at most this many in-view map entries (top by
-                                  presence); 0 = every in-view entry, up to 63 (model.md §5:
+                                  presence); 0 = every in-view entry, up to 63 (docs/metrics.md:
                                   "layout plus in-view objects"; the K-slot limit is for the
                                   refinement, not the rendering)                         (0) */
     int threads;               /* model and renderer threads; 0 = OpenMP default        (0) */

@@ -1,5 +1,5 @@
 /*
- * sooc3d per-object NeRF finetuning by EM (issue 19, model.md §4; the paper's
+ * sooc3d per-object NeRF finetuning by EM (docs/finetune.md; the paper's
  * "SOOC3D+").
  *
  * After online inference every map entry gets its own copy of the object
@@ -7,7 +7,7 @@
  * stays at the posterior mean. Every layout block gets its own copy of the
  * layout decoder and latent in the same way. The data are the input views
  * that saw the scene: every pixel, with one surface and one air sample per
- * ray drawn afresh every iteration (model.md §2.6).
+ * ray drawn afresh every iteration, as in the model's likelihood.
  *
  *   E-step (no gradient): per ray, the responsibilities of the components
  *     at the surface sample, γ_k = σ̄_k N(C; c̃_k, σ_C²) / Σ_j σ̄_j N(C; c̃_j, σ_C²).

@@ -1,6 +1,6 @@
 /*
  * sooc3d frames: the one RGB-D frame type that crosses every seam
- * (readers -> node -> mapper -> eval), see architecture.md §4.
+ * (readers -> node -> mapper -> eval), see docs/formats.md §2.7.
  *
  * A frame owns its pixel buffers (allocated with sooc_malloc by
  * sooc_frame_alloc and released by sooc_frame_free).

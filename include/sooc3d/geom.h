@@ -2,7 +2,7 @@
  * sooc3d geometry: small dense vectors and matrices in double, SE(3) poses,
  * quaternions, the pinhole camera, and the gravity-aligned camera frame G_t.
  *
- * Conventions (docs/formats.md, model.md §2.1):
+ * Conventions (docs/formats.md §1):
  *  - Matrices are row-major double[9] (3x3) or double[16] (4x4).
  *  - A pose T_ab maps points in frame b to frame a: p_a = T_ab * p_b.
  *    Camera poses are T_wc (camera-to-world).
@@ -83,7 +83,7 @@ int sooc_cam_project(const sooc_intrinsics *K, const double p[3], double *u, dou
 void sooc_cam_crop_resize(sooc_intrinsics *out, const sooc_intrinsics *K, int x0, int y0, int cw,
                           int ch, int w, int h);
 
-/* ---- gravity-aligned camera frame G_t (model.md §2.1) ---- */
+/* ---- gravity-aligned camera frame G_t (the SOOC3D paper) ---- */
 /* Given a camera pose T_wc in a +y-up world with the floor at y = 0, fill
  * T_wg (G-to-world: origin at the camera centre, y = world up, z = camera
  * forward projected on the floor plane) and the camera height h (y of the
@@ -92,7 +92,7 @@ void sooc_cam_crop_resize(sooc_intrinsics *out, const sooc_intrinsics *K, int x0
 sooc_status sooc_gframe(const double T_wc[16], double T_wg[16], double *h, double *pitch, double *roll);
 
 /* Floor pose (x, z, yaw) conversions between world and a G frame with
- * ground position (Xc, Zc) and yaw psi (model.md §2.1):
+ * ground position (Xc, Zc) and yaw psi:
  *   (px, pz) = R2(psi)^T ((X, Z) - (Xc, Zc)),  theta = Theta - psi.
  * R2 uses the same sign convention as R_y. */
 typedef struct sooc_floor_frame { double X, Z, psi; } sooc_floor_frame;

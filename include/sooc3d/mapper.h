@@ -1,6 +1,6 @@
 /*
  * sooc3d online mapper: the amortised variational update, once per keyframe
- * (architecture.md §2). This is the API the node calls.
+ * (docs/model.md). This is the API the node calls.
  *
  *   sooc3d_mapper *m;
  *   sooc3d_mapper_create(&m, &params);          // loads the model checkpoint
@@ -45,8 +45,8 @@ typedef struct sooc3d_mapper_params {
                                   observed one is kept), and a new entry this close to an
                                   entry the keyframe did not register is dropped
                                   (sooc_cogmap_merge). <= 0 = never merge (the default:
-                                  the paper registers without object matching, model.md
-                                  §2.10); SOOC3D_MAPPER_MERGE_SUGGESTED opts in          */
+                                  the paper registers without object matching);
+                                  SOOC3D_MAPPER_MERGE_SUGGESTED opts in                  */
     int latents;               /* what the refinement loop decodes: SOOC3D_LATENTS_MEAN
                                   (posterior means, no sampling noise: the default) or
                                   SOOC3D_LATENTS_SAMPLE (one posterior sample per

@@ -1,6 +1,6 @@
 /*
  * sooc3d persistent map: the cognitive map in an SQLite database
- * (issue 6 part 6, architecture.md §3).
+ * (docs/cogmap.md "Persistent store (SQLite)").
  *
  *  - WAL journal (readers never block the mapping thread), synchronous=NORMAL.
  *  - One transaction per keyframe: sooc_mapstore_commit_keyframe() writes the

@@ -1,7 +1,7 @@
 /*
  * sooc3d meshes (issue 19, docs/mesh.md): marching cubes on the density of a
  * map's objects and layout, binary PLY, and the Atlas mesh metric
- * (model.md §1.6, §5.5).
+ * (docs/mesh.md).
  *
  * THE SURFACE LEVEL (one definition for the whole project; the object extents
  * of the shared-memory table use the same level):
@@ -13,7 +13,7 @@
  * entries). In density units this is sigma = SOOC_MESH_LEVEL * sigma_max
  * (sooc_mesh_level_sigma): with the shipped models' sigma_max = 30 / m,
  * 15 / m, i.e. a slab of ln 2 / 15 = 4.6 cm has opacity 0.5. Why not
- * model.md §5.5's "sigma_iso = ln 2 / voxel": it depends on the grid, and
+ * a level of "sigma_iso = ln 2 / voxel": that depends on the grid, and
  * with sigma_max = 30 / m no voxel finer than 2.3 cm could ever reach it;
  * 0.5 on the sigmoid output is the decoder's own midpoint, independent of
  * grid resolution and of unit_m. Callers may pass another level.
@@ -55,7 +55,7 @@ extern "C" {
 /* The same level as a density per metre for a field with this sigma_max. */
 static inline float sooc_mesh_level_sigma(float sigma_max) { return SOOC_MESH_LEVEL * sigma_max; }
 
-#define SOOC_MESH_RES_DEFAULT 64   /* samples per axis over an object's box (model.md §5.5) */
+#define SOOC_MESH_RES_DEFAULT 64   /* samples per axis over an object's box (docs/mesh.md) */
 
 /* A triangle mesh: vertices xyz (n_vert x 3), colours rgb (n_vert x 3, 0-255),
  * triangles tri (n_tri x 3 vertex indices, counter-clockwise from outside). */
@@ -140,7 +140,7 @@ typedef struct sooc_mesh_write_stats {
 sooc_status sooc_mesh_write_map(struct sooc_model *m, const sooc_cogmap *map, const char *dir, const sooc_mesh_opts *o,
                                 const uint64_t *ids, size_t n_ids, sooc_mesh_write_stats *stats);
 
-/* ---- the Atlas mesh metric (model.md §1.6 / §5.5) ---- */
+/* ---- the Atlas mesh metric (docs/mesh.md) ---- */
 typedef struct sooc_mesh_metric {
     double acc_cm;        /* mean over predicted points of the distance to GT, cm */
     double comp_cm;       /* mean over GT points of the distance to prediction, cm */

@@ -1,5 +1,5 @@
 /*
- * sooc3d metrics (model.md §5, docs/metrics.md): mIoU (MulMON best-match and
+ * sooc3d metrics (docs/metrics.md): mIoU (MulMON best-match and
  * one-to-one Hungarian), RGB / depth RMSE, L2 floor-position error with the
  * matched fraction, recall by distance, and a place for mesh metrics. All are
  * computed per view and accumulated per scale x {input, query}.
@@ -116,7 +116,7 @@ typedef enum sooc_scale { SOOC_SCALE_S = 0, SOOC_SCALE_M, SOOC_SCALE_L, SOOC_SCA
 int sooc_scale_parse(const char *s);
 const char *sooc_scale_name(int scale);   /* "s", "m", "l", "xl" */
 
-/* Mesh metrics (model.md §5.5): placeholder, filled by the mesh work later. */
+/* Mesh metrics (docs/mesh.md). */
 typedef struct sooc_mesh_sums {
     long n_obj;                    /* matched objects with a mesh              */
     double acc_cm, comp_cm;        /* sums of accuracy / completeness (cm)     */

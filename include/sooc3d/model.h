@@ -1,5 +1,5 @@
 /*
- * sooc3d model (model.md §2-§3): latents and posteriors, the object-aware NeRF
+ * sooc3d model (docs/model.md; the SOOC3D paper): latents and posteriors, the object-aware NeRF
  * decoder, the two-sample depth likelihood, KL terms, the refinement networks
  * and the differentiable retrieve -> refine -> register loop.
  *
@@ -39,7 +39,7 @@ extern "C" {
 #define SOOC_MODEL_D_MAX 32
 
 /* All sizes and constants. Stored in the checkpoint; sooc_model_config_default
- * gives the model.md §3.4 values (with the "Measured findings" priors). */
+ * gives the values of docs/model.md (with its slot priors). */
 typedef struct sooc_model_config {
     /* latents */
     int K;                 /* object slots                                   (7)  */
@@ -230,7 +230,7 @@ typedef struct sooc_step_opts {
     float beta_kl;         /* KL weight (curriculum warm-up)                          (1)  */
     sooc_pres_mode pres_mode;                                                    /* RELAXED */
     int L;                 /* 0 = config L                                            (0)  */
-    int truncate_views;    /* 1 = detach λ between views (fallback, model.md §6.6)    (0)  */
+    int truncate_views;    /* 1 = detach λ between views (fallback)                  (0)  */
     float sigma_c;         /* 0 = config sigma_c (for likelihood annealing)           (0)  */
     int mean_latents;      /* 1 = decode the posterior means in the refinement loop
                               (no reparameterisation noise; inference only)        (0)  */
@@ -271,7 +271,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *w, const sooc_frame *views, int
                                   const sooc_frame *queries, int Q, const sooc_step_opts *o,
                                   sooc_rng *rng, sooc_step_losses *losses);
 
-/* ---- render.h field adapter (model.md §2.11): draw from a map ----
+/* ---- render.h field adapter: draw from a map ----
  *
  * A field for one camera: component 0 = the layout of the camera's active
  * block (its latent from the map, or the layout prior), components 1..n =

@@ -22,7 +22,7 @@
  *     returns NULL and sooc_nn_tape_status() reports the first error.
  *     sooc_nn_tape_grad() takes the gradient of an intermediate loss over a
  *     tape segment into separate buffers without disturbing the final
- *     backward (model.md 2.8 auxiliary inputs).
+ *     backward (the refinement's auxiliary inputs).
  *
  *  3. The kernels the model runs (sooc3d/nn_kern.h): the GEMM, the task
  *     pool and the decoder MLP layers as forward / backward pairs.
@@ -165,7 +165,7 @@ void sooc_nn_layernorm_backward(float *dx, float *dw, float *db, const float *dy
                                 const float *x, const float *mean, const float *rstd,
                                 const float *w, int64_t N, int64_t C);
 
-/* Sinusoidal positional encoding (model.md 3.3, no pi):
+/* Sinusoidal positional encoding (no pi):
  *   y[n] = [x, sin(2^0 x), cos(2^0 x), sin(2^1 x), cos(2^1 x), ...,
  *           sin(2^(F-1) x), cos(2^(F-1) x)]
  * where each entry is a D-vector: y[N, D*(1+2F)] from x[N,D].

@@ -8,7 +8,7 @@
  *    sooc_nn_gemm_nt for input gradients (C = A B^T).
  *  - sooc_nn_pool: a small pthread task pool whose caller waits only for the
  *    tasks a helper has claimed (robust on a loaded machine).
- *  - the decoder MLP layers (model.md 3.3) as forward / backward pairs:
+ *  - the decoder MLP layers (docs/engine.md §9) as forward / backward pairs:
  *    sooc_nn_dense_* (linear + ReLU, weights [in x out] row-major, Y = X W + b),
  *    sooc_nn_nerf_heads_* (the density and colour sigmoid heads), and their
  *    composition sooc_nn_nerf_tail_* (layers 2.. of the decoder).
@@ -178,7 +178,7 @@ void sooc_nn_dense_backward(int R, int nin, int nout, const float *dz, int ldz, 
                             const float *Wt, float *dx, int lddx, int acc_dx, const float *xmask, float *dW,
                             float *db, float alpha);
 
-/* The decoder's heads on R rows (model.md 3.3): density from the last hidden
+/* The decoder's heads on R rows: density from the last hidden
  * layer h[R x H], colour from the colour hidden layer hc[R x Hc]:
  *   sig[r] = sigmoid(h[r] . Wd + bd[0]),  col[r] = sigmoid(hc[r] Wc2 + bc2)
  * Wd [H], Wc2 [Hc x 3] row-major, bc2 [3]. Hc <= SOOC_NN_HC_MAX. */
@@ -197,7 +197,7 @@ void sooc_nn_nerf_heads_backward(int R, int H, int Hc, const float *h, const flo
                                  float *dh, float *dhc, float *dWd, float *dbd, float *dWc2, float *dbc2,
                                  float alpha);
 
-/* Layers 2.. of a decoder (model.md 3.3): a1 -> W2 ReLU -> a2 -> W3 ReLU ->
+/* Layers 2.. of a decoder: a1 -> W2 ReLU -> a2 -> W3 ReLU ->
  * a3 -> {density head; Wc1 ReLU -> ac -> colour head}. Weights [in x out]. */
 typedef struct sooc_nn_nerf_tail {
     int H, Hc;

@@ -1,5 +1,5 @@
 /*
- * sooc3d node: the live mapping pipeline (architecture.md §3, node.md §6).
+ * sooc3d node: the live mapping pipeline (docs/node.md).
  *
  *   driver thread ─► frame ring (bounded, drop-oldest) ─► pose association
  *     ─► keyframe policy ─► preprocess ─► sooc3d_mapper_update ─► publisher

@@ -4,7 +4,7 @@
  * height, whether it is rotationally symmetric, and position / yaw spreads
  * that mean something.
  *
- * Tight box. An object's density lives in its locality box (model.md §2.5),
+ * Tight box. An object's density lives in its locality box,
  * in its own frame: origin on the floor under the object, +y up, rotated by
  * its yaw. The box is sampled on a res^3 grid of cell centres; a sample is
  * inside when sigma_hat >= level (mesh.h's SOOC_MESH_LEVEL, the one surface

@@ -1,13 +1,13 @@
 /*
- * sooc3d dense volume renderer (model.md §2.5 composition, §2.11 renderer).
+ * sooc3d dense volume renderer (docs/metrics.md "Rendering"; the composition of the SOOC3D paper).
  *
  * The renderer knows nothing about the model. It sees a "field": N
  * components (0 = layout/background, 1..K = objects), each answering batched
  * point queries with a raw density times presence sigma_hat in [0, 1] and a
  * colour in [0, 1]^3, plus an optional box per component outside of which the
- * component is known to be zero (the model's locality box, model.md §2.5.2).
+ * component is known to be zero (the model's locality box).
  *
- * Composition at a point x (model.md §2.5, eps = 1e-8):
+ * Composition at a point x (eps = 1e-8):
  *   S = sum_k sigma_hat_k + eps,   sbar_k = sigma_hat_k^2 / S,   Sbar = sum_k sbar_k
  *   sigma = sigma_max * Sbar,      c = sum_k (sigma_hat_k / S) * rgb_k
  *
@@ -70,7 +70,7 @@ typedef struct sooc_render_box {
     double lo[3], hi[3];   /* extents in box-local coordinates                  */
 } sooc_render_box;
 
-/* The object locality box of model.md §2.5 for a floor pose (p_x, p_z, yaw)
+/* The object locality box for a floor pose (p_x, p_z, yaw)
  * in a gravity-aligned frame G (y up, floor at y = -h):
  *   local origin b = (p_x, -h, p_z), rotation R_y(yaw),
  *   lo = (-R_h, 0, -R_h), hi = (R_h, H_b, R_h).
@@ -95,7 +95,7 @@ typedef sooc_status (*sooc_field_prepare_fn)(void *user, int n_workers, int max_
 typedef struct sooc_field {
     int n_comp;                       /* 1 + K, <= SOOC_RENDER_MAX_COMP        */
     const sooc_render_box *boxes;     /* n_comp boxes, or NULL = no culling     */
-    float sigma_max;                  /* density scale (model.md §3.4: 30 /m)  */
+    float sigma_max;                  /* density scale (30 /m)                    */
     sooc_field_eval_fn eval;
     sooc_field_prepare_fn prepare;    /* may be NULL                           */
     void *user;

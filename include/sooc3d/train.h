@@ -8,7 +8,7 @@
  * and a resumed run repeats exactly what an uninterrupted run would have done.
  * Adam with clipping, warm-up then linear or cosine decay; the relaxed-
  * Bernoulli temperature is annealed from tau_start to tau_end over the first
- * tau_frac of the steps and then held (model.md "Measured findings", run A).
+ * tau_frac of the steps and then held (docs/training.md "Schedule").
  *
  * Output directory:
  *   last.bin      checkpoint every ckpt_every steps (model + Adam + trainer state)
@@ -131,7 +131,7 @@ typedef struct sooc_train_config {
     int64_t kl_warmup;      /* beta_kl linear 0 -> 1 over this many steps      (1000) */
     int64_t burnin;         /* presence burn-in steps (straight-through z=1)      (0) */
     int st_retrieved;       /* hard straight-through presence for retrieved slots (0) */
-    /* curriculum (model.md §3.5): phase A [0, a), B [a, b), C [b, 1) */
+    /* curriculum (docs/training.md "Schedule"): phase A [0, a), B [a, b), C [b, 1) */
     float phase_a, phase_b; /* fractions of the steps                      (0.15, 0.5) */
     int t_min_b, t_max_b, t_min_c, t_max_c;  /* input views per phase   (2,3 / 2,5) */
     int q_a, q_bc;          /* query views in phase A and in B/C              (1, 2) */

@@ -1,5 +1,5 @@
 /* sooc3d finetune: per-object NeRF finetuning by EM of a stored map
- * (include/sooc3d/finetune.h, model.md §4). Every finished object / layout
+ * (include/sooc3d/finetune.h, docs/finetune.md). Every finished object / layout
  * block is committed to the map database in its own transaction; Ctrl-C stops
  * at the next progress report with the database consistent, and a second run
  * skips what is stored and finetunes the rest. */

@@ -1,5 +1,5 @@
 /*
- * The cognitive map (model.md §2.10): dense entry storage, an id -> slot hash,
+ * The cognitive map (docs/cogmap.md): dense entry storage, an id -> slot hash,
  * a floor-plane hash grid, query / registration and layout blocks.
  *
  * Storage:

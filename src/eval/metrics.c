@@ -1,4 +1,4 @@
-/* Metrics of model.md §5; definitions in docs/metrics.md. */
+/* The evaluation metrics; definitions in docs/metrics.md. */
 #include "sooc3d/metrics.h"
 
 #include <math.h>

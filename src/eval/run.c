@@ -103,7 +103,7 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
     if (!gt->has_pose)
         return sooc_seterr(SOOC_EINVAL, "eval: frame %lld has no pose", (long long)gt->index);
     const sooc_model_config *c = sooc_model_get_config(m);
-    int max_obj = o->max_obj > 0 ? o->max_obj : SOOC_RENDER_MAX_COMP - 1;   /* model.md §5: every in-view object */
+    int max_obj = o->max_obj > 0 ? o->max_obj : SOOC_RENDER_MAX_COMP - 1;   /* docs/metrics.md: every in-view object */
     if (max_obj > SOOC_RENDER_MAX_COMP - 1) max_obj = SOOC_RENDER_MAX_COMP - 1;
     sooc_intrinsics K = gt->K;
     K.width = gt->width;

@@ -1,4 +1,4 @@
-/* Per-object NeRF finetuning by EM (include/sooc3d/finetune.h, model.md §4).
+/* Per-object NeRF finetuning by EM (include/sooc3d/finetune.h, docs/finetune.md).
  *
  * Layout of the work: views are turned into rays once (direction in the
  * view's gravity-aligned frame G, colour, Euclidean depth, and the set of the
@@ -167,7 +167,7 @@ void sooc_finetune_destroy(sooc_finetune *ft) {
 /* ------------------------------------------------------------ views */
 
 /* Does the ray t dir, t in [t0, t1], cross the object box of pose (px, pz, th)?
- * Slab test in the object's frame (model.md §2.5 box). */
+ * Slab test in the object's frame (its locality box). */
 static int ray_crosses(const sooc_model_config *c, const float dir[3], float t0, float t1, const float pose[3], float h) {
     float o[3] = {0, 0, 0}, ol[3], e[3] = {dir[0], dir[1], dir[2]}, el[3];
     mdl_pi(o, pose[0], pose[1], pose[2], h, ol);
@@ -261,7 +261,7 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
         v->pose[v->nc][0] = slots[i].lam[0], v->pose[v->nc][1] = slots[i].lam[1], v->pose[v->nc][2] = slots[i].lam[2];
         v->nc++;
     }
-    /* rays: every pixel (model.md §4 "all pixels"), as mdl_make_rays reads them */
+    /* rays: every pixel (docs/finetune.md), as mdl_make_rays reads them */
     size_t npx = (size_t)f->width * f->height;
     if ((st = grow_rays(ft, ft->nr + npx))) return st;
     double Rwg[9], Rwc[9], tt[3], Rgc[9], RwgT[9];

@@ -1,4 +1,4 @@
-/* The Atlas mesh metric (model.md §1.6, §5.5; include/sooc3d/mesh.h):
+/* The Atlas mesh metric (docs/mesh.md; include/sooc3d/mesh.h):
  * points sampled on the predicted mesh and on the generator's true surfaces,
  * both voxel-downsampled at 2 cm (centroid per voxel, as Open3D's
  * voxel_down_sample), then accuracy = mean distance from predicted points to

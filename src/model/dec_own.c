@@ -1,5 +1,5 @@
 /* A decoder MLP on its own weights (dec_own.h): the finetuned copies of
- * model.md §4. Same network as decoder.c (pe -> 3 ReLU layers -> density
+ * docs/finetune.md (SOOC3D+). Same network as decoder.c (pe -> 3 ReLU layers -> density
  * sigmoid, colour head -> sigmoid), on the engine's layer pairs
  * (sooc3d/nn_kern.h) over a plain weight pointer, not the model's slab. */
 #include "model/dec_own.h"

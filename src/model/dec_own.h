@@ -1,5 +1,5 @@
-/* A decoder MLP on its own weight vector (issue 19: the finetuned per-object
- * and per-block copies of model.md §4), forward and backward, and the payload
+/* A decoder MLP on its own weight vector (the finetuned per-object
+ * and per-block copies of docs/finetune.md), forward and backward, and the payload
  * format a finetuned decoder is kept in (cogmap payloads, the map database).
  * Internal to the model module and its dependants (src/finetune, tests).
  *

@@ -1,5 +1,5 @@
 /* The fused object/layout NeRF decoder, composition, two-sample likelihood and
- * KL terms, forward and backward (model.md §2.4-§2.7, §3.3).
+ * KL terms, forward and backward (the SOOC3D paper, arXiv:2309.14010; docs/model.md).
  *
  * Rows: every (point, object slot) pair whose object-local point falls inside
  * the slot's locality box becomes one row of the object MLP (all slots share

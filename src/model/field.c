@@ -1,5 +1,5 @@
 /* render.h field adapter: the layout of the camera's active block plus the
- * in-view map entries, evaluated with the model's decoders (model.md §2.11). */
+ * in-view map entries, evaluated with the model's decoders (docs/metrics.md "Rendering"). */
 #include "model/dec_own.h"
 #include "model/decoder.h"
 
@@ -168,7 +168,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
             for (int i = 0; i < d; i++)
                 z[i] = l[5 + i] + (sample_rng ? expf(0.5f * l[5 + d + i]) * (float)sooc_rng_normal(sample_rng) : 0.0f);
             fc->id = slots[k - 1].id;
-            /* the model.md §2.5 locality box in G (same as sooc_render_box_object) */
+            /* the object's locality box in G (same as sooc_render_box_object) */
             sooc_render_box *b = &F->boxes[k];
             double R[9], t[3] = {fc->px * u, -h, fc->pz * u};   /* in metres */
             sooc_m3_rot_y(R, fc->th);

@@ -14,7 +14,7 @@
 #include "sooc3d/objgeom.h"
 
 #define MAPPER_TAU 0.7f
-#define MAPPER_FREE_SLOTS 1024   /* free-space evidence cache (ids are sequential: no collision below 1024 apart) */   /* the trainer's final relaxed-Bernoulli temperature (model.md findings, run A) */
+#define MAPPER_FREE_SLOTS 1024   /* free-space evidence cache (ids are sequential: no collision below 1024 apart) */   /* the trainer's final relaxed-Bernoulli temperature (docs/training.md "Schedule") */
 
 /* The change set holds every slot of an update: arrays of SOOC_MAPPER_CHANGED_MAX
  * must fit the largest K a model (or a widened slot setting) can have. */

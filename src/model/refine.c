@@ -1,4 +1,4 @@
-/* Refinement inputs (model.md §3.1) and the refinement network (§3.2):
+/* Refinement inputs and the refinement network (docs/model.md "Layers"):
  * conv 3x3 stride 2 SAME (TF padding: 0 before, 1 after) + ELU, FC + ELU,
  * LSTMCell, linear head, on the src/nn pairs of sooc3d/nn_refine.h.
  * Activations are [channel][item][pixel]. */

@@ -1,5 +1,5 @@
-/* The per-view variational update and the training step (model.md §2.8,
- * §2.9, §2.12): retrieve -> refine L times -> register, over T input views
+/* The per-view variational update and the training step (the SOOC3D
+ * paper; docs/model.md): retrieve -> refine L times -> register, over T input views
  * with a cognitive map, then Q query views decoded from the final map; one
  * local backward per decode, then a reverse sweep over the λ chain and the
  * refinement activations, routing gradients through the map's transforms. */

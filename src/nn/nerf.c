@@ -1,4 +1,4 @@
-/* The decoder MLP layers the model runs (model.md 3.3), as forward / backward
+/* The decoder MLP layers the model runs (docs/engine.md §9), as forward / backward
  * pairs (sooc3d/nn_kern.h): dense + ReLU on sooc_nn_gemm with the bias and the
  * activation fused into the GEMM, the density / colour sigmoid heads, and
  * their composition, layers 2.. of a decoder. Weights are [in x out]

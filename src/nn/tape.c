@@ -1,7 +1,7 @@
 /*
  * The tape: eager forward ops on arena tensors, recorded as nodes, replayed
  * in reverse by sooc_nn_tape_backward (accumulating) or over a segment into
- * temporary gradient buffers by sooc_nn_tape_grad (model.md 2.8).
+ * temporary gradient buffers by sooc_nn_tape_grad (docs/engine.md §3).
  *
  * Errors are sticky: the first failure is stored in the tape; every later op
  * returns NULL without doing anything.

@@ -612,7 +612,7 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
     sooc_node_config_default(c);
     snprintf(c->path, sizeof c->path, "%s", name);
     sooc_ydoc d;
-    sooc_status st = sooc_ydoc_parse(&d, text, n, name);   /* also skips OpenCV's "%YAML:1.0" (node.md finding 6) */
+    sooc_status st = sooc_ydoc_parse(&d, text, n, name);   /* also skips OpenCV's "%YAML:1.0" (docs/formats.md §3) */
     if (st) return st;
     yaml_node_t *root = sooc_ydoc_root(&d);
     pctx p = {&d, name, NULL};

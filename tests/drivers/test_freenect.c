@@ -1,5 +1,5 @@
 /* libfreenect driver: the test writes a fakenect dump (INDEX.txt + host-endian
- * PGM/PPM, node.md §3.2) and re-runs itself under Debian's fakenect
+ * PGM/PPM, docs/drivers.md) and re-runs itself under Debian's fakenect
  * (LD_LIBRARY_PATH=/usr/lib/x86_64-linux-gnu/fakenect FAKENECT_PATH=dir). The
  * child checks the 11-bit disparity -> metres conversion and the replay. */
 #include <math.h>

@@ -1,4 +1,4 @@
-/* OpenNI2 driver against Debian's DummyDevice (node.md §0.2, §0.4, §3.1).
+/* OpenNI2 driver against Debian's DummyDevice (docs/drivers.md "openni2").
  * The parent sets up a private driver folder (libOpenNI2.so.0 plus
  * OpenNI2/Drivers/{libDummyDevice,libOniFile}.so.0) and re-runs this program
  * with LD_LIBRARY_PATH pointing at it; the child does the checks. */

@@ -84,7 +84,7 @@ int main(void) {
     printf("view 1 retrieved %d slots\n", S->views[1].n_ret);
     CHECK(S->views[1].n_ret >= 1);
     /* FD: replay the stored auxiliary inputs, i.e. the stop-gradients of
-     * model.md §2.8 written as a forward */
+     * the update of src/model/step.c written as a forward */
     S->aux_replay = 1;
     CHECK(total_of(m, 77, NULL) == L0);
     steptest_fd_result fd;

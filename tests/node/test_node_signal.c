@@ -30,7 +30,7 @@ static int count_visit(void *u, const sooc_cogmap_entry *e) {
 }
 
 /* exits_now: the child is expected to _exit() with its threads running (the
- * second signal, node.md §6.3); under ThreadSanitizer (scripts/test.sh) its
+ * second signal, docs/node.md "Signals and shutdown"); under ThreadSanitizer (scripts/test.sh) its
  * thread-leak report at _exit is turned off for that child only. */
 static pid_t spawn(const char *bin, const char *launch, const char *delay_ms, int exits_now) {
     pid_t pid = fork();

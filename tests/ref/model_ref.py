@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""PyTorch reference of one sooc3d decode (model.md §2.4-§2.7, §3.3):
+"""PyTorch reference of one sooc3d decode (docs/model.md; the SOOC3D paper):
 posterior sampling with given noise, object-local transform Π, locality box,
 shared object NeRF + layout NeRF, Gaussian-trick density, σ̂²/S composition,
 density-weighted colour, two-sample depth likelihood + colour term, beyond-clip

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """PyTorch reference for the decoder MLP as the model runs it (src/nn/nerf.c,
-src/model/decoder.c; model.md 3.3), at the shipped models' sizes.
+src/model/decoder.c; docs/engine.md §9), at the shipped models' sizes.
 
 Rows of R points in S slots: pe [R, 33] (the positional encoding of the
 object-local point), slot[r] in 0..S-1, z [S, 8] (z^what of each slot).

@@ -25,7 +25,7 @@ static int in_sphere(const scene *sc, double x, double y, double z) {
     double dx = x - SPH_C[0] - sc->shift, dy = y - SPH_C[1], dz = z - SPH_C[2];
     return dx * dx + dy * dy + dz * dz <= SPH_R * SPH_R;
 }
-/* object-local coordinates of model.md §2.1: x_k = R_y(yaw)^T (x - b) */
+/* object-local coordinates: x_k = R_y(yaw)^T (x - b) */
 static void to_local(double x, double y, double z, double l[3]) {
     double R[9], d[3] = {x - CYL_X, y + HCAM, z - CYL_Z};
     sooc_m3_rot_y(R, CYL_YAW);
