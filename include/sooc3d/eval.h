@@ -231,6 +231,8 @@ typedef struct sooc_eval_run_opts {
     int components;            /* 1 = per-component images in the render (panels)       (0) */
     int uncertainty;           /* M >= 2: uncertainty map from M posterior samples      (0) */
     const uint8_t *detail_views;  /* n_frames flags, or NULL                          (NULL) */
+    const uint8_t *render_views;  /* n_frames flags: only these views are rendered and scored
+                                  (the rest are mapped, not rendered); NULL = every view (NULL) */
     /* SOOC3D+ (issue 19): after online inference, finetune every object and
      * layout block of the map by EM on the input views (finetune.h), then score
      * the views from the finetuned map; NULL = no finetuning              (NULL) */

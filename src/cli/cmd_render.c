@@ -38,7 +38,8 @@ static void usage(FILE *f) {
             "                            objects (scene.yaml) as outlines\n"
             "  OUT/views.csv             per-view metrics of every rendered view\n"
             "  OUT/curves.png            training curves (with --log)\n\n"
-            "  --views         panels for N views spread evenly over the sequence (8; 0 = all)\n"
+            "  --views         render N views spread evenly over the sequence, a panel each (8; 0 = all)\n"
+            "  --metrics-all   also render and score every other view (its row of views.csv, no panel)\n"
             "  --uncertainty   M >= 2 posterior samples for the uncertainty tile (default 0: none)\n"
             "  --input-timing  panels of input views from the final map (final, default) or right\n"
             "                  after their own update (online)\n"
@@ -174,7 +175,7 @@ int sooc_cmd_render(int argc, char **argv) {
     sooc_framepath_params_default(&fpp);
     int fo;
     double clip = 0;
-    int views = 8, timing = SOOC_EVAL_FINAL;
+    int views = 8, timing = SOOC_EVAL_FINAL, metrics_all = 0;
     long long maxf = -1;
     sooc_eval_run_opts ro;
     sooc_eval_run_opts_default(&ro);
@@ -191,6 +192,7 @@ int sooc_cmd_render(int argc, char **argv) {
         }
         else if (!strcmp(a, "--log") && has) logpath = argv[++i];
         else if (!strcmp(a, "--views") && has) INTV(0, 1000000, &views);
+        else if (!strcmp(a, "--metrics-all")) metrics_all = 1;
         else if (!strcmp(a, "--uncertainty") && has) INTV(0, 1000, &ro.uncertainty);
         else if (!strcmp(a, "--seed") && has) { if (!sooc_cli_u64_opt("render", a, argv[++i], UINT64_MAX, &ro.seed)) return 2; }
         else if (!strcmp(a, "--threads") && has) INTV(0, 256, &ro.threads);
@@ -289,6 +291,7 @@ int sooc_cmd_render(int argc, char **argv) {
     else
         for (int k = 0; k < views; k++) detail[(int)((k + 0.5) * nf / views)] = 1;
     ro.detail_views = detail;
+    if (!metrics_all) ro.render_views = detail;   /* the other views are mapped, not rendered */
 
     char sub[1200];
     if ((st = sooc_path_join(sub, sizeof sub, out, "panels")) || (st = sooc_mkdirs(sub))) goto fail;
@@ -345,6 +348,15 @@ int sooc_cmd_render(int argc, char **argv) {
             uint64_t ids[SOOC_RENDER_MAX_COMP];
             double xz[2 * SOOC_RENDER_MAX_COMP];
             int nc = 0;
+            if (!metrics_all && !detail[i]) {   /* not rendered: its camera still goes on the top-down map */
+                if (!fr[i].is_query) {
+                    sooc_topdown_step *t = &R.steps[R.n_steps++];
+                    memcpy(t->T_wc, fr[i].T_wc, sizeof t->T_wc);
+                    t->entries = ment;
+                    t->n_entries = ne;
+                }
+                continue;
+            }
             st = sooc_eval_map_view(m, map, &fr[i], gt, have_scene ? sc.n_objects : 0, &ro, detail[i], &rout, &vm,
                                     &match, ids, xz, &nc);
             if (st) break;

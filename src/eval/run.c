@@ -195,6 +195,7 @@ typedef struct run_ctx {
 
 static sooc_status score_view(run_ctx *C, int i, int online, int n_mapped, sooc_metric_sums *sums) {
     const sooc_frame *f = &C->frames[i];
+    if (C->o->render_views && !C->o->render_views[i]) return SOOC_OK;
     int detail = !C->o->detail_views || C->o->detail_views[i];
     sooc_view_metrics vm;
     sooc_iou_match match;

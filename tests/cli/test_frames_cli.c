@@ -82,7 +82,7 @@ static void test_synthetic(const char *bin) {
         char args[2048];
         if (k == 0) snprintf(args, sizeof args, "infer --model %s --seq %s --out %s/infer --samples 16", model, scene, g_tmp);
         else if (k == 1)
-            snprintf(args, sizeof args, "render --model %s --seq %s --out %s/render --samples 16,0 --views 2", model,
+            snprintf(args, sizeof args, "render --model %s --seq %s --out %s/render --samples 16,0 --views 2 --metrics-all", model,
                      scene, g_tmp);
         else if (k == 2)
             snprintf(args, sizeof args, "eval --model %s --data %s --json %s/eval.json --samples 16,0 --quiet", model,
@@ -168,7 +168,12 @@ static int test_labelfusion(const char *bin) {
              model, lf, g_tmp, opts);
     CHECK(tc_run(cmd) == 0);
     int rows = 0;
-    snprintf(p, sizeof p, "%s/lf_render/views.csv", g_tmp);
+    snprintf(p, sizeof p, "%s/lf_render/views.csv", g_tmp);   /* --views 2: two views rendered */
+    CHECK_MSG(views_finite(p, &rows) && rows == 2, "%s: %d rows, not all finite", p, rows);
+    snprintf(cmd, sizeof cmd, "%s render --model %s --seq %s --out %s/lf_render_all %s --views 2 --metrics-all "
+             "--samples 16,0", bin, model, lf, g_tmp, opts);
+    CHECK(tc_run(cmd) == 0);
+    snprintf(p, sizeof p, "%s/lf_render_all/views.csv", g_tmp);   /* every view scored */
     CHECK_MSG(views_finite(p, &rows) && rows == 4, "%s: %d rows, not all finite", p, rows);
     snprintf(p, sizeof p, "%s/lf_render/cogmap/cogmap_sheet.png", g_tmp);
     CHECK(access(p, R_OK) == 0);
