@@ -32,7 +32,7 @@
  * data: n little-endian float32 (a cogmap payload), crc = CRC-32 of its bytes,
  * version 1. A version-1 map is migrated on its first read-write open (one
  * transaction: the tables, then schema_version 2); opened read-only it reads
- * as before, without finetuned decoders. load_map puts the stored decoders
+ * as a version-1 map, without finetuned decoders. load_map puts the stored decoders
  * into the map's payloads (cogmap.h); save_map stores the map's payloads.
  *
  * Schema version 3 (issue 19 item 5) adds the object geometry for planners

@@ -377,7 +377,7 @@ sooc_status sooc_nn_tape_grad(sooc_nn_tape *t, int mark, sooc_nn_tensor *loss,
                               const float *loss_grad, sooc_nn_tensor *const *wrt,
                               float *const *dwrt, int n_wrt, float param_scale);
 /* Drop the nodes recorded since `mark` (their outputs stay valid as data
- * but no longer propagate gradient). */
+ * but do not propagate gradient). */
 void sooc_nn_tape_cut(sooc_nn_tape *t, int mark);
 
 /* Set OpenBLAS threads and return the previous count. The nn kernels reset

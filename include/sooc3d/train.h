@@ -80,7 +80,7 @@ sooc_status sooc_dataset_open_rec(sooc_dataset **out, const char *const *dirs, i
 int sooc_dataset_scene_recorded(const sooc_dataset *d, int scene);   /* 1: a recorded sequence */
 int sooc_dataset_n_recorded(const sooc_dataset *d);
 /* The scene of one training draw: uniform over all scenes (one
- * sooc_rng_below, as before) unless recorded_frac > 0 and the set holds both
+ * sooc_rng_below) unless recorded_frac > 0 and the set holds both
  * kinds, then a recorded sequence with probability recorded_frac. */
 int sooc_dataset_pick(const sooc_dataset *d, double recorded_frac, sooc_rng *rng);
 void sooc_dataset_destroy(sooc_dataset *d);   /* NULL-safe */

@@ -420,7 +420,7 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
             rc = sqlite3_prepare_v2(s->db, k_sql[i], -1, &s->st[i], NULL);
             if (rc != SQLITE_OK) { st = dberr(s, rc, "preparing statements (schema mismatch?)"); goto fail; }
         }
-    /* a map written without a model id (before ids were stored) takes this one */
+    /* a map written without a model id (an older schema) takes this one */
     if (p.model_id && p.model_id[0] && !p.readonly) {
         r = meta_get(s, "model_id", b, sizeof b, &st);
         if (r < 0) goto fail;

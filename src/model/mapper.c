@@ -326,13 +326,13 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
  * w = 1 / k^2 of the way (k = obs_count - REVISIT_SETTLED + 2 = 2, 3, ...), so
  * a settled entry moves at most sum w < 0.65 of one refinement's step in all.
  * Every refinement starts from the stored entry, so the refined values are
- * not independent estimates: with w = 1 / k (a running mean, used until
- * session 12) a small consistent bias of the refinement accumulated like the
- * harmonic series, ln(n), and a looped replay carried entries 0.2-0.4 m off
- * their objects in 10,000 keyframes, where new slots then mapped the objects
+ * not independent estimates: with w = 1 / k (a running mean) a small
+ * consistent bias of the refinement accumulates like the harmonic series,
+ * ln(n), and a looped replay carried entries 0.2-0.4 m off their objects in
+ * 10,000 keyframes, where new slots then mapped the objects
  * again (docs/cogmap.md "Revisits"). An object that moves is retired by the
  * depth evidence (part 4) and mapped anew. Younger entries take the
- * refinement as it is (one pass over a scene is mapped as before). Variances
+ * refinement as it is (a single pass over a scene barely changes). Variances
  * and presence are the refined ones. */
 static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);

@@ -227,7 +227,7 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
     return mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twg, h, pitch, blk);
 }
 
-/* Bounded refinement update (docs/training.md, "What was tried"): the
+/* Bounded refinement update (models/experiments/README.md, "The unity training recipe"): the
  * refinement nets' raw output r is applied as Δ = s·tanh(r/s), per component
  * scale s (metres / radians / log-variance / latent units per iteration).
  * Unbounded, the nets learnt to fling latents (|Δpos| 5-9 m, layout |μ| +73

@@ -397,7 +397,7 @@ static int sample_nearest(const ds_scene *sc, const sooc_frame *views, int T, in
  * views). Q of them are drawn at random. These views look at what the segment
  * mapped from other positions and headings than the nearest query frames, so
  * the query term asks for objects as seen from where the walk has not been
- * (docs/training.md, "Held-out query views"). Returns 0 when no view qualifies
+ * (docs/training.md "Held-out query views"). Returns 0 when no view qualifies
  * (the caller falls back to mode 0). */
 #define SEEN_MIN_PX 16
 static int sample_held_out(const ds_scene *sc, int start, int T, int Q, sooc_rng *rng, sooc_frame *queries) {

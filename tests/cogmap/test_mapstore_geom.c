@@ -1,8 +1,8 @@
 /* Object geometry in the map database (schema 3, mapstore.h "object
  * geometry"): round trip (NaN yaw variance kept as "undefined"), the delete
  * trigger, refused non-finite values; migrations applied in order: a
- * version-2 map (finetuned decoders, no geometry) and a version-1 map written
- * by the code before issue 19 (tests/finetune/map_v1_unity_m.sqlite) open
+ * version-2 map (finetuned decoders, no geometry) and a version-1 map
+ * (tests/finetune/map_v1_unity_m.sqlite) open
  * read-write as version 3 with their entries intact; opened read-only they
  * read no geometry. */
 #include <math.h>

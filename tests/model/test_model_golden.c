@@ -1,5 +1,5 @@
 /* The shipped models give the same outputs as at the commit that wrote
- * tests/model/data/golden.txt (issue 21: the engine moved under the model).
+ * tests/model/data/golden.txt (the decode and the step, on the engine's kernels).
  *
  * For every shipped checkpoint (models/{sooc3d_unity,sooc3d_tabletop,
  * baseline_global}/model.bin; a missing one is skipped with a message), on a

@@ -14,8 +14,8 @@
  *     registered): no failed update, every change
  *     set fits, table == SQLite == the node's object count.
  *  4. A hot untrained K = 32 model through the node: all 32 slots register at
- *     the first keyframe (32 changes; SOOC_MAPPER_CHANGED_MAX was 16 and the
- *     node stopped with "18 changed / 0 removed do not fit in 16 / 16").
+ *     the first keyframe (32 changes: SOOC_MAPPER_CHANGED_MAX must hold them;
+ *     at 16 the node stops with "18 changed / 0 removed do not fit in 16 / 16").
  *  5. `sooc3d model --slots 32 --out F` (SOOC_BIN) widens the shipped model;
  *     the node runs F with model.slots 0.
  * SOOC_TEST_SLOTS="0,10,17,32" runs only those counts in 3 (scripts/test.sh's
