@@ -16,6 +16,9 @@
 
 #ifdef SOOC_HAVE_SEQ
 #include "sooc3d/seq.h"
+#ifdef SOOC_HAVE_LOGS
+#include "sooc3d/log.h"
+#endif
 #else
 #include <png.h>
 #endif
@@ -275,6 +278,31 @@ static sooc_status lower_bound_t(replay *r, int64_t t, int64_t *out, const sooc_
     return SOOC_OK;
 }
 
+#if defined(SOOC_HAVE_SEQ) && defined(SOOC_HAVE_LOGS)
+/* A folder, a ROS bag or an MCAP file; the rosbag and mcap drivers insist on their kind. */
+static sooc_status open_log(replay *r, const sooc_sensor *s, const sooc_sensor_params *p, sooc_seq_open_params *sp) {
+    const char *dn = s->vt->name;
+    sooc_logfile_kind want = !strcmp(dn, "rosbag") ? SOOC_LOGFILE_ROSBAG
+                           : !strcmp(dn, "mcap")   ? SOOC_LOGFILE_MCAP
+                                                   : SOOC_LOGFILE_NONE;
+    sooc_logfile_kind got = sooc_logfile_detect(p->uri);
+    if (want && got != want)
+        return sooc_seterr(SOOC_EINVAL, "%s: %s: not a%s %s file (%s)", dn, p->uri, want == SOOC_LOGFILE_MCAP ? "n" : "",
+                           want == SOOC_LOGFILE_MCAP ? "MCAP" : "ROS bag",
+                           got == SOOC_LOGFILE_MCAP     ? "it is an MCAP file: driver mcap"
+                           : got == SOOC_LOGFILE_ROSBAG ? "it is a ROS bag: driver rosbag"
+                                                        : "neither a ROS bag nor an MCAP file");
+    sooc_logseq_params lp;
+    sooc_logseq_params_default(&lp);
+    lp.color_topic = p->color_topic;
+    lp.depth_topic = p->depth_topic;
+    lp.pose_parent = p->pose_parent;
+    lp.pose_child = p->pose_child;
+    if (p->pair_tol_ns > 0) lp.pair_tol_s = (double)p->pair_tol_ns * 1e-9;
+    return sooc_log_seq_open(&r->seq, p->uri, sp, &lp);
+}
+#endif
+
 static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
     if (!p->uri || !*p->uri) return sooc_seterr(SOOC_EINVAL, "replay: no sequence path (sensor.uri)");
     if (p->speed < 0 || !isfinite(p->speed)) return sooc_seterr(SOOC_EINVAL, "replay: speed must be >= 0");
@@ -293,8 +321,12 @@ static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
     sp.depth_shift = p->depth_shift;      /* -1 = calib, else the format's default */
     sp.depth_invalid = p->depth_invalid;
     if (p->calib && *p->calib) sp.calib_path = p->calib;
+#ifdef SOOC_HAVE_LOGS
+    if ((st = open_log(r, s, p, &sp))) goto fail;
+#else
     st = sooc_seq_open(&r->seq, p->uri, &sp);
     if (st) goto fail;
+#endif
     r->count = sooc_seq_count(r->seq);
 #else
     if (p->format && strcmp(p->format, "tum") && strcmp(p->format, "auto")) {
@@ -394,3 +426,7 @@ static void replay_close(sooc_sensor *s) {
 }
 
 const sooc_sensor_vt sooc__replay_vt = {"replay", replay_open, replay_start, replay_read, NULL, replay_close};
+#ifdef SOOC_HAVE_LOGS
+const sooc_sensor_vt sooc__rosbag_vt = {"rosbag", replay_open, replay_start, replay_read, NULL, replay_close};
+const sooc_sensor_vt sooc__mcap_vt = {"mcap", replay_open, replay_start, replay_read, NULL, replay_close};
+#endif

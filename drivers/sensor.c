@@ -10,6 +10,10 @@
 
 static const sooc_sensor_vt *const g_drivers[] = {
     &sooc__replay_vt,
+#ifdef SOOC_HAVE_LOGS
+    &sooc__rosbag_vt,
+    &sooc__mcap_vt,
+#endif
 #ifdef SOOC_HAVE_OPENNI2
     &sooc__openni2_vt,
 #endif
@@ -27,6 +31,10 @@ static const sooc_sensor_vt *const g_drivers[] = {
 
 static const char *const g_names[] = {
     "replay",
+#ifdef SOOC_HAVE_LOGS
+    "rosbag",
+    "mcap",
+#endif
 #ifdef SOOC_HAVE_OPENNI2
     "openni2",
 #endif
@@ -102,6 +110,10 @@ sooc_status sooc_sensor_params_set(sooc_sensor_params *p, const char *key, const
     if (!strcmp(key, "uri2") || !strcmp(key, "color_device")) { p->uri2 = v; return SOOC_OK; }
     if (!strcmp(key, "format")) { p->format = v; return SOOC_OK; }
     if (!strcmp(key, "calib")) { p->calib = v; return SOOC_OK; }
+    if (!strcmp(key, "color_topic")) { p->color_topic = v; return SOOC_OK; }
+    if (!strcmp(key, "depth_topic")) { p->depth_topic = v; return SOOC_OK; }
+    if (!strcmp(key, "pose_parent")) { p->pose_parent = v; return SOOC_OK; }
+    if (!strcmp(key, "pose_child")) { p->pose_child = v; return SOOC_OK; }
     if (!strcmp(key, "width")) return parse_int(key, v, 0, 16384, &p->width);
     if (!strcmp(key, "height")) return parse_int(key, v, 0, 16384, &p->height);
     if (!strcmp(key, "fps")) return parse_int(key, v, 0, 1000, &p->fps);
@@ -150,13 +162,13 @@ sooc_status sooc_sensor_open(sooc_sensor **out, const char *driver_name, const s
     *out = NULL;
     const sooc_sensor_vt *vt = find_vt(driver_name);
     if (!vt) {
-        static const char *known[] = {"replay", "openni2", "freenect", "v4l2", "libcamera"};
+        static const char *known[] = {"replay", "rosbag", "mcap", "openni2", "freenect", "v4l2", "libcamera"};
         for (size_t i = 0; i < sizeof known / sizeof known[0]; i++)
             if (driver_name && !strcmp(driver_name, known[i]))
                 return sooc_seterr(SOOC_EUNSUPPORTED,
                                    "sensor driver '%s' is not built in (its library was missing at build time)",
                                    driver_name);
-        return sooc_seterr(SOOC_EINVAL, "unknown sensor driver '%s' (replay|openni2|freenect|v4l2|libcamera)",
+        return sooc_seterr(SOOC_EINVAL, "unknown sensor driver '%s' (replay|rosbag|mcap|openni2|freenect|v4l2|libcamera)",
                            driver_name ? driver_name : "(null)");
     }
     sooc_sensor *s = sooc_calloc(1, sizeof *s);

@@ -1,6 +1,9 @@
 /*
  * sooc3d sensor drivers: one interface in front of every RGB-D source.
  *
+ *   rosbag,    a ROS 1 bag or an MCAP file through the replay driver, frames
+ *   mcap       made by the logs module (log.h, docs/logs.md); the replay
+ *              driver itself also opens a log given as its path.
  *   replay     a recorded sequence in any format the data module reads (TUM,
  *              Replica, ScanNet, klg, our synthetic layout, ...), at recorded
  *              speed or as fast as possible, optionally looping, with start and
@@ -99,7 +102,12 @@ typedef struct sooc_sensor_params {
     const char *depth_format;  /* v4l2: "Z16" (default) or "Y16"; freenect: "auto",
                                   "11bit" or "registered"                                 */
     sooc_timebase timebase;    /* default SOOC_TIMEBASE_SENSOR                            */
-    int64_t pair_tol_ns;       /* v4l2/openni2 pairing tolerance (0 = half a frame period) */
+    int64_t pair_tol_ns;       /* v4l2/openni2 pairing tolerance (0 = half a frame period);
+                                  logs: colour-depth pairing by log time (0 = 20 ms)      */
+    /* rosbag / mcap (log.h sooc_logseq_params; NULL = the default) */
+    const char *color_topic, *depth_topic;   /* NULL = the one topic of that kind         */
+    const char *pose_parent, *pose_child;    /* pose from the log's TF (parent NULL = none;
+                                                child NULL = the colour image's frame_id) */
     /* Test hook: replace open/ioctl/mmap/poll/close of the v4l2 driver (NULL = the
      * real syscalls). See struct sooc_v4l2_ops below. */
     const struct sooc_v4l2_ops *v4l2_ops;
@@ -114,7 +122,7 @@ void sooc_sensor_params_default(sooc_sensor_params *p);
  * start (alias start_s), stop (alias stop_s), depth_scale, depth_shift (0..15),
  * depth_invalid (0..65535), depth_min, depth_max, registration, mirror,
  * depth_format, timebase ("sensor" |
- * "realtime"), pair_tol_ms. String values are NOT copied: they must outlive
+ * "realtime"), pair_tol_ms, color_topic, depth_topic, pose_parent, pose_child. String values are NOT copied: they must outlive
  * the sensor's open call. Unknown key or bad value -> SOOC_EINVAL naming it. */
 sooc_status sooc_sensor_params_set(sooc_sensor_params *p, const char *key, const char *value);
 

@@ -36,6 +36,7 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
+#include "sooc3d/seq.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -301,6 +302,17 @@ int64_t sooc_logseq_frame_time(const sooc_logseq *s, int64_t i);
 sooc_status sooc_logseq_read(sooc_logseq *s, int64_t i, sooc_frame *f);
 const sooc_logseq_desc *sooc_logseq_describe(const sooc_logseq *s);
 sooc_logfile *sooc_logseq_file(sooc_logseq *s);   /* borrowed */
+
+/* Open path as a sequence (seq.h) whatever it is: a ROS bag or MCAP file
+ * (detected by content) through sooc_logseq, anything else through
+ * sooc_seq_open. For a log, sp gives calib_path (its K replaces the colour
+ * CameraInfo's, and is needed when the log has none), depth_scale (over
+ * lp's), max_depth, and max_dt (the pairing tolerance when lp is NULL);
+ * sp->format must be AUTO. lp may be NULL (defaults). A log in which no
+ * colour image pairs with a depth image fails with SOOC_EFORMAT naming the
+ * nearest gap. */
+sooc_status sooc_log_seq_open(sooc_seq **out, const char *path, const sooc_seq_open_params *sp,
+                              const sooc_logseq_params *lp);
 
 #ifdef __cplusplus
 }

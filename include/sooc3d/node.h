@@ -53,7 +53,8 @@ typedef enum sooc_node_pose_kind {
     SOOC_NODE_POSE_SENSOR = 0,     /* the sensor's frames carry poses (replay of a posed sequence) */
     SOOC_NODE_POSE_FILE = 1,       /* a trajectory file (TUM groundtruth format) */
     SOOC_NODE_POSE_SOCKET = 2,     /* live stream: unix:/path or udp:host:port */
-    SOOC_NODE_POSE_ODOMETRY = 3    /* RGB-D odometry on the frames (OpenCV rgbd, include/sooc3d/cv.h) */
+    SOOC_NODE_POSE_ODOMETRY = 3,   /* RGB-D odometry on the frames (OpenCV rgbd, include/sooc3d/cv.h) */
+    SOOC_NODE_POSE_TF = 4          /* the TF of a replayed log (drivers rosbag, mcap; docs/logs.md) */
 } sooc_node_pose_kind;
 
 typedef enum sooc_node_floor_mode {
@@ -70,7 +71,7 @@ typedef struct sooc_node_config {
     char path[SOOC_NODE_PATH_MAX];           /* the launch file itself */
 
     /* sensor: */
-    char driver[32];                         /* replay | openni2 | freenect | v4l2 | libcamera */
+    char driver[32];                         /* replay | rosbag | mcap | openni2 | freenect | v4l2 | libcamera */
     int n_params;
     sooc_node_param params[SOOC_NODE_PARAMS_MAX];
 
@@ -79,6 +80,8 @@ typedef struct sooc_node_config {
     char pose_path[SOOC_NODE_PATH_MAX];      /* file path, or socket address "unix:/p" | "udp:h:p" */
     double pose_tolerance_s;                 /* default 0.02 */
     int pose_is_effector;                    /* pose.frame: effector -> apply T_effector_camera */
+    char pose_parent[128], pose_child[128];  /* pose.source: tf: the world frame, the camera frame
+                                                ("" = the colour image's frame_id) */
 
     /* odometry: (pose.source: odometry; sooc_odom_params) */
     int odom_variant;                        /* 0 rgbd, 1 icp, 2 rgbd_icp (default 2) */

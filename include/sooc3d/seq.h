@@ -84,7 +84,10 @@ typedef enum sooc_seq_format {
     SOOC_SEQ_REPLICA,    /* NICE-SLAM Replica traj.txt + results/    */
     SOOC_SEQ_LABELFUSION,/* the 7-Scenes layout, label-fusion depth  */
     SOOC_SEQ_YCB,        /* YCB-Video: %06d-{color,depth,label}.png, -meta.mat */
-    SOOC_SEQ_APC         /* APC: cam.info.txt, frame-%06d.*, masks/  */
+    SOOC_SEQ_APC,        /* APC: cam.info.txt, frame-%06d.*, masks/  */
+    /* Not a directory layout and not in the format table: frames from
+     * another reader through sooc_seq_open_source (a robot log, log.h). */
+    SOOC_SEQ_SOURCE = 64
 } sooc_seq_format;
 #define SOOC_SEQ_FORMAT_COUNT 8
 
@@ -183,6 +186,25 @@ int64_t sooc_seq_dropped(const sooc_seq *s);
  * sooc_seq_open (EFORMAT/EINVAL naming the file). */
 int sooc_seq_gravity(const sooc_seq *s, double g[3]);
 void sooc_seq_close(sooc_seq *s);   /* NULL-safe */
+
+/* A sequence whose frames another reader makes (sooc_log_seq_open in log.h
+ * reads ROS bags and MCAP files this way): n frames with stamps t_ns[i]
+ * (ascending, copied), read(user, i, f) fills frame i as sooc_seq_read would
+ * (the sequence applies max_depth after it), close(user) runs at
+ * sooc_seq_close (also when this call fails). calib is copied: its K is what
+ * sooc_seq_calib returns. name stands for the directory in messages. The
+ * format is SOOC_SEQ_SOURCE ("source"). */
+typedef struct sooc_seq_source {
+    const char *name;
+    int64_t n;
+    const int64_t *t_ns;
+    const sooc_calib *calib;
+    double max_depth;          /* 0 = no limit */
+    void *user;
+    sooc_status (*read)(void *user, int64_t i, sooc_frame *f);
+    void (*close)(void *user);
+} sooc_seq_source;
+sooc_status sooc_seq_open_source(sooc_seq **out, const sooc_seq_source *src);
 
 /* ------------------------------------------------------------- writer */
 

@@ -20,6 +20,7 @@ int sooc_cmd_model(int argc, char **argv);
 int sooc_cmd_node(int argc, char **argv);
 int sooc_cmd_odometry(int argc, char **argv);
 int sooc_cmd_calib(int argc, char **argv);
+int sooc_cmd_log(int argc, char **argv);
 /* `sooc3d gen --board ...`: board views for calibration (cmd_calib.c). */
 int sooc_cmd_gen_board(int argc, char **argv);
 

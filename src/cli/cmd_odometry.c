@@ -8,6 +8,7 @@
 #include "cli.h"
 #include "sooc3d/cv.h"
 #include "sooc3d/geom.h"
+#include "sooc3d/log.h"
 #include "sooc3d/seq.h"
 
 static void usage(FILE *f) {
@@ -196,7 +197,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
     sooc_traj est = {0}, gt = {0};
     int64_t *kept = NULL;
     int rc = 1;
-    if ((st = sooc_seq_open(&seq, seq_dir, &sp))) goto fail;
+    if ((st = sooc_log_seq_open(&seq, seq_dir, &sp, NULL))) goto fail;   /* a folder, a ROS bag or an MCAP file */
     {
         const sooc_calib *cal = sooc_seq_calib(seq);
         int cw = cal->K.width, ch = cal->K.height;

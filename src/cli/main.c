@@ -21,6 +21,7 @@ static const struct {
     {"node", sooc_cmd_node, "run the live mapping node from a launch file"},
     {"odometry", sooc_cmd_odometry, "RGB-D odometry over a sequence (TUM trajectory, ATE/RPE)"},
     {"calib", sooc_cmd_calib, "camera intrinsics and hand-eye from board images"},
+    {"log", sooc_cmd_log, "describe a ROS bag or MCAP file: channels, camera streams, intrinsics, pose"},
 };
 #define NCMDS (sizeof g_cmds / sizeof g_cmds[0])
 

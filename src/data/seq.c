@@ -50,6 +50,7 @@ const sooc_seq_format_info *sooc_seq_format_info_of(sooc_seq_format f) {
 }
 
 const char *sooc_seq_format_name(sooc_seq_format f) {
+    if (f == SOOC_SEQ_SOURCE) return "source";
     return (unsigned)f < SOOC_SEQ_FORMAT_COUNT ? g_formats[f].name : "?";
 }
 
@@ -838,6 +839,7 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
     if (!s || i < 0 || i >= s->n)
         return sooc_seterr(SOOC_EINVAL, "seq read: frame %lld out of range [0, %lld)", (long long)i,
                            (long long)(s ? s->n : 0));
+    if (s->source_read) return sooc_seqi_source_read(s, i, f);
     const sooc_seqi_entry *e = &s->e[i];
     char ctx[4400];
     ctx_of(e, ctx, sizeof ctx);

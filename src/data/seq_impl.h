@@ -45,6 +45,8 @@ struct sooc_seq {
     sooc_seqi_label_name_fn label_name_fn;
     void *priv;                   /* the layout's own state, freed by priv_free at close */
     void (*priv_free)(void *priv);
+    /* frames made by another reader (sooc_seq_open_source): read from priv */
+    sooc_status (*source_read)(void *priv, int64_t i, sooc_frame *f);
 };
 
 /* Every call below that fails sets the message (naming the file). */
@@ -80,6 +82,8 @@ sooc_status sooc_seqi_open_slambook(sooc_seq *s, const sooc_seq_open_params *p);
 sooc_status sooc_seqi_open_replica(sooc_seq *s, const sooc_seq_open_params *p);
 sooc_status sooc_seqi_open_ycb(sooc_seq *s, const sooc_seq_open_params *p);
 sooc_status sooc_seqi_open_apc(sooc_seq *s, const sooc_seq_open_params *p);
+/* sooc_seq_read of a sequence from sooc_seq_open_source (seq_source.c). */
+sooc_status sooc_seqi_source_read(sooc_seq *s, int64_t i, sooc_frame *f);
 /* Directory entry names of the layouts (for detection): the frame number,
  * or -1 when the name is not a YCB-Video colour image. */
 int64_t sooc_seqi_ycb_color_number(const char *name);

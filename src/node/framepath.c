@@ -1,6 +1,7 @@
 /* The one frame path (include/sooc3d/framepath.h): sequence reader +
  * sooc_node_preprocess + the map's world frame, for every command. */
 #include "sooc3d/framepath.h"
+#include "sooc3d/log.h"
 #include "sooc3d/support.h"
 
 #include <math.h>
@@ -258,7 +259,7 @@ sooc_status sooc_framepath_open(sooc_framepath **out, const char *dir, const soo
     sp.calib_path = q->calib_path;
     if (q->depth_scale > 0) sp.depth_scale = q->depth_scale;
     if (q->depth_shift >= 0) sp.depth_shift = q->depth_shift;
-    if ((st = sooc_seq_open(&fp->seq, dir, &sp))) goto fail;
+    if ((st = sooc_log_seq_open(&fp->seq, dir, &sp, NULL))) goto fail;   /* a folder, a ROS bag or an MCAP file */
     char path[1100];
     if ((st = sooc_path_join(path, sizeof path, dir, "scene.yaml"))) goto fail;
     fp->synthetic = sooc_file_exists(path);

@@ -223,12 +223,20 @@ static const pspec g_pspecs[] = {
     {"v4l2", "depth_scale", PT_POS, NULL},
     {"v4l2", "timebase", PT_ENUM, "sensor|realtime"},
     {"v4l2", "pair_tol_ms", PT_POS, NULL},
+    /* robot logs (docs/logs.md) */
+#define LOG_KEYS(d)                                                                                          \
+    {d, "path", PT_STR, NULL}, {d, "color_topic", PT_STR, NULL}, {d, "depth_topic", PT_STR, NULL},           \
+        {d, "speed", PT_SPEED, NULL}, {d, "loop", PT_BOOL, NULL}, {d, "start_s", PT_NUM, NULL},              \
+        {d, "stop_s", PT_NUM, NULL}, {d, "depth_scale", PT_POS, NULL}, {d, "pair_tol_ms", PT_POS, NULL}
+    LOG_KEYS("rosbag"),
+    LOG_KEYS("mcap"),
+#undef LOG_KEYS
     {"libcamera", "camera", PT_STR, NULL},
     {"libcamera", "width", PT_INT, NULL},
     {"libcamera", "height", PT_INT, NULL},
     {"libcamera", "fps", PT_INT, NULL},
 };
-static const char *g_drivers = "replay|openni2|freenect|v4l2|libcamera";
+static const char *g_drivers = "replay|rosbag|mcap|openni2|freenect|v4l2|libcamera";
 
 static int in_enum(const char *s, const char *list) {
     size_t n = strlen(s);
@@ -348,7 +356,8 @@ static sooc_status sec_sensor(pctx *p, yaml_node_t *m, sooc_node_config *c) {
         if (!strcmp(kv.key, "driver")) continue;
         if ((st = sensor_param(p, kv.key, kv.k, kv.v, c))) return st;
     }
-    if (!strcmp(c->driver, "replay") && !sooc_node_param_get(c, "path"))
+    if ((!strcmp(c->driver, "replay") || !strcmp(c->driver, "rosbag") || !strcmp(c->driver, "mcap")) &&
+        !sooc_node_param_get(c, "path"))
         return sooc_seterr(SOOC_EINVAL, "%s:%d: sensor.path: missing (the recording to replay)", p->name,
                            sooc_yline(m));
     return SOOC_OK;
@@ -452,11 +461,13 @@ _Static_assert(sizeof(sooc_node_pose_kind) == sizeof(int) && sizeof(sooc_node_de
 /* Every key of every section but sensor (g_pspecs) and the top-level calib;
  * "unknown key (known: ...)" lists a section's keys in this order. */
 static const kspec g_keys[] = {
-    KV_CH("pose", "source", pose_kind, "sensor|file|socket|odometry"),   /* order of sooc_node_pose_kind */
+    KV_CH("pose", "source", pose_kind, "sensor|file|socket|odometry|tf"),   /* order of sooc_node_pose_kind */
     KV("pose", "path", KV_STR, pose_path, 0, 0),
     KV("pose", "address", KV_STR, pose_path, 0, 0),
     KV("pose", "tolerance_ms", KV_MS, pose_tolerance_s, 0, 10000),
     KV_CH("pose", "frame", pose_is_effector, "camera|effector"),
+    KV("pose", "parent", KV_STR, pose_parent, 0, 0),
+    KV("pose", "child", KV_STR0, pose_child, 0, 0),
     KV_CH("odometry", "variant", odom_variant, "rgbd|icp|rgbd_icp"),   /* order of sooc_odom_variant */
     KV("odometry", "width", KV_INT, odom_width, 0, 8192),
     KV("odometry", "height", KV_INT, odom_height, 0, 8192),
@@ -620,7 +631,16 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
     else st = walk_map(&p, root, "launch file", k_root, c);
     if (!st && !c->driver[0])
         st = sooc_seterr(SOOC_EINVAL, "%s: sensor: missing section (sensor.driver is required)", name);
-    if (!st && c->pose_kind != SOOC_NODE_POSE_SENSOR && c->pose_kind != SOOC_NODE_POSE_ODOMETRY && !c->pose_path[0])
+    int is_log = !strcmp(c->driver, "rosbag") || !strcmp(c->driver, "mcap");
+    if (!st && c->pose_kind == SOOC_NODE_POSE_TF && (!is_log || !c->pose_parent[0]))
+        st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: tf %s", name,
+                         is_log ? "needs pose.parent (the world frame; pose.child defaults to the image's frame_id)"
+                                : "reads the TF of a log: sensor.driver rosbag or mcap");
+    if (!st && is_log && c->pose_kind == SOOC_NODE_POSE_SENSOR)
+        st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: a log's frames carry poses through its TF: pose: {source: tf, "
+                         "parent: FRAME}, or file, socket, odometry", name);
+    if (!st && c->pose_kind != SOOC_NODE_POSE_SENSOR && c->pose_kind != SOOC_NODE_POSE_ODOMETRY &&
+        c->pose_kind != SOOC_NODE_POSE_TF && !c->pose_path[0])
         st = sooc_seterr(SOOC_EINVAL, "%s: pose.path: missing (needed for pose.source %s)", name,
                          c->pose_kind == SOOC_NODE_POSE_FILE ? "file" : "socket");
     if (!st && c->pose_kind == SOOC_NODE_POSE_SOCKET && strncmp(c->pose_path, "unix:", 5) &&
@@ -647,7 +667,7 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
                                       "model's trained range)", name);
     if (!st && c->cam_height_min_m > 0 && c->cam_height_min_m >= c->cam_height_max_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: world.camera_height_min_m: must be below camera_height_max_m", name);
-    if (!st && strcmp(c->driver, "replay") && c->pose_kind == SOOC_NODE_POSE_SENSOR)
+    if (!st && strcmp(c->driver, "replay") && !is_log && c->pose_kind == SOOC_NODE_POSE_SENSOR)
         st = sooc_seterr(SOOC_EINVAL, "%s: pose.source: live driver '%s' carries no poses; use file, socket or odometry",
                          name, c->driver);
     sooc_ydoc_free(&d);
@@ -668,7 +688,7 @@ sooc_status sooc_node_config_load(sooc_node_config *c, const char *path) {
 }
 
 size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap) {
-    static const char *pk[] = {"sensor", "file", "socket", "odometry"};
+    static const char *pk[] = {"sensor", "file", "socket", "odometry", "tf"};
     size_t k = 0;
 #define OUT(...)                                                                    \
     do {                                                                            \
@@ -677,8 +697,10 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     } while (0)
     OUT("sensor: {driver: %s", c->driver);
     for (int i = 0; i < c->n_params; i++) OUT(", %s: %s", c->params[i].key, c->params[i].value);
-    OUT("}\npose: {source: %s, path: '%s', tolerance_ms: %g, frame: %s}\n", pk[c->pose_kind], c->pose_path,
+    OUT("}\npose: {source: %s, path: '%s', tolerance_ms: %g, frame: %s", pk[c->pose_kind], c->pose_path,
         c->pose_tolerance_s * 1e3, c->pose_is_effector ? "effector" : "camera");
+    if (c->pose_kind == SOOC_NODE_POSE_TF) OUT(", parent: %s, child: '%s'", c->pose_parent, c->pose_child);
+    OUT("}\n");
     if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY) {
         static const char *ov[] = {"rgbd", "icp", "rgbd_icp"};
         OUT("odometry: {variant: %s, width: %d, height: %d, keyframe_translation_m: %g, keyframe_rotation_deg: %g, "

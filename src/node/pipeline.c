@@ -214,6 +214,10 @@ static sooc_status open_sensor(sooc_node *n) {
         if (st)
             return sooc_adderr(st, "%s:%d: sensor.%s", c->path, c->params[i].line, c->params[i].key);
     }
+    if (c->pose_kind == SOOC_NODE_POSE_TF) {   /* the log's TF gives the frames their poses */
+        sp.pose_parent = c->pose_parent;
+        sp.pose_child = c->pose_child[0] ? c->pose_child : NULL;
+    }
     sp.depth_min = (float)c->min_depth_m;
     sp.depth_max = (float)c->max_depth_m;
 #if SOOC_NODE_HAVE_CALIB
@@ -238,7 +242,9 @@ static sooc_status open_sensor(sooc_node *n) {
 
 static sooc_status open_pose(sooc_node *n) {
     const sooc_node_config *c = &n->cfg;
-    if (c->pose_kind == SOOC_NODE_POSE_SENSOR || c->pose_kind == SOOC_NODE_POSE_ODOMETRY) return SOOC_OK;
+    if (c->pose_kind == SOOC_NODE_POSE_SENSOR || c->pose_kind == SOOC_NODE_POSE_ODOMETRY ||
+        c->pose_kind == SOOC_NODE_POSE_TF)
+        return SOOC_OK;
     sooc_pose_params pp;
     sooc_pose_params_default(&pp);
     if (n->have_T_eff) {
@@ -779,7 +785,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose.source: odometry: the cv module is not built in", c->path);
         goto fail;
 #endif
-    } else if (c->pose_kind != SOOC_NODE_POSE_SENSOR && !n->have_pose) {
+    } else if (c->pose_kind != SOOC_NODE_POSE_SENSOR && c->pose_kind != SOOC_NODE_POSE_TF && !n->have_pose) {
         st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose: no pose source available", c->path);
         goto fail;
     }
@@ -1181,7 +1187,7 @@ sooc_status sooc_node_run(sooc_node *n) {
             int r = odom_pose(n, f, T_src_c);
             if (r < 0) { result = sooc_adderr(SOOC_ERR, "node: odometry"); break; }
             if (r == 0) continue;
-        } else if (n->cfg.pose_kind == SOOC_NODE_POSE_SENSOR && !n->opt.pose) {
+        } else if ((n->cfg.pose_kind == SOOC_NODE_POSE_SENSOR || n->cfg.pose_kind == SOOC_NODE_POSE_TF) && !n->opt.pose) {
             if (!f->has_pose) {
                 pthread_mutex_lock(&n->mu);
                 n->st.frames_no_pose++;

@@ -142,6 +142,8 @@ static const char *make_seq(sooc_seq_format f, double *z) {
                  "# Camera-to-world extrinsic matrix (camera pose) for frame-000000\n%s", pose4);
         *z = 0.9;
         break;
+    case SOOC_SEQ_SOURCE:   /* frames from another reader (a log): not a layout of the table */
+        break;
     }
     zs[f] = *z;
     return d;
