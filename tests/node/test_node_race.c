@@ -5,7 +5,7 @@
  * supervisor or the CLI's stats line would. The floor estimate sets the world
  * frame (T_world_src) while it reads: under ThreadSanitizer (scripts/test.sh,
  * SOOC_TSAN) a write outside the node's mutex is reported as a data race
- * (the negative control: take the floor estimate out of the mutex). Without TSan the test
+ * (as it is when the floor estimate writes outside the mutex). Without TSan the test
  * checks what the lock promises: every snapshot is consistent, i.e. the world
  * frame is the identity while floor_estimated is 0 and the final estimate once
  * it is 1, never a mix; and the counters never go backwards.
