@@ -263,7 +263,7 @@ static void test_bad(const char *scene) {
     sooc_framepath_params p;
     sooc_framepath *fp = (sooc_framepath *)1;
     sooc_framepath_params_default(&p);
-    p.min_depth_m = 0, p.max_depth_m = 0;   /* the old render call */
+    p.min_depth_m = 0, p.max_depth_m = 0;   /* an empty depth range */
     CHECK(sooc_framepath_open(&fp, scene, &p) == SOOC_EINVAL && fp == NULL);
     CHECK_MSG(strstr(sooc_errmsg(), "depth range") != NULL, "%s", sooc_errmsg());
     sooc_framepath_params_default(&p);

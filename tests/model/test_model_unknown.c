@@ -419,7 +419,7 @@ static void test_checkpoint(void) {
     remove(p);
     remove(p3);
     sooc_model_destroy(m);
-    /* the shipped unity model (a version-3 file) keeps the old behaviour */
+    /* the shipped unity model (a version-3 file) reads holes as free space */
     const char *path = SHIPPED;   /* ctest runs from the repository root */
     FILE *t = fopen(path, "rb");
     if (!t) {
