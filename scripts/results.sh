@@ -362,7 +362,8 @@ def blocks(lines):
 
 def main(argv):
     if argv and argv[0] in ("-h", "--help"):
-        print(open("scripts/results.sh").read().split("set -euo")[0].replace("#", "").strip())
+        head = open("scripts/results.sh").read().split("\nset -euo")[0].split("\n")[1:]
+        print("\n".join(l[2:] if l.startswith("# ") else l.lstrip("#") for l in head))
         return 0
     if argv and argv[0] == "--list":
         for n in TABLES:
