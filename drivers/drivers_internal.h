@@ -30,6 +30,7 @@ struct sooc_sensor {
     int64_t t_start_mono;      /* sooc_now_ns at start */
     int rebased;
     int64_t rebase_off;        /* SOOC_TIMEBASE_REALTIME offset */
+    sooc_frame_fault frame_fault;   /* of the last failed read (sooc_sensor_frame_fault) */
 };
 
 extern const sooc_sensor_vt sooc__replay_vt;

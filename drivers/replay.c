@@ -15,6 +15,7 @@
 #include "sooc3d/pose.h"
 
 #ifdef SOOC_HAVE_SEQ
+#include "sooc3d/image.h"
 #include "sooc3d/seq.h"
 #ifdef SOOC_HAVE_LOGS
 #include "sooc3d/log.h"
@@ -251,6 +252,31 @@ static sooc_status src_read(replay *r, int64_t i, sooc_frame *f, const sooc_sens
 #endif
 }
 
+/* Why frame i could not be read (the node counts broken frames by reason):
+ * each image is decoded again on its own, keeping the failure's message. */
+static sooc_frame_fault frame_fault_of(replay *r, int64_t i, const sooc_sensor_info *info) {
+#ifdef SOOC_HAVE_SEQ
+    const char *cp = sooc_seq_color_path(r->seq, i), *dp = sooc_seq_depth_path(r->seq, i);
+    if (!cp || !dp) return SOOC_FRAME_FAULT_OTHER;   /* a layout without image files (a log) */
+    char msg[1024];
+    snprintf(msg, sizeof msg, "%s", sooc_errmsg());
+    sooc_image a = {0}, b = {0};
+    sooc_frame_fault f = SOOC_FRAME_FAULT_OTHER;
+    if (sooc_image_read(cp, &a) || a.fmt != SOOC_PIX_RGB8) f = SOOC_FRAME_FAULT_COLOR;
+    else if (sooc_image_read(dp, &b) || b.fmt != SOOC_PIX_GRAY16) f = SOOC_FRAME_FAULT_DEPTH;
+    else if (a.width != b.width || a.height != b.height || (info->width > 0 && a.width != info->width) ||
+             (info->height > 0 && a.height != info->height))
+        f = SOOC_FRAME_FAULT_SIZE;
+    sooc_image_free(&a);
+    sooc_image_free(&b);
+    sooc_seterr(SOOC_ERR, "%s", msg);
+    return f;
+#else
+    (void)r, (void)i, (void)info;
+    return SOOC_FRAME_FAULT_OTHER;
+#endif
+}
+
 /* Stamp of frame i (from the sequence's index: no image is decoded). */
 static sooc_status src_stamp(replay *r, int64_t i, int64_t *t, const sooc_sensor_params *p) {
 #ifdef SOOC_HAVE_SEQ
@@ -349,9 +375,11 @@ static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
                          p->start_s, p->stop_s);
         goto fail;
     }
-    /* Size, intrinsics and pose flag from the first frame. */
-    if ((st = src_read(r, r->i0, &r->tmp, p))) goto fail;
-    r->t_first_ns = r->tmp.t_ns;
+    /* Size, intrinsics and pose flag from the first frame that reads (a broken
+     * one before it still comes as a failed read, for the caller to count) */
+    for (int64_t k = r->i0; (st = src_read(r, k, &r->tmp, p)) && st != SOOC_ENOMEM && k + 1 < r->i1;) k++;
+    if (st) goto fail;
+    if ((st = src_stamp(r, r->i0, &r->t_first_ns, p))) goto fail;
     int64_t t_last;
     if ((st = src_stamp(r, r->i1 - 1, &t_last, p))) goto fail;
     int64_t n = r->i1 - r->i0;
@@ -403,6 +431,7 @@ static sooc_status replay_read(sooc_sensor *s, sooc_frame *f, int timeout_ms) {
         }
     }
     if ((st = src_read(r, r->next, f, &s->p))) {
+        s->frame_fault = frame_fault_of(r, r->next, &s->info);
         r->next++; /* a frame that cannot be read (corrupt JPEG, ...) is skipped if the caller reads on */
         return st;
     }

@@ -206,6 +206,7 @@ sooc_status sooc_sensor_read(sooc_sensor *s, sooc_frame *f, int timeout_ms) {
         sooc_status st = sooc_sensor_start(s);
         if (st) return st;
     }
+    s->frame_fault = SOOC_FRAME_FAULT_NONE;
     sooc_status st = s->vt->read(s, f, timeout_ms);
     if (st == SOOC_OK) {
         s->st.frames++;
@@ -214,6 +215,8 @@ sooc_status sooc_sensor_read(sooc_sensor *s, sooc_frame *f, int timeout_ms) {
     }
     return st;
 }
+
+sooc_frame_fault sooc_sensor_frame_fault(const sooc_sensor *s) { return s ? s->frame_fault : SOOC_FRAME_FAULT_NONE; }
 
 void sooc_sensor_interrupt(sooc_sensor *s) {
     if (s) atomic_store(&s->interrupted, 1);

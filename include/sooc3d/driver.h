@@ -145,6 +145,11 @@ sooc_status sooc_sensor_start(sooc_sensor *s);
  * Returns SOOC_OK, SOOC_ETIMEOUT, SOOC_EEOF (replay end without loop, fakenect
  * end), SOOC_EINTERRUPTED (after sooc_sensor_interrupt), or an error. */
 sooc_status sooc_sensor_read(sooc_sensor *s, sooc_frame *f, int timeout_ms);
+/* After a read that failed: SOOC_FRAME_FAULT_* when the failure was one
+ * broken frame the sensor has passed (replay: an image missing, truncated or
+ * corrupt, a pose that does not parse, a wrong size; the next read gives the
+ * frame after it), SOOC_FRAME_FAULT_NONE when the stream itself failed. */
+sooc_frame_fault sooc_sensor_frame_fault(const sooc_sensor *s);
 
 /* Make a blocked or future read return SOOC_EINTERRUPTED. Async-signal-safe. */
 void sooc_sensor_interrupt(sooc_sensor *s);

@@ -29,6 +29,24 @@ typedef struct sooc_frame {
     int is_query;          /* synthetic data: 1 for a held-out query view               */
 } sooc_frame;
 
+/* Why a frame could not be read, for sources that skip a broken frame and go
+ * on (the replay driver; the node counts them, docs/node.md "Faults"). */
+typedef enum sooc_frame_fault {
+    SOOC_FRAME_FAULT_NONE = 0,
+    SOOC_FRAME_FAULT_COLOR,   /* colour image missing, truncated or corrupt      */
+    SOOC_FRAME_FAULT_DEPTH,   /* depth image missing, truncated or corrupt       */
+    SOOC_FRAME_FAULT_POSE,    /* its pose (file) does not parse                  */
+    SOOC_FRAME_FAULT_SIZE,    /* wrong size: depth vs colour, or vs the camera   */
+    SOOC_FRAME_FAULT_OTHER,
+    SOOC_FRAME_FAULT_COUNT
+} sooc_frame_fault;
+
+/* "colour", "depth", "pose", "size", "other" ("none" for 0). */
+static inline const char *sooc_frame_fault_name(sooc_frame_fault f) {
+    static const char *const k[SOOC_FRAME_FAULT_COUNT] = {"none", "colour", "depth", "pose", "size", "other"};
+    return (int)f >= 0 && f < SOOC_FRAME_FAULT_COUNT ? k[f] : "other";
+}
+
 /* Allocate buffers for a w x h frame (instance buffer only if with_instance).
  * Zeroes everything. On failure, the frame is left empty. */
 sooc_status sooc_frame_alloc(sooc_frame *f, int w, int h, int with_instance);

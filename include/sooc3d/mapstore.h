@@ -70,7 +70,7 @@ extern "C" {
 typedef struct sooc_mapstore sooc_mapstore;
 
 typedef struct sooc_mapstore_params {
-    int create;            /* create the file if missing                          (1) */
+    int create;            /* create the file if missing, and its folder          (1) */
     int readonly;          /* open read-only (the file must exist); needs only read
                               permission on the file: with no un-checkpointed -wal
                               left it opens immutable, so a folder the reader
@@ -223,6 +223,37 @@ sooc_status sooc_mapstore_frame_put(sooc_mapstore *s, const sooc_map_frame *f);
  * when the map has none. A malformed stored value is SOOC_EFORMAT naming the
  * database. */
 sooc_status sooc_mapstore_frame_get(sooc_mapstore *s, sooc_map_frame *f, int *found);
+
+/* ---------------------------------------------------- storage faults */
+
+/* What a failed call met in SQLite, for callers that go on when the storage
+ * fails (the node: docs/node.md "Faults"). */
+typedef enum sooc_mapstore_fault {
+    SOOC_MAPSTORE_FAULT_NONE = 0,   /* no SQLite failure since the last begin           */
+    SOOC_MAPSTORE_FAULT_FULL,       /* SQLITE_FULL: the disk or file system is full     */
+    SOOC_MAPSTORE_FAULT_IO,         /* SQLITE_IOERR, CANTOPEN, READONLY, PROTOCOL       */
+    SOOC_MAPSTORE_FAULT_BUSY,       /* SQLITE_BUSY / LOCKED: another connection holds
+                                       the lock longer than the busy timeout            */
+    SOOC_MAPSTORE_FAULT_CORRUPT,    /* SQLITE_CORRUPT / NOTADB                          */
+    SOOC_MAPSTORE_FAULT_NOMEM,      /* SQLITE_NOMEM                                     */
+    SOOC_MAPSTORE_FAULT_OTHER
+} sooc_mapstore_fault;
+
+/* The fault of the last SQLite call that failed since the last
+ * sooc_mapstore_begin (NONE if none did: a failure then came from the data,
+ * e.g. a dimension mismatch or a non-finite value). */
+sooc_mapstore_fault sooc_mapstore_last_fault(const sooc_mapstore *s);
+/* "disk full", "I/O error", "locked by another connection", ... */
+const char *sooc_mapstore_fault_name(sooc_mapstore_fault f);
+/* How long a write waits for a lock another connection holds before it fails
+ * with SOOC_EBUSY (opened with 5000 ms). */
+sooc_status sooc_mapstore_set_busy_timeout(sooc_mapstore *s, int ms);
+/* Copy the WAL into the database file (truncate = 1: and cut the WAL file to
+ * zero bytes, which frees its space on a full disk). Not inside a transaction. */
+sooc_status sooc_mapstore_checkpoint(sooc_mapstore *s, int truncate);
+/* SQLite's PRAGMA integrity_check: *ok = 1 when it answers "ok"; detail gets
+ * its first line (may be NULL). */
+sooc_status sooc_mapstore_integrity_check(sooc_mapstore *s, int *ok, char *detail, size_t cap);
 
 #ifdef __cplusplus
 }

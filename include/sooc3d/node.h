@@ -136,6 +136,11 @@ typedef struct sooc_node_config {
     /* map: */
     char map_db[SOOC_NODE_PATH_MAX];         /* "" = no persistent map */
     int map_resume;                          /* default 1 */
+    double map_retry_s;                      /* map.retry_s: first retry after a failed commit (1 s;
+                                                0 = at every keyframe and idle tick); doubles */
+    double map_retry_max_s;                  /* map.retry_max_s: the backoff's cap (30 s) */
+    int map_busy_timeout_ms;                 /* map.busy_timeout_ms: wait for a lock another process
+                                                holds before a commit counts as failed (200) */
 
     /* world: */
     double up[3];                            /* up axis of the pose source's frame (unit) */
@@ -159,6 +164,8 @@ typedef struct sooc_node_config {
                                                 (deterministic replay as fast as possible) */
     double stats_period_s;                   /* default 5 */
     double min_depth_m, max_depth_m;         /* valid depth range, default 0.1 .. 10 */
+    int strict;                              /* pipeline.strict (`--strict`): a broken frame stops
+                                                the run (0: it is skipped and counted) */
 
     /* log: */
     sooc_log_level log_level;                /* default info */
@@ -310,6 +317,11 @@ typedef struct sooc_node_source {
 typedef struct sooc_node_pose_source {
     void *ctx;
     sooc_status (*lookup)(void *ctx, int64_t t_ns, int64_t tol_ns, double T[16]);
+    /* Optional. After a failed read: why, when the failure was one broken
+     * frame that the source has passed (the next read gives the frame after
+     * it): SOOC_FRAME_FAULT_*; SOOC_FRAME_FAULT_NONE when the stream itself
+     * failed. NULL: every failure is the stream's. */
+    sooc_frame_fault (*frame_fault)(void *ctx);
     void (*close)(void *ctx);
 } sooc_node_pose_source;
 
@@ -339,8 +351,28 @@ typedef struct sooc_node_stats {
 typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_entry *changed,
                                 size_t n_changed, const uint64_t *removed, size_t n_removed,
                                 const sooc_node_stats *st);
+    /* broken input frames (docs/node.md "Faults") */
+    uint64_t frames_skipped;                      /* skipped: the source could not read them */
+    uint64_t skipped_by[SOOC_FRAME_FAULT_COUNT];  /* by reason (index SOOC_FRAME_FAULT_*) */
+    /* the map database under faults (docs/node.md "Faults") */
+    int store_state;             /* SOOC_NODE_STORE_* */
+    int store_fault;             /* sooc_mapstore_fault of the latest failure (0 = none yet) */
+    uint64_t store_pending;      /* objects to write or delete that the database does not hold yet */
+    uint64_t store_pending_kf;   /* keyframe rows not written yet */
+    uint64_t store_failures;     /* failed commit attempts (each retry counts) */
+    uint64_t store_recoveries;   /* times the store came back after failing */
+    uint64_t store_kf_dropped;   /* keyframe rows given up: more than SOOC_NODE_STORE_ROWS_MAX waited */
+    int64_t store_committed_ns;  /* stamp of the newest keyframe in the database (INT64_MIN: none) */
 
 typedef struct sooc_node_options {
+/* sooc_node_stats.store_state */
+#define SOOC_NODE_STORE_NONE 0      /* no map.db */
+#define SOOC_NODE_STORE_OK 1        /* commits succeed; nothing pending */
+#define SOOC_NODE_STORE_FAILING 2   /* commits fail: mapping goes on in memory, changes wait (retried) */
+/* Keyframe rows kept while the store fails; older ones are dropped first
+ * (counted). Objects are never dropped: their latest state is kept. */
+#define SOOC_NODE_STORE_ROWS_MAX 65536
+
     uint64_t max_keyframes;          /* 0 = unlimited */
     sooc_node_kf_fn on_keyframe;
     void *user;

@@ -75,7 +75,7 @@ extern "C" {
 
 #define SOOC_TABLE_MAGIC 0x42544433434F4F53ull /* "SOOC3DTB" as little-endian bytes */
 #define SOOC_TABLE_ABI_MAJOR 1u  /* any incompatible change: bump, and the name prefix */
-#define SOOC_TABLE_ABI_MINOR 0u  /* fields appended into reserved bytes only */
+#define SOOC_TABLE_ABI_MINOR 1u  /* fields appended into reserved bytes only (1: the store block) */
 #define SOOC_TABLE_HEADER_SIZE 4096u
 #define SOOC_TABLE_RECORD_SIZE 256u
 #define SOOC_TABLE_LATENT_MAX 32u
@@ -112,6 +112,21 @@ extern "C" {
 #define SOOC_TABLE_FLAG_SYMMETRIC 0x10u /* rotationally symmetric about its vertical axis:
                                            yaw is undefined, cov_xzyaw[5] (yaw variance)
                                            is NaN and the yaw cross terms 0 (docs/shm.md) */
+
+/* The map database's state (the header's store block, abi_minor >= 1;
+ * sooc_table_get_store). */
+#define SOOC_TABLE_STORE_NONE 0u    /* no database, or a writer of abi_minor 0 that does not say */
+#define SOOC_TABLE_STORE_OK 1u      /* the database holds every published change */
+#define SOOC_TABLE_STORE_FAILING 2u /* commits fail: the table is live, the database lags behind
+                                       (store_pending objects wait; retried with backoff) */
+/* Why the latest commit failed (store_fault). */
+#define SOOC_TABLE_STORE_FAULT_NONE 0u
+#define SOOC_TABLE_STORE_FAULT_FULL 1u    /* disk or file system full */
+#define SOOC_TABLE_STORE_FAULT_IO 2u      /* I/O error, read-only or unopenable file */
+#define SOOC_TABLE_STORE_FAULT_BUSY 3u    /* locked by another process */
+#define SOOC_TABLE_STORE_FAULT_CORRUPT 4u /* the database file is corrupt */
+#define SOOC_TABLE_STORE_FAULT_NOMEM 5u
+#define SOOC_TABLE_STORE_FAULT_OTHER 6u
 
 /* Header flags (sooc_table_header.hflags). */
 #define SOOC_TABLE_HFLAG_WRITER_EXITED 0x1u /* writer closed cleanly (table is final) */
@@ -184,7 +199,16 @@ typedef struct sooc_table_header {
     SOOC_TABLE_ATOMIC(uint64_t) high_water;     /* 120 slots [0, high_water) may be in use      */
     SOOC_TABLE_ATOMIC(uint64_t) n_objects;      /* 128 occupied, not-removed slots              */
     int64_t created_real_ns;          /* 136 CLOCK_REALTIME at creation               */
-    uint8_t reserved_c[112];          /* 144 zero                                     */
+    /* store block (abi_minor >= 1): the map database's state, written outside
+       batches under its own seqlock store_seq (odd while written) */
+    SOOC_TABLE_ATOMIC(uint64_t) store_seq;      /* 144 seqlock of the store block               */
+    uint32_t store_state;             /* 152 SOOC_TABLE_STORE_*                       */
+    uint32_t store_fault;             /* 156 SOOC_TABLE_STORE_FAULT_* of the latest failure */
+    uint64_t store_pending;           /* 160 objects to write or delete, not in the database yet */
+    uint64_t store_pending_kf;        /* 168 keyframe rows not in the database yet     */
+    int64_t store_committed_ns;       /* 176 sensor clock of the newest keyframe in the
+                                             database (INT64_MIN: none yet)            */
+    uint8_t reserved_c[72];           /* 184 zero                                     */
     /* batch block */
     uint32_t latent_dim;              /* 256 latent size the encoder produces         */
     uint32_t reserved_b;              /* 260 zero                                     */
@@ -252,6 +276,13 @@ SOOC_TABLE_HDR_AT_(heartbeat_mono_ns, 112);
 SOOC_TABLE_HDR_AT_(high_water, 120);
 SOOC_TABLE_HDR_AT_(n_objects, 128);
 SOOC_TABLE_HDR_AT_(created_real_ns, 136);
+SOOC_TABLE_HDR_AT_(store_seq, 144);
+SOOC_TABLE_HDR_AT_(store_state, 152);
+SOOC_TABLE_HDR_AT_(store_fault, 156);
+SOOC_TABLE_HDR_AT_(store_pending, 160);
+SOOC_TABLE_HDR_AT_(store_pending_kf, 168);
+SOOC_TABLE_HDR_AT_(store_committed_ns, 176);
+SOOC_TABLE_HDR_AT_(reserved_c, 184);
 SOOC_TABLE_HDR_AT_(latent_dim, 256);
 SOOC_TABLE_HDR_AT_(latent_model_id, 264);
 SOOC_TABLE_HDR_AT_(stamp_ns, 272);
@@ -308,6 +339,15 @@ typedef struct sooc_table_info {
     char frame_id[32];
 } sooc_table_info;
 
+/* The map database's state (the header's store block). */
+typedef struct sooc_table_store {
+    uint32_t state;           /* SOOC_TABLE_STORE_*                                   */
+    uint32_t fault;           /* SOOC_TABLE_STORE_FAULT_* of the latest failure        */
+    uint64_t pending;         /* objects to write or delete, not in the database yet   */
+    uint64_t pending_kf;      /* keyframe rows not in the database yet                 */
+    int64_t committed_ns;     /* sensor clock of the newest keyframe in the database   */
+} sooc_table_store;
+
 /* Writer liveness as seen by a reader. */
 typedef struct sooc_table_liveness {
     int lock_held;            /* 1: a process holds the writer flock             */
@@ -342,6 +382,9 @@ SOOC_TABLE_API int sooc_table_find(sooc_table_reader *r, uint64_t object_id,
                                    sooc_table_record *rec);
 /* Header fields (consistent copy under table_seq; EBUSY if it stays odd). */
 SOOC_TABLE_API int sooc_table_get_info(sooc_table_reader *r, sooc_table_info *info);
+/* The store block, copied under store_seq (EBUSY if it stays odd). A table
+ * of abi_minor 0 gives state SOOC_TABLE_STORE_NONE and zeros. */
+SOOC_TABLE_API int sooc_table_get_store(sooc_table_reader *r, sooc_table_store *out);
 /* Current epoch (table_seq / 2, even if a batch is in progress) and capacity. */
 SOOC_TABLE_API uint64_t sooc_table_epoch(const sooc_table_reader *r);
 SOOC_TABLE_API uint32_t sooc_table_capacity(const sooc_table_reader *r);
@@ -393,6 +436,10 @@ SOOC_TABLE_API int sooc_table_set_meta(sooc_table_writer *w, uint32_t latent_dim
                                        uint64_t latent_model_id, int64_t stamp_ns,
                                        const double T_src_map[16]);
 SOOC_TABLE_API int sooc_table_end_batch(sooc_table_writer *w);
+
+/* Publish the map database's state (the store block; any time, inside a
+ * batch or not; only the batch thread may call it). */
+SOOC_TABLE_API int sooc_table_set_store(sooc_table_writer *w, const sooc_table_store *st);
 
 /* Store CLOCK_MONOTONIC now into heartbeat_mono_ns. Thread-safe with respect
  * to the batch calls (touches only that atomic). */

@@ -43,6 +43,8 @@ static void usage(FILE *f) {
             "  --print-config      print the effective configuration and exit\n"
             "  -h, --help          this help\n"
             "\n"
+            "  --strict            stop at the first broken input frame (pipeline.strict;\n"
+            "                      otherwise it is skipped, counted and named)\n"
             "Signals: SIGINT/SIGTERM finish the current keyframe, commit and exit 0;\n"
             "a second one exits at once. SIGUSR1 cycles the log level.\n"
             "Launch file keys: docs/node.md. Examples: launch/*.yaml.\n");
@@ -152,7 +154,7 @@ int sooc_cmd_node(int argc, char **argv) {
     }
     const char *launch = NULL, *level = NULL;
     uint64_t max_kf = 0;
-    int print_table = 0, quiet = 0, print_config = 0;
+    int print_table = 0, quiet = 0, print_config = 0, strict = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--max-keyframes") && i + 1 < argc) {
             char *end;
@@ -171,6 +173,8 @@ int sooc_cmd_node(int argc, char **argv) {
         } else if (!strcmp(argv[i], "--log-level") && i + 1 < argc) {
             level = argv[++i];
         } else if (argv[i][0] == '-') {
+        } else if (!strcmp(argv[i], "--strict")) {
+            strict = 1;
             fprintf(stderr, "sooc3d node: unknown option '%s'\n", argv[i]);
             usage(stderr);
             return 2;
@@ -201,6 +205,7 @@ int sooc_cmd_node(int argc, char **argv) {
     }
     sooc_log(SOOC_LOG_INFO, "node: %s, effective config:\n%s", launch, text);
 
+    if (strict) cfg.strict = 1;
     /* Block the signals before any thread exists: all threads inherit the mask. */
     sigctx sc;
     memset(&sc, 0, sizeof sc);

@@ -12,18 +12,6 @@
 #include <string.h>
 #include <sys/stat.h>
 
-enum {
-    ST_PUT_ENTRY, ST_DEL_ENTRY, ST_PUT_LAYOUT, ST_PUT_META, ST_ADD_KF, ST_GET_ENTRY, ST_COUNT
-};
-
-struct sooc_mapstore {
-    sqlite3 *db;
-    char *path;
-    int readonly, in_txn;
-    int dim, layout_dim;
-    int schema;           /* stored schema version (1: no finetuned decoders, read-only open of an old map) */
-    sqlite3_stmt *st[ST_COUNT];
-};
 
 #define ENTRY_COLS                                                                                         \
     "id, x, z, yaw, rho_t, rho_yaw, pres_logit, dim, latent_version, what_mu, what_logvar, first_seen_ns, " \
@@ -65,21 +53,6 @@ static const char *k_schema =
     " tz REAL, qx REAL, qy REAL, qz REAL, qw REAL, n_changed INTEGER, n_removed INTEGER,"
     " n_entries INTEGER);";
 
-/* Schema version 2 (issue 19): finetuned decoders per entry and per layout
- * block (payloads of cogmap.h, include/sooc3d/finetune.h). A version-1 map
- * gets these on its first read-write open (one transaction). */
-static const char *k_schema_v2 =
-    "CREATE TABLE IF NOT EXISTS ft_objects(id INTEGER PRIMARY KEY, version INTEGER NOT NULL,"
-    " n INTEGER NOT NULL, crc INTEGER NOT NULL, data BLOB NOT NULL, steps INTEGER NOT NULL, loss REAL);"
-    "CREATE TABLE IF NOT EXISTS ft_layout(bi INTEGER NOT NULL, bj INTEGER NOT NULL, version INTEGER NOT NULL,"
-    " n INTEGER NOT NULL, crc INTEGER NOT NULL, data BLOB NOT NULL, steps INTEGER NOT NULL, loss REAL,"
-    " PRIMARY KEY(bi, bj));"
-    "CREATE TRIGGER IF NOT EXISTS entries_ad_ft AFTER DELETE ON entries BEGIN"
-    " DELETE FROM ft_objects WHERE id = old.id; END;";
-#define FT_BLOB_VERSION 1   /* data: n little-endian float32, crc = CRC-32 of those bytes */
-
-static sooc_status ft_load(sooc_mapstore *s, sooc_cogmap *map);
-static sooc_status ft_save(sooc_mapstore *s, const sooc_cogmap *map);
 
 /* ------------------------------------------------------------- errors */
 
@@ -97,7 +70,8 @@ static sooc_status map_rc(int rc) {
     }
 }
 
-static sooc_status dberr(const sooc_mapstore *s, int rc, const char *what) {
+sooc_status sooc__mapstore_dberr(sooc_mapstore *s, int rc, const char *what) {
+    s->last_rc = rc;
     const char *msg = s->db ? sqlite3_errmsg(s->db) : sqlite3_errstr(rc);
     sooc_status st = map_rc(rc);
     if (st == SOOC_EFORMAT)
@@ -105,19 +79,19 @@ static sooc_status dberr(const sooc_mapstore *s, int rc, const char *what) {
     return sooc_seterr(st, "%s: %s: %s", s->path, what, msg);
 }
 
-static sooc_status exec(sooc_mapstore *s, const char *sql, const char *what) {
+sooc_status sooc__mapstore_exec(sooc_mapstore *s, const char *sql, const char *what) {
     int rc = sqlite3_exec(s->db, sql, NULL, NULL, NULL);
-    return rc == SQLITE_OK ? SOOC_OK : dberr(s, rc, what);
+    return rc == SQLITE_OK ? SOOC_OK : sooc__mapstore_dberr(s, rc, what);
 }
 
 /* Run a statement that returns no rows (or ignore its rows). */
-static sooc_status step_done(sooc_mapstore *s, sqlite3_stmt *st, const char *what) {
+sooc_status sooc__mapstore_step_done(sooc_mapstore *s, sqlite3_stmt *st, const char *what) {
     int rc;
     while ((rc = sqlite3_step(st)) == SQLITE_ROW) {
     }
     sqlite3_reset(st);
     sqlite3_clear_bindings(st);
-    return rc == SQLITE_DONE ? SOOC_OK : dberr(s, rc, what);
+    return rc == SQLITE_DONE ? SOOC_OK : sooc__mapstore_dberr(s, rc, what);
 }
 
 /* ------------------------------------------------------------- meta */
@@ -127,7 +101,7 @@ static int meta_get(sooc_mapstore *s, const char *key, char *buf, size_t cap, so
     sqlite3_stmt *st = NULL;
     int rc = sqlite3_prepare_v2(s->db, "SELECT value FROM meta WHERE key = ?1", -1, &st, NULL);
     if (rc != SQLITE_OK) {
-        *err = dberr(s, rc, "reading meta");
+        *err = sooc__mapstore_dberr(s, rc, "reading meta");
         return -1;
     }
     sqlite3_bind_text(st, 1, key, -1, SQLITE_STATIC);
@@ -138,7 +112,7 @@ static int meta_get(sooc_mapstore *s, const char *key, char *buf, size_t cap, so
         snprintf(buf, cap, "%s", v ? (const char *)v : "");
         found = 1;
     } else if (rc != SQLITE_DONE) {
-        *err = dberr(s, rc, "reading meta");
+        *err = sooc__mapstore_dberr(s, rc, "reading meta");
         sqlite3_finalize(st);
         return -1;
     }
@@ -150,7 +124,7 @@ static sooc_status meta_put(sooc_mapstore *s, const char *key, const char *value
     sqlite3_stmt *st = s->st[ST_PUT_META];
     sqlite3_bind_text(st, 1, key, -1, SQLITE_TRANSIENT);
     sqlite3_bind_text(st, 2, value, -1, SQLITE_TRANSIENT);
-    return step_done(s, st, "writing meta");
+    return sooc__mapstore_step_done(s, st, "writing meta");
 }
 
 static sooc_status meta_put_u64(sooc_mapstore *s, const char *key, uint64_t v) {
@@ -194,14 +168,14 @@ void sooc_mapstore_close(sooc_mapstore *s) {
 
 static sooc_status create_schema(sooc_mapstore *s, const sooc_mapstore_params *p) {
     sooc_status st;
-    if ((st = exec(s, "BEGIN IMMEDIATE", "begin"))) return st;
-    if ((st = exec(s, k_schema, "creating the schema"))) goto fail;
-    if ((st = exec(s, k_schema_v2, "creating the schema"))) goto fail;
-    if ((st = exec(s, sooc__mapstore_geom_schema, "creating the schema"))) goto fail;
+    if ((st = sooc__mapstore_exec(s, "BEGIN IMMEDIATE", "begin"))) return st;
+    if ((st = sooc__mapstore_exec(s, k_schema, "creating the schema"))) goto fail;
+    if ((st = sooc__mapstore_exec(s, sooc__mapstore_ft_schema, "creating the schema"))) goto fail;
+    if ((st = sooc__mapstore_exec(s, sooc__mapstore_geom_schema, "creating the schema"))) goto fail;
     for (int i = 0; i < ST_COUNT; i++)
         if (!s->st[i]) {
             int rc = sqlite3_prepare_v2(s->db, k_sql[i], -1, &s->st[i], NULL);
-            if (rc != SQLITE_OK) { st = dberr(s, rc, "preparing statements"); goto fail; }
+            if (rc != SQLITE_OK) { st = sooc__mapstore_dberr(s, rc, "preparing statements"); goto fail; }
         }
     char b[64];
     if ((st = meta_put(s, "app", "sooc3d-map"))) goto fail;
@@ -213,7 +187,7 @@ static sooc_status create_schema(sooc_mapstore *s, const sooc_mapstore_params *p
     snprintf(b, sizeof b, "%.17g", p->block_size);
     if ((st = meta_put(s, "block_size", b))) goto fail;
     if ((st = meta_put_u64(s, "next_id", 1))) goto fail;
-    if ((st = exec(s, "COMMIT", "commit"))) goto fail;
+    if ((st = sooc__mapstore_exec(s, "COMMIT", "commit"))) goto fail;
     return SOOC_OK;
 fail:
     sqlite3_exec(s->db, "ROLLBACK", NULL, NULL, NULL);
@@ -262,7 +236,7 @@ static sooc_status open_readonly(sooc_mapstore *s, const char *path) {
         if (ro_uri(uri, cap, path, immutable)) { st = sooc_seterr(SOOC_EINVAL, "%s: path too long", path); break; }
         if (s->db) { sqlite3_close_v2(s->db); s->db = NULL; }
         int rc = sqlite3_open_v2(uri, &s->db, flags, NULL);
-        if (rc != SQLITE_OK) { st = dberr(s, rc, "cannot open read-only"); break; }
+        if (rc != SQLITE_OK) { st = sooc__mapstore_dberr(s, rc, "cannot open read-only"); break; }
         sqlite3_extended_result_codes(s->db, 1);
         sqlite3_busy_timeout(s->db, 5000);
         rc = sqlite3_exec(s->db, "SELECT count(*) FROM sqlite_master", NULL, NULL, NULL);
@@ -273,7 +247,7 @@ static sooc_status open_readonly(sooc_mapstore *s, const char *path) {
         struct stat sb;
         int wal_has_data = stat(wal, &sb) == 0 && sb.st_size > 0;
         if (immutable || (prim != SQLITE_READONLY && prim != SQLITE_CANTOPEN)) {
-            st = dberr(s, rc, "reading the schema");
+            st = sooc__mapstore_dberr(s, rc, "reading the schema");
             break;
         }
         if (wal_has_data) {
@@ -313,8 +287,20 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
         if ((st = open_readonly(s, path))) goto fail;
     } else {
         int flags = SQLITE_OPEN_READWRITE | (p.create ? SQLITE_OPEN_CREATE : 0);
+        if (p.create) {   /* a missing folder is made (a new run's out/<name>/map.sqlite) */
+            char dir[4096];
+            const char *sl = strrchr(path, '/');
+            if (sl && sl > path && (size_t)(sl - path) < sizeof dir) {
+                memcpy(dir, path, (size_t)(sl - path));
+                dir[sl - path] = 0;
+                if (!sooc_dir_exists(dir) && (st = sooc_mkdirs(dir))) {
+                    sooc_adderr(st, "%s: cannot make the map database's folder %s", path, dir);
+                    goto fail;
+                }
+            }
+        }
         rc = sqlite3_open_v2(path, &s->db, flags | SQLITE_OPEN_NOMUTEX, NULL);
-        if (rc != SQLITE_OK) { st = dberr(s, rc, "cannot open"); goto fail; }
+        if (rc != SQLITE_OK) { st = sooc__mapstore_dberr(s, rc, "cannot open"); goto fail; }
         sqlite3_extended_result_codes(s->db, 1);
         sqlite3_busy_timeout(s->db, 5000);
     }
@@ -324,14 +310,14 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
     {
         sqlite3_stmt *q = NULL;
         rc = sqlite3_prepare_v2(s->db, "SELECT name FROM sqlite_master WHERE type = 'table'", -1, &q, NULL);
-        if (rc != SQLITE_OK) { st = dberr(s, rc, "reading the schema"); goto fail; }
+        if (rc != SQLITE_OK) { st = sooc__mapstore_dberr(s, rc, "reading the schema"); goto fail; }
         while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
             n_tables++;
             const char *nm = (const char *)sqlite3_column_text(q, 0);
             if (nm && !strcmp(nm, "meta")) has_meta = 1;
         }
         sqlite3_finalize(q);
-        if (rc != SQLITE_DONE) { st = dberr(s, rc, "reading the schema"); goto fail; }
+        if (rc != SQLITE_DONE) { st = sooc__mapstore_dberr(s, rc, "reading the schema"); goto fail; }
     }
     if (!p.readonly) {
         sqlite3_stmt *q = NULL;
@@ -339,9 +325,9 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
         if (rc == SQLITE_OK) rc = sqlite3_step(q);
         int wal = rc == SQLITE_ROW && !strcmp((const char *)sqlite3_column_text(q, 0), "wal");
         sqlite3_finalize(q);
-        if (rc != SQLITE_ROW) { st = dberr(s, rc, "setting WAL mode"); goto fail; }
+        if (rc != SQLITE_ROW) { st = sooc__mapstore_dberr(s, rc, "setting WAL mode"); goto fail; }
         if (!wal) { st = sooc_seterr(SOOC_EIO, "%s: the database refused WAL journal mode", path); goto fail; }
-        if ((st = exec(s, "PRAGMA synchronous = NORMAL", "pragma"))) goto fail;
+        if ((st = sooc__mapstore_exec(s, "PRAGMA synchronous = NORMAL", "pragma"))) goto fail;
     }
     if (n_tables == 0) {
         if (p.readonly) { st = sooc_seterr(SOOC_EFORMAT, "%s: empty database, not a sooc3d map", path); goto fail; }
@@ -366,11 +352,11 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
     }
     s->schema = (int)v;
     if (v == 1 && !p.readonly) {   /* migrate 1 -> 2: add the finetuned-decoder tables */
-        if ((st = exec(s, "BEGIN IMMEDIATE", "begin"))) goto fail;
-        st = exec(s, k_schema_v2, "migrating schema 1 -> 2");
-        if (!st) st = exec(s, "INSERT OR REPLACE INTO meta(key, value) VALUES('schema_version', '2')",
+        if ((st = sooc__mapstore_exec(s, "BEGIN IMMEDIATE", "begin"))) goto fail;
+        st = sooc__mapstore_exec(s, sooc__mapstore_ft_schema, "migrating schema 1 -> 2");
+        if (!st) st = sooc__mapstore_exec(s, "INSERT OR REPLACE INTO meta(key, value) VALUES('schema_version', '2')",
                            "migrating schema 1 -> 2");
-        if (!st) st = exec(s, "COMMIT", "migrating schema 1 -> 2");
+        if (!st) st = sooc__mapstore_exec(s, "COMMIT", "migrating schema 1 -> 2");
         if (st) {
             sqlite3_exec(s->db, "ROLLBACK", NULL, NULL, NULL);
             goto fail;
@@ -379,11 +365,11 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
         sooc_log(SOOC_LOG_INFO, "%s: map schema migrated from version 1 to 2 (finetuned decoders)", path);
     }
     if (s->schema == 2 && !p.readonly) {   /* migrate 2 -> 3: add the object geometry table (mapstore_geom.c) */
-        if ((st = exec(s, "BEGIN IMMEDIATE", "begin"))) goto fail;
-        st = exec(s, sooc__mapstore_geom_schema, "migrating schema 2 -> 3");
-        if (!st) st = exec(s, "INSERT OR REPLACE INTO meta(key, value) VALUES('schema_version', '3')",
+        if ((st = sooc__mapstore_exec(s, "BEGIN IMMEDIATE", "begin"))) goto fail;
+        st = sooc__mapstore_exec(s, sooc__mapstore_geom_schema, "migrating schema 2 -> 3");
+        if (!st) st = sooc__mapstore_exec(s, "INSERT OR REPLACE INTO meta(key, value) VALUES('schema_version', '3')",
                            "migrating schema 2 -> 3");
-        if (!st) st = exec(s, "COMMIT", "migrating schema 2 -> 3");
+        if (!st) st = sooc__mapstore_exec(s, "COMMIT", "migrating schema 2 -> 3");
         if (st) {
             sqlite3_exec(s->db, "ROLLBACK", NULL, NULL, NULL);
             goto fail;
@@ -418,7 +404,7 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
     for (int i = 0; i < ST_COUNT; i++)
         if (!s->st[i]) {
             rc = sqlite3_prepare_v2(s->db, k_sql[i], -1, &s->st[i], NULL);
-            if (rc != SQLITE_OK) { st = dberr(s, rc, "preparing statements (schema mismatch?)"); goto fail; }
+            if (rc != SQLITE_OK) { st = sooc__mapstore_dberr(s, rc, "preparing statements (schema mismatch?)"); goto fail; }
         }
     /* a map written without a model id (an older schema) takes this one */
     if (p.model_id && p.model_id[0] && !p.readonly) {
@@ -456,7 +442,7 @@ sooc_status sooc_mapstore_info_get(sooc_mapstore *s, sooc_mapstore_info *o) {
         if (rc == SQLITE_OK) rc = sqlite3_step(q);
         if (rc != SQLITE_ROW) {
             sqlite3_finalize(q);
-            return dberr(s, rc, "counting rows");
+            return sooc__mapstore_dberr(s, rc, "counting rows");
         }
         *dst[i] = (uint64_t)sqlite3_column_int64(q, 0);
         sqlite3_finalize(q);
@@ -466,21 +452,22 @@ sooc_status sooc_mapstore_info_get(sooc_mapstore *s, sooc_mapstore_info *o) {
     if (rc == SQLITE_OK) rc = sqlite3_step(q);
     if (rc == SQLITE_ROW) snprintf(o->journal_mode, sizeof o->journal_mode, "%s", sqlite3_column_text(q, 0));
     sqlite3_finalize(q);
-    return rc == SQLITE_ROW ? SOOC_OK : dberr(s, rc, "journal mode");
+    return rc == SQLITE_ROW ? SOOC_OK : sooc__mapstore_dberr(s, rc, "journal mode");
 }
 
 /* ------------------------------------------------------- transactions */
 
 sooc_status sooc_mapstore_begin(sooc_mapstore *s) {
     if (s->in_txn) return sooc_seterr(SOOC_EINVAL, "%s: transaction already open", s->path);
-    sooc_status st = exec(s, "BEGIN IMMEDIATE", "begin");
+    s->last_rc = 0;
+    sooc_status st = sooc__mapstore_exec(s, "BEGIN IMMEDIATE", "begin");
     if (!st) s->in_txn = 1;
     return st;
 }
 
 sooc_status sooc_mapstore_commit(sooc_mapstore *s) {
     if (!s->in_txn) return sooc_seterr(SOOC_EINVAL, "%s: no transaction open", s->path);
-    sooc_status st = exec(s, "COMMIT", "commit");
+    sooc_status st = sooc__mapstore_exec(s, "COMMIT", "commit");
     if (st) sooc_mapstore_rollback(s);
     s->in_txn = 0;
     return st;
@@ -516,13 +503,13 @@ static sooc_status put_one(sooc_mapstore *s, const sooc_cogmap_entry *e) {
     sqlite3_bind_int64(st, 13, e->last_seen_ns);
     sqlite3_bind_int64(st, 14, e->obs_count);
     sqlite3_bind_int(st, 15, e->last_view);
-    return step_done(s, st, "writing an entry");
+    return sooc__mapstore_step_done(s, st, "writing an entry");
 }
 
 static sooc_status del_one(sooc_mapstore *s, uint64_t id) {
     sqlite3_stmt *st = s->st[ST_DEL_ENTRY];
     sqlite3_bind_int64(st, 1, (sqlite3_int64)id);
-    return step_done(s, st, "deleting an entry");
+    return sooc__mapstore_step_done(s, st, "deleting an entry");
 }
 
 sooc_status sooc_mapstore_put_entries(sooc_mapstore *s, const sooc_cogmap_entry *e, size_t n) {
@@ -551,7 +538,7 @@ sooc_status sooc_mapstore_put_layout(sooc_mapstore *s, int32_t bi, int32_t bj, c
     sqlite3_bind_int(st, 4, SOOC_MAPSTORE_LATENT_VERSION);
     sqlite3_bind_blob(st, 5, mu, s->layout_dim * (int)sizeof(float), SQLITE_STATIC);
     sqlite3_bind_blob(st, 6, logvar, s->layout_dim * (int)sizeof(float), SQLITE_STATIC);
-    return step_done(s, st, "writing a layout block");
+    return sooc__mapstore_step_done(s, st, "writing a layout block");
 }
 
 sooc_status sooc_mapstore_set_next_id(sooc_mapstore *s, uint64_t next_id) {
@@ -584,7 +571,7 @@ static sooc_status kf_row(sooc_mapstore *s, const sooc_mapstore_keyframe *kf, si
     sqlite3_bind_int64(k, 11, (sqlite3_int64)n_removed);
     if (n_entries >= 0) sqlite3_bind_int64(k, 12, n_entries);
     else sqlite3_bind_null(k, 12);
-    return step_done(s, k, "writing a keyframe");
+    return sooc__mapstore_step_done(s, k, "writing a keyframe");
 }
 
 sooc_status sooc_mapstore_add_keyframe(sooc_mapstore *s, const sooc_mapstore_keyframe *kf, int64_t n_entries) {
@@ -645,12 +632,12 @@ sooc_status sooc_mapstore_save_map(sooc_mapstore *s, const sooc_cogmap *map) {
     if (st) return st;
     if ((st = sooc_mapstore_begin(s))) return st;
     save_ctx c = {s, SOOC_OK};
-    if ((st = exec(s, "DELETE FROM entries; DELETE FROM layout;", "clearing the map"))) goto fail;
+    if ((st = sooc__mapstore_exec(s, "DELETE FROM entries; DELETE FROM layout;", "clearing the map"))) goto fail;
     sooc_cogmap_foreach(map, save_entry_cb, &c);
     if ((st = c.st)) goto fail;
     sooc_cogmap_layout_foreach(map, save_block_cb, &c);
     if ((st = c.st)) goto fail;
-    if ((st = ft_save(s, map))) goto fail;
+    if ((st = sooc__mapstore_ft_save(s, map))) goto fail;
     if ((st = sooc_mapstore_set_next_id(s, sooc_cogmap_next_id(map)))) goto fail;
     return sooc_mapstore_commit(s);
 fail:
@@ -699,7 +686,7 @@ static sooc_status row_to_entry(sooc_mapstore *s, sqlite3_stmt *q, sooc_cogmap_e
 static sooc_status walk(sooc_mapstore *s, const char *sql, const double *box, sooc_cogmap_visit_fn fn, void *user) {
     sqlite3_stmt *q = NULL;
     int rc = sqlite3_prepare_v2(s->db, sql, -1, &q, NULL);
-    if (rc != SQLITE_OK) return dberr(s, rc, "reading entries");
+    if (rc != SQLITE_OK) return sooc__mapstore_dberr(s, rc, "reading entries");
     if (box)
         for (int i = 0; i < 4; i++) sqlite3_bind_double(q, i + 1, box[i]);
     sooc_status st = SOOC_OK;
@@ -708,7 +695,7 @@ static sooc_status walk(sooc_mapstore *s, const char *sql, const double *box, so
         if ((st = row_to_entry(s, q, &e))) break;
         if (fn(user, &e)) break;
     }
-    if (!st && rc != SQLITE_ROW && rc != SQLITE_DONE) st = dberr(s, rc, "reading entries");
+    if (!st && rc != SQLITE_ROW && rc != SQLITE_DONE) st = sooc__mapstore_dberr(s, rc, "reading entries");
     sqlite3_finalize(q);
     return st;
 }
@@ -740,7 +727,7 @@ sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *
     sooc_status st;
     if (rc == SQLITE_ROW) st = row_to_entry(s, q, out);
     else if (rc == SQLITE_DONE) st = sooc_seterr(SOOC_ENOTFOUND, "%s: no entry %llu", s->path, (unsigned long long)id);
-    else st = dberr(s, rc, "reading an entry");
+    else st = sooc__mapstore_dberr(s, rc, "reading an entry");
     sqlite3_reset(q);
     sqlite3_clear_bindings(q);
     return st;
@@ -787,7 +774,7 @@ sooc_status sooc_mapstore_foreach_layout(sooc_mapstore *s, sooc_cogmap_block_fn 
     sooc_status st = SOOC_OK;
     int rc = sqlite3_prepare_v2(s->db, "SELECT bi, bj, dim, latent_version, mu, logvar FROM layout ORDER BY bi, bj",
                                 -1, &q, NULL);
-    if (rc != SQLITE_OK) return dberr(s, rc, "reading layout");
+    if (rc != SQLITE_OK) return sooc__mapstore_dberr(s, rc, "reading layout");
     size_t nb = (size_t)s->layout_dim * sizeof(float);
     while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
         int bi = sqlite3_column_int(q, 0), bj = sqlite3_column_int(q, 1);
@@ -804,7 +791,7 @@ sooc_status sooc_mapstore_foreach_layout(sooc_mapstore *s, sooc_cogmap_block_fn 
             break;
         }
     }
-    if (!st && rc != SQLITE_DONE) st = dberr(s, rc, "reading layout");
+    if (!st && rc != SQLITE_DONE) st = sooc__mapstore_dberr(s, rc, "reading layout");
     sqlite3_finalize(q);
     return st;
 }
@@ -838,7 +825,7 @@ sooc_status sooc_mapstore_load_map(sooc_mapstore *s, sooc_cogmap *map) {
         load_block_ctx bc = {map, SOOC_OK};
         if ((st = sooc_mapstore_foreach_layout(s, load_block_cb, &bc)) || (st = bc.st)) goto done;
     }
-    if ((st = ft_load(s, map))) goto done;
+    if ((st = sooc__mapstore_ft_load(s, map))) goto done;
     uint64_t next = 0;
     if ((st = meta_get_u64(s, "next_id", &next))) goto done;
     sooc_cogmap_reserve_ids(map, next);
@@ -924,207 +911,17 @@ bad:
                        s->path);
 }
 
-/* ------------------------------------------- finetuned decoders (schema 2) */
-
-static sooc_status ft_need(const sooc_mapstore *s) {
-    if (s->schema < 2)
-        return sooc_seterr(SOOC_EUNSUPPORTED, "%s: schema version 1 map opened read-only: no finetuned decoders "
-                           "(open it read-write once to migrate it)", s->path);
-    return SOOC_OK;
-}
-
-static sooc_status ft_put_row(sooc_mapstore *s, int is_block, uint64_t id, int32_t bi, int32_t bj, const float *v,
-                              size_t n, int steps, double loss) {
-    if (!n || !v || n > (size_t)INT32_MAX / sizeof(float))
-        return sooc_seterr(SOOC_EINVAL, "%s: finetuned decoder: bad size %zu", s->path, n);
-    for (size_t i = 0; i < n; i++)
-        if (!isfinite(v[i]))
-            return sooc_seterr(SOOC_ENUMERIC, "%s: finetuned decoder of %s %lld: non-finite value", s->path,
-                               is_block ? "block" : "entry", (long long)(is_block ? bi : (int64_t)id));
-    sqlite3_stmt *q = NULL;
-    const char *sql = is_block ? "INSERT OR REPLACE INTO ft_layout(bi, bj, version, n, crc, data, steps, loss) "
-                                 "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"
-                               : "INSERT OR REPLACE INTO ft_objects(id, version, n, crc, data, steps, loss) "
-                                 "VALUES(?1, ?3, ?4, ?5, ?6, ?7, ?8)";
-    int rc = sqlite3_prepare_v2(s->db, sql, -1, &q, NULL);
-    if (rc != SQLITE_OK) return dberr(s, rc, "writing a finetuned decoder");
-    if (is_block) {
-        sqlite3_bind_int(q, 1, bi);
-        sqlite3_bind_int(q, 2, bj);
-    } else {
-        sqlite3_bind_int64(q, 1, (sqlite3_int64)id);
-    }
-    sqlite3_bind_int(q, 3, FT_BLOB_VERSION);
-    sqlite3_bind_int64(q, 4, (sqlite3_int64)n);
-    sqlite3_bind_int64(q, 5, (sqlite3_int64)sooc_crc32(0, v, n * sizeof(float)));
-    sqlite3_bind_blob(q, 6, v, (int)(n * sizeof(float)), SQLITE_STATIC);
-    sqlite3_bind_int(q, 7, steps);
-    if (isfinite(loss)) sqlite3_bind_double(q, 8, loss);
-    else sqlite3_bind_null(q, 8);
-    rc = sqlite3_step(q);
-    sqlite3_finalize(q);
-    return rc == SQLITE_DONE ? SOOC_OK : dberr(s, rc, "writing a finetuned decoder");
-}
-
-sooc_status sooc_mapstore_ft_put(sooc_mapstore *s, int is_block, uint64_t id, int32_t bi, int32_t bj, const float *v,
-                                 size_t n, int steps, double loss) {
-    sooc_status st = ft_need(s);
-    if (st) return st;
-    if (!is_block) {   /* only for a stored entry */
-        sooc_cogmap_entry e;
-        if ((st = sooc_mapstore_get(s, id, &e))) return st;
-    }
-    int own = !s->in_txn;
-    if (own && (st = sooc_mapstore_begin(s))) return st;
-    st = ft_put_row(s, is_block, id, bi, bj, v, n, steps, loss);
-    if (!own) return st;
-    if (st) {
-        sooc_mapstore_rollback(s);
-        return st;
-    }
-    return sooc_mapstore_commit(s);
-}
-
-sooc_status sooc_mapstore_ft_get(sooc_mapstore *s, int is_block, uint64_t id, int32_t bi, int32_t bj, int *found,
-                                 int *steps, double *loss) {
-    *found = 0;
-    if (s->schema < 2) return SOOC_OK;
-    sqlite3_stmt *q = NULL;
-    const char *sql = is_block ? "SELECT steps, loss FROM ft_layout WHERE bi = ?1 AND bj = ?2"
-                               : "SELECT steps, loss FROM ft_objects WHERE id = ?3";
-    int rc = sqlite3_prepare_v2(s->db, sql, -1, &q, NULL);
-    if (rc != SQLITE_OK) return dberr(s, rc, "reading a finetuned decoder");
-    if (is_block) {
-        sqlite3_bind_int(q, 1, bi);
-        sqlite3_bind_int(q, 2, bj);
-    } else {
-        sqlite3_bind_int64(q, 3, (sqlite3_int64)id);
-    }
-    rc = sqlite3_step(q);
-    if (rc == SQLITE_ROW) {
-        *found = 1;
-        if (steps) *steps = sqlite3_column_int(q, 0);
-        if (loss) *loss = sqlite3_column_type(q, 1) == SQLITE_NULL ? NAN : sqlite3_column_double(q, 1);
-    }
-    sqlite3_finalize(q);
-    return rc == SQLITE_ROW || rc == SQLITE_DONE ? SOOC_OK : dberr(s, rc, "reading a finetuned decoder");
-}
-
-static sooc_status count_rows(sooc_mapstore *s, const char *sql, uint64_t *n) {
-    sqlite3_stmt *q = NULL;
-    int rc = sqlite3_prepare_v2(s->db, sql, -1, &q, NULL);
-    if (rc == SQLITE_OK) rc = sqlite3_step(q);
-    if (rc == SQLITE_ROW) *n = (uint64_t)sqlite3_column_int64(q, 0);
-    sqlite3_finalize(q);
-    return rc == SQLITE_ROW ? SOOC_OK : dberr(s, rc, "counting finetuned decoders");
-}
-
-sooc_status sooc_mapstore_ft_count(sooc_mapstore *s, uint64_t *n_objects, uint64_t *n_blocks) {
-    *n_objects = *n_blocks = 0;
-    if (s->schema < 2) return SOOC_OK;
-    sooc_status st = count_rows(s, "SELECT count(*) FROM ft_objects", n_objects);
-    return st ? st : count_rows(s, "SELECT count(*) FROM ft_layout", n_blocks);
-}
-
-sooc_status sooc_mapstore_ft_clear(sooc_mapstore *s) {
-    sooc_status st = ft_need(s);
-    if (st) return st;
-    return exec(s, "DELETE FROM ft_objects; DELETE FROM ft_layout;", "clearing finetuned decoders");
-}
-
-/* Every stored decoder (of an entry the map holds) into the map's payloads. */
-static sooc_status ft_load(sooc_mapstore *s, sooc_cogmap *map) {
-    if (s->schema < 2) return SOOC_OK;
-    sooc_status st = SOOC_OK;
-    for (int blk = 0; blk < 2 && !st; blk++) {
-        sqlite3_stmt *q = NULL;
-        const char *sql = blk ? "SELECT 0, bi, bj, version, n, crc, data FROM ft_layout ORDER BY bi, bj"
-                              : "SELECT id, 0, 0, version, n, crc, data FROM ft_objects ORDER BY id";
-        int rc = sqlite3_prepare_v2(s->db, sql, -1, &q, NULL);
-        if (rc != SQLITE_OK) return dberr(s, rc, "reading finetuned decoders");
-        while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
-            uint64_t id = (uint64_t)sqlite3_column_int64(q, 0);
-            int bi = sqlite3_column_int(q, 1), bj = sqlite3_column_int(q, 2);
-            int64_t n = sqlite3_column_int64(q, 4);
-            const void *data = sqlite3_column_blob(q, 6);
-            int nb = sqlite3_column_bytes(q, 6);
-            char what[64];
-            if (blk) snprintf(what, sizeof what, "layout block (%d, %d)", bi, bj);
-            else snprintf(what, sizeof what, "entry %llu", (unsigned long long)id);
-            if (sqlite3_column_int(q, 3) != FT_BLOB_VERSION) {
-                st = sooc_seterr(SOOC_EVERSION, "%s: finetuned decoder of %s has version %d, this build reads %d",
-                                 s->path, what, sqlite3_column_int(q, 3), FT_BLOB_VERSION);
-                break;
-            }
-            if (n <= 0 || !data || (int64_t)nb != n * (int64_t)sizeof(float) ||
-                (uint32_t)sqlite3_column_int64(q, 5) != sooc_crc32(0, data, (size_t)nb)) {
-                st = sooc_seterr(SOOC_EFORMAT, "%s: finetuned decoder of %s is corrupt (size or CRC mismatch)",
-                                 s->path, what);
-                break;
-            }
-            sooc_cogmap_entry e;
-            if (!blk && sooc_cogmap_get(map, id, &e) != SOOC_OK) {   /* entry gone: ignore its decoder */
-                sooc_clearerr();
-                continue;
-            }
-            float *v = sooc_malloc((size_t)nb);
-            if (!v) {
-                st = SOOC_ENOMEM;
-                break;
-            }
-            memcpy(v, data, (size_t)nb);
-            st = blk ? sooc_cogmap_block_payload_set(map, bi, bj, v, (size_t)n)
-                     : sooc_cogmap_payload_set(map, id, v, (size_t)n);
-            sooc_free(v);
-            if (st) {
-                sooc_adderr(st, "%s: finetuned decoder of %s", s->path, what);
-                break;
-            }
-        }
-        if (!st && rc != SQLITE_DONE) st = dberr(s, rc, "reading finetuned decoders");
-        sqlite3_finalize(q);
-    }
-    return st;
-}
-
-typedef struct ft_save_ctx {
-    sooc_mapstore *s;
-    const sooc_cogmap *map;
-    sooc_status st;
-} ft_save_ctx;
-
-static int ft_save_cb(void *u, int is_block, uint64_t id, int32_t bi, int32_t bj, const float *v, size_t n) {
-    ft_save_ctx *c = u;
-    sooc_cogmap_entry e;
-    if (!is_block && sooc_cogmap_get(c->map, id, &e) != SOOC_OK) {
-        sooc_clearerr();
-        return 0;
-    }
-    c->st = ft_put_row(c->s, is_block, id, bi, bj, v, n, 0, NAN);
-    return c->st != SOOC_OK;
-}
-
-/* Inside save_map's transaction: the stored decoders become the map's payloads. */
-static sooc_status ft_save(sooc_mapstore *s, const sooc_cogmap *map) {
-    if (s->schema < 2) return SOOC_OK;
-    sooc_status st = exec(s, "DELETE FROM ft_objects; DELETE FROM ft_layout;", "clearing finetuned decoders");
-    if (st) return st;
-    ft_save_ctx c = {s, map, SOOC_OK};
-    sooc_cogmap_payload_foreach(map, ft_save_cb, &c);
-    return c.st;
-}
-
 sooc_status sooc_mapstore_keyframe_views(sooc_mapstore *s, int64_t *views, size_t cap, size_t *n) {
     *n = 0;
     sqlite3_stmt *q = NULL;
     int rc = sqlite3_prepare_v2(s->db, "SELECT DISTINCT view FROM keyframes ORDER BY view", -1, &q, NULL);
-    if (rc != SQLITE_OK) return dberr(s, rc, "reading keyframes");
+    if (rc != SQLITE_OK) return sooc__mapstore_dberr(s, rc, "reading keyframes");
     while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
         if (views && *n < cap) views[*n] = sqlite3_column_int64(q, 0);
         (*n)++;
     }
     sqlite3_finalize(q);
-    return rc == SQLITE_DONE ? SOOC_OK : dberr(s, rc, "reading keyframes");
+    return rc == SQLITE_DONE ? SOOC_OK : sooc__mapstore_dberr(s, rc, "reading keyframes");
 }
 
 sqlite3 *sooc__mapstore_db(sooc_mapstore *s) { return s->db; }

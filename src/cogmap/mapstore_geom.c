@@ -21,14 +21,7 @@ const char *const sooc__mapstore_geom_schema =
     "id, flags, ext_x, ext_y, ext_z, centre_x, centre_y, centre_z, sym_score, cov_xx, cov_xz, cov_zz, "   \
     "var_yaw, reg_n, reg_mean_x, reg_mean_z, reg_m2_xx, reg_m2_xz, reg_m2_zz, reg_cos, reg_sin"
 
-static sooc_status gerr(sooc_mapstore *s, int rc, const char *what) {
-    sqlite3 *db = sooc__mapstore_db(s);
-    sooc_status st = (rc & 0xff) == SQLITE_NOMEM ? SOOC_ENOMEM
-                     : (rc & 0xff) == SQLITE_BUSY || (rc & 0xff) == SQLITE_LOCKED ? SOOC_EBUSY
-                     : (rc & 0xff) == SQLITE_CORRUPT || (rc & 0xff) == SQLITE_NOTADB ? SOOC_EFORMAT
-                                                                                     : SOOC_EIO;
-    return sooc_seterr(st, "%s: %s: %s", sooc_mapstore_path(s), what, db ? sqlite3_errmsg(db) : "no database");
-}
+static sooc_status gerr(sooc_mapstore *s, int rc, const char *what) { return sooc__mapstore_dberr(s, rc, what); }
 
 /* 1 if the map has the geometry table (schema >= 3, or a read-only older map: 0) */
 static int has_table(sooc_mapstore *s) {

@@ -25,6 +25,9 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->kf_time_s = 2.0;
     c->shm_capacity = 1024;
     c->map_resume = 1;
+    c->map_retry_s = 1.0;        /* a failed commit is retried after 1 s, 2 s, 4 s, ... up to 30 s */
+    c->map_retry_max_s = 30.0;
+    c->map_busy_timeout_ms = 200;
     c->up[1] = 1.0;
     c->floor_mode = SOOC_NODE_FLOOR_GIVEN;
     c->floor_ransac_threshold_m = 0.02;
@@ -513,6 +516,9 @@ static const kspec g_keys[] = {
     KV("shm", "unlink_on_exit", KV_BOOL, shm_unlink_on_exit, 0, 0),
     KV("map", "db", KV_STR0, map_db, 0, 0),
     KV("map", "resume", KV_BOOL, map_resume, 0, 0),
+    KV("map", "retry_s", KV_NUM, map_retry_s, 0, 3600),
+    KV("map", "retry_max_s", KV_NUM, map_retry_max_s, 0, 86400),
+    KV("map", "busy_timeout_ms", KV_INT, map_busy_timeout_ms, 0, 600000),
     KV_F("world", "up", f_world_up),
     KV_F("world", "floor", f_world_floor),
     KV("world", "ransac_threshold_m", KV_NUM, floor_ransac_threshold_m, 1e-4, 1.0),
@@ -524,6 +530,7 @@ static const kspec g_keys[] = {
     KV("world", "camera_height_max_m", KV_NUM, cam_height_max_m, 0, 100),
     KV("pipeline", "ring_capacity", KV_INT, ring_capacity, 1, 1024),
     KV("pipeline", "block_when_full", KV_BOOL, block_when_full, 0, 0),
+    KV("pipeline", "strict", KV_BOOL, strict, 0, 0),
     KV("pipeline", "stats_period_s", KV_NUM, stats_period_s, 0, 86400),
     KV("pipeline", "min_depth_m", KV_NUM, min_depth_m, 0, 100),
     KV("pipeline", "max_depth_m", KV_NUM, max_depth_m, 0, 1000),
@@ -724,7 +731,8 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
         c->kf_rotation_deg, c->kf_time_s);
     OUT("shm: {name: '%s', capacity: %u, unlink_on_exit: %s}\n", c->shm_name, c->shm_capacity,
         c->shm_unlink_on_exit ? "true" : "false");
-    OUT("map: {db: '%s', resume: %s}\n", c->map_db, c->map_resume ? "true" : "false");
+    OUT("map: {db: '%s', resume: %s, retry_s: %g, retry_max_s: %g, busy_timeout_ms: %d}\n", c->map_db,
+        c->map_resume ? "true" : "false", c->map_retry_s, c->map_retry_max_s, c->map_busy_timeout_ms);
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE)
         OUT("world: {up: [%g, %g, %g], floor: estimate, gravity: '%s', max_tilt_deg: %g, support_frames: %d, "
             "camera_height_min_m: %g, camera_height_max_m: %g}\n",
@@ -733,8 +741,8 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     else
         OUT("world: {up: [%g, %g, %g], floor: %g}\n", c->up[0], c->up[1], c->up[2], c->floor_height);
     OUT("pipeline: {ring_capacity: %d, block_when_full: %s, stats_period_s: %g, min_depth_m: %g, "
-        "max_depth_m: %g}\n", c->ring_capacity, c->block_when_full ? "true" : "false", c->stats_period_s,
-        c->min_depth_m, c->max_depth_m);
+        "max_depth_m: %g, strict: %s}\n", c->ring_capacity, c->block_when_full ? "true" : "false",
+        c->stats_period_s, c->min_depth_m, c->max_depth_m, c->strict ? "true" : "false");
     static const char *lv[] = {"debug", "info", "warn", "error", "fatal"};
     OUT("log: {level: %s}\n", lv[c->log_level]);
 #undef OUT

@@ -2,114 +2,11 @@
  * sooc_node_run) pose association, keyframe policy, preprocessing,
  * sooc3d_mapper_update, publisher (shm table batch + SQLite transaction per
  * keyframe) and periodic stats. */
-#include "sooc3d/node.h"
-#include "sooc3d/support.h"
-
-#include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
-#include <stdio.h>
-#include <string.h>
-
-#if SOOC_NODE_HAVE_DRIVERS
-#include "sooc3d/driver.h"
-#include "sooc3d/pose.h"
-#endif
-#if SOOC_NODE_HAVE_TABLE
-#include "sooc3d/table.h"
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
-#include "sooc3d/mapstore.h"
-#endif
-#if SOOC_NODE_HAVE_CALIB
-#include "sooc3d/calib.h"
-#endif
-#if SOOC_NODE_HAVE_CV
-#include "sooc3d/cv.h"
-#endif
-
-struct sooc_node {
-    sooc_node_config cfg;
-    sooc_node_options opt;
-    sooc3d_mapper *mapper;
-    int own_mapper;
-    int tw, th;
-
-    sooc_node_source src;
-    int have_src;
-    sooc_node_pose_source pose;
-    int have_pose;
-#if SOOC_NODE_HAVE_CV
-    sooc_odom *odom;               /* pose.source: odometry */
-    int odom_lost;                 /* frames failed in a row (for the log) */
-#endif
-#if SOOC_NODE_HAVE_DRIVERS
-    sooc_sensor *sensor;
-    sooc_pose_src *psrc;
-#endif
-#if SOOC_NODE_HAVE_CALIB
-    sooc_calib calib;
-#endif
-    int have_calib;
-    sooc_intrinsics Kc;            /* calib intrinsics (colour) */
-    int calib_registered;          /* -1 unknown, 0 needs registration, 1 registered */
-    int have_T_cd;
-    double T_cd[16], T_eff_cam[16];
-    int have_T_eff;
-    float *reg_buf;
-    size_t reg_cap;
-
-    sooc_frame_ring *ring;
-    pthread_t cap_thread;
-    int cap_started;
-    atomic_int stop;
-    sooc_status cap_status;
-    char cap_err[512];
-
-    sooc_kf_policy kf;
-    double T_world_src[16];        /* written by the mapping thread under mu (stats read it) */
-    int world_ready;
-    uint64_t floor_attempts;
-    /* world.floor: estimate: the first posed frames wait here for the support
-     * plane, then are mapped (start-up only; no allocation once mapping runs) */
-    sooc_frame *sup_f;
-    double *sup_T;                 /* their T_src_c */
-    int64_t *sup_tcap;
-    int n_sup, cap_sup;
-    int has_gravity;
-    double gravity[3];             /* world.gravity (source frame, pointing down) */
-
-#if SOOC_NODE_HAVE_TABLE
-    sooc_table_writer *table;
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
-    sooc_mapstore *store;
-    int store_layout_dim;          /* 0: this database keeps no layout latents */
-    int extent_stored;             /* meta "extent" written / read */
-#endif
-    float extent[3];               /* box extent from the database (resume of a mapper without one) */
-    int db_exists;
-    uint64_t model_id;       /* table latent_model_id: FNV-1a 64 of the checkpoint file */
-    char model_id_str[64];   /* map.db model_id: "fnv1a64:<16 hex> bytes:<n>" ("" = injected mapper) */
-
-    sooc_map_entry *prev;          /* start-up only: the map republished at create */
-    size_t n_prev, cap_prev;
-    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc3d_mapper_changed */
-    uint64_t removed[SOOC_MAPPER_CHANGED_MAX];
-    uint64_t kf_seq;               /* keyframe rows written */
-
-    pthread_mutex_t mu;            /* guards st, lat_*, t_start and writes of T_world_src;
-                                      lock order node -> ring (node.h) */
-    sooc_node_stats st;
-    sooc_latency lat_upd, lat_c2t, lat_pub;
-    double t_start, t_last_stats;
-
-    sooc_frame work, pre;
-};
+#include "node/node_impl.h"
 
 /* ------------------------------------------------------------- helpers */
 
-static sooc_status grow(void **p, size_t *cap, size_t need, size_t elem) {
+sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem) {
     if (need <= *cap) return SOOC_OK;
     size_t nc = *cap ? *cap : 64;
     while (nc < need) nc *= 2;
@@ -120,7 +17,7 @@ static sooc_status grow(void **p, size_t *cap, size_t need, size_t elem) {
     return SOOC_OK;
 }
 
-static void stats_refresh(sooc_node *n) {
+void sooc__node_stats_refresh(sooc_node *n) {
     /* caller holds n->mu */
     n->st.update_p50_ms = sooc_latency_pct(&n->lat_upd, 0.5);
     n->st.update_p99_ms = sooc_latency_pct(&n->lat_upd, 0.99);
@@ -137,23 +34,10 @@ static void stats_refresh(sooc_node *n) {
     memcpy(n->st.T_world_src, n->T_world_src, sizeof n->T_world_src);
 }
 
-size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap) {
-    int w = snprintf(buf, cap,
-                     "frames %llu dropped %llu no_pose %llu (untracked %llu) keyframes %llu (%.2f/s) objects %llu "
-                     "update p50 %.1f ms p99 %.1f ms capture->table p50 %.1f ms p99 %.1f ms "
-                     "publish p50 %.2f ms p99 %.2f ms",
-                     (unsigned long long)s->frames_in, (unsigned long long)s->frames_dropped,
-                     (unsigned long long)s->frames_no_pose, (unsigned long long)s->frames_untracked,
-                     (unsigned long long)s->keyframes,
-                     s->elapsed_s > 0 ? (double)s->keyframes / s->elapsed_s : 0.0,
-                     (unsigned long long)s->n_objects, s->update_p50_ms, s->update_p99_ms, s->c2t_p50_ms,
-                     s->c2t_p99_ms, s->publish_p50_ms, s->publish_p99_ms);
-    return w > 0 ? (size_t)w : 0;
-}
 
 void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out) {
     pthread_mutex_lock(&n->mu);
-    stats_refresh(n);
+    sooc__node_stats_refresh(n);
     *out = n->st;
     pthread_mutex_unlock(&n->mu);
 }
@@ -172,6 +56,7 @@ int sooc_node_stop_requested(const sooc_node *n) { return atomic_load((atomic_in
 
 #if SOOC_NODE_HAVE_DRIVERS
 static sooc_status drv_start(void *ctx) { return sooc_sensor_start(ctx); }
+static sooc_frame_fault drv_frame_fault(void *ctx) { return sooc_sensor_frame_fault(ctx); }
 static sooc_status drv_read(void *ctx, sooc_frame *f, int t) { return sooc_sensor_read(ctx, f, t); }
 static void drv_stop(void *ctx) { sooc_sensor_stop(ctx); }
 static void drv_close(void *ctx) { (void)ctx; /* closed in destroy (after the thread is joined) */ }
@@ -236,7 +121,11 @@ static sooc_status open_sensor(sooc_node *n) {
     n->src.read = drv_read;
     n->src.stop = drv_stop;
     n->src.close = drv_close;
+    n->src.frame_fault = drv_frame_fault;
     n->have_src = 1;
+    sooc_sensor_info si;
+    sooc_sensor_get_info(n->sensor, &si);
+    if (si.n_frames > 0) n->skip_limit = (uint64_t)si.n_frames;
     return SOOC_OK;
 }
 
@@ -270,240 +159,6 @@ static sooc_status open_pose(sooc_node *n) {
     return SOOC_OK;
 }
 #endif
-
-/* --------------------------------------------------------- conversions */
-
-#if SOOC_NODE_HAVE_TABLE
-static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
-    memset(r, 0, sizeof *r);
-    r->object_id = e->id;
-    r->flags = SOOC_TABLE_FLAG_VALID | (e->obs_count < 2 ? SOOC_TABLE_FLAG_TENTATIVE : 0u);
-    r->obs_count = e->obs_count;
-    r->presence = e->presence;
-    r->x = (float)e->x;
-    r->z = (float)e->z;
-    r->yaw = (float)e->yaw;
-    float vt = (float)(e->sigma_t * e->sigma_t), vy = (float)(e->sigma_yaw * e->sigma_yaw);
-    r->cov_xzyaw[0] = vt;
-    r->cov_xzyaw[3] = vt;
-    r->cov_xzyaw[5] = vy;
-    r->y = 0.5f * e->extent[1];   /* objects rest on the floor */
-    memcpy(r->extent, e->extent, sizeof r->extent);
-    const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
-    if (g->cov_xz[0] > 0 && g->cov_xz[2] > 0) {   /* calibrated spreads */
-        r->cov_xzyaw[0] = (float)g->cov_xz[0];
-        r->cov_xzyaw[1] = (float)g->cov_xz[1];
-        r->cov_xzyaw[3] = (float)g->cov_xz[2];
-        r->cov_xzyaw[5] = (float)g->var_yaw;   /* NaN when the shape is symmetric: yaw undefined */
-    }
-    if (g->flags & SOOC_GEOM_TIGHT) r->y = g->centre[1];   /* tight box centre above the floor */
-    if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
-    r->first_seen_ns = e->first_seen_ns;
-    r->last_seen_ns = e->last_seen_ns;
-    int d = e->latent_dim;
-    if (d < 0) d = 0;
-    if (d > (int)SOOC_TABLE_LATENT_MAX) d = SOOC_TABLE_LATENT_MAX;
-    r->latent_dim = (uint32_t)d;
-    memcpy(r->latent, e->what_mu, (size_t)d * sizeof(float));
-}
-#endif
-
-#if SOOC_NODE_HAVE_MAPSTORE
-typedef struct load_ctx_l {
-    sooc_node *n;
-    sooc_status st;
-    size_t count;
-} load_ctx_l;
-
-static int load_block(void *user, int32_t bi, int32_t bj, const float *mu, const float *logvar) {
-    load_ctx_l *L = user;
-    L->st = sooc3d_mapper_load_layout(L->n->mapper, bi, bj, mu, logvar);
-    if (!L->st) L->count++;
-    return L->st != SOOC_OK;
-}
-
-typedef struct load_ctx {
-    sooc_node *n;
-    sooc_status st;
-} load_ctx;
-
-static int load_visit(void *user, const sooc_cogmap_entry *c) {
-    load_ctx *L = user;
-    sooc_node *n = L->n;
-    if ((L->st = grow((void **)&n->prev, &n->cap_prev, n->n_prev + 1, sizeof *n->prev))) return 1;
-    sooc_map_entry_from_cogmap(c, n->extent, &n->prev[n->n_prev]);
-    n->n_prev++;
-    return 0;
-}
-
-/* Open the database: an existing one with its own dims (checked against the
- * mapper's), or a new one with the mapper's latent and layout dims. */
-static sooc_status store_open(sooc_node *n, int create) {
-    sooc_mapstore_params mp;
-    sooc_mapstore_params_default(&mp);
-    mp.create = create;
-    mp.dim = create ? sooc3d_mapper_latent_dim(n->mapper) : 0;
-    mp.layout_dim = create ? sooc3d_mapper_layout_dim(n->mapper) : 0;
-    mp.model_id = n->model_id_str[0] ? n->model_id_str : NULL; /* stored, and checked on resume */
-    if (create && mp.dim <= 0)
-        return sooc_seterr(SOOC_EINVAL, "%s: map.db: the mapper reports latent dim %d", n->cfg.path, mp.dim);
-    sooc_status st = sooc_mapstore_open(&n->store, n->cfg.map_db, &mp);
-    if (st) return sooc_adderr(st, "%s: map.db", n->cfg.path);
-    sooc_mapstore_info info;
-    if ((st = sooc_mapstore_info_get(n->store, &info))) return sooc_adderr(st, "%s: map.db", n->cfg.path);
-    int md = sooc3d_mapper_latent_dim(n->mapper);
-    if (md > 0 && info.dim != md)
-        return sooc_seterr(SOOC_EVERSION, "%s: map.db %s holds latents of dim %d, the model produces %d", n->cfg.path,
-                           n->cfg.map_db, info.dim, md);
-    /* a database written without layout latents (or with other ones) keeps none */
-    n->store_layout_dim = info.layout_dim == sooc3d_mapper_layout_dim(n->mapper) ? info.layout_dim : 0;
-    if (info.layout_dim && !n->store_layout_dim)
-        sooc_log(SOOC_LOG_WARN, "%s: map.db layout dim %d differs from the model's %d: layout not persisted",
-                 n->cfg.map_db, info.layout_dim, sooc3d_mapper_layout_dim(n->mapper));
-    char b[128];
-    if (!sooc_mapstore_meta_get(n->store, "extent", b, sizeof b) &&
-        sscanf(b, "%f %f %f", &n->extent[0], &n->extent[1], &n->extent[2]) == 3)
-        n->extent_stored = 1;
-    return SOOC_OK;
-}
-#endif
-
-/* ------------------------------------------------------------ publisher */
-
-/* Publish `chg` / `rem`: one table batch and one SQLite transaction (changed
- * entries, removed ids, the active layout block, the id counter and a keyframe
- * row). Its cost depends on nc + nr, not on the map size. `kf` = NULL for the
- * start-up batch (no keyframe row); to_db = 0 when the entries came from the
- * database itself (resume). */
-typedef struct kf_info {
-    int64_t stamp_ns;
-    const double *T_wc;
-    int64_t t_cap_mono;
-} kf_info;
-
-static sooc_status publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                           int clear_first, int to_db, const kf_info *kf) {
-    sooc_status st = SOOC_OK;
-    double t0 = sooc_seconds();
-    size_t n_entries = 0;
-    if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &n_entries))) return sooc_adderr(st, "mapper entries");
-#if SOOC_NODE_HAVE_TABLE
-    if (n->table) {
-        int rc = sooc_table_begin_batch(n->table);
-        if (clear_first && !rc) rc = sooc_table_clear(n->table);
-        uint32_t ld = (uint32_t)sooc3d_mapper_latent_dim(n->mapper);
-        double T_src_map[16];
-        sooc_se3_inverse(T_src_map, n->T_world_src);
-        /* T_src_map (and HFLAG_FLOOR_SET) only once the world frame is known:
-         * given, stored, or estimated; not the identity placeholder before an estimate */
-        if (!rc)
-            rc = sooc_table_set_meta(n->table, ld, n->model_id, kf ? kf->stamp_ns : 0,
-                                     n->world_ready ? T_src_map : NULL);
-        for (size_t i = 0; i < nc && !rc; i++) {
-            sooc_table_record r;
-            to_record(&chg[i], &r);
-            rc = sooc_table_upsert(n->table, &r);
-        }
-        for (size_t i = 0; i < nr && !rc; i++) {
-            int r2 = sooc_table_remove(n->table, rem[i]);
-            if (r2 && r2 != SOOC_TABLE_ENOENT) rc = r2;
-        }
-        int rc2 = sooc_table_end_batch(n->table);
-        if (!rc) rc = rc2;
-        if (rc) st = sooc_seterr(SOOC_EIO, "shm table '%s': %s", n->cfg.shm_name, sooc_table_strerror(rc));
-    }
-#else
-    (void)clear_first;
-#endif
-    if (kf && kf->t_cap_mono > 0) {
-        double ms = (double)(sooc_now_ns() - kf->t_cap_mono) * 1e-6;
-        pthread_mutex_lock(&n->mu);
-        sooc_latency_add(&n->lat_c2t, ms);
-        pthread_mutex_unlock(&n->mu);
-    }
-#if SOOC_NODE_HAVE_MAPSTORE
-    if (!st && n->store && (kf || (to_db && nc))) {
-        st = sooc_mapstore_begin(n->store);
-        sooc_cogmap_entry ce;
-        for (size_t i = 0; i < nc && !st && to_db; i++) {
-            sooc_map_entry_to_cogmap(&chg[i], &ce);
-            st = sooc_mapstore_put_entries(n->store, &ce, 1);
-            if (!st && (chg[i].geom.flags || chg[i].geom.reg_n))   /* object geometry (schema 3) */
-                st = sooc_mapstore_geom_put(n->store, chg[i].id, chg[i].extent, &chg[i].geom);
-        }
-        if (!st && nr) st = sooc_mapstore_remove_entries(n->store, rem, nr);
-        if (!st && !n->extent_stored && nc && chg[0].extent[0] > 0) {
-            char b[96];
-            snprintf(b, sizeof b, "%.9g %.9g %.9g", chg[0].extent[0], chg[0].extent[1], chg[0].extent[2]);
-            if (!(st = sooc_mapstore_meta_set(n->store, "extent", b))) {
-                memcpy(n->extent, chg[0].extent, sizeof n->extent);
-                n->extent_stored = 1;
-            }
-        }
-        int32_t bi = 0, bj = 0;
-        int has_block = 0;
-        if (!st && kf && n->store_layout_dim) {
-            float mu[SOOC_MAP_LATENT_MAX], lv[SOOC_MAP_LATENT_MAX];
-            sooc_status s2 = sooc3d_mapper_last_layout(n->mapper, &bi, &bj, mu, lv);
-            if (!s2) {
-                has_block = 1;
-                st = sooc_mapstore_put_layout(n->store, bi, bj, mu, lv);
-            } else if (s2 != SOOC_ENOTFOUND) {
-                st = s2;
-            }
-        }
-        if (!st) st = sooc_mapstore_set_next_id(n->store, sooc3d_mapper_next_id(n->mapper));
-        if (!st && kf) {
-            sooc_mapstore_keyframe k;
-            memset(&k, 0, sizeof k);
-            k.t_ns = kf->stamp_ns;
-            k.view = (int32_t)n->kf_seq;
-            memcpy(k.T_wc, kf->T_wc, sizeof k.T_wc);
-            uint64_t ids[SOOC_MAPPER_CHANGED_MAX];
-            size_t m = nc < SOOC_MAPPER_CHANGED_MAX ? nc : SOOC_MAPPER_CHANGED_MAX;
-            for (size_t i = 0; i < m; i++) ids[i] = chg[i].id;
-            k.changed = ids;
-            k.n_changed = m;
-            k.removed = rem;
-            k.n_removed = nr;
-            k.has_block = has_block;
-            k.bi = bi;
-            k.bj = bj;
-            st = sooc_mapstore_add_keyframe(n->store, &k, (int64_t)n_entries);
-        }
-        if (!st) st = sooc_mapstore_commit(n->store);
-        else sooc_mapstore_rollback(n->store);
-        if (!st && kf) n->kf_seq++;
-    }
-#else
-    (void)to_db;
-#endif
-    double ms = (sooc_seconds() - t0) * 1e3;
-    pthread_mutex_lock(&n->mu);
-    if (kf) sooc_latency_add(&n->lat_pub, ms);
-    n->st.published += nc;
-    n->st.removed += nr;
-    n->st.n_objects = n_entries;
-    pthread_mutex_unlock(&n->mu);
-    return st;
-}
-
-/* Publish what the last update changed (sooc3d_mapper_changed): O(changes). */
-static sooc_status publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap) {
-    size_t nc = 0, nr = 0;
-    sooc_status st = sooc3d_mapper_changed(n->mapper, n->changed, SOOC_MAPPER_CHANGED_MAX, &nc, n->removed,
-                                           SOOC_MAPPER_CHANGED_MAX, &nr);
-    if (st) return sooc_adderr(st, "mapper changed");
-    kf_info kf = {stamp_ns, T_wc, t_cap};
-    st = publish(n, n->changed, nc, n->removed, nr, 0, 1, &kf);
-    pthread_mutex_lock(&n->mu);
-    stats_refresh(n);
-    sooc_node_stats snap = n->st;
-    pthread_mutex_unlock(&n->mu);
-    if (n->opt.on_keyframe)
-        n->opt.on_keyframe(n->opt.user, snap.keyframes + 1, n->changed, nc, n->removed, nr, &snap);
-    return st;
-}
 
 /* ---------------------------------------------------------------- create */
 
@@ -545,13 +200,6 @@ static void set_world(sooc_node *n, const double T[16]) {
     n->world_ready = 1;
 }
 
-#if SOOC_NODE_HAVE_MAPSTORE
-static sooc_status store_world(sooc_node *n, const sooc_map_frame *mf) {
-    if (!n->store) return SOOC_OK;
-    sooc_status st = sooc_mapstore_frame_put(n->store, mf);
-    return st ? sooc_adderr(st, "%s: map.db: storing the world frame", n->cfg.path) : SOOC_OK;
-}
-#endif
 
 /* The map's world frame at start-up. A database that holds one (written when
  * the frame was first estimated or given) fixes it on resume: the estimate
@@ -593,7 +241,7 @@ static sooc_status world_from_store(sooc_node *n, int resumed) {
             memcpy(mf.plane_src, c->up, 3 * sizeof(double));
             mf.plane_src[3] = -c->floor_height;
             mf.up_source = -1;
-            return store_world(n, &mf);
+            return sooc__node_store_world(n, &mf);
         }
     }
 #else
@@ -794,60 +442,14 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE && (st = support_init(n))) goto fail;
 
     /* persistent map: resume */
-    n->db_exists = c->map_db[0] && sooc_file_exists(c->map_db);
     int resumed = 0;
-#if SOOC_NODE_HAVE_MAPSTORE
-    if (n->db_exists) {
-        if ((st = store_open(n, 0))) goto fail;
-        sooc_mapstore_info info;
-        if ((st = sooc_mapstore_info_get(n->store, &info))) goto fail;
-        if (!c->map_resume && info.n_entries > 0) {
-            st = sooc_seterr(SOOC_EINVAL,
-                             "%s: map.resume: false, but %s already holds %llu entries (remove it or resume)",
-                             c->path, c->map_db, (unsigned long long)info.n_entries);
-            goto fail;
-        }
-        load_ctx L = {n, SOOC_OK};
-        if ((st = sooc_mapstore_foreach(n->store, load_visit, &L)) || (st = L.st)) {
-            sooc_adderr(st, "%s: resume from %s", c->path, c->map_db);
-            goto fail;
-        }
-        for (size_t i = 0; i < n->n_prev; i++) {   /* stored object geometry (schema 3; none in older maps) */
-            int found = 0;
-            if ((st = sooc_mapstore_geom_get(n->store, n->prev[i].id, n->prev[i].extent, &n->prev[i].geom, &found))) {
-                sooc_adderr(st, "%s: resume from %s", c->path, c->map_db);
-                goto fail;
-            }
-        }
-        if (n->n_prev && (st = sooc3d_mapper_load_entries(n->mapper, n->prev, n->n_prev))) {
-            sooc_adderr(st, "%s: resume: mapper refused %zu stored entries", c->path, n->n_prev);
-            goto fail;
-        }
-        load_ctx_l LB = {n, SOOC_OK, 0};
-        if (n->store_layout_dim &&
-            ((st = sooc_mapstore_foreach_layout(n->store, load_block, &LB)) || (st = LB.st))) {
-            sooc_adderr(st, "%s: resume: layout blocks from %s", c->path, c->map_db);
-            goto fail;
-        }
-        /* ids of entries removed before the restart are not handed out again */
-        sooc3d_mapper_reserve_ids(n->mapper, info.next_id);
-        n->st.resumed = n->n_prev;
-        n->st.resumed_blocks = LB.count;
-        resumed = 1;
-    } else if (c->map_db[0]) {
-        if ((st = store_open(n, 1))) goto fail;
-    }
-#else
-    if (c->map_db[0])
-        sooc_log(SOOC_LOG_WARN, "%s: map.db set but the SQLite map store is not built in; not persisting",
-                 c->path);
-#endif
+    if ((st = sooc__node_store_resume(n, &resumed))) goto fail;
     if ((st = world_from_store(n, resumed))) goto fail;
     /* what the mapper holds now (resumed, or preloaded by the caller) is republished at start */
     {
         size_t cnt = 0;
         if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
-        if ((st = grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
+        if ((st = sooc__node_grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
         if ((st = sooc3d_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
         for (size_t i = 0; i < n->n_prev; i++)   /* a mapper without a box extent: the stored one */
             if (n->prev[i].extent[0] <= 0) memcpy(n->prev[i].extent, n->extent, sizeof n->extent);
@@ -875,7 +477,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     }
     /* republish the resumed map (and clear leftovers of an earlier run); a map
      * preloaded by the caller also goes to a new database */
-    if ((st = publish(n, n->prev, n->n_prev, NULL, 0, 1, !resumed, NULL))) goto fail;
+    if ((st = sooc__node_publish(n, n->prev, n->n_prev, NULL, 0, 1, !resumed, NULL))) goto fail;
     sooc_free(n->prev);
     n->prev = NULL;
     n->cap_prev = 0;
@@ -890,6 +492,7 @@ fail:
 
 static void *capture_main(void *arg) {
     sooc_node *n = arg;
+        if (st && st != SOOC_EEOF && st != SOOC_EINTERRUPTED && !(st = sooc__node_capture_skip(n, st))) continue;
     sooc_frame f;
     memset(&f, 0, sizeof f);
     sooc_status st = n->src.start ? n->src.start(n->src.ctx) : SOOC_OK;
@@ -897,6 +500,12 @@ static void *capture_main(void *arg) {
         st = n->src.read(n->src.ctx, &f, 100);
         if (st == SOOC_ETIMEOUT) { st = SOOC_OK; continue; }
         if (st) break;
+    pthread_mutex_lock(&n->mu);
+    uint64_t good = n->st.frames_in, bad = n->st.frames_skipped;
+    pthread_mutex_unlock(&n->mu);
+    if (!st && !good && bad)   /* a recording without one good frame is still an error */
+        st = sooc_seterr(SOOC_EFORMAT, "none of the %llu frames of the recording could be read (the last: %s)",
+                         (unsigned long long)bad, n->last_skip);
         pthread_mutex_lock(&n->mu);
         n->st.frames_in++;
         pthread_mutex_unlock(&n->mu);
@@ -1001,7 +610,7 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
     memcpy(mf.plane_src, sup.plane_src, sizeof mf.plane_src);
     mf.cam_height_m = sup.cam_height_m;
     mf.up_source = (int)sup.up_source;
-    if ((st = store_world(n, &mf))) {
+    if ((st = sooc__node_store_world(n, &mf))) {
         *err = st;
         return -1;
     }
@@ -1126,7 +735,7 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
         /* a late failure may have changed the map already: keep table and database in step */
         size_t pc = 0, pr = 0;
         if (!sooc3d_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
-            sooc_status s2 = publish_keyframe(n, f->t_ns, T_wc, t_cap);
+            sooc_status s2 = sooc__node_publish_keyframe(n, f->t_ns, T_wc, t_cap);
             if (s2) { *result = s2; return 1; }
         }
         if (st == SOOC_ENOMEM) { *result = st; return 1; }
@@ -1136,7 +745,7 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     pthread_mutex_lock(&n->mu);
     sooc_latency_add(&n->lat_upd, ms);
     pthread_mutex_unlock(&n->mu);
-    if ((st = publish_keyframe(n, f->t_ns, T_wc, t_cap))) { *result = st; return 1; }
+    if ((st = sooc__node_publish_keyframe(n, f->t_ns, T_wc, t_cap))) { *result = st; return 1; }
     pthread_mutex_lock(&n->mu);
     n->st.keyframes++;
     uint64_t k = n->st.keyframes;
@@ -1165,14 +774,20 @@ sooc_status sooc_node_run(sooc_node *n) {
     n->cap_started = 1;
     sooc_status result = SOOC_OK;
     int eof = 0;
+        sooc_status st = sooc__node_store_retry(n, 0);
+        if (st) { result = st; break; }
     const int64_t tol_ns = (int64_t)llround(n->cfg.pose_tolerance_s * 1e9);
     while (!atomic_load(&n->stop)) {
         if (n->cfg.stats_period_s > 0 && sooc_seconds() - n->t_last_stats >= n->cfg.stats_period_s) {
             n->t_last_stats = sooc_seconds();
             log_stats(n);
         }
+        if (sooc__node_frame_size_skip(n, f, &result)) {
+            if (result) break;
+            continue;
+        }
         int64_t t_cap = 0;
-        sooc_status st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
+        st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
         if (st == SOOC_ETIMEOUT) continue;
         if (st == SOOC_EEOF) { eof = 1; break; }
         if (st) { result = st; break; }
@@ -1223,6 +838,13 @@ sooc_status sooc_node_run(sooc_node *n) {
 #endif
     sooc_frame_ring_close(n->ring);
     if (n->cap_started) {
+    pthread_mutex_lock(&n->mu);
+    uint64_t n_in = n->st.frames_in;
+    pthread_mutex_unlock(&n->mu);
+    if (!result && eof && n->map_skips && n->map_skips == n_in)   /* every frame read had the wrong size */
+        result = sooc_seterr(SOOC_EINVAL, "none of the %llu frames of the recording could be mapped (the last: %s)",
+                             (unsigned long long)n_in, n->cfg.calib_path);
+    result = sooc__node_store_final(n, result);
         pthread_join(n->cap_thread, NULL);
         n->cap_started = 0;
     }
@@ -1249,6 +871,7 @@ void sooc_node_destroy(sooc_node *n) {
 #endif
     if (n->have_pose && n->pose.close) n->pose.close(n->pose.ctx);
 #if SOOC_NODE_HAVE_CV
+    sooc_sg_destroy(n->sg);
     sooc_odom_destroy(n->odom);
 #endif
 #if SOOC_NODE_HAVE_TABLE

@@ -348,6 +348,34 @@ int sooc_table_get_info(sooc_table_reader *r, sooc_table_info *info) {
     return SOOC_TABLE_EBUSY;
 }
 
+/* The store block: words 152..184, under store_seq. */
+#define STORE_OFF 152
+#define STORE_WORDS 4
+
+int sooc_table_get_store(sooc_table_reader *r, sooc_table_store *out) {
+    if (!r || !out) return SOOC_TABLE_EINVAL;
+    const sooc_table_header *h = r->h;
+    memset(out, 0, sizeof *out);
+    if (h->abi_minor < 1) return SOOC_TABLE_OK;
+    for (int t = 0; t < SOOC_TABLE_READ_RETRIES; t++) {
+        uint64_t s0 = atomic_load_explicit(&h->store_seq, memory_order_acquire), w[STORE_WORDS];
+        if (s0 & 1u) {
+            table_backoff(t);
+            continue;
+        }
+        load_words(w, (const char *)h + STORE_OFF, STORE_WORDS);
+        atomic_thread_fence(memory_order_acquire);
+        if (atomic_load_explicit(&h->store_seq, memory_order_relaxed) != s0) continue;
+        memcpy(&out->state, (const char *)w, 4);
+        memcpy(&out->fault, (const char *)w + 4, 4);
+        memcpy(&out->pending, &w[1], 8);
+        memcpy(&out->pending_kf, &w[2], 8);
+        memcpy(&out->committed_ns, &w[3], 8);
+        return SOOC_TABLE_OK;
+    }
+    return SOOC_TABLE_EBUSY;
+}
+
 int sooc_table_writer_alive(sooc_table_reader *r, sooc_table_liveness *live) {
     if (!r) return SOOC_TABLE_EINVAL;
     sooc_table_liveness L;
@@ -624,6 +652,7 @@ static void init_header(sooc_table_writer *w, const char *frame_id) {
     strncpy(h->frame_id, frame_id, sizeof h->frame_id - 1);
     h->latent_max = SOOC_TABLE_LATENT_MAX;
     h->created_real_ns = real_ns();
+    h->store_committed_ns = INT64_MIN;   /* store block: no database state yet */
     for (int i = 0; i < 4; i++) h->T_src_map[i * 5] = 1.0; /* identity */
     atomic_store_explicit(&h->instance_id, new_instance_id(), memory_order_relaxed);
     atomic_store_explicit(&h->writer_pid, (int64_t)getpid(), memory_order_relaxed);
@@ -636,6 +665,9 @@ static void init_header(sooc_table_writer *w, const char *frame_id) {
  * odd (torn), re-register the others, renew the instance id. One batch. */
 static void adopt_table(sooc_table_writer *w) {
     sooc_table_header *h = w->h;
+    static const sooc_table_store none = {SOOC_TABLE_STORE_NONE, 0, 0, 0, INT64_MIN};
+    sooc_table_set_store(w, &none);   /* this writer's database says its state itself */
+    h->abi_minor = SOOC_TABLE_ABI_MINOR;
     atomic_store_explicit(&h->instance_id, new_instance_id(), memory_order_relaxed);
     atomic_store_explicit(&h->writer_pid, (int64_t)getpid(), memory_order_relaxed);
     atomic_store_explicit(&h->heartbeat_mono_ns, mono_ns(), memory_order_relaxed);
@@ -834,6 +866,22 @@ int sooc_table_set_meta(sooc_table_writer *w, uint32_t latent_dim, uint64_t late
     store_words((char *)w->h + META_OFF, meta, META_WORDS);
     if (T_src_map)
         atomic_fetch_or_explicit(&w->h->hflags, SOOC_TABLE_HFLAG_FLOOR_SET, memory_order_relaxed);
+    return SOOC_TABLE_OK;
+}
+
+int sooc_table_set_store(sooc_table_writer *w, const sooc_table_store *st) {
+    if (!w || !st) return SOOC_TABLE_EINVAL;
+    uint64_t v[STORE_WORDS];
+    memcpy((char *)v, &st->state, 4);
+    memcpy((char *)v + 4, &st->fault, 4);
+    memcpy(&v[1], &st->pending, 8);
+    memcpy(&v[2], &st->pending_kf, 8);
+    memcpy(&v[3], &st->committed_ns, 8);
+    uint64_t s0 = atomic_load_explicit(&w->h->store_seq, memory_order_relaxed);
+    atomic_store_explicit(&w->h->store_seq, s0 + 1, memory_order_relaxed);
+    atomic_thread_fence(memory_order_release);
+    store_words((char *)w->h + STORE_OFF, v, STORE_WORDS);
+    atomic_store_explicit(&w->h->store_seq, s0 + 2, memory_order_release);
     return SOOC_TABLE_OK;
 }
 

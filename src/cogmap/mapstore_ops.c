@@ -1,0 +1,74 @@
+/* Storage faults and maintenance of the map database
+ * (include/sooc3d/mapstore.h "storage faults"): what the last failure met,
+ * the lock wait, WAL checkpoints and SQLite's integrity check. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cogmap/mapstore_impl.h"
+
+sooc_mapstore_fault sooc_mapstore_last_fault(const sooc_mapstore *s) {
+    if (!s || !s->last_rc) return SOOC_MAPSTORE_FAULT_NONE;
+    switch (s->last_rc & 0xff) {
+    case SQLITE_FULL: return SOOC_MAPSTORE_FAULT_FULL;
+    case SQLITE_IOERR:
+    case SQLITE_CANTOPEN:
+    case SQLITE_READONLY:
+    case SQLITE_PROTOCOL: return SOOC_MAPSTORE_FAULT_IO;
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED: return SOOC_MAPSTORE_FAULT_BUSY;
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB: return SOOC_MAPSTORE_FAULT_CORRUPT;
+    case SQLITE_NOMEM: return SOOC_MAPSTORE_FAULT_NOMEM;
+    default: return SOOC_MAPSTORE_FAULT_OTHER;
+    }
+}
+
+const char *sooc_mapstore_fault_name(sooc_mapstore_fault f) {
+    switch (f) {
+    case SOOC_MAPSTORE_FAULT_NONE: return "none";
+    case SOOC_MAPSTORE_FAULT_FULL: return "disk full";
+    case SOOC_MAPSTORE_FAULT_IO: return "I/O error";
+    case SOOC_MAPSTORE_FAULT_BUSY: return "locked by another connection";
+    case SOOC_MAPSTORE_FAULT_CORRUPT: return "corrupt";
+    case SOOC_MAPSTORE_FAULT_NOMEM: return "out of memory";
+    default: return "other SQLite error";
+    }
+}
+
+sooc_status sooc_mapstore_set_busy_timeout(sooc_mapstore *s, int ms) {
+    if (ms < 0) return sooc_seterr(SOOC_EINVAL, "%s: busy timeout %d ms < 0", s->path, ms);
+    int rc = sqlite3_busy_timeout(s->db, ms);
+    return rc == SQLITE_OK ? SOOC_OK : sooc__mapstore_dberr(s, rc, "setting the busy timeout");
+}
+
+sooc_status sooc_mapstore_checkpoint(sooc_mapstore *s, int truncate) {
+    if (s->readonly) return SOOC_OK;
+    if (s->in_txn) return sooc_seterr(SOOC_EINVAL, "%s: checkpoint inside a transaction", s->path);
+    int log = 0, done = 0;
+    int rc = sqlite3_wal_checkpoint_v2(s->db, NULL, truncate ? SQLITE_CHECKPOINT_TRUNCATE : SQLITE_CHECKPOINT_PASSIVE,
+                                       &log, &done);
+    return rc == SQLITE_OK ? SOOC_OK : sooc__mapstore_dberr(s, rc, "checkpoint");
+}
+
+sooc_status sooc_mapstore_integrity_check(sooc_mapstore *s, int *ok, char *detail, size_t cap) {
+    *ok = 0;
+    if (detail && cap) detail[0] = 0;
+    sqlite3_stmt *q = NULL;
+    int rc = sqlite3_prepare_v2(s->db, "PRAGMA integrity_check", -1, &q, NULL);
+    if (rc != SQLITE_OK) return sooc__mapstore_dberr(s, rc, "integrity check");
+    int rows = 0;
+    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+        const char *t = (const char *)sqlite3_column_text(q, 0);
+        if (rows++ == 0) {
+            *ok = t && !strcmp(t, "ok");
+            if (detail && cap) snprintf(detail, cap, "%s", t ? t : "");
+        }
+    }
+    sqlite3_finalize(q);
+    if (rc != SQLITE_DONE) {
+        *ok = 0;
+        return sooc__mapstore_dberr(s, rc, "integrity check");
+    }
+    if (rows > 1) *ok = 0;
+    return SOOC_OK;
+}

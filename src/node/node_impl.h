@@ -1,0 +1,150 @@
+/* Internals of the node (include/sooc3d/node.h) shared by its files:
+ * pipeline.c (create, capture, mapping loop), publish.c (the shm table, the
+ * map database and resume), skip.c (broken frames, the stats line). */
+#ifndef SOOC3D_NODE_IMPL_H
+#define SOOC3D_NODE_IMPL_H
+
+#include "sooc3d/node.h"
+#include "sooc3d/support.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <string.h>
+
+#if SOOC_NODE_HAVE_DRIVERS
+#include "sooc3d/driver.h"
+#include "sooc3d/pose.h"
+#endif
+#if SOOC_NODE_HAVE_TABLE
+#include "sooc3d/table.h"
+#endif
+#if SOOC_NODE_HAVE_MAPSTORE
+#include "node/store_guard.h"
+#include "sooc3d/mapstore.h"
+#endif
+#if SOOC_NODE_HAVE_CALIB
+#include "sooc3d/calib.h"
+#endif
+#if SOOC_NODE_HAVE_CV
+#include "sooc3d/cv.h"
+#endif
+
+struct sooc_node {
+    sooc_node_config cfg;
+    sooc_node_options opt;
+    sooc3d_mapper *mapper;
+    int own_mapper;
+    int tw, th;
+
+    sooc_node_source src;
+    int have_src;
+    sooc_node_pose_source pose;
+    int have_pose;
+#if SOOC_NODE_HAVE_CV
+    sooc_odom *odom;               /* pose.source: odometry */
+    int odom_lost;                 /* frames failed in a row (for the log) */
+#endif
+#if SOOC_NODE_HAVE_DRIVERS
+    sooc_sensor *sensor;
+    sooc_pose_src *psrc;
+#endif
+#if SOOC_NODE_HAVE_CALIB
+    sooc_calib calib;
+#endif
+    int have_calib;
+    sooc_intrinsics Kc;            /* calib intrinsics (colour) */
+    int calib_registered;          /* -1 unknown, 0 needs registration, 1 registered */
+    int have_T_cd;
+    double T_cd[16], T_eff_cam[16];
+    int have_T_eff;
+    float *reg_buf;
+    size_t reg_cap;
+
+    sooc_frame_ring *ring;
+    pthread_t cap_thread;
+    int cap_started;
+    atomic_int stop;
+    sooc_status cap_status;
+    char cap_err[512];
+    uint64_t skip_limit;           /* broken frames in a row that end a run without one good frame
+                                      (a looped replay's length; 0 = none) */
+    char last_skip[512];           /* the latest broken frame's message */
+    uint64_t map_skips;            /* frames the mapping thread skipped (size) */
+
+    sooc_kf_policy kf;
+    double T_world_src[16];        /* written by the mapping thread under mu (stats read it) */
+    int world_ready;
+    uint64_t floor_attempts;
+    /* world.floor: estimate: the first posed frames wait here for the support
+     * plane, then are mapped (start-up only; no allocation once mapping runs) */
+    sooc_frame *sup_f;
+    double *sup_T;                 /* their T_src_c */
+    int64_t *sup_tcap;
+    int n_sup, cap_sup;
+    int has_gravity;
+    double gravity[3];             /* world.gravity (source frame, pointing down) */
+
+#if SOOC_NODE_HAVE_TABLE
+    sooc_table_writer *table;
+#endif
+#if SOOC_NODE_HAVE_MAPSTORE
+    sooc_mapstore *store;
+    sooc_sg *sg;                   /* its writes, queued and retried under faults (store_guard.h) */
+    int store_layout_dim;          /* 0: this database keeps no layout latents */
+    int extent_stored;             /* meta "extent" written / read */
+#endif
+    float extent[3];               /* box extent from the database (resume of a mapper without one) */
+    int db_exists;
+    uint64_t model_id;       /* table latent_model_id: FNV-1a 64 of the checkpoint file */
+    char model_id_str[64];   /* map.db model_id: "fnv1a64:<16 hex> bytes:<n>" ("" = injected mapper) */
+
+    sooc_map_entry *prev;          /* start-up only: the map republished at create */
+    size_t n_prev, cap_prev;
+    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc3d_mapper_changed */
+    uint64_t removed[SOOC_MAPPER_CHANGED_MAX];
+    uint64_t kf_seq;               /* keyframe rows written */
+
+    pthread_mutex_t mu;            /* guards st, lat_*, t_start and writes of T_world_src;
+                                      lock order node -> ring (node.h) */
+    sooc_node_stats st;
+    sooc_latency lat_upd, lat_c2t, lat_pub;
+    double t_start, t_last_stats;
+
+    sooc_frame work, pre;
+};
+
+/* Publish `chg` / `rem`: one table batch and one SQLite transaction (changed
+ * entries, removed ids, the active layout block, the id counter and a keyframe
+ * row). Its cost depends on nc + nr, not on the map size. `kf` = NULL for the
+ * start-up batch (no keyframe row); to_db = 0 when the entries came from the
+ * database itself (resume). */
+typedef struct kf_info {
+    int64_t stamp_ns;
+    const double *T_wc;
+    int64_t t_cap_mono;
+} kf_info;
+
+sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem);
+/* Caller holds n->mu. */
+void sooc__node_stats_refresh(sooc_node *n);
+
+/* publish.c */
+sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
+                               int clear_first, int to_db, const kf_info *kf);
+sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap);
+/* map.db: open (a new database when absent) and resume its map into the
+ * mapper (*resumed = 1), or nothing without map.db. */
+sooc_status sooc__node_store_resume(sooc_node *n, int *resumed);
+#if SOOC_NODE_HAVE_MAPSTORE
+sooc_status sooc__node_store_world(sooc_node *n, const sooc_map_frame *mf);
+#endif
+sooc_status sooc__node_store_retry(sooc_node *n, int force);
+sooc_status sooc__node_store_final(sooc_node *n, sooc_status result);
+
+/* skip.c */
+sooc_status sooc__node_capture_skip(sooc_node *n, sooc_status st);
+int sooc__node_frame_size_skip(sooc_node *n, const sooc_frame *f, sooc_status *result);
+
+#endif
