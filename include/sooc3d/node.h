@@ -177,6 +177,13 @@ void sooc_node_config_default(sooc_node_config *c);
 sooc_status sooc_node_config_load(sooc_node_config *c, const char *path);
 /* Same from a string (`name` is used in messages). */
 sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t n, const char *name);
+/* The same, then the overrides sets[0..n_sets) in order, each
+ * "SECTION.KEY=VALUE" read as the file's `SECTION: {KEY: VALUE}` would be
+ * (the same keys, ranges and messages, named "--set ..."), before the
+ * checks across keys (`sooc3d node --set`). */
+sooc_status sooc_node_config_load_sets(sooc_node_config *c, const char *path, const char *const *sets, int n_sets);
+sooc_status sooc_node_config_parse_sets(sooc_node_config *c, const char *text, size_t n, const char *name,
+                                        const char *const *sets, int n_sets);
 /* Look up a sensor parameter (NULL if absent). */
 const char *sooc_node_param_get(const sooc_node_config *c, const char *key);
 /* Write the effective config as YAML text (for the INFO log). snprintf-style:

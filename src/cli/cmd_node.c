@@ -1,4 +1,4 @@
-/* sooc3d node <launch.yaml> [--max-keyframes N] [--print-table] [--log-level L]
+/* sooc3d node <launch.yaml> [--max-keyframes N] [--print-table] [--log-level L] [--strict] [--set S.K=V]
  *
  * Signals: SIGINT/SIGTERM/SIGHUP/SIGQUIT/SIGUSR1 are blocked before any of
  * our threads exists (so every thread inherits the mask) and collected by a
@@ -40,11 +40,13 @@ static void usage(FILE *f) {
             "  --print-table       print the object table as it fills (also at log level info)\n"
             "  --quiet             do not print the table even at log level info\n"
             "  --log-level L       debug|info|warn|error (overrides log.level)\n"
+            "  --set S.K=V         override key K of section S of the launch file (repeatable), e.g.\n"
+            "                      --set shm.name=table --set map.resume=true --set model.path=M\n"
             "  --print-config      print the effective configuration and exit\n"
-            "  -h, --help          this help\n"
-            "\n"
             "  --strict            stop at the first broken input frame (pipeline.strict;\n"
             "                      otherwise it is skipped, counted and named)\n"
+            "  -h, --help          this help\n"
+            "\n"
             "Signals: SIGINT/SIGTERM finish the current keyframe, commit and exit 0;\n"
             "a second one exits at once. SIGUSR1 cycles the log level.\n"
             "Launch file keys: docs/node.md. Examples: launch/*.yaml.\n");
@@ -152,7 +154,8 @@ int sooc_cmd_node(int argc, char **argv) {
         usage(stdout);
         return 0;
     }
-    const char *launch = NULL, *level = NULL;
+    const char *launch = NULL, *level = NULL, *sets[64];
+    int n_sets = 0;
     uint64_t max_kf = 0;
     int print_table = 0, quiet = 0, print_config = 0, strict = 0;
     for (int i = 1; i < argc; i++) {
@@ -170,11 +173,17 @@ int sooc_cmd_node(int argc, char **argv) {
             quiet = 1;
         } else if (!strcmp(argv[i], "--print-config")) {
             print_config = 1;
-        } else if (!strcmp(argv[i], "--log-level") && i + 1 < argc) {
-            level = argv[++i];
-        } else if (argv[i][0] == '-') {
         } else if (!strcmp(argv[i], "--strict")) {
             strict = 1;
+        } else if (!strcmp(argv[i], "--log-level") && i + 1 < argc) {
+            level = argv[++i];
+        } else if (!strcmp(argv[i], "--set") && i + 1 < argc) {
+            if (n_sets == (int)(sizeof sets / sizeof *sets)) {
+                fprintf(stderr, "sooc3d node: at most %d --set\n", n_sets);
+                return 2;
+            }
+            sets[n_sets++] = argv[++i];
+        } else if (argv[i][0] == '-') {
             fprintf(stderr, "sooc3d node: unknown option '%s'\n", argv[i]);
             usage(stderr);
             return 2;
@@ -190,7 +199,7 @@ int sooc_cmd_node(int argc, char **argv) {
         return 2;
     }
     sooc_node_config cfg;
-    sooc_status st = sooc_node_config_load(&cfg, launch);
+    sooc_status st = sooc_node_config_load_sets(&cfg, launch, sets, n_sets);
     if (st) return sooc_cli_fail("node", st);
     if (level && sooc_log_level_parse(level, &cfg.log_level)) {
         fprintf(stderr, "sooc3d node: --log-level: expected debug|info|warn|error, got '%s'\n", level);

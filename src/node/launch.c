@@ -626,7 +626,33 @@ static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t
                    "unknown key (known: sensor, pose, odometry, calib, model, keyframe, shm, map, world, pipeline, log)");
 }
 
+/* One --set override, "section.key=value", read as the launch file's own
+ * `section: {key: value}` would be (the same keys, checks and messages). */
+static sooc_status apply_set(sooc_node_config *c, const char *set) {
+    const char *dot = strchr(set, '.'), *eq = strchr(set, '=');
+    if (!dot || !eq || dot > eq || dot == set || eq == dot + 1)
+        return sooc_seterr(SOOC_EINVAL, "--set '%s': expected SECTION.KEY=VALUE (e.g. shm.name=table)", set);
+    char text[4096], name[600];
+    int w = snprintf(text, sizeof text, "%.*s:\n  %.*s: %s\n", (int)(dot - set), set, (int)(eq - dot - 1), dot + 1,
+                     eq + 1);
+    if (w < 0 || (size_t)w >= sizeof text) return sooc_seterr(SOOC_EINVAL, "--set '%.64s...': too long", set);
+    snprintf(name, sizeof name, "--set %s", set);
+    sooc_ydoc d;
+    sooc_status st = sooc_ydoc_parse(&d, text, (size_t)w, name);
+    if (st) return st;
+    yaml_node_t *root = sooc_ydoc_root(&d);
+    pctx p = {&d, name, NULL};
+    st = root ? walk_map(&p, root, "override", k_root, c) : sooc_seterr(SOOC_EINVAL, "%s: empty", name);
+    sooc_ydoc_free(&d);
+    return st;
+}
+
 sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t n, const char *name) {
+    return sooc_node_config_parse_sets(c, text, n, name, NULL, 0);
+}
+
+sooc_status sooc_node_config_parse_sets(sooc_node_config *c, const char *text, size_t n, const char *name,
+                                        const char *const *sets, int n_sets) {
     sooc_node_config_default(c);
     snprintf(c->path, sizeof c->path, "%s", name);
     sooc_ydoc d;
@@ -636,6 +662,7 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
     pctx p = {&d, name, NULL};
     if (!root) st = sooc_seterr(SOOC_EINVAL, "%s: empty launch file", name);
     else st = walk_map(&p, root, "launch file", k_root, c);
+    for (int i = 0; i < n_sets && !st; i++) st = apply_set(c, sets[i]);
     if (!st && !c->driver[0])
         st = sooc_seterr(SOOC_EINVAL, "%s: sensor: missing section (sensor.driver is required)", name);
     int is_log = !strcmp(c->driver, "rosbag") || !strcmp(c->driver, "mcap");
@@ -682,6 +709,10 @@ sooc_status sooc_node_config_parse(sooc_node_config *c, const char *text, size_t
 }
 
 sooc_status sooc_node_config_load(sooc_node_config *c, const char *path) {
+    return sooc_node_config_load_sets(c, path, NULL, 0);
+}
+
+sooc_status sooc_node_config_load_sets(sooc_node_config *c, const char *path, const char *const *sets, int n_sets) {
     void *buf = NULL;
     size_t n = 0;
     sooc_status st = sooc_file_read_all(path, 1 << 20, &buf, &n);
@@ -689,7 +720,7 @@ sooc_status sooc_node_config_load(sooc_node_config *c, const char *path) {
         sooc_node_config_default(c);
         return sooc_adderr(st, "launch file %s", path);
     }
-    st = sooc_node_config_parse(c, buf, n, path);
+    st = sooc_node_config_parse_sets(c, buf, n, path, sets, n_sets);
     sooc_free(buf);
     return st;
 }

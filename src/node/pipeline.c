@@ -355,18 +355,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             }
             n->own_mapper = 1;
             /* the model's identity is its checkpoint's content, not its path */
-            void *buf = NULL;
-            size_t nb = 0;
-            if (sooc_file_read_all(c->model_path, (size_t)1 << 31, &buf, &nb) == SOOC_OK) {
-                /* 64-bit FNV-1a of every byte. Not a CRC32 of the file: a checkpoint
-                 * ends with its own CRC32, which makes that of the whole file a constant */
-                uint64_t h = 0xcbf29ce484222325ull;
-                for (size_t i = 0; i < nb; i++) h = (h ^ ((const unsigned char *)buf)[i]) * 0x100000001b3ull;
-                sooc_free(buf);
-                n->model_id = h;
-                snprintf(n->model_id_str, sizeof n->model_id_str, "fnv1a64:%016llx bytes:%zu",
-                         (unsigned long long)h, nb);
-            } else { /* a mapper that does not read model.path as a file (tests): no model check */
+            if (sooc_file_id(c->model_path, n->model_id_str, sizeof n->model_id_str, &n->model_id)) {
+                /* a mapper that does not read model.path as a file (tests): no model check */
+                n->model_id_str[0] = 0;
                 sooc_log(SOOC_LOG_DEBUG, "%s: model.path %s: %s: map.db model_id not set", c->path, c->model_path,
                          sooc_errmsg());
             }
@@ -474,6 +465,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
 #else
         sooc_log(SOOC_LOG_WARN, "%s: shm.name set but the table module is not built in", c->path);
 #endif
+    } else {
+        sooc_log(SOOC_LOG_WARN, "%s: no shm.name: no object table for planners, the map goes to map.db only "
+                                "(set shm.name, or --set shm.name=NAME)", c->path);
     }
     /* republish the resumed map (and clear leftovers of an earlier run); a map
      * preloaded by the caller also goes to a new database */

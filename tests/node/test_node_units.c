@@ -165,11 +165,35 @@ static void test_launch(void) {
     CHECK(sooc_node_config_load(&c, "/nonexistent/launch.yaml") != SOOC_OK);
     CHECK(strstr(sooc_errmsg(), "/nonexistent/launch.yaml") != NULL);
 
+    /* --set overrides: the file's keys, checks and messages; later ones win; checks across keys after them */
+    {
+        const char *sets[] = {"shm.name=other", "map.resume=false", "model.path=y.bin", "world.up=[0, 0, 1]",
+                              "shm.name=last"};
+        CHECK_OK(sooc_node_config_parse_sets(&c, GOOD, strlen(GOOD), "good.yaml", sets, 5));
+        CHECK(!strcmp(c.shm_name, "last") && c.map_resume == 0 && !strcmp(c.model_path, "y.bin"));
+        CHECK(c.up[2] == 1 && c.up[0] == 0 && c.up[1] == 0);
+        CHECK(c.shm_capacity == 256);   /* the file's other keys stay */
+        const char *bad[][3] = {{"shm", "--set 'shm'", "SECTION.KEY=VALUE"},
+                                {"map.resume=maybe", "--set map.resume=maybe", "expected true or false"},
+                                {"model.colour=red", "model.colour", "unknown key"},
+                                {"nosection.key=1", "nosection", "unknown key"},
+                                {"model.height=0", "model.width/height", "both or neither"}};
+        for (int i = 0; i < 5; i++) {
+            const char *one[1] = {bad[i][0]};
+            sooc_status st = sooc_node_config_parse_sets(&c, GOOD, strlen(GOOD), "good.yaml", one, 1);
+            CHECK_MSG(st != SOOC_OK, "--set %s accepted", bad[i][0]);
+            CHECK_MSG(strstr(sooc_errmsg(), bad[i][1]) && strstr(sooc_errmsg(), bad[i][2]), "--set %s: '%s'",
+                      bad[i][0], sooc_errmsg());
+        }
+    }
+
     /* every shipped launch file parses */
     static const char *files[] = {"launch/replay_demo.yaml",  "launch/tum_replay.yaml",
                                   "launch/xtion_openni2.yaml", "launch/kinect_freenect.yaml",
                                   "launch/d435_v4l2.yaml",     "launch/fakenect_ci.yaml",
-                                  "launch/arm_socket_pose.yaml"};
+                                  "launch/arm_socket_pose.yaml", "launch/7scenes_replay.yaml",
+                                  "launch/7scenes_odometry.yaml", "launch/labelfusion_replay.yaml",
+                                  "launch/tabletop_geometric.yaml"};
     for (size_t i = 0; i < sizeof files / sizeof *files; i++) {
         sooc_status st = sooc_node_config_load(&c, files[i]);
         CHECK_MSG(st == SOOC_OK, "%s: %s", files[i], sooc_errmsg());
