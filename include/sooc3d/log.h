@@ -244,7 +244,9 @@ typedef struct sooc_logseq_params {
     const char *color_topic;   /* NULL/"" = the one colour image topic (an error naming the
                                   candidates when there are several)                       */
     const char *depth_topic;   /* NULL/"" = the one depth image topic                      */
-    const char *pose_parent;   /* pose from TF: the world frame; NULL/"" = no pose         */
+    const char *pose_parent;   /* pose from TF: the world frame; NULL/"" = no pose; "auto" =
+                                  the root of the camera frame's TF tree (no pose when the
+                                  camera frame is not in the TF)                          */
     const char *pose_child;    /* the camera frame; NULL/"" = the colour image's frame_id  */
     double pair_tol_s;         /* colour-depth pairing by log time (default 0.02 s)        */
     double pose_tol_s;         /* TF lookup: the nearest transform on each edge may be
@@ -308,9 +310,9 @@ sooc_logfile *sooc_logseq_file(sooc_logseq *s);   /* borrowed */
  * sooc_seq_open. For a log, sp gives calib_path (its K replaces the colour
  * CameraInfo's, and is needed when the log has none), depth_scale (over
  * lp's), max_depth, and max_dt (the pairing tolerance when lp is NULL);
- * sp->format must be AUTO. lp may be NULL (defaults). A log in which no
- * colour image pairs with a depth image fails with SOOC_EFORMAT naming the
- * nearest gap. */
+ * sp->format must be AUTO. lp NULL: the defaults with pose_parent "auto".
+ * A log in which no colour image pairs with a depth image fails with
+ * SOOC_EFORMAT naming the nearest gap. */
 sooc_status sooc_log_seq_open(sooc_seq **out, const char *path, const sooc_seq_open_params *sp,
                               const sooc_logseq_params *lp);
 

@@ -21,7 +21,8 @@ static const char *const help =
     "  --color-topic T     colour image topic (default: the one there is)\n"
     "  --depth-topic T     depth image topic (default: the one there is)\n"
     "  --pair-tol-ms MS    colour-depth pairing tolerance on log time (20)\n"
-    "  --pose-parent F     pose from TF: the world frame (default: no pose)\n"
+    "  --pose-parent F     pose from TF: the world frame (default auto: the root of the\n"
+    "                      camera frame's TF tree, as infer/eval/render/odometry read it)\n"
     "  --pose-child F      the camera frame (default: the colour image's frame_id)\n"
     "  --depth-scale S     metres per 16-bit depth unit (default: the log's, else 0.001)\n"
     "  --check             decompress every chunk and check every CRC\n";
@@ -108,6 +109,7 @@ static int cmd_info(int argc, char **argv) {
     int check = 0;
     sooc_logseq_params lp;
     sooc_logseq_params_default(&lp);
+    lp.pose_parent = "auto";   /* as the commands read a log */
     double tol_ms = 20;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];

@@ -190,7 +190,7 @@ static sooc_status pick(sooc_logseq *s, int kind, const char *named, ls_stream *
     return sooc_seterr(SOOC_EINVAL, "%s: %d %s image topics, name one with %s: %s", path, found, what, key, list);
 }
 
-/* The CameraInfo of the stream's size whose topic shares the most with the image topic. */
+/* The CameraInfo of the stream's size in the image's frame whose topic shares the most with the image topic. */
 static void find_info(sooc_logseq *s, ls_stream *t) {
     int best = -1;
     for (int c = 0; c < sooc_logfile_channel_count(s->lf); c++) {
@@ -202,7 +202,11 @@ static void find_info(sooc_logseq *s, ls_stream *t) {
         sooc_ros_caminfo ci;
         if (sooc_logfile_read(s->lf, pos[0], &m) || sooc_ros_decode_caminfo(m.data, m.size, ch->enc, &ci)) continue;
         if (ci.width != t->pub.width || ci.height != t->pub.height || ci.K[0] <= 0 || ci.K[4] <= 0) continue;
-        int score = common_prefix(ch->topic, t->pub.topic);
+        /* the image's frame_id first, then the topic's path, then its characters */
+        size_t nc = 0;
+        while (ch->topic[nc] && ch->topic[nc] == t->pub.topic[nc]) nc++;
+        int score = 100000 * !strcmp(ci.header.frame_id, t->pub.frame_id) + 1000 * common_prefix(ch->topic, t->pub.topic) +
+                    (int)(nc < 999 ? nc : 999);
         if (score <= best) continue;
         best = score;
         sooc_intrinsics *K = &t->pub.K;
@@ -434,9 +438,14 @@ sooc_status sooc_logseq_open(sooc_logseq **out, const char *path, const sooc_log
     d->n_frames = s->n;
     if ((st = settle_registration(s))) goto fail;
     /* pose */
-    if (s->p.pose_parent && *s->p.pose_parent) {
-        const char *child = s->p.pose_child && *s->p.pose_child ? s->p.pose_child : s->col.pub.frame_id;
-        snprintf(d->pose_parent, sizeof d->pose_parent, "%s", s->p.pose_parent);
+    const char *parent = s->p.pose_parent;
+    const char *child = s->p.pose_child && *s->p.pose_child ? s->p.pose_child : s->col.pub.frame_id;
+    if (parent && !strcmp(parent, "auto")) {
+        parent = logs_tf_root(s->tf, child);
+        if (parent && !strcmp(parent, child[0] == '/' ? child + 1 : child)) parent = NULL;
+    }
+    if (parent && *parent) {
+        snprintf(d->pose_parent, sizeof d->pose_parent, "%s", parent);
         snprintf(d->pose_child, sizeof d->pose_child, "%s", child);
         char list[512];
         logs_tf_frame_list(s->tf, list, sizeof list);

@@ -27,6 +27,9 @@ void logs_tf_frame_list(const logs_tf *tf, char *buf, size_t cap);
  * the time otherwise. */
 sooc_status logs_tf_lookup(const logs_tf *tf, const char *parent, const char *child, int64_t t, int64_t tol_ns,
                            double T[16]);
+/* The root of the tree that holds frame (frame itself when it has no
+ * parent), NULL when the frame is not in the buffer. */
+const char *logs_tf_root(const logs_tf *tf, const char *frame);
 /* 1 when every edge between parent and child is static. */
 int logs_tf_is_static(const logs_tf *tf, const char *parent, const char *child);
 

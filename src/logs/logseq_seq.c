@@ -25,6 +25,7 @@ sooc_status sooc_log_seq_open(sooc_seq **out, const char *path, const sooc_seq_o
     if (lpp) lp = *lpp;
     else {
         sooc_logseq_params_default(&lp);
+        lp.pose_parent = "auto";
         if (sp.max_dt > 0) lp.pair_tol_s = sp.max_dt;
     }
     if (sp.depth_scale > 0) lp.depth_scale = sp.depth_scale;

@@ -409,13 +409,14 @@ sooc_status sooc_mcap_writer_close(sooc_mcap_writer *w) {
     }
     if (!st) {
         b->size = 0;
-        size_t at = rec_begin(b, 0x02);
+        static const uint8_t op = 0x02;
+        b_put(b, &op, 1);
+        b_int(b, 20, 8);   /* the footer's fixed length: the CRC covers it */
         b_int(b, summary_start, 8);
         b_int(b, offsets_start, 8);
         if (!b->oom && w->summing) w->sum_crc = sooc_crc32(w->sum_crc, b->data, b->size);
         w->summing = 0;
         b_int(b, summary_start ? w->sum_crc : 0, 4);
-        rec_end(b, at);
         b_put(b, MAGIC, 8);
         st = out_buf(w, b);
     }

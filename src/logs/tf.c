@@ -211,6 +211,13 @@ sooc_status logs_tf_lookup(const logs_tf *tf, const char *parent, const char *ch
     return SOOC_OK;
 }
 
+const char *logs_tf_root(const logs_tf *tf, const char *frame) {
+    int i = find(tf, frame);
+    if (i < 0) return NULL;
+    while (tf->f[i].parent >= 0) i = tf->f[i].parent;
+    return tf->f[i].name;
+}
+
 int logs_tf_is_static(const logs_tf *tf, const char *parent, const char *child) {
     int p = find(tf, parent), c = find(tf, child);
     int a = p >= 0 && c >= 0 ? common_ancestor(tf, p, c) : -1;
