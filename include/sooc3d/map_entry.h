@@ -68,6 +68,18 @@ typedef struct sooc_map_entry {
  *   entry does not carry it; -1 = not registered by a view of this session,
  *   where 0 would claim view 0). The extent is dropped. */
 void sooc_map_entry_from_cogmap(const sooc_cogmap_entry *c, const float extent[3], sooc_map_entry *e);
+
+/* The uncertainty a planner gets, the same in the shm table, `sooc3d map
+ * list` and the CSV / JSON export (docs/shm.md "How each field is computed"):
+ * the calibrated spreads of e->geom when computed (cov_xz, var_yaw; var_yaw
+ * NaN for a symmetric shape), else the posterior's sigma_t^2 (x and z, no
+ * correlation) and sigma_yaw^2. cov = {xx, xz, zz, yaw yaw}; returns 1 when
+ * the calibrated spreads were used. */
+int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]);
+
+/* The box-quality words of geom.flags for people and exports: "tight",
+ * "tight,clipped", "empty", "faint", "not computed", ... (buf >= 48). */
+const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, size_t cap);
 void sooc_map_entry_to_cogmap(const sooc_map_entry *e, sooc_cogmap_entry *c);
 
 #ifdef __cplusplus

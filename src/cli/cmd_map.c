@@ -1,6 +1,7 @@
 /* sooc3d map: list, query, export or describe a stored map (SQLite, see
  * include/sooc3d/mapstore.h). Read-only: never modifies the database. */
 #include "cli.h"
+#include "sooc3d/map_entry.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/mesh.h"
 
@@ -22,10 +23,14 @@ static void map_usage(FILE *f) {
             "World frame: +y up, floor y = 0; an object is (x, z, yaw) on the floor.\n"
             "\n"
             "  list     one line per object, ordered by id: id x z (m) yaw (rad) sigma_t (m)\n"
-            "           sigma_yaw (rad) presence obs_count first_seen_ns last_seen_ns\n"
+            "           sigma_yaw (rad) presence obs_count first_seen_ns last_seen_ns, its box (x*y*z m),\n"
+            "           height above the floor (m) and box quality (tight, clipped, empty, faint, symmetric,\n"
+            "           not computed). sigma_t / sigma_yaw are the uncertainty the shm table gives a planner:\n"
+            "           the calibrated spreads when computed, else the posterior's (docs/shm.md)\n"
             "  query    the same for objects whose (x, z) lies in the closed box [X0,X1] x [Z0,Z1]\n"
             "           (R*Tree lookup)\n"
-            "  export   --csv FILE   header + one row per object (incl. what_mu / what_logvar)\n"
+            "  export   --csv FILE   header + one row per object (incl. what_mu / what_logvar, the\n"
+            "                        covariance, box, height and box quality)\n"
             "           --json FILE  {\"info\": {...}, \"objects\": [...]}\n"
             "           --ply FILE   ASCII PLY point cloud, one vertex per object at (x, 0, z),\n"
             "                        coloured by a hash of its id, with properties id, yaw,\n"
@@ -49,6 +54,8 @@ typedef struct out_ctx {
     int fmt;      /* 0 text, 1 csv, 2 json, 3 ply */
     size_t n, limit;
     int first;
+    sooc_mapstore *s;   /* for each entry's stored box and spreads */
+    sooc_status st;     /* a failed geometry read stops the walk */
 } out_ctx;
 
 static float sigmoidf(float a) { return 1.0f / (1.0f + expf(-a)); }
@@ -65,12 +72,28 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
     out_ctx *c = u;
     if (c->limit && c->n >= c->limit) return 1;
     c->n++;
-    double st = exp(0.5 * e->rho_t), sy = exp(0.5 * e->rho_theta);
+    /* the entry as a planner gets it: the stored box and spreads (one uncertainty, map_entry.h) */
+    float ext[3] = {0, 0, 0};
+    sooc_map_geometry g;
+    memset(&g, 0, sizeof g);
+    int found = 0;
+    if (c->s && (c->st = sooc_mapstore_geom_get(c->s, e->id, ext, &g, &found))) return 1;
+    sooc_map_entry me;
+    sooc_map_entry_from_cogmap(e, found ? ext : NULL, &me);
+    if (found) me.geom = g;
+    double cov[4];
+    sooc_map_entry_planner_cov(&me, cov);
+    double st = sqrt(0.5 * (cov[0] + cov[2])), sy = sqrt(cov[3]);   /* NaN yaw: symmetric */
+    double h = (g.flags & SOOC_GEOM_TIGHT) ? 2.0 * g.centre[1] : (double)me.extent[1];   /* top above the floor */
+    char q[64];
+    sooc_map_entry_box_quality(&g, q, sizeof q);
     float p = sigmoidf(e->pres_logit);
     switch (c->fmt) {
     case 0:
-        fprintf(c->f, "%8llu %10.4f %10.4f %8.4f %8.4f %8.4f %7.4f %6u %20lld %20lld\n", (unsigned long long)e->id, e->X,
+        fprintf(c->f, "%8llu %10.4f %10.4f %8.4f %8.4f %8.4f %7.4f %6u %20lld %20lld", (unsigned long long)e->id, e->X,
                 e->Z, e->Theta, st, sy, p, e->obs_count, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
+        if (found) fprintf(c->f, "  %5.3fx%5.3fx%5.3f %6.3f %s\n", me.extent[0], me.extent[1], me.extent[2], h, q);
+        else fprintf(c->f, "  %17s %6s %s\n", "-", "-", q);
         break;
     case 1:
         fprintf(c->f, "%llu,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u,%d,%lld,%lld,%d,", (unsigned long long)e->id,
@@ -79,7 +102,8 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? " " : "\"", e->what_mu[i]);
         fprintf(c->f, "\",");
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? " " : "\"", e->what_logvar[i]);
-        fprintf(c->f, "\"\n");
+        fprintf(c->f, "\",%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%s\n", cov[0], cov[1], cov[2], cov[3], me.extent[0],
+                me.extent[1], me.extent[2], h, q);
         break;
     case 2:
         fprintf(c->f,
@@ -91,7 +115,14 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_mu[i]);
         fprintf(c->f, "], \"what_logvar\": [");
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_logvar[i]);
-        fprintf(c->f, "]}");
+        fprintf(c->f, "], \"cov_xz\": [%.9g, %.9g, %.9g], \"var_yaw\": ", cov[0], cov[1], cov[2]);
+        if (isfinite(cov[3])) fprintf(c->f, "%.9g", cov[3]);
+        else fprintf(c->f, "null");
+        if (found)
+            fprintf(c->f, ", \"extent\": [%.9g, %.9g, %.9g], \"height\": %.9g", me.extent[0], me.extent[1],
+                    me.extent[2], h);
+        else fprintf(c->f, ", \"extent\": null, \"height\": null");
+        fprintf(c->f, ", \"box\": \"%s\"}", q);
         c->first = 0;
         break;
     case 3: {
@@ -223,12 +254,13 @@ int sooc_cmd_map(int argc, char **argv) {
         sooc_mapstore_close(s);
         return 0;
     }
-    out_ctx c = {stdout, 0, 0, limit, 1};
+    out_ctx c = {stdout, 0, 0, limit, 1, s, SOOC_OK};
     if (is_list || is_query) {
-        printf("# %8s %10s %10s %8s %8s %8s %7s %6s %20s %20s\n", "id", "x", "z", "yaw", "sigma_t", "sigma_yaw",
-               "pres", "obs", "first_seen_ns", "last_seen_ns");
+        printf("# %8s %10s %10s %8s %8s %8s %7s %6s %20s %20s  %17s %6s %s\n", "id", "x", "z", "yaw", "sigma_t",
+               "sigma_yaw", "pres", "obs", "first_seen_ns", "last_seen_ns", "box x*y*z (m)", "height", "box");
         st = is_query ? sooc_mapstore_query_box(s, box[0], box[1], box[2], box[3], print_cb, &c)
                       : sooc_mapstore_foreach(s, print_cb, &c);
+        if (!st && c.st) st = c.st;
         if (st) rc = sooc_cli_fail("map", st);
         else fprintf(stderr, "%zu object(s)%s\n", c.n, is_query ? " in the box" : "");
         sooc_mapstore_close(s);
@@ -257,7 +289,8 @@ int sooc_cmd_map(int argc, char **argv) {
                     n);
     } else if (fmt == 1) {
         fprintf(f, "id,x,z,yaw,sigma_t,sigma_yaw,rho_t,rho_yaw,presence,obs_count,last_view,first_seen_ns,"
-                   "last_seen_ns,dim,what_mu,what_logvar\n");
+                   "last_seen_ns,dim,what_mu,what_logvar,cov_xx,cov_xz,cov_zz,var_yaw,extent_x,extent_y,extent_z,"
+                   "height,box\n");
     } else {
         fprintf(f, "{\n  \"info\": {\"database\": ");
         json_str(f, db);
@@ -272,6 +305,7 @@ int sooc_cmd_map(int argc, char **argv) {
     if (!st)
         st = has_box ? sooc_mapstore_query_box(s, box[0], box[1], box[2], box[3], print_cb, &c)
                      : sooc_mapstore_foreach(s, print_cb, &c);
+    if (!st && c.st) st = c.st;
     if (fmt == 2) fprintf(f, "\n  ]\n}\n");
     int werr = ferror(f);
     if (!to_stdout && fclose(f)) werr = 1;

@@ -1,6 +1,8 @@
 /* Map entry <-> cognitive-map entry (sooc3d/map_entry.h). */
 #include "sooc3d/map_entry.h"
 
+#include <stdio.h>
+
 #include <math.h>
 #include <string.h>
 
@@ -41,4 +43,27 @@ void sooc_map_entry_to_cogmap(const sooc_map_entry *e, sooc_cogmap_entry *c) {
     c->last_seen_ns = e->last_seen_ns;
     c->obs_count = e->obs_count ? e->obs_count : 1;
     c->last_view = -1;
+}
+
+int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]) {
+    const sooc_map_geometry *g = &e->geom;
+    if (g->cov_xz[0] > 0 && g->cov_xz[2] > 0) {
+        cov[0] = g->cov_xz[0], cov[1] = g->cov_xz[1], cov[2] = g->cov_xz[2], cov[3] = g->var_yaw;
+        return 1;
+    }
+    cov[0] = cov[2] = e->sigma_t * e->sigma_t, cov[1] = 0;
+    cov[3] = e->sigma_yaw * e->sigma_yaw;
+    return 0;
+}
+
+const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, size_t cap) {
+    static const struct { uint32_t bit; const char *word; } w[] = {
+        {SOOC_GEOM_TIGHT, "tight"}, {SOOC_GEOM_EMPTY, "empty"}, {SOOC_GEOM_CLIPPED, "clipped"},
+        {SOOC_GEOM_FAINT, "faint"}, {SOOC_GEOM_SYMMETRIC, "symmetric"}};
+    size_t n = 0;
+    if (cap) buf[0] = 0;
+    for (size_t i = 0; i < sizeof w / sizeof *w; i++)
+        if ((g->flags & w[i].bit) && n < cap) n += (size_t)snprintf(buf + n, cap - n, "%s%s", n ? "," : "", w[i].word);
+    if (!n && cap) snprintf(buf, cap, "not computed");
+    return buf;
 }

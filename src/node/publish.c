@@ -14,19 +14,15 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     r->x = (float)e->x;
     r->z = (float)e->z;
     r->yaw = (float)e->yaw;
-    float vt = (float)(e->sigma_t * e->sigma_t), vy = (float)(e->sigma_yaw * e->sigma_yaw);
-    r->cov_xzyaw[0] = vt;
-    r->cov_xzyaw[3] = vt;
-    r->cov_xzyaw[5] = vy;
+    double cov[4];   /* the one uncertainty of an entry (map_entry.h; NaN yaw: symmetric) */
+    sooc_map_entry_planner_cov(e, cov);
+    r->cov_xzyaw[0] = (float)cov[0];
+    r->cov_xzyaw[1] = (float)cov[1];
+    r->cov_xzyaw[3] = (float)cov[2];
+    r->cov_xzyaw[5] = (float)cov[3];
     r->y = 0.5f * e->extent[1];   /* objects rest on the floor */
     memcpy(r->extent, e->extent, sizeof r->extent);
     const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
-    if (g->cov_xz[0] > 0 && g->cov_xz[2] > 0) {   /* calibrated spreads */
-        r->cov_xzyaw[0] = (float)g->cov_xz[0];
-        r->cov_xzyaw[1] = (float)g->cov_xz[1];
-        r->cov_xzyaw[3] = (float)g->cov_xz[2];
-        r->cov_xzyaw[5] = (float)g->var_yaw;   /* NaN when the shape is symmetric: yaw undefined */
-    }
     if (g->flags & SOOC_GEOM_TIGHT) r->y = g->centre[1];   /* tight box centre above the floor */
     if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
     r->first_seen_ns = e->first_seen_ns;

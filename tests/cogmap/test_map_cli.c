@@ -3,6 +3,7 @@
  * and the error path for a bad file. */
 #include "check.h"
 #include "sooc3d/cogmap.h"
+#include "sooc3d/map_entry.h"
 #include "sooc3d/mapstore.h"
 
 #include <string.h>
@@ -74,6 +75,15 @@ int main(void) {
     sooc_mapstore *s = NULL;
     CHECK_OK(sooc_mapstore_open(&s, db, &sp));
     CHECK_OK(sooc_mapstore_save_map(s, m));
+    {   /* entry 8 has a computed box and calibrated spreads; the others have neither */
+        const float ext[3] = {0.1f, 0.2f, 0.3f};
+        sooc_map_geometry g;
+        memset(&g, 0, sizeof g);
+        g.flags = SOOC_GEOM_TIGHT | SOOC_GEOM_CLIPPED;
+        g.centre[1] = 0.1f;
+        g.cov_xz[0] = 4e-4, g.cov_xz[1] = 1e-4, g.cov_xz[2] = 9e-4, g.var_yaw = 0.01;
+        CHECK_OK(sooc_mapstore_geom_put(s, 8, ext, &g));
+    }
     sooc_mapstore_close(s);
     sooc_cogmap_destroy(m);
 
@@ -107,6 +117,20 @@ int main(void) {
     int rc = run(cmd, out, sizeof out);
     if (rc == 127 || strstr(out, "not found")) fprintf(stderr, "python3 missing: JSON parse check skipped\n");
     else CHECK_MSG(rc == 0 && !strcmp(out, "19 cli-test 1\n"), "json check: %s", out);
+    /* one uncertainty: the list, the CSV and the JSON give the planner's sigma (the calibrated spreads of
+     * entry 8, the posterior's exp(rho / 2) of the others), and the box with its quality */
+    snprintf(cmd, sizeof cmd,
+             "python3 -c \"import json; d={o['id']: o for o in json.load(open('%s'))['objects']}; e=d[8]; f=d[1];"
+             " print('%%.6f %%s %%s %%.3f %%.6f %%s %%s' %% (e['sigma_t'], e['box'], [round(x, 3) for x in e['extent']], e['height'],"
+             " f['sigma_t'], f['box'], f['extent']))\"", f);
+    rc = run(cmd, out, sizeof out);
+    if (rc != 127 && !strstr(out, "not found"))
+        CHECK_MSG(rc == 0 && !strcmp(out, "0.025495 tight,clipped [0.1, 0.2, 0.3] 0.200 0.367879 not computed None\n"),
+                  "json planner fields: %s", out);
+    snprintf(cmd, sizeof cmd, "'%s' map query --box 1.5 1 3.5 1 --db '%s' 2>/dev/null", g_bin, db);
+    CHECK(run(cmd, out, sizeof out) == 0);
+    CHECK_MSG(strstr(out, "0.0255") && strstr(out, "0.100x0.200x0.300") && strstr(out, "tight,clipped") &&
+              strstr(out, "not computed"), "list with a box: %s", out);
 
     snprintf(f, sizeof f, "%s/m.ply", g_dir);
     snprintf(cmd, sizeof cmd, "'%s' map export --ply '%s' --db '%s' 2>/dev/null && cat '%s'", g_bin, f, db, f);
