@@ -14,6 +14,7 @@
  * "passive" and re-executes itself (/proc/self/exe with the same argv, same
  * pid) before doing anything else. An explicit OMP_WAIT_POLICY is kept. */
 #include "cli.h"
+#include "sooc3d/map_entry.h"
 #include "sooc3d/node.h"
 
 #include <errno.h>
@@ -120,9 +121,13 @@ static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc,
     printf("keyframe %llu: %zu changed, %zu removed, %llu objects\n", (unsigned long long)kf, nc, nr,
            (unsigned long long)st->n_objects);
     if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x_m", "z_m", "yaw_deg", "pres", "obs", "sigma_m");
-    for (size_t i = 0; i < nc; i++)
+    for (size_t i = 0; i < nc; i++) {
+        double cov[4];   /* the table's uncertainty (map_entry.h) */
+        sooc_map_entry_planner_cov(&chg[i], cov);
         printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %6.3f\n", (unsigned long long)chg[i].id, chg[i].x, chg[i].z,
-               chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count, chg[i].sigma_t);
+               chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count,
+               sqrt(0.5 * (cov[0] + cov[2])));
+    }
     for (size_t i = 0; i < nr; i++) printf("  %8llu removed\n", (unsigned long long)rem[i]);
     fflush(stdout);
 }
@@ -205,6 +210,7 @@ int sooc_cmd_node(int argc, char **argv) {
         fprintf(stderr, "sooc3d node: --log-level: expected debug|info|warn|error, got '%s'\n", level);
         return 2;
     }
+    if (strict) cfg.strict = 1;
     sooc_log_set_level(cfg.log_level);
     char text[4096];
     sooc_node_config_format(&cfg, text, sizeof text);
@@ -214,7 +220,6 @@ int sooc_cmd_node(int argc, char **argv) {
     }
     sooc_log(SOOC_LOG_INFO, "node: %s, effective config:\n%s", launch, text);
 
-    if (strict) cfg.strict = 1;
     /* Block the signals before any thread exists: all threads inherit the mask. */
     sigctx sc;
     memset(&sc, 0, sizeof sc);
