@@ -14,6 +14,7 @@
 #include "sooc3d/core.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/image.h"
+#include "sooc3d/log.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
 #include "sooc3d/pose.h"
@@ -168,6 +169,76 @@ int main(int argc, char **argv) {
         OK(sooc_gen_scene(&sc, &gp, 0));
         OK(sooc_scene_save(path("scene", "gen0.yaml"), &sc));
         sooc_scene_free(&sc);
+    }
+    /* robot logs: an 8x6 camera (rgb8, 16UC1, CameraInfo, /tf) as MCAP files and its messages */
+    {
+        static uint8_t rgb[8 * 6 * 3];
+        static uint16_t mm[8 * 6];
+        for (int k = 0; k < 48; k++) {
+            rgb[3 * k] = (uint8_t)(5 * k);
+            mm[k] = (uint16_t)(800 + k);
+        }
+        sooc_ros_image im = {{1000, "cam"}, 8, 6, 24, "rgb8", 0, rgb, sizeof rgb};
+        sooc_ros_image dm = {{1000, "cam"}, 8, 6, 16, "16UC1", 0, (uint8_t *)mm, sizeof mm};
+        sooc_ros_caminfo ci;
+        memset(&ci, 0, sizeof ci);
+        ci.header = im.header;
+        ci.width = 8;
+        ci.height = 6;
+        ci.nD = 5;
+        double K[9] = {6, 0, 3.5, 0, 6, 2.5, 0, 0, 1};
+        memcpy(ci.K, K, sizeof K);
+        sooc_ros_transform tf = {{1000, "map"}, "cam", {0.5, 0, 1}, {0, 0, 0, 1}};
+        for (int e = 0; e < 2; e++) {   /* message seeds in both encodings */
+            sooc_msg_encoding enc = e ? SOOC_MSGENC_CDR : SOOC_MSGENC_ROS1;
+            const char *t = e ? "cdrmsg" : "ros1msg";
+            sooc_ros_buf b = {0};
+            OK(sooc_ros_encode_image(&b, enc, &im));
+            OK(sooc_file_write_atomic(path(t, "image.bin"), b.data, b.size));
+            b.size = 0;
+            OK(sooc_ros_encode_caminfo(&b, enc, &ci));
+            OK(sooc_file_write_atomic(path(t, "caminfo.bin"), b.data, b.size));
+            b.size = 0;
+            OK(sooc_ros_encode_tf(&b, enc, &tf, 1));
+            OK(sooc_file_write_atomic(path(t, "tf.bin"), b.data, b.size));
+            sooc_ros_buf_free(&b);
+        }
+        static const char *const comps[3] = {"", "lz4", "zstd"};
+        for (int v = 0; v < 4; v++) {   /* none, lz4, zstd with a summary; zstd streamed */
+            sooc_mcap_writer_params wp;
+            sooc_mcap_writer_params_default(&wp);
+            wp.compression = comps[v < 3 ? v : 2];
+            wp.summary = v < 3;
+            char name[64];
+            snprintf(name, sizeof name, "camera_%s%s.mcap", v < 3 && v ? comps[v] : v ? "zstd" : "none",
+                     v == 3 ? "_streamed" : "");
+            sooc_mcap_writer *w;
+            OK(sooc_mcap_writer_open(&w, path("mcap", name), &wp));
+            const char *types[3] = {"sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "tf2_msgs/msg/TFMessage"};
+            int sc[3], ch[4];
+            for (int k = 0; k < 3; k++) OK(sooc_mcap_writer_schema(w, types[k], "ros2msg", "", 0, &sc[k]));
+            OK(sooc_mcap_writer_channel(w, sc[0], "/color", "cdr", &ch[0]));
+            OK(sooc_mcap_writer_channel(w, sc[0], "/depth", "cdr", &ch[1]));
+            OK(sooc_mcap_writer_channel(w, sc[1], "/camera_info", "cdr", &ch[2]));
+            OK(sooc_mcap_writer_channel(w, sc[2], "/tf", "cdr", &ch[3]));
+            sooc_ros_buf b = {0};
+            for (int f = 0; f < 2; f++) {
+                b.size = 0;
+                OK(sooc_ros_encode_tf(&b, SOOC_MSGENC_CDR, &tf, 1));
+                OK(sooc_mcap_writer_message(w, ch[3], 1000 + f, 1000 + f, b.data, b.size));
+                b.size = 0;
+                OK(sooc_ros_encode_caminfo(&b, SOOC_MSGENC_CDR, &ci));
+                OK(sooc_mcap_writer_message(w, ch[2], 1000 + f, 1000 + f, b.data, b.size));
+                b.size = 0;
+                OK(sooc_ros_encode_image(&b, SOOC_MSGENC_CDR, &im));
+                OK(sooc_mcap_writer_message(w, ch[0], 1000 + f, 1000 + f, b.data, b.size));
+                b.size = 0;
+                OK(sooc_ros_encode_image(&b, SOOC_MSGENC_CDR, &dm));
+                OK(sooc_mcap_writer_message(w, ch[1], 1000 + f, 1000 + f, b.data, b.size));
+            }
+            sooc_ros_buf_free(&b);
+            OK(sooc_mcap_writer_close(w));
+        }
     }
     printf("seeds written to %s\n", out_dir);
     return 0;

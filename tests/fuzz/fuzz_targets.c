@@ -16,6 +16,7 @@
 #include "sooc3d/cogmap.h"
 #include "sooc3d/core.h"
 #include "sooc3d/image.h"
+#include "sooc3d/log.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
 #include "sooc3d/node.h"
@@ -374,6 +375,71 @@ static int fz_jpeg(const uint8_t *d, size_t n) {
     return ok;
 }
 
+/* A ROS bag or MCAP file: open, read every message (at most 10000), check
+ * the CRCs, then the frames path (topics, CameraInfo, TF, up to 3 frames). */
+static int log_file(const uint8_t *d, size_t n, const char *tag) {
+    const char *p = tmp_file(tag, d, n);
+    sooc_logfile *lf = NULL;
+    int ok = sooc_logfile_open(&lf, p) == SOOC_OK;
+    if (ok) {
+        for (int64_t k = 0; k < sooc_logfile_count(lf) && k < 10000; k++) {
+            sooc_logfile_msg m;
+            if (sooc_logfile_read(lf, k, &m) == SOOC_OK && m.size) {
+                volatile uint8_t a = m.data[0] ^ m.data[m.size - 1];
+                (void)a;
+            }
+        }
+        sooc_logfile_verify(lf);
+        sooc_logfile_close(lf);
+        sooc_logseq_params lp;
+        sooc_logseq_params_default(&lp);
+        lp.pose_parent = "auto";
+        sooc_logseq *s = NULL;
+        if (sooc_logseq_open(&s, p, &lp) == SOOC_OK) {
+            sooc_frame f = {0};
+            for (int64_t i = 0; i < sooc_logseq_count(s) && i < 3; i++) sooc_logseq_read(s, i, &f);
+            sooc_frame_free(&f);
+            sooc_logseq_close(s);
+        }
+    }
+    tmp_remove(p);
+    return ok;
+}
+static int fz_rosbag(const uint8_t *d, size_t n) { return log_file(d, n, "log.bag"); }
+static int fz_mcap(const uint8_t *d, size_t n) { return log_file(d, n, "log.mcap"); }
+
+/* One message's bytes decoded as every type the readers know. */
+static int msg_all(const uint8_t *d, size_t n, sooc_msg_encoding enc) {
+    static const char *poses[] = {"geometry_msgs/TransformStamped", "geometry_msgs/Transform", "geometry_msgs/msg/PoseStamped",
+                                  "geometry_msgs/Pose", "nav_msgs/msg/Odometry"};
+    sooc_ros_image im;
+    sooc_ros_cimage ci;
+    sooc_ros_caminfo k;
+    sooc_ros_transform tf[4];
+    int nt, ok = 0;
+    double v;
+    if (sooc_ros_decode_image(d, n, enc, &im) == SOOC_OK) {
+        ok = 1;
+        if (im.size) {
+            volatile uint8_t a = im.data[0] ^ im.data[im.size - 1];
+            (void)a;
+        }
+    }
+    if (sooc_ros_decode_cimage(d, n, enc, &ci) == SOOC_OK) {
+        ok = 1;
+        sooc_image img = {0};
+        if (ci.size && ci.size < (1u << 20)) sooc_jpeg_decode(ci.data, ci.size, "fuzz", &img);
+        sooc_image_free(&img);
+    }
+    ok |= sooc_ros_decode_caminfo(d, n, enc, &k) == SOOC_OK;
+    ok |= sooc_ros_decode_tf(d, n, enc, tf, 4, &nt) == SOOC_OK;
+    for (size_t i = 0; i < sizeof poses / sizeof poses[0]; i++) ok |= sooc_ros_decode_pose(poses[i], d, n, enc, tf) == SOOC_OK;
+    ok |= sooc_ros_decode_float("std_msgs/Float64", d, n, enc, &v) == SOOC_OK;
+    return ok;
+}
+static int fz_ros1msg(const uint8_t *d, size_t n) { return msg_all(d, n, SOOC_MSGENC_ROS1); }
+static int fz_cdrmsg(const uint8_t *d, size_t n) { return msg_all(d, n, SOOC_MSGENC_CDR); }
+
 const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"calib", fz_calib},
     {"scene", fz_scene},
@@ -387,6 +453,10 @@ const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"png", fz_png},
     {"pgm", fz_pgm},
     {"jpeg", fz_jpeg},
+    {"rosbag", fz_rosbag},
+    {"mcap", fz_mcap},
+    {"ros1msg", fz_ros1msg},
+    {"cdrmsg", fz_cdrmsg},
     {NULL, NULL},
 };
 
