@@ -5,11 +5,14 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/statvfs.h>
 
 #include "sooc3d/mapper.h"   /* SOOC_MAPPER_CHANGED_MAX */
 #include "sooc3d/node.h"     /* SOOC_NODE_STORE_*, SOOC_NODE_STORE_ROWS_MAX */
 
 #define SG_META_MAX 4
+#define SG_LOW_SPACE_COMMITS 1000   /* commits after a full disk that each checkpoint and cut the WAL */
+#define SG_LOW_SPACE_BYTES (16.0 * 1024 * 1024)   /* free space below which the WAL is cut after each commit */
 
 typedef struct pend_ent {
     uint64_t id;
@@ -46,10 +49,13 @@ struct sooc_sg {
 
     int state, fault;
     int consecutive;          /* failed attempts in a row */
+    int low_space;            /* commits left in low-space mode (after a full disk): the WAL is cut after each */
     double next_try, since;
     uint64_t failures, recoveries, kf_dropped;
     int64_t committed_ns;
     char reason[600];
+    char dir[1024];           /* the database's folder (free-space checks) */
+    int low_logged;
 };
 
 static uint64_t mix64(uint64_t k) {
@@ -71,6 +77,11 @@ sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, int layout_dim, doub
     g->state = SOOC_NODE_STORE_OK;
     g->committed_ns = INT64_MIN;
     g->since = sooc_seconds();
+    snprintf(g->dir, sizeof g->dir, "%s", sooc_mapstore_path(s));
+    char *slash = strrchr(g->dir, '/');
+    if (slash) *slash = 0;
+    else snprintf(g->dir, sizeof g->dir, ".");
+    if (!g->dir[0]) snprintf(g->dir, sizeof g->dir, "/");
     *out = g;
     return SOOC_OK;
 }
@@ -284,11 +295,23 @@ sooc_status sooc_sg_flush(sooc_sg *g, double now, int force) {
         /* a checkpoint that cuts the WAL file may free the space the next try needs */
         if (sooc_mapstore_checkpoint(g->s, 1)) sooc_clearerr();
     }
+    struct statvfs vs;
+    if (!g->low_space && !statvfs(g->dir, &vs) && (double)vs.f_bavail * (double)vs.f_frsize < SG_LOW_SPACE_BYTES) {
+        g->low_space = SG_LOW_SPACE_COMMITS;
+        if (!g->low_logged++)
+            sooc_log(SOOC_LOG_INFO, "node: map store %s: %.0f KB left on its file system: the WAL is copied into "
+                     "the database and cut after each commit", sooc_mapstore_path(g->s),
+                     (double)vs.f_bavail * (double)vs.f_frsize / 1024.0);
+    }
     size_t n_obj = g->n_pe, n_kf = g->n_rows;
     sooc_status st = write_all(g);
     if (!st) {
         if (n_kf) g->committed_ns = row_at(g, n_kf - 1)->t_ns;
         clear_queue(g);
+        if (g->low_space > 0) {   /* keep the WAL from taking the space the database needs */
+            g->low_space--;
+            if (sooc_mapstore_checkpoint(g->s, 1)) sooc_clearerr();
+        }
         if (g->state == SOOC_NODE_STORE_FAILING) {
             sooc_log(SOOC_LOG_WARN,
                      "node: map store writable again: %s: wrote the %zu objects and %zu keyframes that waited, "
@@ -321,6 +344,7 @@ sooc_status sooc_sg_flush(sooc_sg *g, double now, int force) {
     }
     g->state = SOOC_NODE_STORE_FAILING;
     g->fault = (int)f;
+    if (f == SOOC_MAPSTORE_FAULT_FULL) g->low_space = SG_LOW_SPACE_COMMITS;
     sooc_clearerr();
     return SOOC_OK;
 }

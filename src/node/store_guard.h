@@ -13,7 +13,11 @@
  * Retries follow an exponential backoff (retry_s, doubling up to
  * retry_max_s); the first one that commits writes everything queued and turns
  * the guard OK again. Each change of state is logged once, with the database
- * path and SQLite's reason. A transaction either commits whole or leaves the
+ * path and SQLite's reason. After a full disk, each retry first checkpoints
+ * the WAL into the database and cuts the WAL file; so does each of the next
+ * 1000 commits, and every commit while less than 16 MB are free on the
+ * database's file system, so that the WAL (which SQLite lets grow to about
+ * 4 MB before its own checkpoint) does not hold the space the map needs. A transaction either commits whole or leaves the
  * database as it was, so nothing committed is ever lost. */
 #ifndef SOOC3D_NODE_STORE_GUARD_H
 #define SOOC3D_NODE_STORE_GUARD_H
