@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Follow a sooc3d object table live from Python (standard library only).
 
-    python3 scripts/planner_example.py <name> [--once] [--wait S] [--interval MS] [--rep103]
+    python3 scripts/planner_example.py <name> [--once] [--wait S] [--interval MS] [--rep103 | --source]
 
 Reads /dev/shm/sooc3d.v1.<name> directly with mmap and the seqlock protocol of
 docs/shm.md (no compiled extension, no sooc3d library). Prints the table
@@ -18,6 +18,7 @@ the C API (sooc_table_snapshot, e.g. through ctypes), which uses fences.
 """
 import argparse
 import fcntl
+import math
 import mmap
 import os
 import re
@@ -47,7 +48,7 @@ OFF_MAGIC, OFF_ABI_MAJOR, OFF_HEADER_SIZE, OFF_RECORD_SIZE, OFF_CAPACITY = 0, 8,
 OFF_RECORDS_OFFSET, OFF_SCHEMA_HASH, OFF_FRAME_ID = 24, 32, 40
 OFF_INSTANCE_ID, OFF_WRITER_PID, OFF_HFLAGS, OFF_TABLE_SEQ = 80, 88, 96, 104
 OFF_HEARTBEAT, OFF_HIGH_WATER, OFF_N_OBJECTS = 112, 120, 128
-OFF_STAMP_NS = 272
+OFF_STAMP_NS, OFF_T_SRC_MAP = 272, 280
 FLAG_VALID, FLAG_TENTATIVE, FLAG_REMOVED, FLAG_STATIC = 1, 2, 4, 8
 HFLAG_WRITER_EXITED = 1
 READ_RETRIES = 100
@@ -123,6 +124,7 @@ class Table:
             data = self.mm[HEADER_SIZE:HEADER_SIZE + hw * RECORD_SIZE]  # one memcpy
             n_objects = self.u64(OFF_N_OBJECTS)
             stamp_ns = self.i64(OFF_STAMP_NS)
+            self.t_src_map = struct.unpack_from("<16d", self.mm, OFF_T_SRC_MAP)
             if self.u64(OFF_TABLE_SEQ) != s0:
                 continue
             recs = []
@@ -158,22 +160,47 @@ class Table:
         os.close(self.fd)
 
 
-def print_table(epoch, recs, n_objects, stamp_ns, frame_id, rep103):
+def pose_source(T, r):
+    """A record's box centre and box axes (rows of R: the source's x, y, z; columns: the box's) in the
+    pose source's frame (the robot base, the recording's world): T = the header's T_src_map, row-major.
+    The same as sooc_table_pose_source() in table.h."""
+    m = (r["x"], r["y"], r["z"])
+    p = [T[4 * i] * m[0] + T[4 * i + 1] * m[1] + T[4 * i + 2] * m[2] + T[4 * i + 3] for i in range(3)]
+    c, s = math.cos(r["yaw"]), math.sin(r["yaw"])
+    ry = (c, 0, s, 0, 1, 0, -s, 0, c)
+    R = [T[4 * i] * ry[j] + T[4 * i + 1] * ry[3 + j] + T[4 * i + 2] * ry[6 + j] for i in range(3) for j in range(3)]
+    return p, R
+
+
+def print_table(epoch, recs, n_objects, stamp_ns, frame_id, rep103, T_src_map=None):
     ref = stamp_ns if stamp_ns else time.time_ns()
-    print("epoch %d  objects %d  frame %s" % (epoch, n_objects, frame_id))
-    print("  %10s %4s %9s %9s %8s %8s %5s %8s" % ("id", "flag", "x_ros" if rep103 else "x",
-          "y_ros" if rep103 else "z", "yaw_deg", "presence", "obs", "age_s"))
+    print("epoch %d  objects %d  frame %s" % (epoch, n_objects,
+                                              "pose source (T_src_map)" if T_src_map else frame_id))
+    print("  %10s %4s %9s %9s %9s %8s %8s %5s %8s %8s %17s" % (
+        "id", "flag", "x_ros" if rep103 else "x", "y_ros" if rep103 else "y", "z_ros" if rep103 else "z",
+        "yaw_deg", "presence", "obs", "age_s", "sigma_m", "box x*y*z (m)"))
     for r in recs:
         fl = "".join(c if r["flags"] & b else "-" for c, b in
                      (("V", FLAG_VALID), ("T", FLAG_TENTATIVE), ("R", FLAG_REMOVED),
                       ("S", FLAG_STATIC)))
-        a, b = r["x"], r["z"]
-        if rep103:  # x_ros = -z_map, y_ros = -x_map, z_ros = y_map, yaw unchanged
-            a, b = -r["z"], -r["x"]
+        p, yaw = (r["x"], r["y"], r["z"]), r["yaw"]
+        if T_src_map:  # the box centre in the pose source's frame; yaw: its x axis about the source's
+            # axis nearest to the map's up (+z for a z-up robot base, +y for a y-up world)
+            p, R = pose_source(T_src_map, r)
+            T = T_src_map
+            if abs(T[9]) >= abs(T[5]):
+                yaw = math.copysign(1, T[9]) * math.atan2(R[3], R[0])
+            else:
+                yaw = math.copysign(1, T[5]) * math.atan2(-R[6], R[0])
+        elif rep103:  # x_ros = -z_map, y_ros = -x_map, z_ros = y_map, yaw unchanged
+            p = (-r["z"], -r["x"], r["y"])
         age = (ref - r["last_seen_ns"]) * 1e-9 if r["last_seen_ns"] else 0.0
-        print("  %10d %4s %9.3f %9.3f %8.1f %8.3f %5d %8.2f" % (
-            r["object_id"], fl, a, b, r["yaw"] * 57.29577951308232, r["presence"],
-            r["obs_count"], age))
+        c = r["cov_xzyaw"]
+        sig = math.sqrt(max(0.0, 0.5 * (c[0] + c[3])))
+        e = r["extent"]
+        print("  %10d %4s %9.3f %9.3f %9.3f %8.1f %8.3f %5d %8.2f %8.4f %5.3fx%5.3fx%5.3f" % (
+            r["object_id"], fl, p[0], p[1], p[2], yaw * 57.29577951308232, r["presence"],
+            r["obs_count"], age, sig, e[0], e[1], e[2]))
     sys.stdout.flush()
 
 
@@ -183,7 +210,9 @@ def main():
     ap.add_argument("--once", action="store_true", help="print one snapshot and exit")
     ap.add_argument("--wait", type=float, default=0.0, help="seconds to wait for the table")
     ap.add_argument("--interval", type=float, default=100.0, help="polling period in ms")
-    ap.add_argument("--rep103", action="store_true", help="print poses in a ROS REP-103 frame")
+    ap.add_argument("--rep103", action="store_true", help="print poses in a ROS REP-103 frame of the map")
+    ap.add_argument("--source", action="store_true",
+                    help="print poses in the pose source's frame (the robot base): T_src_map applied")
     args = ap.parse_args()
     stop = []
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
@@ -210,7 +239,8 @@ def main():
             try:
                 epoch, recs, n_obj, stamp = table.snapshot()
                 if epoch != last or args.once:
-                    print_table(epoch, recs, n_obj, stamp, table.frame_id, args.rep103)
+                    print_table(epoch, recs, n_obj, stamp, table.frame_id, args.rep103,
+                                table.t_src_map if args.source else None)
                     last = epoch
                 if args.once:
                     break

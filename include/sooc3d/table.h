@@ -326,6 +326,17 @@ static inline void sooc_table_pose_rep103(const sooc_table_record *r, float *x_r
     }
 }
 
+/* A record's pose in the pose source's frame (the robot base, the
+ * recording's world, the odometry's first camera: whatever gave the node its
+ * camera poses), through the header's T_src_map (sooc_table_info): the box
+ * centre p_src = T_src_map (x, y, z), the box axes R_src = R_src_map R_y(yaw)
+ * (columns: the box's x, y, z axes in the source frame, row-major). cov_src
+ * (optional, row-major 3x3) gets the covariance of the centre in the source
+ * frame: R_src_map C R_src_map^T with C the map-frame covariance of (x, y, z)
+ * from cov_xzyaw (the height's variance 0). */
+SOOC_TABLE_API void sooc_table_pose_source(const double T_src_map[16], const sooc_table_record *r, double p_src[3],
+                                          double R_src[9], double cov_src[9]);
+
 /* --------------------------------------------------------------- reader */
 
 typedef struct sooc_table_reader sooc_table_reader;

@@ -632,9 +632,18 @@ static sooc_status apply_set(sooc_node_config *c, const char *set) {
     const char *dot = strchr(set, '.'), *eq = strchr(set, '=');
     if (!dot || !eq || dot > eq || dot == set || eq == dot + 1)
         return sooc_seterr(SOOC_EINVAL, "--set '%s': expected SECTION.KEY=VALUE (e.g. shm.name=table)", set);
-    char text[4096], name[600];
+    char text[8192], name[600];
     int w = snprintf(text, sizeof text, "%.*s:\n  %.*s: %s\n", (int)(dot - set), set, (int)(eq - dot - 1), dot + 1,
                      eq + 1);
+    if (!strncmp(set, "sensor.", 7) && strncmp(set, "sensor.driver=", 14) && c->driver[0]) {
+        /* the sensor section is read whole (its keys depend on the driver): the file's, with this key set */
+        size_t k = (size_t)(eq - dot - 1), o = (size_t)snprintf(text, sizeof text, "sensor:\n  driver: %s\n", c->driver);
+        for (int i = 0; i < c->n_params && o < sizeof text; i++)
+            if (strlen(c->params[i].key) != k || strncmp(c->params[i].key, dot + 1, k))
+                o += (size_t)snprintf(text + o, sizeof text - o, "  %s: '%s'\n", c->params[i].key, c->params[i].value);
+        if (o < sizeof text) o += (size_t)snprintf(text + o, sizeof text - o, "  %.*s: %s\n", (int)k, dot + 1, eq + 1);
+        w = (int)o;
+    }
     if (w < 0 || (size_t)w >= sizeof text) return sooc_seterr(SOOC_EINVAL, "--set '%.64s...': too long", set);
     snprintf(name, sizeof name, "--set %s", set);
     sooc_ydoc d;

@@ -1,7 +1,7 @@
 /*
  * sooc3d-planner-example: a minimal planner that follows the object table live.
  *
- *   sooc3d-planner-example <name> [--once] [--wait S] [--interval MS] [--rep103]
+ *   sooc3d-planner-example <name> [--once] [--wait S] [--interval MS] [--rep103 | --source]
  *
  * It opens /dev/shm/sooc3d.v1.<name> read-only, takes a consistent snapshot
  * every --interval ms (default 100) and prints the table whenever the epoch
@@ -16,6 +16,7 @@
  */
 #include <sooc3d/table.h>
 
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -49,7 +50,7 @@ static void sleep_ms(long ms) {
 
 static void usage(FILE *f) {
     fprintf(f,
-            "usage: sooc3d-planner-example <name> [--once] [--wait S] [--interval MS] [--rep103]\n"
+            "usage: sooc3d-planner-example <name> [--once] [--wait S] [--interval MS] [--rep103 | --source]\n"
             "  Follow the sooc3d object table /dev/shm/sooc3d.v1.<name> and print it when it\n"
             "  changes. Exits when the writer is gone or on Ctrl-C: status 0 after a clean\n"
             "  close (or --once), 1 if the table cannot be opened, 3 if the writer died or\n"
@@ -57,16 +58,20 @@ static void usage(FILE *f) {
             "  --once         print one snapshot and exit\n"
             "  --wait S       wait up to S seconds for the table to appear (default 0)\n"
             "  --interval MS  polling period (default 100)\n"
-            "  --rep103       print poses in a ROS REP-103 frame (x fwd, y left, z up)\n");
+            "  --rep103       print poses in a ROS REP-103 frame (x fwd, y left, z up) of the map\n"
+            "  --source       print poses in the pose source's frame (the robot base, the recording's\n"
+            "                 world): the header's T_src_map applied (sooc_table_pose_source)\n");
 }
 
 static void print_table(const sooc_table_info *info, const sooc_table_record *recs, uint32_t n,
-                        uint64_t epoch, int rep103) {
+                        uint64_t epoch, int rep103, int source) {
     int64_t ref = info->stamp_ns ? info->stamp_ns : now_real_ns();
     printf("epoch %llu  objects %llu  frame %s  writer pid %lld\n", (unsigned long long)epoch,
-           (unsigned long long)info->n_objects, info->frame_id, (long long)info->writer_pid);
-    printf("  %10s %4s %9s %9s %8s %8s %5s %8s\n", "id", "flag", rep103 ? "x_ros" : "x",
-           rep103 ? "y_ros" : "z", "yaw_deg", "presence", "obs", "age_s");
+           (unsigned long long)info->n_objects, source ? "pose source (T_src_map)" : info->frame_id,
+           (long long)info->writer_pid);
+    printf("  %10s %4s %9s %9s %9s %8s %8s %5s %8s %8s %17s\n", "id", "flag", rep103 ? "x_ros" : "x",
+           rep103 ? "y_ros" : "y", rep103 ? "z_ros" : "z", "yaw_deg", "presence", "obs", "age_s", "sigma_m",
+           "box x*y*z (m)");
     for (uint32_t i = 0; i < n; i++) {
         const sooc_table_record *r = &recs[i];
         char fl[5] = "----";
@@ -74,22 +79,31 @@ static void print_table(const sooc_table_info *info, const sooc_table_record *re
         if (r->flags & SOOC_TABLE_FLAG_TENTATIVE) fl[1] = 'T';
         if (r->flags & SOOC_TABLE_FLAG_REMOVED) fl[2] = 'R';
         if (r->flags & SOOC_TABLE_FLAG_STATIC) fl[3] = 'S';
-        float a = r->x, b = r->z, yaw = r->yaw;
-        if (rep103) {
-            float zr;
-            sooc_table_pose_rep103(r, &a, &b, &zr, &yaw, NULL);
+        double p[3] = {r->x, r->y, r->z}, yaw = r->yaw;
+        if (source) {   /* the box centre in the pose source's frame; yaw: the box x axis about the source's
+                           axis nearest to the map's up (+z for a z-up robot base, +y for a y-up world) */
+            double R[9];
+            const double *T = info->T_src_map;
+            sooc_table_pose_source(T, r, p, R, NULL);
+            if (fabs(T[9]) >= fabs(T[5])) yaw = (T[9] > 0 ? 1 : -1) * atan2(R[3], R[0]);
+            else yaw = (T[5] > 0 ? 1 : -1) * atan2(-R[6], R[0]);
+        } else if (rep103) {
+            float xr, yr, zr, yr_;
+            sooc_table_pose_rep103(r, &xr, &yr, &zr, &yr_, NULL);
+            p[0] = xr, p[1] = yr, p[2] = zr, yaw = yr_;
         }
         double age = r->last_seen_ns ? (double)(ref - r->last_seen_ns) * 1e-9 : 0.0;
-        printf("  %10llu %4s %9.3f %9.3f %8.1f %8.3f %5u %8.2f\n",
-               (unsigned long long)r->object_id, fl, a, b, yaw * 57.29577951308232, r->presence,
-               r->obs_count, age);
+        double sig = sqrt(0.5 * ((double)r->cov_xzyaw[0] + r->cov_xzyaw[3]));
+        printf("  %10llu %4s %9.3f %9.3f %9.3f %8.1f %8.3f %5u %8.2f %8.4f %5.3fx%5.3fx%5.3f\n",
+               (unsigned long long)r->object_id, fl, p[0], p[1], p[2], yaw * 57.29577951308232, r->presence,
+               r->obs_count, age, sig, r->extent[0], r->extent[1], r->extent[2]);
     }
     fflush(stdout);
 }
 
 int main(int argc, char **argv) {
     const char *name = NULL;
-    int once = 0, rep103 = 0;
+    int once = 0, rep103 = 0, source = 0;
     double wait_s = 0;
     long interval_ms = 100;
     for (int i = 1; i < argc; i++) {
@@ -100,6 +114,8 @@ int main(int argc, char **argv) {
             once = 1;
         } else if (!strcmp(argv[i], "--rep103")) {
             rep103 = 1;
+        } else if (!strcmp(argv[i], "--source")) {
+            source = 1;
         } else if (!strcmp(argv[i], "--wait") && i + 1 < argc) {
             wait_s = atof(argv[++i]);
         } else if (!strcmp(argv[i], "--interval") && i + 1 < argc) {
@@ -148,7 +164,7 @@ int main(int argc, char **argv) {
         rc = sooc_table_snapshot(r, recs, cap, &n, &epoch);
         if (rc == 0) rc = sooc_table_get_info(r, &info);
         if (rc == 0 && (epoch != last_epoch || once)) {
-            print_table(&info, recs, n, epoch, rep103);
+            print_table(&info, recs, n, epoch, rep103, source);
             last_epoch = epoch;
         } else if (rc != 0 && rc != SOOC_TABLE_EBUSY) {
             fprintf(stderr, "sooc3d-planner-example: table '%s': %s\n", name,

@@ -18,6 +18,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <math.h>
 #include <pthread.h>
 #include <sched.h>
 #include <stdlib.h>
@@ -972,3 +973,27 @@ uint64_t sooc_table_writer_instance(const sooc_table_writer *w) {
 }
 
 uint32_t sooc_table_writer_count(const sooc_table_writer *w) { return w->n_live; }
+
+void sooc_table_pose_source(const double T_src_map[16], const sooc_table_record *r, double p_src[3], double R_src[9],
+                            double cov_src[9]) {
+    const double *T = T_src_map;
+    const double m[3] = {r->x, r->y, r->z};
+    for (int i = 0; i < 3; i++) p_src[i] = T[4 * i] * m[0] + T[4 * i + 1] * m[1] + T[4 * i + 2] * m[2] + T[4 * i + 3];
+    const double c = cos((double)r->yaw), s = sin((double)r->yaw);
+    const double Ry[9] = {c, 0, s, 0, 1, 0, -s, 0, c};   /* R_y(yaw) */
+    if (R_src)
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                R_src[3 * i + j] = T[4 * i] * Ry[j] + T[4 * i + 1] * Ry[3 + j] + T[4 * i + 2] * Ry[6 + j];
+    if (cov_src) {
+        const float *k = r->cov_xzyaw;   /* xx xz xyaw zz zyaw yawyaw */
+        const double C[9] = {k[0], 0, k[1], 0, 0, 0, k[1], 0, k[3]};
+        double RC[9];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                RC[3 * i + j] = T[4 * i] * C[j] + T[4 * i + 1] * C[3 + j] + T[4 * i + 2] * C[6 + j];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                cov_src[3 * i + j] = RC[3 * i] * T[4 * j] + RC[3 * i + 1] * T[4 * j + 1] + RC[3 * i + 2] * T[4 * j + 2];
+    }
+}

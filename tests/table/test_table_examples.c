@@ -40,9 +40,13 @@ static pid_t spawn_writer(int *go_fd) {
     sooc_table_start_heartbeat(w, 20);
     sooc_table_record rec;
     sooc_table_begin_batch(w);
+    /* the pose source is z-up and shifted: p_src = (x_map + 1, -z_map, y_map + 0.5) */
+    const double T[16] = {1, 0, 0, 1, 0, 0, -1, 0, 0, 1, 0, 0.5, 0, 0, 0, 1};
+    sooc_table_set_meta(w, 0, 0, 0, T);
     for (uint64_t id = 101; id <= 103; id++) {
         tt_make(&rec, id, (uint32_t)id);
         rec.x = 1.5f * (float)(id - 100);
+        rec.y = 0.125f;
         rec.z = -2.25f;
         rec.yaw = 0.5f;
         rec.presence = 0.875f;
@@ -75,19 +79,26 @@ static int slurp(FILE *f, char *buf, size_t cap) {
     return pclose(f);
 }
 
-static void check_once(const char *what, const char *cmd) {
+/* source = 1: with --source, the rows in the pose source's frame (the writer's T_src_map) */
+static void check_once(const char *what, const char *cmd, int source) {
     static char out[16384];
     FILE *f = popen(cmd, "r");
     CHECK(f != NULL);
     if (!f) return;
     int st = slurp(f, out, sizeof out);
     CHECK_MSG(st == 0, "%s --once exit status %d", what, st);
-    printf("---- %s --once:\n%s", what, out);
-    CHECK_MSG(strstr(out, "epoch 1  objects 3  frame map") != NULL, "%s: header line", what);
+    printf("---- %s --once%s:\n%s", what, source ? " --source" : "", out);
+    CHECK_MSG(strstr(out, source ? "epoch 1  objects 3  frame pose source" : "epoch 1  objects 3  frame map") != NULL,
+              "%s: header line", what);
     for (int id = 101; id <= 103; id++) {
-        char line[128];
-        snprintf(line, sizeof line, "%10d V--- %9.3f %9.3f %8.1f %8.3f", id, 1.5 * (id - 100),
-                 -2.25, 0.5 * 57.29577951308232, 0.875);
+        char line[160];
+        double x = 1.5 * (id - 100), y = 0.125, z = -2.25;
+        if (source) /* the box x axis (cos .5, 0, -sin .5) goes to (cos .5, sin .5, 0): 0.5 rad about source +z */
+            snprintf(line, sizeof line, "%10d V--- %9.3f %9.3f %9.3f %8.1f %8.3f", id, x + 1, -z, y + 0.5,
+                     0.5 * 57.29577951308232, 0.875);
+        else
+            snprintf(line, sizeof line, "%10d V--- %9.3f %9.3f %9.3f %8.1f %8.3f", id, x, y, z,
+                     0.5 * 57.29577951308232, 0.875);
         CHECK_MSG(strstr(out, line) != NULL, "%s: missing row '%s'", what, line);
     }
 }
@@ -198,12 +209,14 @@ int main(void) {
     if (wpid <= 0) return check_report("test_table_examples");
 
     char cmd_c[1024], cmd_py[1024];
-    snprintf(cmd_c, sizeof cmd_c, "%s %s --once", cbin, g_name);
-    check_once("C example", cmd_c);
-    if (py) {
-        snprintf(cmd_py, sizeof cmd_py, "%s %s/scripts/planner_example.py %s --once", py, src,
-                 g_name);
-        check_once("Python example", cmd_py);
+    for (int source = 0; source <= 1; source++) {
+        snprintf(cmd_c, sizeof cmd_c, "%s %s --once%s", cbin, g_name, source ? " --source" : "");
+        check_once("C example", cmd_c, source);
+        if (py) {
+            snprintf(cmd_py, sizeof cmd_py, "%s %s/scripts/planner_example.py %s --once%s", py, src, g_name,
+                     source ? " --source" : "");
+            check_once("Python example", cmd_py, source);
+        }
     }
 
     /* follow mode: both run while the writer adds, removes, then closes */

@@ -1,0 +1,125 @@
+/* A record's pose in the pose source's frame (sooc_table_pose_source):
+ *  - against hand-computed values for a rotated and shifted T_src_map (a
+ *    z-up source, as an arm's base or YCB-Video's world), including the box
+ *    axes and the covariance, and the identity;
+ *  - end to end on real data: the node with the geometric map on YCB-Video
+ *    0000 (launch/tabletop_geometric.yaml, $SOOC_BIN), read from its table:
+ *    the box of an entry, taken to the recording's frame through the header's
+ *    T_src_map, holds the ground-truth centres (meta.mat `poses`, read here by
+ *    the sequence reader's world) of the objects it covers. Skipped without
+ *    ../shared/real. */
+#include "check.h"
+#include "sooc3d/table.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static void mat_test(void) {
+    /* map +y is source +z: source = R * map + t, R = rotation of +90 deg about x */
+    double T[16] = {1, 0, 0, 0.5, 0, 0, -1, -0.2, 0, 1, 0, 0.1, 0, 0, 0, 1};
+    sooc_table_record r;
+    memset(&r, 0, sizeof r);
+    r.x = 1.0f, r.y = 0.25f, r.z = 2.0f, r.yaw = (float)(M_PI / 2);
+    r.cov_xzyaw[0] = 0.04f, r.cov_xzyaw[1] = 0.01f, r.cov_xzyaw[3] = 0.09f, r.cov_xzyaw[5] = 0.5f;
+    double p[3], R[9], C[9];
+    sooc_table_pose_source(T, &r, p, R, C);
+    /* p = (1 + 0.5, -2 - 0.2, 0.25 + 0.1) */
+    CHECK(fabs(p[0] - 1.5) < 1e-6 && fabs(p[1] + 2.2) < 1e-6 && fabs(p[2] - 0.35) < 1e-6);
+    /* box x axis: R_y(90) (1,0,0) = (0,0,-1) in the map -> (0, 1, 0) in the source */
+    CHECK(fabs(R[0]) < 1e-6 && fabs(R[3] - 1) < 1e-6 && fabs(R[6]) < 1e-6);
+    /* box y axis (map up) -> source +z */
+    CHECK(fabs(R[1]) < 1e-6 && fabs(R[4]) < 1e-6 && fabs(R[7] - 1) < 1e-6);
+    /* cov: x stays x, map z -> source -y, the height has no variance */
+    CHECK(fabs(C[0] - 0.04) < 1e-7 && fabs(C[1] + 0.01) < 1e-7 && fabs(C[4] - 0.09) < 1e-7 && fabs(C[8]) < 1e-12);
+    CHECK(fabs(C[3] - C[1]) < 1e-12);   /* symmetric */
+    double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    sooc_table_pose_source(I, &r, p, NULL, NULL);
+    CHECK(p[0] == r.x && p[1] == r.y && p[2] == r.z);
+}
+
+int main(void) {
+    mat_test();
+    const char *bin = getenv("SOOC_BIN"), *real = getenv("SOOC_SHARED_REAL");
+    char ycb[1024];
+    snprintf(ycb, sizeof ycb, "%s/ycb_video/data/0000", real ? real : "../shared/real");
+    if (!bin || access(ycb, R_OK) != 0) {
+        printf("test_table_source: SKIP the YCB-Video part: %s is absent\n", ycb);
+        printf("test_table_source: %d checks, %d failed\n", g_check_n, g_check_fail);
+        return g_check_fail ? 1 : 0;
+    }
+    char dir[] = "/tmp/sooc_tsrc_XXXXXX", cmd[4096], name[64];
+    if (!mkdtemp(dir)) return 1;
+    snprintf(name, sizeof name, "tsrc_%d", (int)getpid());
+    snprintf(cmd, sizeof cmd,
+             "'%s' node launch/tabletop_geometric.yaml --set sensor.path=%s --set shm.name=%s --set map.db=%s/m.sqlite "
+             "--quiet > %s/log.txt 2>&1",
+             bin, ycb, name, dir, dir);
+    int rc = system(cmd);
+    CHECK_MSG(rc == 0, "node run failed (%s/log.txt)", dir);
+    sooc_table_reader *rd = NULL;
+    CHECK(sooc_table_open_reader(name, &rd) == 0);
+    sooc_table_info info;
+    sooc_table_record rec[64];
+    uint32_t n = 0;
+    if (rd) {
+        CHECK(sooc_table_get_info(rd, &info) == 0);
+        CHECK(sooc_table_snapshot(rd, rec, 64, &n, NULL) == 0);
+    }
+    /* ground truth: the centres of the three objects in the recording's frame (from meta.mat of frame 1:
+     * inverse(rotation_translation_matrix) * poses[:, 3, k]) */
+    static const double gt[3][3] = {{-0.087, 0.018, 0.032}, {0.003, 0.041, 0.031}, {0.015, -0.061, 0.036}};
+    int inside[3] = {0, 0, 0};
+    if (rc) {
+        snprintf(cmd, sizeof cmd, "cat %s/log.txt", dir);
+        if (system(cmd)) {}
+    }
+    for (uint32_t i = 0; rd && i < n; i++) {
+        if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
+        double p[3], R[9];
+        sooc_table_pose_source(info.T_src_map, &rec[i], p, R, NULL);
+        for (int k = 0; k < 3; k++) {
+            /* the GT centre in the box's own axes */
+            double d[3] = {gt[k][0] - p[0], gt[k][1] - p[1], gt[k][2] - p[2]}, b[3];
+            for (int a = 0; a < 3; a++) b[a] = R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2];
+            int in = 1;
+            for (int a = 0; a < 3; a++) in &= fabs(b[a]) <= 0.5 * rec[i].extent[a] + 0.01;
+            if (in) {
+                inside[k]++;
+                printf("object %d (%.3f %.3f %.3f) in entry %llu: centre (%.3f %.3f %.3f), box %.3f x %.3f x %.3f\n", k,
+                       gt[k][0], gt[k][1], gt[k][2], (unsigned long long)rec[i].object_id, p[0], p[1], p[2],
+                       rec[i].extent[0], rec[i].extent[1], rec[i].extent[2]);
+            }
+        }
+    }
+    for (int k = 0; k < 3; k++) CHECK_MSG(inside[k] >= 1, "GT object %d lies in no entry's box", k);
+    /* negative control: the same test in the map frame (T_src_map taken as the identity) does not put the
+     * three objects in boxes: the recording's frame is z-up, the map's y-up */
+    double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    int all_in_map = 0;
+    for (uint32_t i = 0; rd && i < n; i++) {
+        if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
+        double p[3], R[9];
+        sooc_table_pose_source(I, &rec[i], p, R, NULL);
+        int cnt = 0;
+        for (int k = 0; k < 3; k++) {
+            double d[3] = {gt[k][0] - p[0], gt[k][1] - p[1], gt[k][2] - p[2]}, bx[3];
+            for (int a = 0; a < 3; a++) bx[a] = R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2];
+            int in = 1;
+            for (int a = 0; a < 3; a++) in &= fabs(bx[a]) <= 0.5 * rec[i].extent[a] + 0.01;
+            cnt += in;
+        }
+        all_in_map += cnt == 3;
+    }
+    CHECK_MSG(all_in_map == 0, "the map frame alone puts the objects in a box: the check cannot fail");
+    sooc_table_close_reader(rd);
+    char shm[128];
+    if (!sooc_table_shm_name(name, shm, sizeof shm)) {
+        snprintf(cmd, sizeof cmd, "rm -f /dev/shm%s; rm -rf %s", shm, dir);
+        if (system(cmd)) {}
+    }
+    printf("test_table_source: %d checks, %d failed\n", g_check_n, g_check_fail);
+    return g_check_fail ? 1 : 0;
+}
