@@ -103,6 +103,12 @@ TABLES = {
                                   "tabletop+ft"),
                                  ("SOOC3D tabletop, masks set", "lf_masks_tabletop.json", "tabletop"),
                                  ("SOOC3D+ tabletop, masks set", "lf_masks_tabletop_ft.json", "tabletop+ft")]),
+    "real_tabletop_sets": dict(kind="sets", file="real_tabletop.json",
+                               sets=[("YCB-Video 0000", "0000"), ("label-fusion labels", "labels"),
+                                     ("label-fusion masks", "masks"),
+                                     ("APC shelf bin (agreement with predicted masks)", "scene-0000")],
+                               rows=[("geometric", "geometric"), ("online", "sooc3d_tabletop"),
+                                     ("SOOC3D+", "sooc3d_tabletop+ft")]),
     "speed_engine": dict(kind="bench",
                          rows=[("`bench_engine` conv encoder fwd + bwd vs PyTorch", "bench_engine.json",
                                 "conv_vs_torch", "{:.2f}×"),
@@ -303,6 +309,25 @@ def t_real(t, d):
     return out
 
 
+def t_sets(t, d):
+    """One row per (labelled set, model) of one `sooc3d eval --json` file holding several sequences."""
+    cells = load(os.path.join(d, t["file"])).get("cells", [])
+    out = ["| set | objects | row | mean per-object IoU | IoU per object (id) | entries per object | depth RMSE (m) |",
+           "|---|---:|---|---:|---|---:|---:|"]
+    for set_label, seq in t["sets"]:
+        for i, (label, name) in enumerate(t["rows"]):
+            c = next((cc for cc in cells if cc.get("model") == name and cc.get("sequence") == seq), None)
+            if c is None:
+                raise SystemExit("results.sh: %s has no cell of model '%s' on '%s'" % (t["file"], name, seq))
+            ids, ious = c.get("obj_ids", []), c.get("obj_iou", [])
+            mean = sum(ious) / len(ious) if ious else None
+            per = ", ".join("%s (%d)" % (f3(v), k) for v, k in zip(ious, ids)) or "-"
+            epo = "%.1f" % (c.get("entries_final", 0) / len(ids)) if ids else "-"
+            out.append("| %s | %s | %s | %s | %s | %s | %s |" % (set_label if i == 0 else "", len(ids) if i == 0 else "",
+                                                           label, f3(mean), per, epo, f3(val(c, "depth_rmse"))))
+    return out
+
+
 def t_bench(t, d):
     out = ["| figure | value |", "|---|---:|"]
     for label, f, key, fmt in t["rows"]:
@@ -321,17 +346,19 @@ def t_bench(t, d):
     return out
 
 
-KINDS = dict(matrix=t_matrix, composition=t_composition, rows=t_rows, ftrows=t_ftrows, real=t_real,
+KINDS = dict(matrix=t_matrix, composition=t_composition, rows=t_rows, ftrows=t_ftrows, real=t_real, sets=t_sets,
              bench=t_bench)
 
 
 def files_of(t):
-    fs = list(t.get("files", []))
+    fs = list(t.get("files", [])) + ([t["file"]] if "file" in t else [])
     for r in t.get("rows", []):
         if t["kind"] == "ftrows":
             fs += r[1]
         elif t["kind"] in ("real", "bench"):
             fs.append(r[1])
+        elif t["kind"] == "sets":
+            break
     return sorted(set(fs))
 
 
