@@ -337,6 +337,16 @@ static inline void sooc_table_pose_rep103(const sooc_table_record *r, float *x_r
 SOOC_TABLE_API void sooc_table_pose_source(const double T_src_map[16], const sooc_table_record *r, double p_src[3],
                                           double R_src[9], double cov_src[9]);
 
+/* Which object is at a pixel: the ray through pixel (u, v) (pixel centres at
+ * integer + 0.5; pinhole fx fy cx cy, OpenCV camera axes) of a camera at
+ * T_map_cam (camera to map frame, row-major 4x4) against the boxes of recs[0..n)
+ * (valid, not removed: box centre (x, y, z), axes R_y(yaw), size extent).
+ * Returns the index of the nearest box the ray enters (its distance along
+ * the ray, metres, in *t if non-NULL), or -1 when it hits none. A camera in
+ * the pose source's frame: T_map_cam = inverse(T_src_map) T_src_cam. */
+SOOC_TABLE_API int sooc_table_pick(const sooc_table_record *recs, uint32_t n, const double T_map_cam[16], double fx,
+                                   double fy, double cx, double cy, double u, double v, double *t);
+
 /* --------------------------------------------------------------- reader */
 
 typedef struct sooc_table_reader sooc_table_reader;

@@ -40,8 +40,34 @@ static void mat_test(void) {
     CHECK(p[0] == r.x && p[1] == r.y && p[2] == r.z);
 }
 
+/* sooc_table_pick: a camera 2 m in front of two boxes (one behind the other along the ray, one beside),
+ * looking along map -z: the pixel at the image centre hits the near box, a pixel to the left the other,
+ * one above both nothing, a removed box is never hit. */
+static void pick_test(void) {
+    sooc_table_record r[3];
+    memset(r, 0, sizeof r);
+    for (int i = 0; i < 3; i++) {
+        r[i].object_id = (uint64_t)i + 1, r[i].flags = SOOC_TABLE_FLAG_VALID;
+        r[i].extent[0] = r[i].extent[1] = r[i].extent[2] = 0.2f, r[i].y = 0.1f;
+    }
+    r[0].z = 0.0f;                   /* near box on the axis                */
+    r[1].z = -1.0f;                  /* far box on the axis, behind r[0]    */
+    r[2].x = 0.5f, r[2].z = 0.0f;    /* beside, left in the image           */
+    r[2].yaw = 0.3f;
+    /* camera at (0, 0.1, 2) looking along -z: x_cam = -x_map (right), y_cam = -y_map (down), z_cam = -z_map */
+    const double T[16] = {-1, 0, 0, 0, 0, -1, 0, 0.1, 0, 0, -1, 2, 0, 0, 0, 1};
+    double t = 0;
+    CHECK(sooc_table_pick(r, 3, T, 500, 500, 320, 240, 320, 240, &t) == 0 && fabs(t - 1.9) < 1e-6);
+    /* x_map = 0.5 at depth 2 m: u = 320 - 500 * 0.5 / 2 = 195 */
+    CHECK(sooc_table_pick(r, 3, T, 500, 500, 320, 240, 195, 240, &t) == 2);
+    CHECK(sooc_table_pick(r, 3, T, 500, 500, 320, 240, 320, 40, &t) == -1);   /* above: 0.4 m up at 2 m */
+    r[0].flags |= SOOC_TABLE_FLAG_REMOVED;
+    CHECK(sooc_table_pick(r, 3, T, 500, 500, 320, 240, 320, 240, &t) == 1 && fabs(t - 2.9) < 1e-6);
+}
+
 int main(void) {
     mat_test();
+    pick_test();
     const char *bin = getenv("SOOC_BIN"), *real = getenv("SOOC_SHARED_REAL");
     char ycb[1024];
     snprintf(ycb, sizeof ycb, "%s/ycb_video/data/0000", real ? real : "../shared/real");
