@@ -96,7 +96,14 @@ if [ -x /usr/bin/python3 ]; then
     || fail "installed Python example"
   grep -q "objects 3" "$tmp/py.out" || { cat "$tmp/py.out"; fail "installed Python example output"; }
 fi
-echo "installed C and Python examples read the table"
+if [ -x /usr/bin/python3 ]; then   # the module itself, from where it was installed
+  pyd=$(ls -d "$prefix"/lib/python3.*/dist-packages 2>/dev/null | head -1)
+  [ -e "$pyd/sooc3d_table.py" ] || fail "sooc3d_table.py not installed under $prefix/lib/python3.N/dist-packages"
+  n=$(cd / && PYTHONPATH=$pyd /usr/bin/python3 -c "import sooc3d_table; print(sooc3d_table.Table('$name').snapshot()[2])") \
+    || fail "import sooc3d_table from the installed module"
+  [ "$n" = 3 ] || fail "sooc3d_table.Table snapshot: $n objects, want 3"
+fi
+echo "installed C and Python examples, and the Python module, read the table"
 exec 3>&-
 wait "$wpid" || fail "table_test_writer exit status"
 wpid=
