@@ -21,6 +21,8 @@ int sooc_cmd_node(int argc, char **argv);
 int sooc_cmd_odometry(int argc, char **argv);
 int sooc_cmd_calib(int argc, char **argv);
 int sooc_cmd_log(int argc, char **argv);
+/* cmd_map_mcap.c: `sooc3d map export --db MAP --mcap FILE` (Foxglove SceneUpdate); exit code. */
+int sooc_cli_map_export_mcap(const char *db, const char *out);
 /* `sooc3d gen --board ...`: board views for calibration (cmd_calib.c). */
 int sooc_cmd_gen_board(int argc, char **argv);
 

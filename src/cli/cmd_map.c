@@ -16,6 +16,7 @@ static void map_usage(FILE *f) {
             "       sooc3d map query  --db MAP.sqlite --box X0 Z0 X1 Z1\n"
             "       sooc3d map export --db MAP.sqlite (--csv|--json|--ply) FILE [--box X0 Z0 X1 Z1]\n"
             "       sooc3d map export --db MAP.sqlite --ply DIR --model M [--res N] [--level L] [--box ...]\n"
+            "       sooc3d map export --db MAP.sqlite --mcap FILE\n"
             "       sooc3d map info   --db MAP.sqlite\n"
             "\n"
             "Reads a persistent cognitive map (written by `sooc3d node`; `sooc3d infer` writes JSON/CSV,\n"
@@ -36,6 +37,10 @@ static void map_usage(FILE *f) {
             "                        coloured by a hash of its id, with properties id, yaw,\n"
             "                        presence (open it in MeshLab / CloudCompare / Open3D)\n"
             "           FILE may be '-' for standard output.\n"
+            "           --mcap FILE  for Foxglove: foxglove.SceneUpdate (JSON) on /sooc3d/objects, one cube,\n"
+            "                        label and metadata per object, the last message holding every\n"
+            "                        object; foxglove.FrameTransform map -> world -> source on\n"
+            "                        /sooc3d/frames (docs/logs.md)\n"
             "           --ply DIR --model M: the objects' MESHES instead (what `sooc3d mesh` writes:\n"
             "                        DIR/object_<id>.ply and DIR/scene.ply, binary PLY with vertex\n"
             "                        colours, world frame; --res N samples per box axis, default 64;\n"
@@ -189,9 +194,10 @@ int sooc_cmd_map(int argc, char **argv) {
             if (!sooc_cli_double_opt("map", "--layout-cell", argv[++i], 0.005, 1.0, &mo.layout_cell)) return 2;
             mesh_opt = 1;
         }
-        else if ((!strcmp(a, "--csv") || !strcmp(a, "--json") || !strcmp(a, "--ply")) && i + 1 < argc) {
-            if (fmt >= 0) { fprintf(stderr, "sooc3d map: give one of --csv, --json, --ply\n"); return 2; }
-            fmt = a[2] == 'c' ? 1 : a[2] == 'j' ? 2 : 3;
+        else if ((!strcmp(a, "--csv") || !strcmp(a, "--json") || !strcmp(a, "--ply") || !strcmp(a, "--mcap")) &&
+                 i + 1 < argc) {
+            if (fmt >= 0) { fprintf(stderr, "sooc3d map: give one of --csv, --json, --ply, --mcap\n"); return 2; }
+            fmt = a[2] == 'c' ? 1 : a[2] == 'j' ? 2 : a[2] == 'p' ? 3 : 4;
             out = argv[++i];
         } else if (!strcmp(a, "--box") && i + 4 < argc) {
             for (int k = 0; k < 4; k++)
@@ -223,8 +229,13 @@ int sooc_cmd_map(int argc, char **argv) {
     }
     if (!db) { fprintf(stderr, "sooc3d map %s: --db FILE is required\n", sub); return 2; }
     if (is_query && !has_box) { fprintf(stderr, "sooc3d map query: --box X0 Z0 X1 Z1 is required\n"); return 2; }
-    if (is_export && fmt < 0) { fprintf(stderr, "sooc3d map export: give --csv, --json or --ply FILE\n"); return 2; }
-    if (!is_export && fmt >= 0) { fprintf(stderr, "sooc3d map %s: --csv/--json/--ply belong to export\n", sub); return 2; }
+    if (is_export && fmt < 0) { fprintf(stderr, "sooc3d map export: give --csv, --json, --ply or --mcap FILE\n"); return 2; }
+    if (!is_export && fmt >= 0) { fprintf(stderr, "sooc3d map %s: --csv/--json/--ply/--mcap belong to export\n", sub); return 2; }
+    if (fmt == 4 && (has_box || model || mesh_opt)) {
+        fprintf(stderr, "sooc3d map export --mcap: writes every object (no --box, --model)\n");
+        return 2;
+    }
+    if (fmt == 4) return sooc_cli_map_export_mcap(db, out);
     if ((model || mesh_opt) && !(is_export && fmt == 3)) {
         fprintf(stderr, "sooc3d map: --model/--res/--level/--layout-cell belong to export --ply DIR (meshes)\n");
         return 2;
