@@ -118,6 +118,16 @@ static sooc_status add_connection(sooc_logfile *lf, const bag_hdr *h, const uint
     return logs_add_channel(lf, h->conn, topic->p, topic->n, d.type.p, d.type.n, "ros1", d.def.p, d.def.n, 0, NULL);
 }
 
+/* A connection record of the file (its data is another header). */
+static sooc_status read_connection(sooc_logfile *lf, const bag_rec *r) {
+    uint8_t *data = sooc_malloc((size_t)r->data_len + 1);
+    if (!data) return SOOC_ENOMEM;
+    sooc_status st = logs_pread(lf, r->data_off, data, r->data_len, "connection record");
+    if (!st) st = add_connection(lf, &r->h, data, r->data_len, r->off);
+    sooc_free(data);
+    return st;
+}
+
 static sooc_status check_chunk(sooc_logfile *lf, const bag_rec *r, logs_chunk *c) {
     const bag_hdr *h = &r->h;
     if (h->op != OP_CHUNK)
@@ -171,8 +181,7 @@ static sooc_status scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages) {
     lf->chunks[ci].scanned = 1;
     return SOOC_OK;
 bad:
-    return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: chunk record at byte %zu of %zu is cut short (corrupt chunk)",
-                       lf->path, (unsigned long long)where, i, n);
+    return logs_chunk_cut(lf, where, i, n);
 }
 
 /* The index data records right after a chunk; returns the offset after them. */
@@ -247,31 +256,22 @@ sooc_status logs_bag_open(sooc_logfile *lf) {
         /* index section: connection and chunk info records */
         lf->indexed = 1;
         uint64_t *pos = NULL;
-        size_t npos = 0, cpos = 0;
+        int64_t npos = 0, cpos = 0;
         for (uint64_t off = index_pos; off < lf->size && !st; off = r.next) {
             if ((st = bag_record_at(lf, off, &buf, &cap, &r))) break;
             if (r.h.op == OP_CONN) {
-                uint8_t *data = sooc_malloc(r.data_len + 1);
-                if (!data) { st = SOOC_ENOMEM; break; }
-                st = logs_pread(lf, r.data_off, data, r.data_len, "connection record");
-                if (!st) st = add_connection(lf, &r.h, data, r.data_len, off);
-                sooc_free(data);
+                st = read_connection(lf, &r);
             } else if (r.h.op == OP_CHUNKINFO) {
                 if (r.h.chunk_pos < first || r.h.chunk_pos >= index_pos) {
                     st = sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: chunk info points at offset %llu, outside the data",
                                      lf->path, (unsigned long long)off, (unsigned long long)r.h.chunk_pos);
                     break;
                 }
-                if (npos == cpos) {
-                    cpos = cpos ? cpos * 2 : 64;
-                    uint64_t *p = sooc_realloc(pos, cpos * sizeof *p);
-                    if (!p) { st = SOOC_ENOMEM; break; }
-                    pos = p;
-                }
+                if ((st = logs_grow((void **)&pos, &cpos, npos + 1, sizeof *pos, lf->path))) break;
                 pos[npos++] = r.h.chunk_pos;
             }
         }
-        for (size_t k = 0; k < npos && !st; k++) {
+        for (int64_t k = 0; k < npos && !st; k++) {
             uint64_t after;
             if (!(st = bag_record_at(lf, pos[k], &buf, &cap, &r))) st = open_chunk(lf, &r, index_pos, &buf, &cap, &after);
         }
@@ -283,13 +283,7 @@ sooc_status logs_bag_open(sooc_logfile *lf) {
             if (r.h.op == OP_CHUNK) {
                 st = open_chunk(lf, &r, lf->size, &buf, &cap, &off);
             } else {
-                if (r.h.op == OP_CONN) {
-                    uint8_t *data = sooc_malloc(r.data_len + 1);
-                    if (!data) { st = SOOC_ENOMEM; break; }
-                    st = logs_pread(lf, r.data_off, data, r.data_len, "connection record");
-                    if (!st) st = add_connection(lf, &r.h, data, r.data_len, off);
-                    sooc_free(data);
-                }
+                if (r.h.op == OP_CONN) st = read_connection(lf, &r);
                 off = r.next;
             }
         }

@@ -69,6 +69,11 @@ sooc_status logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, cons
     return SOOC_OK;
 }
 
+sooc_status logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n) {
+    return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record at chunk byte %zu of %zu is cut short (corrupt chunk)",
+                       lf->path, (unsigned long long)where, i, n);
+}
+
 sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
     if (*cap >= n && *buf) return SOOC_OK;
     size_t c = *cap ? *cap : 4096;
@@ -80,7 +85,7 @@ sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
     return SOOC_OK;
 }
 
-static char *dupn(const char *s, size_t n) {
+char *logs_dupn(const char *s, size_t n) {
     char *d = sooc_malloc(n + 1);
     if (!d) return NULL;
     if (n) memcpy(d, s, n);
@@ -88,24 +93,30 @@ static char *dupn(const char *s, size_t n) {
     return d;
 }
 
+sooc_status logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path) {
+    if (need <= *cap) return SOOC_OK;
+    int64_t c = *cap ? *cap : 16;
+    while (c < need) c *= 2;
+    void *q = sooc_realloc(*p, elem * (size_t)c);
+    if (!q) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", path);
+    *p = q;
+    *cap = c;
+    return SOOC_OK;
+}
+
 sooc_status logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *topic, size_t ntopic, const char *type,
                              size_t ntype, const char *encoding, const char *definition, size_t ndef, int schema,
                              int *index) {
-    if (lf->nch == lf->capch) {
-        int cap = lf->capch ? lf->capch * 2 : 16;
-        logs_chan *c = sooc_realloc(lf->ch, sizeof *c * (size_t)cap);
-        if (!c) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", lf->path);
-        lf->ch = c;
-        lf->capch = cap;
-    }
+    sooc_status st = logs_grow((void **)&lf->ch, &lf->capch, lf->nch + 1, sizeof *lf->ch, lf->path);
+    if (st) return st;
     logs_chan *c = &lf->ch[lf->nch];
     memset(c, 0, sizeof *c);
     c->file_id = file_id;
     c->schema = schema;
-    c->topic = dupn(topic, ntopic);
-    c->type = dupn(type, ntype);
-    c->encoding = dupn(encoding, strlen(encoding));
-    c->definition = dupn(definition ? definition : "", definition ? ndef : 0);
+    c->topic = logs_dupn(topic, ntopic);
+    c->type = logs_dupn(type, ntype);
+    c->encoding = logs_dupn(encoding, strlen(encoding));
+    c->definition = logs_dupn(definition ? definition : "", definition ? ndef : 0);
     if (!c->topic || !c->type || !c->encoding || !c->definition) {
         sooc_free(c->topic);
         sooc_free(c->type);
@@ -125,13 +136,8 @@ int logs_find_channel(const sooc_logfile *lf, uint32_t file_id) {
 }
 
 sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index) {
-    if (lf->nchunks == lf->capchunks) {
-        int64_t cap = lf->capchunks ? lf->capchunks * 2 : 64;
-        logs_chunk *p = sooc_realloc(lf->chunks, sizeof *p * (size_t)cap);
-        if (!p) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", lf->path);
-        lf->chunks = p;
-        lf->capchunks = cap;
-    }
+    sooc_status st = logs_grow((void **)&lf->chunks, &lf->capchunks, lf->nchunks + 1, sizeof *lf->chunks, lf->path);
+    if (st) return st;
     if (lf->nchunks >= INT32_MAX) return sooc_seterr(SOOC_EFORMAT, "%s: too many chunks", lf->path);
     lf->chunks[lf->nchunks] = *c;
     lf->comp_seen |= 1u << c->comp;
@@ -140,13 +146,8 @@ sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index
 }
 
 sooc_status logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch) {
-    if (lf->ne == lf->cape) {
-        int64_t cap = lf->cape ? lf->cape * 2 : 1024;
-        logs_entry *p = sooc_realloc(lf->e, sizeof *p * (size_t)cap);
-        if (!p) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", lf->path);
-        lf->e = p;
-        lf->cape = cap;
-    }
+    sooc_status st = logs_grow((void **)&lf->e, &lf->cape, lf->ne + 1, sizeof *lf->e, lf->path);
+    if (st) return st;
     lf->e[lf->ne++] = (logs_entry){t, off, chunk, ch};
     return SOOC_OK;
 }

@@ -58,9 +58,9 @@ struct sooc_logfile {
     uint64_t size;
     int indexed;
     logs_chan *ch;
-    int nch, capch;
+    int64_t nch, capch;
     logs_schema *sc;
-    int nsc, capsc;
+    int64_t nsc, capsc;
     logs_chunk *chunks;
     int64_t nchunks, capchunks;
     logs_entry *e;
@@ -86,6 +86,12 @@ static inline uint64_t logs_u64(const uint8_t *p) { return (uint64_t)logs_u32(p)
 
 /* pread exactly n bytes at off; EFORMAT naming the offset when the file ends first. */
 sooc_status logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, const char *what);
+/* EFORMAT: the record at byte i of the n-byte chunk at file offset where is cut short. */
+sooc_status logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n);
+/* A NUL-terminated copy of n bytes (sooc_malloc). */
+char *logs_dupn(const char *s, size_t n);
+/* Grow the array *p of *cap elements of elem bytes to hold need (doubling). */
+sooc_status logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path);
 /* Grow *buf to at least n bytes. */
 sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n);
 /* Add a channel (strings copied); *index gets its position. */

@@ -44,15 +44,6 @@ static const logs_schema *find_schema(const sooc_logfile *lf, int id) {
     return NULL;
 }
 
-static char *dupn(const char *s, size_t n) {
-    char *d = sooc_malloc(n + 1);
-    if (d) {
-        if (n) memcpy(d, s, n);
-        d[n] = 0;
-    }
-    return d;
-}
-
 static sooc_status add_schema(sooc_logfile *lf, const uint8_t *p, size_t n, uint64_t where) {
     mc c = {p, n, 0, 0};
     size_t nn, ne, nd;
@@ -60,18 +51,13 @@ static sooc_status add_schema(sooc_logfile *lf, const uint8_t *p, size_t n, uint
     const char *name = mc_str(&c, &nn), *enc = mc_str(&c, &ne), *data = mc_str(&c, &nd);
     if (c.bad) return cut(lf, where, "schema");
     if (id == 0 || find_schema(lf, id)) return SOOC_OK;
-    if (lf->nsc == lf->capsc) {
-        int cap = lf->capsc ? lf->capsc * 2 : 16;
-        logs_schema *s = sooc_realloc(lf->sc, sizeof *s * (size_t)cap);
-        if (!s) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", lf->path);
-        lf->sc = s;
-        lf->capsc = cap;
-    }
+    sooc_status st = logs_grow((void **)&lf->sc, &lf->capsc, lf->nsc + 1, sizeof *lf->sc, lf->path);
+    if (st) return st;
     logs_schema *s = &lf->sc[lf->nsc];
     s->id = (uint16_t)id;
-    s->name = dupn(name, nn);
-    s->encoding = dupn(enc, ne);
-    s->data = dupn(data, nd);
+    s->name = logs_dupn(name, nn);
+    s->encoding = logs_dupn(enc, ne);
+    s->data = logs_dupn(data, nd);
     if (!s->name || !s->encoding || !s->data) {
         sooc_free(s->name);
         sooc_free(s->encoding);
@@ -161,8 +147,7 @@ sooc_status logs_mcap_scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages)
     lf->chunks[ci].scanned = 1;
     return SOOC_OK;
 bad:
-    return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record at chunk byte %zu of %zu is cut short (corrupt chunk)",
-                       lf->path, (unsigned long long)where, i, n);
+    return logs_chunk_cut(lf, where, i, n);
 }
 
 /* Message Index records in [off, end) for chunk ci. */

@@ -343,7 +343,8 @@ static void p_header(wc *w, const sooc_ros_header *h) {
     p_str(w, h->frame_id);
 }
 
-static sooc_status w_begin(wc *w, sooc_ros_buf *b, sooc_msg_encoding enc) {
+/* Start a message (its encapsulation header in CDR) and write its std_msgs/Header when h is given. */
+static sooc_status w_begin(wc *w, sooc_ros_buf *b, sooc_msg_encoding enc, const sooc_ros_header *h) {
     w->b = b;
     w->cdr = enc == SOOC_MSGENC_CDR;
     if (enc != SOOC_MSGENC_CDR && enc != SOOC_MSGENC_ROS1)
@@ -353,6 +354,7 @@ static sooc_status w_begin(wc *w, sooc_ros_buf *b, sooc_msg_encoding enc) {
         put(w, hdr, 4, 1);
     }
     w->origin = b->size;
+    if (h) p_header(w, h);
     return SOOC_OK;
 }
 static sooc_status w_end(wc *w) {
@@ -361,9 +363,8 @@ static sooc_status w_end(wc *w) {
 
 sooc_status sooc_ros_encode_image(sooc_ros_buf *b, sooc_msg_encoding enc, const sooc_ros_image *m) {
     wc w;
-    sooc_status st = w_begin(&w, b, enc);
+    sooc_status st = w_begin(&w, b, enc, &m->header);
     if (st) return st;
-    p_header(&w, &m->header);
     p_u32(&w, (uint32_t)m->height);
     p_u32(&w, (uint32_t)m->width);
     p_str(&w, m->encoding);
@@ -375,9 +376,8 @@ sooc_status sooc_ros_encode_image(sooc_ros_buf *b, sooc_msg_encoding enc, const 
 
 sooc_status sooc_ros_encode_cimage(sooc_ros_buf *b, sooc_msg_encoding enc, const sooc_ros_cimage *m) {
     wc w;
-    sooc_status st = w_begin(&w, b, enc);
+    sooc_status st = w_begin(&w, b, enc, &m->header);
     if (st) return st;
-    p_header(&w, &m->header);
     p_str(&w, m->format);
     p_bytes(&w, m->data, m->size);
     return w_end(&w);
@@ -385,9 +385,8 @@ sooc_status sooc_ros_encode_cimage(sooc_ros_buf *b, sooc_msg_encoding enc, const
 
 sooc_status sooc_ros_encode_caminfo(sooc_ros_buf *b, sooc_msg_encoding enc, const sooc_ros_caminfo *m) {
     wc w;
-    sooc_status st = w_begin(&w, b, enc);
+    sooc_status st = w_begin(&w, b, enc, &m->header);
     if (st) return st;
-    p_header(&w, &m->header);
     p_u32(&w, (uint32_t)m->height);
     p_u32(&w, (uint32_t)m->width);
     p_str(&w, m->distortion_model);
@@ -404,7 +403,7 @@ sooc_status sooc_ros_encode_caminfo(sooc_ros_buf *b, sooc_msg_encoding enc, cons
 
 sooc_status sooc_ros_encode_tf(sooc_ros_buf *b, sooc_msg_encoding enc, const sooc_ros_transform *tf, int n) {
     wc w;
-    sooc_status st = w_begin(&w, b, enc);
+    sooc_status st = w_begin(&w, b, enc, NULL);
     if (st) return st;
     p_u32(&w, (uint32_t)n);
     for (int i = 0; i < n; i++) {

@@ -66,6 +66,24 @@ static inline uint32_t logs_u32_le(const uint8_t *p) {
 }
 static inline uint64_t logs_u64_le(const uint8_t *p) { return logs_u32_le(p) | ((uint64_t)logs_u32_le(p + 4) << 32); }
 
+static inline sooc_ros_header lu_hdr(int64_t t, const char *frame) {
+    sooc_ros_header h;
+    memset(&h, 0, sizeof h);
+    h.stamp_ns = t;
+    snprintf(h.frame_id, sizeof h.frame_id, "%s", frame);
+    return h;
+}
+
+/* Frames of a log with the pose from TF below pose_parent (NULL = none); NULL after a failed check. */
+static inline sooc_logseq *lu_open_frames(const char *path, const char *pose_parent) {
+    sooc_logseq_params p;
+    sooc_logseq_params_default(&p);
+    p.pose_parent = pose_parent;
+    sooc_logseq *s = NULL;
+    CHECK_OK(sooc_logseq_open(&s, path, &p));
+    return s;
+}
+
 /* Open must fail with status st and a message containing every given piece. */
 static inline void lu_open_fails(const char *path, sooc_status st, const char *a, const char *b) {
     sooc_logfile *lf = NULL;

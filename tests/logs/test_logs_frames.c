@@ -32,17 +32,10 @@ static void put(wl *L, int ch, int64_t t) {
     CHECK_OK(sooc_mcap_writer_message(L->w, ch, t, t, L->b.data, L->b.size));
     L->b.size = 0;
 }
-static sooc_ros_header hdr(int64_t t, const char *frame) {
-    sooc_ros_header h;
-    memset(&h, 0, sizeof h);
-    h.stamp_ns = t;
-    snprintf(h.frame_id, sizeof h.frame_id, "%s", frame);
-    return h;
-}
 static void info(wl *L, int ch, int64_t t, const char *frame, double f) {
     sooc_ros_caminfo c;
     memset(&c, 0, sizeof c);
-    c.header = hdr(t, frame);
+    c.header = lu_hdr(t, frame);
     c.width = W;
     c.height = H;
     double K[9] = {f, 0, 15.5, 0, f, 11.5, 0, 0, 1};
@@ -51,7 +44,7 @@ static void info(wl *L, int ch, int64_t t, const char *frame, double f) {
     put(L, ch, t);
 }
 static void tf(wl *L, int ch, int64_t t, const char *parent, const char *child, double x) {
-    sooc_ros_transform tr = {hdr(t, parent), "", {x, 0, 0}, {0, 0, 0, 1}};
+    sooc_ros_transform tr = {lu_hdr(t, parent), "", {x, 0, 0}, {0, 0, 0, 1}};
     snprintf(tr.child, sizeof tr.child, "%s", child);
     CHECK_OK(sooc_ros_encode_tf(&L->b, SOOC_MSGENC_CDR, &tr, 1));
     put(L, ch, t);
@@ -91,23 +84,19 @@ static void test_registration(const char *tmp) {
         info(&L, cinf, t, "cam_color", 30);
         info(&L, dinf, t, "cam_depth", 20);
         /* the colour header stamp a quarter of the way to the next pose: interpolated */
-        sooc_ros_image im = {hdr(t + 250000000LL, "cam_color"), W, H, W * 3, "rgb8", 0, rgb, sizeof rgb};
+        sooc_ros_image im = {lu_hdr(t + 250000000LL, "cam_color"), W, H, W * 3, "rgb8", 0, rgb, sizeof rgb};
         CHECK_OK(sooc_ros_encode_image(&L.b, SOOC_MSGENC_CDR, &im));
         put(&L, ci, t);
         memset(mm, 0, sizeof mm);
         mm[12 * W + 10] = 1000;
-        sooc_ros_image dm = {hdr(t, "cam_depth"), W, H, W * 2, "16UC1", 0, (uint8_t *)mm, sizeof mm};
+        sooc_ros_image dm = {lu_hdr(t, "cam_depth"), W, H, W * 2, "16UC1", 0, (uint8_t *)mm, sizeof mm};
         CHECK_OK(sooc_ros_encode_image(&L.b, SOOC_MSGENC_CDR, &dm));
         put(&L, di, t + 5000000);
     }
     tf(&L, tfc, 4000000000LL, "odom", "cam_color", 3.0);
     close_log(&L);
 
-    sooc_logseq_params lp;
-    sooc_logseq_params_default(&lp);
-    lp.pose_parent = "odom";
-    sooc_logseq *s = NULL;
-    CHECK_OK(sooc_logseq_open(&s, p, &lp));
+    sooc_logseq *s = lu_open_frames(p, "odom");
     if (!s) return;
     const sooc_logseq_desc *d = sooc_logseq_describe(s);
     CHECK(sooc_logseq_count(s) == 3 && d->registered && strstr(d->extrinsics_source, "tf cam_color <- cam_depth"));
@@ -126,6 +115,8 @@ static void test_registration(const char *tmp) {
     sooc_frame_free(&f);
     sooc_logseq_close(s);
     /* registration off: the sizes match, the depth stays in its own camera */
+    sooc_logseq_params lp;
+    sooc_logseq_params_default(&lp);
     lp.registration = 0;
     CHECK_OK(sooc_logseq_open(&s, p, &lp));
     if (s) {
@@ -171,11 +162,11 @@ static void test_compressed(const char *tmp) {
         for (int k = 0; k < 2; k++) {
             int64_t t = 1000000000LL * (k + 1);
             info(&L, inf, t, "cam", 30);
-            sooc_ros_cimage c = {hdr(t, "cam"), "", jpg, nj};
+            sooc_ros_cimage c = {lu_hdr(t, "cam"), "", jpg, nj};
             snprintf(c.format, sizeof c.format, "%s", v == 0 ? "rgb8; jpeg compressed bgr8" : "png");
             CHECK_OK(sooc_ros_encode_cimage(&L.b, SOOC_MSGENC_CDR, &c));
             put(&L, ci, t);
-            sooc_ros_cimage dc = {hdr(t, "cam"), "", png, np};
+            sooc_ros_cimage dc = {lu_hdr(t, "cam"), "", png, np};
             snprintf(dc.format, sizeof dc.format, "%s", v == 0 ? "16UC1; compressedDepth png" : "32FC1; compressedDepth");
             CHECK_OK(sooc_ros_encode_cimage(&L.b, SOOC_MSGENC_CDR, &dc));
             put(&L, di, t);
@@ -220,8 +211,8 @@ static void test_topics(const char *tmp) {
     static uint8_t rgb[W * H * 3];
     static float z[W * H];
     for (int i = 0; i < W * H; i++) z[i] = 1.5f;
-    sooc_ros_image im = {hdr(5, "c"), W, H, W * 3, "rgb8", 0, rgb, sizeof rgb};
-    sooc_ros_image dm = {hdr(5, "c"), W, H, W * 4, "32FC1", 0, (uint8_t *)z, sizeof z};
+    sooc_ros_image im = {lu_hdr(5, "c"), W, H, W * 3, "rgb8", 0, rgb, sizeof rgb};
+    sooc_ros_image dm = {lu_hdr(5, "c"), W, H, W * 4, "32FC1", 0, (uint8_t *)z, sizeof z};
     CHECK_OK(sooc_ros_encode_image(&L.b, SOOC_MSGENC_CDR, &im));
     put(&L, a, 5);
     CHECK_OK(sooc_ros_encode_image(&L.b, SOOC_MSGENC_CDR, &im));

@@ -13,18 +13,11 @@
 #define W 32
 #define H 24
 
-static sooc_ros_header hdr(int64_t t, const char *frame) {
-    sooc_ros_header h;
-    memset(&h, 0, sizeof h);
-    h.stamp_ns = t;
-    snprintf(h.frame_id, sizeof h.frame_id, "%s", frame);
-    return h;
-}
 
 static sooc_ros_caminfo caminfo(int64_t t, const char *frame, double f, double cx, double cy) {
     sooc_ros_caminfo c;
     memset(&c, 0, sizeof c);
-    c.header = hdr(t, frame);
+    c.header = lu_hdr(t, frame);
     c.width = W;
     c.height = H;
     snprintf(c.distortion_model, sizeof c.distortion_model, "plumb_bob");
@@ -88,7 +81,7 @@ static void write_camera_log(const char *path, const char *comp, int summary, so
     static uint8_t cbuf[W * H * 4], dbuf[W * H * 4];
     int bpp = !strcmp(color_enc, "mono8") ? 1 : strstr(color_enc, "a8") ? 4 : 3;
     int bgr = color_enc[0] == 'b';
-    sooc_ros_transform st = {hdr(0, "map"), "world", {0, 0, 0}, {0, 0, 0, 1}};
+    sooc_ros_transform st = {lu_hdr(0, "map"), "world", {0, 0, 0}, {0, 0, 0, 1}};
     CHECK_OK(sooc_ros_encode_tf(&L.b, enc, &st, 1));
     put(&L, tfs, 0);
     for (int k = 0; k < nframes; k++) {
@@ -115,7 +108,7 @@ static void write_camera_log(const char *path, const char *comp, int summary, so
         int dbpp = !strcmp(depth_enc, "32FC1") ? 4 : 2;
         /* the camera 0.1 m further along x each frame; TF at t and half-way to the next */
         for (int h = 0; h < 2; h++) {
-            sooc_ros_transform tr = {hdr(t + h * 50000000LL, "world"), "cam_optical", {0.1 * k + 0.05 * h, 0, 0}, {0, 0, 0, 1}};
+            sooc_ros_transform tr = {lu_hdr(t + h * 50000000LL, "world"), "cam_optical", {0.1 * k + 0.05 * h, 0, 0}, {0, 0, 0, 1}};
             CHECK_OK(sooc_ros_encode_tf(&L.b, enc, &tr, 1));
             put(&L, tf, t + h * 50000000LL);
         }
@@ -124,11 +117,11 @@ static void write_camera_log(const char *path, const char *comp, int summary, so
         put(&L, cinf, t);
         CHECK_OK(sooc_ros_encode_caminfo(&L.b, enc, &ci));
         put(&L, dinf, t + 1000);
-        sooc_ros_image im = {hdr(t, "cam_optical"), W, H, (size_t)W * bpp, "", 0, cbuf, (size_t)W * H * bpp};
+        sooc_ros_image im = {lu_hdr(t, "cam_optical"), W, H, (size_t)W * bpp, "", 0, cbuf, (size_t)W * H * bpp};
         snprintf(im.encoding, sizeof im.encoding, "%s", color_enc);
         CHECK_OK(sooc_ros_encode_image(&L.b, enc, &im));
         put(&L, cimg, t);
-        sooc_ros_image dm = {hdr(t, "cam_optical"), W, H, (size_t)W * dbpp, "", be, dbuf, (size_t)W * H * dbpp};
+        sooc_ros_image dm = {lu_hdr(t, "cam_optical"), W, H, (size_t)W * dbpp, "", be, dbuf, (size_t)W * H * dbpp};
         snprintf(dm.encoding, sizeof dm.encoding, "%s", depth_enc);
         CHECK_OK(sooc_ros_encode_image(&L.b, enc, &dm));
         put(&L, dimg, t + 3000000);   /* depth logged 3 ms after colour */
@@ -139,11 +132,7 @@ static void write_camera_log(const char *path, const char *comp, int summary, so
 
 /* Read the frames back and compare with the pattern. */
 static void check_frames(const char *path, const char *color_enc, const char *depth_enc, int nframes) {
-    sooc_logseq_params p;
-    sooc_logseq_params_default(&p);
-    p.pose_parent = "map";
-    sooc_logseq *s = NULL;
-    CHECK_OK(sooc_logseq_open(&s, path, &p));
+    sooc_logseq *s = lu_open_frames(path, "map");
     if (!s) return;
     const sooc_logseq_desc *d = sooc_logseq_describe(s);
     CHECK_MSG(sooc_logseq_count(s) == nframes, "%s: %lld frames", path, (long long)sooc_logseq_count(s));
