@@ -256,6 +256,7 @@ static sooc_status src_read(replay *r, int64_t i, sooc_frame *f, const sooc_sens
  * each image is decoded again on its own, keeping the failure's message. */
 static sooc_frame_fault frame_fault_of(replay *r, int64_t i, const sooc_sensor_info *info) {
 #ifdef SOOC_HAVE_SEQ
+    if (sooc_seq_pose_bad(r->seq, i)) return SOOC_FRAME_FAULT_POSE;
     const char *cp = sooc_seq_color_path(r->seq, i), *dp = sooc_seq_depth_path(r->seq, i);
     if (!cp || !dp) return SOOC_FRAME_FAULT_OTHER;   /* a layout without image files (a log) */
     char msg[1024];
@@ -347,6 +348,7 @@ static sooc_status replay_open(sooc_sensor *s, const sooc_sensor_params *p) {
     sp.depth_shift = p->depth_shift;      /* -1 = calib, else the format's default */
     sp.depth_invalid = p->depth_invalid;
     if (p->calib && *p->calib) sp.calib_path = p->calib;
+    sp.keep_bad_frames = 1;   /* a broken frame fails when read: the node skips and counts it */
 #ifdef SOOC_HAVE_LOGS
     if ((st = open_log(r, s, p, &sp))) goto fail;
 #else

@@ -243,8 +243,14 @@ typedef enum sooc_mapstore_fault {
  * sooc_mapstore_begin (NONE if none did: a failure then came from the data,
  * e.g. a dimension mismatch or a non-finite value). */
 sooc_mapstore_fault sooc_mapstore_last_fault(const sooc_mapstore *s);
+/* The fault of this thread's last sooc_mapstore_open that failed in SQLite
+ * (NONE when it failed for another reason: not a map, a version, a model). */
+sooc_mapstore_fault sooc_mapstore_open_fault(void);
 /* "disk full", "I/O error", "locked by another connection", ... */
 const char *sooc_mapstore_fault_name(sooc_mapstore_fault f);
+/* *empty = 1 when `path` is an SQLite file without any table (what a
+ * creation that failed, e.g. on a full disk, leaves behind). */
+sooc_status sooc_mapstore_file_empty(const char *path, int *empty);
 /* How long a write waits for a lock another connection holds before it fails
  * with SOOC_EBUSY (opened with 5000 ms). */
 sooc_status sooc_mapstore_set_busy_timeout(sooc_mapstore *s, int ms);

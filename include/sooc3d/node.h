@@ -317,6 +317,11 @@ typedef struct sooc_node_source {
     sooc_status (*read)(void *ctx, sooc_frame *f, int timeout_ms);
     void (*stop)(void *ctx);
     void (*close)(void *ctx);
+    /* Optional. After a failed read: why, when the failure was one broken
+     * frame that the source has passed (the next read gives the frame after
+     * it): SOOC_FRAME_FAULT_*; SOOC_FRAME_FAULT_NONE when the stream itself
+     * failed. NULL: every failure is the stream's. */
+    sooc_frame_fault (*frame_fault)(void *ctx);
 } sooc_node_source;
 
 /* Pose source: camera (or effector) pose in the pose source's frame at t_ns,
@@ -324,11 +329,6 @@ typedef struct sooc_node_source {
 typedef struct sooc_node_pose_source {
     void *ctx;
     sooc_status (*lookup)(void *ctx, int64_t t_ns, int64_t tol_ns, double T[16]);
-    /* Optional. After a failed read: why, when the failure was one broken
-     * frame that the source has passed (the next read gives the frame after
-     * it): SOOC_FRAME_FAULT_*; SOOC_FRAME_FAULT_NONE when the stream itself
-     * failed. NULL: every failure is the stream's. */
-    sooc_frame_fault (*frame_fault)(void *ctx);
     void (*close)(void *ctx);
 } sooc_node_pose_source;
 
@@ -351,13 +351,6 @@ typedef struct sooc_node_stats {
     double elapsed_s;
     int floor_estimated;
     double T_world_src[16];
-} sooc_node_stats;
-
-/* Called on the mapping thread after each keyframe is published: the changed
- * entries (upserted) and the ids removed. For the CLI's --print-table. */
-typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_entry *changed,
-                                size_t n_changed, const uint64_t *removed, size_t n_removed,
-                                const sooc_node_stats *st);
     /* broken input frames (docs/node.md "Faults") */
     uint64_t frames_skipped;                      /* skipped: the source could not read them */
     uint64_t skipped_by[SOOC_FRAME_FAULT_COUNT];  /* by reason (index SOOC_FRAME_FAULT_*) */
@@ -370,8 +363,8 @@ typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_en
     uint64_t store_recoveries;   /* times the store came back after failing */
     uint64_t store_kf_dropped;   /* keyframe rows given up: more than SOOC_NODE_STORE_ROWS_MAX waited */
     int64_t store_committed_ns;  /* stamp of the newest keyframe in the database (INT64_MIN: none) */
+} sooc_node_stats;
 
-typedef struct sooc_node_options {
 /* sooc_node_stats.store_state */
 #define SOOC_NODE_STORE_NONE 0      /* no map.db */
 #define SOOC_NODE_STORE_OK 1        /* commits succeed; nothing pending */
@@ -380,6 +373,13 @@ typedef struct sooc_node_options {
  * (counted). Objects are never dropped: their latest state is kept. */
 #define SOOC_NODE_STORE_ROWS_MAX 65536
 
+/* Called on the mapping thread after each keyframe is published: the changed
+ * entries (upserted) and the ids removed. For the CLI's --print-table. */
+typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_entry *changed,
+                                size_t n_changed, const uint64_t *removed, size_t n_removed,
+                                const sooc_node_stats *st);
+
+typedef struct sooc_node_options {
     uint64_t max_keyframes;          /* 0 = unlimited */
     sooc_node_kf_fn on_keyframe;
     void *user;

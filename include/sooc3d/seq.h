@@ -133,6 +133,10 @@ typedef struct sooc_seq_open_params {
     double max_dt;            /* TUM association tolerance in seconds (default 0.02)   */
     double rot_tol;           /* orthonormality tolerance (default 1e-3)               */
     double max_depth;         /* depths beyond this are invalid (0 = no limit)         */
+    int keep_bad_frames;      /* 7-Scenes layout: 1 = a frame whose depth or pose file is
+                                 missing, or whose pose file does not parse, still opens
+                                 and reading it fails with that message (the replay
+                                 driver skips such frames); 0 = the open fails        */
 } sooc_seq_open_params;
 
 void sooc_seq_open_params_default(sooc_seq_open_params *p);
@@ -166,6 +170,9 @@ const char *sooc_seq_depth_path(const sooc_seq *s, int64_t i);
  * shift is a right rotation of the 16 bits: (raw >> shift) | (raw << (16 -
  * shift)) on 16 bits (APC). */
 void sooc_seq_depth_decoding(const sooc_seq *s, double *scale, int *shift, int *invalid);
+/* 1 when frame i was kept with a pose file that is missing or does not parse
+ * (keep_bad_frames): sooc_seq_read of it fails with that file's message. */
+int sooc_seq_pose_bad(const sooc_seq *s, int64_t i);
 int sooc_seq_depth_circular(const sooc_seq *s);
 /* 1 when the frames carry instance ids (sooc_seq_read fills f->instance). */
 int sooc_seq_has_labels(const sooc_seq *s);

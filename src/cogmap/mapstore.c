@@ -269,6 +269,7 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
     sooc_mapstore_params p;
     if (pp) p = *pp;
     else sooc_mapstore_params_default(&p);
+    sooc__mapstore_note_open(NULL);
     if (!path || !*path) return sooc_seterr(SOOC_EINVAL, "mapstore: empty database path");
     if (p.dim < 0 || p.dim > SOOC_COGMAP_DIM_MAX || p.layout_dim < 0 || p.layout_dim > SOOC_COGMAP_DIM_MAX)
         return sooc_seterr(SOOC_EINVAL, "%s: bad dims %d / %d", path, p.dim, p.layout_dim);
@@ -415,6 +416,7 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
     *out = s;
     return SOOC_OK;
 fail:
+    sooc__mapstore_note_open(s);
     sooc_mapstore_close(s);
     return st;
 }

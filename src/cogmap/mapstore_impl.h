@@ -27,6 +27,9 @@ int sooc__mapstore_readonly(const sooc_mapstore *s);
 /* The status for SQLite result rc, with the message "<path>: <what>: <SQLite's
  * reason>"; remembers rc for sooc_mapstore_last_fault. */
 sooc_status sooc__mapstore_dberr(sooc_mapstore *s, int rc, const char *what);
+/* Remember the fault of an open that fails (NULL: none) for
+ * sooc_mapstore_open_fault. */
+void sooc__mapstore_note_open(const sooc_mapstore *s);
 /* sqlite3_exec of sql (no rows), failures through sooc__mapstore_dberr. */
 sooc_status sooc__mapstore_exec(sooc_mapstore *s, const char *sql, const char *what);
 /* Step a statement to its end (rows ignored), then reset and clear it. */

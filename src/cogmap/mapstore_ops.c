@@ -6,9 +6,11 @@
 
 #include "cogmap/mapstore_impl.h"
 
-sooc_mapstore_fault sooc_mapstore_last_fault(const sooc_mapstore *s) {
-    if (!s || !s->last_rc) return SOOC_MAPSTORE_FAULT_NONE;
-    switch (s->last_rc & 0xff) {
+static _Thread_local int g_open_rc;   /* SQLite result of this thread's last failed open */
+
+static sooc_mapstore_fault fault_of(int rc) {
+    if (!rc) return SOOC_MAPSTORE_FAULT_NONE;
+    switch (rc & 0xff) {
     case SQLITE_FULL: return SOOC_MAPSTORE_FAULT_FULL;
     case SQLITE_IOERR:
     case SQLITE_CANTOPEN:
@@ -23,6 +25,12 @@ sooc_mapstore_fault sooc_mapstore_last_fault(const sooc_mapstore *s) {
     }
 }
 
+sooc_mapstore_fault sooc_mapstore_last_fault(const sooc_mapstore *s) { return s ? fault_of(s->last_rc) : SOOC_MAPSTORE_FAULT_NONE; }
+
+void sooc__mapstore_note_open(const sooc_mapstore *s) { g_open_rc = s ? s->last_rc : 0; }
+
+sooc_mapstore_fault sooc_mapstore_open_fault(void) { return fault_of(g_open_rc); }
+
 const char *sooc_mapstore_fault_name(sooc_mapstore_fault f) {
     switch (f) {
     case SOOC_MAPSTORE_FAULT_NONE: return "none";
@@ -33,6 +41,24 @@ const char *sooc_mapstore_fault_name(sooc_mapstore_fault f) {
     case SOOC_MAPSTORE_FAULT_NOMEM: return "out of memory";
     default: return "other SQLite error";
     }
+}
+
+sooc_status sooc_mapstore_file_empty(const char *path, int *empty) {
+    *empty = 0;
+    sqlite3 *db = NULL;
+    int rc = sqlite3_open_v2(path, &db, SQLITE_OPEN_READONLY, NULL), n = -1;
+    sqlite3_stmt *q = NULL;
+    if (rc == SQLITE_OK) rc = sqlite3_prepare_v2(db, "SELECT count(*) FROM sqlite_master", -1, &q, NULL);
+    if (rc == SQLITE_OK && (rc = sqlite3_step(q)) == SQLITE_ROW) {
+        n = sqlite3_column_int(q, 0);
+        rc = SQLITE_OK;
+    }
+    sooc_status st = rc == SQLITE_OK ? SOOC_OK
+                                     : sooc_seterr(SOOC_EIO, "%s: %s", path, db ? sqlite3_errmsg(db) : sqlite3_errstr(rc));
+    sqlite3_finalize(q);
+    sqlite3_close(db);
+    *empty = n == 0;
+    return st;
 }
 
 sooc_status sooc_mapstore_set_busy_timeout(sooc_mapstore *s, int ms) {

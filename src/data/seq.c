@@ -620,11 +620,16 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
         e->depth = sooc_seqi_frame_path(s->dir, "frame-", 6, fl[i].number, ".depth.png", NULL);
         char *pose = sooc_seqi_frame_path(s->dir, "frame-", 6, fl[i].number, ".pose.txt", NULL);
         if (!e->rgb || !e->depth || !pose) { sooc_free(pose); st = SOOC_ENOMEM; break; }
-        st = sooc_seqi_need_file(NULL, 0, e->depth);
+        st = p->keep_bad_frames ? SOOC_OK : sooc_seqi_need_file(NULL, 0, e->depth);   /* kept: reading fails */
         if (!st) st = sooc_seqi_need_file(NULL, 0, pose);
         if (!st) st = read_pose4(pose, e->T, p->rot_tol);
         sooc_free(pose);
-        e->has_pose = 1;
+        if (st && st != SOOC_ENOMEM && p->keep_bad_frames) {   /* this frame fails when read, the others go on */
+            if (!(e->pose_err = sooc_strdup(sooc_errmsg()))) { st = SOOC_ENOMEM; break; }
+            sooc_clearerr();
+            st = SOOC_OK;
+        }
+        e->has_pose = !e->pose_err;
         e->number = fl[i].number;
         e->t_ns = fl[i].number * 33333333LL; /* no timestamps in this layout: 30 Hz by frame number */
     }
@@ -805,6 +810,7 @@ void sooc_seq_depth_decoding(const sooc_seq *s, double *scale, int *shift, int *
     if (shift) *shift = s->depth_shift;
     if (invalid) *invalid = s->depth_invalid;
 }
+int sooc_seq_pose_bad(const sooc_seq *s, int64_t i) { return s && i >= 0 && i < s->n && s->e[i].pose_err; }
 int sooc_seq_depth_circular(const sooc_seq *s) { return s ? s->depth_circular : 0; }
 int sooc_seq_has_labels(const sooc_seq *s) { return s && (s->labels_fn || (s->n > 0 && s->e[0].inst)); }
 int sooc_seq_labels_predicted(const sooc_seq *s) { return sooc_seq_has_labels(s) ? s->labels_predicted : 0; }
@@ -820,6 +826,7 @@ void sooc_seq_close(sooc_seq *s) {
         sooc_free(s->e[i].rgb);
         sooc_free(s->e[i].depth);
         sooc_free(s->e[i].inst);
+        sooc_free(s->e[i].pose_err);
     }
     sooc_free(s->e);
     sooc_image_free(&s->img_rgb);
@@ -841,6 +848,7 @@ sooc_status sooc_seq_read(sooc_seq *s, int64_t i, sooc_frame *f) {
                            (long long)(s ? s->n : 0));
     if (s->source_read) return sooc_seqi_source_read(s, i, f);
     const sooc_seqi_entry *e = &s->e[i];
+    if (e->pose_err) return sooc_seterr(SOOC_EFORMAT, "%s", e->pose_err);
     char ctx[4400];
     ctx_of(e, ctx, sizeof ctx);
     sooc_status st = sooc_image_read(e->rgb, &s->img_rgb);

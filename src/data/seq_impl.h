@@ -17,6 +17,7 @@ typedef struct sooc_seqi_entry {
     int64_t number;               /* the frame's number in its file names (TUM: list order) */
     const char *src;              /* file that listed it (points into seq->srcname) */
     int is_query;
+    char *pose_err;               /* keep_bad_frames: why its pose file was refused (NULL = fine) */
 } sooc_seqi_entry;
 
 /* Format-specific per-frame labels (APC: built from the predicted masks):

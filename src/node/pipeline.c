@@ -209,10 +209,10 @@ static void set_world(sooc_node *n, const double T[16]) {
 static sooc_status world_from_store(sooc_node *n, int resumed) {
     const sooc_node_config *c = &n->cfg;
 #if SOOC_NODE_HAVE_MAPSTORE
-    if (n->store) {
+    if (n->sg) {   /* a store, or one to be created later (store_guard.h) */
         sooc_map_frame mf;
         int found = 0;
-        sooc_status st = sooc_mapstore_frame_get(n->store, &mf, &found);
+        sooc_status st = n->store ? sooc_mapstore_frame_get(n->store, &mf, &found) : SOOC_OK;
         if (st) return sooc_adderr(st, "%s: map.db", c->path);
         if (found && resumed) {
             if (n->world_ready) {
@@ -486,26 +486,26 @@ fail:
 
 static void *capture_main(void *arg) {
     sooc_node *n = arg;
-        if (st && st != SOOC_EEOF && st != SOOC_EINTERRUPTED && !(st = sooc__node_capture_skip(n, st))) continue;
     sooc_frame f;
     memset(&f, 0, sizeof f);
     sooc_status st = n->src.start ? n->src.start(n->src.ctx) : SOOC_OK;
     while (!st && !atomic_load(&n->stop)) {
         st = n->src.read(n->src.ctx, &f, 100);
         if (st == SOOC_ETIMEOUT) { st = SOOC_OK; continue; }
+        if (st && st != SOOC_EEOF && st != SOOC_EINTERRUPTED && !(st = sooc__node_capture_skip(n, st))) continue;
         if (st) break;
-    pthread_mutex_lock(&n->mu);
-    uint64_t good = n->st.frames_in, bad = n->st.frames_skipped;
-    pthread_mutex_unlock(&n->mu);
-    if (!st && !good && bad)   /* a recording without one good frame is still an error */
-        st = sooc_seterr(SOOC_EFORMAT, "none of the %llu frames of the recording could be read (the last: %s)",
-                         (unsigned long long)bad, n->last_skip);
         pthread_mutex_lock(&n->mu);
         n->st.frames_in++;
         pthread_mutex_unlock(&n->mu);
         sooc_frame_ring_push(n->ring, &f, sooc_now_ns());
     }
     if (st == SOOC_EEOF || st == SOOC_EINTERRUPTED) st = SOOC_OK;
+    pthread_mutex_lock(&n->mu);
+    uint64_t good = n->st.frames_in, bad = n->st.frames_skipped;
+    pthread_mutex_unlock(&n->mu);
+    if (!st && !good && bad)   /* a recording without one good frame is still an error */
+        st = sooc_seterr(SOOC_EFORMAT, "none of the %llu frames of the recording could be read (the last: %s)",
+                         (unsigned long long)bad, n->last_skip);
     if (st && !atomic_load(&n->stop)) {
         n->cap_status = st;
         snprintf(n->cap_err, sizeof n->cap_err, "%s", sooc_errmsg());
@@ -768,24 +768,24 @@ sooc_status sooc_node_run(sooc_node *n) {
     n->cap_started = 1;
     sooc_status result = SOOC_OK;
     int eof = 0;
-        sooc_status st = sooc__node_store_retry(n, 0);
-        if (st) { result = st; break; }
     const int64_t tol_ns = (int64_t)llround(n->cfg.pose_tolerance_s * 1e9);
     while (!atomic_load(&n->stop)) {
         if (n->cfg.stats_period_s > 0 && sooc_seconds() - n->t_last_stats >= n->cfg.stats_period_s) {
             n->t_last_stats = sooc_seconds();
             log_stats(n);
         }
-        if (sooc__node_frame_size_skip(n, f, &result)) {
-            if (result) break;
-            continue;
-        }
+        sooc_status st = sooc__node_store_retry(n, 0);
+        if (st) { result = st; break; }
         int64_t t_cap = 0;
         st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
         if (st == SOOC_ETIMEOUT) continue;
         if (st == SOOC_EEOF) { eof = 1; break; }
         if (st) { result = st; break; }
         sooc_frame *f = &n->work;
+        if (sooc__node_frame_size_skip(n, f, &result)) {
+            if (result) break;
+            continue;
+        }
         /* pose association */
         double T_src_c[16];
         int fixed = 0;
@@ -832,6 +832,12 @@ sooc_status sooc_node_run(sooc_node *n) {
 #endif
     sooc_frame_ring_close(n->ring);
     if (n->cap_started) {
+        pthread_join(n->cap_thread, NULL);
+        n->cap_started = 0;
+    }
+    if (!result && n->cap_status) {
+        result = sooc_seterr(n->cap_status, "node: capture failed: %s", n->cap_err);
+    }
     pthread_mutex_lock(&n->mu);
     uint64_t n_in = n->st.frames_in;
     pthread_mutex_unlock(&n->mu);
@@ -839,12 +845,6 @@ sooc_status sooc_node_run(sooc_node *n) {
         result = sooc_seterr(SOOC_EINVAL, "none of the %llu frames of the recording could be mapped (the last: %s)",
                              (unsigned long long)n_in, n->cfg.calib_path);
     result = sooc__node_store_final(n, result);
-        pthread_join(n->cap_thread, NULL);
-        n->cap_started = 0;
-    }
-    if (!result && n->cap_status) {
-        result = sooc_seterr(n->cap_status, "node: capture failed: %s", n->cap_err);
-    }
     log_stats(n);
     return result;
 }
@@ -865,13 +865,13 @@ void sooc_node_destroy(sooc_node *n) {
 #endif
     if (n->have_pose && n->pose.close) n->pose.close(n->pose.ctx);
 #if SOOC_NODE_HAVE_CV
-    sooc_sg_destroy(n->sg);
     sooc_odom_destroy(n->odom);
 #endif
 #if SOOC_NODE_HAVE_TABLE
     if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
 #endif
 #if SOOC_NODE_HAVE_MAPSTORE
+    sooc_sg_destroy(n->sg);
     sooc_mapstore_close(n->store);
 #endif
     if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);

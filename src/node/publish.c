@@ -95,8 +95,38 @@ static sooc_status store_open(sooc_node *n, int create) {
     if (!sooc_mapstore_meta_get(n->store, "extent", b, sizeof b) &&
         sscanf(b, "%f %f %f", &n->extent[0], &n->extent[1], &n->extent[2]) == 3)
         n->extent_stored = 1;
-    if ((st = sooc_mapstore_set_busy_timeout(n->store, n->cfg.map_busy_timeout_ms)) ||
-        (st = sooc_sg_create(&n->sg, n->store, n->store_layout_dim, n->cfg.map_retry_s, n->cfg.map_retry_max_s)))
+    if ((st = sooc_mapstore_set_busy_timeout(n->store, n->cfg.map_busy_timeout_ms)))
+        return sooc_adderr(st, "%s: map.db", n->cfg.path);
+    /* the schema (or a WAL an earlier run left) into the database file: on a
+     * nearly full disk a large WAL would hold the space the map needs */
+    if (sooc_mapstore_checkpoint(n->store, 1)) sooc_clearerr();
+    return SOOC_OK;
+}
+
+/* The guard's opener: a new database that could not be created at start. */
+static sooc_status store_create_later(void *ctx, sooc_mapstore **out) {
+    sooc_node *n = ctx;
+    sooc_status st = store_open(n, 1);
+    if (st) {
+        sooc_mapstore_close(n->store);
+        n->store = NULL;
+    }
+    *out = n->store;
+    return st;
+}
+
+/* The store's guard; a new database that cannot be created for a reason of
+ * the storage (a full disk, ...) is created by a later retry. */
+static sooc_status store_guard(sooc_node *n, int create) {
+    sooc_status st = store_open(n, create);
+    if (st) {
+        sooc_mapstore_close(n->store);
+        n->store = NULL;
+        if (!create || !sooc_mapstore_open_fault() || st == SOOC_EINVAL || st == SOOC_EVERSION) return st;
+        n->store_layout_dim = sooc3d_mapper_layout_dim(n->mapper);   /* what the new database will keep */
+    }
+    if ((st = sooc_sg_create(&n->sg, n->store, n->cfg.map_db, n->store_layout_dim, n->cfg.map_retry_s,
+                             n->cfg.map_retry_max_s, store_create_later, n)))
         return sooc_adderr(st, "%s: map.db", n->cfg.path);
     store_sync(n);
     return SOOC_OK;
@@ -279,12 +309,13 @@ sooc_status sooc__node_store_final(sooc_node *n, sooc_status result) {
     else result = st;
     sooc_sg_status s;
     sooc_sg_status_get(n->sg, &s);
+    char upto[96] = "no keyframe of this run";
+    if (s.committed_ns != INT64_MIN) snprintf(upto, sizeof upto, "the keyframes up to stamp %lld ns", (long long)s.committed_ns);
     if (s.state == SOOC_NODE_STORE_FAILING)
         sooc_log(SOOC_LOG_ERROR,
                  "node: map store still failing at the end of the run: %s. %llu objects and %llu keyframes of this "
-                 "run are not in the database; it holds the map as committed up to keyframe stamp %lld ns",
-                 sooc_sg_reason(n->sg), (unsigned long long)s.pending, (unsigned long long)s.pending_kf,
-                 (long long)s.committed_ns);
+                 "run are not in the database; it holds %s (and what earlier runs committed)",
+                 sooc_sg_reason(n->sg), (unsigned long long)s.pending, (unsigned long long)s.pending_kf, upto);
 #else
     (void)n;
 #endif
@@ -297,8 +328,11 @@ sooc_status sooc__node_store_resume(sooc_node *n, int *resumed) {
     *resumed = 0;
     n->db_exists = c->map_db[0] && sooc_file_exists(c->map_db);
 #if SOOC_NODE_HAVE_MAPSTORE
+    int empty = 0;   /* a file left by a creation that failed (full disk): created anew */
+    if (n->db_exists && !sooc_mapstore_file_empty(c->map_db, &empty) && empty) n->db_exists = 0;
+    sooc_clearerr();
     if (n->db_exists) {
-        if ((st = store_open(n, 0))) return st;
+        if ((st = store_guard(n, 0))) return st;
         sooc_mapstore_info info;
         if ((st = sooc_mapstore_info_get(n->store, &info))) return st;
         if (!c->map_resume && info.n_entries > 0) {
@@ -334,7 +368,7 @@ sooc_status sooc__node_store_resume(sooc_node *n, int *resumed) {
         n->st.resumed_blocks = LB.count;
         *resumed = 1;
     } else if (c->map_db[0]) {
-        if ((st = store_open(n, 1))) return st;
+        if ((st = store_guard(n, 1))) return st;
     }
 #else
     if (c->map_db[0])

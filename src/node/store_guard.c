@@ -27,7 +27,10 @@ typedef struct pend_blk {
 } pend_blk;
 
 struct sooc_sg {
-    sooc_mapstore *s;
+    sooc_mapstore *s;         /* NULL until open() succeeds */
+    sooc_sg_open_fn open;
+    void *open_ctx;
+    char path[1024];
     int layout_dim;
     double retry_s, retry_max_s;
 
@@ -65,7 +68,10 @@ static uint64_t mix64(uint64_t k) {
     return k;
 }
 
-sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, int layout_dim, double retry_s, double retry_max_s) {
+static void fail_state(sooc_sg *g, sooc_mapstore_fault f, double now, size_t n_obj);
+
+sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, const char *path, int layout_dim, double retry_s,
+                           double retry_max_s, sooc_sg_open_fn open, void *ctx) {
     *out = NULL;
     sooc_sg *g = sooc_calloc(1, sizeof *g);
     if (!g) return sooc_seterr(SOOC_ENOMEM, "node: map store queue: out of memory");
@@ -77,14 +83,23 @@ sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, int layout_dim, doub
     g->state = SOOC_NODE_STORE_OK;
     g->committed_ns = INT64_MIN;
     g->since = sooc_seconds();
-    snprintf(g->dir, sizeof g->dir, "%s", sooc_mapstore_path(s));
+    g->open = open;
+    g->open_ctx = ctx;
+    snprintf(g->path, sizeof g->path, "%s", path);
+    snprintf(g->dir, sizeof g->dir, "%s", path);
     char *slash = strrchr(g->dir, '/');
     if (slash) *slash = 0;
     else snprintf(g->dir, sizeof g->dir, ".");
     if (!g->dir[0]) snprintf(g->dir, sizeof g->dir, "/");
+    if (!s) {   /* could not be created: failing from the start, the reason is the open's */
+        sooc_mapstore_fault f = sooc_mapstore_open_fault();
+        fail_state(g, f ? f : SOOC_MAPSTORE_FAULT_OTHER, g->since, 0);
+    }
     *out = g;
     return SOOC_OK;
 }
+
+sooc_mapstore *sooc_sg_store(const sooc_sg *g) { return g->s; }
 
 void sooc_sg_destroy(sooc_sg *g) {
     if (!g) return;
@@ -288,44 +303,9 @@ static double backoff(const sooc_sg *g) {
     return d < g->retry_max_s ? d : g->retry_max_s;
 }
 
-sooc_status sooc_sg_flush(sooc_sg *g, double now, int force) {
-    if (!sooc_sg_pending(g)) return SOOC_OK;
-    if (g->state == SOOC_NODE_STORE_FAILING && !force && now < g->next_try) return SOOC_OK;
-    if (g->state == SOOC_NODE_STORE_FAILING && g->fault == SOOC_MAPSTORE_FAULT_FULL) {
-        /* a checkpoint that cuts the WAL file may free the space the next try needs */
-        if (sooc_mapstore_checkpoint(g->s, 1)) sooc_clearerr();
-    }
-    struct statvfs vs;
-    if (!g->low_space && !statvfs(g->dir, &vs) && (double)vs.f_bavail * (double)vs.f_frsize < SG_LOW_SPACE_BYTES) {
-        g->low_space = SG_LOW_SPACE_COMMITS;
-        if (!g->low_logged++)
-            sooc_log(SOOC_LOG_INFO, "node: map store %s: %.0f KB left on its file system: the WAL is copied into "
-                     "the database and cut after each commit", sooc_mapstore_path(g->s),
-                     (double)vs.f_bavail * (double)vs.f_frsize / 1024.0);
-    }
-    size_t n_obj = g->n_pe, n_kf = g->n_rows;
-    sooc_status st = write_all(g);
-    if (!st) {
-        if (n_kf) g->committed_ns = row_at(g, n_kf - 1)->t_ns;
-        clear_queue(g);
-        if (g->low_space > 0) {   /* keep the WAL from taking the space the database needs */
-            g->low_space--;
-            if (sooc_mapstore_checkpoint(g->s, 1)) sooc_clearerr();
-        }
-        if (g->state == SOOC_NODE_STORE_FAILING) {
-            sooc_log(SOOC_LOG_WARN,
-                     "node: map store writable again: %s: wrote the %zu objects and %zu keyframes that waited, "
-                     "after %d failed attempts over %.1f s",
-                     sooc_mapstore_path(g->s), n_obj, n_kf, g->consecutive, now - g->since);
-            g->recoveries++;
-            g->state = SOOC_NODE_STORE_OK;
-            g->since = now;
-        }
-        g->consecutive = 0;
-        return SOOC_OK;
-    }
-    sooc_mapstore_fault f = sooc_mapstore_last_fault(g->s);
-    if (f == SOOC_MAPSTORE_FAULT_NONE || st == SOOC_EINVAL || st == SOOC_ENUMERIC) return st;   /* the data's */
+/* A failed attempt (the message of the failure is set): FAILING, logged when
+ * the state or the fault changes, the next try after the backoff. */
+static void fail_state(sooc_sg *g, sooc_mapstore_fault f, double now, size_t n_obj) {
     g->failures++;
     g->consecutive++;
     int changed = g->state != SOOC_NODE_STORE_FAILING || (int)f != g->fault;
@@ -346,6 +326,57 @@ sooc_status sooc_sg_flush(sooc_sg *g, double now, int force) {
     g->fault = (int)f;
     if (f == SOOC_MAPSTORE_FAULT_FULL) g->low_space = SG_LOW_SPACE_COMMITS;
     sooc_clearerr();
+}
+
+sooc_status sooc_sg_flush(sooc_sg *g, double now, int force) {
+    if (!sooc_sg_pending(g)) return SOOC_OK;
+    if (g->state == SOOC_NODE_STORE_FAILING && !force && now < g->next_try) return SOOC_OK;
+    if (!g->s) {   /* not created yet */
+        sooc_status st = g->open(g->open_ctx, &g->s);
+        if (st) {
+            g->s = NULL;
+            sooc_mapstore_fault f = sooc_mapstore_open_fault();
+            if (f == SOOC_MAPSTORE_FAULT_NONE) return st;   /* not the storage's: no retry mends it */
+            fail_state(g, f, now, g->n_pe);
+            return SOOC_OK;
+        }
+    }
+    if (g->state == SOOC_NODE_STORE_FAILING && g->fault == SOOC_MAPSTORE_FAULT_FULL) {
+        /* a checkpoint that cuts the WAL file may free the space the next try needs */
+        if (sooc_mapstore_checkpoint(g->s, 1)) sooc_clearerr();
+    }
+    struct statvfs vs;
+    if (!g->low_space && !statvfs(g->dir, &vs) && (double)vs.f_bavail * (double)vs.f_frsize < SG_LOW_SPACE_BYTES) {
+        g->low_space = SG_LOW_SPACE_COMMITS;
+        if (!g->low_logged++)
+            sooc_log(SOOC_LOG_INFO, "node: map store %s: %.0f KB left on its file system: the WAL is copied into "
+                     "the database and cut after each commit", g->path,
+                     (double)vs.f_bavail * (double)vs.f_frsize / 1024.0);
+    }
+    size_t n_obj = g->n_pe, n_kf = g->n_rows;
+    sooc_status st = write_all(g);
+    if (!st) {
+        if (n_kf) g->committed_ns = row_at(g, n_kf - 1)->t_ns;
+        clear_queue(g);
+        if (g->low_space > 0) {   /* keep the WAL from taking the space the database needs */
+            g->low_space--;
+            if (sooc_mapstore_checkpoint(g->s, 1)) sooc_clearerr();
+        }
+        if (g->state == SOOC_NODE_STORE_FAILING) {
+            sooc_log(SOOC_LOG_WARN,
+                     "node: map store writable again: %s: wrote the %zu objects and %zu keyframes that waited, "
+                     "after %d failed attempts over %.1f s",
+                     g->path, n_obj, n_kf, g->consecutive, now - g->since);
+            g->recoveries++;
+            g->state = SOOC_NODE_STORE_OK;
+            g->since = now;
+        }
+        g->consecutive = 0;
+        return SOOC_OK;
+    }
+    sooc_mapstore_fault f = sooc_mapstore_last_fault(g->s);
+    if (f == SOOC_MAPSTORE_FAULT_NONE || st == SOOC_EINVAL || st == SOOC_ENUMERIC) return st;   /* the data's */
+    fail_state(g, f, now, n_obj);
     return SOOC_OK;
 }
 

@@ -46,10 +46,19 @@ typedef struct sooc_sg_status {
     double since;              /* sooc_seconds() of the latest change of state */
 } sooc_sg_status;
 
-/* The guard of an open store (not owned: the caller closes it after
- * sooc_sg_destroy). layout_dim: size of the layout latents queued (0: none). */
-sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, int layout_dim, double retry_s, double retry_max_s);
+/* Opens (creates) the store for a guard that has none yet. */
+typedef sooc_status (*sooc_sg_open_fn)(void *ctx, sooc_mapstore **out);
+
+/* The guard of the store at `path`: s, open (not owned: the caller closes
+ * it after sooc_sg_destroy), or NULL when it could not be created for a
+ * reason of the storage: the guard then starts FAILING (logged once, with
+ * the reason left by the failed open) and each retry first calls
+ * open(ctx, &s). layout_dim: size of the layout latents queued (0: none). */
+sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, const char *path, int layout_dim, double retry_s,
+                           double retry_max_s, sooc_sg_open_fn open, void *ctx);
 void sooc_sg_destroy(sooc_sg *g);
+/* The store (NULL while it could not be opened). */
+sooc_mapstore *sooc_sg_store(const sooc_sg *g);
 
 /* Queue changes (copied). */
 sooc_status sooc_sg_put(sooc_sg *g, const sooc_map_entry *e);
