@@ -46,6 +46,9 @@ OFF_RECORDS_OFFSET, OFF_SCHEMA_HASH, OFF_FRAME_ID = 24, 32, 40
 OFF_INSTANCE_ID, OFF_WRITER_PID, OFF_HFLAGS, OFF_TABLE_SEQ = 80, 88, 96, 104
 OFF_HEARTBEAT, OFF_HIGH_WATER, OFF_N_OBJECTS = 112, 120, 128
 OFF_STAMP_NS, OFF_T_SRC_MAP = 272, 280
+OFF_ABI_MINOR, OFF_STORE_SEQ, OFF_STORE = 10, 144, 152  # store block: abi_minor >= 1
+STORE_STATES = {0: "none", 1: "ok", 2: "failing"}
+STORE_FAULTS = {0: "", 1: "disk full", 2: "I/O error", 3: "locked", 4: "corrupt", 5: "out of memory", 6: "other"}
 FLAG_VALID, FLAG_TENTATIVE, FLAG_REMOVED, FLAG_STATIC = 1, 2, 4, 8
 HFLAG_WRITER_EXITED = 1
 READ_RETRIES = 100
@@ -133,6 +136,26 @@ class Table:
                                  extent=t[15:18], first_seen_ns=t[18], last_seen_ns=t[19]))
             return s0 // 2, recs, n_objects, stamp_ns
         raise TableError("table busy (seqlock retries exhausted)")
+
+    def store(self):
+        """The map database's state (the header's store block, abi_minor >= 1), copied under
+        store_seq: dict(state, fault, pending, pending_kf, committed_ns); state "none" for an
+        older writer or a node without a database."""
+        abi_minor, = struct.unpack_from("<H", self.mm, OFF_ABI_MINOR)
+        if abi_minor < 1:
+            return dict(state="none", fault="", pending=0, pending_kf=0, committed_ns=None)
+        for attempt in range(READ_RETRIES):
+            s0 = self.u64(OFF_STORE_SEQ)
+            if s0 & 1:
+                time.sleep(0.0002 if attempt >= 8 else 0)
+                continue
+            state, fault, pending, pending_kf, committed = struct.unpack_from("<IIQQq", self.mm, OFF_STORE)
+            if self.u64(OFF_STORE_SEQ) != s0:
+                continue
+            return dict(state=STORE_STATES.get(state, "?"), fault=STORE_FAULTS.get(fault, "other"),
+                        pending=pending, pending_kf=pending_kf,
+                        committed_ns=None if committed == -(1 << 63) else committed)
+        raise TableError("table busy (store block retries exhausted)")
 
     def writer_pid(self):
         return self.i64(OFF_WRITER_PID)

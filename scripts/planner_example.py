@@ -103,6 +103,10 @@ def main():
                 if epoch != last or args.once:
                     print_table(epoch, recs, n_obj, stamp, table.frame_id, args.rep103,
                                 table.t_src_map if args.source else None)
+                    st = table.store()
+                    if st["state"] == "failing":
+                        print("  map database failing%s: %d objects and %d keyframes not stored yet" % (
+                            " (%s)" % st["fault"] if st["fault"] else "", st["pending"], st["pending_kf"]))
                     last = epoch
                 if args.once:
                     break

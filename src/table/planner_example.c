@@ -165,6 +165,13 @@ int main(int argc, char **argv) {
         if (rc == 0) rc = sooc_table_get_info(r, &info);
         if (rc == 0 && (epoch != last_epoch || once)) {
             print_table(&info, recs, n, epoch, rep103, source);
+            sooc_table_store ts;   /* the map database's state (abi_minor >= 1) */
+            static const char *const fault[] = {"", " (disk full)", " (I/O error)", " (locked)", " (corrupt)",
+                                                " (out of memory)", ""};
+            if (sooc_table_get_store(r, &ts) == 0 && ts.state == SOOC_TABLE_STORE_FAILING)
+                printf("  map database failing%s: %llu objects and %llu keyframes not stored yet\n",
+                       fault[ts.fault < 7 ? ts.fault : 6], (unsigned long long)ts.pending,
+                       (unsigned long long)ts.pending_kf);
             last_epoch = epoch;
         } else if (rc != 0 && rc != SOOC_TABLE_EBUSY) {
             fprintf(stderr, "sooc3d-planner-example: table '%s': %s\n", name,

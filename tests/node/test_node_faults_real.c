@@ -333,6 +333,25 @@ static int test_storage(void) {
                nb, na, integ, live, (unsigned long long)ts.pending, (unsigned long long)ts.pending_kf);
         sooc_table_close_reader(r);
     }
+    /* both example planners say so */
+    char planner[1100], out[700];
+    snprintf(planner, sizeof planner, "%s", g_bin);
+    char *slash = strrchr(planner, '/');
+    snprintf(slash ? slash + 1 : planner, sizeof planner - (size_t)(slash ? slash + 1 - planner : 0),
+             "sooc3d-planner-example");
+    snprintf(out, sizeof out, "%s/planner.txt", g_tmp);
+    if (!access(planner, X_OK)) {
+        CHECK(run("'%s' %s --once > '%s' 2>&1", planner, g_shm, out) == 0);
+        t = slurp(out);
+        CHECK_MSG(t && strstr(t, "map database failing (disk full): "), "C planner: %s", t ? t : "(no output)");
+        sooc_free(t);
+    }
+    if (!run("python3 -c 'import mmap' 2>/dev/null")) {
+        CHECK(run("python3 scripts/planner_example.py %s --once > '%s' 2>&1", g_shm, out) == 0);
+        t = slurp(out);
+        CHECK_MSG(t && strstr(t, "map database failing (disk full): "), "Python planner: %s", t ? t : "(no output)");
+        sooc_free(t);
+    }
 
     /* 3. the space freed: the same run writes its map */
     CHECK(unlink(filler) == 0);
