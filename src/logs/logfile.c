@@ -272,7 +272,7 @@ static int cmp_entry(const void *a, const void *b) {
 }
 
 static sooc_status finish_index(sooc_logfile *lf) {
-    qsort(lf->e, (size_t)lf->ne, sizeof *lf->e, cmp_entry);
+    if (lf->ne > 1) qsort(lf->e, (size_t)lf->ne, sizeof *lf->e, cmp_entry);
     for (int i = 0; i < lf->nch; i++) lf->ch[i].pub.count = 0;
     for (int64_t k = 0; k < lf->ne; k++) {
         int c = lf->e[k].ch;

@@ -74,10 +74,10 @@ static sooc_status topic_positions(const sooc_logfile *lf, const char *topic, in
         if (strcmp(sooc_logfile_channel_get(lf, c)->topic, topic)) continue;
         int64_t k;
         const int64_t *p = sooc_logfile_channel_msgs(lf, c, &k);
-        memcpy(*out + *n, p, sizeof(int64_t) * (size_t)k);
+        if (k) memcpy(*out + *n, p, sizeof(int64_t) * (size_t)k);
         *n += k;
     }
-    qsort(*out, (size_t)*n, sizeof(int64_t), cmp_pos);
+    if (*n > 1) qsort(*out, (size_t)*n, sizeof(int64_t), cmp_pos);
     return SOOC_OK;
 }
 
@@ -201,7 +201,9 @@ static void find_info(sooc_logseq *s, ls_stream *t) {
         sooc_logfile_msg m;
         sooc_ros_caminfo ci;
         if (sooc_logfile_read(s->lf, pos[0], &m) || sooc_ros_decode_caminfo(m.data, m.size, ch->enc, &ci)) continue;
-        if (ci.width != t->pub.width || ci.height != t->pub.height || ci.K[0] <= 0 || ci.K[4] <= 0) continue;
+        if (ci.width != t->pub.width || ci.height != t->pub.height || !(ci.K[0] > 0 && ci.K[4] > 0) ||
+            !isfinite(ci.K[0] + ci.K[2] + ci.K[4] + ci.K[5]))
+            continue;
         /* the image's frame_id first, then the topic's path, then its characters */
         size_t nc = 0;
         while (ch->topic[nc] && ch->topic[nc] == t->pub.topic[nc]) nc++;

@@ -157,8 +157,10 @@ void logs_register_depth(const float *zd, const sooc_intrinsics *Kd, const doubl
             double Z = T[8] * x + T[9] * y + T[10] * z + T[11];
             if (Z <= 1e-6) continue;
             double uc = Kc->fx * X / Z + Kc->cx, vc = Kc->fy * Y / Z + Kc->cy;
-            /* half the footprint, widened a little so that neighbours on a slanted surface leave no gap */
-            double hx = 0.6 * sx * z / Z + 0.05, hy = 0.6 * sy * z / Z + 0.05;
+            if (!(uc > -wc && uc < 2.0 * wc && vc > -hc && vc < 2.0 * hc)) continue;   /* also NaN */
+            /* half the footprint, widened a little so that neighbours on a slanted surface leave no gap;
+               at most 16 pixels (a depth pixel right in front of the colour camera) */
+            double hx = fmin(0.6 * sx * z / Z + 0.05, 16.0), hy = fmin(0.6 * sy * z / Z + 0.05, 16.0);
             int x0 = (int)ceil(uc - hx), x1 = (int)floor(uc + hx);
             int y0 = (int)ceil(vc - hy), y1 = (int)floor(vc + hy);
             if (x1 < x0) x0 = x1 = (int)floor(uc + 0.5);
