@@ -16,7 +16,7 @@ PKGS=(
   python3 python3-numpy python3-torch
   python3-yaml python3-opencv
   clang libclang-rt-14-dev
-  liblz4-dev libzstd-dev libbz2-dev python3-rosbag
+  liblz4-dev libzstd-dev libbz2-dev python3-rosbag libwebsockets-dev chromium
 )
 
 missing=()
