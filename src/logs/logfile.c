@@ -136,6 +136,14 @@ int logs_find_channel(const sooc_logfile *lf, uint32_t file_id) {
 }
 
 sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index) {
+    /* the sizes a chunk header may claim before anything is allocated for it */
+    if (c->usize > LOGS_MAX_RECORD || (c->comp == LOGS_COMP_NONE && c->usize != c->csize) ||
+        (c->comp == LOGS_COMP_LZ4 && c->usize > 256 * c->csize + 1024))
+        return sooc_seterr(SOOC_EFORMAT,
+                           "%s: offset %llu: chunk of %llu bytes (%s) claims %llu bytes uncompressed, which it cannot "
+                           "hold (corrupt header)",
+                           lf->path, (unsigned long long)c->pos, (unsigned long long)c->csize, logs_comp_name(c->comp),
+                           (unsigned long long)c->usize);
     sooc_status st = logs_grow((void **)&lf->chunks, &lf->capchunks, lf->nchunks + 1, sizeof *lf->chunks, lf->path);
     if (st) return st;
     if (lf->nchunks >= INT32_MAX) return sooc_seterr(SOOC_EFORMAT, "%s: too many chunks", lf->path);
