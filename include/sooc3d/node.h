@@ -166,9 +166,18 @@ typedef struct sooc_node_config {
     double min_depth_m, max_depth_m;         /* valid depth range, default 0.1 .. 10 */
     int strict;                              /* pipeline.strict (`--strict`): a broken frame stops
                                                 the run (0: it is skipped and counted) */
+    double reconnect_s, reconnect_max_s;     /* pipeline.reconnect_s / _max_s: a live sensor that
+                                                fails is reopened after reconnect_s, doubling up to
+                                                reconnect_max_s (1, 10; 0 = the run ends instead) */
+    double time_jump_s;                      /* pipeline.time_jump_s: a frame stamp this much past the
+                                                previous one, or before it, is a clock jump (5) */
 
     /* log: */
     sooc_log_level log_level;                /* default info */
+
+    /* view: the live view in a browser (include/sooc3d/view.h) */
+    int view_port;                           /* 0 = off (default)                        */
+    char view_bind[64];                      /* IPv4 address to listen on (127.0.0.1)    */
 } sooc_node_config;
 
 void sooc_node_config_default(sooc_node_config *c);
@@ -322,6 +331,9 @@ typedef struct sooc_node_source {
      * it): SOOC_FRAME_FAULT_*; SOOC_FRAME_FAULT_NONE when the stream itself
      * failed. NULL: every failure is the stream's. */
     sooc_frame_fault (*frame_fault)(void *ctx);
+    /* Optional. After a failed read that is the stream's: close the device
+     * and open it again (SOOC_OK: reads go on). NULL: the failure ends the run. */
+    sooc_status (*reopen)(void *ctx);
 } sooc_node_source;
 
 /* Pose source: camera (or effector) pose in the pose source's frame at t_ns,
@@ -363,7 +375,17 @@ typedef struct sooc_node_stats {
     uint64_t store_recoveries;   /* times the store came back after failing */
     uint64_t store_kf_dropped;   /* keyframe rows given up: more than SOOC_NODE_STORE_ROWS_MAX waited */
     int64_t store_committed_ns;  /* stamp of the newest keyframe in the database (INT64_MIN: none) */
+    /* live sources (docs/node.md "Faults") */
+    uint64_t sensor_lost;        /* times the sensor failed and was reopened, or is being */
+    uint64_t sensor_reconnects;  /* times it came back */
+    int sensor_down;             /* 1 while it is lost */
+    uint64_t pose_gaps;          /* times the pose source went silent (frames counted no_pose) */
+    uint64_t time_jumps;         /* frame stamps before the previous one or time_jump_s past it */
 } sooc_node_stats;
+
+/* Frames in a row without a pose that cover this much sensor time make the
+ * pose source "silent" (logged once, and once when poses return). */
+#define SOOC_NODE_POSE_SILENT_S 1.0
 
 /* sooc_node_stats.store_state */
 #define SOOC_NODE_STORE_NONE 0      /* no map.db */

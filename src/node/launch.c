@@ -28,6 +28,9 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->map_retry_s = 1.0;        /* a failed commit is retried after 1 s, 2 s, 4 s, ... up to 30 s */
     c->map_retry_max_s = 30.0;
     c->map_busy_timeout_ms = 200;
+    c->reconnect_s = 1.0;        /* a lost live sensor is reopened after 1 s, 2 s, ... up to 10 s */
+    c->reconnect_max_s = 10.0;
+    c->time_jump_s = 5.0;
     c->up[1] = 1.0;
     c->floor_mode = SOOC_NODE_FLOOR_GIVEN;
     c->floor_ransac_threshold_m = 0.02;
@@ -50,6 +53,7 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->min_depth_m = 0.1;
     c->max_depth_m = 10.0;
     c->log_level = SOOC_LOG_INFO;
+    snprintf(c->view_bind, sizeof c->view_bind, "127.0.0.1");
     c->depth_resample = SOOC_NODE_DEPTH_MIN;
     c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/cv.h) */
     c->odom_width = 320;
@@ -531,10 +535,15 @@ static const kspec g_keys[] = {
     KV("pipeline", "ring_capacity", KV_INT, ring_capacity, 1, 1024),
     KV("pipeline", "block_when_full", KV_BOOL, block_when_full, 0, 0),
     KV("pipeline", "strict", KV_BOOL, strict, 0, 0),
+    KV("pipeline", "reconnect_s", KV_NUM, reconnect_s, 0, 3600),
+    KV("pipeline", "reconnect_max_s", KV_NUM, reconnect_max_s, 0, 86400),
+    KV("pipeline", "time_jump_s", KV_NUM, time_jump_s, 0.001, 1e6),
     KV("pipeline", "stats_period_s", KV_NUM, stats_period_s, 0, 86400),
     KV("pipeline", "min_depth_m", KV_NUM, min_depth_m, 0, 100),
     KV("pipeline", "max_depth_m", KV_NUM, max_depth_m, 0, 1000),
     KV_F("log", "level", f_log_level),
+    KV("view", "port", KV_INT, view_port, 0, 65535),
+    KV("view", "bind", KV_STR, view_bind, 0, 0),
 };
 #define N_KEYS (sizeof g_keys / sizeof *g_keys)
 
@@ -623,7 +632,7 @@ static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t
     q.section = NULL;
     if (!strcmp(key, "calib")) return get_str(&q, vn, key, c->calib_path, sizeof c->calib_path, 1);
     return unknown(&q, kn, key,
-                   "unknown key (known: sensor, pose, odometry, calib, model, keyframe, shm, map, world, pipeline, log)");
+                   "unknown key (known: sensor, pose, odometry, calib, model, keyframe, shm, map, world, pipeline, log, view)");
 }
 
 /* One --set override, "section.key=value", read as the launch file's own
@@ -781,8 +790,9 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     else
         OUT("world: {up: [%g, %g, %g], floor: %g}\n", c->up[0], c->up[1], c->up[2], c->floor_height);
     OUT("pipeline: {ring_capacity: %d, block_when_full: %s, stats_period_s: %g, min_depth_m: %g, "
-        "max_depth_m: %g, strict: %s}\n", c->ring_capacity, c->block_when_full ? "true" : "false",
-        c->stats_period_s, c->min_depth_m, c->max_depth_m, c->strict ? "true" : "false");
+        "max_depth_m: %g, strict: %s, reconnect_s: %g, reconnect_max_s: %g, time_jump_s: %g}\n", c->ring_capacity,
+        c->block_when_full ? "true" : "false", c->stats_period_s, c->min_depth_m, c->max_depth_m,
+        c->strict ? "true" : "false", c->reconnect_s, c->reconnect_max_s, c->time_jump_s);
     static const char *lv[] = {"debug", "info", "warn", "error", "fatal"};
     OUT("log: {level: %s}\n", lv[c->log_level]);
 #undef OUT

@@ -31,7 +31,16 @@
 #include "sooc3d/cv.h"
 #endif
 
+#include "sooc3d/view.h"
+
+/* After a keyframe: the map, the frame and the counters to the live view (view_hook.c). */
+sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f);
+
 struct sooc_node {
+    sooc_view *view;               /* view: {port} (NULL = off) */
+    sooc_map_entry *view_entries;  /* its buffers, view_cap entries each */
+    sooc_view_object *view_objects;
+    size_t view_cap;
     sooc_node_config cfg;
     sooc_node_options opt;
     sooc3d_mapper *mapper;
@@ -47,9 +56,12 @@ struct sooc_node {
     int odom_lost;                 /* frames failed in a row (for the log) */
 #endif
 #if SOOC_NODE_HAVE_DRIVERS
-    sooc_sensor *sensor;
+    sooc_sensor *sensor;           /* swapped by a reconnect under sensor_mu */
+    sooc_sensor_params sensor_params;   /* to open it again */
     sooc_pose_src *psrc;
 #endif
+    pthread_mutex_t sensor_mu;     /* guards the sensor pointer: a reconnect (capture thread) against
+                                      sooc_node_request_stop (any thread); a leaf lock */
 #if SOOC_NODE_HAVE_CALIB
     sooc_calib calib;
 #endif
@@ -72,6 +84,12 @@ struct sooc_node {
                                       (a looped replay's length; 0 = none) */
     char last_skip[512];           /* the latest broken frame's message */
     uint64_t map_skips;            /* frames the mapping thread skipped (size) */
+    /* mapping thread: the pose source's silences and the frames' clock (liveness.c) */
+    uint64_t pose_miss;            /* frames in a row without a pose */
+    int64_t pose_miss_t0;          /* stamp of the first of them */
+    int pose_silent;               /* the silence was logged */
+    int64_t t_prev_ns;             /* stamp of the previous frame */
+    int have_t_prev;
 
     sooc_kf_policy kf;
     double T_world_src[16];        /* written by the mapping thread under mu (stats read it) */
@@ -142,6 +160,13 @@ sooc_status sooc__node_store_world(sooc_node *n, const sooc_map_frame *mf);
 #endif
 sooc_status sooc__node_store_retry(sooc_node *n, int force);
 sooc_status sooc__node_store_final(sooc_node *n, sooc_status result);
+
+/* liveness.c: a live sensor that fails is reopened with backoff (capture
+ * thread; SOOC_OK when it is back, else the status that ends the run); the
+ * pose source's silences and the frames' clock jumps (mapping thread). */
+sooc_status sooc__node_reconnect(sooc_node *n, sooc_status st);
+void sooc__node_pose_seen(sooc_node *n, const sooc_frame *f, int found);
+void sooc__node_time_check(sooc_node *n, const sooc_frame *f);
 
 /* skip.c */
 sooc_status sooc__node_capture_skip(sooc_node *n, sooc_status st);

@@ -45,7 +45,9 @@ void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out) {
 void sooc_node_request_stop(sooc_node *n) {
     atomic_store(&n->stop, 1);
 #if SOOC_NODE_HAVE_DRIVERS
+    pthread_mutex_lock(&n->sensor_mu);
     if (n->sensor) sooc_sensor_interrupt(n->sensor);
+    pthread_mutex_unlock(&n->sensor_mu);
 #endif
     if (n->ring) sooc_frame_ring_close(n->ring);
 }
@@ -55,10 +57,33 @@ int sooc_node_stop_requested(const sooc_node *n) { return atomic_load((atomic_in
 /* ------------------------------------------------ driver / pose adapters */
 
 #if SOOC_NODE_HAVE_DRIVERS
-static sooc_status drv_start(void *ctx) { return sooc_sensor_start(ctx); }
-static sooc_frame_fault drv_frame_fault(void *ctx) { return sooc_sensor_frame_fault(ctx); }
-static sooc_status drv_read(void *ctx, sooc_frame *f, int t) { return sooc_sensor_read(ctx, f, t); }
-static void drv_stop(void *ctx) { sooc_sensor_stop(ctx); }
+/* ctx = the node: a reconnect swaps its sensor (capture thread only) */
+static sooc_status drv_start(void *ctx) { return sooc_sensor_start(((sooc_node *)ctx)->sensor); }
+static sooc_frame_fault drv_frame_fault(void *ctx) { return sooc_sensor_frame_fault(((sooc_node *)ctx)->sensor); }
+static sooc_status drv_read(void *ctx, sooc_frame *f, int t) { return sooc_sensor_read(((sooc_node *)ctx)->sensor, f, t); }
+static void drv_stop(void *ctx) {
+    sooc_node *n = ctx;
+    if (n->sensor) sooc_sensor_stop(n->sensor);
+}
+/* A live sensor that failed: closed and opened again with the same parameters. */
+static sooc_status drv_reopen(void *ctx) {
+    sooc_node *n = ctx;
+    sooc_sensor *fresh = NULL;
+    pthread_mutex_lock(&n->sensor_mu);
+    sooc_sensor_close(n->sensor);   /* stops the stream */
+    n->sensor = NULL;
+    pthread_mutex_unlock(&n->sensor_mu);
+    sooc_status st = sooc_sensor_open(&fresh, n->cfg.driver, &n->sensor_params);
+    if (!st && (st = sooc_sensor_start(fresh))) {
+        sooc_sensor_close(fresh);
+        fresh = NULL;
+    }
+    pthread_mutex_lock(&n->sensor_mu);
+    n->sensor = fresh;
+    if (fresh && atomic_load(&n->stop)) sooc_sensor_interrupt(fresh);
+    pthread_mutex_unlock(&n->sensor_mu);
+    return st;
+}
 static void drv_close(void *ctx) { (void)ctx; /* closed in destroy (after the thread is joined) */ }
 
 static sooc_status pose_lookup_file(void *ctx, int64_t t, int64_t tol, double T[16]) {
@@ -114,9 +139,13 @@ static sooc_status open_sensor(sooc_node *n) {
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
         sp.depth_invalid = n->calib.depth_invalid;
 #endif
+    n->sensor_params = sp;   /* its strings live in the node's config */
     sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
     if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);
-    n->src.ctx = n->sensor;
+    n->src.ctx = n;
+    /* a live device that fails is reopened; a recording's failure is its own */
+    if (strcmp(c->driver, "replay") && strcmp(c->driver, "rosbag") && strcmp(c->driver, "mcap"))
+        n->src.reopen = drv_reopen;
     n->src.start = drv_start;
     n->src.read = drv_read;
     n->src.stop = drv_stop;
@@ -298,6 +327,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     n->cfg = *c;
     if (o) n->opt = *o;
     pthread_mutex_init(&n->mu, NULL);
+    pthread_mutex_init(&n->sensor_mu, NULL);
     atomic_init(&n->stop, 0);
     n->calib_registered = -1;
     n->t_start = n->t_last_stats = sooc_seconds();
@@ -429,6 +459,13 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         goto fail;
     }
     if ((st = sooc_frame_ring_create(&n->ring, c->ring_capacity))) goto fail;
+    if (c->view_port) {
+        sooc_view_params vp = {c->view_port, c->view_bind};
+        if ((st = sooc_view_start(&n->view, &vp))) {
+            sooc_adderr(st, "%s: view", c->path);
+            goto fail;
+        }
+    }
     sooc_frame_ring_set_blocking(n->ring, c->block_when_full);
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE && (st = support_init(n))) goto fail;
 
@@ -493,6 +530,7 @@ static void *capture_main(void *arg) {
         st = n->src.read(n->src.ctx, &f, 100);
         if (st == SOOC_ETIMEOUT) { st = SOOC_OK; continue; }
         if (st && st != SOOC_EEOF && st != SOOC_EINTERRUPTED && !(st = sooc__node_capture_skip(n, st))) continue;
+        if (st && st != SOOC_EEOF && st != SOOC_EINTERRUPTED && !(st = sooc__node_reconnect(n, st))) continue;
         if (st) break;
         pthread_mutex_lock(&n->mu);
         n->st.frames_in++;
@@ -744,6 +782,8 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     n->st.keyframes++;
     uint64_t k = n->st.keyframes;
     pthread_mutex_unlock(&n->mu);
+    if (n->view && sooc__node_view_publish(n, f))   /* the view is a window, not the map: warn */
+        sooc_log(SOOC_LOG_WARN, "node: view: %s", sooc_errmsg());
     sooc_log(SOOC_LOG_DEBUG, "node: keyframe %llu (frame %lld): %d retrieved, %d new, %d removed, %.1f ms",
              (unsigned long long)k, (long long)f->index, us.n_retrieved, us.n_new, us.n_removed, ms);
     if (n->opt.max_keyframes && k >= n->opt.max_keyframes) return 1;
@@ -786,6 +826,7 @@ sooc_status sooc_node_run(sooc_node *n) {
             if (result) break;
             continue;
         }
+        sooc__node_time_check(n, f);
         /* pose association */
         double T_src_c[16];
         int fixed = 0;
@@ -808,7 +849,10 @@ sooc_status sooc_node_run(sooc_node *n) {
             pthread_mutex_lock(&n->mu);
             n->st.frames_no_pose++;
             pthread_mutex_unlock(&n->mu);
+            sooc__node_pose_seen(n, f, 0);
             continue;
+        } else {
+            sooc__node_pose_seen(n, f, 1);
         }
         if (!fixed && (st = fix_intrinsics_and_register(n, f))) { result = st; break; }
         if (!n->world_ready) {
@@ -826,11 +870,7 @@ sooc_status sooc_node_run(sooc_node *n) {
         if (r > 0) map_buffered(n, &result);
     }
     /* shutdown: stop capture, join */
-    atomic_store(&n->stop, 1);
-#if SOOC_NODE_HAVE_DRIVERS
-    if (n->sensor) sooc_sensor_interrupt(n->sensor);
-#endif
-    sooc_frame_ring_close(n->ring);
+    sooc_node_request_stop(n);
     if (n->cap_started) {
         pthread_join(n->cap_thread, NULL);
         n->cap_started = 0;
@@ -852,11 +892,7 @@ sooc_status sooc_node_run(sooc_node *n) {
 void sooc_node_destroy(sooc_node *n) {
     if (!n) return;
     if (n->cap_started) {
-        atomic_store(&n->stop, 1);
-#if SOOC_NODE_HAVE_DRIVERS
-        if (n->sensor) sooc_sensor_interrupt(n->sensor);
-#endif
-        if (n->ring) sooc_frame_ring_close(n->ring);
+        sooc_node_request_stop(n);
         pthread_join(n->cap_thread, NULL);
     }
     if (n->have_src && n->src.close) n->src.close(n->src.ctx);
@@ -876,11 +912,15 @@ void sooc_node_destroy(sooc_node *n) {
 #endif
     if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);
     sooc_frame_ring_destroy(n->ring);
+    sooc_view_stop(n->view);
+    sooc_free(n->view_entries);
+    sooc_free(n->view_objects);
     sooc_frame_free(&n->work);
     sooc_frame_free(&n->pre);
     sooc_free(n->reg_buf);
     support_free(n);
     sooc_free(n->prev);
     pthread_mutex_destroy(&n->mu);
+    pthread_mutex_destroy(&n->sensor_mu);
     sooc_free(n);
 }

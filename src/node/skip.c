@@ -83,6 +83,12 @@ size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap) {
         if (m > 0 && (size_t)m < sizeof t) snprintf(t + m, sizeof t - (size_t)m, ")");
         k = append(buf, cap, k, t);
     }
+    if (s->sensor_lost || s->pose_gaps || s->time_jumps) {   /* live sources */
+        snprintf(t, sizeof t, " sensor lost %llu (back %llu%s) pose gaps %llu clock jumps %llu",
+                 (unsigned long long)s->sensor_lost, (unsigned long long)s->sensor_reconnects,
+                 s->sensor_down ? ", down now" : "", (unsigned long long)s->pose_gaps, (unsigned long long)s->time_jumps);
+        k = append(buf, cap, k, t);
+    }
     if (s->store_state == SOOC_NODE_STORE_FAILING || s->store_failures) {
         snprintf(t, sizeof t, " store %s: %llu objects %llu keyframes pending, %llu failed commits, %llu recoveries",
                  s->store_state == SOOC_NODE_STORE_FAILING ? "FAILING" : "ok", (unsigned long long)s->store_pending,

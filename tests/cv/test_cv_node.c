@@ -143,7 +143,7 @@ int main(void) {
         if (run == 0) {   /* the two frames from elsewhere carry no recorded pose */
             fr[30].has_pose = fr[31].has_pose = 0;
         }
-        sooc_node_source src = {&fd, fd_start, fd_read, fd_stop, fd_close, NULL};
+        sooc_node_source src = {&fd, fd_start, fd_read, fd_stop, fd_close, NULL, NULL};
         sooc3d_mapper *m = NULL;
         sooc3d_mapper_params mp;
         sooc3d_mapper_params_default(&mp);
