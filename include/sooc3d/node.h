@@ -174,6 +174,10 @@ typedef struct sooc_node_config {
 
     /* log: */
     sooc_log_level log_level;                /* default info */
+
+    /* view: the live view in a browser (include/sooc3d/view.h) */
+    int view_port;                           /* 0 = off (default)                        */
+    char view_bind[64];                      /* IPv4 address to listen on (127.0.0.1)    */
 } sooc_node_config;
 
 void sooc_node_config_default(sooc_node_config *c);

@@ -31,7 +31,16 @@
 #include "sooc3d/cv.h"
 #endif
 
+#include "sooc3d/view.h"
+
+/* After a keyframe: the map, the frame and the counters to the live view (view_hook.c). */
+sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f);
+
 struct sooc_node {
+    sooc_view *view;               /* view: {port} (NULL = off) */
+    sooc_map_entry *view_entries;  /* its buffers, view_cap entries each */
+    sooc_view_object *view_objects;
+    size_t view_cap;
     sooc_node_config cfg;
     sooc_node_options opt;
     sooc3d_mapper *mapper;

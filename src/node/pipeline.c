@@ -459,6 +459,13 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         goto fail;
     }
     if ((st = sooc_frame_ring_create(&n->ring, c->ring_capacity))) goto fail;
+    if (c->view_port) {
+        sooc_view_params vp = {c->view_port, c->view_bind};
+        if ((st = sooc_view_start(&n->view, &vp))) {
+            sooc_adderr(st, "%s: view", c->path);
+            goto fail;
+        }
+    }
     sooc_frame_ring_set_blocking(n->ring, c->block_when_full);
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE && (st = support_init(n))) goto fail;
 
@@ -775,6 +782,8 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     n->st.keyframes++;
     uint64_t k = n->st.keyframes;
     pthread_mutex_unlock(&n->mu);
+    if (n->view && sooc__node_view_publish(n, f))   /* the view is a window, not the map: warn */
+        sooc_log(SOOC_LOG_WARN, "node: view: %s", sooc_errmsg());
     sooc_log(SOOC_LOG_DEBUG, "node: keyframe %llu (frame %lld): %d retrieved, %d new, %d removed, %.1f ms",
              (unsigned long long)k, (long long)f->index, us.n_retrieved, us.n_new, us.n_removed, ms);
     if (n->opt.max_keyframes && k >= n->opt.max_keyframes) return 1;
@@ -903,6 +912,9 @@ void sooc_node_destroy(sooc_node *n) {
 #endif
     if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);
     sooc_frame_ring_destroy(n->ring);
+    sooc_view_stop(n->view);
+    sooc_free(n->view_entries);
+    sooc_free(n->view_objects);
     sooc_frame_free(&n->work);
     sooc_frame_free(&n->pre);
     sooc_free(n->reg_buf);
