@@ -160,6 +160,20 @@ static void run(sooc_node_config *c, sooc3d_mapper *m, live_src *ls, const sooc_
     sooc_node_destroy(n);
 }
 
+/* A fresh database and fake mapper, then run(); returns the mapper (the caller destroys it). */
+static sooc3d_mapper *fresh_run(const char *db, const char *extra_pipeline, const char *kf, live_src *ls,
+                                const sooc_node_pose_source *pose, run_out *o) {
+    sooc3d_mapper_params mp;
+    sooc3d_mapper_params_default(&mp);
+    sooc3d_mapper *m = NULL;
+    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    unlink(db);
+    sooc_node_config c;
+    make_cfg(&c, db, extra_pipeline, kf);
+    run(&c, m, ls, pose, o);
+    return m;
+}
+
 static size_t db_count(const char *db) {
     sooc_mapstore *s = NULL;
     sooc_mapstore_params p;
@@ -176,18 +190,11 @@ static size_t db_count(const char *db) {
 static void test_sensor(void) {
     char db[400];
     snprintf(db, sizeof db, "%s/live.db", g_tmp);
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc_node_config c;
     run_out o;
 
     /* lost at frame 10, back at the 4th attempt */
-    unlink(db);
-    sooc3d_mapper *m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    make_cfg(&c, db, ", reconnect_s: 0.001, reconnect_max_s: 0.004", NULL);
     live_src ls = {0, 30, 10, 0, 3, 0, {0, 0}, {0, 0}, 0, NULL};
-    run(&c, m, &ls, NULL, &o);
+    sooc3d_mapper *m = fresh_run(db, ", reconnect_s: 0.001, reconnect_max_s: 0.004", NULL, &ls, NULL, &o);
     CHECK_MSG(o.st == SOOC_OK, "reconnect: %s", sooc_errmsg());
     CHECK_MSG(o.s.keyframes == 30 && o.s.frames_in == 30 && o.s.sensor_lost == 1 && o.s.sensor_reconnects == 1 &&
                   !o.s.sensor_down && ls.reopens == 4,
@@ -206,23 +213,15 @@ static void test_sensor(void) {
     sooc3d_mapper_destroy(m);
 
     /* negative control: no reconnection, the run ends at the loss */
-    unlink(db);
-    m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    make_cfg(&c, db, ", reconnect_s: 0", NULL);
     live_src l2 = {0, 30, 10, 0, 3, 0, {0, 0}, {0, 0}, 0, NULL};
-    run(&c, m, &l2, NULL, &o);
+    m = fresh_run(db, ", reconnect_s: 0", NULL, &l2, NULL, &o);
     CHECK_MSG(o.st == SOOC_EIO && o.s.keyframes == 10 && l2.reopens == 0 && atomic_load(&g_lost) == 0,
               "no reconnect: status %d, %llu keyframes", o.st, (unsigned long long)o.s.keyframes);
     sooc3d_mapper_destroy(m);
 
     /* a stop request while the device stays away: a clean end */
-    unlink(db);
-    m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    make_cfg(&c, db, ", reconnect_s: 0.001, reconnect_max_s: 0.002", NULL);
     live_src l3 = {0, 30, 10, 0, 0, 0, {0, 0}, {0, 0}, 1, NULL};
-    run(&c, m, &l3, NULL, &o);
+    m = fresh_run(db, ", reconnect_s: 0.001, reconnect_max_s: 0.002", NULL, &l3, NULL, &o);
     CHECK_MSG(o.st == SOOC_OK && o.s.keyframes == 10 && o.s.sensor_down == 1 && o.s.sensor_reconnects == 0 &&
                   l3.reopens == 3 && db_count(db) > 0,
               "stopped while lost: status %d, %llu keyframes, down %d, %d reopens", o.st,
@@ -233,21 +232,14 @@ static void test_sensor(void) {
 static void test_pose(void) {
     char db[400];
     snprintf(db, sizeof db, "%s/pose.db", g_tmp);
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc_node_config c;
     run_out o;
     const int64_t T0 = 1000000000000LL, DT = 33333333LL;
     struct { int a, b, warn; } cases[3] = {{10, 50, 1}, {10, 15, 0}, {0, 0, 0}};
     for (int k = 0; k < 3; k++) {
-        unlink(db);
-        sooc3d_mapper *m = NULL;
-        CHECK_OK(sooc3d_mapper_create(&m, &mp));
-        make_cfg(&c, db, NULL, NULL);
         gap_pose g = {T0 + cases[k].a * DT - DT / 2, T0 + cases[k].b * DT - DT / 2};
         sooc_node_pose_source ps = {&g, gap_lookup, NULL};
         live_src ls = {0, 60, -1, 0, 0, 0, {0, 0}, {0, 0}, 0, NULL};
-        run(&c, m, &ls, &ps, &o);
+        sooc3d_mapper *m = fresh_run(db, NULL, NULL, &ls, &ps, &o);
         int gap = cases[k].b - cases[k].a;
         CHECK_MSG(o.st == SOOC_OK && o.s.frames_no_pose == (uint64_t)gap && o.s.keyframes == (uint64_t)(60 - gap) &&
                       o.s.pose_gaps == (uint64_t)cases[k].warn && atomic_load(&g_silent) == cases[k].warn &&
@@ -299,9 +291,6 @@ static void kf_str(const kf_rec *r, char *buf, size_t cap) {
 static void test_clock(void) {
     char db[400];
     snprintf(db, sizeof db, "%s/clock.db", g_tmp);
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc_node_config c;
     run_out o;
     const char *kf = "translation_m: 0, rotation_deg: 0, time_s: 0.2";
     /* 30 frames at 30 Hz, a keyframe once 0.2 s passed: frames 0 7 14 21 28 without jumps. With a
@@ -310,17 +299,13 @@ static void test_clock(void) {
      * (time_jump_s: 1e6) fires the rule on the jump itself: 0 7 14 20 27. */
     static const char *want[3] = {"0 7 14 21 28", "0 7 17 27", "0 7 14 20 27"};
     for (int k = 0; k < 3; k++) {
-        unlink(db);
-        sooc3d_mapper *m = NULL;
-        CHECK_OK(sooc3d_mapper_create(&m, &mp));
-        make_cfg(&c, db, k == 2 ? ", time_jump_s: 1e6" : NULL, kf);
         live_src ls = {0, 30, -1, 0, 0, 0, {0, 0}, {0, 0}, 0, NULL};
         if (k == 1) ls = (live_src){0, 30, -1, 0, 0, 0, {10, 20}, {-100000000000LL, 1000000000000LL}, 0, NULL};
         if (k == 2) ls = (live_src){0, 30, -1, 0, 0, 0, {20, 0}, {1000000000000LL, 0}, 0, NULL};
         kf_rec rec = {&ls, {0}, 0};
         g_on_kf = on_kf;
         g_on_kf_user = &rec;
-        run(&c, m, &ls, NULL, &o);
+        sooc3d_mapper *m = fresh_run(db, k == 2 ? ", time_jump_s: 1e6" : NULL, kf, &ls, NULL, &o);
         g_on_kf = NULL;
         CHECK_OK(o.st);
         char got[256];

@@ -344,20 +344,31 @@ static void check_recovered(const char *what, const char *db, sooc3d_mapper *m, 
 
 #define NF 40
 
+/* A fresh fake mapper run over NF keyframes with the writes numbered [from,
+ * to) failing with `code` (from = INT64_MAX: none), rc preset by the caller
+ * except that it is cleared when clear_rc; returns the mapper (the caller
+ * destroys it). */
+static sooc3d_mapper *faulted_run(const char *db, int64_t from, int64_t to, int code, double retry_s, int busy_ms,
+                                  run_ctx *rc, int clear_rc, run_out *o) {
+    sooc3d_mapper_params mp;
+    sooc3d_mapper_params_default(&mp);
+    sooc3d_mapper *m = NULL;
+    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    if (clear_rc) memset(rc, 0, sizeof *rc);
+    fvfs_reset_count();
+    fvfs_fail(from, to, code);
+    run_node(db, m, NF, retry_s, busy_ms, rc, o, NULL, 0);
+    fvfs_off();
+    return m;
+}
+
 static void test_vfs(void) {
     char db[400];
     snprintf(db, sizeof db, "%s/vfs.db", g_tmp);
     /* a clean run: how many writes the create and the whole run make */
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc3d_mapper *m = NULL;
     run_ctx rc;
     run_out o;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    memset(&rc, 0, sizeof rc);
-    fvfs_off();
-    fvfs_reset_count();
-    run_node(db, m, NF, 0, 50, &rc, &o, NULL, 0);
+    sooc3d_mapper *m = faulted_run(db, INT64_MAX, INT64_MAX, SQLITE_FULL, 0, 50, &rc, 1, &o);
     int64_t w0 = o.writes_after_create, w1 = fvfs_writes();
     check_recovered("clean run", db, m, &o);
     CHECK(o.st.keyframes == NF && o.st.store_failures == 0 && !rc.saw_failing);
@@ -368,13 +379,7 @@ static void test_vfs(void) {
     /* 1. one failed write at each position after the create (every other: disk full / I/O error) */
     int runs = 0, episodes = 0, stride = (int)((w1 - w0) / 80) + 1;
     for (int64_t k = w0 + 1; k <= w1; k += stride, runs++) {
-        m = NULL;
-        CHECK_OK(sooc3d_mapper_create(&m, &mp));
-        memset(&rc, 0, sizeof rc);
-        fvfs_reset_count();
-        fvfs_fail(k, k + 1, runs % 2 ? SQLITE_IOERR_WRITE : SQLITE_FULL);
-        run_node(db, m, NF, 0, 50, &rc, &o, NULL, 0);
-        fvfs_off();
+        m = faulted_run(db, k, k + 1, runs % 2 ? SQLITE_IOERR_WRITE : SQLITE_FULL, 0, 50, &rc, 1, &o);
         char what[96];
         snprintf(what, sizeof what, "write %lld fails (%s)", (long long)k, runs % 2 ? "I/O error" : "disk full");
         check_recovered(what, db, m, &o);
@@ -393,13 +398,7 @@ static void test_vfs(void) {
     CHECK(episodes >= runs / 2);
 
     /* 2. a window of failed writes that spans many keyframes (retried at every keyframe) */
-    m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    memset(&rc, 0, sizeof rc);
-    fvfs_reset_count();
-    fvfs_fail(w0 + (w1 - w0) / 4, w0 + (w1 - w0) / 4 + 25, SQLITE_FULL);
-    run_node(db, m, NF, 0, 50, &rc, &o, NULL, 0);
-    fvfs_off();
+    m = faulted_run(db, w0 + (w1 - w0) / 4, w0 + (w1 - w0) / 4 + 25, SQLITE_FULL, 0, 50, &rc, 1, &o);
     check_recovered("25 failed writes", db, m, &o);
     CHECK_MSG(o.st.store_failures >= 3 && o.st.store_recoveries == 1 && rc.saw_ok_after && rc.table_ok_after &&
                   rc.pending_max >= 2,
@@ -412,13 +411,7 @@ static void test_vfs(void) {
     sooc3d_mapper_destroy(m);
 
     /* 3. backoff: with retry_s 3600 the run makes no second attempt; the end of the run writes it all */
-    m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    memset(&rc, 0, sizeof rc);
-    fvfs_reset_count();
-    fvfs_fail(w0 + (w1 - w0) / 3, w0 + (w1 - w0) / 3 + 1, SQLITE_FULL);
-    run_node(db, m, NF, 3600, 50, &rc, &o, NULL, 0);
-    fvfs_off();
+    m = faulted_run(db, w0 + (w1 - w0) / 3, w0 + (w1 - w0) / 3 + 1, SQLITE_FULL, 3600, 50, &rc, 1, &o);
     check_recovered("backoff", db, m, &o);
     CHECK_MSG(rc.saw_failing && rc.failures_at_first == 1 && rc.failures_after_first_kf <= 1 &&
                   o.st.store_failures == 1 && o.st.store_recoveries == 1 && rc.pending_max > 5,
@@ -427,12 +420,10 @@ static void test_vfs(void) {
     sooc3d_mapper_destroy(m);
 
     /* 4. the database locked by another connection for 10 keyframes */
-    m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
     memset(&rc, 0, sizeof rc);
     rc.lock_at = 10;
     rc.unlock_at = 20;
-    run_node(db, m, NF, 0, 1, &rc, &o, NULL, 0);
+    m = faulted_run(db, INT64_MAX, INT64_MAX, SQLITE_FULL, 0, 1, &rc, 0, &o);
     check_recovered("locked", db, m, &o);
     CHECK_MSG(rc.saw_failing && rc.kf_first_failing == 11 && o.st.store_fault == SOOC_MAPSTORE_FAULT_BUSY &&
                   o.st.store_recoveries == 1 && o.st.store_failures >= 9,
@@ -441,13 +432,7 @@ static void test_vfs(void) {
     sooc3d_mapper_destroy(m);
 
     /* 5. negative control: the writes fail from the middle of the run on, for good */
-    m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
-    memset(&rc, 0, sizeof rc);
-    fvfs_reset_count();
-    fvfs_fail(w0 + (w1 - w0) / 2, INT64_MAX, SQLITE_FULL);
-    run_node(db, m, NF, 0, 50, &rc, &o, NULL, 0);
-    fvfs_off();
+    m = faulted_run(db, w0 + (w1 - w0) / 2, INT64_MAX, SQLITE_FULL, 0, 50, &rc, 1, &o);
     char why[512];
     CHECK_MSG(o.run_st == SOOC_OK, "negative control: the run itself must succeed");
     CHECK(o.st.store_state == SOOC_NODE_STORE_FAILING && o.st.store_pending > 0 && o.st.store_recoveries == 0);
