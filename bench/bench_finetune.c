@@ -1,4 +1,4 @@
-/* bench_finetune (issue 19): wall time of `sooc3d finetune` with the default
+/* bench_finetune: wall time of `sooc3d finetune` with the default
  * iterations on a medium unity scene (bar: <= 60 s on this machine's 2 cores),
  * and the cost per object against the map's size (a large scene's map holds
  * ~9x the objects: the per-unit time must not grow with it).

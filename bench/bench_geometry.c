@@ -1,4 +1,4 @@
-/* bench_geometry (issue 19 item 5): object geometry for planners on generated
+/* bench_geometry: object geometry for planners on generated
  * scenes. Maps every scene of a `sooc3d gen` dataset with a model (input
  * views, the mapper's default geometry budget), then computes every stale
  * tight box and scores the final map against the scene's ground truth

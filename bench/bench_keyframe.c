@@ -1,4 +1,4 @@
-/* Keyframe bench (issue 4): median and p99 of one online update (query ->
+/* Keyframe bench: median and p99 of one online update (query ->
  * pad -> L refinement iterations -> register) at 64x64, K = 7, L = 3, 2
  * threads, through the public mapper API, and its ratio to the same update in
  * the PyTorch reference (bench/bench_keyframe_torch.py). JSON on the last line.

@@ -1,4 +1,4 @@
-/* Mesh benchmark (issue 19, docs/mesh.md): the shipped unity model maps the
+/* Mesh benchmark (docs/mesh.md): the shipped unity model maps the
  * input views of generated scenes (online inference, posterior means), then
  * every map entry is meshed (include/sooc3d/mesh.h) and the Atlas metric is
  * taken against the generator's true surfaces at several surface levels.

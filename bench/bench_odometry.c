@@ -1,5 +1,5 @@
 /* bench_odometry: RGB-D odometry frames/s at the default 320x240 working
- * resolution (issue 20: at least 30 frames/s). Frames come from
+ * resolution (the bar: at least 30 frames/s). Frames come from
  * ../shared/real/7scenes_redkitchen (640x480, resized inside the odometry as
  * in the node) or, when it is absent, from a synthetic textured scene. All
  * frames are read first; the timed loop is sooc_odom_track only. Each

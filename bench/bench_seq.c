@@ -1,4 +1,4 @@
-/* Sequence reading speed (issue 17): libjpeg-turbo decode of one 640x480
+/* Sequence reading speed: libjpeg-turbo decode of one 640x480
  * 7-Scenes colour frame from memory, and sooc_seq_read (JPEG colour + 16-bit
  * PNG depth + depth decoding) over the first frames of 7-Scenes redkitchen
  * and of label-fusion. Reads ../shared/real (or SOOC_SHARED_REAL); without it

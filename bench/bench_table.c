@@ -1,4 +1,4 @@
-/* bench_table: shared-memory object table costs (issue 6, part 10).
+/* bench_table: shared-memory object table costs (part 10).
  *   - reader: sooc_table_snapshot of 10^4 objects (consistent whole-table copy),
  *             and sooc_table_read_record per record;
  *   - writer: publish = begin_batch + N upserts + end_batch, for N = 10^4 (a

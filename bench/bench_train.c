@@ -1,4 +1,4 @@
-/* Training-step bench (issue 21 item 3): the wall time of one optimisation
+/* Training-step bench: the wall time of one optimisation
  * step of the shipped unity configuration, through the real trainer
  * (sooc_train_run), after warm-up. JSON on the last line.
  *

@@ -1,5 +1,5 @@
 /*
- * Data-parallel training over MPI (issue 21 item 4; docs/cluster.md).
+ * Data-parallel training over MPI (docs/cluster.md).
  *
  * `mpirun -np N sooc3d train ...` runs N ranks. Every rank holds the whole
  * model; each takes a disjoint share of a step's scenes, and the gradients

@@ -1,5 +1,5 @@
 /*
- * sooc3d evaluation: the paper's tables and the pictures (issue 5).
+ * sooc3d evaluation: the paper's tables and the pictures.
  *
  * Tables. Per-view metrics (metrics.h) are accumulated per
  * model x scale x {I, Q} x run. A cell's value for one run is the mean over
@@ -158,7 +158,7 @@ sooc_status sooc_eval_plot_csv(const char *csv_path, const char *png_path, const
 
 /* ------------------------------------------------- the scene runner (run.c)
  *
- * The ONE evaluation path of sooc3d (issue 4 part 8, issue 5): `sooc3d eval`,
+ * The ONE evaluation path of sooc3d: `sooc3d eval`,
  * `sooc3d render` and the trainer's validation all go through it.
  *
  * sooc_eval_run_scene(m, frames, ...): online inference over the scene's
@@ -233,7 +233,7 @@ typedef struct sooc_eval_run_opts {
     const uint8_t *detail_views;  /* n_frames flags, or NULL                          (NULL) */
     const uint8_t *render_views;  /* n_frames flags: only these views are rendered and scored
                                   (the rest are mapped, not rendered); NULL = every view (NULL) */
-    /* SOOC3D+ (issue 19): after online inference, finetune every object and
+    /* SOOC3D+: after online inference, finetune every object and
      * layout block of the map by EM on the input views (finetune.h), then score
      * the views from the finetuned map; NULL = no finetuning              (NULL) */
     const struct sooc_finetune_params *finetune;

@@ -1,6 +1,6 @@
 /*
- * sooc3d evaluation of object geometry for planners (issue 19 item 5;
- * docs/metrics.md "Object geometry"): the map's tight boxes and position
+ * sooc3d evaluation of object geometry for planners (docs/metrics.md
+ * "Object geometry"): the map's tight boxes and position
  * spreads against a generated scene's ground truth.
  *
  * Matching: every GT object is matched to the nearest map entry on the

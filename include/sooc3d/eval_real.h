@@ -1,6 +1,6 @@
 /*
- * sooc3d metrics for real recorded sequences (issue 17 items 5 and 6;
- * docs/metrics.md "Real sequences").
+ * sooc3d metrics for real recorded sequences (docs/metrics.md "Real
+ * sequences").
  *
  * A recorded sequence has no scene.yaml: no GT objects, no designated query
  * views, often no labels. The runner (sooc_eval_real_run) holds out query

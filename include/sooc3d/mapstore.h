@@ -25,7 +25,7 @@
  *        n_changed, n_removed, n_entries)
  * Latent blobs, latent_version 1: dim little-endian IEEE float32 values.
  *
- * Schema version 2 (issue 19) adds the finetuned decoders (finetune.h):
+ * Schema version 2 adds the finetuned decoders (finetune.h):
  *   ft_objects(id INTEGER PRIMARY KEY, version, n, crc, data BLOB, steps, loss)
  *   ft_layout(bi, bj, version, n, crc, data BLOB, steps, loss, PRIMARY KEY(bi, bj))
  *   trigger entries_ad_ft: deleting an entry deletes its decoder.
@@ -35,7 +35,7 @@
  * as a version-1 map, without finetuned decoders. load_map puts the stored decoders
  * into the map's payloads (cogmap.h); save_map stores the map's payloads.
  *
- * Schema version 3 (issue 19 item 5) adds the object geometry for planners
+ * Schema version 3 adds the object geometry for planners
  * (include/sooc3d/objgeom.h, docs/shm.md):
  *   entry_geometry(id INTEGER PRIMARY KEY, flags, ext_x, ext_y, ext_z,
  *        centre_x, centre_y, centre_z, sym_score, cov_xx, cov_xz, cov_zz,

@@ -1,5 +1,5 @@
 /*
- * sooc3d meshes (issue 19, docs/mesh.md): marching cubes on the density of a
+ * sooc3d meshes (docs/mesh.md): marching cubes on the density of a
  * map's objects and layout, binary PLY, and the Atlas mesh metric
  * (docs/mesh.md).
  *

@@ -1,5 +1,5 @@
 /*
- * sooc3d nn: the kernels the model runs (issue 21 "one engine").
+ * sooc3d nn: the kernels the model runs.
  *
  *  - sooc_nn_gemm / sooc_nn_gemm_tn: row-major GEMMs for narrow layers
  *    (N = 16..64 outputs, K = 33..576) with the bias / accumulate init and a

@@ -1,6 +1,6 @@
 /*
  * sooc3d nn: the layers of the refinement network (docs/model.md "Layers") as the model
- * runs them, as forward/backward kernel pairs (issue 21). src/model/refine.c
+ * runs them, as forward/backward kernel pairs. src/model/refine.c
  * is built from these; tests/nn/test_nn_refine_grad.c checks every pair by
  * finite differences in float64, tests/nn/test_nn_refine_ref.c against
  * PyTorch (tests/ref/refine_ref.py).

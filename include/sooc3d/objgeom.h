@@ -1,5 +1,5 @@
 /*
- * sooc3d object geometry for planners (issue 19 item 5; docs/shm.md "How
+ * sooc3d object geometry for planners (docs/shm.md "How
  * each field is computed"): the tight box of an object's own density, its
  * height, whether it is rotationally symmetric, and position / yaw spreads
  * that mean something.

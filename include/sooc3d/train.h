@@ -1,5 +1,5 @@
 /*
- * sooc3d training (issue 4 part 6): scene datasets, the training
+ * sooc3d training: scene datasets, the training
  * configuration, and the training loop around sooc_model_train_step.
  *
  * The loop: for each step s, an RNG seeded with (seed, s) picks the scene, the

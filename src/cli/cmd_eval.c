@@ -163,7 +163,7 @@ static void print_supp(const sooc_eval_table *t, char names[][160], int n_names,
             }
 }
 
-/* Object geometry for planners (issue 19; eval_geom.h, docs/metrics.md): per
+/* Object geometry for planners (eval_geom.h, docs/metrics.md): per
  * query cell with a scene description (the geometry comes from the final map). */
 static void print_geom(const sooc_eval_table *t, char names[][160], int n_names, const int *scales_used, int runs) {
     int any = 0;
@@ -547,7 +547,7 @@ int sooc_cmd_eval(int argc, char **argv) {
                         if ((st = sooc_eval_table_add_sums(tab, nm, scale, r, 0, &res.input_online))) goto fail;
                         if ((st = sooc_eval_table_add_sums(tab, nm, scale, r, 1, &res.query))) goto fail;
                     }
-                    if (finetune && !sooc_model_is_global(mdl[mi])) {   /* the <name>+ft row (issue 19) */
+                    if (finetune && !sooc_model_is_global(mdl[mi])) {   /* the <name>+ft row */
                         sooc_eval_run_opts rf = ro;
                         rf.finetune = &ftp;
                         rf.timing = SOOC_EVAL_FINAL;

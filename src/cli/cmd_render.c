@@ -1,4 +1,4 @@
-/* sooc3d render: the pictures of one sequence (issue 5 part 5) through the
+/* sooc3d render: the pictures of one sequence through the
  * evaluation path: a panel per view, the top-down cognitive map over the
  * online run (PNG sequence + contact sheet), training curves. */
 #include "cli.h"

@@ -1,4 +1,4 @@
-/* Object geometry in the map database (schema version 3, issue 19 item 5;
+/* Object geometry in the map database (schema version 3;
  * include/sooc3d/mapstore.h "object geometry"). */
 #include <math.h>
 #include <stdio.h>

@@ -1,10 +1,10 @@
-/* The MulMON-style global-frame baseline (issue 5 part 4, docs/baseline.md):
+/* The MulMON-style global-frame baseline (docs/baseline.md):
  * the same networks as the shipped model, but every object lives in one
  * fixed set of slots in the WORLD frame, persisting across all views of a
  * scene (the posterior after view t is the prior of view t+1), no cognitive
  * map, no query/registration, one global layout latent.
  *
- * Its own module above src/model (issue 21): it runs the model's step layer
+ * Its own module above src/model: it runs the model's step layer
  * (model/step.h: per-view records, forward, reverse sweep); the model never
  * calls it. Its slot priors' initial spiral is the model's (model.c, a
  * weights initialisation for config.global_frame). */

@@ -65,7 +65,7 @@ static void field_eval(void *user, int worker, int comp, const float *pts, int n
                 mdl_pe_row(xl, 1.0f / c->block_size, net->nfreq, pe + (size_t)i * din);
             }
         }
-        if (fc->w) {   /* finetuned copy (issue 19) */
+        if (fc->w) {   /* finetuned copy */
             mdl_own_forward(fc->w, &fc->rel, nb, pe, fc->bias, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
             for (int i = 0; i < nb; i++) sigma_hat[b0 + i] = in[i] ? sig[i] : 0.0f;
             continue;

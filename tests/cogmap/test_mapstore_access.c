@@ -1,4 +1,4 @@
-/* Map access a planner's developer needs (issue 22):
+/* Map access a planner's developer needs:
  * 1. model_id: a map created with a model id stores it; opening it for another
  *    model is SOOC_EVERSION naming both ids; a map stored with an empty id
  *    takes the id of the first read-write open that gives one.

@@ -159,7 +159,7 @@ static void test_migrate_v2(const char *path) {
     CHECK(has_table(path, "entry_geometry"));
 }
 
-/* a version-1 map written before issue 19: both migrations, in order */
+/* a version-1 map (no payloads, no geometry): both migrations, in order */
 static void test_migrate_v1(void) {
     const char *fix = "tests/finetune/map_v1_unity_m.sqlite";
     FILE *fi = fopen(fix, "rb");

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """test_calib_readers: every calib/*.yaml reads back identically in the three
-YAML readers a sooc3d user meets (issue 22):
+YAML readers a sooc3d user meets:
 
   - libyaml through sooc_calib_load (the node's loader; tests/data/calib_dump.c
     prints what it read as JSON, doubles at %.17g),

@@ -1,4 +1,4 @@
-/* config.unit_m (docs/model.md "Model unit", issue 18): a model with unit_m =
+/* config.unit_m (docs/model.md "Model unit"): a model with unit_m =
  * 1/S on a scene equals the same weights with unit_m = 1 on the scene shown S
  * times larger (scripts/scale_scenes.py: depth_scale, camera translations and
  * clip_depth times S).

@@ -1,4 +1,4 @@
-/* Finetuned decoders in the map (issue 19): cogmap payloads, the map
+/* Finetuned decoders in the map: cogmap payloads, the map
  * database's schema 2 and its migration, and the model's field drawing them.
  *  1. A version-1 map written by the node before schema 2
  *     (tests/finetune/map_v1_unity_m.sqlite: 10 entries, 24 keyframes):

@@ -1,4 +1,4 @@
-/* Object geometry on generated scenes with ground truth (issue 19 item 5):
+/* Object geometry on generated scenes with ground truth:
  * the shipped unity model maps held-out unity m scenes (seed 9001, never used
  * in training or for fitting the spread constants, which came from seed
  * 8001), then every stale tight box is computed and the final map is scored

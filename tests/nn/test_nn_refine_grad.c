@@ -1,5 +1,5 @@
 /*
- * The refinement network's kernel pairs (sooc3d/nn_refine.h), issue 21:
+ * The refinement network's kernel pairs (sooc3d/nn_refine.h):
  *
  *  1. float64 finite differences: for every pair's _f64 version, the loss
  *     L = sum(r * y) (fixed random r) differentiated by the 4-point central

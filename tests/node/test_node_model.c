@@ -326,7 +326,7 @@ static void run_binary(const char *model, int expect_objects) {
     shm_unlink(shm_path);
 }
 
-/* issue 22: the map stores the id of the model that built it (its
+/* the map stores the id of the model that built it (its
  * checkpoint's content) and a node with another model (same shape, other
  * seed) refuses to resume it */
 static void run_model_check(void) {

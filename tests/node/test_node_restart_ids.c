@@ -1,5 +1,5 @@
 /* Object ids across node restarts, as a planner sees them in the table
- * (issue 22; the rule is docs/shm.md "Object ids and restarts"):
+ * (the rule is docs/shm.md "Object ids and restarts"):
  *  A. a first run on a new map.db;
  *  B. a restart on ANOTHER new map.db (the map is not resumed): instance_id
  *     changes, the ids start at 1 again (some ids of run A come back: a

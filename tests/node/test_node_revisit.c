@@ -1,4 +1,4 @@
-/* Revisits update instead of duplicating (issue 17), with the shipped model
+/* Revisits update instead of duplicating, with the shipped model
  * (models/sooc3d_unity/model.bin; skipped, 77, when absent):
  *  1. a generated unity m scene replayed twice into one map.db with
  *     map.resume: true: the second pass grows the map by at most 5%;

@@ -5,8 +5,7 @@
  * 2. Follow mode prints each new epoch (an added and a removed object) and
  *    exits by itself when the writer closes.
  * 3. A table left mid-batch by a writer SIGKILLed inside a batch: --once and
- *    follow mode say it is stuck mid-batch and exit 3 (issue 22: they printed
- *    nothing and exited 0).
+ *    follow mode say it is stuck mid-batch and exit 3 (not silence and exit 0).
  * 4. A live writer that stays inside one batch: --once says "busy", exits 3.
  * Skips (77) the Python part if python3 is missing. */
 #include "check.h"

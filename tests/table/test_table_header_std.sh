@@ -1,5 +1,5 @@
 #!/bin/sh
-# include/sooc3d/table.h as C11, C17, C++17, C++20 and C++23 (issue 22): each
+# include/sooc3d/table.h as C11, C17, C++17, C++20 and C++23: each
 # build of header_std_check.c must compile with -Wall -Wextra -Werror -pedantic
 # and run. Usage: test_table_header_std.sh <source dir> <work dir> <cc> <c++>
 set -eu

@@ -1,4 +1,4 @@
-/* Data-parallel training on Open MPI (issue 21 items 4-5, docs/cluster.md),
+/* Data-parallel training on Open MPI (docs/cluster.md),
  * through the sooc3d binary ($SOOC_BIN) and mpirun ($SOOC_MPIEXEC):
  *
  * 1. equivalence: `mpirun -np 2` with accum 2 logs the same losses as one

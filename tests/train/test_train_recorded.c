@@ -1,4 +1,4 @@
-/* Training from recordings (issue 18 item 1; docs/training.md "Training from
+/* Training from recordings (docs/training.md "Training from
  * recordings"). A generated scene is rewritten as a recorded sequence (TUM
  * layout, no scene.yaml, poses in a tilted source frame, a hole punched in
  * every depth image) and loaded through sooc_dataset_open_rec:
