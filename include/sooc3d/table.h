@@ -75,7 +75,8 @@ extern "C" {
 
 #define SOOC_TABLE_MAGIC 0x42544433434F4F53ull /* "SOOC3DTB" as little-endian bytes */
 #define SOOC_TABLE_ABI_MAJOR 1u  /* any incompatible change: bump, and the name prefix */
-#define SOOC_TABLE_ABI_MINOR 1u  /* fields appended into reserved bytes only (1: the store block) */
+#define SOOC_TABLE_ABI_MINOR 2u  /* fields appended into reserved bytes and new flag bits only (1: the store
+                                    block; 2: the BOX_* record flags) */
 #define SOOC_TABLE_HEADER_SIZE 4096u
 #define SOOC_TABLE_RECORD_SIZE 256u
 #define SOOC_TABLE_LATENT_MAX 32u
@@ -112,6 +113,16 @@ extern "C" {
 #define SOOC_TABLE_FLAG_SYMMETRIC 0x10u /* rotationally symmetric about its vertical axis:
                                            yaw is undefined, cov_xzyaw[5] (yaw variance)
                                            is NaN and the yaw cross terms 0 (docs/shm.md) */
+/* The box's quality (abi_minor >= 2; a writer of an older minor leaves them 0):
+ * BOX_TIGHT: extent is the tight box of the object's own geometry; without it
+ * extent is the model's locality box (not computed yet). BOX_CLIPPED: the
+ * geometry reaches the locality box's side, the extent is cut there.
+ * BOX_EMPTY: no surface at all (extent 0). BOX_FAINT: below the surface
+ * level everywhere, the box at half its peak. */
+#define SOOC_TABLE_FLAG_BOX_TIGHT 0x20u
+#define SOOC_TABLE_FLAG_BOX_CLIPPED 0x40u
+#define SOOC_TABLE_FLAG_BOX_EMPTY 0x80u
+#define SOOC_TABLE_FLAG_BOX_FAINT 0x100u
 
 /* The map database's state (the header's store block, abi_minor >= 1;
  * sooc_table_get_store). */

@@ -25,6 +25,10 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
     if (g->flags & SOOC_GEOM_TIGHT) r->y = g->centre[1];   /* tight box centre above the floor */
     if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
+    if (g->flags & SOOC_GEOM_TIGHT) r->flags |= SOOC_TABLE_FLAG_BOX_TIGHT;   /* the box's quality */
+    if (g->flags & SOOC_GEOM_CLIPPED) r->flags |= SOOC_TABLE_FLAG_BOX_CLIPPED;
+    if (g->flags & SOOC_GEOM_EMPTY) r->flags |= SOOC_TABLE_FLAG_BOX_EMPTY;
+    if (g->flags & SOOC_GEOM_FAINT) r->flags |= SOOC_TABLE_FLAG_BOX_FAINT;
     r->first_seen_ns = e->first_seen_ns;
     r->last_seen_ns = e->last_seen_ns;
     int d = e->latent_dim;

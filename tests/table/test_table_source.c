@@ -121,6 +121,13 @@ int main(void) {
         }
     }
     for (int k = 0; k < 3; k++) CHECK_MSG(inside[k] >= 1, "GT object %d lies in no entry's box", k);
+    /* the geometric map's boxes are its clusters' own: every valid record says BOX_TIGHT, and a reader of
+     * this minor knows the flag */
+    CHECK(rd && info.abi_minor >= 2);
+    for (uint32_t i = 0; rd && i < n; i++)
+        if ((rec[i].flags & SOOC_TABLE_FLAG_VALID) && !(rec[i].flags & SOOC_TABLE_FLAG_REMOVED))
+            CHECK_MSG(rec[i].flags & SOOC_TABLE_FLAG_BOX_TIGHT, "entry %llu: flags 0x%x",
+                      (unsigned long long)rec[i].object_id, rec[i].flags);
     /* negative control: the same test in the map frame (T_src_map taken as the identity) does not put the
      * three objects in boxes: the recording's frame is z-up, the map's y-up */
     double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
