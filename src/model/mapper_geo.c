@@ -206,9 +206,11 @@ sooc_status mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc3d_update_stats 
         g->ent[bj].dirty = 0;
     }
     g->n_rep_rem = g->n_rem < SOOC_MAPPER_CHANGED_MAX ? g->n_rem : SOOC_MAPPER_CHANGED_MAX;
-    memcpy(g->rep_rem, g->rem, g->n_rep_rem * sizeof *g->rem);
-    memmove(g->rem, g->rem + g->n_rep_rem, (g->n_rem - g->n_rep_rem) * sizeof *g->rem);
-    g->n_rem -= g->n_rep_rem;
+    if (g->n_rep_rem) {
+        memcpy(g->rep_rem, g->rem, g->n_rep_rem * sizeof *g->rem);
+        memmove(g->rem, g->rem + g->n_rep_rem, (g->n_rem - g->n_rep_rem) * sizeof *g->rem);
+        g->n_rem -= g->n_rep_rem;
+    }
     us->elapsed_ms = 1e3 * (sooc_seconds() - t0);
     return SOOC_OK;
 }
