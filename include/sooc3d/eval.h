@@ -320,6 +320,26 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
                                int detail, sooc_render_out *out, sooc_view_metrics *vm,
                                sooc_iou_match *match, uint64_t *comp_ids, double *comp_xz, int *n_comp);
 
+/* Which object a camera sees at each pixel of a stored map (`sooc3d map at`).
+ * ids (K->height x K->width, row-major) gets the map entry id whose surface
+ * the ray through the pixel's centre meets first, 0 where it meets none;
+ * depth (optional, may be NULL) the planar depth of that hit in metres, NaN
+ * where none. T_wc: camera (OpenCV optical) to the map's world frame.
+ *  - boxes: the planner's boxes of n entries (sooc_map_entry_box), the
+ *    nearest box the ray enters; any map, no model needed.
+ *  - model: the map rendered by the model it was built with (the argmax
+ *    component where the accumulated opacity reaches 0.5, as the panels of
+ *    `sooc3d render` show it); threads as sooc_render_opts.threads. The
+ *    objects in view are those of the camera K_view (NULL = K): to ask
+ *    for part of a view (one pixel), K is that part (its principal point
+ *    shifted) and K_view the whole view.
+ * Both fail with SOOC_EINVAL on a missing argument or an empty image. */
+sooc_status sooc_map_pick_boxes(const sooc_map_entry *e, size_t n, const double T_wc[16], const sooc_intrinsics *K,
+                                uint64_t *ids, float *depth);
+sooc_status sooc_map_pick_model(sooc_model *m, const sooc_cogmap *map, const double T_wc[16],
+                                const sooc_intrinsics *K, const sooc_intrinsics *K_view, int threads, uint64_t *ids,
+                                float *depth);
+
 /* A private copy of a model (same config and parameters; the caller owns it). */
 sooc_status sooc_eval_model_copy(sooc_model *m, sooc_model **out);
 

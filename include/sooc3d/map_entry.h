@@ -77,6 +77,12 @@ void sooc_map_entry_from_cogmap(const sooc_cogmap_entry *c, const float extent[3
  * the calibrated spreads were used. */
 int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]);
 
+/* The planner's box of an entry, as the shm table publishes it: centre
+ * (x, y, z) in the world frame (y above the floor: the tight box's centre
+ * height when computed, else half the extent), rotation yaw about +y, full
+ * extent ext (m) along the box's own axes. */
+void sooc_map_entry_box(const sooc_map_entry *e, double centre[3], double *yaw, float ext[3]);
+
 /* The box-quality words of geom.flags for people and exports: "tight",
  * "tight,clipped", "empty", "faint", "not computed", ... (buf >= 48). */
 const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, size_t cap);

@@ -23,6 +23,10 @@ int sooc_cmd_calib(int argc, char **argv);
 int sooc_cmd_log(int argc, char **argv);
 /* cmd_map_mcap.c: `sooc3d map export --db MAP --mcap FILE` (Foxglove SceneUpdate); exit code. */
 int sooc_cli_map_export_mcap(const char *db, const char *out);
+/* cmd_map_at.c: `sooc3d map at` (argv as given to `sooc3d map`); exit code. */
+int sooc_cli_map_at(int argc, char **argv);
+/* A colour for an object id (64..255 per channel), the same in every picture and export. */
+void sooc_cli_id_colour(uint64_t id, int rgb[3]);
 /* `sooc3d gen --board ...`: board views for calibration (cmd_calib.c). */
 int sooc_cmd_gen_board(int argc, char **argv);
 

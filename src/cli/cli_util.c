@@ -115,3 +115,11 @@ int sooc_cli_parse_samples(const char *s, int *c, int *f) {
     *f = (int)b;
     return 1;
 }
+void sooc_cli_id_colour(uint64_t id, int rgb[3]) {
+    uint64_t x = id * 0x9e3779b97f4a7c15ULL;
+    x ^= x >> 29;
+    x *= 0xbf58476d1ce4e5b9ULL;
+    x ^= x >> 32;
+    for (int i = 0; i < 3; i++) rgb[i] = 64 + (int)((x >> (8 * i)) & 0xff) * 191 / 255;
+}
+

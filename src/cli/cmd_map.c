@@ -18,6 +18,7 @@ static void map_usage(FILE *f) {
             "       sooc3d map export --db MAP.sqlite --ply DIR --model M [--res N] [--level L] [--box ...]\n"
             "       sooc3d map export --db MAP.sqlite --mcap FILE\n"
             "       sooc3d map info   --db MAP.sqlite\n"
+            "       sooc3d map at     --db MAP.sqlite --pose T --K fx,fy,cx,cy --pixel U V [--model M] [--png F]\n"
             "\n"
             "Reads a persistent cognitive map (written by `sooc3d node`; `sooc3d infer` writes JSON/CSV,\n"
             "not a database). Needs only read permission on the database file.\n"
@@ -47,6 +48,7 @@ static void map_usage(FILE *f) {
             "                        --level L on sigma_hat, default 0.5; --layout-cell C metres,\n"
             "                        default 0.05; docs/mesh.md)\n"
             "  info     schema version, model id, dims, counts, journal mode\n"
+            "  at       which object a camera sees at a pixel (`sooc3d map at --help`)\n"
             "\n"
             "  --db FILE     the map database (required; it is never created or modified)\n"
             "  --box X0 Z0 X1 Z1   floor box in metres (query; optional filter for export)\n"
@@ -64,14 +66,6 @@ typedef struct out_ctx {
 } out_ctx;
 
 static float sigmoidf(float a) { return 1.0f / (1.0f + expf(-a)); }
-
-static void id_colour(uint64_t id, int rgb[3]) {
-    uint64_t x = id * 0x9e3779b97f4a7c15ULL;
-    x ^= x >> 29;
-    x *= 0xbf58476d1ce4e5b9ULL;
-    x ^= x >> 32;
-    for (int i = 0; i < 3; i++) rgb[i] = 64 + (int)((x >> (8 * i)) & 0xff) * 191 / 255;
-}
 
 static int print_cb(void *u, const sooc_cogmap_entry *e) {
     out_ctx *c = u;
@@ -132,7 +126,7 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
         break;
     case 3: {
         int rgb[3];
-        id_colour(e->id, rgb);
+        sooc_cli_id_colour(e->id, rgb);
         fprintf(c->f, "%.6f 0 %.6f %d %d %d %llu %.6f %.6f\n", e->X, e->Z, rgb[0], rgb[1], rgb[2],
                 (unsigned long long)e->id, e->Theta, p);
         break;
@@ -165,6 +159,7 @@ static int parse_d(const char *s, double *v) {
 }
 
 int sooc_cmd_map(int argc, char **argv) {
+    if (argc >= 2 && !strcmp(argv[1], "at")) return sooc_cli_map_at(argc, argv);
     if (sooc_cli_wants_help(argc, argv)) {
         map_usage(stdout);
         return 0;

@@ -67,3 +67,11 @@ const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, si
     if (!n && cap) snprintf(buf, cap, "not computed");
     return buf;
 }
+
+void sooc_map_entry_box(const sooc_map_entry *e, double centre[3], double *yaw, float ext[3]) {
+    centre[0] = e->x;
+    centre[1] = (e->geom.flags & SOOC_GEOM_TIGHT) ? e->geom.centre[1] : 0.5 * e->extent[1];   /* on the floor */
+    centre[2] = e->z;
+    *yaw = e->yaw;
+    memcpy(ext, e->extent, 3 * sizeof *ext);
+}

@@ -20,10 +20,10 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     r->cov_xzyaw[1] = (float)cov[1];
     r->cov_xzyaw[3] = (float)cov[2];
     r->cov_xzyaw[5] = (float)cov[3];
-    r->y = 0.5f * e->extent[1];   /* objects rest on the floor */
-    memcpy(r->extent, e->extent, sizeof r->extent);
+    double c[3], yaw;   /* the planner's box (map_entry.h) */
+    sooc_map_entry_box(e, c, &yaw, r->extent);
+    r->y = (float)c[1];
     const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
-    if (g->flags & SOOC_GEOM_TIGHT) r->y = g->centre[1];   /* tight box centre above the floor */
     if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
     if (g->flags & SOOC_GEOM_TIGHT) r->flags |= SOOC_TABLE_FLAG_BOX_TIGHT;   /* the box's quality */
     if (g->flags & SOOC_GEOM_CLIPPED) r->flags |= SOOC_TABLE_FLAG_BOX_CLIPPED;
