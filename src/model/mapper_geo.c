@@ -123,11 +123,17 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
     g->reg_m2[1] += dx * (e->z - g->reg_mean[1]);
     g->reg_m2[2] += dz * (e->z - g->reg_mean[1]);
     g->reg_cs[0] += cos(4 * e->yaw), g->reg_cs[1] += sin(4 * e->yaw);
-    /* the position's std: the registrations' spread, at least half a voxel */
+    /* Where the object's centre is: the mean of the registrations, whose variance is their spread / n (it
+     * shrinks with evidence and grows with disagreement), at least half a voxel; plus where in the box
+     * the centre lies. A cluster's box is its visible surface's, and touching objects share one
+     * cluster, so an object's centre is taken uniform over the box's footprint (variance extent^2 / 12
+     * along each box axis, turned into the map's axes). */
     double v0 = 0.25 * voxel * voxel, n = (double)g->reg_n;
-    g->cov_xz[0] = fmax(g->reg_m2[0] / n, v0);
-    g->cov_xz[1] = g->reg_m2[1] / n;
-    g->cov_xz[2] = fmax(g->reg_m2[2] / n, v0);
+    double bx = o->extent[0] * o->extent[0] / 12.0, bz = o->extent[2] * o->extent[2] / 12.0;
+    double cy = cos(e->yaw), sy = sin(e->yaw);
+    g->cov_xz[0] = fmax(g->reg_m2[0] / (n * n), v0) + cy * cy * bx + sy * sy * bz;
+    g->cov_xz[1] = g->reg_m2[1] / (n * n) + cy * sy * (bz - bx);
+    g->cov_xz[2] = fmax(g->reg_m2[2] / (n * n), v0) + sy * sy * bx + cy * cy * bz;
     e->sigma_t = sqrt(0.5 * (g->cov_xz[0] + g->cov_xz[2]));
     double r = hypot(g->reg_cs[0], g->reg_cs[1]) / n;
     double sd = r < 1 ? sqrt(-2.0 * log(r > 1e-12 ? r : 1e-12)) / 4 : 0;   /* circular std of 4 yaw, / 4 */
