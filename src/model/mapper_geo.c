@@ -17,11 +17,12 @@
 
 #define GEO_MATCH_M 0.03     /* match distance beyond the half-diagonals (m)        */
 #define GEO_MOVED_M 0.003    /* a box that moves or grows less than this is unchanged */
-#define GEO_LOGIT 6.9f       /* presence of a cluster: sigmoid(6.9) = 0.999         */
+#define GEO_PRES_MOVED 0.05  /* a presence change that republishes the entry          */
 
 typedef struct geo_entry {
     sooc_map_entry e;
     uint64_t dirty;          /* 0 = published; else the update that changed it (oldest first) */
+    uint32_t n_in, n_whole;  /* keyframes that saw its box's centre; of them, those that saw the whole box */
 } geo_entry;
 
 struct mdl_geo {
@@ -93,6 +94,39 @@ static int in_view(const sooc_frame *f, const sooc_map_entry *e, double max_dept
     return u >= 0 && v >= 0 && u < f->width && v < f->height;
 }
 
+/* Where a box lies in a keyframe's image: 0 its centre is not in view, 1 the centre is, 2 all its corners
+ * are (in front of the camera, inside the image). */
+static int box_view(const sooc_frame *f, const sooc_map_entry *e, double max_depth) {
+    if (!in_view(f, e, max_depth)) return 0;
+    double T[16], c = cos(e->yaw), s = sin(e->yaw);
+    sooc_se3_inverse(T, f->T_wc);
+    for (int k = 0; k < 8; k++) {
+        double bx = (k & 1 ? 0.5 : -0.5) * e->extent[0], by = (k & 2 ? 0.5 : -0.5) * e->extent[1],
+               bz = (k & 4 ? 0.5 : -0.5) * e->extent[2];
+        /* the box's x axis in the world is (cos yaw, 0, -sin yaw), its z axis (sin yaw, 0, cos yaw) */
+        double w[3] = {e->x + c * bx + s * bz, e->geom.centre[1] + by, e->z - s * bx + c * bz}, q[3];
+        sooc_se3_apply(q, T, w);
+        if (!(q[2] > 0.05)) return 1;
+        double u = f->K.fx * q[0] / q[2] + f->K.cx, v = f->K.fy * q[1] / q[2] + f->K.cy;
+        if (!(u >= 0 && v >= 0 && u < f->width && v < f->height)) return 1;
+    }
+    return 2;
+}
+
+/* Presence: how often the keyframes that saw the entry's centre saw its whole box, (whole + 1) / (in + 2).
+ * A cluster that always runs out of the image (a wall, a bin's side, the surround) stays near 0.5 or below;
+ * an object seen whole goes to 1 (docs/shm.md "The geometric map's fields"). */
+static void take_presence(geo_entry *ge, const sooc_frame *f, double max_depth, uint64_t upd) {
+    int v = box_view(f, &ge->e, max_depth);
+    if (v) ge->n_in++;
+    if (v == 2) ge->n_whole++;
+    sooc_map_entry *e = &ge->e;
+    float p = (float)(ge->n_whole + 1) / (float)(ge->n_in + 2), old = e->presence;
+    e->presence = p;
+    e->presence_logit = logf(p / (1.0f - p));
+    if (fabsf(p - old) > GEO_PRES_MOVED && !ge->dirty) ge->dirty = upd;
+}
+
 /* An entry from a cluster: box, pose, colour as the latent; the registration
  * statistics (Welford) over the updates that matched it. */
 static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc_frame *f, double voxel,
@@ -103,8 +137,6 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
                 fabs(e->extent[2] - o->extent[2]) > GEO_MOVED_M || fabs(sooc_wrap_angle(e->yaw - o->yaw)) > 0.02;
     e->x = o->x, e->z = o->z, e->yaw = o->yaw;
     for (int i = 0; i < 3; i++) e->extent[i] = (float)o->extent[i];
-    e->presence = 1.0f / (1.0f + expf(-GEO_LOGIT));
-    e->presence_logit = GEO_LOGIT;
     e->latent_dim = SOOC3D_GEOMETRIC_LATENT_DIM;
     for (int i = 0; i < 3; i++) e->what_mu[i] = (float)o->rgb[i], e->what_logvar[i] = 0;
     if (!e->obs_count) e->first_seen_ns = f->t_ns;
@@ -177,12 +209,14 @@ sooc_status mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc3d_update_stats 
             ue[bj] = 1;
             us->n_registered++;
             take_cluster(&g->ent[bj], o, f, g->cp.voxel_m, g->upd);
+            take_presence(&g->ent[bj], f, g->cp.max_depth_m, g->upd);
         } else {
             geo_entry *ge = &g->ent[g->n++];
             memset(ge, 0, sizeof *ge);
             ge->e.id = g->next_id++;
             ge->dirty = g->upd;
             take_cluster(ge, o, f, g->cp.voxel_m, g->upd);
+            take_presence(ge, f, g->cp.max_depth_m, g->upd);
             us->n_registered++, us->n_new++;
         }
     }

@@ -136,6 +136,7 @@ int main(void) {
         const double *T = info.T_src_map;   /* map -> source, rigid: the source point in the map is R^T (p - t) */
         double gm[3];
         int in1 = 0, in2 = 0, out4 = 0, nz = 0;
+        uint8_t matched[64] = {0};
         for (int k = 0; k < 3 && rd; k++) {
             for (int a = 0; a < 3; a++)
                 gm[a] = T[a] * (gt[k][0] - T[3]) + T[4 + a] * (gt[k][1] - T[7]) + T[8 + a] * (gt[k][2] - T[11]);
@@ -147,6 +148,7 @@ int main(void) {
                 if (d < bd) bd = d, bi = (int)i;
             }
             if (bi < 0) continue;
+            if (bi < 64) matched[bi] = 1;
             double zx = (rec[bi].x - gm[0]) / sqrt(rec[bi].cov_xzyaw[0]), zz = (rec[bi].z - gm[2]) / sqrt(rec[bi].cov_xzyaw[3]);
             printf("object %d: entry %llu, error x %+.3f z %+.3f m = %+.2f / %+.2f sigma\n", k,
                    (unsigned long long)rec[bi].object_id, rec[bi].x - gm[0], rec[bi].z - gm[2], zx, zz);
@@ -158,6 +160,19 @@ int main(void) {
         printf("position errors: %d of %d within 1 sigma, %d within 2\n", in1, nz, in2);
         CHECK_MSG(nz == 6 && in1 >= 2 && in2 >= 5 && out4 == 0, "%d of %d within 1 sigma, %d within 2, %d beyond 4", in1,
                   nz, in2, out4);
+        /* presence: the entries that hold the objects were seen whole more often than the others (keyboard
+         * pieces running out of the image) */
+        double pm = 0, pu = 0;
+        int nm = 0, nu = 0;
+        for (uint32_t i = 0; rd && i < n && i < 64; i++) {
+            if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
+            if (matched[i]) pm += rec[i].presence, nm++;
+            else pu += rec[i].presence, nu++;
+        }
+        printf("presence: %.3f for the %d entries holding the objects, %.3f for the %d others\n", nm ? pm / nm : NAN, nm,
+               nu ? pu / nu : NAN, nu);
+        CHECK_MSG(nm && nu && pm / nm > pu / nu + 0.2, "presence %.3f (objects) against %.3f (others)", nm ? pm / nm : NAN,
+                  nu ? pu / nu : NAN);
     }
     /* negative control: the same test in the map frame (T_src_map taken as the identity) does not put the
      * three objects in boxes: the recording's frame is z-up, the map's y-up */
