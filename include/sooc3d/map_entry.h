@@ -76,6 +76,9 @@ void sooc_map_entry_from_cogmap(const sooc_cogmap_entry *c, const float extent[3
  * correlation) and sigma_yaw^2. cov = {xx, xz, zz, yaw yaw}; returns 1 when
  * the calibrated spreads were used. */
 int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]);
+/* The largest yaw variance published: that of an angle uniform on the
+ * circle, (2 pi)^2 / 12 = pi^2 / 3 rad^2 (a yaw known not at all). */
+#define SOOC_MAP_YAW_VAR_MAX 3.289868133696453
 
 /* The planner's box of an entry, as the shm table publishes it: centre
  * (x, y, z) in the world frame (y above the floor: the tight box's centre

@@ -48,11 +48,13 @@ void sooc_map_entry_to_cogmap(const sooc_map_entry *e, sooc_cogmap_entry *c) {
 int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]) {
     const sooc_map_geometry *g = &e->geom;
     if (g->cov_xz[0] > 0 && g->cov_xz[2] > 0) {
-        cov[0] = g->cov_xz[0], cov[1] = g->cov_xz[1], cov[2] = g->cov_xz[2], cov[3] = g->var_yaw;
+        cov[0] = g->cov_xz[0], cov[1] = g->cov_xz[1], cov[2] = g->cov_xz[2];
+        cov[3] = g->var_yaw > SOOC_MAP_YAW_VAR_MAX ? SOOC_MAP_YAW_VAR_MAX : g->var_yaw;   /* NaN stays NaN */
         return 1;
     }
     cov[0] = cov[2] = e->sigma_t * e->sigma_t, cov[1] = 0;
     cov[3] = e->sigma_yaw * e->sigma_yaw;
+    if (cov[3] > SOOC_MAP_YAW_VAR_MAX) cov[3] = SOOC_MAP_YAW_VAR_MAX;
     return 0;
 }
 

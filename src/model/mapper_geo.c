@@ -169,7 +169,8 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
     e->sigma_t = sqrt(0.5 * (g->cov_xz[0] + g->cov_xz[2]));
     double r = hypot(g->reg_cs[0], g->reg_cs[1]) / n;
     double sd = r < 1 ? sqrt(-2.0 * log(r > 1e-12 ? r : 1e-12)) / 4 : 0;   /* circular std of 4 yaw, / 4 */
-    e->sigma_yaw = fmax(sd, 0.5 * M_PI / 180.0);   /* the 1 degree search step */
+    /* at least half the 1 degree search step, at most the std of a heading uniform over 90 degrees */
+    e->sigma_yaw = fmin(fmax(sd, 0.5 * M_PI / 180.0), 0.5 * M_PI / sqrt(12.0));
     g->var_yaw = e->sigma_yaw * e->sigma_yaw;
     if (moved && !ge->dirty) ge->dirty = upd;
 }

@@ -471,12 +471,14 @@ void sooc_objgeom_spread(double rho_t, double rho_theta, sooc_map_geometry *g) {
         g->var_yaw = NAN;
         return;
     }
+    /* the posterior's variance plus the registrations' circular spread -2 ln R (R: mean resultant length),
+     * at most that of a uniform angle: consistent registrations keep R near 1, more of them do not grow it */
     double vy = exp(rho_theta);
     if (g->reg_n >= 2) {
         double R = hypot(g->reg_cs[0], g->reg_cs[1]) / g->reg_n;
-        vy += R > 1e-12 ? -2.0 * log(R < 1 ? R : 1) : 2.0 * M_PI * M_PI / 3.0;
+        vy += R > 1e-12 ? -2.0 * log(R < 1 ? R : 1) : SOOC_MAP_YAW_VAR_MAX;
     }
-    g->var_yaw = vy;
+    g->var_yaw = vy < SOOC_MAP_YAW_VAR_MAX ? vy : SOOC_MAP_YAW_VAR_MAX;
 }
 
 /* ---------------------------------------------------------------- cache */

@@ -198,6 +198,24 @@ static void test_spreads(void) {
     for (int i = 0; i < 5; i++) c += cos(Y[i]), s += sin(Y[i]);
     CHECK_CLOSE(g.var_yaw, 0.04 - 2 * log(hypot(c, s) / 5), 1e-12, 1e-9);
     CHECK(g.var_yaw > 0.04);
+    /* the yaw variance is bounded by a uniform angle's, and consistent registrations do not grow it */
+    {
+        sooc_map_geometry gu, gc;
+        memset(&gu, 0, sizeof gu);
+        memset(&gc, 0, sizeof gc);
+        for (int i = 0; i < 12; i++) sooc_objgeom_observe(&gu, 0, 0, 2 * M_PI * i / 12);   /* all around */
+        sooc_objgeom_spread(rho_t, log(50.0), &gu);
+        CHECK_MSG(gu.var_yaw <= SOOC_MAP_YAW_VAR_MAX && gu.var_yaw > 3.0, "uniform yaws: %g", gu.var_yaw);
+        double prev = INFINITY;
+        for (int i = 0; i < 40; i++) {
+            sooc_objgeom_observe(&gc, 0, 0, 0.3 + 0.05 * ((i % 3) - 1));   /* the same heading, +-0.05 */
+            if (gc.reg_n < 3) continue;
+            sooc_objgeom_spread(rho_t, rho_th, &gc);
+            CHECK_MSG(gc.var_yaw <= prev + 1e-3, "%u consistent yaws: %g after %g", gc.reg_n, gc.var_yaw, prev);
+            prev = gc.var_yaw;
+        }
+        CHECK(prev < 0.05);
+    }
     /* one registration: the posterior plus SIGMA_NEW^2 */
     sooc_map_geometry g1;
     memset(&g1, 0, sizeof g1);
