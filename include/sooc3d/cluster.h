@@ -38,6 +38,8 @@ typedef struct sooc_cluster_params {
     int min_voxels;        /* smaller components are noise (12)                              */
     double max_extent_m;   /* a component wider than this in x or z is the surround (0.5)    */
     int pixel_step;        /* back-projection stride in pixels (1)                           */
+    double wall_m;         /* vertical planes running on this far are walls, not objects (0.3;
+                              0 = keep them)                                                  */
 } sooc_cluster_params;
 void sooc_cluster_params_default(sooc_cluster_params *p);
 

@@ -36,12 +36,13 @@ void sooc_cluster_params_default(sooc_cluster_params *p) {
     p->max_depth_m = 3.0;
     p->min_voxels = 12;
     p->max_extent_m = 0.5;
+    p->wall_m = 0.3;
     p->pixel_step = 1;
 }
 
 static sooc_status check_params(const sooc_cluster_params *p) {
     if (!(p->voxel_m > 0) || !(p->dist_m >= p->voxel_m) || !(p->max_height_m > p->min_height_m) ||
-        !(p->max_depth_m > 0) || p->min_voxels < 1 || !(p->max_extent_m > 0) || p->pixel_step < 1 ||
+        !(p->max_depth_m > 0) || p->min_voxels < 1 || !(p->max_extent_m > 0) || p->pixel_step < 1 || !(p->wall_m >= 0) ||
         !isfinite(p->voxel_m + p->dist_m + p->min_height_m + p->max_height_m + p->max_depth_m + p->max_extent_m))
         return sooc_seterr(SOOC_EINVAL,
                            "cluster: bad parameters (voxel %g m, dist %g m, heights %g..%g m, depth %g m, "
@@ -255,6 +256,84 @@ static void centroid(const voxel *v, double c[3]) {
     for (int r = 0; r < 3; r++) c[r] = v->s[r] / v->n;
 }
 
+static int cmp_float(const void *a, const void *b) {
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Walls: vertical planes through the object points whose inliers run on without a gap of more than
+ * WALL_GAP_M for at least wall_m along the floor and WALL_MIN_H_M up (a bin's or shelf's side, a room's
+ * wall). Their voxels are taken out of ref (they stay background), so objects that touch them are
+ * joined to them no more. RANSAC over pairs of points (a vertical plane through two points), seeded:
+ * the same grid gives the same walls. A row of objects whose faces line up leaves gaps between them and
+ * is not a wall. */
+#define WALL_TOL_M 0.012   /* a point on the plane                                    */
+#define WALL_BAND_M 0.03   /* taken out with the wall: its noise and what sticks to it */
+#define WALL_GAP_M 0.05
+#define WALL_MIN_H_M 0.08
+#define WALL_ITERS 300
+#define WALL_MAX 4
+static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
+    size_t nr = *nr_io;
+    if (!(wall_m > 0) || nr < 64) return SOOC_OK;
+    float *t = sooc_malloc(nr * sizeof *t);
+    if (!t) return sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu points", nr);
+    uint64_t rng = 0x9e3779b97f4a7c15ULL ^ nr;
+    for (int w = 0; w < WALL_MAX && nr >= 64; w++) {
+        double bn[2] = {0, 0}, bo[2] = {0, 0};
+        size_t best = 0;
+        for (int it = 0; it < WALL_ITERS; it++) {
+            rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
+            size_t a = (size_t)(rng >> 33) % nr;
+            rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
+            size_t b = (size_t)(rng >> 33) % nr;
+            double dx = ref[b].c[0] - ref[a].c[0], dz = ref[b].c[2] - ref[a].c[2], l = hypot(dx, dz);
+            if (l < 0.05) continue;
+            double n[2] = {dz / l, -dx / l};   /* horizontal normal of the vertical plane through a and b */
+            size_t cnt = 0;
+            for (size_t i = 0; i < nr; i++)
+                cnt += fabs(n[0] * (ref[i].c[0] - ref[a].c[0]) + n[1] * (ref[i].c[2] - ref[a].c[2])) < WALL_TOL_M;
+            if (cnt > best) best = cnt, bn[0] = n[0], bn[1] = n[1], bo[0] = ref[a].c[0], bo[1] = ref[a].c[2];
+        }
+        if (best < 32) break;
+        /* the inliers' positions along the plane; the longest run without a gap */
+        size_t ni = 0;
+        for (size_t i = 0; i < nr; i++) {
+            double dx = ref[i].c[0] - bo[0], dz = ref[i].c[2] - bo[1];
+            if (fabs(bn[0] * dx + bn[1] * dz) < WALL_TOL_M) t[ni++] = (float)(-bn[1] * dx + bn[0] * dz);
+        }
+        qsort(t, ni, sizeof *t, cmp_float);
+        float r0 = t[0], r1 = t[0], b0 = 0, b1 = -1;
+        for (size_t i = 1; i <= ni; i++) {
+            if (i == ni || t[i] - t[i - 1] > WALL_GAP_M) {
+                if (r1 - r0 > b1 - b0) b0 = r0, b1 = r1;
+                if (i < ni) r0 = t[i];
+            }
+            if (i < ni) r1 = t[i];
+        }
+        if (b1 - b0 < wall_m) break;
+        float ylo = INFINITY, yhi = -INFINITY;
+        for (size_t i = 0; i < nr; i++) {
+            double dx = ref[i].c[0] - bo[0], dz = ref[i].c[2] - bo[1], s = -bn[1] * dx + bn[0] * dz;
+            if (fabs(bn[0] * dx + bn[1] * dz) < WALL_TOL_M && s >= b0 && s <= b1) {
+                ylo = ref[i].c[1] < ylo ? ref[i].c[1] : ylo;
+                yhi = ref[i].c[1] > yhi ? ref[i].c[1] : yhi;
+            }
+        }
+        if (yhi - ylo < WALL_MIN_H_M) break;
+        size_t k = 0;
+        for (size_t i = 0; i < nr; i++) {
+            double dx = ref[i].c[0] - bo[0], dz = ref[i].c[2] - bo[1], s = -bn[1] * dx + bn[0] * dz;
+            int on = fabs(bn[0] * dx + bn[1] * dz) < WALL_BAND_M && s >= b0 - WALL_BAND_M && s <= b1 + WALL_BAND_M;
+            if (!on) ref[k++] = ref[i];
+        }
+        nr = k;
+    }
+    sooc_free(t);
+    *nr_io = nr;
+    return SOOC_OK;
+}
+
 sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     if (!m) return sooc_seterr(SOOC_EINVAL, "cluster: segment: no map");
     const sooc_cluster_params *p = &m->p;
@@ -285,6 +364,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         for (int q = 0; q < 3; q++) ref[nr].c[q] = (float)c[q];
         ref[nr++].vox = (int32_t)i;
     }
+    if ((st = remove_walls(ref, &nr, p->wall_m))) goto done;
     qsort(ref, nr, sizeof *ref, cmp_cell);
     /* join every pair closer than dist_m: candidates in the 27 cells of side dist_m around each voxel */
     for (size_t a = 0; a < nr; a++) {

@@ -116,7 +116,7 @@ struct sooc_node {
     float extent[3];               /* box extent from the database (resume of a mapper without one) */
     int db_exists;
     uint64_t model_id;       /* table latent_model_id: FNV-1a 64 of the checkpoint file */
-    char model_id_str[64];   /* map.db model_id: "fnv1a64:<16 hex> bytes:<n>" ("" = injected mapper) */
+    char model_id_str[96];   /* map.db model_id: "fnv1a64:<16 hex> bytes:<n>" ("" = injected mapper) */
 
     sooc_map_entry *prev;          /* start-up only: the map republished at create */
     size_t n_prev, cap_prev;

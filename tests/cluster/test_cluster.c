@@ -1,7 +1,8 @@
 /* Support-plane clustering (cluster.h): boxes on a plane, ray-cast from known
  * cameras. Two boxes with a gap wider than the join distance are two objects
  * with their boxes; closer than it, one. A slab wider than max_extent_m is
- * the surround. A held-out view rendered from the map reproduces the
+ * the surround; so is a wall (a vertical plane running on for wall_m), and
+ * a box against it is an object of its own. A held-out view rendered from the map reproduces the
  * ray-cast labels. The mapper's proposals (propose.c) put prior slots on
  * the clusters and leave covered ones alone. Bad input is refused. */
 #include "check.h"
@@ -213,6 +214,33 @@ int main(void) {
     CHECK_MSG(n == 1, "slab + box: %d objects (want 1)", n);
     if (n == 1 && sooc_cluster_map_objects(m, o, 4, &no) == SOOC_OK)
         CHECK_MSG(fabs(o[0].z + 0.07) < 0.01, "kept object at z %.3f (the box is at -0.07)", o[0].z);
+
+    /* a box against a wall (a bin's side, 0.5 m long, 0.25 m tall): the wall is taken out and the box is
+     * an object of its own; with the wall test off (wall_m 0) the box goes with the wall into the surround */
+    box wb[3];
+    wb[0] = (box){{-0.25, 0, 0.05}, {0.25, 0.25, 0.07}};
+    wb[1] = (box){{-0.04, 0, -0.03}, {0.04, 0.10, 0.05}};
+    n = map_scene(m, &f, wb, 2);
+    CHECK_MSG(n == 1, "box against a wall: %d objects (want 1)", n);
+    if (n == 1 && sooc_cluster_map_objects(m, o, 4, &no) == SOOC_OK) {
+        printf("box against a wall: (%.3f, %.3f) extent %.3f x %.3f x %.3f\n", o[0].x, o[0].z, o[0].extent[0],
+               o[0].extent[1], o[0].extent[2]);
+        CHECK_MSG(fabs(o[0].x) < 0.01 && o[0].z > -0.04 && o[0].z < 0.03 && fabs(o[0].extent[1] - 0.10) < 0.01,
+                  "box at (%.3f, %.3f), height %.3f", o[0].x, o[0].z, o[0].extent[1]);
+    }
+    {
+        sooc_cluster_params np = p;
+        np.wall_m = 0;
+        sooc_cluster_map *nw = NULL;
+        CHECK(sooc_cluster_map_create(&nw, &np) == SOOC_OK);
+        int nn = nw ? map_scene(nw, &f, wb, 2) : -1;
+        CHECK_MSG(nn == 0, "wall test off: %d objects (want 0: box and wall are one surround)", nn);
+        /* a row of boxes whose fronts line up, with 6 cm between them: three objects, not a wall */
+        for (int i = 0; i < 3; i++) wb[i] = (box){{-0.15 + 0.12 * i, 0, -0.03}, {-0.09 + 0.12 * i, 0.12, 0.03}};
+        n = map_scene(m, &f, wb, 3);
+        CHECK_MSG(n == 3, "a row of three boxes: %d objects (want 3)", n);
+        sooc_cluster_map_destroy(nw);
+    }
 
     /* bad input */
     sooc_cluster_map *bad = NULL;
