@@ -38,6 +38,9 @@ int sooc_cli_mesh_map(const char *cmd, const char *db, const char *model, const 
 
 /* Print "sooc3d <cmd>: <status>: <errmsg>" to stderr and return 1. */
 int sooc_cli_fail(const char *cmd, sooc_status s);
+/* The same for a command that reads a stored map with a model: a map that does not fit (built by
+ * another model, or a newer schema: SOOC_EVERSION) is bad input, exit 2; other failures exit 1. */
+int sooc_cli_fail_map(const char *cmd, sooc_status s);
 /* True if argv has -h or --help. */
 int sooc_cli_wants_help(int argc, char **argv);
 /* Parse "C" or "C,F" render sample counts (C >= 2, F >= 0); 1 on success. */

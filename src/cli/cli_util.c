@@ -15,6 +15,11 @@ int sooc_cli_fail(const char *cmd, sooc_status s) {
     return 1;
 }
 
+int sooc_cli_fail_map(const char *cmd, sooc_status s) {
+    sooc_cli_fail(cmd, s);
+    return s == SOOC_EVERSION ? 2 : 1;
+}
+
 int sooc_cli_wants_help(int argc, char **argv) {
     for (int i = 1; i < argc; i++)
         if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) return 1;

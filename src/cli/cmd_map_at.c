@@ -257,5 +257,5 @@ fail:
     sooc_cogmap_destroy(map);
     sooc_mapstore_close(s);
     sooc_model_destroy(m);
-    return st ? sooc_cli_fail("map at", st) : 0;
+    return st ? sooc_cli_fail_map("map at", st) : 0;
 }

@@ -89,7 +89,7 @@ fail:
     sooc_cogmap_destroy(map);
     sooc_mapstore_close(ms);
     sooc_model_destroy(m);
-    return st ? sooc_cli_fail(cmd, st) : 0;
+    return st ? sooc_cli_fail_map(cmd, st) : 0;
 }
 
 int sooc_cmd_mesh(int argc, char **argv) {

@@ -431,5 +431,5 @@ fail:
     for (int i = 0; i < nf; i++) sooc_frame_free(&fr[i]);
     free(fr);
     sooc_model_destroy(m);
-    return st ? sooc_cli_fail("render", st) : 0;
+    return st ? sooc_cli_fail_map("render", st) : 0;
 }

@@ -7,7 +7,7 @@
  *    entry for the same object from both views and different entries for
  *    different objects, with the hit within the object's half-diagonal + 3
  *    cm of its centre; a camera looking at the sky sees nothing;
- *  - --png writes the id image; --model with another model's map is refused
+ *  - --png writes the id image; --model with another model's map is refused (exit 2)
  *    naming both ids; a missing database, a bad pose: exit 2 naming it. */
 #include "../cli_util.h"
 #include "sooc3d/eval.h"
@@ -192,7 +192,7 @@ int main(void) {
     snprintf(model, sizeof model, "%s/tiny.bin", dir);
     tc_tiny_model(model);
     snprintf(err, sizeof err, "--model %s 2> %s/err.txt", model, dir);
-    CHECK(map_at(bin, db, pose, &K, 1, 1, err, out, sizeof out) == 1);
+    CHECK(map_at(bin, db, pose, &K, 1, 1, err, out, sizeof out) == 2);
     snprintf(path, sizeof path, "%s/err.txt", dir);
     char *e = tc_slurp(path), mid[128];
     CHECK_OK(sooc_file_id(model, mid, sizeof mid, NULL));

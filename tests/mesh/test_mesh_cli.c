@@ -189,14 +189,14 @@ int main(void) {
         CHECK_OK(sooc_file_id(model, mid, sizeof mid, NULL));
         snprintf(cmd, sizeof cmd, "'%s' mesh --map '%s' --model '%s' --out '%s/o' 2>'%s/err.txt'", bin, other, model,
                  dir, dir);
-        CHECK(tc_run(cmd) == 1);
+        CHECK(tc_run(cmd) == 2);
         err = tc_slurp(path);
         CHECK_MSG(err && strstr(err, "0123456789abcdef") && strstr(err, mid), "mesh with another model: %s",
                   err ? err : "");
         sooc_free(err);
         snprintf(cmd, sizeof cmd, "'%s' map export --db '%s' --ply '%s/o2' --model '%s' 2>/dev/null", bin, other, dir,
                  model);
-        CHECK(tc_run(cmd) == 1);
+        CHECK(tc_run(cmd) == 2);
         /* the same map with this model's id is accepted */
         op.model_id = mid;
         snprintf(other, sizeof other, "%s/same.sqlite", dir);
