@@ -271,7 +271,6 @@ static void test_ring(void) {
     CHECK_OK(sooc_frame_ring_create(&r, 4));
     ring_prod p = {r, 400};
     pthread_t th;
-    double t0 = sooc_seconds();
     pthread_create(&th, NULL, producer, &p);
     sooc_frame f;
     memset(&f, 0, sizeof f);
@@ -287,7 +286,6 @@ static void test_ring(void) {
         got++;
         usleep(3000);   /* slow consumer: 15x slower than the producer */
     }
-    double dt = sooc_seconds() - t0;
     pthread_join(th, NULL);
     uint64_t pushed, dropped;
     sooc_frame_ring_counts(r, &pushed, &dropped, NULL);
@@ -297,7 +295,7 @@ static void test_ring(void) {
               (unsigned long long)dropped, (unsigned long long)pushed);
     CHECK(ordered && payload_ok);
     CHECK(last == 399);   /* the newest frame always survives */
-    CHECK_MSG(dt < 5.0, "producer waited for the consumer? %.2f s", dt);
+    /* the producer never waited for the consumer: it dropped instead (above), whatever the machine's speed */
     sooc_frame_free(&f);
     sooc_frame_ring_destroy(r);
 
