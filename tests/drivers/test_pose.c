@@ -175,7 +175,8 @@ static void run_stream(const char *addr) {
     int64_t w0 = sooc_now_ns();
     CHECK(sooc_pose_wait_lookup(src, tt + DT, DT, 60, T) == SOOC_ENOTFOUND);
     double waited = (double)(sooc_now_ns() - w0) * 1e-6;
-    CHECK_MSG(waited >= 50 && waited < 1000, "waited %.1f ms", waited);
+    /* it waited for its timeout (a lower bound, which load cannot break), no upper bound on a wall clock */
+    CHECK_MSG(waited >= 50, "waited %.1f ms of the 60 ms timeout", waited);
     sooc_pose_sender_close(tx);
     sooc_pose_close(src);
 }
