@@ -197,6 +197,12 @@ sooc_status sooc_mapstore_geom_put(sooc_mapstore *s, uint64_t id, const float ex
  * map predates schema 3. */
 sooc_status sooc_mapstore_geom_get(sooc_mapstore *s, uint64_t id, float extent[3], sooc_map_geometry *g, int *found);
 
+/* Planner entries: every entry of the map as a planner receives it (the
+ * shm table, `sooc3d map list`, `map at`): sooc_map_entry_from_cogmap plus
+ * its stored box and spreads where the map has them. *out (sooc_free) gets
+ * *n entries in id order; on failure *out = NULL, *n = 0. */
+sooc_status sooc_mapstore_planner_entries(sooc_mapstore *s, sooc_map_entry **out, size_t *n);
+
 /* Fetch one entry by id (SOOC_ENOTFOUND if absent). */
 sooc_status sooc_mapstore_get(sooc_mapstore *s, uint64_t id, sooc_cogmap_entry *out);
 

@@ -75,33 +75,6 @@ static int parse_pose(const char *s, double T[16]) {
     return 1;
 }
 
-typedef struct at_ctx {
-    sooc_mapstore *s;
-    sooc_map_entry *e;
-    size_t n, cap;
-    sooc_status st;
-} at_ctx;
-
-static int collect_cb(void *u, const sooc_cogmap_entry *c) {
-    at_ctx *a = u;
-    if (a->n == a->cap) {
-        size_t cap = a->cap ? 2 * a->cap : 64;
-        sooc_map_entry *e = realloc(a->e, cap * sizeof *e);
-        if (!e) { a->st = SOOC_ENOMEM; return 1; }
-        a->e = e, a->cap = cap;
-    }
-    /* the entry as a planner gets it: its stored box (map_entry.h) */
-    float ext[3] = {0, 0, 0};
-    sooc_map_geometry g;
-    memset(&g, 0, sizeof g);
-    int found = 0;
-    if ((a->st = sooc_mapstore_geom_get(a->s, c->id, ext, &g, &found))) return 1;
-    sooc_map_entry *me = &a->e[a->n++];
-    sooc_map_entry_from_cogmap(c, found ? ext : NULL, me);
-    if (found) me->geom = g;
-    return 0;
-}
-
 static sooc_status write_ids_png(const char *path, const uint64_t *ids, int w, int h) {
     sooc_image img;
     memset(&img, 0, sizeof img);
@@ -192,7 +165,8 @@ int sooc_cli_map_at(int argc, char **argv) {
     sooc_model *m = NULL;
     sooc_cogmap *map = NULL;
     sooc_mapstore *s = NULL;
-    at_ctx a = {0};
+    sooc_map_entry *ents = NULL;
+    size_t n_ents = 0;
     uint64_t *ids = NULL;
     sooc_status st = SOOC_OK;
     if (model) {   /* the map must have been built with this model (as the node checks on resume) */
@@ -228,11 +202,10 @@ int sooc_cli_map_at(int argc, char **argv) {
         if (png && (ids = malloc((size_t)KI.width * (size_t)KI.height * sizeof *ids)))
             st = sooc_map_pick_model(m, map, T_wc, &KI, NULL, 0, ids, NULL);
     } else {
-        a.s = s;
-        if ((st = sooc_mapstore_foreach(s, collect_cb, &a)) || (st = a.st)) goto fail;
-        if ((st = sooc_map_pick_boxes(a.e, a.n, T_wc, &K1, &id, &depth))) goto fail;
+        if ((st = sooc_mapstore_planner_entries(s, &ents, &n_ents))) goto fail;
+        if ((st = sooc_map_pick_boxes(ents, n_ents, T_wc, &K1, &id, &depth))) goto fail;
         if (png && (ids = malloc((size_t)KI.width * (size_t)KI.height * sizeof *ids)))
-            st = sooc_map_pick_boxes(a.e, a.n, T_wc, &KI, ids, NULL);
+            st = sooc_map_pick_boxes(ents, n_ents, T_wc, &KI, ids, NULL);
     }
     if (png && !ids) st = SOOC_ENOMEM;
     if (!st && png) st = write_ids_png(png, ids, KI.width, KI.height);
@@ -253,7 +226,7 @@ int sooc_cli_map_at(int argc, char **argv) {
     if (png) fprintf(stderr, "wrote %s (%dx%d)\n", png, KI.width, KI.height);
 fail:
     free(ids);
-    free(a.e);
+    sooc_free(ents);
     sooc_cogmap_destroy(map);
     sooc_mapstore_close(s);
     sooc_model_destroy(m);
