@@ -34,9 +34,7 @@ struct sooc_sensor {
 };
 
 extern const sooc_sensor_vt sooc__replay_vt;
-#ifdef SOOC_HAVE_LOGS
 extern const sooc_sensor_vt sooc__rosbag_vt, sooc__mcap_vt;   /* replay of a ROS bag / MCAP file */
-#endif
 #ifdef SOOC_HAVE_OPENNI2
 extern const sooc_sensor_vt sooc__openni2_vt;
 #endif

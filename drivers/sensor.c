@@ -10,10 +10,8 @@
 
 static const sooc_sensor_vt *const g_drivers[] = {
     &sooc__replay_vt,
-#ifdef SOOC_HAVE_LOGS
     &sooc__rosbag_vt,
     &sooc__mcap_vt,
-#endif
 #ifdef SOOC_HAVE_OPENNI2
     &sooc__openni2_vt,
 #endif
@@ -31,10 +29,8 @@ static const sooc_sensor_vt *const g_drivers[] = {
 
 static const char *const g_names[] = {
     "replay",
-#ifdef SOOC_HAVE_LOGS
     "rosbag",
     "mcap",
-#endif
 #ifdef SOOC_HAVE_OPENNI2
     "openni2",
 #endif

@@ -44,11 +44,9 @@ void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out) {
 
 void sooc_node_request_stop(sooc_node *n) {
     atomic_store(&n->stop, 1);
-#if SOOC_NODE_HAVE_DRIVERS
     pthread_mutex_lock(&n->sensor_mu);
     if (n->sensor) sooc_sensor_interrupt(n->sensor);
     pthread_mutex_unlock(&n->sensor_mu);
-#endif
     if (n->ring) sooc_frame_ring_close(n->ring);
 }
 
@@ -56,7 +54,6 @@ int sooc_node_stop_requested(const sooc_node *n) { return atomic_load((atomic_in
 
 /* ------------------------------------------------ driver / pose adapters */
 
-#if SOOC_NODE_HAVE_DRIVERS
 /* ctx = the node: a reconnect swaps its sensor (capture thread only) */
 static sooc_status drv_start(void *ctx) { return sooc_sensor_start(((sooc_node *)ctx)->sensor); }
 static sooc_frame_fault drv_frame_fault(void *ctx) { return sooc_sensor_frame_fault(((sooc_node *)ctx)->sensor); }
@@ -130,7 +127,6 @@ static sooc_status open_sensor(sooc_node *n) {
     }
     sp.depth_min = (float)c->min_depth_m;
     sp.depth_max = (float)c->max_depth_m;
-#if SOOC_NODE_HAVE_CALIB
     if (n->have_calib && n->calib.depth_scale > 0 && !sooc_node_param_get(c, "depth_scale"))
         sp.depth_scale = n->calib.depth_scale;
     /* the calib's depth decoding keys, like depth_scale (replay; seq.h) */
@@ -138,7 +134,6 @@ static sooc_status open_sensor(sooc_node *n) {
         sp.depth_shift = n->calib.depth_shift;
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
         sp.depth_invalid = n->calib.depth_invalid;
-#endif
     n->sensor_params = sp;   /* its strings live in the node's config */
     sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
     if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);
@@ -187,13 +182,11 @@ static sooc_status open_pose(sooc_node *n) {
     n->have_pose = 1;
     return SOOC_OK;
 }
-#endif
 
 /* ---------------------------------------------------------------- create */
 
 static sooc_status load_calib(sooc_node *n) {
     if (!n->cfg.calib_path[0]) return SOOC_OK;
-#if SOOC_NODE_HAVE_CALIB
     sooc_status st = sooc_calib_load(n->cfg.calib_path, &n->calib);
     if (st) return sooc_adderr(st, "%s: calib", n->cfg.path);
     n->have_calib = 1;
@@ -211,9 +204,6 @@ static sooc_status load_calib(sooc_node *n) {
         return sooc_seterr(SOOC_EINVAL, "%s: depth_registered is false but T_color_depth is missing",
                            n->cfg.calib_path);
     return SOOC_OK;
-#else
-    return sooc_seterr(SOOC_EUNSUPPORTED, "%s: calib: the calibration loader is not built in", n->cfg.path);
-#endif
 }
 
 
@@ -237,7 +227,6 @@ static void set_world(sooc_node *n, const double T[16]) {
  * frame is stored now; an estimated one when it is made. */
 static sooc_status world_from_store(sooc_node *n, int resumed) {
     const sooc_node_config *c = &n->cfg;
-#if SOOC_NODE_HAVE_MAPSTORE
     if (n->sg) {   /* a store, or one to be created later (store_guard.h) */
         sooc_map_frame mf;
         int found = 0;
@@ -273,10 +262,6 @@ static sooc_status world_from_store(sooc_node *n, int resumed) {
             return sooc__node_store_world(n, &mf);
         }
     }
-#else
-    (void)resumed;
-    (void)c;
-#endif
     return SOOC_OK;
 }
 
@@ -414,17 +399,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         n->pose = *n->opt.pose;
         n->have_pose = 1;
     }
-#if SOOC_NODE_HAVE_DRIVERS
     if (!n->have_src && (st = open_sensor(n))) goto fail;
     if (!n->have_pose && (st = open_pose(n))) goto fail;
-#else
-    if (!n->have_src) {
-        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: sensor: the drivers module is not built in", c->path);
-        goto fail;
-    }
-#endif
     if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->have_pose) {
-#if SOOC_NODE_HAVE_CV
         sooc_odom_params op;
         sooc_odom_params_default(&op);
         op.variant = (sooc_odom_variant)c->odom_variant;
@@ -450,10 +427,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             sooc_adderr(st, "%s: pose.source: odometry", c->path);
             goto fail;
         }
-#else
-        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose.source: odometry: the cv module is not built in", c->path);
-        goto fail;
-#endif
     } else if (c->pose_kind != SOOC_NODE_POSE_SENSOR && c->pose_kind != SOOC_NODE_POSE_TF && !n->have_pose) {
         st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose: no pose source available", c->path);
         goto fail;
@@ -486,7 +459,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
 
     /* shm table */
     if (c->shm_name[0]) {
-#if SOOC_NODE_HAVE_TABLE
         int rc = sooc_table_create_writer(c->shm_name, c->shm_capacity, 0, "map", &n->table);
         if (rc) {
             st = sooc_seterr(rc == SOOC_TABLE_ELOCKED ? SOOC_EBUSY : SOOC_EIO, "%s:shm.name: table '%s': %s",
@@ -499,9 +471,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                              c->shm_capacity, n->n_prev);
             goto fail;
         }
-#else
-        sooc_log(SOOC_LOG_WARN, "%s: shm.name set but the table module is not built in", c->path);
-#endif
     } else {
         sooc_log(SOOC_LOG_WARN, "%s: no shm.name: no object table for planners, the map goes to map.db only "
                                 "(set shm.name, or --set shm.name=NAME)", c->path);
@@ -634,7 +603,6 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
                  "node: the camera is %.2f m above the support plane, outside the %.2f-%.2f m the model was trained "
                  "for (world.camera_height_min_m / _max_m); objects may be mapped at the wrong scale",
                  sup.cam_height_m, sp.cam_height_min_m, sp.cam_height_max_m);
-#if SOOC_NODE_HAVE_MAPSTORE
     sooc_map_frame mf;
     memset(&mf, 0, sizeof mf);
     memcpy(mf.T_world_src, sup.T_world_src, sizeof mf.T_world_src);
@@ -646,7 +614,6 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
         *err = st;
         return -1;
     }
-#endif
     return 1;
 }
 
@@ -693,7 +660,6 @@ static sooc_status fix_intrinsics_and_register(sooc_node *n, sooc_frame *f) {
  * (counted and skipped: the mapper never sees a frame without a trusted
  * pose); -1: error (message set). */
 static int odom_pose(sooc_node *n, sooc_frame *f, double T_src_c[16]) {
-#if SOOC_NODE_HAVE_CV
     sooc_odom_result r;
     if (sooc_odom_track(n->odom, f, &r)) return -1;
     if (r.state == SOOC_ODOM_FIRST || r.state == SOOC_ODOM_TRACKED) {
@@ -718,11 +684,6 @@ static int odom_pose(sooc_node *n, sooc_frame *f, double T_src_c[16]) {
     n->st.frames_no_pose++;
     pthread_mutex_unlock(&n->mu);
     return 0;
-#else
-    (void)n; (void)f; (void)T_src_c;
-    sooc_seterr(SOOC_EUNSUPPORTED, "node: odometry is not built in");
-    return -1;
-#endif
 }
 
 static void log_stats(sooc_node *n) {
@@ -896,20 +857,12 @@ void sooc_node_destroy(sooc_node *n) {
         pthread_join(n->cap_thread, NULL);
     }
     if (n->have_src && n->src.close) n->src.close(n->src.ctx);
-#if SOOC_NODE_HAVE_DRIVERS
     sooc_sensor_close(n->sensor);
-#endif
     if (n->have_pose && n->pose.close) n->pose.close(n->pose.ctx);
-#if SOOC_NODE_HAVE_CV
     sooc_odom_destroy(n->odom);
-#endif
-#if SOOC_NODE_HAVE_TABLE
     if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
     sooc_sg_destroy(n->sg);
     sooc_mapstore_close(n->store);
-#endif
     if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);
     sooc_frame_ring_destroy(n->ring);
     sooc_view_stop(n->view);

@@ -1,5 +1,4 @@
 /* The node's map database under storage faults: see store_guard.h. */
-#if SOOC_NODE_HAVE_MAPSTORE
 #include "node/store_guard.h"
 
 #include <math.h>
@@ -394,6 +393,3 @@ void sooc_sg_status_get(const sooc_sg *g, sooc_sg_status *o) {
 }
 
 const char *sooc_sg_reason(const sooc_sg *g) { return g->reason; }
-#else
-typedef int sooc_sg_not_built;   /* no map store in this build */
-#endif

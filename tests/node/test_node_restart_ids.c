@@ -20,7 +20,6 @@
 #include "node_fixture.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
-#if SOOC_NODE_HAVE_TABLE && SOOC_NODE_HAVE_MAPSTORE
 #include "sooc3d/table.h"
 
 static char g_tmp[256], g_shm[64];
@@ -164,9 +163,3 @@ int main(void) {
     if (system(cmd)) fprintf(stderr, "cleanup of %s failed\n", g_tmp);
     return check_report("test_node_restart_ids");
 }
-#else
-int main(void) {
-    fprintf(stderr, "test_node_restart_ids: node built without the table or the map store: skipped\n");
-    return 77;
-}
-#endif
