@@ -48,6 +48,9 @@ extern const sooc_sensor_vt sooc__v4l2_vt;
 extern const sooc_sensor_vt sooc__libcamera_vt;
 #endif
 
+/* The built-in driver of that name (registry.c), NULL if there is none. */
+const sooc_sensor_vt *sooc__driver_find(const char *name);
+
 /* Make f a w x h frame (reuses buffers when the size matches). Clears pose/K. */
 sooc_status sooc__frame_ensure(sooc_frame *f, int w, int h);
 /* Raw 16-bit depth (stride in bytes) -> metres + valid mask, with range check. */

@@ -152,6 +152,10 @@ uint32_t sooc_crc32(uint32_t crc, const void *buf, size_t n);
 /* Atomic save: write to "<path>.tmp.<pid>", fsync, rename over `path`, fsync
  * the directory. On any failure the old file is left untouched. */
 sooc_status sooc_file_write_atomic(const char *path, const void *data, size_t n);
+/* Write `data` to "<path>.tmp" and rename it over `path`, without fsync: bulk
+ * dataset files (frames, meshes, pictures) that a crash may lose whole but
+ * never leaves half-written. */
+sooc_status sooc_file_write_bulk(const char *path, const void *data, size_t n);
 
 /* Streaming variant: open a temp file next to `path`, write with
  * sooc_afile_write, then sooc_afile_commit (fsync + rename) or

@@ -32,7 +32,7 @@
  * sooc_framepath_world; the caller stores a fresh estimate in its own map
  * with sooc_mapstore_frame_put (sooc_framepath_map_frame fills the record).
  *
- * The preprocessing is sooc_node_preprocess (include/sooc3d/node.h), the
+ * The preprocessing is sooc_node_preprocess (include/sooc3d/support.h), the
  * step the live node runs on every keyframe, with the same defaults as a
  * launch file (depth 0.1 .. 10 m, min-of-valid depth resampling).
  *
@@ -47,7 +47,7 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
-#include "sooc3d/node.h"
+#include "sooc3d/support.h"
 #include "sooc3d/seq.h"
 
 #ifdef __cplusplus

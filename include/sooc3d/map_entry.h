@@ -19,7 +19,7 @@ extern "C" {
 #define SOOC_MAP_LATENT_MAX 32
 
 /* Object geometry for planners (docs/shm.md "How each field is
- * computed"; src/model/objgeom.c). flags 0 = not computed: extent is then
+ * computed"; src/mapper/objgeom.c). flags 0 = not computed: extent is then
  * the model's locality box and the spreads are the posterior's. */
 #define SOOC_GEOM_TIGHT 0x1u      /* extent and centre: the tight box of the object's own density */
 #define SOOC_GEOM_SYMMETRIC 0x2u  /* rotationally symmetric about its vertical axis: yaw undefined */

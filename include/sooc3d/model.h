@@ -104,7 +104,7 @@ typedef struct sooc_model_config {
                                 of its training views; the frame path and the node warn
                                 outside it                                  (1.2, 2.0) */
 } sooc_model_config;
-/* The camera heights of the unity and blender generators (src/data/gen.c), model
+/* The camera heights of the unity and blender generators (src/gen/gen.c), model
  * units: the default of cam_h_min / cam_h_max and of checkpoints older than
  * version 6. */
 #define SOOC_MODEL_CAM_H_MIN 1.2f

@@ -31,6 +31,7 @@
 #include "sooc3d/frame.h"
 #include "sooc3d/geom.h"
 #include "sooc3d/mapper.h"
+#include "sooc3d/support.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -61,11 +62,6 @@ typedef enum sooc_node_floor_mode {
     SOOC_NODE_FLOOR_GIVEN = 0,     /* `floor: <height>` along the up axis */
     SOOC_NODE_FLOOR_ESTIMATE = 1   /* `floor: estimate`: RANSAC plane fit on depth */
 } sooc_node_floor_mode;
-
-typedef enum sooc_node_depth_resample {
-    SOOC_NODE_DEPTH_MIN = 0,       /* min of the valid samples in the footprint (default) */
-    SOOC_NODE_DEPTH_NEAREST = 1    /* the sample nearest to the footprint centre */
-} sooc_node_depth_resample;
 
 typedef struct sooc_node_config {
     char path[SOOC_NODE_PATH_MAX];           /* the launch file itself */
@@ -198,73 +194,6 @@ const char *sooc_node_param_get(const sooc_node_config *c, const char *key);
 /* Write the effective config as YAML text (for the INFO log). snprintf-style:
  * returns the full length whatever `cap` is; `buf` may be NULL when cap is 0. */
 size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap);
-
-/* ---------------------------------------------------------- preprocessing */
-
-/* Register a depth image (planar metres, 0 = invalid) from the depth camera
- * into the colour camera: each depth pixel is back-projected with Kd, moved by
- * T_color_depth and splatted into the colour image (Kc's size) keeping the
- * nearest surface. Holes stay 0. `out` has Kc->width * Kc->height floats. */
-void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd,
-                              const double T_color_depth[16], const sooc_intrinsics *Kc, float *out);
-
-/* The centred crop of a (w, h) image with the aspect ratio of (tw, th). */
-void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch);
-
-/* Resize a crop (x0, y0, cw, ch) of an RGB8 image (w x h) to tw x th by area
- * averaging (exact fractional pixel coverage). */
-void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
-                               uint8_t *dst, int tw, int th);
-/* Resize a crop of a depth image without ever averaging across edges: each
- * target pixel takes the min of the valid samples in its footprint
- * (SOOC_NODE_DEPTH_MIN) or the sample nearest the footprint centre
- * (SOOC_NODE_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
- * invalid (0); dmax <= 0 means no upper limit. */
-void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
-                            float *dst, int tw, int th, sooc_node_depth_resample mode,
-                            double dmin, double dmax);
-/* Resize a crop of an id image (row stride w) to tw x th: the sample nearest
- * each footprint's centre (ids are never mixed). */
-void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
-                          int th);
-
-/* Full preprocessing of one frame to the model's resolution: crop to the
- * target aspect, resize RGB (area) and depth (min/nearest), set `valid`,
- * adjust the intrinsics, copy t_ns/index/pose; instance ids (when src has
- * them) by nearest sampling. `dst` is (re)allocated. */
-sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
-                                 sooc_node_depth_resample mode, double dmin, double dmax);
-
-/* The rigid transform T_world_src that rotates the pose source's frame so that
- * `up` (unit, source coordinates) becomes +y and the floor (up . p = floor_h)
- * lands on y = 0. The rotation is the smallest one taking up to +y. */
-void sooc_node_world_from_up(const double up[3], double floor_h, double T_world_src[16]);
-
-/* -------------------------------------------------------------- floor fit */
-
-typedef struct sooc_floor_fit_params {
-    double threshold_m;      /* inlier distance, default 0.02 */
-    int iterations;          /* RANSAC hypotheses, default 200 */
-    double min_inlier_frac;  /* of the points, default 0.15 */
-    uint64_t seed;
-    double max_tilt_deg;     /* with hint_up: normal within this angle of it, default 30 */
-} sooc_floor_fit_params;
-
-void sooc_floor_fit_params_default(sooc_floor_fit_params *p);
-
-/* RANSAC plane fit on n points (xyz, row-major), refined by a total least
- * squares fit on the inliers (LAPACKE SVD of the centred inlier matrix), then
- * a second inlier pass. Plane: n . p + d = 0, |n| = 1. When `hint_up` is given
- * the normal is oriented along it and planes more than max_tilt_deg away from it
- * are rejected; otherwise n points to `viewpoint` (may be NULL). */
-sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_params *p,
-                           const double *hint_up, const double *viewpoint, double plane[4],
-                           size_t *n_inliers, double *rms);
-
-/* Back-project valid depth pixels (stride `step`) into the pose source's frame
- * with T_src_c. Returns the number of points written (<= cap). */
-size_t sooc_node_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
-                              size_t cap);
 
 /* ------------------------------------------------------------- frame ring */
 

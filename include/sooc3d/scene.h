@@ -178,6 +178,9 @@ double sooc_scene_object_distance(const sooc_scene_object *o, const double p_wor
 double sooc_scene_object_footprint(const sooc_scene_object *o);
 /* World centre of the object's bounding box. */
 void sooc_scene_object_center(const sooc_scene_object *o, double c[3]);
+/* The cup's half-torus handle: centre c (object frame), ring radius R and
+ * tube radius r for cup params q = rt rb h t. */
+void sooc_scene_cup_handle(const double *q, double c[3], double *R, double *r);
 
 /* Write one binary little-endian PLY per object (world coordinates, vertex
  * colours) to <dir>/object_%04d.ply (id), creating dir. */

@@ -1,7 +1,6 @@
 /* Synthetic scene description: object parts, analytic distances, PLY meshes,
  * and scene.yaml load/save (libyaml document API). */
 #include "sooc3d/scene.h"
-#include "data_impl.h"
 #include "data/yaml_doc.h"
 
 #include <math.h>
@@ -460,7 +459,7 @@ static sooc_status write_ply(const char *path, const mesh *m, const float col[3]
             w += 4;
         }
     }
-    sooc_status s = sooc_data_write_file(path, b, n);
+    sooc_status s = sooc_file_write_bulk(path, b, n);
     sooc_free(b);
     return s;
 }
@@ -580,7 +579,7 @@ sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
         sb_printf(&b, "}\n");
     }
     if (b.oom) { sooc_free(b.p); return SOOC_ENOMEM; }
-    sooc_status s = sooc_data_write_file(path, b.p, b.n);
+    sooc_status s = sooc_file_write_bulk(path, b.p, b.n);
     sooc_free(b.p);
     return s;
 }

@@ -1,7 +1,8 @@
 /* A decoder MLP on its own weight vector (the finetuned per-object
  * and per-block copies of docs/finetune.md), forward and backward, and the payload
  * format a finetuned decoder is kept in (cogmap payloads, the map database).
- * Internal to the model module and its dependants (src/finetune, tests).
+ * Internal interface of src/model (docs/architecture.md "Layers"): src/finetune
+ * and tests include it.
  *
  * Weights: the model slab's tensors of one dec_net (W1x, W1z, b1, W2, b2, W3,
  * b3, Wd, bd, Wc1, bc1, Wc2, bc2) copied contiguously, in that order; `rel`

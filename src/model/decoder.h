@@ -1,7 +1,8 @@
 /* Layer 1 of src/model (docs/model.md "Layers"): the decoder (decoder.c:
  * rays, the fused object/layout NeRF decode, likelihood and KL; dec_own.c:
  * a decoder on its own weights; field.c: the render.h field). Includes only
- * layer 0. Internal: not a public API. */
+ * layer 0. Internal interface of src/model (docs/architecture.md "Layers"):
+ * the modules above it see it through step.h; not a public API. */
 #ifndef SOOC3D_MODEL_DECODER_H
 #define SOOC3D_MODEL_DECODER_H
 

@@ -1,6 +1,7 @@
 /* Geometric proposals for a view's padded slots (propose.c): the online
  * mapper's keyframes and, with sooc_step_opts.proposals, the training
- * step's input views. Internal to src/model (the step layer). */
+ * step's input views. Internal interface of src/model (the step layer;
+ * docs/architecture.md "Layers"): src/mapper includes it. */
 #ifndef SOOC3D_MODEL_PROPOSE_H
 #define SOOC3D_MODEL_PROPOSE_H
 

@@ -1,6 +1,7 @@
 /* Layer 2 of src/model (docs/model.md "Layers"): the refinement networks
  * (refine.c: auxiliary inputs, conv encoder + LSTM forward and backward).
- * Includes only the decoder layer (and, through it, layer 0). Internal. */
+ * Includes only the decoder layer (and, through it, layer 0). Internal
+ * interface of src/model (docs/architecture.md "Layers"), seen through step.h. */
 #ifndef SOOC3D_MODEL_REFINE_H
 #define SOOC3D_MODEL_REFINE_H
 

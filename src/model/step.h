@@ -2,7 +2,8 @@
  * training step (step.c: per-view records, retrieve -> refine -> register,
  * the reverse sweep; workspace.c: the runner's workspace, sooc_model_ws).
  * Includes only the refinement layer (and, through it, the lower ones).
- * Internal: the mapper layer, src/global and tests include it. */
+ * Internal interface of src/model (docs/architecture.md "Layers"): src/mapper,
+ * src/global and tests include it; not a public API. */
 #ifndef SOOC3D_MODEL_STEP_H
 #define SOOC3D_MODEL_STEP_H
 

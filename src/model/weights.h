@@ -1,8 +1,8 @@
 /* Layer 0 of src/model (docs/model.md "Layers"): configuration and weights
  * (model.c) and the kernels every layer above runs on (kern.c: the GEMM
  * aliases, the task pool of a workspace). Includes no other model header.
- * Internal: not a public API (tests, src/finetune and src/global include it
- * through the headers above it). */
+ * Internal interface of src/model (docs/architecture.md "Layers"): src/finetune
+ * includes it; not installed, not a public API. */
 #ifndef SOOC3D_MODEL_WEIGHTS_H
 #define SOOC3D_MODEL_WEIGHTS_H
 

@@ -8,7 +8,7 @@
  * entry stays: a resumed map, or the far end of a large scene). The change
  * set of one update holds at most SOOC_MAPPER_CHANGED_MAX entries and as many
  * removals; the rest wait for the next updates (oldest change first). */
-#include "model/mapper_geo.h"
+#include "mapper/mapper_geo.h"
 #include "sooc3d/cluster.h"
 #include "sooc3d/geom.h"
 

@@ -7,7 +7,7 @@
 #include <string.h>
 #include <stdio.h>
 
-#include "model/mapper_geo.h"
+#include "mapper/mapper_geo.h"
 #include "model/propose.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
