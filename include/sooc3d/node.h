@@ -2,7 +2,7 @@
  * sooc3d node: the live mapping pipeline (docs/node.md).
  *
  *   driver thread ─► frame ring (bounded, drop-oldest) ─► pose association
- *     ─► keyframe policy ─► preprocess ─► sooc3d_mapper_update ─► publisher
+ *     ─► keyframe policy ─► preprocess ─► sooc_mapper_update ─► publisher
  *        (shm table batch + SQLite transaction per keyframe) ─► stats
  *
  * The launch file (YAML) configures all of it; see docs/node.md. The library
@@ -23,6 +23,14 @@
  * mutex only to update the stats (never while holding another lock). The
  * table's writer lock and the SQLite connection are the mapping thread's.
  * scripts/test.sh runs the node and table tests under ThreadSanitizer.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_NODE_H
 #define SOOC3D_NODE_H
@@ -96,8 +104,8 @@ typedef struct sooc_node_config {
     char calib_path[SOOC_NODE_PATH_MAX];
 
     /* model: */
-    int model_kind;                          /* model.kind: SOOC3D_MAPPER_LEARNT (learnt, default) or
-                                                SOOC3D_MAPPER_GEOMETRIC (geometric: the support plane
+    int model_kind;                          /* model.kind: SOOC_MAPPER_LEARNT (learnt, default) or
+                                                SOOC_MAPPER_GEOMETRIC (geometric: the support plane
                                                 and Euclidean clustering, docs/geometric.md) */
     double geo_voxel_m, geo_join_m;          /* geometric: model.voxel_m (0.004), model.join_m (0.02) */
     double geo_min_height_m, geo_max_extent_m; /* geometric: model.min_height_m (0.012), max_extent_m (0.5) */
@@ -107,16 +115,16 @@ typedef struct sooc_node_config {
     uint64_t seed;
     sooc_node_depth_resample depth_resample;
     double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
-    double merge_m;                          /* duplicate merge radius (sooc3d_mapper_params.
+    double merge_m;                          /* duplicate merge radius (sooc_mapper_params.
                                                 merge_radius): default 0.35 m (revisits refine
                                                 the mapped entry, docs/cogmap.md); 0 = never */
-    int latents;                             /* SOOC3D_LATENTS_MEAN (default) / _SAMPLE */
-    int slots;                               /* object slots per keyframe (sooc3d_mapper_params.
+    int latents;                             /* SOOC_LATENTS_MEAN (default) / _SAMPLE */
+    int slots;                               /* object slots per keyframe (sooc_mapper_params.
                                                 slots): 0 = the model's K (default) */
     int invalid_depth;                       /* model.invalid_depth: 0 = the model's (default),
-                                                1 = free, 2 = unknown (sooc3d_mapper_params) */
+                                                1 = free, 2 = unknown (sooc_mapper_params) */
     double gate_min_rays, gate_ratio, gate_part;   /* model.gate_*: the creation gate of the
-                                                revisit rules (sooc3d_mapper_params.gate_*):
+                                                revisit rules (sooc_mapper_params.gate_*):
                                                 0 = default, < 0 = that test off */
 
     /* keyframe: */
@@ -195,55 +203,6 @@ const char *sooc_node_param_get(const sooc_node_config *c, const char *key);
  * returns the full length whatever `cap` is; `buf` may be NULL when cap is 0. */
 size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap);
 
-/* ------------------------------------------------------------- frame ring */
-
-/* Bounded single-producer/single-consumer frame ring. push never blocks: when
- * full the oldest frame is dropped (counted). Frames are swapped in and out,
- * not copied: push takes over *f's buffers and gives back a spare frame's. */
-typedef struct sooc_frame_ring sooc_frame_ring;
-
-sooc_status sooc_frame_ring_create(sooc_frame_ring **out, int capacity);
-void sooc_frame_ring_destroy(sooc_frame_ring *r);
-/* Push a frame (stamped with t_mono_ns, the monotonic arrival time). */
-void sooc_frame_ring_push(sooc_frame_ring *r, sooc_frame *f, int64_t t_mono_ns);
-/* Pop the oldest frame into *f (swapping buffers). Waits up to timeout_ms
- * (-1 = forever). Returns SOOC_OK, SOOC_ETIMEOUT, or SOOC_EEOF once the ring is
- * closed and empty. */
-sooc_status sooc_frame_ring_pop(sooc_frame_ring *r, sooc_frame *f, int64_t *t_mono_ns, int timeout_ms);
-/* Blocking mode (replay only): push waits for space instead of dropping. */
-void sooc_frame_ring_set_blocking(sooc_frame_ring *r, int on);
-void sooc_frame_ring_close(sooc_frame_ring *r);   /* wakes the consumer; pop drains then EEOF */
-void sooc_frame_ring_counts(sooc_frame_ring *r, uint64_t *pushed, uint64_t *dropped, int *fill);
-
-/* --------------------------------------------------------- keyframe policy */
-
-typedef struct sooc_kf_policy {
-    double translation_m, rotation_deg, time_s;   /* 0 disables a rule */
-    int have_last;
-    double T_last[16];
-    int64_t t_last_ns;
-} sooc_kf_policy;
-
-void sooc_kf_policy_init(sooc_kf_policy *p, double translation_m, double rotation_deg, double time_s);
-/* 1 if (T_wc, t_ns) should be a keyframe: the first frame, or translation or
- * rotation angle since the last keyframe at/over a threshold, or time since it
- * at/over time_s. Does not change state. */
-int sooc_kf_policy_check(const sooc_kf_policy *p, const double T_wc[16], int64_t t_ns);
-void sooc_kf_policy_accept(sooc_kf_policy *p, const double T_wc[16], int64_t t_ns);
-/* Rotation angle (deg) between two poses. */
-double sooc_pose_angle_deg(const double A[16], const double B[16]);
-
-/* ------------------------------------------------------- latency recorder */
-
-#define SOOC_LAT_WINDOW 4096
-typedef struct sooc_latency {
-    double v[SOOC_LAT_WINDOW];       /* last SOOC_LAT_WINDOW samples (ms) */
-    uint64_t n;                      /* total samples recorded */
-} sooc_latency;
-void sooc_latency_add(sooc_latency *l, double ms);
-/* Percentile q in [0, 1] over the window (nearest rank); 0 if empty. */
-double sooc_latency_pct(const sooc_latency *l, double q);
-
 /* ----------------------------------------------------------------- node */
 
 /* Frame source (a sensor driver or a test feeder). read fills *f with a frame
@@ -286,7 +245,7 @@ typedef struct sooc_node_stats {
     uint64_t n_objects;          /* entries in the map after the last keyframe */
     uint64_t resumed;            /* entries loaded from the database at start */
     uint64_t resumed_blocks;     /* layout blocks loaded from the database at start */
-    double update_p50_ms, update_p99_ms;     /* sooc3d_mapper_update */
+    double update_p50_ms, update_p99_ms;     /* sooc_mapper_update */
     double c2t_p50_ms, c2t_p99_ms;           /* capture (ring push) -> table end_batch */
     double publish_p50_ms, publish_p99_ms;   /* publisher: table batch + SQLite transaction */
     double elapsed_s;
@@ -340,7 +299,7 @@ typedef struct sooc_node_options {
     const sooc_node_pose_source *pose;
     /* A ready mapper (tests/bench). When NULL the node creates one from the
      * config's model block and destroys it at the end. Not owned if given. */
-    sooc3d_mapper *mapper;
+    sooc_mapper *mapper;
 } sooc_node_options;
 
 typedef struct sooc_node sooc_node;
@@ -354,7 +313,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
 sooc_status sooc_node_run(sooc_node *n);
 /* Async-safe enough for a signal thread: sets a flag and wakes the loops. */
 void sooc_node_request_stop(sooc_node *n);
-int sooc_node_stop_requested(const sooc_node *n);
 void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out);
 /* Closes the table (unlinking it only if configured) and the database. */
 void sooc_node_destroy(sooc_node *n);

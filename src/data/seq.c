@@ -670,7 +670,6 @@ const char *sooc_seq_label_name(const sooc_seq *s, int id) {
     return s && s->label_name_fn ? s->label_name_fn(s, id) : NULL;
 }
 const sooc_calib *sooc_seq_calib(const sooc_seq *s) { return &s->calib; }
-int64_t sooc_seq_dropped(const sooc_seq *s) { return s->dropped; }
 
 
 /* "<list>:<line>: " context for per-frame messages. */

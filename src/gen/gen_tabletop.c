@@ -6,7 +6,7 @@
  * the floor of the unity preset. Scales s/m/l set the table size; the
  * camera distance range is the same at every scale. */
 #include "sooc3d/gen.h"
-#include "sooc3d/sensor_noise.h"
+#include "gen/sensor_noise.h"
 #include "gen/gen_impl.h"
 
 #include <math.h>

@@ -3,7 +3,7 @@
  * that grows with z^2 and with the incidence angle (Nguyen et al. 2012),
  * disparity quantisation, white
  * balance, exposure drift and colour noise. One scratch buffer per frame. */
-#include "sooc3d/sensor_noise.h"
+#include "gen/sensor_noise.h"
 #include "sooc3d/image.h"
 #include "gen/gen_impl.h"
 

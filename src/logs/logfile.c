@@ -102,13 +102,13 @@ sooc_status sooc_logfile_open(sooc_logfile **out, const char *path) {
     }
     uint8_t head[13] = {0};
     size_t nh = lf->size < sizeof head ? (size_t)lf->size : sizeof head;
-    if ((st = logs_pread(lf, 0, head, nh, "magic"))) goto fail;
+    if ((st = sooc_logs_pread(lf, 0, head, nh, "magic"))) goto fail;
     if (nh >= 8 && !memcmp(head, MCAP_MAGIC, 8)) {
         lf->kind = SOOC_LOGFILE_MCAP;
-        st = logs_mcap_open(lf);
+        st = sooc_logs_mcap_open(lf);
     } else if (nh == 13 && !memcmp(head, BAG_MAGIC, 13)) {
         lf->kind = SOOC_LOGFILE_ROSBAG;
-        st = logs_bag_open(lf);
+        st = sooc_logs_bag_open(lf);
     } else if (nh >= 9 && !memcmp(head, "#ROSBAG V", 9)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: ROS bag version '%.3s' is not read (only 2.0; `rosbag fix` migrates "
                                         "older bags)", path, (const char *)head + 9);
@@ -171,7 +171,7 @@ void sooc_logfile_get_info(const sooc_logfile *lf, sooc_logfile_info *o) {
     size_t m = 0;
     for (int c = 0; c < 4; c++)
         if (lf->comp_seen & (1u << c)) {
-            int k = snprintf(o->compression + m, sizeof o->compression - m, "%s%s", m ? "+" : "", logs_comp_name(c));
+            int k = snprintf(o->compression + m, sizeof o->compression - m, "%s%s", m ? "+" : "", sooc_logs_comp_name(c));
             if (k > 0 && (size_t)k < sizeof o->compression - m) m += (size_t)k;
         }
     if (!m) snprintf(o->compression, sizeof o->compression, "none");
@@ -220,27 +220,27 @@ sooc_status sooc_logfile_read(sooc_logfile *lf, int64_t k, sooc_logfile_msg *m) 
         const uint8_t *buf;
         size_t n;
         m->offset = lf->chunks[e->chunk].pos;
-        if ((st = logs_chunk_data(lf, e->chunk, &buf, &n))) return st;
+        if ((st = sooc_logs_chunk_data(lf, e->chunk, &buf, &n))) return st;
         if (lf->kind == SOOC_LOGFILE_ROSBAG)
-            st = logs_bag_message(lf, buf, n, e->off, m->offset, &m->data, &m->size);
+            st = sooc_logs_bag_message(lf, buf, n, e->off, m->offset, &m->data, &m->size);
         else if (e->off > n)
             st = sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: message index points past its chunk", lf->path,
                              (unsigned long long)m->offset);
         else
-            st = logs_mcap_message(lf, buf + e->off, n - (size_t)e->off, m->offset, &m->data, &m->size);
+            st = sooc_logs_mcap_message(lf, buf + e->off, n - (size_t)e->off, m->offset, &m->data, &m->size);
     } else {
         /* an unchunked MCAP message record at file offset e->off */
         uint8_t h[9];
         m->offset = e->off;
-        if ((st = logs_pread(lf, e->off, h, 9, "record header"))) return st;
+        if ((st = sooc_logs_pread(lf, e->off, h, 9, "record header"))) return st;
         uint64_t len = logs_u64(h + 1);
         if (len > LOGS_MAX_RECORD)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record of %llu bytes is too large", lf->path,
                                (unsigned long long)e->off, (unsigned long long)len);
-        if ((st = logs_reserve(&lf->raw, &lf->rawcap, (size_t)len + 9))) return st;
+        if ((st = sooc_logs_reserve(&lf->raw, &lf->rawcap, (size_t)len + 9))) return st;
         memcpy(lf->raw, h, 9);
-        if ((st = logs_pread(lf, e->off + 9, lf->raw + 9, (size_t)len, "message record"))) return st;
-        st = logs_mcap_message(lf, lf->raw, (size_t)len + 9, e->off, &m->data, &m->size);
+        if ((st = sooc_logs_pread(lf, e->off + 9, lf->raw + 9, (size_t)len, "message record"))) return st;
+        st = sooc_logs_mcap_message(lf, lf->raw, (size_t)len + 9, e->off, &m->data, &m->size);
     }
     return st;
 }
@@ -249,8 +249,8 @@ sooc_status sooc_logfile_verify(sooc_logfile *lf) {
     for (int64_t c = 0; c < lf->nchunks; c++) {
         const uint8_t *d;
         size_t n;
-        sooc_status st = logs_chunk_data(lf, (int32_t)c, &d, &n);
+        sooc_status st = sooc_logs_chunk_data(lf, (int32_t)c, &d, &n);
         if (st) return st;
     }
-    return lf->kind == SOOC_LOGFILE_MCAP ? logs_mcap_verify(lf) : SOOC_OK;
+    return lf->kind == SOOC_LOGFILE_MCAP ? sooc_logs_mcap_verify(lf) : SOOC_OK;
 }

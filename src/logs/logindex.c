@@ -14,7 +14,7 @@
 #include <unistd.h>
 #include <zstd.h>
 
-const char *logs_comp_name(int comp) {
+const char *sooc_logs_comp_name(int comp) {
     switch (comp) {
     case LOGS_COMP_LZ4: return "lz4";
     case LOGS_COMP_BZ2: return "bz2";
@@ -23,7 +23,7 @@ const char *logs_comp_name(int comp) {
     }
 }
 
-int logs_comp_parse(const char *s, size_t n) {
+int sooc_logs_comp_parse(const char *s, size_t n) {
     if (n == 0 || (n == 4 && !memcmp(s, "none", 4))) return LOGS_COMP_NONE;
     if (n == 3 && !memcmp(s, "lz4", 3)) return LOGS_COMP_LZ4;
     if (n == 3 && !memcmp(s, "bz2", 3)) return LOGS_COMP_BZ2;
@@ -31,7 +31,7 @@ int logs_comp_parse(const char *s, size_t n) {
     return -1;
 }
 
-sooc_status logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, const char *what) {
+sooc_status sooc_logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, const char *what) {
     if (off > lf->size || n > lf->size - off)
         return sooc_seterr(SOOC_EFORMAT,
                            "%s: offset %llu: %s of %zu bytes runs past the end of the file (%llu bytes): the file "
@@ -49,12 +49,12 @@ sooc_status logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, cons
     return SOOC_OK;
 }
 
-sooc_status logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n) {
+sooc_status sooc_logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n) {
     return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record at chunk byte %zu of %zu is cut short (corrupt chunk)",
                        lf->path, (unsigned long long)where, i, n);
 }
 
-sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
+sooc_status sooc_logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
     if (*cap >= n && *buf) return SOOC_OK;
     size_t c = *cap ? *cap : 4096;
     while (c < n) c = c > SIZE_MAX / 2 ? n : c * 2;
@@ -65,7 +65,7 @@ sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
     return SOOC_OK;
 }
 
-char *logs_dupn(const char *s, size_t n) {
+char *sooc_logs_dupn(const char *s, size_t n) {
     char *d = sooc_malloc(n + 1);
     if (!d) return NULL;
     if (n) memcpy(d, s, n);
@@ -73,7 +73,7 @@ char *logs_dupn(const char *s, size_t n) {
     return d;
 }
 
-sooc_status logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path) {
+sooc_status sooc_logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path) {
     if (need <= *cap) return SOOC_OK;
     int64_t c = *cap ? *cap : 16;
     while (c < need) c *= 2;
@@ -84,19 +84,19 @@ sooc_status logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const c
     return SOOC_OK;
 }
 
-sooc_status logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *topic, size_t ntopic, const char *type,
+sooc_status sooc_logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *topic, size_t ntopic, const char *type,
                              size_t ntype, const char *encoding, const char *definition, size_t ndef, int schema,
                              int *index) {
-    sooc_status st = logs_grow((void **)&lf->ch, &lf->capch, lf->nch + 1, sizeof *lf->ch, lf->path);
+    sooc_status st = sooc_logs_grow((void **)&lf->ch, &lf->capch, lf->nch + 1, sizeof *lf->ch, lf->path);
     if (st) return st;
     logs_chan *c = &lf->ch[lf->nch];
     memset(c, 0, sizeof *c);
     c->file_id = file_id;
     c->schema = schema;
-    c->topic = logs_dupn(topic, ntopic);
-    c->type = logs_dupn(type, ntype);
-    c->encoding = logs_dupn(encoding, strlen(encoding));
-    c->definition = logs_dupn(definition ? definition : "", definition ? ndef : 0);
+    c->topic = sooc_logs_dupn(topic, ntopic);
+    c->type = sooc_logs_dupn(type, ntype);
+    c->encoding = sooc_logs_dupn(encoding, strlen(encoding));
+    c->definition = sooc_logs_dupn(definition ? definition : "", definition ? ndef : 0);
     if (!c->topic || !c->type || !c->encoding || !c->definition) {
         sooc_free(c->topic);
         sooc_free(c->type);
@@ -109,22 +109,22 @@ sooc_status logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *top
     return SOOC_OK;
 }
 
-int logs_find_channel(const sooc_logfile *lf, uint32_t file_id) {
+int sooc_logs_find_channel(const sooc_logfile *lf, uint32_t file_id) {
     for (int i = 0; i < lf->nch; i++)
         if (lf->ch[i].file_id == file_id) return i;
     return -1;
 }
 
-sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index) {
+sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index) {
     /* the sizes a chunk header may claim before anything is allocated for it */
     if (c->usize > LOGS_MAX_RECORD || (c->comp == LOGS_COMP_NONE && c->usize != c->csize) ||
         (c->comp == LOGS_COMP_LZ4 && c->usize > 256 * c->csize + 1024))
         return sooc_seterr(SOOC_EFORMAT,
                            "%s: offset %llu: chunk of %llu bytes (%s) claims %llu bytes uncompressed, which it cannot "
                            "hold (corrupt header)",
-                           lf->path, (unsigned long long)c->pos, (unsigned long long)c->csize, logs_comp_name(c->comp),
+                           lf->path, (unsigned long long)c->pos, (unsigned long long)c->csize, sooc_logs_comp_name(c->comp),
                            (unsigned long long)c->usize);
-    sooc_status st = logs_grow((void **)&lf->chunks, &lf->capchunks, lf->nchunks + 1, sizeof *lf->chunks, lf->path);
+    sooc_status st = sooc_logs_grow((void **)&lf->chunks, &lf->capchunks, lf->nchunks + 1, sizeof *lf->chunks, lf->path);
     if (st) return st;
     if (lf->nchunks >= INT32_MAX) return sooc_seterr(SOOC_EFORMAT, "%s: too many chunks", lf->path);
     lf->chunks[lf->nchunks] = *c;
@@ -133,8 +133,8 @@ sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index
     return SOOC_OK;
 }
 
-sooc_status logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch) {
-    sooc_status st = logs_grow((void **)&lf->e, &lf->cape, lf->ne + 1, sizeof *lf->e, lf->path);
+sooc_status sooc_logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch) {
+    sooc_status st = sooc_logs_grow((void **)&lf->e, &lf->cape, lf->ne + 1, sizeof *lf->e, lf->path);
     if (st) return st;
     lf->e[lf->ne++] = (logs_entry){t, off, chunk, ch};
     return SOOC_OK;
@@ -142,7 +142,8 @@ sooc_status logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t ch
 
 /* ------------------------------------------------------- decompression */
 
-sooc_status logs_decompress(int comp, const uint8_t *src, size_t n, uint8_t *dst, size_t dn, const char *path,
+/* Decompress n bytes of method comp into exactly dn bytes. ctx names the place. */
+static sooc_status sooc_logs_decompress(int comp, const uint8_t *src, size_t n, uint8_t *dst, size_t dn, const char *path,
                             uint64_t off) {
     unsigned long long o = (unsigned long long)off;
     switch (comp) {
@@ -209,7 +210,7 @@ sooc_status logs_decompress(int comp, const uint8_t *src, size_t n, uint8_t *dst
     }
 }
 
-sooc_status logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, size_t *n) {
+sooc_status sooc_logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, size_t *n) {
     if (c < 0 || c >= lf->nchunks) return sooc_seterr(SOOC_EINVAL, "%s: no chunk %d", lf->path, (int)c);
     lf->clock++;
     for (int s = 0; s < 2; s++)
@@ -222,18 +223,18 @@ sooc_status logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, s
     logs_slot *sl = lf->slot[0].stamp <= lf->slot[1].stamp ? &lf->slot[0] : &lf->slot[1];
     const logs_chunk *k = &lf->chunks[c];
     sl->chunk = -1;
-    sooc_status st = logs_reserve(&sl->buf, &sl->cap, (size_t)k->usize + 1);
+    sooc_status st = sooc_logs_reserve(&sl->buf, &sl->cap, (size_t)k->usize + 1);
     if (st) return st;
     if (k->comp == LOGS_COMP_NONE) {
         if (k->csize != k->usize)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: uncompressed chunk holds %llu bytes, its header says %llu",
                                lf->path, (unsigned long long)k->pos, (unsigned long long)k->csize,
                                (unsigned long long)k->usize);
-        st = logs_pread(lf, k->data_off, sl->buf, (size_t)k->usize, "chunk");
+        st = sooc_logs_pread(lf, k->data_off, sl->buf, (size_t)k->usize, "chunk");
     } else {
-        st = logs_reserve(&lf->raw, &lf->rawcap, (size_t)k->csize + 1);
-        if (!st) st = logs_pread(lf, k->data_off, lf->raw, (size_t)k->csize, "chunk");
-        if (!st) st = logs_decompress(k->comp, lf->raw, (size_t)k->csize, sl->buf, (size_t)k->usize, lf->path, k->pos);
+        st = sooc_logs_reserve(&lf->raw, &lf->rawcap, (size_t)k->csize + 1);
+        if (!st) st = sooc_logs_pread(lf, k->data_off, lf->raw, (size_t)k->csize, "chunk");
+        if (!st) st = sooc_logs_decompress(k->comp, lf->raw, (size_t)k->csize, sl->buf, (size_t)k->usize, lf->path, k->pos);
     }
     if (st) return st;
     if (k->crc) {

@@ -5,6 +5,7 @@
 #define SOOC3D_NODE_IMPL_H
 
 #include "sooc3d/node.h"
+#include "node/node_parts.h"
 #include "sooc3d/support.h"
 
 #include <math.h>
@@ -33,7 +34,7 @@ struct sooc_node {
     size_t view_cap;
     sooc_node_config cfg;
     sooc_node_options opt;
-    sooc3d_mapper *mapper;
+    sooc_mapper *mapper;
     int own_mapper;
     int tw, th;
 
@@ -100,7 +101,7 @@ struct sooc_node {
 
     sooc_map_entry *prev;          /* start-up only: the map republished at create */
     size_t n_prev, cap_prev;
-    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc3d_mapper_changed */
+    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc_mapper_changed */
     uint64_t removed[SOOC_MAPPER_CHANGED_MAX];
     uint64_t kf_seq;               /* keyframe rows written */
 

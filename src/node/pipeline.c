@@ -1,6 +1,6 @@
 /* The node: capture thread -> frame ring -> (mapping thread = caller of
  * sooc_node_run) pose association, keyframe policy, preprocessing,
- * sooc3d_mapper_update, publisher (shm table batch + SQLite transaction per
+ * sooc_mapper_update, publisher (shm table batch + SQLite transaction per
  * keyframe) and periodic stats. */
 #include "node/node_impl.h"
 
@@ -13,8 +13,6 @@ void sooc_node_request_stop(sooc_node *n) {
     pthread_mutex_unlock(&n->sensor_mu);
     if (n->ring) sooc_frame_ring_close(n->ring);
 }
-
-int sooc_node_stop_requested(const sooc_node *n) { return atomic_load((atomic_int *)&n->stop); }
 
 /* ------------------------------------------------ driver / pose adapters */
 
@@ -293,8 +291,8 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     if (n->opt.mapper) {
         n->mapper = n->opt.mapper;
     } else {
-        sooc3d_mapper_params mp;
-        sooc3d_mapper_params_default(&mp);
+        sooc_mapper_params mp;
+        sooc_mapper_params_default(&mp);
         mp.model_path = c->model_path;
         mp.iterations = c->iterations;
         mp.seed = c->seed;
@@ -308,13 +306,13 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.gate_min_rays = c->gate_min_rays;   /* the creation gate (revisit rule 5): 0 = default */
         mp.gate_ratio = c->gate_ratio;
         mp.gate_part = c->gate_part;
-        if (c->model_kind == SOOC3D_MAPPER_GEOMETRIC) {   /* the geometric map (docs/geometric.md "In the node") */
-            mp.kind = SOOC3D_MAPPER_GEOMETRIC;
+        if (c->model_kind == SOOC_MAPPER_GEOMETRIC) {   /* the geometric map (docs/geometric.md "In the node") */
+            mp.kind = SOOC_MAPPER_GEOMETRIC;
             mp.cluster.voxel_m = c->geo_voxel_m, mp.cluster.dist_m = c->geo_join_m;
             mp.cluster.min_height_m = c->geo_min_height_m, mp.cluster.max_extent_m = c->geo_max_extent_m;
             mp.cluster.max_depth_m = c->max_depth_m < 3.0 ? c->max_depth_m : 3.0;
             if (c->input_width > 0) mp.input_width = c->input_width, mp.input_height = c->input_height;
-            if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+            if ((st = sooc_mapper_create(&n->mapper, &mp))) {
                 sooc_adderr(st, "%s: model.kind geometric", c->path);
                 goto fail;
             }
@@ -328,7 +326,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                 st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
                 goto fail;
             }
-            if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+            if ((st = sooc_mapper_create(&n->mapper, &mp))) {
                 sooc_adderr(st, "%s: model.path %s", c->path, c->model_path);
                 goto fail;
             }
@@ -342,7 +340,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             }
         }
     }
-    sooc3d_mapper_input_size(n->mapper, &n->tw, &n->th);
+    sooc_mapper_input_size(n->mapper, &n->tw, &n->th);
     if (c->input_width > 0 && (c->input_width != n->tw || c->input_height != n->th)) {
         st = sooc_seterr(SOOC_EINVAL, "%s: model.width/height: %dx%d, but the model takes %dx%d", c->path,
                          c->input_width, c->input_height, n->tw, n->th);
@@ -413,9 +411,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     /* what the mapper holds now (resumed, or preloaded by the caller) is republished at start */
     {
         size_t cnt = 0;
-        if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
+        if ((st = sooc_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
         if ((st = sooc__node_grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
-        if ((st = sooc3d_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
+        if ((st = sooc_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
         for (size_t i = 0; i < n->n_prev; i++)   /* a mapper without a box extent: the stored one */
             if (n->prev[i].extent[0] <= 0) memcpy(n->prev[i].extent, n->extent, sizeof n->extent);
         n->st.n_objects = n->n_prev;
@@ -527,7 +525,7 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
         sp.cam_height_min_m = c->cam_height_min_m;
         sp.cam_height_max_m = c->cam_height_max_m;
     } else {   /* the model's trained range */
-        sooc3d_mapper_cam_heights(n->mapper, &sp.cam_height_min_m, &sp.cam_height_max_m);
+        sooc_mapper_cam_heights(n->mapper, &sp.cam_height_min_m, &sp.cam_height_max_m);
     }
     sp.seed = c->seed + 1;
     const sooc_frame *fp[32];
@@ -678,10 +676,10 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     }
     memcpy(n->pre.T_wc, T_wc, sizeof T_wc);
     n->pre.has_pose = 1;
-    sooc3d_update_stats us;
+    sooc_update_stats us;
     memset(&us, 0, sizeof us);
     double t0 = sooc_seconds();
-    st = sooc3d_mapper_update(n->mapper, &n->pre, &us);
+    st = sooc_mapper_update(n->mapper, &n->pre, &us);
     double ms = (sooc_seconds() - t0) * 1e3;
     if (st) {
         pthread_mutex_lock(&n->mu);
@@ -691,7 +689,7 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
                  sooc_errmsg());
         /* a late failure may have changed the map already: keep table and database in step */
         size_t pc = 0, pr = 0;
-        if (!sooc3d_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
+        if (!sooc_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
             sooc_status s2 = sooc__node_publish_keyframe(n, f->t_ns, T_wc, t_cap);
             if (s2) { *result = s2; return 1; }
         }
@@ -827,7 +825,7 @@ void sooc_node_destroy(sooc_node *n) {
     if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
     sooc_sg_destroy(n->sg);
     sooc_mapstore_close(n->store);
-    if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);
+    if (n->own_mapper) sooc_mapper_destroy(n->mapper);
     sooc_frame_ring_destroy(n->ring);
     sooc_view_stop(n->view);
     sooc_free(n->view_entries);

@@ -98,8 +98,6 @@ sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, const char *path, in
     return SOOC_OK;
 }
 
-sooc_mapstore *sooc_sg_store(const sooc_sg *g) { return g->s; }
-
 void sooc_sg_destroy(sooc_sg *g) {
     if (!g) return;
     sooc_free(g->pe);

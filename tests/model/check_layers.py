@@ -61,13 +61,14 @@ MODULE_LAYER = {m: i for i, (_, mods) in enumerate(MODULE_LAYERS) for m in mods}
 INTERFACE = {
     "model": {"weights.h", "decoder.h", "refine.h", "step.h", "propose.h", "dec_own.h"},
     "data": {"yaml_doc.h"},
+    "nn": {"nn_kern.h", "nn_refine.h"},
 }
 
 # Layer of every source file of src/model (by base name, without .c) and of
 # its headers.
 LAYERS = [
     ("weights", ["model", "kern"], ["weights.h"]),
-    ("decoder", ["decoder", "dec_fwd", "dec_bwd", "dec_own", "field"], ["decoder.h", "dec_own.h"]),
+    ("decoder", ["decoder", "dec_rays", "dec_kl", "dec_own", "field"], ["decoder.h", "dec_own.h"]),
     ("refine", ["refine"], ["refine.h"]),
     ("step", ["step", "workspace", "propose"], ["step.h", "propose.h"]),
 ]
@@ -283,8 +284,8 @@ COMPILED = [
         "global/global.c": '#include "model/step.h"\nint mdl_s(void);\nint glb(void) { return mdl_s(); }\n',
     }, None),
     ("a lower model layer calls a higher one", {
-        "model/model.c": "int mdl_step_free(void);\nint mdl_w(void) { return mdl_step_free(); }\n",
-        "model/step.c": "int mdl_w(void);\nint mdl_step_free(void) { return 0; }\nint mdl_s(void) { return mdl_w(); }\n",
+        "model/model.c": "int sooc_mdl_step_free(void);\nint mdl_w(void) { return sooc_mdl_step_free(); }\n",
+        "model/step.c": "int mdl_w(void);\nint sooc_mdl_step_free(void) { return 0; }\nint mdl_s(void) { return mdl_w(); }\n",
     }, "model/model (layer 0 (weights)) calls model/step (layer 3 (step))"),
     ("an upward include within src/model", {
         "model/decoder.c": '#include "model/step.h"\nint mdl_d(void) { return 0; }\n',

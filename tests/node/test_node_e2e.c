@@ -79,11 +79,11 @@ typedef struct rrow {
     float x, z;
 } rrow;
 
-static void check_reader(FILE *in, sooc3d_mapper *m, uint32_t *max_live) {
+static void check_reader(FILE *in, sooc_mapper *m, uint32_t *max_live) {
     size_t ne = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &ne);
+    sooc_mapper_entries(m, NULL, 0, &ne);
     sooc_map_entry *e = calloc(ne + 1, sizeof *e);
-    sooc3d_mapper_entries(m, e, ne, &ne);
+    sooc_mapper_entries(m, e, ne, &ne);
     unsigned long long ep;
     CHECK(fscanf(in, "max %u epoch %llu\n", max_live, &ep) == 2);
     rrow rows[64];
@@ -149,10 +149,10 @@ static void db_info(const char *db, sooc_mapstore_info *info, float ext[3]) {
     sooc_mapstore_close(s);
 }
 
-int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu);
+int fake_mapper_get_block(const sooc_mapper *m, int32_t bi, int32_t bj, float *mu);
 
 /* Run the node over `nframes` synthetic frames with a reader process. */
-static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_frame, uint64_t *kf_out,
+static void run_once(const char *db, sooc_mapper *m, int nframes, int first_frame, uint64_t *kf_out,
                      uint64_t *resumed_out) {
     sooc_node_config c;
     CHECK_OK(make_cfg(&c, NULL, db));
@@ -201,18 +201,18 @@ static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_fr
 static void test_e2e_and_restart(void) {
     char db[512];
     snprintf(db, sizeof db, "%s/map.sqlite", g_tmp);
-    sooc3d_mapper *m;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m;
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     uint64_t kf = 0, resumed = 0;
     run_once(db, m, 12, 0, &kf, &resumed);
     CHECK(resumed == 0);
     CHECK_MSG(kf == 12, "keyframes %llu (every frame moves 0.15 m > 0.10 m)", (unsigned long long)kf);
     size_t n1 = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &n1);
+    sooc_mapper_entries(m, NULL, 0, &n1);
     sooc_map_entry *e1 = calloc(n1 + 1, sizeof *e1);
-    sooc3d_mapper_entries(m, e1, n1, &n1);
+    sooc_mapper_entries(m, e1, n1, &n1);
     CHECK(n1 == 12 - 2);   /* 12 registered, 2 removed by the fake mapper */
     CHECK_MSG(db_count(db) == n1, "db holds %zu, map %zu", db_count(db), n1);
     /* one keyframe row per keyframe, the layout block(s), the box extent */
@@ -226,18 +226,18 @@ static void test_e2e_and_restart(void) {
     CHECK(info.next_id == 13);
     float mu1[4] = {0}, mu2[4] = {0};
     CHECK(fake_mapper_get_block(m, 0, 0, mu1) == 0);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* restart with a fresh mapper and the same db: nothing lost */
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     run_once(db, m, 0, 100, &kf, &resumed);
     CHECK_MSG(resumed == n1, "resumed %llu of %zu", (unsigned long long)resumed, n1);
     CHECK_MSG(fake_mapper_get_block(m, 0, 0, mu2) == 0 && !memcmp(mu1, mu2, sizeof mu1),
               "layout block (0,0) restored: %g vs %g", mu2[0], mu1[0]);
     size_t n2 = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &n2);
+    sooc_mapper_entries(m, NULL, 0, &n2);
     sooc_map_entry *e2 = calloc(n2 + 1, sizeof *e2);
-    sooc3d_mapper_entries(m, e2, n2, &n2);
+    sooc_mapper_entries(m, e2, n2, &n2);
     CHECK(n2 == n1);
     for (size_t i = 0; i < n1 && i < n2; i++) {
         CHECK(e2[i].id == e1[i].id);
@@ -255,9 +255,9 @@ static void test_e2e_and_restart(void) {
     run_once(db, m, 3, 200, &kf, &resumed);
     CHECK(kf == 3);
     size_t n3 = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &n3);
+    sooc_mapper_entries(m, NULL, 0, &n3);
     sooc_map_entry *e3 = calloc(n3 + 1, sizeof *e3);
-    sooc3d_mapper_entries(m, e3, n3, &n3);
+    sooc_mapper_entries(m, e3, n3, &n3);
     CHECK(n3 == n1 + 3);
     CHECK(e3[n3 - 1].id == maxid + 3);
     CHECK_MSG(db_count(db) == n3, "db holds %zu, map %zu", db_count(db), n3);
@@ -265,7 +265,7 @@ static void test_e2e_and_restart(void) {
     CHECK_MSG(info.n_keyframes == 15, "keyframe rows %llu", (unsigned long long)info.n_keyframes);
     free(e2);
     free(e3);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
     free(e1);
 }
 
@@ -280,10 +280,10 @@ static void test_replay_driver(void) {
     CHECK(fx_write_tum(dir, 10, 0.15) == 0);
     sooc_node_config c;
     CHECK_OK(make_cfg(&c, ", format: tum, speed: fast, depth_scale: 0.0002", db));
-    sooc3d_mapper *m;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m;
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     sooc_node_options o;
     memset(&o, 0, sizeof o);
     o.mapper = m;
@@ -302,10 +302,10 @@ static void test_replay_driver(void) {
         CHECK_MSG(s.keyframes == 10, "keyframes %llu", (unsigned long long)s.keyframes);
         sooc_node_destroy(n);
         size_t ne = 0;
-        sooc3d_mapper_entries(m, NULL, 0, &ne);
+        sooc_mapper_entries(m, NULL, 0, &ne);
         CHECK(db_count(db) == ne);
     }
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 }
 
 static void test_bad_calib(void) {
@@ -332,10 +332,10 @@ static void test_bad_calib(void) {
                  "sensor: {driver: replay, path: %s/none}\ncalib: %s\nmodel: {path: fake.bin}\n", g_tmp, cal);
         sooc_node_config c;
         CHECK_OK(sooc_node_config_parse(&c, launch, strlen(launch), "cal.yaml"));
-        sooc3d_mapper *m;
-        sooc3d_mapper_params mp;
-        sooc3d_mapper_params_default(&mp);
-        sooc3d_mapper_create(&m, &mp);
+        sooc_mapper *m;
+        sooc_mapper_params mp;
+        sooc_mapper_params_default(&mp);
+        sooc_mapper_create(&m, &mp);
         fx_src s = {0, 0, 0.1, 0};
         sooc_node_source src = fx_source(&s);
         sooc_node_options o;
@@ -348,7 +348,7 @@ static void test_bad_calib(void) {
         CHECK_MSG(strstr(sooc_errmsg(), cases[i][1]) && strstr(sooc_errmsg(), "bad_calib_"),
                   "calib case %zu: '%s' lacks '%s'", i, sooc_errmsg(), cases[i][1]);
         sooc_node_destroy(n);
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
 }
 

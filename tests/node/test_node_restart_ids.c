@@ -48,10 +48,10 @@ static void run_node(const char *db, int first, int n) {
              g_tmp, g_shm, db);
     sooc_node_config c;
     CHECK_OK(sooc_node_config_parse(&c, text, strlen(text), "restart_ids.yaml"));
-    sooc3d_mapper *m = NULL;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m = NULL;
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     fx_src s = {first, first + n, 0.15, 0};
     sooc_node_source src = fx_source(&s);
     sooc_node_options o;
@@ -65,7 +65,7 @@ static void run_node(const char *db, int first, int n) {
         CHECK_OK(sooc_node_run(node));
         sooc_node_destroy(node);
     }
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 }
 
 /* The table as a planner reads it after the run (the writer closed it). */
