@@ -2,9 +2,9 @@
  * bench_engine: forward+backward of the kernels the model runs, against an
  * OpenBLAS sgemm peak and PyTorch on the same shapes, all measured in this run:
  * the decoder MLP as a training step runs it (bench_engine_mlp.c, on the
- * engine's sooc3d/nn_kern.h pairs and task pool, 2 threads) and the
+ * engine's nn/nn_kern.h pairs and task pool, 2 threads) and the
  * refinement conv encoder as src/model/refine.c runs it
- * (bench_engine_conv.c, on the sooc3d/nn_refine.h pairs).
+ * (bench_engine_conv.c, on the nn/nn_refine.h pairs).
  *
  *   bench_engine [--no-torch] [--reps N]
  *

@@ -1,6 +1,6 @@
 /*
  * bench_engine part (included by bench_engine.c): the refinement conv encoder
- * as the model runs it (src/model/refine.c on the sooc3d/nn_refine.h pairs):
+ * as the model runs it (src/model/refine.c on the nn/nn_refine.h pairs):
  * the object net on K = 7 items (26 input channels, the first 8 shared by
  * every item and stored once) and the layout net on 1 item (25 channels), a
  * 32 x 32 ray grid, 3x3 stride-2 convs 32, 32, 64, 64 with ELU;
@@ -11,8 +11,8 @@
  *            one-item layout net serial), no input gradient at layer 0.
  * The PyTorch twin (bench_engine_torch.py "conv") runs the same two nets.
  */
-#include "sooc3d/nn_kern.h"
-#include "sooc3d/nn_refine.h"
+#include "nn/nn_kern.h"
+#include "nn/nn_refine.h"
 
 enum { CV_K = 7, CV_G = 32, CV_NSH = 8, CV_NL = 4 };
 static const int cv_ch[CV_NL] = {32, 32, 64, 64};

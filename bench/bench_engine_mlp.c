@@ -1,7 +1,7 @@
 /*
  * The decoder MLP part of bench_engine: forward + backward of the object
  * decoder exactly as src/model/decoder.c runs it in a training step, on the
- * engine's kernels (sooc3d/nn_kern.h), at the shipped models' sizes
+ * engine's kernels (nn/nn_kern.h), at the shipped models' sizes
  * (posenc 33 -> 64 -> 64 -> 64 ReLU, density 64 -> 1 sigmoid, colour
  * 64 -> 32 ReLU -> 3 sigmoid, per-slot bias on layer 1; weights [in x out]):
  *   forward:  blocks of 128 rows through the task pool: slot-bias init,
@@ -20,7 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 
 typedef struct bench_mlp_result {
     double ms, fwd_ms, bwd_ms;    /* medians: one training-step forward + backward, and the parts */

@@ -37,7 +37,7 @@ static sooc_status run_scene(const char *model, sooc_gen_scale scale, int index,
                              int birth, scene_run *out) {
     memset(out, 0, sizeof *out);
     sooc_model *m = NULL;
-    sooc3d_mapper *mp = NULL;
+    sooc_mapper *mp = NULL;
     sooc_finetune *ft = NULL;
     sooc_scene sc;
     sooc_scene_init(&sc);
@@ -58,19 +58,19 @@ static sooc_status run_scene(const char *model, sooc_gen_scale scale, int index,
     }
     sooc_intrinsics K;
     sooc_gen_intrinsics(&K, gp.width, gp.height, sc.fov_deg);
-    if ((st = sooc3d_mapper_create_with_model(&mp, m, 0, 1, 0))) goto done;
+    if ((st = sooc_mapper_create_with_model(&mp, m, 0, 1, 0))) goto done;
     m = NULL;   /* owned by the mapper */
-    sooc_model *mm = sooc3d_mapper_model(mp);
+    sooc_model *mm = sooc_mapper_model(mp);
     for (int v = 0; v < sc.n_views; v++) {
         if (sc.view_is_query[v]) continue;
         sooc_frame *f = &fr[nfr];
         if ((st = sooc_gen_render_view(&sc, sc.view_T_wc + 16 * v, &K, f))) goto done;
         f->has_pose = 1, f->index = v;
         nfr++;
-        sooc3d_update_stats us;
-        if ((st = sooc3d_mapper_update(mp, f, &us))) goto done;
+        sooc_update_stats us;
+        if ((st = sooc_mapper_update(mp, f, &us))) goto done;
     }
-    sooc_cogmap *map = (sooc_cogmap *)sooc3d_mapper_cogmap(mp);
+    sooc_cogmap *map = (sooc_cogmap *)sooc_mapper_cogmap(mp);
     if (birth) {
         double tb = sooc_seconds();
         sooc_birth *b = NULL;
@@ -113,7 +113,7 @@ static sooc_status run_scene(const char *model, sooc_gen_scale scale, int index,
     out->ms_per_step = nu && fp->iterations ? 1e3 * out->seconds / ((double)nu * fp->iterations) : 0;
 done:
     sooc_finetune_destroy(ft);
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper_destroy(mp);
     sooc_model_destroy(m);
     for (int i = 0; i < nfr; i++) sooc_frame_free(&fr[i]);
     free(fr);

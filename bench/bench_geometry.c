@@ -16,7 +16,7 @@
 #include <string.h>
 
 #include "sooc3d/eval.h"
-#include "sooc3d/eval_geom.h"
+#include "eval/eval_geom.h"
 #include "sooc3d/model.h"
 #include "sooc3d/objgeom.h"
 #include "sooc3d/scene.h"
@@ -34,22 +34,22 @@ static double median(double *v, int n) {
 }
 
 /* mapper over the scene's input views; returns the summed update seconds */
-static sooc_status map_scene(sooc_model *m, const sooc_dataset *ds, int s, int budget, sooc3d_mapper **out,
+static sooc_status map_scene(sooc_model *m, const sooc_dataset *ds, int s, int budget, sooc_mapper **out,
                              double *upd_s, int *n_upd) {
     sooc_model *copy = NULL;
     sooc_status st = sooc_eval_model_copy(m, &copy);
     if (st) return st;
-    if ((st = sooc3d_mapper_create_with_model(out, copy, 0, 1, 0))) {
+    if ((st = sooc_mapper_create_with_model(out, copy, 0, 1, 0))) {
         sooc_model_destroy(copy);
         return st;
     }
-    sooc3d_mapper_set_geometry_budget(*out, budget);
+    sooc_mapper_set_geometry_budget(*out, budget);
     int nv = sooc_dataset_n_views(ds, s);
     for (int v = 0; v < nv; v++) {
         const sooc_frame *f = sooc_dataset_view(ds, s, v);
         if (f->is_query) continue;
         double t0 = sooc_seconds();
-        if ((st = sooc3d_mapper_update(*out, f, NULL))) return st;
+        if ((st = sooc_mapper_update(*out, f, NULL))) return st;
         *upd_s += sooc_seconds() - t0;
         (*n_upd)++;
     }
@@ -109,23 +109,23 @@ int main(int argc, char **argv) {
         if ((st = sooc_path_join(path, sizeof path, sooc_dataset_scene_path(ds, s), "scene.yaml")) ||
             (st = sooc_scene_load(path, &sc)))
             goto fail;
-        sooc3d_mapper *mp = NULL, *mp0 = NULL;
+        sooc_mapper *mp = NULL, *mp0 = NULL;
         st = map_scene(m, ds, s, 0, &mp0, &upd_none, &n_upd_none);   /* the same updates without geometry */
-        sooc3d_mapper_destroy(mp0);
+        sooc_mapper_destroy(mp0);
         if (!st) st = map_scene(m, ds, s, budget, &mp, &upd_geo, &n_upd_geo);
         int nd = 0;
         double t0 = sooc_seconds();
-        if (!st) st = sooc3d_mapper_refresh_geometry(mp, -1, &nd);
+        if (!st) st = sooc_mapper_refresh_geometry(mp, -1, &nd);
         box_s += sooc_seconds() - t0;
         n_boxes += nd;
         size_t n = 0;
-        if (!st) st = sooc3d_mapper_entries(mp, NULL, 0, &n);
+        if (!st) st = sooc_mapper_entries(mp, NULL, 0, &n);
         sooc_free(ent);
         ent = sooc_calloc(n + 1, sizeof *ent);
         sooc_free(mt);
         mt = sooc_calloc((size_t)sc.n_objects + 1, sizeof *mt);
         if (!st && (!ent || !mt)) st = SOOC_ENOMEM;
-        if (!st) st = sooc3d_mapper_entries(mp, ent, n, &n);
+        if (!st) st = sooc_mapper_entries(mp, ent, n, &n);
         int nm = 0;
         if (!st) st = sooc_geom_eval_scene(ent, n, &sc, 0.5, mt, &nm);
         for (size_t i = 0; !st && i < n && i < 8; i++) {   /* cost of one box: time and field evaluations */
@@ -133,7 +133,7 @@ int main(int argc, char **argv) {
             sooc_objgeom_opts_default(&o);
             sooc_objgeom_box bx;
             double t1 = sooc_seconds();
-            st = sooc_objgeom_entry_box(sooc3d_mapper_model(mp), sooc3d_mapper_cogmap(mp), ent[i].id, &o, &bx);
+            st = sooc_objgeom_entry_box(sooc_mapper_model(mp), sooc_mapper_cogmap(mp), ent[i].id, &o, &bx);
             one_s += sooc_seconds() - t1;
             one_ev += bx.n_eval;
             n_one++;
@@ -147,7 +147,7 @@ int main(int argc, char **argv) {
                     sooc_objgeom_opts_default(&o);
                     o.level = levels[a], o.res = ress[b];
                     sooc_objgeom_box bx;
-                    st = sooc_objgeom_entry_box(sooc3d_mapper_model(mp), sooc3d_mapper_cogmap(mp), ent[r->entry].id,
+                    st = sooc_objgeom_entry_box(sooc_mapper_model(mp), sooc_mapper_cogmap(mp), ent[r->entry].id,
                                                 &o, &bx);
                     double e = 0;
                     for (int k = 0; k < 3; k++) e += fabs(bx.hi[k] - bx.lo[k] - r->ext_gt[k]);
@@ -156,7 +156,7 @@ int main(int argc, char **argv) {
                 }
             n_sw++;
         }
-        sooc3d_mapper_destroy(mp);
+        sooc_mapper_destroy(mp);
         if (st) {
             sooc_scene_free(&sc);
             goto fail;

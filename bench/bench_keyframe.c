@@ -16,7 +16,7 @@
  * frames so that every round sees the same kind of views. --dump F writes
  * the final map entries as text (%.17g, one entry a line) to F, to compare
  * results across builds and thread counts (identical files = bitwise equal).
- * --slots K runs the mapper with K object slots (sooc3d_mapper_params.slots),
+ * --slots K runs the mapper with K object slots (sooc_mapper_params.slots),
  * the PyTorch reference with the same K. --rays G samples a G x G ray grid per
  * view (the default model's config; with --model, the model's own grid, e.g.
  * a `sooc3d model --rays 64` copy); the PyTorch reference runs the same grid. */
@@ -46,22 +46,22 @@ static double median(double *v, int n) {
 }
 
 /* The map entries as text, one a line, every number exact (%.17g). */
-static int dump_entries(const sooc3d_mapper *mp, const char *path) {
+static int dump_entries(const sooc_mapper *mp, const char *path) {
     size_t ne = 0;
-    sooc3d_mapper_entries(mp, NULL, 0, &ne);
+    sooc_mapper_entries(mp, NULL, 0, &ne);
     sooc_map_entry *e = calloc(ne ? ne : 1, sizeof *e);
     FILE *f = fopen(path, "w");
-    int bad = !e || !f || sooc3d_mapper_entries(mp, e, ne, &ne);
+    int bad = !e || !f || sooc_mapper_entries(mp, e, ne, &ne);
     for (size_t i = 0; !bad && i < ne; i++) {
         fprintf(f, "%llu %.17g %.17g %.17g %.17g %.17g %.17g %.17g", (unsigned long long)e[i].id, e[i].x, e[i].z,
                 e[i].yaw, e[i].sigma_t, e[i].sigma_yaw, (double)e[i].presence, (double)e[i].presence_logit);
         for (int j = 0; j < e[i].latent_dim; j++) fprintf(f, " %.17g %.17g", (double)e[i].what_mu[j], (double)e[i].what_logvar[j]);
         fprintf(f, " %u\n", e[i].obs_count);
     }
-    int dl = sooc3d_mapper_layout_dim(mp);
+    int dl = sooc_mapper_layout_dim(mp);
     float mu[SOOC_MAP_LATENT_MAX], lv[SOOC_MAP_LATENT_MAX];
     int32_t bi, bj;
-    if (!bad && dl > 0 && dl <= SOOC_MAP_LATENT_MAX && !sooc3d_mapper_last_layout(mp, &bi, &bj, mu, lv)) {
+    if (!bad && dl > 0 && dl <= SOOC_MAP_LATENT_MAX && !sooc_mapper_last_layout(mp, &bi, &bj, mu, lv)) {
         fprintf(f, "layout %d %d", (int)bi, (int)bj);
         for (int j = 0; j < dl; j++) fprintf(f, " %.17g %.17g", (double)mu[j], (double)lv[j]);
         fprintf(f, "\n");
@@ -190,17 +190,17 @@ int main(int argc, char **argv) {
         sooc_model_destroy(m);
         model = tmp;
     }
-    sooc3d_mapper_params p;
-    sooc3d_mapper_params_default(&p);
+    sooc_mapper_params p;
+    sooc_mapper_params_default(&p);
     p.model_path = model;
     p.threads = threads;
     p.iterations = 3;
     p.slots = slots;
-    sooc3d_mapper *mp;
-    if (sooc3d_mapper_create(&mp, &p)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
+    sooc_mapper *mp;
+    if (sooc_mapper_create(&mp, &p)) return fprintf(stderr, "%s\n", sooc_errmsg()), 1;
     if (model == tmp) remove(tmp);
-    int K = sooc_model_get_config(sooc3d_mapper_model(mp))->K;
-    rays = sooc_model_get_config(sooc3d_mapper_model(mp))->ray_w;
+    int K = sooc_model_get_config(sooc_mapper_model(mp))->K;
+    rays = sooc_model_get_config(sooc_mapper_model(mp))->ray_w;
     torch_proc tp = {0};
     char line[1024];
     if (torch) {
@@ -237,9 +237,9 @@ int main(int argc, char **argv) {
             if (synth_frame(&f, 64, 64, 60, T, sp, 6)) return 1;
             f.index = fi;
             f.t_ns = (int64_t)fi * 100000000;
-            sooc3d_update_stats st;
+            sooc_update_stats st;
             double t0 = sooc_seconds();
-            if (sooc3d_mapper_update(mp, &f, &st)) return fprintf(stderr, "update: %s\n", sooc_errmsg()), 1;
+            if (sooc_mapper_update(mp, &f, &st)) return fprintf(stderr, "update: %s\n", sooc_errmsg()), 1;
             double dt = 1e3 * (sooc_seconds() - t0);
             if (r >= 0) {
                 ms[r * n + i] = cr[i] = dt;
@@ -277,7 +277,7 @@ int main(int argc, char **argv) {
     qsort(ms, tot, sizeof(double), cmpd);
     double med = ms[tot / 2], p99 = ms[(int)(0.99 * (tot - 1))];
     size_t ne = 0;
-    sooc3d_mapper_entries(mp, NULL, 0, &ne);
+    sooc_mapper_entries(mp, NULL, 0, &ne);
     printf("keyframe update 64x64 K=%d L=3 threads=%d: median %.2f ms, p99 %.2f ms (mean retrieved %.1f, registered %.1f, map %zu)\n",
            K, threads, med, p99, (double)nret / tot, (double)nreg / tot, ne);
 #ifdef MDL_PROFILE
@@ -294,7 +294,7 @@ int main(int argc, char **argv) {
     }
 #endif
     if (dump && dump_entries(mp, dump)) return fprintf(stderr, "bench_keyframe: cannot write %s\n", dump), 1;
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper_destroy(mp);
     double tmed = -1, rmed = -1, rmin = -1;
     if (torch) {
         tmed = median(tms, nt_all);

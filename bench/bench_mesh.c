@@ -47,15 +47,15 @@ int main(int argc, char **argv) {
         sooc_model *cp = NULL;
         if ((st = sooc_model_copy_slots(m, 0, &cp))) return fail("copy", st);
         if ((st = sooc_model_set_clip(cp, 5.0f))) return fail("clip", st);   /* as scripts/eval_unity.sh */
-        sooc3d_mapper *mp = NULL;
-        if ((st = sooc3d_mapper_create_with_model(&mp, cp, 0, 1, 0))) return fail("mapper", st);
+        sooc_mapper *mp = NULL;
+        if ((st = sooc_mapper_create_with_model(&mp, cp, 0, 1, 0))) return fail("mapper", st);
         for (int v = 0; v < sooc_dataset_n_views(ds, s); v++) {
             const sooc_frame *f = sooc_dataset_view(ds, s, v);
-            sooc3d_update_stats us;
-            if (!f->is_query && (st = sooc3d_mapper_update(mp, f, &us))) return fail("update", st);
+            sooc_update_stats us;
+            if (!f->is_query && (st = sooc_mapper_update(mp, f, &us))) return fail("update", st);
         }
-        sooc_model *mm = sooc3d_mapper_model(mp);
-        const sooc_cogmap *map = sooc3d_mapper_cogmap(mp);
+        sooc_model *mm = sooc_mapper_model(mp);
+        const sooc_cogmap *map = sooc_mapper_cogmap(mp);
         /* meshing time: every entry at the default level */
         size_t ne = 0;
         sooc_cogmap_entries(map, NULL, 0, &ne);
@@ -82,7 +82,7 @@ int main(int argc, char **argv) {
             nobj[l] += r.n_objects, nemp[l] += r.n_empty;
         }
         fprintf(stderr, "scene %d: %zu entries, %d GT objects\n", s, ne, sc.n_objects);
-        sooc3d_mapper_destroy(mp);
+        sooc_mapper_destroy(mp);
         sooc_scene_free(&sc);
     }
     printf("%-6s %8s %8s %7s %6s %6s\n", "level", "acc_cm", "comp_cm", "F@5cm", "objs", "empty");

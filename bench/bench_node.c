@@ -9,8 +9,8 @@
  *       model.bin if present, else an untrained default-config model)
  *   bench_node_model --publish-scaling [--max-exp 5] [frames]
  *       publish time (table batch + SQLite transaction) with 10^2..10^max
- *       entries preloaded into the mapper (sooc3d_mapper_load_entries), away
- *       from the camera; also the cost of one full sooc3d_mapper_entries copy
+ *       entries preloaded into the mapper (sooc_mapper_load_entries), away
+ *       from the camera; also the cost of one full sooc_mapper_entries copy
  *       (the floor of what a diff-every-entry publisher paid per keyframe)
  * The model variant re-executes itself with OMP_WAIT_POLICY=passive when unset
  * (as `sooc3d node` does). Last line: JSON. */
@@ -40,7 +40,7 @@ static void cleanup(void) {
     if (system(cmd)) fprintf(stderr, "cleanup of %s failed\n", g_tmp);
 }
 
-static sooc_status run_node(const char *text, sooc3d_mapper *m, sooc_node_stats *s, double *dt) {
+static sooc_status run_node(const char *text, sooc_mapper *m, sooc_node_stats *s, double *dt) {
     sooc_node_config c;
     sooc_status st = sooc_node_config_parse(&c, text, strlen(text), "bench.yaml");
     sooc_node *n = NULL;
@@ -225,24 +225,24 @@ int main(int argc, char **argv) {
     for (int ex = 2; ex <= max_exp; ex++) {
         size_t N = 1;
         for (int k = 0; k < ex; k++) N *= 10;
-        sooc3d_mapper_params mp;
-        sooc3d_mapper_params_default(&mp);
+        sooc_mapper_params mp;
+        sooc_mapper_params_default(&mp);
         mp.model_path = model;
         mp.threads = g_threads;
-        sooc3d_mapper *m = NULL;
-        if (sooc3d_mapper_create(&m, &mp)) {
+        sooc_mapper *m = NULL;
+        if (sooc_mapper_create(&m, &mp)) {
             fprintf(stderr, "bench_node: %s\n", sooc_errmsg());
             return 1;
         }
-        sooc_map_entry *e = far_entries(N, sooc3d_mapper_latent_dim(m));
-        if (!e || sooc3d_mapper_load_entries(m, e, N)) {
+        sooc_map_entry *e = far_entries(N, sooc_mapper_latent_dim(m));
+        if (!e || sooc_mapper_load_entries(m, e, N)) {
             fprintf(stderr, "bench_node: load_entries: %s\n", sooc_errmsg());
             return 1;
         }
         /* what a diff-every-entry publisher copied per keyframe (at least) */
         double tc = sooc_seconds();
         size_t got = 0;
-        sooc3d_mapper_entries(m, e, N, &got);
+        sooc_mapper_entries(m, e, N, &got);
         double copy_ms = (sooc_seconds() - tc) * 1e3;
         free(e);
         char dbn[600];
@@ -258,7 +258,7 @@ int main(int argc, char **argv) {
         sooc_node_stats s;
         double dt = 0;
         sooc_status st = run_node(text, m, &s, &dt);
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
         if (st) {
             fprintf(stderr, "bench_node: %s\n", sooc_errmsg());
             cleanup();

@@ -34,9 +34,7 @@ struct sooc_sensor {
 };
 
 extern const sooc_sensor_vt sooc__replay_vt;
-#ifdef SOOC_HAVE_LOGS
 extern const sooc_sensor_vt sooc__rosbag_vt, sooc__mcap_vt;   /* replay of a ROS bag / MCAP file */
-#endif
 #ifdef SOOC_HAVE_OPENNI2
 extern const sooc_sensor_vt sooc__openni2_vt;
 #endif
@@ -49,6 +47,9 @@ extern const sooc_sensor_vt sooc__v4l2_vt;
 #ifdef SOOC_HAVE_LIBCAMERA
 extern const sooc_sensor_vt sooc__libcamera_vt;
 #endif
+
+/* The built-in driver of that name (registry.c), NULL if there is none. */
+const sooc_sensor_vt *sooc__driver_find(const char *name);
 
 /* Make f a w x h frame (reuses buffers when the size matches). Clears pose/K. */
 sooc_status sooc__frame_ensure(sooc_frame *f, int w, int h);

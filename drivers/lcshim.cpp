@@ -84,22 +84,6 @@ struct sooc_lc {
     }
 };
 
-extern "C" int sooc_lc_count_cameras(char *err, size_t errcap) {
-    try {
-        if (cm_acquire(err, errcap)) return -1;
-        int n;
-        {
-            std::lock_guard<std::mutex> lk(g_mu);
-            n = (int)g_cm->cameras().size();
-        }
-        cm_release();
-        return n;
-    } catch (const std::exception &e) {
-        set_err(err, errcap, std::string("libcamera: ") + e.what());
-        return -1;
-    }
-}
-
 extern "C" int sooc_lc_open(sooc_lc **out, const char *which, int w, int h, sooc_lc_frame_cb cb, void *user,
                             char *err, size_t errcap) {
     *out = nullptr;

@@ -16,8 +16,6 @@ typedef struct sooc_lc sooc_lc;
 typedef void (*sooc_lc_frame_cb)(void *user, const uint8_t *data, size_t len, int w, int h, int stride,
                                  uint32_t fourcc, int64_t ts_ns, uint32_t seq);
 
-/* Number of cameras libcamera sees (>= 0), or < 0 if the manager fails. */
-int sooc_lc_count_cameras(char *err, size_t errcap);
 /* Open camera `which` (decimal index or libcamera id) configured for about
  * w x h (0 = default) in a packed RGB/BGR/YUYV format. */
 int sooc_lc_open(sooc_lc **out, const char *which, int w, int h, sooc_lc_frame_cb cb, void *user, char *err,

@@ -1,7 +1,7 @@
 /* V4L2 driver: raw mmap streaming from a depth node (Z16, or Y16 when
  * configured) paired by timestamp with an optional colour node (RGB24, BGR24,
- * YUYV, or MJPEG decoded with libjpeg-turbo through sooc_jpeg_decode when the
- * data module is built: SOOC_V4L2_MJPEG), docs/drivers.md "v4l2". A corrupt or
+ * YUYV, or MJPEG decoded with libjpeg-turbo through the data module's
+ * sooc_jpeg_decode), docs/drivers.md "v4l2". A corrupt or
  * truncated MJPEG frame is counted in stats.errors and dropped; the stream
  * goes on. All syscalls go through a sooc_v4l2_ops table so
  * tests can replace the device with a fake (tests/drivers/test_v4l2.c).
@@ -23,9 +23,7 @@
 #include <unistd.h>
 
 #include "drivers_internal.h"
-#ifdef SOOC_V4L2_MJPEG
 #include "sooc3d/image.h"
-#endif
 
 #define V4L_MAX_BUFS 8
 
@@ -65,10 +63,8 @@ typedef struct v4l {
     int nn;
     uint16_t *dbuf;     /* depth w*h */
     uint8_t *cbuf;      /* colour resampled to depth size */
-#ifdef SOOC_V4L2_MJPEG
     sooc_image jimg;    /* decoded MJPEG frame (buffer reused while the size stays) */
     int64_t jpeg_errors;
-#endif
     int64_t tol_ns;
     double depth_scale;
     int64_t index;
@@ -128,9 +124,7 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
         want[nwant++] = V4L2_PIX_FMT_RGB24;
         want[nwant++] = V4L2_PIX_FMT_BGR24;
         want[nwant++] = V4L2_PIX_FMT_YUYV;
-#ifdef SOOC_V4L2_MJPEG
         want[nwant++] = V4L2_PIX_FMT_MJPEG; /* last: uncompressed needs no decode */
-#endif
     }
     uint32_t offered[64];
     int noff = 0;
@@ -154,11 +148,7 @@ static sooc_status node_open(v4l *v, v4l_node *nd, const char *path, int is_dept
         }
         return sooc_seterr(SOOC_EUNSUPPORTED, "v4l2: %s offers [%s], none of the %s formats we read (%s)", path, list,
                            is_depth ? "depth" : "colour", is_depth ? "Z16, or Y16 with depth_format=Y16"
-#ifdef SOOC_V4L2_MJPEG
                            : "RGB3,BGR3,YUYV,MJPG");
-#else
-                           : "RGB3,BGR3,YUYV (MJPG needs the data module)");
-#endif
     }
     struct v4l2_format fmt;
     memset(&fmt, 0, sizeof fmt);
@@ -310,7 +300,6 @@ static sooc_status drain(sooc_sensor *s, v4l *v, int k) {
                  b.bytesused > 0 && b.bytesused <= nd->len[b.index];
         const uint8_t *src = nd->start[b.index];
         int W = v->n[0].w, H = v->n[0].h;
-#ifdef SOOC_V4L2_MJPEG
         if (ok && nd->fourcc == V4L2_PIX_FMT_MJPEG) {
             sooc_status js = sooc_jpeg_decode(src, b.bytesused, nd->path, &v->jimg);
             if (!js && (v->jimg.width != nd->w || v->jimg.height != nd->h))
@@ -321,12 +310,10 @@ static sooc_status drain(sooc_sensor *s, v4l *v, int k) {
                 ok = 0;
             }
         }
-#endif
         if (!ok) {
             s->st.errors++;
         } else {
             if (nd->have) s->st.unpaired++;   /* the previous image was never paired */
-#ifdef SOOC_V4L2_MJPEG
             if (nd->fourcc == V4L2_PIX_FMT_MJPEG) {
                 /* decoded RGB8 (or GRAY8) -> colour at the depth size, nearest neighbour */
                 const uint8_t *img = v->jimg.data;
@@ -342,7 +329,6 @@ static sooc_status drain(sooc_sensor *s, v4l *v, int k) {
                     }
                 }
             } else
-#endif
             if (k == 0) {
                 for (int y = 0; y < H; y++) memcpy(v->dbuf + (size_t)y * (size_t)W, src + (size_t)y * (size_t)nd->bpl, (size_t)W * 2);
             } else if (nd->w == W && nd->h == H) {
@@ -442,9 +428,7 @@ static void v4l_close(sooc_sensor *s) {
     for (int k = 0; k < 2; k++) node_close(v, &v->n[k]);
     sooc_free(v->dbuf);
     sooc_free(v->cbuf);
-#ifdef SOOC_V4L2_MJPEG
     sooc_image_free(&v->jimg);
-#endif
     sooc_free(v);
     s->impl = NULL;
 }

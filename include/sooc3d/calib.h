@@ -26,6 +26,14 @@
  * A leading `%YAML:1.0` line (OpenCV) is blanked before parsing. Unknown
  * keys are errors. Every error message names the file, the line and the key,
  * e.g. "calib/x.yaml:7: camera_matrix: expected 9 numbers, got 8".
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_CALIB_H
 #define SOOC3D_CALIB_H

@@ -18,6 +18,14 @@
  * Ownership: a sooc_cluster_map owns its grid; create / destroy. Results are
  * written to caller buffers. Threading: one map per thread; no globals.
  * Errors: sooc_status codes with a message (core.h); nothing prints.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_CLUSTER_H
 #define SOOC3D_CLUSTER_H
@@ -69,8 +77,6 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects);
 
 /* Objects of the last segmentation: up to cap into out, the count in *n. */
 sooc_status sooc_cluster_map_objects(const sooc_cluster_map *m, sooc_cluster_object *out, int cap, int *n);
-
-size_t sooc_cluster_map_voxels(const sooc_cluster_map *m);
 
 /* Render the grid into a view (camera-to-world T_wc, intrinsics K at w x h):
  * each voxel centroid goes to its pixel with a depth test; pixels that no

@@ -116,7 +116,6 @@ double sooc_rng_range(sooc_rng *r, double lo, double hi);
 uint32_t sooc_rng_below(sooc_rng *r, uint32_t n);      /* [0, n), unbiased  */
 double sooc_rng_normal(sooc_rng *r);                   /* N(0,1), Box-Muller, no cached state */
 double sooc_rng_logistic(sooc_rng *r);                 /* log U - log(1-U)  */
-void sooc_rng_normal_fill(sooc_rng *r, float *out, size_t n);
 
 /* ----------------------------------------------------------------- clock */
 
@@ -152,6 +151,10 @@ uint32_t sooc_crc32(uint32_t crc, const void *buf, size_t n);
 /* Atomic save: write to "<path>.tmp.<pid>", fsync, rename over `path`, fsync
  * the directory. On any failure the old file is left untouched. */
 sooc_status sooc_file_write_atomic(const char *path, const void *data, size_t n);
+/* Write `data` to "<path>.tmp" and rename it over `path`, without fsync: bulk
+ * dataset files (frames, meshes, pictures) that a crash may lose whole but
+ * never leaves half-written. */
+sooc_status sooc_file_write_bulk(const char *path, const void *data, size_t n);
 
 /* Streaming variant: open a temp file next to `path`, write with
  * sooc_afile_write, then sooc_afile_commit (fsync + rename) or
@@ -167,6 +170,18 @@ sooc_status sooc_afile_open(sooc_afile *f, const char *path);
 sooc_status sooc_afile_write(sooc_afile *f, const void *data, size_t n);
 sooc_status sooc_afile_commit(sooc_afile *f);
 void sooc_afile_abort(sooc_afile *f);
+
+/* ------------------------------------------------------- string builder */
+
+/* A growable text buffer (sooc_malloc'd, NUL-terminated): printf appends;
+ * after an allocation or format failure `oom` is set and later appends do
+ * nothing, so a caller checks once at the end. The caller owns p (sooc_free). */
+typedef struct sooc_strbuf {
+    char *p;
+    size_t n, cap;
+    int oom;
+} sooc_strbuf;
+void sooc_strbuf_printf(sooc_strbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 /* Read a whole file into a sooc_malloc'd buffer (NUL-terminated for text use).
  * Refuses files larger than max_bytes with SOOC_EFORMAT. */

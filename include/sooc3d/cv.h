@@ -17,6 +17,14 @@
  * Conventions: poses are camera-to-world T_wc, row-major 4x4, OpenCV camera
  * axes. Board images and the calibration YAML use OpenCV/ROS pixel
  * coordinates (pixel (0, 0) has its centre at (0, 0)).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_CV_H
 #define SOOC3D_CV_H

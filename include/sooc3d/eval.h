@@ -18,6 +18,14 @@
  *    path, map entries coloured by id, out-of-view entries grey, ground-truth
  *    objects overlaid; a PNG per step plus a contact sheet;
  *  - training curves from a CSV log, one line plot per column.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_EVAL_H
 #define SOOC3D_EVAL_H
@@ -43,8 +51,6 @@ void sooc_eval_table_destroy(sooc_eval_table *t);   /* NULL-safe */
 /* Free text stored with the table and printed under it, e.g. "input views
  * rendered from the final map". */
 sooc_status sooc_eval_table_set_note(sooc_eval_table *t, const char *note);
-/* Show L2 for input views too (default 0: "n/a", as in the paper). */
-void sooc_eval_table_set_l2_input(sooc_eval_table *t, int on);
 
 /* Add one view (v->is_query selects I/Q) to cell (model, scale, run). */
 sooc_status sooc_eval_table_add_view(sooc_eval_table *t, const char *model, int scale, int run,
@@ -52,9 +58,6 @@ sooc_status sooc_eval_table_add_view(sooc_eval_table *t, const char *model, int 
 /* Merge pre-accumulated sums. */
 sooc_status sooc_eval_table_add_sums(sooc_eval_table *t, const char *model, int scale, int run,
                                      int is_query, const sooc_metric_sums *s);
-/* Merge a whole per-scale accumulator of one run. */
-sooc_status sooc_eval_table_add_acc(sooc_eval_table *t, const char *model, int run,
-                                    const sooc_metric_acc *a);
 
 typedef struct sooc_eval_stat { double mean, std; int n_runs; } sooc_eval_stat;
 typedef struct sooc_eval_cell {
@@ -190,7 +193,6 @@ typedef enum sooc_eval_timing {
 } sooc_eval_timing;
 /* "final", "online", "both" -> timing; -1 if unknown. */
 int sooc_eval_timing_parse(const char *s);
-const char *sooc_eval_timing_name(sooc_eval_timing t);
 /* One sentence for a table note, e.g. "input views rendered from the final
  * map (after all input views); query views always from the final map". */
 const char *sooc_eval_timing_note(sooc_eval_timing t);
@@ -212,11 +214,11 @@ typedef struct sooc_eval_run_opts {
                                   model's (sooc_model_set_clip); 0 = the model's         (0) */
     double merge_radius;       /* SOOC3D mapper's duplicate merge radius (m); <= 0 = off (0) */
     int revisit;               /* SOOC3D mapper: the node's revisit rules with merge_radius
-                                  (sooc3d_mapper_set_merge_neighbours; docs/cogmap.md) (0) */
+                                  (sooc_mapper_set_merge_neighbours; docs/cogmap.md) (0) */
     double gate[3];            /* SOOC3D mapper, with revisit: the creation gate's min_rays,
-                                  ratio, part (sooc3d_mapper_set_gate: 0 = default, < 0 =
+                                  ratio, part (sooc_mapper_set_gate: 0 = default, < 0 =
                                   that test off; docs/cogmap.md "Revisits" rule 5) (0, 0, 0) */
-    int latents;               /* SOOC3D mapper: SOOC3D_LATENTS_MEAN / _SAMPLE          (MEAN) */
+    int latents;               /* SOOC3D mapper: SOOC_LATENTS_MEAN / _SAMPLE          (MEAN) */
     int slots;                 /* SOOC3D models: object slots per keyframe (sooc_model_copy_slots);
                                   0 = the model's setting (config.slots, else K); ignored
                                   for the global-frame baseline                        (0) */
@@ -241,8 +243,8 @@ typedef struct sooc_eval_run_opts {
      * map does not draw in the input views; NULL = none                  (NULL) */
     const struct sooc_birth_params *birth;
     /* SOOC3D mapper: geometric proposals for the new slots (mapper.h
-     * sooc3d_mapper_set_proposals; docs/geometric.md); NULL = off       (NULL) */
-    const struct sooc3d_proposal_params *proposals;
+     * sooc_mapper_set_proposals; docs/geometric.md); NULL = off       (NULL) */
+    const struct sooc_proposal_params *proposals;
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 
@@ -268,7 +270,7 @@ typedef struct sooc_eval_step_info {
     int step;                  /* 0.. input views mapped so far - 1                     */
     int frame;                 /* index into frames[]                                   */
     const sooc_frame *gt;
-    const sooc3d_update_stats *stats;
+    const sooc_update_stats *stats;
     const sooc_map_entry *entries;   /* the whole map after the update, by id             */
     size_t n_entries;
 } sooc_eval_step_info;

@@ -19,6 +19,14 @@
  *
  * Every building block is a plain function testable on hand-made frames.
  * No function prints or exits; errors are sooc_status codes with messages.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_EVAL_REAL_H
 #define SOOC3D_EVAL_REAL_H
@@ -130,7 +138,7 @@ typedef struct sooc_churn {
     long removed;             /* entries removed that an earlier update had created            */
 } sooc_churn;
 /* Account one update: `born` = the mapper's next id before it, reg_ids the
- * entries it registered, rem_ids the ids it removed (sooc3d_mapper_changed).
+ * entries it registered, rem_ids the ids it removed (sooc_mapper_changed).
  * An id >= born that is also removed was merged away within the update: it
  * never was in the map and counts as neither. */
 void sooc_churn_update(sooc_churn *c, uint64_t born, const uint64_t *reg_ids, size_t n_reg,

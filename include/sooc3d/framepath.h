@@ -32,7 +32,7 @@
  * sooc_framepath_world; the caller stores a fresh estimate in its own map
  * with sooc_mapstore_frame_put (sooc_framepath_map_frame fills the record).
  *
- * The preprocessing is sooc_node_preprocess (include/sooc3d/node.h), the
+ * The preprocessing is sooc_node_preprocess (include/sooc3d/support.h), the
  * step the live node runs on every keyframe, with the same defaults as a
  * launch file (depth 0.1 .. 10 m, min-of-valid depth resampling).
  *
@@ -41,13 +41,21 @@
  * come back as sooc_framepath_support_info.
  *
  * Thread safety: one thread at a time per sooc_framepath.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_FRAMEPATH_H
 #define SOOC3D_FRAMEPATH_H
 
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
-#include "sooc3d/node.h"
+#include "sooc3d/support.h"
 #include "sooc3d/seq.h"
 
 #ifdef __cplusplus

@@ -11,6 +11,14 @@
  * Object density is constant (objects per m^2), so the object count grows
  * with the area; cameras walk THROUGH the room at every scale, so objects in
  * view lie at the same distances and only the number of views grows.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_GEN_H
 #define SOOC3D_GEN_H

@@ -11,6 +11,14 @@
  *  - Quaternions are Hamilton, stored (x, y, z, w) as in TUM and ROS.
  *  - Floor poses (x, z, yaw): yaw is a rotation about +y with
  *    R_y(yaw) = [[cos, 0, sin], [0, 1, 0], [-sin, 0, cos]].
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_GEOM_H
 #define SOOC3D_GEOM_H

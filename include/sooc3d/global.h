@@ -3,6 +3,14 @@
  * training step and its online mapper. A module of its own above the model:
  * it runs the model's step layer (per-view update, reverse sweep) on world-
  * frame slots; the model never calls it (docs/model.md "Layers").
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_GLOBAL_H
 #define SOOC3D_GLOBAL_H
@@ -37,7 +45,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *w, const sooc_frame *vie
                                          const sooc_step_opts *o, sooc_rng *rng,
                                          sooc_step_losses *losses);
 
-/* Online inference of the baseline (what sooc3d_mapper is for the model). */
+/* Online inference of the baseline (what sooc_mapper is for the model). */
 typedef struct sooc_global_mapper sooc_global_mapper;
 /* Takes ownership of m (a global_frame model). */
 sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, int n_objects,
@@ -46,17 +54,15 @@ void sooc_global_mapper_destroy(sooc_global_mapper *g);   /* NULL-safe */
 /* One input view: refine every slot L times from the current posterior
  * (n_retrieved = slots carried over, n_registered = present slots, n_new /
  * n_removed = slots whose presence crossed 0.5). */
-sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc3d_update_stats *st);
-/* SOOC3D_LATENTS_MEAN (default) / _SAMPLE, as sooc3d_mapper_set_latents. */
+sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc_update_stats *st);
+/* SOOC_LATENTS_MEAN (default) / _SAMPLE, as sooc_mapper_set_latents. */
 void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents);
 sooc_model *sooc_global_mapper_model(sooc_global_mapper *g);
 const sooc_cogmap *sooc_global_mapper_cogmap(const sooc_global_mapper *g);
-int sooc_global_mapper_n_slots(const sooc_global_mapper *g);
 /* Current posterior of slot k (world frame in model units, config.unit_m; cogmap.h λ
- * layout) / the layout latent. */
+ * layout). */
 const float *sooc_global_mapper_slot(const sooc_global_mapper *g, int k);
-const float *sooc_global_mapper_layout(const sooc_global_mapper *g);
-/* Present slots as map entries (like sooc3d_mapper_entries). */
+/* Present slots as map entries (like sooc_mapper_entries). */
 sooc_status sooc_global_mapper_entries(const sooc_global_mapper *g, sooc_map_entry *out, size_t cap, size_t *n);
 
 #ifdef __cplusplus

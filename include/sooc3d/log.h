@@ -27,6 +27,14 @@
  * message type this code does not read; SOOC_ENOTFOUND: a missing file or
  * topic; SOOC_EVERSION: a ROS bag older than 2.0. Nothing is printed; the
  * library never exits.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_LOG_H
 #define SOOC3D_LOG_H
@@ -190,8 +198,6 @@ sooc_status sooc_ros_decode_pose(const char *type, const uint8_t *d, size_t n, s
 /* std_msgs/Float32, Float64 (the RealSense "Depth Units" option). */
 sooc_status sooc_ros_decode_float(const char *type, const uint8_t *d, size_t n, sooc_msg_encoding enc,
                                   double *out);
-/* 1 when the decoders above read this type (either spelling). */
-int sooc_ros_type_known(const char *type);
 
 /* Encoders (tests, writers): append one message to b. */
 typedef struct sooc_ros_buf {
@@ -303,7 +309,6 @@ int64_t sooc_logseq_frame_time(const sooc_logseq *s, int64_t i);
  * = i, has_pose/T_wc from TF. Buffers of f are reused when the size matches. */
 sooc_status sooc_logseq_read(sooc_logseq *s, int64_t i, sooc_frame *f);
 const sooc_logseq_desc *sooc_logseq_describe(const sooc_logseq *s);
-sooc_logfile *sooc_logseq_file(sooc_logseq *s);   /* borrowed */
 
 /* Open path as a sequence (seq.h) whatever it is: a ROS bag or MCAP file
  * (detected by content) through sooc_logseq, anything else through

@@ -5,6 +5,14 @@
  * store). Implemented in src/cogmap/map_entry.c, so anything that links the
  * cogmap module (the node with a real or a fake mapper, the CLI, the model's
  * mapper) shares one definition.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_MAP_ENTRY_H
 #define SOOC3D_MAP_ENTRY_H
@@ -19,7 +27,7 @@ extern "C" {
 #define SOOC_MAP_LATENT_MAX 32
 
 /* Object geometry for planners (docs/shm.md "How each field is
- * computed"; src/model/objgeom.c). flags 0 = not computed: extent is then
+ * computed"; src/mapper/objgeom.c). flags 0 = not computed: extent is then
  * the model's locality box and the spreads are the posterior's. */
 #define SOOC_GEOM_TIGHT 0x1u      /* extent and centre: the tight box of the object's own density */
 #define SOOC_GEOM_SYMMETRIC 0x2u  /* rotationally symmetric about its vertical axis: yaw undefined */

@@ -2,15 +2,23 @@
  * sooc3d online mapper: the amortised variational update, once per keyframe
  * (docs/model.md). This is the API the node calls.
  *
- *   sooc3d_mapper *m;
- *   sooc3d_mapper_create(&m, &params);          // loads the model checkpoint
- *   for each keyframe: sooc3d_mapper_update(m, &frame, &stats);
- *   sooc3d_mapper_entries(m, ...)               // read the map
- *   sooc3d_mapper_destroy(m);
+ *   sooc_mapper *m;
+ *   sooc_mapper_create(&m, &params);          // loads the model checkpoint
+ *   for each keyframe: sooc_mapper_update(m, &frame, &stats);
+ *   sooc_mapper_entries(m, ...)               // read the map
+ *   sooc_mapper_destroy(m);
  *
  * Thread-safety: one thread may call update/entries at a time (the mapping
  * thread owns the mapper). The cost of an update depends on K, L and the ray
  * count, never on the map size.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_MAPPER_H
 #define SOOC3D_MAPPER_H
@@ -28,9 +36,9 @@ extern "C" {
 /* sooc_map_entry, sooc_map_geometry and their conversions to and from the
  * cognitive map's entries: sooc3d/map_entry.h (src/cogmap/map_entry.c). */
 
-typedef struct sooc3d_mapper sooc3d_mapper;
+typedef struct sooc_mapper sooc_mapper;
 
-typedef struct sooc3d_mapper_params {
+typedef struct sooc_mapper_params {
     const char *model_path;    /* checkpoint file (models/<name>/model.bin)           */
     int iterations;            /* L refinement updates per keyframe; 0 = model default */
     uint64_t seed;             /* seed of ray offsets and posterior samples (results
@@ -46,10 +54,10 @@ typedef struct sooc3d_mapper_params {
                                   entry the keyframe did not register is dropped
                                   (sooc_cogmap_merge). <= 0 = never merge (the default:
                                   the paper registers without object matching);
-                                  SOOC3D_MAPPER_MERGE_SUGGESTED opts in                  */
-    int latents;               /* what the refinement loop decodes: SOOC3D_LATENTS_MEAN
+                                  SOOC_MAPPER_MERGE_SUGGESTED opts in                  */
+    int latents;               /* what the refinement loop decodes: SOOC_LATENTS_MEAN
                                   (posterior means, no sampling noise: the default) or
-                                  SOOC3D_LATENTS_SAMPLE (one posterior sample per
+                                  SOOC_LATENTS_SAMPLE (one posterior sample per
                                   iteration, as in training; docs/model.md)            */
     int slots;                 /* object slots per keyframe (retrieved + padded): 0 = the
                                   model's inference setting (its config.slots, else its
@@ -59,8 +67,8 @@ typedef struct sooc3d_mapper_params {
     double same_pose;          /* same-pose radius as a fraction of the object box's
                                   floor side (2 R_h, sooc_model_box_extent): two present
                                   slots of one keyframe closer than this never both
-                                  register (sooc3d_mapper_same_pose). 0 = the default
-                                  SOOC3D_MAPPER_SAME_POSE_FRAC; < 0 = off              */
+                                  register (sooc_mapper_same_pose). 0 = the default
+                                  SOOC_MAPPER_SAME_POSE_FRAC; < 0 = off              */
     int invalid_depth;         /* pixels without valid depth: 0 = the model's setting
                                   (config.invalid_depth), 1 + SOOC_INVALID_DEPTH_* overrides
                                   it (2 = sensor holes unknown, masked out of the
@@ -71,11 +79,11 @@ typedef struct sooc3d_mapper_params {
                                   (sooc_cogmap_merge_neighbours), hold entries that left
                                   the view, average settled entries, and retire entries
                                   the depth keeps showing as free or never shows
-                                  (sooc3d_mapper_free_space). 0 = off (the default)      */
+                                  (sooc_mapper_free_space). 0 = off (the default)      */
     /* The creation gate, part of the revisit rules (merge_neighbours; docs/cogmap.md
-     * "Revisits", rule 5, sooc3d_mapper_gate): a NEW slot creates an entry only if it
+     * "Revisits", rule 5, sooc_mapper_gate): a NEW slot creates an entry only if it
      * explains enough rays on its own and is not the part of a registered retrieved
-     * entry. 0 = the default (SOOC3D_GATE_*), < 0 = that test off.                    */
+     * entry. 0 = the default (SOOC_GATE_*), < 0 = that test off.                    */
     double gate_min_rays;      /* fraction of the keyframe's rays a new slot must own
                                   (largest density) with no registered retrieved slot's
                                   density reaching gate_ratio x its own               */
@@ -90,31 +98,30 @@ typedef struct sooc3d_mapper_params {
      * cluster map, its clusters are the entries (matched to the entries they
      * continue by floor position; entries in view that no cluster continues are
      * removed). model_path, the model and refinement settings are not used.   */
-    int kind;                  /* SOOC3D_MAPPER_LEARNT (0) or SOOC3D_MAPPER_GEOMETRIC      */
-    sooc_cluster_params cluster;   /* geometric: the clustering (defaults: sooc3d_mapper_params_default) */
+    int kind;                  /* SOOC_MAPPER_LEARNT (0) or SOOC_MAPPER_GEOMETRIC      */
+    sooc_cluster_params cluster;   /* geometric: the clustering (defaults: sooc_mapper_params_default) */
     int input_width, input_height; /* geometric: the frame size it maps at (160 x 120)      */
-} sooc3d_mapper_params;
+} sooc_mapper_params;
 
-enum { SOOC3D_MAPPER_LEARNT = 0, SOOC3D_MAPPER_GEOMETRIC = 1 };
-int sooc3d_mapper_kind(const sooc3d_mapper *mp);   /* SOOC3D_MAPPER_* */
+enum { SOOC_MAPPER_LEARNT = 0, SOOC_MAPPER_GEOMETRIC = 1 };
 /* A geometric entry's appearance latent is its mean colour (RGB, 0..1). */
-#define SOOC3D_GEOMETRIC_LATENT_DIM 3
+#define SOOC_GEOMETRIC_LATENT_DIM 3
 
 /* Creation-gate defaults (docs/cogmap.md "Revisits", rule 5; measured on the
  * looped replay and the 10-scene eval, see there) */
-#define SOOC3D_GATE_MIN_RAYS 0.003
-#define SOOC3D_GATE_RATIO 0.5
-#define SOOC3D_GATE_PART 0.5
+#define SOOC_GATE_MIN_RAYS 0.003
+#define SOOC_GATE_RATIO 0.5
+#define SOOC_GATE_PART 0.5
 
-enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
+enum { SOOC_LATENTS_MEAN = 0, SOOC_LATENTS_SAMPLE = 1 };
 
 /* docs/model.md "merging split objects": 0.35 m measured best of 0.25/0.35/0.5 */
-#define SOOC3D_MAPPER_MERGE_SUGGESTED 0.35
+#define SOOC_MAPPER_MERGE_SUGGESTED 0.35
 /* docs/cogmap.md "Same-pose slots": the default same-pose radius, a fraction of
  * the box's floor side (shipped model: 2 R_h = 1.2 m -> 1.2 mm). Measured:
  * same-keyframe pairs of registered entries are either < 1e-5 m apart
  * (converged to one pose) or >= 2 mm, and >= 4.5 mm at 10 and 16 slots */
-#define SOOC3D_MAPPER_SAME_POSE_FRAC 1e-3
+#define SOOC_MAPPER_SAME_POSE_FRAC 1e-3
 
 /* The same-pose rule (docs/cogmap.md "Same-pose slots"), applied by every
  * update between refinement and registration: present slots (presence logit
@@ -130,7 +137,7 @@ enum { SOOC3D_LATENTS_MEAN = 0, SOOC3D_LATENTS_SAMPLE = 1 };
  * for any slot that is off. lam: k rows of stride SOOC_LAM_SIZE(d) in one
  * floor frame; src_ids may be NULL. Returns the number of slots turned off.
  * radius <= 0 or k > SOOC_MAPPER_CHANGED_MAX does nothing. */
-int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius);
+int sooc_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius);
 
 /* Free-space evidence of the revisit rules (docs/cogmap.md "Revisits"): does
  * the frame's depth show the floor place (X, Z) of a map entry as free? Nine
@@ -145,30 +152,30 @@ int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double 
  * free and none hidden, else -1 (no evidence). f: depth in planar metres at
  * cam's intrinsics (0 = invalid; f->valid may be NULL); cam->T_wc world with
  * +y up and the floor at y = 0. */
-int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z);
+int sooc_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z);
 
 /* The creation gate (revisit rule 5, docs/cogmap.md "Revisits"), on one
  * keyframe's final decode. Components are c = 0 (layout) and 1..n_slots (the
- * object slots). For each slot with role SOOC3D_GATE_NEW:
+ * object slots). For each slot with role SOOC_GATE_NEW:
  * - owned: rays with a surface point where the slot's density is the largest
  *   of all components (ties: the lower component);
- * - alone: owned rays where no SOOC3D_GATE_KNOWN slot's density reaches
+ * - alone: owned rays where no SOOC_GATE_KNOWN slot's density reaches
  *   ratio x the slot's own;
  * - part: the KNOWN slot or map-entry box whose floor box (|x'|, |z'| <=
  *   box_rh in its frame, the decoder's box test) holds the most owned surface
  *   points (slot k < n_slots, or box b as n_slots + b), and that share of the
  *   owned points (part = -1, share 0 if none), and the mean of min(1, part's
  *   density / the slot's) over those points (part_ratio; 0 for a box).
- * create = 0 (reason SOOC3D_GATE_FEW_RAYS) if alone < min_rays x n_rays
- * (min_rays < 0: test off), else 0 (SOOC3D_GATE_PART_OF) if the share >=
- * part_frac (part_frac < 0: off), else 1 (SOOC3D_GATE_CREATED). Slots of
- * other roles get create = 1, reason SOOC3D_GATE_NOT_NEW and no counts.
+ * create = 0 (reason SOOC_GATE_FEW_RAYS) if alone < min_rays x n_rays
+ * (min_rays < 0: test off), else 0 (SOOC_GATE_PART_OF) if the share >=
+ * part_frac (part_frac < 0: off), else 1 (SOOC_GATE_CREATED). Slots of
+ * other roles get create = 1, reason SOOC_GATE_NOT_NEW and no counts.
  * Pure: no allocation, the inputs are read only. Returns the number of NEW
  * slots refused. */
-enum { SOOC3D_GATE_OFF = 0, SOOC3D_GATE_NEW = 1, SOOC3D_GATE_KNOWN = 2 };
-#define SOOC3D_GATE_MAX_BOXES 64
-enum { SOOC3D_GATE_NOT_NEW = 0, SOOC3D_GATE_CREATED = 1, SOOC3D_GATE_FEW_RAYS = 2, SOOC3D_GATE_PART_OF = 3 };
-typedef struct sooc3d_gate_input {
+enum { SOOC_GATE_OFF = 0, SOOC_GATE_NEW = 1, SOOC_GATE_KNOWN = 2 };
+#define SOOC_GATE_MAX_BOXES 64
+enum { SOOC_GATE_NOT_NEW = 0, SOOC_GATE_CREATED = 1, SOOC_GATE_FEW_RAYS = 2, SOOC_GATE_PART_OF = 3 };
+typedef struct sooc_gate_input {
     int n_rays, n_slots;       /* n_slots <= SOOC_MAPPER_CHANGED_MAX                 */
     const float *dens;         /* dens[r * dens_stride + c]: density of component c at
                                   ray r's surface point                               */
@@ -181,37 +188,37 @@ typedef struct sooc3d_gate_input {
                                   a point p is at x' = cos(yaw)(p.x - x) - sin(yaw)(p.z - z),
                                   z' = sin(yaw)(p.x - x) + cos(yaw)(p.z - z)          */
     int pose_stride;
-    const int *role;           /* n_slots SOOC3D_GATE_OFF / _NEW / _KNOWN             */
+    const int *role;           /* n_slots SOOC_GATE_OFF / _NEW / _KNOWN             */
     double box_rh;             /* half side of a slot's floor box (units of pts)      */
     int n_boxes;               /* floor boxes of map entries that are not among the
-                                  slots (<= SOOC3D_GATE_MAX_BOXES; may be 0): candidates
+                                  slots (<= SOOC_GATE_MAX_BOXES; may be 0): candidates
                                   of the part test like KNOWN slots, without density */
     const float *boxes;        /* boxes[b * box_stride + 0..2]: (x, z, yaw) as pose   */
     int box_stride;
-} sooc3d_gate_input;
-typedef struct sooc3d_gate_verdict {
+} sooc_gate_input;
+typedef struct sooc_gate_verdict {
     int owned, alone, part;
     float part_share;          /* share of the owned points inside part's box          */
     float part_ratio;          /* mean of min(1, part's density / the slot's) there   */
     int create, reason;
-} sooc3d_gate_verdict;
-int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double ratio, double part_frac,
-                       sooc3d_gate_verdict *out);
+} sooc_gate_verdict;
+int sooc_mapper_gate(const sooc_gate_input *in, double min_rays, double ratio, double part_frac,
+                       sooc_gate_verdict *out);
 
-void sooc3d_mapper_params_default(sooc3d_mapper_params *p);
+void sooc_mapper_params_default(sooc_mapper_params *p);
 
 /* Load the model and create an empty map. */
-sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params *p);
-void sooc3d_mapper_destroy(sooc3d_mapper *m);   /* NULL-safe */
+sooc_status sooc_mapper_create(sooc_mapper **out, const sooc_mapper_params *p);
+void sooc_mapper_destroy(sooc_mapper *m);   /* NULL-safe */
 
 /* Model input resolution (frames passed to update must have this size). */
-void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *width, int *height);
+void sooc_mapper_input_size(const sooc_mapper *m, int *width, int *height);
 /* The camera heights above the support plane the model was trained at, metres
  * (its config cam_h_min / cam_h_max times unit_m): the node's support-plane
  * warning range unless the launch file sets one. */
-void sooc3d_mapper_cam_heights(const sooc3d_mapper *m, double *lo_m, double *hi_m);
+void sooc_mapper_cam_heights(const sooc_mapper *m, double *lo_m, double *hi_m);
 
-typedef struct sooc3d_update_stats {
+typedef struct sooc_update_stats {
     int n_retrieved;           /* in-view entries retrieved from the map  */
     int n_registered;          /* slots written back (present)            */
     int n_new;                 /* of which new entries                    */
@@ -219,32 +226,32 @@ typedef struct sooc3d_update_stats {
     int n_merged;              /* registered entries removed as duplicates */
     int n_same_pose;           /* present slots not registered: another slot of
                                   this keyframe with a higher presence landed at
-                                  the same pose (sooc3d_mapper_same_pose)     */
+                                  the same pose (sooc_mapper_same_pose)     */
     int n_retired;             /* entries retired on free-space evidence (the
-                                  revisit rules, sooc3d_mapper_free_space)    */
+                                  revisit rules, sooc_mapper_free_space)    */
     int n_gated;               /* new slots the creation gate refused (revisit
-                                  rule 5, sooc3d_mapper_gate)                 */
+                                  rule 5, sooc_mapper_gate)                 */
     int n_proposed;            /* prior slots placed on the keyframe's support-plane
-                                  clusters (sooc3d_mapper_set_proposals)       */
+                                  clusters (sooc_mapper_set_proposals)       */
     double elapsed_ms;
-} sooc3d_update_stats;
+} sooc_update_stats;
 
 /* One keyframe: query in-view entries, pad to K with the slot priors, refine
  * L times, register the present slots, then remove the duplicates among them
  * within the merge radius (sooc_cogmap_merge; removals are reported
- * by sooc3d_mapper_changed like presence removals). `f` must have a pose and the model's
+ * by sooc_mapper_changed like presence removals). `f` must have a pose and the model's
  * resolution; depth is planar metres with 0 = invalid. */
-sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st);
+sooc_status sooc_mapper_update(sooc_mapper *m, const sooc_frame *f, sooc_update_stats *st);
 
 /* Copy out up to `cap` entries (all entries if out == NULL: returns the count
  * in *n). Entries are ordered by id. */
-sooc_status sooc3d_mapper_entries(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n);
+sooc_status sooc_mapper_entries(const sooc_mapper *m, sooc_map_entry *out, size_t cap, size_t *n);
 
 /* Replace the map's contents (resume from a stored map). Ids are kept and new
  * ids continue after the largest one. */
-sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e, size_t n);
+sooc_status sooc_mapper_load_entries(sooc_mapper *m, const sooc_map_entry *e, size_t n);
 
-/* What the last sooc3d_mapper_update changed, so a publisher's cost does not
+/* What the last sooc_mapper_update changed, so a publisher's cost does not
  * depend on the map size: the entries it registered (new or overwritten),
  * ordered by id, and the ids it removed. At most K of each (the slots the
  * mapper runs with), and K <= SOOC_MODEL_K_MAX whatever the slot setting, so
@@ -253,48 +260,48 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e
  * still give the counts). Empty after create, after load_entries and after an
  * update that failed early. */
 #define SOOC_MAPPER_CHANGED_MAX 32   /* = SOOC_MODEL_K_MAX (model.h includes this header; mapper.c asserts it) */
-sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
+sooc_status sooc_mapper_changed(const sooc_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
                                   uint64_t *removed_ids, size_t cap_r, size_t *n_removed);
 
 /* Layout latents (one per floor block, d_l floats of mean and log-variance).
  * layout_dim is 0 for a mapper without layout latents. last_layout: the block
  * the last update wrote (SOOC_ENOTFOUND if none). load_layout: restore a
  * stored block (resume). */
-int sooc3d_mapper_layout_dim(const sooc3d_mapper *m);
+int sooc_mapper_layout_dim(const sooc_mapper *m);
 /* z^what dimension of the entries (sooc_map_entry.latent_dim). */
-int sooc3d_mapper_latent_dim(const sooc3d_mapper *m);
-sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar);
-sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
+int sooc_mapper_latent_dim(const sooc_mapper *m);
+sooc_status sooc_mapper_last_layout(const sooc_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar);
+sooc_status sooc_mapper_load_layout(sooc_mapper *m, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar);
 
 /* Object geometry (include/sooc3d/objgeom.h): every update keeps the
  * registration statistics of the entries it wrote and recomputes at most
  * `per_update` stale tight boxes (default SOOC_OBJGEOM_BUDGET; 0 = none
  * during updates, < 0 = all); an entry whose box it recomputed without
- * registering it is added to the update's changed set (sooc3d_mapper_changed)
+ * registering it is added to the update's changed set (sooc_mapper_changed)
  * so that publishers republish it, room permitting (K_MAX). refresh_geometry computes up to max_objects
  * stale boxes now (< 0 = all; e.g. before reading a final map); *n_done
  * (may be NULL) = boxes computed. entries() / changed() fill extent and geom. */
-void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *m, int per_update);
+void sooc_mapper_set_geometry_budget(sooc_mapper *m, int per_update);
 /* Mark every cached tight box stale (the decoders changed, e.g. finetuning),
  * and take up the entries someone else put into the mapper's map (births
  * before finetuning, finetune.h): their statistics start from their current
  * pose, their boxes are computed by the next refresh. */
-void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *m);
-sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *m, int max_objects, int *n_done);
+void sooc_mapper_geometry_invalidate(sooc_mapper *m);
+sooc_status sooc_mapper_refresh_geometry(sooc_mapper *m, int max_objects, int *n_done);
 
 /* Set the merge radius of a live mapper (same meaning as the parameter). */
-/* The revisit rule of sooc3d_mapper_params.merge_neighbours (0 / 1). */
-void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on);
+/* The revisit rule of sooc_mapper_params.merge_neighbours (0 / 1). */
+void sooc_mapper_set_merge_neighbours(sooc_mapper *mp, int on);
 /* The creation gate's parameters of a live mapper (same meaning as the
  * gate_* parameters: 0 = default, < 0 = off). */
-void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part);
+void sooc_mapper_set_gate(sooc_mapper *mp, double min_rays, double ratio, double part);
 
 /* Geometric proposals (docs/geometric.md "Proposals"): each keyframe's
  * support-plane clusters (cluster.h) place the slots the view pads with
  * priors, before the refinement. A cluster that a retrieved slot covers (its
  * centre within the cluster's half-diagonal + cover_m) proposes nothing. */
-typedef struct sooc3d_proposal_params {
+typedef struct sooc_proposal_params {
     int on;                      /* 0 = off (the default)                                  */
     sooc_cluster_params cluster; /* the clustering of one keyframe                         */
     double cover_m;              /* (0.02)                                                 */
@@ -303,17 +310,17 @@ typedef struct sooc3d_proposal_params {
     double pres_logit;           /* presence logit of a placed slot; NaN: the prior's (NaN) */
     double rest_logit;           /* presence logit of the prior slots no cluster placed; NaN:
                                     the prior's (NaN)                                        */
-} sooc3d_proposal_params;
-void sooc3d_proposal_params_default(sooc3d_proposal_params *p);
-sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal_params *p);
-void sooc3d_mapper_set_merge_radius(sooc3d_mapper *m, double radius);
-/* Set the latents mode of a live mapper (SOOC3D_LATENTS_*). */
-void sooc3d_mapper_set_latents(sooc3d_mapper *m, int latents);
+} sooc_proposal_params;
+void sooc_proposal_params_default(sooc_proposal_params *p);
+sooc_status sooc_mapper_set_proposals(sooc_mapper *mp, const sooc_proposal_params *p);
+void sooc_mapper_set_merge_radius(sooc_mapper *m, double radius);
+/* Set the latents mode of a live mapper (SOOC_LATENTS_*). */
+void sooc_mapper_set_latents(sooc_mapper *m, int latents);
 
 /* Id counter: new entries get ids >= next_id. reserve_ids raises it (resume:
  * ids of entries removed before the restart are not handed out again). */
-void sooc3d_mapper_reserve_ids(sooc3d_mapper *m, uint64_t next_id);
-uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *m);
+void sooc_mapper_reserve_ids(sooc_mapper *m, uint64_t next_id);
+uint64_t sooc_mapper_next_id(const sooc_mapper *m);
 
 #ifdef __cplusplus
 }

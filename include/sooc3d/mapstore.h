@@ -52,6 +52,14 @@
  *
  * Thread-safety: one sooc_mapstore per thread. Other processes may read the
  * same file concurrently (WAL).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_MAPSTORE_H
 #define SOOC3D_MAPSTORE_H
@@ -263,9 +271,6 @@ sooc_status sooc_mapstore_set_busy_timeout(sooc_mapstore *s, int ms);
 /* Copy the WAL into the database file (truncate = 1: and cut the WAL file to
  * zero bytes, which frees its space on a full disk). Not inside a transaction. */
 sooc_status sooc_mapstore_checkpoint(sooc_mapstore *s, int truncate);
-/* SQLite's PRAGMA integrity_check: *ok = 1 when it answers "ok"; detail gets
- * its first line (may be NULL). */
-sooc_status sooc_mapstore_integrity_check(sooc_mapstore *s, int *ok, char *detail, size_t cap);
 
 #ifdef __cplusplus
 }

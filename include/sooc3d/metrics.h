@@ -10,6 +10,14 @@
  * background, 1.. = objects, SOOC_RENDER_LABEL_NONE = -1 = "none"); GT maps
  * are uint16 instance ids with 0 = floor/background (one instance, counted in
  * mIoU like MulMON --use_bg).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_METRICS_H
 #define SOOC3D_METRICS_H
@@ -123,7 +131,7 @@ typedef struct sooc_mesh_sums {
     double fscore;                 /* sum of F-score at 5 cm                   */
 } sooc_mesh_sums;
 
-/* Object geometry (include/sooc3d/eval_geom.h), per scene of the final map:
+/* Object geometry (src/eval/eval_geom.h), per scene of the final map:
  * extent errors of the matched objects in a histogram of SOOC_METRIC_EXT_BIN_CM
  * bins (the last one holds everything above; the median is read from it to
  * within a bin), and the per-axis position errors within one published sigma. */

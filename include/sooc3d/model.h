@@ -8,7 +8,7 @@
  *     _grads / _tensors (a flat float slab; Adam and clipping are the trainer's),
  *     sooc_model_zero_grad, sooc_model_ws_create once, sooc_model_train_step
  *     once per scene, sooc_model_save.
- *   - the online mapper (include/sooc3d/mapper.h, implemented in src/model):
+ *   - the online mapper (include/sooc3d/mapper.h, implemented in src/mapper):
  *     loads a checkpoint and runs the same per-view update without gradients.
  *   - eval/render: sooc_model_field_* (a render.h field built from a map).
  *
@@ -21,6 +21,14 @@
  * Loss sign: every loss below is a quantity to MINIMISE (negative ELBO).
  * Gradients are ACCUMULATED (+=) into the gradient slab; call
  * sooc_model_zero_grad before a step (or between accumulation steps).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_MODEL_H
 #define SOOC3D_MODEL_H
@@ -104,7 +112,7 @@ typedef struct sooc_model_config {
                                 of its training views; the frame path and the node warn
                                 outside it                                  (1.2, 2.0) */
 } sooc_model_config;
-/* The camera heights of the unity and blender generators (src/data/gen.c), model
+/* The camera heights of the unity and blender generators (src/gen/gen.c), model
  * units: the default of cam_h_min / cam_h_max and of checkpoints older than
  * version 6. */
 #define SOOC_MODEL_CAM_H_MIN 1.2f
@@ -191,7 +199,6 @@ sooc_status sooc_model_copy_slots(const sooc_model *m, int K, sooc_model **out);
 typedef struct sooc_model_ws sooc_model_ws;
 sooc_status sooc_model_ws_create(sooc_model_ws **out, sooc_model *m);
 void sooc_model_ws_destroy(sooc_model_ws *w);   /* NULL-safe */
-sooc_model *sooc_model_ws_model(const sooc_model_ws *w);
 
 /* ---- parameters: one flat float slab, with named tensors ---- */
 size_t sooc_model_param_count(const sooc_model *m);
@@ -298,10 +305,10 @@ uint64_t sooc_model_field_comp_id(const sooc_model_field *f, int c);
 
 /* The online mapper's model and cognitive map (for rendering / evaluation
  * from a mapper; owned by the mapper). */
-sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp);
-const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp);
+sooc_model *sooc_mapper_model(sooc_mapper *mp);
+const sooc_cogmap *sooc_mapper_cogmap(const sooc_mapper *mp);
 /* Create a mapper around an already loaded model (takes ownership of m). */
-sooc_status sooc3d_mapper_create_with_model(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed,
+sooc_status sooc_mapper_create_with_model(sooc_mapper **out, sooc_model *m, int iterations, uint64_t seed,
                                             int threads);
 
 /* The MulMON-style global-frame baseline (config.global_frame = 1): its

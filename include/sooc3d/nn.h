@@ -22,9 +22,12 @@
  *     returns NULL and sooc_nn_tape_status() reports the first error.
  *     sooc_nn_tape_grad() takes the gradient of an intermediate loss over a
  *     tape segment into separate buffers without disturbing the final
- *     backward (the refinement's auxiliary inputs).
+ *     backward. The model does not run on the tape (it runs on the kernel
+ *     pairs of layers 1 and 3); the tape is the reference the engine's
+ *     gradient and PyTorch tests build composite networks with
+ *     (tests/nn/test_nn_grad.c, test_nn_ref.c, test_nn_state.c).
  *
- *  3. The kernels the model runs (sooc3d/nn_kern.h): the GEMM, the task
+ *  3. The kernels the model runs (nn/nn_kern.h): the GEMM, the task
  *     pool and the decoder MLP layers as forward / backward pairs.
  *
  * Memory: parameters, gradients and Adam moments live in one sooc_nn_params
@@ -175,7 +178,7 @@ void sooc_nn_posenc_forward(float *y, const float *x, int64_t N, int D, int F);
 void sooc_nn_posenc_backward(float *dx, const float *dy, const float *y, int64_t N, int D, int F);
 
 /* The refinement network's conv 3x3 stride 2 and LSTM cell, in the model's
- * layouts, are the pairs of sooc3d/nn_refine.h. */
+ * layouts, are the pairs of nn/nn_refine.h. */
 
 /* ================================================================== arena */
 
@@ -300,8 +303,6 @@ void sooc_nn_tape_reset(sooc_nn_tape *t);
  * the time of failure, also kept in the tape: */
 sooc_status sooc_nn_tape_status(const sooc_nn_tape *t);
 const char *sooc_nn_tape_errmsg(const sooc_nn_tape *t);
-sooc_nn_arena *sooc_nn_tape_arena(sooc_nn_tape *t);
-int sooc_nn_tape_n_nodes(const sooc_nn_tape *t);
 
 /* Leaf tensors. `data` NULL allocates (uninitialised / zeroed) in the arena,
  * otherwise wraps caller memory (not copied; must outlive the tape use). */

@@ -2,7 +2,7 @@
  * sooc3d node: the live mapping pipeline (docs/node.md).
  *
  *   driver thread ─► frame ring (bounded, drop-oldest) ─► pose association
- *     ─► keyframe policy ─► preprocess ─► sooc3d_mapper_update ─► publisher
+ *     ─► keyframe policy ─► preprocess ─► sooc_mapper_update ─► publisher
  *        (shm table batch + SQLite transaction per keyframe) ─► stats
  *
  * The launch file (YAML) configures all of it; see docs/node.md. The library
@@ -23,6 +23,14 @@
  * mutex only to update the stats (never while holding another lock). The
  * table's writer lock and the SQLite connection are the mapping thread's.
  * scripts/test.sh runs the node and table tests under ThreadSanitizer.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_NODE_H
 #define SOOC3D_NODE_H
@@ -31,6 +39,7 @@
 #include "sooc3d/frame.h"
 #include "sooc3d/geom.h"
 #include "sooc3d/mapper.h"
+#include "sooc3d/support.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -61,11 +70,6 @@ typedef enum sooc_node_floor_mode {
     SOOC_NODE_FLOOR_GIVEN = 0,     /* `floor: <height>` along the up axis */
     SOOC_NODE_FLOOR_ESTIMATE = 1   /* `floor: estimate`: RANSAC plane fit on depth */
 } sooc_node_floor_mode;
-
-typedef enum sooc_node_depth_resample {
-    SOOC_NODE_DEPTH_MIN = 0,       /* min of the valid samples in the footprint (default) */
-    SOOC_NODE_DEPTH_NEAREST = 1    /* the sample nearest to the footprint centre */
-} sooc_node_depth_resample;
 
 typedef struct sooc_node_config {
     char path[SOOC_NODE_PATH_MAX];           /* the launch file itself */
@@ -100,8 +104,8 @@ typedef struct sooc_node_config {
     char calib_path[SOOC_NODE_PATH_MAX];
 
     /* model: */
-    int model_kind;                          /* model.kind: SOOC3D_MAPPER_LEARNT (learnt, default) or
-                                                SOOC3D_MAPPER_GEOMETRIC (geometric: the support plane
+    int model_kind;                          /* model.kind: SOOC_MAPPER_LEARNT (learnt, default) or
+                                                SOOC_MAPPER_GEOMETRIC (geometric: the support plane
                                                 and Euclidean clustering, docs/geometric.md) */
     double geo_voxel_m, geo_join_m;          /* geometric: model.voxel_m (0.004), model.join_m (0.02) */
     double geo_min_height_m, geo_max_extent_m; /* geometric: model.min_height_m (0.012), max_extent_m (0.5) */
@@ -112,16 +116,16 @@ typedef struct sooc_node_config {
     uint64_t seed;
     sooc_node_depth_resample depth_resample;
     double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
-    double merge_m;                          /* duplicate merge radius (sooc3d_mapper_params.
+    double merge_m;                          /* duplicate merge radius (sooc_mapper_params.
                                                 merge_radius): default 0.35 m (revisits refine
                                                 the mapped entry, docs/cogmap.md); 0 = never */
-    int latents;                             /* SOOC3D_LATENTS_MEAN (default) / _SAMPLE */
-    int slots;                               /* object slots per keyframe (sooc3d_mapper_params.
+    int latents;                             /* SOOC_LATENTS_MEAN (default) / _SAMPLE */
+    int slots;                               /* object slots per keyframe (sooc_mapper_params.
                                                 slots): 0 = the model's K (default) */
     int invalid_depth;                       /* model.invalid_depth: 0 = the model's (default),
-                                                1 = free, 2 = unknown (sooc3d_mapper_params) */
+                                                1 = free, 2 = unknown (sooc_mapper_params) */
     double gate_min_rays, gate_ratio, gate_part;   /* model.gate_*: the creation gate of the
-                                                revisit rules (sooc3d_mapper_params.gate_*):
+                                                revisit rules (sooc_mapper_params.gate_*):
                                                 0 = default, < 0 = that test off */
 
     /* keyframe: */
@@ -200,122 +204,6 @@ const char *sooc_node_param_get(const sooc_node_config *c, const char *key);
  * returns the full length whatever `cap` is; `buf` may be NULL when cap is 0. */
 size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap);
 
-/* ---------------------------------------------------------- preprocessing */
-
-/* Register a depth image (planar metres, 0 = invalid) from the depth camera
- * into the colour camera: each depth pixel is back-projected with Kd, moved by
- * T_color_depth and splatted into the colour image (Kc's size) keeping the
- * nearest surface. Holes stay 0. `out` has Kc->width * Kc->height floats. */
-void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd,
-                              const double T_color_depth[16], const sooc_intrinsics *Kc, float *out);
-
-/* The centred crop of a (w, h) image with the aspect ratio of (tw, th). */
-void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch);
-
-/* Resize a crop (x0, y0, cw, ch) of an RGB8 image (w x h) to tw x th by area
- * averaging (exact fractional pixel coverage). */
-void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
-                               uint8_t *dst, int tw, int th);
-/* Resize a crop of a depth image without ever averaging across edges: each
- * target pixel takes the min of the valid samples in its footprint
- * (SOOC_NODE_DEPTH_MIN) or the sample nearest the footprint centre
- * (SOOC_NODE_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
- * invalid (0); dmax <= 0 means no upper limit. */
-void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
-                            float *dst, int tw, int th, sooc_node_depth_resample mode,
-                            double dmin, double dmax);
-/* Resize a crop of an id image (row stride w) to tw x th: the sample nearest
- * each footprint's centre (ids are never mixed). */
-void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
-                          int th);
-
-/* Full preprocessing of one frame to the model's resolution: crop to the
- * target aspect, resize RGB (area) and depth (min/nearest), set `valid`,
- * adjust the intrinsics, copy t_ns/index/pose; instance ids (when src has
- * them) by nearest sampling. `dst` is (re)allocated. */
-sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
-                                 sooc_node_depth_resample mode, double dmin, double dmax);
-
-/* The rigid transform T_world_src that rotates the pose source's frame so that
- * `up` (unit, source coordinates) becomes +y and the floor (up . p = floor_h)
- * lands on y = 0. The rotation is the smallest one taking up to +y. */
-void sooc_node_world_from_up(const double up[3], double floor_h, double T_world_src[16]);
-
-/* -------------------------------------------------------------- floor fit */
-
-typedef struct sooc_floor_fit_params {
-    double threshold_m;      /* inlier distance, default 0.02 */
-    int iterations;          /* RANSAC hypotheses, default 200 */
-    double min_inlier_frac;  /* of the points, default 0.15 */
-    uint64_t seed;
-    double max_tilt_deg;     /* with hint_up: normal within this angle of it, default 30 */
-} sooc_floor_fit_params;
-
-void sooc_floor_fit_params_default(sooc_floor_fit_params *p);
-
-/* RANSAC plane fit on n points (xyz, row-major), refined by a total least
- * squares fit on the inliers (LAPACKE SVD of the centred inlier matrix), then
- * a second inlier pass. Plane: n . p + d = 0, |n| = 1. When `hint_up` is given
- * the normal is oriented along it and planes more than max_tilt_deg away from it
- * are rejected; otherwise n points to `viewpoint` (may be NULL). */
-sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_params *p,
-                           const double *hint_up, const double *viewpoint, double plane[4],
-                           size_t *n_inliers, double *rms);
-
-/* Back-project valid depth pixels (stride `step`) into the pose source's frame
- * with T_src_c. Returns the number of points written (<= cap). */
-size_t sooc_node_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
-                              size_t cap);
-
-/* ------------------------------------------------------------- frame ring */
-
-/* Bounded single-producer/single-consumer frame ring. push never blocks: when
- * full the oldest frame is dropped (counted). Frames are swapped in and out,
- * not copied: push takes over *f's buffers and gives back a spare frame's. */
-typedef struct sooc_frame_ring sooc_frame_ring;
-
-sooc_status sooc_frame_ring_create(sooc_frame_ring **out, int capacity);
-void sooc_frame_ring_destroy(sooc_frame_ring *r);
-/* Push a frame (stamped with t_mono_ns, the monotonic arrival time). */
-void sooc_frame_ring_push(sooc_frame_ring *r, sooc_frame *f, int64_t t_mono_ns);
-/* Pop the oldest frame into *f (swapping buffers). Waits up to timeout_ms
- * (-1 = forever). Returns SOOC_OK, SOOC_ETIMEOUT, or SOOC_EEOF once the ring is
- * closed and empty. */
-sooc_status sooc_frame_ring_pop(sooc_frame_ring *r, sooc_frame *f, int64_t *t_mono_ns, int timeout_ms);
-/* Blocking mode (replay only): push waits for space instead of dropping. */
-void sooc_frame_ring_set_blocking(sooc_frame_ring *r, int on);
-void sooc_frame_ring_close(sooc_frame_ring *r);   /* wakes the consumer; pop drains then EEOF */
-void sooc_frame_ring_counts(sooc_frame_ring *r, uint64_t *pushed, uint64_t *dropped, int *fill);
-
-/* --------------------------------------------------------- keyframe policy */
-
-typedef struct sooc_kf_policy {
-    double translation_m, rotation_deg, time_s;   /* 0 disables a rule */
-    int have_last;
-    double T_last[16];
-    int64_t t_last_ns;
-} sooc_kf_policy;
-
-void sooc_kf_policy_init(sooc_kf_policy *p, double translation_m, double rotation_deg, double time_s);
-/* 1 if (T_wc, t_ns) should be a keyframe: the first frame, or translation or
- * rotation angle since the last keyframe at/over a threshold, or time since it
- * at/over time_s. Does not change state. */
-int sooc_kf_policy_check(const sooc_kf_policy *p, const double T_wc[16], int64_t t_ns);
-void sooc_kf_policy_accept(sooc_kf_policy *p, const double T_wc[16], int64_t t_ns);
-/* Rotation angle (deg) between two poses. */
-double sooc_pose_angle_deg(const double A[16], const double B[16]);
-
-/* ------------------------------------------------------- latency recorder */
-
-#define SOOC_LAT_WINDOW 4096
-typedef struct sooc_latency {
-    double v[SOOC_LAT_WINDOW];       /* last SOOC_LAT_WINDOW samples (ms) */
-    uint64_t n;                      /* total samples recorded */
-} sooc_latency;
-void sooc_latency_add(sooc_latency *l, double ms);
-/* Percentile q in [0, 1] over the window (nearest rank); 0 if empty. */
-double sooc_latency_pct(const sooc_latency *l, double q);
-
 /* ----------------------------------------------------------------- node */
 
 /* Frame source (a sensor driver or a test feeder). read fills *f with a frame
@@ -358,7 +246,7 @@ typedef struct sooc_node_stats {
     uint64_t n_objects;          /* entries in the map after the last keyframe */
     uint64_t resumed;            /* entries loaded from the database at start */
     uint64_t resumed_blocks;     /* layout blocks loaded from the database at start */
-    double update_p50_ms, update_p99_ms;     /* sooc3d_mapper_update */
+    double update_p50_ms, update_p99_ms;     /* sooc_mapper_update */
     double c2t_p50_ms, c2t_p99_ms;           /* capture (ring push) -> table end_batch */
     double publish_p50_ms, publish_p99_ms;   /* publisher: table batch + SQLite transaction */
     double elapsed_s;
@@ -412,7 +300,7 @@ typedef struct sooc_node_options {
     const sooc_node_pose_source *pose;
     /* A ready mapper (tests/bench). When NULL the node creates one from the
      * config's model block and destroys it at the end. Not owned if given. */
-    sooc3d_mapper *mapper;
+    sooc_mapper *mapper;
 } sooc_node_options;
 
 typedef struct sooc_node sooc_node;
@@ -426,7 +314,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
 sooc_status sooc_node_run(sooc_node *n);
 /* Async-safe enough for a signal thread: sets a flag and wakes the loops. */
 void sooc_node_request_stop(sooc_node *n);
-int sooc_node_stop_requested(const sooc_node *n);
 void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out);
 /* Closes the table (unlinking it only if configured) and the database. */
 void sooc_node_destroy(sooc_node *n);

@@ -48,6 +48,14 @@
  * and for any thread count, provided the field's eval is deterministic per
  * batch. Scratch memory is allocated once per render call (per worker); there
  * is no allocation per ray.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_RENDER_H
 #define SOOC3D_RENDER_H

@@ -34,6 +34,14 @@
  * Composite shapes are unions of parts (sooc_scene_object_parts).
  *
  * Instance ids: object k has id k+1 (1..n_objects); 0 = floor/walls/sky.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_SCENE_H
 #define SOOC3D_SCENE_H
@@ -161,7 +169,6 @@ typedef struct sooc_scene {
 
 void sooc_scene_init(sooc_scene *sc);          /* zero + sensible defaults */
 void sooc_scene_free(sooc_scene *sc);          /* NULL-safe; leaves it initialised */
-sooc_status sooc_scene_copy(sooc_scene *dst, const sooc_scene *src);
 
 /* Save scene.yaml atomically (`%YAML 1.2` + `---`). */
 sooc_status sooc_scene_save(const char *path, const sooc_scene *sc);
@@ -178,6 +185,9 @@ double sooc_scene_object_distance(const sooc_scene_object *o, const double p_wor
 double sooc_scene_object_footprint(const sooc_scene_object *o);
 /* World centre of the object's bounding box. */
 void sooc_scene_object_center(const sooc_scene_object *o, double c[3]);
+/* The cup's half-torus handle: centre c (object frame), ring radius R and
+ * tube radius r for cup params q = rt rb h t. */
+void sooc_scene_cup_handle(const double *q, double c[3], double *R, double *r);
 
 /* Write one binary little-endian PLY per object (world coordinates, vertex
  * colours) to <dir>/object_%04d.ply (id), creating dir. */

@@ -64,6 +64,14 @@
  *
  * Thread safety: a sooc_seq may be used by one thread at a time; distinct
  * sequences are independent.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_SEQ_H
 #define SOOC3D_SEQ_H
@@ -184,8 +192,6 @@ int sooc_seq_labels_predicted(const sooc_seq *s);
  * the class, e.g. "025_mug"), or NULL when the layout names none. */
 const char *sooc_seq_label_name(const sooc_seq *s, int id);
 const sooc_calib *sooc_seq_calib(const sooc_seq *s);
-/* Number of rgb entries dropped because no depth matched (TUM). */
-int64_t sooc_seq_dropped(const sooc_seq *s);
 /* Gravity direction in the world frame (the frame of T_wc), from
  * <dir>/gravity-direction.txt (7-Scenes: three numbers, one per line or on
  * one line). Returns 1 and g normalised to unit length when the sequence has

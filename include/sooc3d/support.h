@@ -17,11 +17,20 @@
  * and map export.
  *
  * This header is a contract between the node, the CLI commands and eval.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
 #ifndef SOOC3D_SUPPORT_H
 #define SOOC3D_SUPPORT_H
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
+#include "sooc3d/geom.h"
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -102,6 +111,81 @@ sooc_status sooc_support_estimate_points(const double *pts, size_t n_pts, const 
  * in the pose source's frame) into g, normalised. SOOC_ENOTFOUND when the file
  * is absent; SOOC_EFORMAT / SOOC_EINVAL naming the file when malformed. */
 sooc_status sooc_support_read_gravity(const char *path, double g[3]);
+
+/* The preprocessing and floor fit below are the frame path's
+ * (src/frames): the node and the offline commands share them. */
+
+typedef enum sooc_node_depth_resample {
+    SOOC_NODE_DEPTH_MIN = 0,       /* min of the valid samples in the footprint (default) */
+    SOOC_NODE_DEPTH_NEAREST = 1    /* the sample nearest to the footprint centre */
+} sooc_node_depth_resample;
+
+/* ---------------------------------------------------------- preprocessing */
+
+/* Register a depth image (planar metres, 0 = invalid) from the depth camera
+ * into the colour camera: each depth pixel is back-projected with Kd, moved by
+ * T_color_depth and splatted into the colour image (Kc's size) keeping the
+ * nearest surface. Holes stay 0. `out` has Kc->width * Kc->height floats. */
+void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd,
+                              const double T_color_depth[16], const sooc_intrinsics *Kc, float *out);
+
+/* The centred crop of a (w, h) image with the aspect ratio of (tw, th). */
+void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch);
+
+/* Resize a crop (x0, y0, cw, ch) of an RGB8 image (w x h) to tw x th by area
+ * averaging (exact fractional pixel coverage). */
+void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
+                               uint8_t *dst, int tw, int th);
+/* Resize a crop of a depth image without ever averaging across edges: each
+ * target pixel takes the min of the valid samples in its footprint
+ * (SOOC_NODE_DEPTH_MIN) or the sample nearest the footprint centre
+ * (SOOC_NODE_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
+ * invalid (0); dmax <= 0 means no upper limit. */
+void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
+                            float *dst, int tw, int th, sooc_node_depth_resample mode,
+                            double dmin, double dmax);
+/* Resize a crop of an id image (row stride w) to tw x th: the sample nearest
+ * each footprint's centre (ids are never mixed). */
+void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
+                          int th);
+
+/* Full preprocessing of one frame to the model's resolution: crop to the
+ * target aspect, resize RGB (area) and depth (min/nearest), set `valid`,
+ * adjust the intrinsics, copy t_ns/index/pose; instance ids (when src has
+ * them) by nearest sampling. `dst` is (re)allocated. */
+sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
+                                 sooc_node_depth_resample mode, double dmin, double dmax);
+
+/* The rigid transform T_world_src that rotates the pose source's frame so that
+ * `up` (unit, source coordinates) becomes +y and the floor (up . p = floor_h)
+ * lands on y = 0. The rotation is the smallest one taking up to +y. */
+void sooc_node_world_from_up(const double up[3], double floor_h, double T_world_src[16]);
+
+/* -------------------------------------------------------------- floor fit */
+
+typedef struct sooc_floor_fit_params {
+    double threshold_m;      /* inlier distance, default 0.02 */
+    int iterations;          /* RANSAC hypotheses, default 200 */
+    double min_inlier_frac;  /* of the points, default 0.15 */
+    uint64_t seed;
+    double max_tilt_deg;     /* with hint_up: normal within this angle of it, default 30 */
+} sooc_floor_fit_params;
+
+void sooc_floor_fit_params_default(sooc_floor_fit_params *p);
+
+/* RANSAC plane fit on n points (xyz, row-major), refined by a total least
+ * squares fit on the inliers (LAPACKE SVD of the centred inlier matrix), then
+ * a second inlier pass. Plane: n . p + d = 0, |n| = 1. When `hint_up` is given
+ * the normal is oriented along it and planes more than max_tilt_deg away from it
+ * are rejected; otherwise n points to `viewpoint` (may be NULL). */
+sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_params *p,
+                           const double *hint_up, const double *viewpoint, double plane[4],
+                           size_t *n_inliers, double *rms);
+
+/* Back-project valid depth pixels (stride `step`) into the pose source's frame
+ * with T_src_c. Returns the number of points written (<= cap). */
+size_t sooc_node_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
+                              size_t cap);
 
 #ifdef __cplusplus
 }

@@ -41,13 +41,23 @@ int sooc_cli_fail(const char *cmd, sooc_status s);
 /* The same for a command that reads a stored map with a model: a map that does not fit (built by
  * another model, or a newer schema: SOOC_EVERSION) is bad input, exit 2; other failures exit 1. */
 int sooc_cli_fail_map(const char *cmd, sooc_status s);
+/* Open the stored map db read-only for the model file `model` (config mc; the
+ * map must have been built with it, as the node checks on resume) and load it
+ * into a new cognitive map of the model's sizes. On failure *ms and *map hold
+ * what was made (the caller closes / destroys both); with note_model a load
+ * failure's message adds "(built with another model than <note_model>?)". */
+struct sooc_mapstore;
+struct sooc_cogmap;
+struct sooc_model_config;
+sooc_status sooc_cli_open_stored_map(const char *model, const struct sooc_model_config *mc, const char *db,
+                                     const char *note_model, struct sooc_mapstore **ms, struct sooc_cogmap **map);
 /* True if argv has -h or --help. */
 int sooc_cli_wants_help(int argc, char **argv);
 /* Parse "C" or "C,F" render sample counts (C >= 2, F >= 0); 1 on success. */
 int sooc_cli_parse_samples(const char *s, int *c, int *f);
 /* "--merge R": R >= 0 metres, below 100; 0 = never merge (the mapper's default). */
 int sooc_cli_parse_merge(const char *s, double *radius);
-/* "mean" | "sample" -> SOOC3D_LATENTS_*; 0 if neither. */
+/* "mean" | "sample" -> SOOC_LATENTS_*; 0 if neither. */
 int sooc_cli_parse_latents(const char *s, int *latents);
 /* A whole decimal integer in lo..hi (nothing after it); 1 on success, *out untouched otherwise. */
 int sooc_cli_parse_int(const char *s, int lo, int hi, int *out);

@@ -3,6 +3,8 @@
 #include "cli.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
+#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 #include <errno.h>
 #include <stdint.h>
@@ -41,8 +43,8 @@ int sooc_cli_parse_merge(const char *s, double *radius) {
 }
 
 int sooc_cli_parse_latents(const char *s, int *latents) {
-    if (!strcmp(s, "mean")) *latents = SOOC3D_LATENTS_MEAN;
-    else if (!strcmp(s, "sample")) *latents = SOOC3D_LATENTS_SAMPLE;
+    if (!strcmp(s, "mean")) *latents = SOOC_LATENTS_MEAN;
+    else if (!strcmp(s, "sample")) *latents = SOOC_LATENTS_SAMPLE;
     else return 0;
     return 1;
 }
@@ -128,3 +130,25 @@ void sooc_cli_id_colour(uint64_t id, int rgb[3]) {
     for (int i = 0; i < 3; i++) rgb[i] = 64 + (int)((x >> (8 * i)) & 0xff) * 191 / 255;
 }
 
+
+sooc_status sooc_cli_open_stored_map(const char *model, const sooc_model_config *mc, const char *db,
+                                     const char *note_model, sooc_mapstore **ms, sooc_cogmap **map) {
+    sooc_status st;
+    sooc_mapstore_params mp;
+    sooc_mapstore_params_default(&mp);
+    mp.create = 0;
+    mp.readonly = 1;
+    char mid[128];   /* the map must have been built with this model (as the node checks on resume) */
+    if ((st = sooc_file_id(model, mid, sizeof mid, NULL))) return st;
+    mp.model_id = mid;
+    if ((st = sooc_mapstore_open(ms, db, &mp))) return st;
+    sooc_cogmap_params cp;
+    sooc_cogmap_params_default(&cp);
+    cp.dim = mc->d_what, cp.layout_dim = mc->d_layout, cp.block_size = (double)mc->block_size * mc->unit_m;
+    if ((st = sooc_cogmap_create(map, &cp))) return st;
+    if ((st = sooc_mapstore_load_map(*ms, *map))) {
+        if (note_model) sooc_adderr(st, "%s (built with another model than %s?)", db, note_model);
+        return st;
+    }
+    return SOOC_OK;
+}

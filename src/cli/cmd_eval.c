@@ -30,7 +30,7 @@ static void usage(FILE *f) {
             "For every scene of every DIR (a `sooc3d gen` output: scene_* folders, or one scene folder;\n"
             "the scale s/m/l/xl comes from each scene.yaml) and every model: online inference over the\n"
             "input views with a fresh cognitive map, then every view is rendered with the dense renderer\n"
-            "and scored (model.md §5, docs/metrics.md). Prints the paper's Table 1 (rows model x {I, Q};\n"
+            "and scored (docs/metrics.md). Prints the paper's Table 1 (rows model x {I, Q};\n"
             "columns mIoU, RGB RMSE, depth RMSE, L2 per scale) and the supplementary table (Hungarian\n"
             "mIoU, matched fraction, recall by distance); writes them as JSON (--json) and Markdown (--md).\n\n"
             "  --model         model checkpoint; repeat for several models (rows of the table)\n"
@@ -202,7 +202,7 @@ int sooc_cmd_eval(int argc, char **argv) {
     sooc_birth_params bp;
     sooc_birth_params_default(&bp);
     int no_birth = 0, geometric = 0;
-    sooc3d_proposal_params prop;
+    sooc_proposal_params prop;
     memset(&prop, 0, sizeof prop);
     uint64_t seed = 1;
     int mesh_res = SOOC_MESH_RES_DEFAULT;
@@ -248,17 +248,17 @@ int sooc_cmd_eval(int argc, char **argv) {
         else if (!strcmp(a, "--iterations") && has) INTV(0, 16, &ro.iterations);
         else if (!strcmp(a, "--finetune")) finetune = 1;
         else if (!strcmp(a, "--proposals")) {
-            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            if (!prop.on) sooc_proposal_params_default(&prop), prop.on = 1;
             ro.proposals = &prop;
         } else if (!strcmp(a, "--prop-only")) {   /* only proposals make new entries */
-            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            if (!prop.on) sooc_proposal_params_default(&prop), prop.on = 1;
             prop.rest_logit = -20, ro.proposals = &prop;
         } else if (!strcmp(a, "--prop-join") && has) {
-            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            if (!prop.on) sooc_proposal_params_default(&prop), prop.on = 1;
             if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 1, &prop.cluster.dist_m)) return 2;
             ro.proposals = &prop;
         } else if (!strcmp(a, "--prop-logit") && has) {
-            if (!prop.on) sooc3d_proposal_params_default(&prop), prop.on = 1;
+            if (!prop.on) sooc_proposal_params_default(&prop), prop.on = 1;
             if (!sooc_cli_double_opt("eval", a, argv[++i], -20, 20, &prop.pres_logit)) return 2;
             ro.proposals = &prop;
         }

@@ -101,12 +101,12 @@ static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n,
     return st;
 }
 
-static sooc_status render_frame(sooc3d_mapper *mp, const sooc_frame *f, const char rdir[1024], int samples, int threads) {
+static sooc_status render_frame(sooc_mapper *mp, const sooc_frame *f, const char rdir[1024], int samples, int threads) {
     sooc_model_field *fld;
-    sooc_status st = sooc_model_field_create(&fld, sooc3d_mapper_model(mp), sooc3d_mapper_cogmap(mp), f->T_wc, &f->K,
+    sooc_status st = sooc_model_field_create(&fld, sooc_mapper_model(mp), sooc_mapper_cogmap(mp), f->T_wc, &f->K,
                                              63, NULL);
     if (st) return st;
-    const sooc_model_config *c = sooc_model_get_config(sooc3d_mapper_model(mp));
+    const sooc_model_config *c = sooc_model_get_config(sooc_mapper_model(mp));
     sooc_render_opts o;
     sooc_render_opts_default(&o);
     o.n_coarse = samples;
@@ -150,11 +150,11 @@ static sooc_status render_frame(sooc3d_mapper *mp, const sooc_frame *f, const ch
 /* --trace: the entries the last update registered and the ids it removed.
  * Ids from `born` on were created by this update; one it merged away again
  * never was in the map, so it is not a removal here (updates.csv counts it). */
-static sooc_status write_trace(FILE *tc, const sooc3d_mapper *mp, int64_t frame, uint64_t born) {
+static sooc_status write_trace(FILE *tc, const sooc_mapper *mp, int64_t frame, uint64_t born) {
     sooc_map_entry ch[SOOC_MAPPER_CHANGED_MAX];
     uint64_t rm[SOOC_MAPPER_CHANGED_MAX];
     size_t nc = 0, nr = 0;
-    sooc_status st = sooc3d_mapper_changed(mp, ch, SOOC_MAPPER_CHANGED_MAX, &nc, rm, SOOC_MAPPER_CHANGED_MAX, &nr);
+    sooc_status st = sooc_mapper_changed(mp, ch, SOOC_MAPPER_CHANGED_MAX, &nc, rm, SOOC_MAPPER_CHANGED_MAX, &nr);
     if (st) return st;
     for (size_t j = 0; j < nc; j++)
         fprintf(tc, "%lld,reg,%llu,%.4f,%.4f,%.4f,%.4f,%u\n", (long long)frame, (unsigned long long)ch[j].id, ch[j].x,
@@ -170,7 +170,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         return 0;
     }
     const char *model = NULL, *seq = NULL, *out = NULL;
-    int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0, latents = SOOC3D_LATENTS_MEAN;
+    int iters = 0, threads = 0, every = 1, render = 1, samples = 96, trace = 0, latents = SOOC_LATENTS_MEAN;
     int slots = 0;
     double clip = 0, merge = 0;
     int revisit = 0;
@@ -235,21 +235,21 @@ int sooc_cmd_infer(int argc, char **argv) {
     if (!sooc_cli_framepath_check("infer", &fpp)) return 2;
     sooc_status st;
     sooc_framepath *sq = NULL;
-    sooc3d_mapper *mp = NULL;
+    sooc_mapper *mp = NULL;
     sooc_frame f;
     memset(&f, 0, sizeof f);
     FILE *uc = NULL, *tc = NULL;
     char path[1024], rdir[1024];
     if ((st = sooc_mkdirs(out))) return sooc_cli_fail("infer", st);
-    sooc3d_mapper_params p;
-    sooc3d_mapper_params_default(&p);
+    sooc_mapper_params p;
+    sooc_mapper_params_default(&p);
     p.model_path = model, p.iterations = iters, p.seed = seed, p.threads = threads, p.d_clip = clip;
     p.merge_radius = merge;
     p.merge_neighbours = revisit && merge > 0;   /* the node's revisit rules, creation gate included */
     p.latents = latents;
     p.slots = slots;
-    if ((st = sooc3d_mapper_create(&mp, &p))) goto fail;
-    sooc_cli_framepath_model(&fpp, sooc_model_get_config(sooc3d_mapper_model(mp)));
+    if ((st = sooc_mapper_create(&mp, &p))) goto fail;
+    sooc_cli_framepath_model(&fpp, sooc_model_get_config(sooc_mapper_model(mp)));
     if ((st = sooc_framepath_open(&sq, seq, &fpp))) goto fail;
     int64_t n = sooc_framepath_count(sq);
     if (maxf >= 0 && maxf < n) n = maxf;
@@ -276,9 +276,9 @@ int sooc_cmd_infer(int argc, char **argv) {
         if ((st = sooc_framepath_read(sq, i, &f))) goto fail;
         if (f.is_query || !f.has_pose) continue;
         if (n_in++ % every) continue;
-        sooc3d_update_stats us;
-        uint64_t born = sooc3d_mapper_next_id(mp);
-        if ((st = sooc3d_mapper_update(mp, &f, &us))) goto fail;
+        sooc_update_stats us;
+        uint64_t born = sooc_mapper_next_id(mp);
+        if ((st = sooc_mapper_update(mp, &f, &us))) goto fail;
         mapped++;
         ms_sum += us.elapsed_ms;
         fprintf(uc, "%lld,%lld,%d,%d,%d,%d,%d,%.3f,%d,%d,%d\n", (long long)i, (long long)f.t_ns, us.n_retrieved,
@@ -287,7 +287,7 @@ int sooc_cmd_infer(int argc, char **argv) {
         if (tc && (st = write_trace(tc, mp, i, born))) goto fail;
         char extra[96];
         size_t ne = 0;
-        sooc3d_mapper_entries(mp, NULL, 0, &ne);
+        sooc_mapper_entries(mp, NULL, 0, &ne);
         snprintf(extra, sizeof extra, "map %zu, %.1f ms/update", ne, ms_sum / (double)mapped);
         sooc_progress_update(&pr, (uint64_t)i + 1, extra);
     }
@@ -301,13 +301,13 @@ int sooc_cmd_infer(int argc, char **argv) {
     }
     tc = NULL;
     size_t ne = 0;
-    sooc3d_mapper_entries(mp, NULL, 0, &ne);
+    sooc_mapper_entries(mp, NULL, 0, &ne);
     sooc_map_entry *e = calloc(ne ? ne : 1, sizeof *e);
     if (!e) {
         st = SOOC_ENOMEM;
         goto fail;
     }
-    if (!(st = sooc3d_mapper_entries(mp, e, ne, &ne))) st = write_map(out, e, ne, sq);
+    if (!(st = sooc_mapper_entries(mp, e, ne, &ne))) st = write_map(out, e, ne, sq);
     free(e);
     if (st) goto fail;
     printf("infer: %lld frames mapped (%.1f ms/update mean), %zu map entries -> %s/map.json\n", (long long)mapped,
@@ -329,14 +329,14 @@ int sooc_cmd_infer(int argc, char **argv) {
         printf("infer: %d views rendered from the final map -> %s\n", nr, rdir);
     }
     sooc_frame_free(&f);
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper_destroy(mp);
     sooc_framepath_close(sq);
     return 0;
 fail:
     if (uc) fclose(uc);
     if (tc) fclose(tc);
     sooc_frame_free(&f);
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper_destroy(mp);
     sooc_framepath_close(sq);
     return sooc_cli_fail("infer", st);
 }

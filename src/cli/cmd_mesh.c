@@ -45,22 +45,7 @@ int sooc_cli_mesh_map(const char *cmd, const char *db, const char *model, const 
     sooc_status st = sooc_model_load(&m, model, NULL, NULL);
     if (st) goto fail;
     const sooc_model_config *mc = sooc_model_get_config(m);
-    sooc_mapstore_params mp;
-    sooc_mapstore_params_default(&mp);
-    mp.create = 0;
-    mp.readonly = 1;
-    char mid[128];   /* the map must have been built with this model (as the node checks on resume) */
-    if ((st = sooc_file_id(model, mid, sizeof mid, NULL))) goto fail;
-    mp.model_id = mid;
-    if ((st = sooc_mapstore_open(&ms, db, &mp))) goto fail;
-    sooc_cogmap_params cp;
-    sooc_cogmap_params_default(&cp);
-    cp.dim = mc->d_what, cp.layout_dim = mc->d_layout, cp.block_size = (double)mc->block_size * mc->unit_m;
-    if ((st = sooc_cogmap_create(&map, &cp))) goto fail;
-    if ((st = sooc_mapstore_load_map(ms, map))) {
-        sooc_adderr(st, "%s (built with another model than %s?)", db, model);
-        goto fail;
-    }
+    if ((st = sooc_cli_open_stored_map(model, mc, db, model, &ms, &map))) goto fail;
     size_t ne = 0, nsel = 0;
     if ((st = sooc_cogmap_entries(map, NULL, 0, &ne))) goto fail;
     sooc_cogmap_entry *E = calloc(ne ? ne : 1, sizeof *E);

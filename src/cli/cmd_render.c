@@ -315,19 +315,7 @@ int sooc_cmd_render(int argc, char **argv) {
                res.n_mapped ? 1e3 * res.update_s / res.n_mapped : 0.0, res.n_entries);
     } else {
         /* a stored map: load it (entries, layout blocks, id counter) and render from it */
-        sooc_mapstore_params mp;
-        sooc_mapstore_params_default(&mp);
-        mp.create = 0;
-        mp.readonly = 1;
-        char mid[128];   /* the map must have been built with this model (as the node checks on resume) */
-        if ((st = sooc_file_id(model, mid, sizeof mid, NULL))) goto fail;
-        mp.model_id = mid;
-        if ((st = sooc_mapstore_open(&ms, mappath, &mp))) goto fail;
-        sooc_cogmap_params cp;
-        sooc_cogmap_params_default(&cp);
-        cp.dim = mc->d_what, cp.layout_dim = mc->d_layout, cp.block_size = (double)mc->block_size * mc->unit_m;
-        if ((st = sooc_cogmap_create(&map, &cp))) goto fail;
-        if ((st = sooc_mapstore_load_map(ms, map))) goto fail;
+        if ((st = sooc_cli_open_stored_map(model, mc, mappath, NULL, &ms, &map))) goto fail;
         size_t ne = sooc_cogmap_count(map);
         sooc_cogmap_entry *ce = calloc(ne ? ne : 1, sizeof *ce);
         ment = calloc(ne ? ne : 1, sizeof *ment);

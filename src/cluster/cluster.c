@@ -83,8 +83,6 @@ void sooc_cluster_map_clear(sooc_cluster_map *m) {
     m->segmented = 0;
 }
 
-size_t sooc_cluster_map_voxels(const sooc_cluster_map *m) { return m ? m->n : 0; }
-
 /* 21 bits per axis, offset so that +-4 km at 4 mm fits */
 static uint64_t pack(int64_t i, int64_t j, int64_t k) {
     const int64_t o = 1 << 20;

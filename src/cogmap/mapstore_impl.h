@@ -1,10 +1,17 @@
-/* Internal: what mapstore.c shares with the other files of the map store. */
+/* Internal: what the files of the map store share (mapstore_db.c: the
+ * connection and errors; mapstore_read.c: entry reads; mapstore.c: open,
+ * schema, writes). */
 #ifndef SOOC3D_MAPSTORE_IMPL_H
 #define SOOC3D_MAPSTORE_IMPL_H
 
 #include <sqlite3.h>
 
 #include "sooc3d/mapstore.h"
+
+/* The entry columns in the order row readers expect (mapstore_read.c). */
+#define ENTRY_COLS                                                                                         \
+    "id, x, z, yaw, rho_t, rho_yaw, pres_logit, dim, latent_version, what_mu, what_logvar, first_seen_ns, " \
+    "last_seen_ns, obs_count, last_view"
 
 enum {
     ST_PUT_ENTRY, ST_DEL_ENTRY, ST_PUT_LAYOUT, ST_PUT_META, ST_ADD_KF, ST_GET_ENTRY, ST_COUNT

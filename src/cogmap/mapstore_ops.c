@@ -75,26 +75,3 @@ sooc_status sooc_mapstore_checkpoint(sooc_mapstore *s, int truncate) {
                                        &log, &done);
     return rc == SQLITE_OK ? SOOC_OK : sooc__mapstore_dberr(s, rc, "checkpoint");
 }
-
-sooc_status sooc_mapstore_integrity_check(sooc_mapstore *s, int *ok, char *detail, size_t cap) {
-    *ok = 0;
-    if (detail && cap) detail[0] = 0;
-    sqlite3_stmt *q = NULL;
-    int rc = sqlite3_prepare_v2(s->db, "PRAGMA integrity_check", -1, &q, NULL);
-    if (rc != SQLITE_OK) return sooc__mapstore_dberr(s, rc, "integrity check");
-    int rows = 0;
-    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
-        const char *t = (const char *)sqlite3_column_text(q, 0);
-        if (rows++ == 0) {
-            *ok = t && !strcmp(t, "ok");
-            if (detail && cap) snprintf(detail, cap, "%s", t ? t : "");
-        }
-    }
-    sqlite3_finalize(q);
-    if (rc != SQLITE_DONE) {
-        *ok = 0;
-        return sooc__mapstore_dberr(s, rc, "integrity check");
-    }
-    if (rows > 1) *ok = 0;
-    return SOOC_OK;
-}

@@ -175,3 +175,23 @@ sooc_status sooc_file_id(const char *path, char *id, size_t cap, uint64_t *hash)
     if (hash) *hash = h;
     return SOOC_OK;
 }
+
+/* Write to "<path>.tmp" and rename over path: readers never see a partial
+ * file. No fsync (datasets write thousands of small files; a crash may lose
+ * recent files but never leaves a truncated one under the final name). */
+sooc_status sooc_file_write_bulk(const char *path, const void *buf, size_t n) {
+    char tmp[4200];
+    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
+        return sooc_seterr(SOOC_EINVAL, "%s: path too long", path);
+    FILE *fp = fopen(tmp, "wb");
+    if (!fp) return sooc_seterr(SOOC_EIO, "%s: cannot create: %s", tmp, strerror(errno));
+    size_t w = fwrite(buf, 1, n, fp);
+    int bad = w != n || fflush(fp) != 0;
+    if (fclose(fp) != 0) bad = 1;
+    if (bad || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        return sooc_seterr(SOOC_EIO, "%s: write failed: %s", path, strerror(e));
+    }
+    return SOOC_OK;
+}

@@ -68,7 +68,3 @@ double sooc_rng_logistic(sooc_rng *r) {
     double u = sooc_rng_uniform_open(r);
     return log(u) - log1p(-u);
 }
-
-void sooc_rng_normal_fill(sooc_rng *r, float *out, size_t n) {
-    for (size_t i = 0; i < n; i++) out[i] = (float)sooc_rng_normal(r);
-}

@@ -2,7 +2,6 @@
  * libjpeg-turbo's libjpeg API; 16-bit samples are big-endian in PNG and PGM
  * and host order in memory). */
 #include "sooc3d/image.h"
-#include "data_impl.h"
 
 #include <png.h>
 #include <setjmp.h>
@@ -306,32 +305,13 @@ sooc_status sooc_png_encode(const sooc_image *img, int level, void **out, size_t
     return SOOC_OK;
 }
 
-/* Write to "<path>.tmp" and rename over path: readers never see a partial
- * file. No fsync (datasets write thousands of small files; a crash may lose
- * recent files but never leaves a truncated one under the final name). */
-sooc_status sooc_data_write_file(const char *path, const void *buf, size_t n) {
-    char tmp[4200];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp)
-        return sooc_seterr(SOOC_EINVAL, "%s: path too long", path);
-    FILE *fp = fopen(tmp, "wb");
-    if (!fp) return sooc_seterr(SOOC_EIO, "%s: cannot create: %s", tmp, strerror(errno));
-    size_t w = fwrite(buf, 1, n, fp);
-    int bad = w != n || fflush(fp) != 0;
-    if (fclose(fp) != 0) bad = 1;
-    if (bad || rename(tmp, path) != 0) {
-        int e = errno;
-        remove(tmp);
-        return sooc_seterr(SOOC_EIO, "%s: write failed: %s", path, strerror(e));
-    }
-    return SOOC_OK;
-}
 
 sooc_status sooc_png_write(const char *path, const sooc_image *img, int level) {
     void *buf;
     size_t n;
     sooc_status s = sooc_png_encode(img, level, &buf, &n);
     if (s) return sooc_adderr(s, "%s", path);
-    s = sooc_data_write_file(path, buf, n);
+    s = sooc_file_write_bulk(path, buf, n);
     sooc_free(buf);
     return s;
 }
@@ -438,7 +418,7 @@ sooc_status sooc_pgm_write(const char *path, const sooc_image *img) {
     } else {
         memcpy(b + hl, img->data, np);
     }
-    sooc_status s = sooc_data_write_file(path, b, (size_t)hl + nd);
+    sooc_status s = sooc_file_write_bulk(path, b, (size_t)hl + nd);
     sooc_free(b);
     return s;
 }
@@ -644,7 +624,7 @@ sooc_status sooc_jpeg_write(const char *path, const sooc_image *img, int quality
     size_t n;
     sooc_status s = sooc_jpeg_encode(img, quality, &buf, &n);
     if (s) return sooc_adderr(s, "%s", path);
-    s = sooc_data_write_file(path, buf, n);
+    s = sooc_file_write_bulk(path, buf, n);
     sooc_free(buf);
     return s;
 }

@@ -1,7 +1,6 @@
 /* Synthetic scene description: object parts, analytic distances, PLY meshes,
  * and scene.yaml load/save (libyaml document API). */
 #include "sooc3d/scene.h"
-#include "data_impl.h"
 #include "data/yaml_doc.h"
 
 #include <math.h>
@@ -45,33 +44,6 @@ void sooc_scene_free(sooc_scene *sc) {
     sooc_free(sc->view_is_query);
     sooc_free(sc->view_T_wc);
     sooc_scene_init(sc);
-}
-
-sooc_status sooc_scene_copy(sooc_scene *dst, const sooc_scene *src) {
-    sooc_scene t = *src;
-    t.objects = NULL; t.view_is_query = NULL; t.view_T_wc = NULL;
-    if (src->n_objects) {
-        t.objects = sooc_malloc(sizeof *t.objects * (size_t)src->n_objects);
-        if (!t.objects) goto fail;
-        memcpy(t.objects, src->objects, sizeof *t.objects * (size_t)src->n_objects);
-    }
-    if (src->n_views && src->view_is_query) {
-        t.view_is_query = sooc_malloc((size_t)src->n_views);
-        if (!t.view_is_query) goto fail;
-        memcpy(t.view_is_query, src->view_is_query, (size_t)src->n_views);
-    }
-    if (src->n_views && src->view_T_wc) {
-        t.view_T_wc = sooc_malloc(sizeof(double) * 16 * (size_t)src->n_views);
-        if (!t.view_T_wc) goto fail;
-        memcpy(t.view_T_wc, src->view_T_wc, sizeof(double) * 16 * (size_t)src->n_views);
-    }
-    sooc_scene_free(dst);
-    *dst = t;
-    return SOOC_OK;
-fail:
-    sooc_free(t.objects);
-    sooc_free(t.view_is_query);
-    return SOOC_ENOMEM;
 }
 
 /* ---------------------------------------------------------------- parts */
@@ -460,7 +432,7 @@ static sooc_status write_ply(const char *path, const mesh *m, const float col[3]
             w += 4;
         }
     }
-    sooc_status s = sooc_data_write_file(path, b, n);
+    sooc_status s = sooc_file_write_bulk(path, b, n);
     sooc_free(b);
     return s;
 }
@@ -502,85 +474,60 @@ static const char *g_tex_names[] = {"uniform", "checker", "wood", "noise"};
 static const char *g_support_names[] = {"floor", "table", "bin"};
 static const char *g_otex_names[] = {"plain", "stripes", "checks", "label"};
 
-typedef struct sbuf {
-    char *p;
-    size_t n, cap;
-    int oom;
-} sbuf;
-
-static void sb_printf(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void sb_printf(sbuf *b, const char *fmt, ...) {
-    if (b->oom) return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int k = vsnprintf(b->p ? b->p + b->n : NULL, b->p ? b->cap - b->n : 0, fmt, ap);
-        va_end(ap);
-        if (k < 0) { b->oom = 1; return; }
-        if (b->p && b->n + (size_t)k < b->cap) { b->n += (size_t)k; return; }
-        size_t cap = b->cap ? b->cap * 2 : 65536;
-        while (cap < b->n + (size_t)k + 1) cap *= 2;
-        char *q = sooc_realloc(b->p, cap);
-        if (!q) { b->oom = 1; return; }
-        b->p = q;
-        b->cap = cap;
-    }
-}
-
-static void sb_f3(sbuf *b, const char *key, const float v[3]) {
-    sb_printf(b, "%s: [%.6g, %.6g, %.6g]\n", key, v[0], v[1], v[2]);
+static void sb_f3(sooc_strbuf *b, const char *key, const float v[3]) {
+    sooc_strbuf_printf(b, "%s: [%.6g, %.6g, %.6g]\n", key, v[0], v[1], v[2]);
 }
 
 sooc_status sooc_scene_save(const char *path, const sooc_scene *sc) {
-    sbuf b = {0};
-    sb_printf(&b, "%%YAML 1.2\n---\n# sooc3d synthetic scene (docs/formats.md). World: +y up, floor y = 0,\n"
+    sooc_strbuf b = {0};
+    sooc_strbuf_printf(&b, "%%YAML 1.2\n---\n# sooc3d synthetic scene (docs/formats.md). World: +y up, floor y = 0,\n"
                   "# room = [-room_size/2, room_size/2]^2; object pose = floor (x, z, yaw about +y).\n");
-    sb_printf(&b, "format: sooc3d-scene\nversion: 1\npreset: %s\nscale: %s\nseed: %llu\nindex: %d\n",
+    sooc_strbuf_printf(&b, "format: sooc3d-scene\nversion: 1\npreset: %s\nscale: %s\nseed: %llu\nindex: %d\n",
               sc->preset, sc->scale, (unsigned long long)sc->seed, sc->index);
-    sb_printf(&b, "room_size: %.12g\nclip_depth: %.12g\nwalls: %s\nwall_height: %.12g\n", sc->room_size,
+    sooc_strbuf_printf(&b, "room_size: %.12g\nclip_depth: %.12g\nwalls: %s\nwall_height: %.12g\n", sc->room_size,
               sc->clip_depth, sc->walls ? "true" : "false", sc->wall_height);
     sb_f3(&b, "wall_color", sc->wall_color);
-    sb_printf(&b, "floor_texture: %s\n", g_tex_names[sc->floor_tex]);
+    sooc_strbuf_printf(&b, "floor_texture: %s\n", g_tex_names[sc->floor_tex]);
     sb_f3(&b, "floor_color", sc->floor_color);
     sb_f3(&b, "floor_color2", sc->floor_color2);
-    sb_printf(&b, "texture_scale: %.12g\n", sc->tex_scale);
+    sooc_strbuf_printf(&b, "texture_scale: %.12g\n", sc->tex_scale);
     if (sc->support != SOOC_SUPPORT_FLOOR) {
-        sb_printf(&b, "support: %s\nsupport_size: [%.12g, %.12g]\nsupport_height: %.12g\n"
+        sooc_strbuf_printf(&b, "support: %s\nsupport_size: [%.12g, %.12g]\nsupport_height: %.12g\n"
                       "support_thickness: %.12g\nrim_height: %.12g\n", g_support_names[sc->support],
                   sc->support_size[0], sc->support_size[1], sc->support_height, sc->support_thick, sc->rim_height);
         sb_f3(&b, "support_color", sc->support_color);
         sb_f3(&b, "ground_color", sc->ground_color);
     }
-    if (sc->sensor_noise[0]) sb_printf(&b, "sensor_noise: %s\n", sc->sensor_noise);
+    if (sc->sensor_noise[0]) sooc_strbuf_printf(&b, "sensor_noise: %s\n", sc->sensor_noise);
     sb_f3(&b, "sky_color", sc->sky_color);
-    sb_printf(&b, "light_dir: [%.12g, %.12g, %.12g]\nambient: %.12g\nshadows: %s\nspecular: %.12g\nshininess: %.12g\n",
+    sooc_strbuf_printf(&b, "light_dir: [%.12g, %.12g, %.12g]\nambient: %.12g\nshadows: %s\nspecular: %.12g\nshininess: %.12g\n",
               sc->light_dir[0], sc->light_dir[1], sc->light_dir[2], sc->ambient,
               sc->shadows ? "true" : "false", sc->specular, sc->shininess);
-    sb_printf(&b, "width: %d\nheight: %d\nfov_deg: %.12g\n", sc->width, sc->height, sc->fov_deg);
+    sooc_strbuf_printf(&b, "width: %d\nheight: %d\nfov_deg: %.12g\n", sc->width, sc->height, sc->fov_deg);
     for (int pass = 0; pass < 2; pass++) {
-        sb_printf(&b, "%s: [", pass ? "query_views" : "input_views");
+        sooc_strbuf_printf(&b, "%s: [", pass ? "query_views" : "input_views");
         int first = 1;
         for (int i = 0; i < sc->n_views; i++)
             if ((sc->view_is_query && sc->view_is_query[i]) == pass) {
-                sb_printf(&b, first ? "%d" : ", %d", i);
+                sooc_strbuf_printf(&b, first ? "%d" : ", %d", i);
                 first = 0;
             }
-        sb_printf(&b, "]\n");
+        sooc_strbuf_printf(&b, "]\n");
     }
-    sb_printf(&b, "objects:%s\n", sc->n_objects ? "" : " []");
+    sooc_strbuf_printf(&b, "objects:%s\n", sc->n_objects ? "" : " []");
     for (int i = 0; i < sc->n_objects; i++) {
         const sooc_scene_object *o = &sc->objects[i];
-        sb_printf(&b, "  - {id: %d, shape: %s, x: %.12g, z: %.12g, yaw: %.12g, size: [%.12g, %.12g, %.12g], params: [",
+        sooc_strbuf_printf(&b, "  - {id: %d, shape: %s, x: %.12g, z: %.12g, yaw: %.12g, size: [%.12g, %.12g, %.12g], params: [",
                   o->id, sooc_shape_name(o->shape), o->x, o->z, o->yaw, o->size[0], o->size[1], o->size[2]);
-        for (int k = 0; k < g_shape_nparams[o->shape]; k++) sb_printf(&b, k ? ", %.12g" : "%.12g", o->params[k]);
-        sb_printf(&b, "], color: [%.6g, %.6g, %.6g]", o->color[0], o->color[1], o->color[2]);
+        for (int k = 0; k < g_shape_nparams[o->shape]; k++) sooc_strbuf_printf(&b, k ? ", %.12g" : "%.12g", o->params[k]);
+        sooc_strbuf_printf(&b, "], color: [%.6g, %.6g, %.6g]", o->color[0], o->color[1], o->color[2]);
         if (o->tex != SOOC_TEX_PLAIN)
-            sb_printf(&b, ", texture: %s, color2: [%.6g, %.6g, %.6g], texture_scale: %.12g", g_otex_names[o->tex],
+            sooc_strbuf_printf(&b, ", texture: %s, color2: [%.6g, %.6g, %.6g], texture_scale: %.12g", g_otex_names[o->tex],
                       o->color2[0], o->color2[1], o->color2[2], o->tex_scale);
-        sb_printf(&b, "}\n");
+        sooc_strbuf_printf(&b, "}\n");
     }
     if (b.oom) { sooc_free(b.p); return SOOC_ENOMEM; }
-    sooc_status s = sooc_data_write_file(path, b.p, b.n);
+    sooc_status s = sooc_file_write_bulk(path, b.p, b.n);
     sooc_free(b.p);
     return s;
 }

@@ -2,7 +2,6 @@
  * docs/formats.md section 2.1. */
 #include "sooc3d/seq.h"
 #include "sooc3d/image.h"
-#include "data_impl.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -121,7 +120,7 @@ sooc_status sooc_seq_writer_finish(sooc_seq_writer *w) {
         }
         char path[4096];
         s = sooc_path_join(path, sizeof path, w->dir, files[k]);
-        if (!s) s = sooc_data_write_file(path, b, n);
+        if (!s) s = sooc_file_write_bulk(path, b, n);
     }
     sooc_free(b);
     if (!s) {

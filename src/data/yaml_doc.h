@@ -1,5 +1,6 @@
 /* YAML walking shared by the four loaders (calib.c and scene.c here, the
- * node's launch.c and the trainer's config.c, which link sooc3d_data):
+ * node's launch.c and the trainer's config.c, which link sooc3d_data; the
+ * internal interface of src/data, docs/architecture.md "Layers"):
  * parse one document from memory, lines and scalars of nodes, and the key
  * checks made on every mapping pair. Each loader keeps its own value parsing
  * (ranges, wording). Internal: include as "data/yaml_doc.h"; not public API.

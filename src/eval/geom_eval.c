@@ -1,10 +1,11 @@
-/* Object geometry against ground truth (include/sooc3d/eval_geom.h). */
-#include "sooc3d/eval_geom.h"
+/* Object geometry against ground truth (src/eval/eval_geom.h). */
+#include "eval/eval_geom.h"
 
 #include <math.h>
 #include <string.h>
 
-int sooc_geom_shape_round(sooc_shape s) {
+/* 1 if the shape's footprint is a disc (see above). */
+static int sooc_geom_shape_round(sooc_shape s) {
     switch (s) {
     case SOOC_SHAPE_SPHERE:
     case SOOC_SHAPE_CYLINDER:
@@ -18,7 +19,8 @@ int sooc_geom_shape_round(sooc_shape s) {
     }
 }
 
-void sooc_geom_gt_extent(const sooc_scene_object *o, double yaw, double ext[3]) {
+/* GT tight box of object o in a frame with yaw `yaw` (extent x, y, z). */
+static void sooc_geom_gt_extent(const sooc_scene_object *o, double yaw, double ext[3]) {
     ext[1] = o->size[1];
     if (sooc_geom_shape_round(o->shape)) {
         ext[0] = ext[2] = o->size[0] > o->size[2] ? o->size[0] : o->size[2];

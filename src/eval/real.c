@@ -274,7 +274,7 @@ void sooc_eval_real_opts_default(sooc_eval_real_opts *o) {
 }
 
 typedef struct real_ctx {
-    sooc3d_mapper *mp;         /* SOOC3D, or                                        */
+    sooc_mapper *mp;         /* SOOC3D, or                                        */
     sooc_global_mapper *gm;    /* the global-frame baseline (its present slots)     */
     sooc_map_entry gent[2][SOOC_MODEL_K_MAX];   /* baseline: slots before / after an update */
     size_t n_gent;
@@ -299,7 +299,7 @@ static sooc_status tracks_reserve(real_ctx *C, uint64_t need) {
  * before and after the update; every present slot was refined, so every one
  * is tracked. A slot that turns present again counts as created again. */
 static sooc_status global_update(real_ctx *C, const sooc_frame *f, int track, sooc_churn *ch) {
-    sooc3d_update_stats us;
+    sooc_update_stats us;
     sooc_status st = sooc_global_mapper_update(C->gm, f, &us);
     if (st) return st;
     size_t n = 0;
@@ -325,10 +325,10 @@ static sooc_status global_update(real_ctx *C, const sooc_frame *f, int track, so
 }
 
 static sooc_model *ctx_model(real_ctx *C) {
-    return C->gm ? sooc_global_mapper_model(C->gm) : sooc3d_mapper_model(C->mp);
+    return C->gm ? sooc_global_mapper_model(C->gm) : sooc_mapper_model(C->mp);
 }
 static const sooc_cogmap *ctx_map(const real_ctx *C) {
-    return C->gm ? sooc_global_mapper_cogmap(C->gm) : sooc3d_mapper_cogmap(C->mp);
+    return C->gm ? sooc_global_mapper_cogmap(C->gm) : sooc_mapper_cogmap(C->mp);
 }
 
 /* Map every input frame once; track=1 records positions for the spread. */
@@ -343,15 +343,15 @@ static sooc_status map_pass(real_ctx *C, const sooc_frame *frames, int n, int ev
             if (st) return sooc_adderr(st, "eval real: frame %d (index %lld)", i, (long long)frames[i].index);
             continue;
         }
-        uint64_t born = sooc3d_mapper_next_id(C->mp);
-        sooc3d_update_stats us;
+        uint64_t born = sooc_mapper_next_id(C->mp);
+        sooc_update_stats us;
         double t0 = sooc_seconds();
-        sooc_status st = sooc3d_mapper_update(C->mp, &frames[i], &us);
+        sooc_status st = sooc_mapper_update(C->mp, &frames[i], &us);
         res->update_s += sooc_seconds() - t0;
         if (st) return sooc_adderr(st, "eval real: frame %d (index %lld)", i, (long long)frames[i].index);
         uint64_t reg[SOOC_MAPPER_CHANGED_MAX], rem[SOOC_MAPPER_CHANGED_MAX];
         size_t nc = 0, nr = 0;
-        if ((st = sooc3d_mapper_changed(C->mp, C->chg, SOOC_MAPPER_CHANGED_MAX, &nc, rem, SOOC_MAPPER_CHANGED_MAX, &nr)))
+        if ((st = sooc_mapper_changed(C->mp, C->chg, SOOC_MAPPER_CHANGED_MAX, &nc, rem, SOOC_MAPPER_CHANGED_MAX, &nr)))
             return st;
         for (size_t k = 0; k < nc; k++) reg[k] = C->chg[k].id;
         sooc_churn_update(ch, born, reg, nc, rem, nr);
@@ -439,15 +439,15 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         }
         sooc_global_mapper_set_latents(C.gm, o->run.latents);
     } else {
-        if ((st = sooc3d_mapper_create_with_model(&C.mp, copy, o->run.iterations, o->run.seed, o->run.threads))) {
+        if ((st = sooc_mapper_create_with_model(&C.mp, copy, o->run.iterations, o->run.seed, o->run.threads))) {
             sooc_model_destroy(copy);
             return st;
         }
-        sooc3d_mapper_set_merge_radius(C.mp, o->run.merge_radius);
-        sooc3d_mapper_set_merge_neighbours(C.mp, o->run.revisit);
-        sooc3d_mapper_set_gate(C.mp, o->run.gate[0], o->run.gate[1], o->run.gate[2]);
-        sooc3d_mapper_set_latents(C.mp, o->run.latents);
-        if (o->run.proposals && (st = sooc3d_mapper_set_proposals(C.mp, o->run.proposals))) goto done;
+        sooc_mapper_set_merge_radius(C.mp, o->run.merge_radius);
+        sooc_mapper_set_merge_neighbours(C.mp, o->run.revisit);
+        sooc_mapper_set_gate(C.mp, o->run.gate[0], o->run.gate[1], o->run.gate[2]);
+        sooc_mapper_set_latents(C.mp, o->run.latents);
+        if (o->run.proposals && (st = sooc_mapper_set_proposals(C.mp, o->run.proposals))) goto done;
     }
 
     /* pass 1 */
@@ -471,7 +471,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         res->entries_final = sooc_cogmap_count(ctx_map(&C));
         res->finetune_s = sooc_seconds() - t0;
         if (st) goto done;
-        sooc3d_mapper_geometry_invalidate(C.mp);
+        sooc_mapper_geometry_invalidate(C.mp);
     }
 
     /* query frames from the pass-1 map */
@@ -503,14 +503,14 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
      * bounded number per keyframe) */
     {
         size_t ne = 0;
-        if (C.mp && (st = sooc3d_mapper_refresh_geometry(C.mp, -1, NULL))) goto done;
-        if ((st = C.gm ? sooc_global_mapper_entries(C.gm, NULL, 0, &ne) : sooc3d_mapper_entries(C.mp, NULL, 0, &ne)))
+        if (C.mp && (st = sooc_mapper_refresh_geometry(C.mp, -1, NULL))) goto done;
+        if ((st = C.gm ? sooc_global_mapper_entries(C.gm, NULL, 0, &ne) : sooc_mapper_entries(C.mp, NULL, 0, &ne)))
             goto done;
         if (!(ent = sooc_calloc(ne ? ne : 1, sizeof *ent))) {
             st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory for %zu entries", ne);
             goto done;
         }
-        if ((st = C.gm ? sooc_global_mapper_entries(C.gm, ent, ne, &ne) : sooc3d_mapper_entries(C.mp, ent, ne, &ne)))
+        if ((st = C.gm ? sooc_global_mapper_entries(C.gm, ent, ne, &ne) : sooc_mapper_entries(C.mp, ent, ne, &ne)))
             goto done;
         double ps = 0, ys = 0, *beh = sooc_calloc(ne ? ne : 1, sizeof *beh);
         if (!beh) {
@@ -569,135 +569,101 @@ done:
     sooc_render_out_free(&rout);
     sooc_free(ent);
     sooc_free(C.tr);
-    sooc3d_mapper_destroy(C.mp);
+    sooc_mapper_destroy(C.mp);
     sooc_global_mapper_destroy(C.gm);
     return st;
 }
 
 /* ---------------------------------------------------------------- JSON */
 
-typedef struct jbuf {
-    char *p;
-    size_t n, cap;
-    int oom;
-} jbuf;
-
-#if defined(__GNUC__)
-__attribute__((format(printf, 2, 3)))
-#endif
-static void jb_printf(jbuf *b, const char *fmt, ...) {
-    if (b->oom) return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int k = vsnprintf(b->p ? b->p + b->n : NULL, b->p ? b->cap - b->n : 0, fmt, ap);
-        va_end(ap);
-        if (k < 0) {
-            b->oom = 1;
-            return;
-        }
-        if (b->p && b->n + (size_t)k < b->cap) {
-            b->n += (size_t)k;
-            return;
-        }
-        size_t cap = (b->cap ? b->cap * 2 : 1024) + (size_t)k;
-        char *q = sooc_realloc(b->p, cap);
-        if (!q) {
-            b->oom = 1;
-            return;
-        }
-        b->p = q, b->cap = cap;
-    }
+static void jb_num(sooc_strbuf *b, const char *key, double v) {
+    if (isfinite(v)) sooc_strbuf_printf(b, ", \"%s\": %.6g", key, v);
+    else sooc_strbuf_printf(b, ", \"%s\": null", key);
 }
 
-static void jb_num(jbuf *b, const char *key, double v) {
-    if (isfinite(v)) jb_printf(b, ", \"%s\": %.6g", key, v);
-    else jb_printf(b, ", \"%s\": null", key);
-}
-
-static void jb_str(jbuf *b, const char *s) {
-    jb_printf(b, "\"");
+static void jb_str(sooc_strbuf *b, const char *s) {
+    sooc_strbuf_printf(b, "\"");
     for (; s && *s; s++) {
         unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') jb_printf(b, "\\%c", c);
-        else if (c < 0x20) jb_printf(b, "\\u%04x", c);
-        else jb_printf(b, "%c", c);
+        if (c == '"' || c == '\\') sooc_strbuf_printf(b, "\\%c", c);
+        else if (c < 0x20) sooc_strbuf_printf(b, "\\u%04x", c);
+        else sooc_strbuf_printf(b, "%c", c);
     }
-    jb_printf(b, "\"");
+    sooc_strbuf_printf(b, "\"");
 }
 
 sooc_status sooc_eval_real_json(const char *model, const char *sequence, const char *path,
                                 const sooc_eval_real_opts *o, const sooc_eval_real_result *r, char **out) {
     if (!model || !sequence || !o || !r || !out) return sooc_seterr(SOOC_EINVAL, "eval real json: missing argument");
-    jbuf b = {0};
+    sooc_strbuf b = {0};
     sooc_metric_means mm;
     sooc_metric_sums_means(&r->query, &mm);
-    jb_printf(&b, "{\"model\": ");
+    sooc_strbuf_printf(&b, "{\"model\": ");
     jb_str(&b, model);
-    jb_printf(&b, ", \"sequence\": ");
+    sooc_strbuf_printf(&b, ", \"sequence\": ");
     jb_str(&b, sequence);
-    jb_printf(&b, ", \"path\": ");
+    sooc_strbuf_printf(&b, ", \"path\": ");
     jb_str(&b, path ? path : "");
-    jb_printf(&b, ", \"scale\": \"real\", \"view\": \"Q\"");
+    sooc_strbuf_printf(&b, ", \"scale\": \"real\", \"view\": \"Q\"");
     jb_num(&b, "depth_rmse", mm.depth_rmse);
     jb_num(&b, "rgb_rmse", mm.rgb_rmse);
-    jb_printf(&b, ", \"entries_final\": %zu, \"entries_created\": %ld", r->entries_final, r->churn.created);
+    sooc_strbuf_printf(&b, ", \"entries_final\": %zu, \"entries_created\": %ld", r->entries_final, r->churn.created);
     if (r->has_labels) {
-        jb_printf(&b, ", \"labels\": \"%s\"", o->labels_predicted ? "predicted" : "ground_truth");
+        sooc_strbuf_printf(&b, ", \"labels\": \"%s\"", o->labels_predicted ? "predicted" : "ground_truth");
         jb_num(&b, "miou", mm.miou_best);
         jb_num(&b, "miou_hungarian", mm.miou_hung);
-        jb_printf(&b, ", \"obj_ids\": [");
-        for (int k = 0; k < r->obj.n; k++) jb_printf(&b, "%s%u", k ? ", " : "", (unsigned)r->obj.id[k]);
-        jb_printf(&b, "], \"obj_iou\": [");
+        sooc_strbuf_printf(&b, ", \"obj_ids\": [");
+        for (int k = 0; k < r->obj.n; k++) sooc_strbuf_printf(&b, "%s%u", k ? ", " : "", (unsigned)r->obj.id[k]);
+        sooc_strbuf_printf(&b, "], \"obj_iou\": [");
         for (int k = 0; k < r->obj.n; k++) {
             double v = sooc_obj_iou_mean(&r->obj, k);
-            if (isfinite(v)) jb_printf(&b, "%s%.6g", k ? ", " : "", v);
-            else jb_printf(&b, "%snull", k ? ", " : "");
+            if (isfinite(v)) sooc_strbuf_printf(&b, "%s%.6g", k ? ", " : "", v);
+            else sooc_strbuf_printf(&b, "%snull", k ? ", " : "");
         }
-        jb_printf(&b, "], \"obj_views\": [");
-        for (int k = 0; k < r->obj.n; k++) jb_printf(&b, "%s%ld", k ? ", " : "", r->obj.views[k]);
-        jb_printf(&b, "]");
+        sooc_strbuf_printf(&b, "], \"obj_views\": [");
+        for (int k = 0; k < r->obj.n; k++) sooc_strbuf_printf(&b, "%s%ld", k ? ", " : "", r->obj.views[k]);
+        sooc_strbuf_printf(&b, "]");
         jb_num(&b, "rgb_rmse_obj", mm.rgb_rmse_obj);
     }
-    jb_printf(&b, ", \"entries_removed\": %ld", r->churn.removed);
+    sooc_strbuf_printf(&b, ", \"entries_removed\": %ld", r->churn.removed);
     jb_num(&b, "churn", r->churn.created ? (double)r->churn.removed / (double)r->churn.created : NAN);
     int pass2 = sooc_eval_real_second_pass(o);
-    jb_printf(&b, ", \"second_pass\": %d, \"entries_pass2\": %zu, \"entries_created_pass2\": %ld, "
+    sooc_strbuf_printf(&b, ", \"second_pass\": %d, \"entries_pass2\": %zu, \"entries_created_pass2\": %ld, "
                   "\"entries_removed_pass2\": %ld",
               pass2, r->entries_pass2, r->churn2.created, r->churn2.removed);
     jb_num(&b, "growth", pass2 && r->entries_final
                              ? ((double)r->entries_pass2 - (double)r->entries_final) / (double)r->entries_final
                              : NAN);
-    jb_printf(&b, ", \"persistent\": %d, \"persist_min\": %d", r->n_persistent, o->persist_min);
+    sooc_strbuf_printf(&b, ", \"persistent\": %d, \"persist_min\": %d", r->n_persistent, o->persist_min);
     jb_num(&b, "pos_spread_m", r->pos_spread_m);
     jb_num(&b, "yaw_spread_deg", r->yaw_spread_deg);
     double ne = (double)(r->n_seen[0] + r->n_seen[1] + r->n_seen[2]);
     jb_num(&b, "free_frac", ne > 0 ? r->n_seen[SOOC_SEEN_FREE] / ne : NAN);
-    jb_printf(&b, ", \"seen_box_n\": %d, \"empty_n\": %d", r->n_seen_box, r->n_empty);
+    sooc_strbuf_printf(&b, ", \"seen_box_n\": %d, \"empty_n\": %d", r->n_seen_box, r->n_empty);
     jb_num(&b, "never_seen_frac", ne > 0 ? r->n_seen[SOOC_SEEN_NEVER] / ne : NAN);
     jb_num(&b, "surface_frac", ne > 0 ? r->n_seen[SOOC_SEEN_SURFACE] / ne : NAN);
     double no = (double)(r->n_seen_own[0] + r->n_seen_own[1] + r->n_seen_own[2]);
     if (no > 0) {   /* the own-surface rule (opts.own_surface) */
         jb_num(&b, "free_frac_own", r->n_seen_own[SOOC_SEEN_FREE] / no);
         jb_num(&b, "never_seen_frac_own", r->n_seen_own[SOOC_SEEN_NEVER] / no);
-        jb_printf(&b, ", \"own_mesh_n\": %d", r->n_own_mesh);
+        sooc_strbuf_printf(&b, ", \"own_mesh_n\": %d", r->n_own_mesh);
     }
-    jb_printf(&b, ", \"never_seen_behind_n\": %d", r->n_never_behind);
+    sooc_strbuf_printf(&b, ", \"never_seen_behind_n\": %d", r->n_never_behind);
     jb_num(&b, "never_seen_behind_median_m", r->never_behind_med_m);
     jb_num(&b, "seen_tol_m", o->seen_tol);
     jb_num(&b, "seen_height_m", o->seen_height);
-    jb_printf(&b, ", \"frames\": %d, \"frames_mapped\": %d, \"frames_query\": %d, \"query_every\": %d", r->n_frames,
+    sooc_strbuf_printf(&b, ", \"frames\": %d, \"frames_mapped\": %d, \"frames_query\": %d, \"query_every\": %d", r->n_frames,
               r->n_mapped, r->n_query, o->query_every);
-    jb_printf(&b, ", \"views_depth\": %ld, \"views_rgb\": %ld", r->query.n_depth, r->query.n_rgb);
+    sooc_strbuf_printf(&b, ", \"views_depth\": %ld, \"views_rgb\": %ld", r->query.n_depth, r->query.n_rgb);
     jb_num(&b, "update_ms", r->n_mapped ? 1e3 * r->update_s / (double)(r->n_mapped * (pass2 ? 2 : 1)) : NAN);
-    jb_printf(&b, ", \"finetuned\": %s", o->finetune ? "true" : "false");
+    sooc_strbuf_printf(&b, ", \"finetuned\": %s", o->finetune ? "true" : "false");
     if (o->finetune)
-        jb_printf(&b,
+        sooc_strbuf_printf(&b,
                   ", \"ft_iterations\": %d, \"ft_rays\": %d, \"ft_lr\": %g, \"finetune_s\": %.3f, \"births\": %s, "
                   "\"born\": %d, \"ft_removed\": %d",
                   o->finetune->iterations, o->finetune->rays, (double)o->finetune->lr, r->finetune_s,
                   o->run.birth ? "true" : "false", r->n_born, r->n_pruned);
-    jb_printf(&b, "}");
+    sooc_strbuf_printf(&b, "}");
     if (b.oom) {
         sooc_free(b.p);
         return sooc_seterr(SOOC_ENOMEM, "eval real json: out of memory");

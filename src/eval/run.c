@@ -6,7 +6,7 @@
 #include "sooc3d/global.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/mesh.h"
-#include "sooc3d/eval_geom.h"
+#include "eval/eval_geom.h"
 #include "sooc3d/finetune.h"
 
 #include <math.h>
@@ -18,15 +18,6 @@ int sooc_eval_timing_parse(const char *s) {
     if (!strcmp(s, "online")) return SOOC_EVAL_ONLINE;
     if (!strcmp(s, "both")) return SOOC_EVAL_BOTH;
     return -1;
-}
-
-const char *sooc_eval_timing_name(sooc_eval_timing t) {
-    switch (t) {
-    case SOOC_EVAL_FINAL: return "final";
-    case SOOC_EVAL_ONLINE: return "online";
-    case SOOC_EVAL_BOTH: return "both";
-    }
-    return "?";
 }
 
 const char *sooc_eval_timing_note(sooc_eval_timing t) {
@@ -217,18 +208,18 @@ static sooc_status score_view(run_ctx *C, int i, int online, int n_mapped, sooc_
  * stale tight box is computed (all of them after finetuning), then the
  * matched objects' extent errors, position-sigma coverage and symmetry flags
  * go into the geometry sums of every cell of the scene. */
-static sooc_status geometry_scene(sooc3d_mapper *mp, const struct sooc_scene *sc, int finetuned,
+static sooc_status geometry_scene(sooc_mapper *mp, const struct sooc_scene *sc, int finetuned,
                                   sooc_eval_scene_result *res) {
-    if (finetuned) sooc3d_mapper_geometry_invalidate(mp);
-    sooc_status st = sooc3d_mapper_refresh_geometry(mp, -1, NULL);
+    if (finetuned) sooc_mapper_geometry_invalidate(mp);
+    sooc_status st = sooc_mapper_refresh_geometry(mp, -1, NULL);
     size_t n = 0;
-    if (!st) st = sooc3d_mapper_entries(mp, NULL, 0, &n);
+    if (!st) st = sooc_mapper_entries(mp, NULL, 0, &n);
     if (st) return st;
     sooc_map_entry *e = sooc_calloc(n + 1, sizeof *e);
     sooc_geom_match *mt = sooc_calloc((size_t)sc->n_objects + 1, sizeof *mt);
     int nm = 0;
     if (!e || !mt) st = sooc_seterr(SOOC_ENOMEM, "eval: object geometry: out of memory");
-    if (!st) st = sooc3d_mapper_entries(mp, e, n, &n);
+    if (!st) st = sooc_mapper_entries(mp, e, n, &n);
     if (!st) st = sooc_geom_eval_scene(e, n, sc, 0.5, mt, &nm);
     sooc_geom_sums g;
     memset(&g, 0, sizeof g);
@@ -294,7 +285,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     }
 
     sooc_model *copy = NULL;
-    sooc3d_mapper *mp = NULL;
+    sooc_mapper *mp = NULL;
     sooc_global_mapper *gm = NULL;   /* global-frame baseline: its fixed slot set is the "map" */
     sooc_map_entry *ent = NULL;
     size_t ent_cap = 0;
@@ -316,33 +307,33 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         C.model = sooc_global_mapper_model(gm);
         C.map = sooc_global_mapper_cogmap(gm);
     } else {
-        if ((st = sooc3d_mapper_create_with_model(&mp, copy, o->iterations, o->seed, o->threads))) {
+        if ((st = sooc_mapper_create_with_model(&mp, copy, o->iterations, o->seed, o->threads))) {
             sooc_model_destroy(copy);
             goto done;
         }
-        sooc3d_mapper_set_merge_radius(mp, o->merge_radius);
-        sooc3d_mapper_set_merge_neighbours(mp, o->revisit);
-        sooc3d_mapper_set_gate(mp, o->gate[0], o->gate[1], o->gate[2]);
-        sooc3d_mapper_set_latents(mp, o->latents);
-        if (o->proposals && (st = sooc3d_mapper_set_proposals(mp, o->proposals))) goto done;
-        C.model = sooc3d_mapper_model(mp);
-        C.map = sooc3d_mapper_cogmap(mp);
+        sooc_mapper_set_merge_radius(mp, o->merge_radius);
+        sooc_mapper_set_merge_neighbours(mp, o->revisit);
+        sooc_mapper_set_gate(mp, o->gate[0], o->gate[1], o->gate[2]);
+        sooc_mapper_set_latents(mp, o->latents);
+        if (o->proposals && (st = sooc_mapper_set_proposals(mp, o->proposals))) goto done;
+        C.model = sooc_mapper_model(mp);
+        C.map = sooc_mapper_cogmap(mp);
     }
     C.frames = frames, C.gt = gt, C.n_gt = n_gt, C.o = o, C.view_cb = view_cb, C.user = user, C.res = res;
 
     /* online inference over the input views */
     for (int i = 0; i < n_frames && !st; i++) {
         if (!use[i] || frames[i].is_query) continue;
-        sooc3d_update_stats us;
+        sooc_update_stats us;
         double t0 = sooc_seconds();
-        if ((st = gm ? sooc_global_mapper_update(gm, &frames[i], &us) : sooc3d_mapper_update(mp, &frames[i], &us)))
+        if ((st = gm ? sooc_global_mapper_update(gm, &frames[i], &us) : sooc_mapper_update(mp, &frames[i], &us)))
             break;
         res->update_s += sooc_seconds() - t0;
         res->n_mapped++;
         if (step_cb) {
             size_t n = 0;
             if (gm) sooc_global_mapper_entries(gm, NULL, 0, &n);
-            else sooc3d_mapper_entries(mp, NULL, 0, &n);
+            else sooc_mapper_entries(mp, NULL, 0, &n);
             if (n > ent_cap) {
                 sooc_free(ent);
                 ent_cap = n + n / 2 + 16;
@@ -352,7 +343,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
                     break;
                 }
             }
-            if ((st = gm ? sooc_global_mapper_entries(gm, ent, ent_cap, &n) : sooc3d_mapper_entries(mp, ent, ent_cap, &n)))
+            if ((st = gm ? sooc_global_mapper_entries(gm, ent, ent_cap, &n) : sooc_mapper_entries(mp, ent, ent_cap, &n)))
                 break;
             sooc_eval_step_info si = {res->n_mapped - 1, i, &frames[i], &us, ent, n};
             if ((st = step_cb(user, &si))) break;
@@ -409,7 +400,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
 done:
     sooc_render_out_free(&C.rout);
     sooc_free(ent);
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper_destroy(mp);
     sooc_global_mapper_destroy(gm);
     sooc_free(use);
     return st;

@@ -38,8 +38,6 @@ sooc_status sooc_eval_table_set_note(sooc_eval_table *t, const char *note) {
     return note && !t->note ? sooc_seterr(SOOC_ENOMEM, "eval table: out of memory") : SOOC_OK;
 }
 
-void sooc_eval_table_set_l2_input(sooc_eval_table *t, int on) { t->l2_input = on; }
-
 static sooc_status get_entry(sooc_eval_table *t, const char *model, int scale, int run, entry **out) {
     if (!model || !*model) return sooc_seterr(SOOC_EINVAL, "eval table: empty model name");
     if (scale < 0 || scale >= SOOC_N_SCALES) return sooc_seterr(SOOC_EINVAL, "eval table: bad scale %d", scale);
@@ -81,16 +79,6 @@ sooc_status sooc_eval_table_add_sums(sooc_eval_table *t, const char *model, int 
     sooc_status s = get_entry(t, model, scale, run, &e);
     if (s) return s;
     sooc_metric_sums_merge(&e->s[is_query ? 1 : 0], sm);
-    return SOOC_OK;
-}
-
-sooc_status sooc_eval_table_add_acc(sooc_eval_table *t, const char *model, int run, const sooc_metric_acc *a) {
-    for (int sc = 0; sc < SOOC_N_SCALES; sc++)
-        for (int q = 0; q < 2; q++) {
-            if (!a->cell[sc][q].n_views) continue;
-            sooc_status s = sooc_eval_table_add_sums(t, model, sc, run, q, &a->cell[sc][q]);
-            if (s) return s;
-        }
     return SOOC_OK;
 }
 
@@ -172,29 +160,8 @@ sooc_status sooc_eval_table_miou_matched(const sooc_eval_table *t, const char *m
 
 /* ------------------------------------------------------------ string builder */
 
-typedef struct sbuf { char *p; size_t n, cap; int fail; } sbuf;
-
-static void sb_printf(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void sb_printf(sbuf *b, const char *fmt, ...) {
-    if (b->fail) return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int k = vsnprintf(b->p ? b->p + b->n : NULL, b->p ? b->cap - b->n : 0, fmt, ap);
-        va_end(ap);
-        if (k < 0) { b->fail = 1; return; }
-        if (b->p && b->n + (size_t)k < b->cap) { b->n += (size_t)k; return; }
-        size_t nc = b->cap ? b->cap * 2 : 4096;
-        while (nc < b->n + (size_t)k + 1) nc *= 2;
-        char *np = sooc_realloc(b->p, nc);
-        if (!np) { b->fail = 1; return; }
-        b->p = np;
-        b->cap = nc;
-    }
-}
-
-static sooc_status sb_finish(sbuf *b, char **out) {
-    if (b->fail || !b->p) {
+static sooc_status sb_finish(sooc_strbuf *b, char **out) {
+    if (b->oom || !b->p) {
         sooc_free(b->p);
         return sooc_seterr(SOOC_ENOMEM, "eval table: out of memory formatting the table");
     }
@@ -255,15 +222,15 @@ static int dispw(const char *s) {
     for (; *s; s++) w += ((unsigned char)*s & 0xC0) != 0x80;
     return w;
 }
-static void sb_pad(sbuf *b, const char *s, int w, int right) {
+static void sb_pad(sooc_strbuf *b, const char *s, int w, int right) {
     int pad = w - dispw(s);
     if (pad < 0) pad = 0;
-    if (right) sb_printf(b, "%*s%s", pad, "", s);
-    else sb_printf(b, "%s%*s", s, pad, "");
+    if (right) sooc_strbuf_printf(b, "%*s%s", pad, "", s);
+    else sooc_strbuf_printf(b, "%s%*s", s, pad, "");
 }
 
 sooc_status sooc_eval_table_text(const sooc_eval_table *t, char **out) {
-    sbuf b = {0};
+    sooc_strbuf b = {0};
     const char *models[MAXM];
     int sc[SOOC_N_SCALES];
     int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
@@ -272,95 +239,95 @@ sooc_status sooc_eval_table_text(const sooc_eval_table *t, char **out) {
     const int cw = 13;
     sb_pad(&b, "", mw + 5, 0);
     for (int c = 0; c < N_MAIN; c++) {
-        sb_printf(&b, "| ");
+        sooc_strbuf_printf(&b, "| ");
         sb_pad(&b, main_names[c], ns * cw, 0);
     }
-    sb_printf(&b, "\n");
+    sooc_strbuf_printf(&b, "\n");
     sb_pad(&b, "model", mw, 0);
-    sb_printf(&b, "  IQ ");
+    sooc_strbuf_printf(&b, "  IQ ");
     for (int c = 0; c < N_MAIN; c++) {
-        sb_printf(&b, "| ");
+        sooc_strbuf_printf(&b, "| ");
         for (int s = 0; s < ns; s++) sb_pad(&b, sooc_scale_name(sc[s]), cw, 0);
     }
-    sb_printf(&b, "\n");
+    sooc_strbuf_printf(&b, "\n");
     int total = mw + 5 + N_MAIN * (2 + ns * cw);
-    for (int i = 0; i < total; i++) sb_printf(&b, "-");
-    sb_printf(&b, "\n");
+    for (int i = 0; i < total; i++) sooc_strbuf_printf(&b, "-");
+    sooc_strbuf_printf(&b, "\n");
     for (int m = 0; m < nm; m++) {
         for (int q = 0; q < 2; q++) {
             sb_pad(&b, q ? "" : models[m], mw, 0);
-            sb_printf(&b, "  %s  ", q ? "Q" : "I");
+            sooc_strbuf_printf(&b, "  %s  ", q ? "Q" : "I");
             for (int c = 0; c < N_MAIN; c++) {
-                sb_printf(&b, "| ");
+                sooc_strbuf_printf(&b, "| ");
                 for (int s = 0; s < ns; s++) {
                     char buf[64];
                     cell_text(t, models[m], sc[s], q, c, buf, sizeof buf);
                     sb_pad(&b, buf, cw, 0);
                 }
             }
-            sb_printf(&b, "\n");
+            sooc_strbuf_printf(&b, "\n");
         }
     }
-    sb_printf(&b, "mIoU: MulMON best-match, background included; RGB RMSE: channel sum (model.md §5); "
+    sooc_strbuf_printf(&b, "mIoU: MulMON best-match, background included; RGB RMSE: channel sum (docs/metrics.md); "
                   "mean±std over runs.\n");
-    if (t->note) sb_printf(&b, "%s\n", t->note);
+    if (t->note) sooc_strbuf_printf(&b, "%s\n", t->note);
     return sb_finish(&b, out);
 }
 
 /* Supplementary table: mIoU by visible objects per view, and the
  * composition-matched mIoU against medium scenes when they were evaluated. */
-static void md_by_nobj(sbuf *b, const sooc_eval_table *t, const char **models, int nm, const int *sc, int ns) {
+static void md_by_nobj(sooc_strbuf *b, const sooc_eval_table *t, const char **models, int nm, const int *sc, int ns) {
     int have_m = 0;
     for (int s = 0; s < ns; s++) have_m |= sc[s] == SOOC_SCALE_M;
-    sb_printf(b, "\nSupplementary: mIoU by the number of GT objects a view holds (views in brackets)%s.\n\n"
+    sooc_strbuf_printf(b, "\nSupplementary: mIoU by the number of GT objects a view holds (views in brackets)%s.\n\n"
                  "| model | view | scale |", have_m ? "; composition-matched: the same, weighted as the medium "
                  "views are (docs/metrics.md)" : "");
     for (int k = 0; k < SOOC_METRIC_N_OBINS; k++)
-        sb_printf(b, " %d%s |", k, k == SOOC_METRIC_N_OBINS - 1 ? "+" : "");
-    sb_printf(b, "%s\n|---|---|---|", have_m ? " composition-matched |" : "");
-    for (int k = 0; k < SOOC_METRIC_N_OBINS + have_m; k++) sb_printf(b, "---:|");
-    sb_printf(b, "\n");
+        sooc_strbuf_printf(b, " %d%s |", k, k == SOOC_METRIC_N_OBINS - 1 ? "+" : "");
+    sooc_strbuf_printf(b, "%s\n|---|---|---|", have_m ? " composition-matched |" : "");
+    for (int k = 0; k < SOOC_METRIC_N_OBINS + have_m; k++) sooc_strbuf_printf(b, "---:|");
+    sooc_strbuf_printf(b, "\n");
     for (int m = 0; m < nm; m++)
         for (int q = 0; q < 2; q++)
             for (int s = 0; s < ns; s++) {
                 sooc_eval_cell c;
                 if (sooc_eval_table_cell(t, models[m], sc[s], q, &c)) continue;
-                sb_printf(b, "| %s | %s | %s |", models[m], q ? "Q" : "I", sooc_scale_name(sc[s]));
+                sooc_strbuf_printf(b, "| %s | %s | %s |", models[m], q ? "Q" : "I", sooc_scale_name(sc[s]));
                 for (int k = 0; k < SOOC_METRIC_N_OBINS; k++) {
-                    if (c.n_by_nobj[k]) sb_printf(b, " %.3f (%ld) |", c.miou_by_nobj[k], c.n_by_nobj[k]);
-                    else sb_printf(b, " - |");
+                    if (c.n_by_nobj[k]) sooc_strbuf_printf(b, " %.3f (%ld) |", c.miou_by_nobj[k], c.n_by_nobj[k]);
+                    else sooc_strbuf_printf(b, " - |");
                 }
                 double mm, cov;
                 if (have_m && !sooc_eval_table_miou_matched(t, models[m], sc[s], q, SOOC_SCALE_M, &mm, &cov))
-                    sb_printf(b, cov < 1 ? " %.3f (%.0f%% of m views) |" : " %.3f |", mm, 100 * cov);
-                else if (have_m) sb_printf(b, " - |");
-                sb_printf(b, "\n");
+                    sooc_strbuf_printf(b, cov < 1 ? " %.3f (%.0f%% of m views) |" : " %.3f |", mm, 100 * cov);
+                else if (have_m) sooc_strbuf_printf(b, " - |");
+                sooc_strbuf_printf(b, "\n");
             }
 }
 
 sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
-    sbuf b = {0};
+    sooc_strbuf b = {0};
     const char *models[MAXM];
     int sc[SOOC_N_SCALES];
     int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
-    sb_printf(&b, "| model | view |");
+    sooc_strbuf_printf(&b, "| model | view |");
     for (int c = 0; c < N_MAIN; c++)
-        for (int s = 0; s < ns; s++) sb_printf(&b, " %s %s |", main_names[c], sooc_scale_name(sc[s]));
-    sb_printf(&b, "\n|---|---|");
-    for (int i = 0; i < N_MAIN * ns; i++) sb_printf(&b, "---:|");
-    sb_printf(&b, "\n");
+        for (int s = 0; s < ns; s++) sooc_strbuf_printf(&b, " %s %s |", main_names[c], sooc_scale_name(sc[s]));
+    sooc_strbuf_printf(&b, "\n|---|---|");
+    for (int i = 0; i < N_MAIN * ns; i++) sooc_strbuf_printf(&b, "---:|");
+    sooc_strbuf_printf(&b, "\n");
     for (int m = 0; m < nm; m++)
         for (int q = 0; q < 2; q++) {
-            sb_printf(&b, "| %s | %s |", q ? "" : models[m], q ? "Q" : "I");
+            sooc_strbuf_printf(&b, "| %s | %s |", q ? "" : models[m], q ? "Q" : "I");
             for (int c = 0; c < N_MAIN; c++)
                 for (int s = 0; s < ns; s++) {
                     char buf[64];
                     cell_text(t, models[m], sc[s], q, c, buf, sizeof buf);
-                    sb_printf(&b, " %s |", buf);
+                    sooc_strbuf_printf(&b, " %s |", buf);
                 }
-            sb_printf(&b, "\n");
+            sooc_strbuf_printf(&b, "\n");
         }
-    sb_printf(&b, "\nSupplementary: one-to-one (Hungarian) mIoU, fraction of visible GT objects matched, "
+    sooc_strbuf_printf(&b, "\nSupplementary: one-to-one (Hungarian) mIoU, fraction of visible GT objects matched, "
                   "recall by camera distance, RGB RMSE over object pixels (GT instance != 0).\n\n"
                   "| model | view | scale | views | mIoU Hungarian | matched | recall <3 m | recall 3-5 m | "
                   "recall >5 m | RGB RMSE objects |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
@@ -374,64 +341,64 @@ sooc_status sooc_eval_table_markdown(const sooc_eval_table *t, char **out) {
                 fmt_stat(mf, sizeof mf, &c.matched_frac, 3);
                 for (int k = 0; k < 3; k++) fmt_stat(r[k], sizeof r[k], &c.recall[k], 3);
                 fmt_stat(ro, sizeof ro, &c.rgb_rmse_obj, 3);
-                sb_printf(&b, "| %s | %s | %s | %ld | %s | %s | %s | %s | %s | %s |\n", models[m], q ? "Q" : "I",
+                sooc_strbuf_printf(&b, "| %s | %s | %s | %ld | %s | %s | %s | %s | %s | %s |\n", models[m], q ? "Q" : "I",
                           sooc_scale_name(sc[s]), c.n_views, h, mf, r[0], r[1], r[2], ro);
             }
     md_by_nobj(&b, t, models, nm, sc, ns);
-    sb_printf(&b, "\nmIoU: MulMON best-match per GT instance (background included, IoU < 0.05 -> 0); "
+    sooc_strbuf_printf(&b, "\nmIoU: MulMON best-match per GT instance (background included, IoU < 0.05 -> 0); "
                   "RGB RMSE: sqrt of the per-pixel channel SUM of squared errors (divide by sqrt(3) for "
                   "the per-channel mean), over all pixels or (objects) GT instance != 0 only; depth RMSE in m "
                   "over GT depth <= d_clip; L2: floor-plane error of best-matched objects, query views. "
                   "Values: mean±std over runs. See docs/metrics.md.\n");
-    if (t->note) sb_printf(&b, "\n%s\n", t->note);
+    if (t->note) sooc_strbuf_printf(&b, "\n%s\n", t->note);
     return sb_finish(&b, out);
 }
 
-static void json_num(sbuf *b, double v) {
-    if (isfinite(v)) sb_printf(b, "%.6g", v);
-    else sb_printf(b, "null");
+static void json_num(sooc_strbuf *b, double v) {
+    if (isfinite(v)) sooc_strbuf_printf(b, "%.6g", v);
+    else sooc_strbuf_printf(b, "null");
 }
-static void json_stat(sbuf *b, const char *k, const sooc_eval_stat *s, int comma) {
-    sb_printf(b, "\"%s\": {\"mean\": ", k);
+static void json_stat(sooc_strbuf *b, const char *k, const sooc_eval_stat *s, int comma) {
+    sooc_strbuf_printf(b, "\"%s\": {\"mean\": ", k);
     json_num(b, s->mean);
-    sb_printf(b, ", \"std\": ");
+    sooc_strbuf_printf(b, ", \"std\": ");
     json_num(b, s->std);
-    sb_printf(b, ", \"runs\": %d}%s", s->n_runs, comma ? ", " : "");
+    sooc_strbuf_printf(b, ", \"runs\": %d}%s", s->n_runs, comma ? ", " : "");
 }
-static void json_str(sbuf *b, const char *s) {
-    sb_printf(b, "\"");
+static void json_str(sooc_strbuf *b, const char *s) {
+    sooc_strbuf_printf(b, "\"");
     for (; *s; s++) {
         unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\') sb_printf(b, "\\%c", c);
-        else if (c < 0x20) sb_printf(b, "\\u%04x", c);
-        else sb_printf(b, "%c", c);
+        if (c == '"' || c == '\\') sooc_strbuf_printf(b, "\\%c", c);
+        else if (c < 0x20) sooc_strbuf_printf(b, "\\u%04x", c);
+        else sooc_strbuf_printf(b, "%c", c);
     }
-    sb_printf(b, "\"");
+    sooc_strbuf_printf(b, "\"");
 }
 
 sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
-    sbuf b = {0};
+    sooc_strbuf b = {0};
     const char *models[MAXM];
     int sc[SOOC_N_SCALES];
     int nm = list_models(t, models, MAXM), ns = scales_present(t, sc);
-    sb_printf(&b, "{\"conventions\": {\"miou\": \"MulMON best-match, background included, IoU<0.05->0\", "
+    sooc_strbuf_printf(&b, "{\"conventions\": {\"miou\": \"MulMON best-match, background included, IoU<0.05->0\", "
                   "\"rgb_rmse\": \"channel sum\", \"rgb_rmse_obj\": \"channel sum, GT instance != 0 pixels\", "
                   "\"depth_rmse\": \"m, GT depth <= d_clip\", "
                   "\"std\": \"sample std over runs\"}, ");
-    sb_printf(&b, "\"note\": ");
+    sooc_strbuf_printf(&b, "\"note\": ");
     if (t->note) json_str(&b, t->note);
-    else sb_printf(&b, "null");
-    sb_printf(&b, ", \"cells\": [");
+    else sooc_strbuf_printf(&b, "null");
+    sooc_strbuf_printf(&b, ", \"cells\": [");
     int first = 1;
     for (int m = 0; m < nm; m++)
         for (int q = 0; q < 2; q++)
             for (int s = 0; s < ns; s++) {
                 sooc_eval_cell c;
                 if (sooc_eval_table_cell(t, models[m], sc[s], q, &c)) continue;
-                sb_printf(&b, "%s\n  {\"model\": ", first ? "" : ",");
+                sooc_strbuf_printf(&b, "%s\n  {\"model\": ", first ? "" : ",");
                 first = 0;
                 json_str(&b, models[m]);
-                sb_printf(&b, ", \"scale\": \"%s\", \"view\": \"%s\", \"n_views\": %ld, ", sooc_scale_name(sc[s]),
+                sooc_strbuf_printf(&b, ", \"scale\": \"%s\", \"view\": \"%s\", \"n_views\": %ld, ", sooc_scale_name(sc[s]),
                           q ? "Q" : "I", c.n_views);
                 json_stat(&b, "miou", &c.miou_best, 1);
                 json_stat(&b, "miou_hungarian", &c.miou_hung, 1);
@@ -448,20 +415,20 @@ sooc_status sooc_eval_table_json(const sooc_eval_table *t, char **out) {
                 json_stat(&b, "extent_err_cm", &c.extent_err_cm, 1);
                 json_stat(&b, "sigma1_frac", &c.sigma1_frac, 1);
                 json_stat(&b, "symmetric_agree", &c.symmetric_agree, 1);
-                sb_printf(&b, "\"miou_by_nobj\": [");
+                sooc_strbuf_printf(&b, "\"miou_by_nobj\": [");
                 for (int k = 0; k < SOOC_METRIC_N_OBINS; k++) {
                     json_num(&b, c.miou_by_nobj[k]);
-                    sb_printf(&b, k + 1 < SOOC_METRIC_N_OBINS ? ", " : "], \"views_by_nobj\": [");
+                    sooc_strbuf_printf(&b, k + 1 < SOOC_METRIC_N_OBINS ? ", " : "], \"views_by_nobj\": [");
                 }
                 for (int k = 0; k < SOOC_METRIC_N_OBINS; k++)
-                    sb_printf(&b, "%ld%s", c.n_by_nobj[k], k + 1 < SOOC_METRIC_N_OBINS ? ", " : "]");
+                    sooc_strbuf_printf(&b, "%ld%s", c.n_by_nobj[k], k + 1 < SOOC_METRIC_N_OBINS ? ", " : "]");
                 double mm = NAN;
                 sooc_eval_table_miou_matched(t, models[m], sc[s], q, SOOC_SCALE_M, &mm, NULL);
-                sb_printf(&b, ", \"miou_composition_matched_m\": ");
+                sooc_strbuf_printf(&b, ", \"miou_composition_matched_m\": ");
                 json_num(&b, mm);
-                sb_printf(&b, "}");
+                sooc_strbuf_printf(&b, "}");
             }
-    sb_printf(&b, "\n]}\n");
+    sooc_strbuf_printf(&b, "\n]}\n");
     return sb_finish(&b, out);
 }
 

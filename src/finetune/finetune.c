@@ -34,7 +34,7 @@ float sooc_finetune_lr_scale(const sooc_finetune_params *p, int it) {
 
 /* ------------------------------------------------------------ components */
 
-void ft_comp_bias(ft_comp *c) { mdl_own_bias(c->w, &c->rel, c->z, c->bias); }
+void sooc_ft_comp_bias(ft_comp *c) { sooc_mdl_own_bias(c->w, &c->rel, c->z, c->bias); }
 
 static int find_comp(const sooc_finetune *ft, sooc_finetune_kind kind, uint64_t id, int32_t bi, int32_t bj) {
     for (int i = 0; i < ft->ncomp; i++) {
@@ -62,8 +62,8 @@ static sooc_status get_comp(sooc_finetune *ft, sooc_finetune_kind kind, uint64_t
     memset(c, 0, sizeof *c);
     c->kind = kind, c->id = id, c->bi = bi, c->bj = bj;
     c->net = kind == SOOC_FT_OBJECT ? &m->dobj : &m->dlay;
-    mdl_dec_rel(c->net, &c->rel);
-    c->nw = mdl_dec_count(c->net);
+    sooc_mdl_dec_rel(c->net, &c->rel);
+    c->nw = sooc_mdl_dec_count(c->net);
     c->w = sooc_malloc(c->nw * sizeof(float));
     c->bias = sooc_malloc((size_t)c->net->H * sizeof(float));
     if (!c->w || !c->bias) {
@@ -75,7 +75,7 @@ static sooc_status get_comp(sooc_finetune *ft, sooc_finetune_kind kind, uint64_t
     const float *pl = kind == SOOC_FT_OBJECT ? sooc_cogmap_payload_get(ft->map, id, &npl)
                                              : sooc_cogmap_block_payload_get(ft->map, bi, bj, &npl);
     int dz = c->net->dz;
-    if (pl && mdl_ft_payload_ok(c->net, kind == SOOC_FT_OBJECT ? MDL_FT_OBJ : MDL_FT_LAY, pl, npl)) {
+    if (pl && sooc_mdl_ft_payload_ok(c->net, kind == SOOC_FT_OBJECT ? MDL_FT_OBJ : MDL_FT_LAY, pl, npl)) {
         memcpy(c->w, mdl_ft_payload_w(c->net, pl), c->nw * sizeof(float));
         memcpy(c->z, mdl_ft_payload_z(pl), (size_t)dz * sizeof(float));
     } else {
@@ -97,7 +97,7 @@ static sooc_status get_comp(sooc_finetune *ft, sooc_finetune_kind kind, uint64_t
             }
         }
     }
-    ft_comp_bias(c);
+    sooc_ft_comp_bias(c);
     *out = ft->ncomp++;
     return SOOC_OK;
 }
@@ -170,7 +170,7 @@ void sooc_finetune_destroy(sooc_finetune *ft) {
  * Slab test in the object's frame (its locality box). */
 static int ray_crosses(const sooc_model_config *c, const float dir[3], float t0, float t1, const float pose[3], float h) {
     float o[3] = {0, 0, 0}, ol[3], e[3] = {dir[0], dir[1], dir[2]}, el[3];
-    mdl_pi(o, pose[0], pose[1], pose[2], h, ol);
+    sooc_mdl_pi(o, pose[0], pose[1], pose[2], h, ol);
     float cth = cosf(pose[2]), sth = sinf(pose[2]);
     el[0] = cth * e[0] - sth * e[2];
     el[1] = e[1];
@@ -256,12 +256,12 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
     v->blk[0] = (float)blk[0] * iu, v->blk[1] = (float)-h * iu, v->blk[2] = (float)blk[1] * iu;
     if ((st = get_comp(ft, SOOC_FT_LAYOUT, 0, bi, bj, &v->lay))) return st;
     for (int i = 0; i < nret; i++) {
-        mdl_lam_from_m(c, slots[i].lam, 1, SOOC_LAM_SIZE(c->d_what));
+        sooc_mdl_lam_from_m(c, slots[i].lam, 1, SOOC_LAM_SIZE(c->d_what));
         if ((st = get_comp(ft, SOOC_FT_OBJECT, slots[i].id, 0, 0, &v->comp[v->nc]))) return st;
         v->pose[v->nc][0] = slots[i].lam[0], v->pose[v->nc][1] = slots[i].lam[1], v->pose[v->nc][2] = slots[i].lam[2];
         v->nc++;
     }
-    /* rays: every pixel (docs/finetune.md), as mdl_make_rays reads them */
+    /* rays: every pixel (docs/finetune.md), as sooc_mdl_make_rays reads them */
     size_t npx = (size_t)f->width * f->height;
     if ((st = grow_rays(ft, ft->nr + npx))) return st;
     double Rwg[9], Rwc[9], tt[3], Rgc[9], RwgT[9];
@@ -324,7 +324,8 @@ static void sort_units(sooc_finetune *ft) {
         }
 }
 
-sooc_status ft_build(sooc_finetune *ft) {
+/* Build the components' ray lists (done by the first unit call). */
+static sooc_status sooc_ft_build(sooc_finetune *ft) {
     if (ft->built) return SOOC_OK;
     for (int i = 0; i < ft->ncomp; i++) ft->comp[i].nrays = 0;
     /* count, then fill */
@@ -379,7 +380,7 @@ sooc_status ft_build(sooc_finetune *ft) {
 }
 
 int sooc_finetune_n_units(const sooc_finetune *ft) {
-    if (!ft->built && ft_build((sooc_finetune *)ft)) return 0;
+    if (!ft->built && sooc_ft_build((sooc_finetune *)ft)) return 0;
     return ft->nunits;
 }
 
@@ -439,21 +440,21 @@ static int local_pe(const sooc_finetune *ft, const ft_view *v, int k, const floa
     const sooc_model_config *c = &ft->m->cfg;
     if (k < 0) {
         float xl[3] = {x[0] - v->blk[0], x[1] - v->blk[1], x[2] - v->blk[2]};
-        mdl_pe_row(xl, 1.0f / c->block_size, ft->m->dlay.nfreq, pe);
+        sooc_mdl_pe_row(xl, 1.0f / c->block_size, ft->m->dlay.nfreq, pe);
         return 1;
     }
     float xk[3];
-    mdl_pi(x, v->pose[k][0], v->pose[k][1], v->pose[k][2], v->h, xk);
+    sooc_mdl_pi(x, v->pose[k][0], v->pose[k][1], v->pose[k][2], v->h, xk);
     if (!in_box(c, xk)) return 0;
-    mdl_pe_row(xk, 1.0f / c->box_rh, ft->m->dobj.nfreq, pe);
+    sooc_mdl_pe_row(xk, 1.0f / c->box_rh, ft->m->dobj.nfreq, pe);
     return 1;
 }
 
-sooc_status ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t n, uint64_t seed, float *gw,
+sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t n, uint64_t seed, float *gw,
                          float *gz, double *ll_out) {
     const sooc_model *m = ft->m;
     const sooc_model_config *c = &m->cfg;
-    sooc_status st = ft_build(ft);
+    sooc_status st = sooc_ft_build(ft);
     if (st) return st;
     if ((st = grow_ws(ft, 2 * n))) return st;
     int H = c->dec_width, Hc = c->dec_color_width;
@@ -530,7 +531,7 @@ sooc_status ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t 
         float *pe = ft->pe + (size_t)o * dinmax;
         if (din != dinmax)
             for (int i = 0; i < R; i++) memmove(pe + (size_t)i * din, pe + (size_t)i * dinmax, din * sizeof(float));
-        mdl_own_forward(cp->w, &cp->rel, R, pe, cp->bias, ft->a1 + (size_t)o * H, ft->a2 + (size_t)o * H,
+        sooc_mdl_own_forward(cp->w, &cp->rel, R, pe, cp->bias, ft->a1 + (size_t)o * H, ft->a2 + (size_t)o * H,
                         ft->a3 + (size_t)o * H, ft->ac + (size_t)o * Hc, ft->sig + o, ft->col + (size_t)o * 3);
     }
     /* 4. per ray: ℓ and the gradient at the unit's rows */
@@ -610,10 +611,10 @@ sooc_status ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t 
     int o = ft->off[u], R = ft->off[u + 1] - o;
     if (!R) return SOOC_OK;
     memset(ft->gbias, 0, (size_t)H * sizeof(float));
-    mdl_own_backward(cu->w, &cu->rel, R, ft->pe + (size_t)o * dinmax, ft->a1 + (size_t)o * H, ft->a2 + (size_t)o * H,
+    sooc_mdl_own_backward(cu->w, &cu->rel, R, ft->pe + (size_t)o * dinmax, ft->a1 + (size_t)o * H, ft->a2 + (size_t)o * H,
                      ft->a3 + (size_t)o * H, ft->ac + (size_t)o * Hc, ft->sig + o, ft->col + (size_t)o * 3,
                      ft->gsig + o, ft->gcol + (size_t)o * 3, ft->gA, ft->gB, ft->gC, gw, ft->gbias);
-    mdl_own_bias_backward(cu->w, &cu->rel, cu->z, ft->gbias, gw, gz);
+    sooc_mdl_own_bias_backward(cu->w, &cu->rel, cu->z, ft->gbias, gw, gz);
     return SOOC_OK;
 }
 
@@ -633,7 +634,7 @@ sooc_status sooc_finetune_unit_run(sooc_finetune *ft, int u, sooc_finetune_progr
     sooc_finetune_result rl;
     if (!res) res = &rl;
     memset(res, 0, sizeof *res);
-    sooc_status st = ft_build(ft);
+    sooc_status st = sooc_ft_build(ft);
     if (st) return st;
     if (u < 0 || u >= ft->nunits) return sooc_seterr(SOOC_EINVAL, "finetune: no unit %d", u);
     int k = ft->units[u];
@@ -658,7 +659,7 @@ sooc_status sooc_finetune_unit_run(sooc_finetune *ft, int u, sooc_finetune_progr
         memset(ft->gw, 0, nw * sizeof(float));
         float gz[SOOC_MODEL_D_MAX] = {0};
         double ll = 0;
-        if ((st = ft_objective(ft, k, batch, B, sseed, ft->gw, gz, &ll))) break;
+        if ((st = sooc_ft_objective(ft, k, batch, B, sseed, ft->gw, gz, &ll))) break;
         double loss = -ll / (double)(B ? B : 1);
         if (!isfinite(loss)) {
             st = sooc_seterr(SOOC_ENUMERIC, "finetune: non-finite likelihood at step %d of unit %d", it, u);
@@ -680,7 +681,7 @@ sooc_status sooc_finetune_unit_run(sooc_finetune *ft, int u, sooc_finetune_progr
             if (i < nw) c->w[i] -= step;
             else c->z[i - nw] -= step;
         }
-        ft_comp_bias(c);
+        sooc_ft_comp_bias(c);
         res->steps = it + 1;
         if (cb && every > 0 && ((it + 1) % every == 0 || it + 1 == iters)) {
             double el = sooc_seconds() - t0;
@@ -698,10 +699,10 @@ sooc_status sooc_finetune_unit_run(sooc_finetune *ft, int u, sooc_finetune_progr
     res->loss_last = nlast ? last / nlast : 0;
     if (st) return st;
     /* the finished unit's decoder goes into the map */
-    size_t np = mdl_ft_payload_size(c->net);
+    size_t np = sooc_mdl_ft_payload_size(c->net);
     float *pl = sooc_malloc(np * sizeof(float));
     if (!pl) return SOOC_ENOMEM;
-    mdl_ft_payload_pack(c->net, c->kind == SOOC_FT_OBJECT ? MDL_FT_OBJ : MDL_FT_LAY, c->z, c->w, pl);
+    sooc_mdl_ft_payload_pack(c->net, c->kind == SOOC_FT_OBJECT ? MDL_FT_OBJ : MDL_FT_LAY, c->z, c->w, pl);
     st = c->kind == SOOC_FT_OBJECT ? sooc_cogmap_payload_set(ft->map, c->id, pl, np)
                                    : sooc_cogmap_block_payload_set(ft->map, c->bi, c->bj, pl, np);
     sooc_free(pl);
@@ -718,7 +719,7 @@ sooc_status sooc_finetune_run_all(sooc_finetune *ft, sooc_finetune_progress_fn c
 }
 
 sooc_status sooc_finetune_loglik(sooc_finetune *ft, uint64_t seed, double *ll, size_t *n_rays) {
-    sooc_status st = ft_build(ft);
+    sooc_status st = sooc_ft_build(ft);
     if (st) return st;
     *ll = 0;
     uint32_t chunk[1024];
@@ -726,7 +727,7 @@ sooc_status sooc_finetune_loglik(sooc_finetune *ft, uint64_t seed, double *ll, s
         size_t nb = ft->nr - r0 < 1024 ? ft->nr - r0 : 1024;
         for (size_t i = 0; i < nb; i++) chunk[i] = (uint32_t)(r0 + i);
         double l = 0;
-        if ((st = ft_objective(ft, -1, chunk, nb, seed, NULL, NULL, &l))) return st;
+        if ((st = sooc_ft_objective(ft, -1, chunk, nb, seed, NULL, NULL, &l))) return st;
         *ll += l;
     }
     if (n_rays) *n_rays = ft->nr;

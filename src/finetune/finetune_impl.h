@@ -61,15 +61,13 @@ struct sooc_finetune {
     float *am, *av;             /* Adam moments (weights then z)                   */
 };
 
-/* Build the components' ray lists (done by the first unit call). */
-sooc_status ft_build(sooc_finetune *ft);
 /* Σ ℓ over rays[0..n) with samples from `seed` (per ray: seed and the ray's
  * index, so a ray's samples do not depend on the batch); if u >= 0, the
  * gradient of Σ ℓ with respect to component u's weights (gw, rel layout) and
  * z (gz) is ACCUMULATED. Uses the components' current weights. */
-sooc_status ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t n, uint64_t seed, float *gw,
+sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t n, uint64_t seed, float *gw,
                          float *gz, double *ll);
 /* Recompute component c's layer-1 bias from its weights and z. */
-void ft_comp_bias(ft_comp *c);
+void sooc_ft_comp_bias(ft_comp *c);
 
 #endif

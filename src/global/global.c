@@ -36,7 +36,7 @@ static sooc_status glob_view_setup(sooc_model *m, view_rec *V, const sooc_frame 
     int ox = (int)sooc_rng_below(rng, (uint32_t)(c->img_w / c->ray_w));
     int oy = (int)sooc_rng_below(rng, (uint32_t)(c->img_h / c->ray_h));
     const double blk0[2] = {0, 0};
-    if ((st = mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twc_frame, h, pitch, blk0))) return st;
+    if ((st = sooc_mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twc_frame, h, pitch, blk0))) return st;
     /* move the origin from the camera centre to (0, h, 0): + (Xc, 0, Zc), in model units */
     float iu = 1.0f / c->unit_m;
     for (int p = 0; p < 2 * V->vr.N; p++) {
@@ -80,7 +80,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
     int L = opt->L > 0 ? opt->L : c->L, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     int n = sooc_model_global_slots(m, n_objects);
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "global train step: L must be >= 1");
-    step_state *S = mdl_step_state(x, T + 1, L);
+    step_state *S = sooc_mdl_step_state(x, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "global train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_status st = SOOC_OK;
@@ -97,7 +97,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
             glob_view_start(m, V, n, 1, P->lam + (size_t)L * n * NL, P->lay + (size_t)L * D2);
             for (int k = 0; k < n; k++) V->src_view[k] = t - 1;
         }
-        if ((st = mdl_view_forward_train(x, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
+        if ((st = sooc_mdl_view_forward_train(x, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
         if (nonfinite) break;
         const float *lamL = V->lam + (size_t)L * n * NL;
         for (int k = 0; k < n; k++) {
@@ -117,7 +117,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
         for (int q = 0; q < Q; q++) {
             view_rec *V = &S->views[T];   /* scratch record */
             if ((st = glob_view_setup(m, V, &queries[q], rng))) goto fail;
-            if ((st = mdl_query_decode(x, S, V, q, n, lamF, layF, opt, rng, &total, out, &nonfinite))) goto fail;
+            if ((st = sooc_mdl_query_decode(x, S, V, q, n, lamF, layF, opt, rng, &total, out, &nonfinite))) goto fail;
             if (nonfinite) break;
             view_rec *W = &S->views[T - 1];
             for (int i = 0; i < n * NL; i++) W->G[i] += S->tmp0[i];
@@ -128,7 +128,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
             view_rec *V = &S->views[t];
-            mdl_view_backward(x, S, V, L);
+            sooc_mdl_view_backward(x, S, V, L);
             if (t > 0) {
                 if (!opt->truncate_views) {
                     view_rec *P = &S->views[t - 1];
@@ -141,7 +141,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
             }
         }
     out->sec_backward = sooc_seconds() - t_rev;
-    return mdl_step_finish(m, S, total, nonfinite, out);
+    return sooc_mdl_step_finish(m, S, total, nonfinite, out);
 fail:
     memcpy(m->g, S->gbak, m->np * sizeof(float));
     return st;
@@ -157,7 +157,7 @@ struct sooc_global_mapper {
     sooc_cogmap *map;          /* the present slots (id = slot + 1) + the layout at block (0, 0) */
     view_rec V;
     int L, n, started, view_idx;
-    int sample;                /* 1 = SOOC3D_LATENTS_SAMPLE */
+    int sample;                /* 1 = SOOC_LATENTS_SAMPLE */
     sooc_rng rng;
     float *lam, *lay;          /* current posterior: n x NL (world frame), 2 d_l */
     int64_t first_ns[SOOC_MODEL_K_MAX];
@@ -165,7 +165,7 @@ struct sooc_global_mapper {
     uint8_t present[SOOC_MODEL_K_MAX];
 };
 
-void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents) { g->sample = latents == SOOC3D_LATENTS_SAMPLE; }
+void sooc_global_mapper_set_latents(sooc_global_mapper *g, int latents) { g->sample = latents == SOOC_LATENTS_SAMPLE; }
 
 sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, int n_objects, int iterations,
                                       uint64_t seed, int threads) {
@@ -188,9 +188,9 @@ sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, i
     g->lam = sooc_calloc((size_t)c->K * m->NL, sizeof(float));
     g->lay = sooc_calloc((size_t)2 * c->d_layout, sizeof(float));
     if (!st && (!g->lam || !g->lay)) st = SOOC_ENOMEM;
-    if (!st) st = mdl_view_alloc(m, &g->V, g->L);
+    if (!st) st = sooc_mdl_view_alloc(m, &g->V, g->L);
     if (!st) st = sooc_model_ws_create(&g->ws, m);
-    if (!st && !mdl_step_state(g->ws, 1, g->L)) st = sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
+    if (!st && !sooc_mdl_step_state(g->ws, 1, g->L)) st = sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
     if (st) {
         sooc_global_mapper_destroy(g);
         return st;
@@ -205,7 +205,7 @@ sooc_status sooc_global_mapper_create(sooc_global_mapper **out, sooc_model *m, i
 
 void sooc_global_mapper_destroy(sooc_global_mapper *g) {
     if (!g) return;
-    if (g->V.buf) mdl_view_free(&g->V);
+    if (g->V.buf) sooc_mdl_view_free(&g->V);
     sooc_model_ws_destroy(g->ws);
     sooc_cogmap_destroy(g->map);
     sooc_model_destroy(g->m);
@@ -216,16 +216,14 @@ void sooc_global_mapper_destroy(sooc_global_mapper *g) {
 
 sooc_model *sooc_global_mapper_model(sooc_global_mapper *g) { return g->m; }
 const sooc_cogmap *sooc_global_mapper_cogmap(const sooc_global_mapper *g) { return g->map; }
-int sooc_global_mapper_n_slots(const sooc_global_mapper *g) { return g->n; }
 const float *sooc_global_mapper_slot(const sooc_global_mapper *g, int k) {
     return k >= 0 && k < g->n ? g->lam + (size_t)k * g->m->NL : NULL;
 }
-const float *sooc_global_mapper_layout(const sooc_global_mapper *g) { return g->lay; }
 
-sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc3d_update_stats *stp) {
+sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f, sooc_update_stats *stp) {
     double t0 = sooc_seconds();
-    sooc3d_update_stats st0;
-    sooc3d_update_stats *us = stp ? stp : &st0;
+    sooc_update_stats st0;
+    sooc_update_stats *us = stp ? stp : &st0;
     memset(us, 0, sizeof *us);
     sooc_model *m = g->m;
     const sooc_model_config *c = &m->cfg;
@@ -233,7 +231,7 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
     if (f->width != c->img_w || f->height != c->img_h)
         return sooc_seterr(SOOC_EINVAL, "global mapper: frame %lld is %dx%d, the model needs %dx%d",
                            (long long)f->index, f->width, f->height, c->img_w, c->img_h);
-    step_state *S = mdl_step_state(g->ws, 1, g->L);
+    step_state *S = sooc_mdl_step_state(g->ws, 1, g->L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
     S->aux_replay = 0;
     view_rec *V = &g->V;
@@ -246,7 +244,7 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
     o.mean_latents = !g->sample;
     o.L = g->L;
     double lw;
-    if ((s = mdl_view_forward(g->ws, S, V, g->L, &o, 0, &g->rng, &lw, NULL))) return s;
+    if ((s = sooc_mdl_view_forward(g->ws, S, V, g->L, &o, 0, &g->rng, &lw, NULL))) return s;
     int NL = m->NL, D2 = 2 * c->d_layout, d = c->d_what, n = g->n;
     const float *lamL = V->lam + (size_t)g->L * n * NL, *layL = V->lay + (size_t)g->L * D2;
     for (int i = 0; i < n * NL; i++)
@@ -268,7 +266,7 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
         memset(&e, 0, sizeof e);
         e.id = (uint64_t)k + 1;
         float lm[5] = {l[0], l[1], l[2], l[3], l[4]};
-        mdl_lam_to_m(c, lm, 1, 5);   /* model units -> metres */
+        sooc_mdl_lam_to_m(c, lm, 1, 5);   /* model units -> metres */
         e.X = lm[0], e.Z = lm[1], e.Theta = lm[2];
         e.rho_t = lm[3], e.rho_theta = lm[4];
         e.pres_logit = l[5 + 2 * d];

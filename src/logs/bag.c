@@ -82,14 +82,14 @@ typedef struct bag_rec {
 
 static sooc_status bag_record_at(sooc_logfile *lf, uint64_t off, uint8_t **buf, size_t *cap, bag_rec *r) {
     uint8_t b4[4];
-    sooc_status st = logs_pread(lf, off, b4, 4, "record header length");
+    sooc_status st = sooc_logs_pread(lf, off, b4, 4, "record header length");
     if (st) return st;
     uint32_t hl = logs_u32(b4);
     if (hl > (1u << 24))
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record header of %u bytes is implausible (corrupt file)",
                            lf->path, (unsigned long long)off, hl);
-    if ((st = logs_reserve(buf, cap, (size_t)hl + 4))) return st;
-    if ((st = logs_pread(lf, off + 4, *buf, (size_t)hl + 4, "record header"))) return st;
+    if ((st = sooc_logs_reserve(buf, cap, (size_t)hl + 4))) return st;
+    if ((st = sooc_logs_pread(lf, off + 4, *buf, (size_t)hl + 4, "record header"))) return st;
     r->off = off;
     r->data_len = logs_u32(*buf + hl);
     r->data_off = off + 8 + hl;
@@ -107,7 +107,7 @@ static sooc_status add_connection(sooc_logfile *lf, const bag_hdr *h, const uint
     if (!h->has_conn)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: connection record without 'conn'", lf->path,
                            (unsigned long long)where);
-    if (logs_find_channel(lf, h->conn) >= 0) return SOOC_OK;
+    if (sooc_logs_find_channel(lf, h->conn) >= 0) return SOOC_OK;
     bag_hdr d;
     sooc_status st = bag_parse(data, n, &d, lf->path, where);
     if (st) return st;
@@ -115,14 +115,14 @@ static sooc_status add_connection(sooc_logfile *lf, const bag_hdr *h, const uint
     if (!topic->p || !d.type.p)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: connection %u has no topic or type", lf->path,
                            (unsigned long long)where, h->conn);
-    return logs_add_channel(lf, h->conn, topic->p, topic->n, d.type.p, d.type.n, "ros1", d.def.p, d.def.n, 0, NULL);
+    return sooc_logs_add_channel(lf, h->conn, topic->p, topic->n, d.type.p, d.type.n, "ros1", d.def.p, d.def.n, 0, NULL);
 }
 
 /* A connection record of the file (its data is another header). */
 static sooc_status read_connection(sooc_logfile *lf, const bag_rec *r) {
     uint8_t *data = sooc_malloc((size_t)r->data_len + 1);
     if (!data) return SOOC_ENOMEM;
-    sooc_status st = logs_pread(lf, r->data_off, data, r->data_len, "connection record");
+    sooc_status st = sooc_logs_pread(lf, r->data_off, data, r->data_len, "connection record");
     if (!st) st = add_connection(lf, &r->h, data, r->data_len, r->off);
     sooc_free(data);
     return st;
@@ -133,7 +133,7 @@ static sooc_status check_chunk(sooc_logfile *lf, const bag_rec *r, logs_chunk *c
     if (h->op != OP_CHUNK)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: expected a chunk record, found op 0x%02x", lf->path,
                            (unsigned long long)r->off, h->op & 0xff);
-    int comp = h->compression.p ? logs_comp_parse(h->compression.p, h->compression.n) : -1;
+    int comp = h->compression.p ? sooc_logs_comp_parse(h->compression.p, h->compression.n) : -1;
     if (comp < 0 || comp == LOGS_COMP_ZSTD)
         return sooc_seterr(SOOC_EUNSUPPORTED,
                            "%s: offset %llu: unknown chunk compression '%.*s' (a ROS bag uses none, lz4 or bz2)",
@@ -154,7 +154,7 @@ static sooc_status check_chunk(sooc_logfile *lf, const bag_rec *r, logs_chunk *c
 static sooc_status scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages) {
     const uint8_t *d;
     size_t n;
-    sooc_status st = logs_chunk_data(lf, ci, &d, &n);
+    sooc_status st = sooc_logs_chunk_data(lf, ci, &d, &n);
     if (st) return st;
     uint64_t where = lf->chunks[ci].pos;
     size_t i = 0;
@@ -170,18 +170,18 @@ static sooc_status scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages) {
         if (h.op == OP_CONN) {
             if ((st = add_connection(lf, &h, d + data, dl, where))) return st;
         } else if (h.op == OP_MSG && add_messages) {
-            int ch = logs_find_channel(lf, h.conn);
+            int ch = sooc_logs_find_channel(lf, h.conn);
             if (ch < 0 || !h.has_time)
                 return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: message at chunk byte %zu %s", lf->path,
                                    (unsigned long long)where, i, ch < 0 ? "has an unknown connection" : "has no time");
-            if ((st = logs_add_entry(lf, h.time, i, ci, ch))) return st;
+            if ((st = sooc_logs_add_entry(lf, h.time, i, ci, ch))) return st;
         }
         i = data + dl;
     }
     lf->chunks[ci].scanned = 1;
     return SOOC_OK;
 bad:
-    return logs_chunk_cut(lf, where, i, n);
+    return sooc_logs_chunk_cut(lf, where, i, n);
 }
 
 /* The index data records right after a chunk; returns the offset after them. */
@@ -199,19 +199,19 @@ static sooc_status read_chunk_index(sooc_logfile *lf, int32_t ci, uint64_t off, 
         if ((uint64_t)r.h.count * 12 != r.data_len)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: index data of %u entries holds %u bytes", lf->path,
                                (unsigned long long)off, r.h.count, r.data_len);
-        int ch = logs_find_channel(lf, r.h.conn);
+        int ch = sooc_logs_find_channel(lf, r.h.conn);
         if (ch < 0)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: index data for unknown connection %u", lf->path,
                                (unsigned long long)off, r.h.conn);
-        if ((st = logs_reserve(buf, cap, r.data_len + 1))) return st;
-        if ((st = logs_pread(lf, r.data_off, *buf, r.data_len, "index data"))) return st;
+        if ((st = sooc_logs_reserve(buf, cap, r.data_len + 1))) return st;
+        if ((st = sooc_logs_pread(lf, r.data_off, *buf, r.data_len, "index data"))) return st;
         for (uint32_t k = 0; k < r.h.count; k++) {
             const uint8_t *p = *buf + 12 * (size_t)k;
             uint32_t o = logs_u32(p + 8);
             if (o >= lf->chunks[ci].usize)
                 return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: index entry points at byte %u of a %llu-byte chunk",
                                    lf->path, (unsigned long long)off, o, (unsigned long long)lf->chunks[ci].usize);
-            if ((st = logs_add_entry(lf, bag_time(p), o, ci, ch))) return st;
+            if ((st = sooc_logs_add_entry(lf, bag_time(p), o, ci, ch))) return st;
         }
         (*n_index)++;
         off = r.next;
@@ -226,13 +226,13 @@ static sooc_status open_chunk(sooc_logfile *lf, const bag_rec *r, uint64_t end, 
     int32_t ci;
     int n_index = 0;
     sooc_status st = check_chunk(lf, r, &c);
-    if (!st) st = logs_add_chunk(lf, &c, &ci);
+    if (!st) st = sooc_logs_add_chunk(lf, &c, &ci);
     if (!st) st = read_chunk_index(lf, ci, r->next, end, buf, cap, after, &n_index);
     if (!st && n_index == 0) st = scan_chunk(lf, ci, 1);
     return st;
 }
 
-sooc_status logs_bag_open(sooc_logfile *lf) {
+sooc_status sooc_logs_bag_open(sooc_logfile *lf) {
     uint8_t *buf = NULL;
     size_t cap = 0;
     bag_rec r;
@@ -267,7 +267,7 @@ sooc_status logs_bag_open(sooc_logfile *lf) {
                                      lf->path, (unsigned long long)off, (unsigned long long)r.h.chunk_pos);
                     break;
                 }
-                if ((st = logs_grow((void **)&pos, &cpos, npos + 1, sizeof *pos, lf->path))) break;
+                if ((st = sooc_logs_grow((void **)&pos, &cpos, npos + 1, sizeof *pos, lf->path))) break;
                 pos[npos++] = r.h.chunk_pos;
             }
         }
@@ -293,7 +293,7 @@ done:
     return st;
 }
 
-sooc_status logs_bag_message(sooc_logfile *lf, const uint8_t *d, size_t n, uint64_t off, uint64_t where,
+sooc_status sooc_logs_bag_message(sooc_logfile *lf, const uint8_t *d, size_t n, uint64_t off, uint64_t where,
                              const uint8_t **data, size_t *size) {
     if (off > n || n - off < 8) goto bad;
     size_t i = (size_t)off;

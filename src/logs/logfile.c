@@ -34,241 +34,6 @@ const char *sooc_logfile_kind_name(sooc_logfile_kind k) {
     return k == SOOC_LOGFILE_ROSBAG ? "rosbag" : k == SOOC_LOGFILE_MCAP ? "mcap" : "none";
 }
 
-const char *logs_comp_name(int comp) {
-    switch (comp) {
-    case LOGS_COMP_LZ4: return "lz4";
-    case LOGS_COMP_BZ2: return "bz2";
-    case LOGS_COMP_ZSTD: return "zstd";
-    default: return "none";
-    }
-}
-
-int logs_comp_parse(const char *s, size_t n) {
-    if (n == 0 || (n == 4 && !memcmp(s, "none", 4))) return LOGS_COMP_NONE;
-    if (n == 3 && !memcmp(s, "lz4", 3)) return LOGS_COMP_LZ4;
-    if (n == 3 && !memcmp(s, "bz2", 3)) return LOGS_COMP_BZ2;
-    if (n == 4 && !memcmp(s, "zstd", 4)) return LOGS_COMP_ZSTD;
-    return -1;
-}
-
-sooc_status logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, const char *what) {
-    if (off > lf->size || n > lf->size - off)
-        return sooc_seterr(SOOC_EFORMAT,
-                           "%s: offset %llu: %s of %zu bytes runs past the end of the file (%llu bytes): the file "
-                           "is truncated",
-                           lf->path, (unsigned long long)off, what, n, (unsigned long long)lf->size);
-    size_t got = 0;
-    while (got < n) {
-        ssize_t r = pread(lf->fd, (uint8_t *)buf + got, n - got, (off_t)(off + got));
-        if (r < 0 && errno == EINTR) continue;
-        if (r <= 0)
-            return sooc_seterr(SOOC_EIO, "%s: offset %llu: read failed: %s", lf->path,
-                               (unsigned long long)(off + got), r < 0 ? strerror(errno) : "unexpected end of file");
-        got += (size_t)r;
-    }
-    return SOOC_OK;
-}
-
-sooc_status logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n) {
-    return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record at chunk byte %zu of %zu is cut short (corrupt chunk)",
-                       lf->path, (unsigned long long)where, i, n);
-}
-
-sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
-    if (*cap >= n && *buf) return SOOC_OK;
-    size_t c = *cap ? *cap : 4096;
-    while (c < n) c = c > SIZE_MAX / 2 ? n : c * 2;
-    uint8_t *p = sooc_realloc(*buf, c);
-    if (!p) return sooc_seterr(SOOC_ENOMEM, "out of memory (%zu bytes)", c);
-    *buf = p;
-    *cap = c;
-    return SOOC_OK;
-}
-
-char *logs_dupn(const char *s, size_t n) {
-    char *d = sooc_malloc(n + 1);
-    if (!d) return NULL;
-    if (n) memcpy(d, s, n);
-    d[n] = 0;
-    return d;
-}
-
-sooc_status logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path) {
-    if (need <= *cap) return SOOC_OK;
-    int64_t c = *cap ? *cap : 16;
-    while (c < need) c *= 2;
-    void *q = sooc_realloc(*p, elem * (size_t)c);
-    if (!q) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", path);
-    *p = q;
-    *cap = c;
-    return SOOC_OK;
-}
-
-sooc_status logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *topic, size_t ntopic, const char *type,
-                             size_t ntype, const char *encoding, const char *definition, size_t ndef, int schema,
-                             int *index) {
-    sooc_status st = logs_grow((void **)&lf->ch, &lf->capch, lf->nch + 1, sizeof *lf->ch, lf->path);
-    if (st) return st;
-    logs_chan *c = &lf->ch[lf->nch];
-    memset(c, 0, sizeof *c);
-    c->file_id = file_id;
-    c->schema = schema;
-    c->topic = logs_dupn(topic, ntopic);
-    c->type = logs_dupn(type, ntype);
-    c->encoding = logs_dupn(encoding, strlen(encoding));
-    c->definition = logs_dupn(definition ? definition : "", definition ? ndef : 0);
-    if (!c->topic || !c->type || !c->encoding || !c->definition) {
-        sooc_free(c->topic);
-        sooc_free(c->type);
-        sooc_free(c->encoding);
-        sooc_free(c->definition);
-        return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", lf->path);
-    }
-    if (index) *index = lf->nch;
-    lf->nch++;
-    return SOOC_OK;
-}
-
-int logs_find_channel(const sooc_logfile *lf, uint32_t file_id) {
-    for (int i = 0; i < lf->nch; i++)
-        if (lf->ch[i].file_id == file_id) return i;
-    return -1;
-}
-
-sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index) {
-    /* the sizes a chunk header may claim before anything is allocated for it */
-    if (c->usize > LOGS_MAX_RECORD || (c->comp == LOGS_COMP_NONE && c->usize != c->csize) ||
-        (c->comp == LOGS_COMP_LZ4 && c->usize > 256 * c->csize + 1024))
-        return sooc_seterr(SOOC_EFORMAT,
-                           "%s: offset %llu: chunk of %llu bytes (%s) claims %llu bytes uncompressed, which it cannot "
-                           "hold (corrupt header)",
-                           lf->path, (unsigned long long)c->pos, (unsigned long long)c->csize, logs_comp_name(c->comp),
-                           (unsigned long long)c->usize);
-    sooc_status st = logs_grow((void **)&lf->chunks, &lf->capchunks, lf->nchunks + 1, sizeof *lf->chunks, lf->path);
-    if (st) return st;
-    if (lf->nchunks >= INT32_MAX) return sooc_seterr(SOOC_EFORMAT, "%s: too many chunks", lf->path);
-    lf->chunks[lf->nchunks] = *c;
-    lf->comp_seen |= 1u << c->comp;
-    *index = (int32_t)lf->nchunks++;
-    return SOOC_OK;
-}
-
-sooc_status logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch) {
-    sooc_status st = logs_grow((void **)&lf->e, &lf->cape, lf->ne + 1, sizeof *lf->e, lf->path);
-    if (st) return st;
-    lf->e[lf->ne++] = (logs_entry){t, off, chunk, ch};
-    return SOOC_OK;
-}
-
-/* ------------------------------------------------------- decompression */
-
-sooc_status logs_decompress(int comp, const uint8_t *src, size_t n, uint8_t *dst, size_t dn, const char *path,
-                            uint64_t off) {
-    unsigned long long o = (unsigned long long)off;
-    switch (comp) {
-    case LOGS_COMP_NONE:
-        if (n != dn)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: uncompressed chunk holds %zu bytes, its header says %zu",
-                               path, o, n, dn);
-        memcpy(dst, src, n);
-        return SOOC_OK;
-    case LOGS_COMP_LZ4: {
-        if (n >= 4 && logs_u32(src) == 0x184D2204u) {   /* LZ4 frame */
-            LZ4F_dctx *dc = NULL;
-            if (LZ4F_isError(LZ4F_createDecompressionContext(&dc, LZ4F_VERSION)))
-                return sooc_seterr(SOOC_ENOMEM, "%s: lz4: cannot create a context", path);
-            size_t in = 0, outp = 0, r = 1;
-            while (in < n && r != 0) {
-                size_t si = n - in, so = dn - outp;
-                r = LZ4F_decompress(dc, dst + outp, &so, src + in, &si, NULL);
-                if (LZ4F_isError(r)) {
-                    LZ4F_freeDecompressionContext(dc);
-                    return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: corrupt LZ4 chunk: %s", path, o,
-                                       LZ4F_getErrorName(r));
-                }
-                in += si;
-                outp += so;
-                if (si == 0 && so == 0) break;
-            }
-            LZ4F_freeDecompressionContext(dc);
-            if (outp != dn || r != 0)
-                return sooc_seterr(SOOC_EFORMAT,
-                                   "%s: offset %llu: LZ4 chunk decompresses to %zu bytes%s, its header says %zu",
-                                   path, o, outp, r ? " (stream incomplete)" : "", dn);
-            return SOOC_OK;
-        }
-        if (n > INT32_MAX || dn > INT32_MAX)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: LZ4 block too large", path, o);
-        int r = LZ4_decompress_safe((const char *)src, (char *)dst, (int)n, (int)dn);
-        if (r < 0 || (size_t)r != dn)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: corrupt LZ4 chunk (block decode %d of %zu bytes)", path,
-                               o, r, dn);
-        return SOOC_OK;
-    }
-    case LOGS_COMP_BZ2: {
-        if (n > UINT32_MAX || dn > UINT32_MAX)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: bz2 chunk too large", path, o);
-        unsigned int got = (unsigned int)dn;
-        int r = BZ2_bzBuffToBuffDecompress((char *)dst, &got, (char *)(uintptr_t)src, (unsigned int)n, 0, 0);
-        if (r != BZ_OK || got != dn)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: corrupt bz2 chunk (bzip2 error %d, %u of %zu bytes)",
-                               path, o, r, got, dn);
-        return SOOC_OK;
-    }
-    case LOGS_COMP_ZSTD: {
-        size_t r = ZSTD_decompress(dst, dn, src, n);
-        if (ZSTD_isError(r))
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: corrupt zstd chunk: %s", path, o, ZSTD_getErrorName(r));
-        if (r != dn)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: zstd chunk decompresses to %zu bytes, its header says %zu",
-                               path, o, r, dn);
-        return SOOC_OK;
-    }
-    default:
-        return sooc_seterr(SOOC_EUNSUPPORTED, "%s: offset %llu: unknown chunk compression", path, o);
-    }
-}
-
-sooc_status logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, size_t *n) {
-    if (c < 0 || c >= lf->nchunks) return sooc_seterr(SOOC_EINVAL, "%s: no chunk %d", lf->path, (int)c);
-    lf->clock++;
-    for (int s = 0; s < 2; s++)
-        if (lf->slot[s].chunk == c && lf->slot[s].buf) {
-            lf->slot[s].stamp = lf->clock;
-            *data = lf->slot[s].buf;
-            *n = (size_t)lf->chunks[c].usize;
-            return SOOC_OK;
-        }
-    logs_slot *sl = lf->slot[0].stamp <= lf->slot[1].stamp ? &lf->slot[0] : &lf->slot[1];
-    const logs_chunk *k = &lf->chunks[c];
-    sl->chunk = -1;
-    sooc_status st = logs_reserve(&sl->buf, &sl->cap, (size_t)k->usize + 1);
-    if (st) return st;
-    if (k->comp == LOGS_COMP_NONE) {
-        if (k->csize != k->usize)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: uncompressed chunk holds %llu bytes, its header says %llu",
-                               lf->path, (unsigned long long)k->pos, (unsigned long long)k->csize,
-                               (unsigned long long)k->usize);
-        st = logs_pread(lf, k->data_off, sl->buf, (size_t)k->usize, "chunk");
-    } else {
-        st = logs_reserve(&lf->raw, &lf->rawcap, (size_t)k->csize + 1);
-        if (!st) st = logs_pread(lf, k->data_off, lf->raw, (size_t)k->csize, "chunk");
-        if (!st) st = logs_decompress(k->comp, lf->raw, (size_t)k->csize, sl->buf, (size_t)k->usize, lf->path, k->pos);
-    }
-    if (st) return st;
-    if (k->crc) {
-        uint32_t got = sooc_crc32(0, sl->buf, (size_t)k->usize);
-        if (got != k->crc)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: chunk CRC mismatch (stored 0x%08x, computed 0x%08x)",
-                               lf->path, (unsigned long long)k->pos, k->crc, got);
-    }
-    sl->chunk = c;
-    sl->stamp = lf->clock;
-    *data = sl->buf;
-    *n = (size_t)k->usize;
-    return SOOC_OK;
-}
-
 /* ------------------------------------------------------------ open/close */
 
 static int cmp_entry(const void *a, const void *b) {
@@ -337,13 +102,13 @@ sooc_status sooc_logfile_open(sooc_logfile **out, const char *path) {
     }
     uint8_t head[13] = {0};
     size_t nh = lf->size < sizeof head ? (size_t)lf->size : sizeof head;
-    if ((st = logs_pread(lf, 0, head, nh, "magic"))) goto fail;
+    if ((st = sooc_logs_pread(lf, 0, head, nh, "magic"))) goto fail;
     if (nh >= 8 && !memcmp(head, MCAP_MAGIC, 8)) {
         lf->kind = SOOC_LOGFILE_MCAP;
-        st = logs_mcap_open(lf);
+        st = sooc_logs_mcap_open(lf);
     } else if (nh == 13 && !memcmp(head, BAG_MAGIC, 13)) {
         lf->kind = SOOC_LOGFILE_ROSBAG;
-        st = logs_bag_open(lf);
+        st = sooc_logs_bag_open(lf);
     } else if (nh >= 9 && !memcmp(head, "#ROSBAG V", 9)) {
         st = sooc_seterr(SOOC_EVERSION, "%s: ROS bag version '%.3s' is not read (only 2.0; `rosbag fix` migrates "
                                         "older bags)", path, (const char *)head + 9);
@@ -406,7 +171,7 @@ void sooc_logfile_get_info(const sooc_logfile *lf, sooc_logfile_info *o) {
     size_t m = 0;
     for (int c = 0; c < 4; c++)
         if (lf->comp_seen & (1u << c)) {
-            int k = snprintf(o->compression + m, sizeof o->compression - m, "%s%s", m ? "+" : "", logs_comp_name(c));
+            int k = snprintf(o->compression + m, sizeof o->compression - m, "%s%s", m ? "+" : "", sooc_logs_comp_name(c));
             if (k > 0 && (size_t)k < sizeof o->compression - m) m += (size_t)k;
         }
     if (!m) snprintf(o->compression, sizeof o->compression, "none");
@@ -455,27 +220,27 @@ sooc_status sooc_logfile_read(sooc_logfile *lf, int64_t k, sooc_logfile_msg *m) 
         const uint8_t *buf;
         size_t n;
         m->offset = lf->chunks[e->chunk].pos;
-        if ((st = logs_chunk_data(lf, e->chunk, &buf, &n))) return st;
+        if ((st = sooc_logs_chunk_data(lf, e->chunk, &buf, &n))) return st;
         if (lf->kind == SOOC_LOGFILE_ROSBAG)
-            st = logs_bag_message(lf, buf, n, e->off, m->offset, &m->data, &m->size);
+            st = sooc_logs_bag_message(lf, buf, n, e->off, m->offset, &m->data, &m->size);
         else if (e->off > n)
             st = sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: message index points past its chunk", lf->path,
                              (unsigned long long)m->offset);
         else
-            st = logs_mcap_message(lf, buf + e->off, n - (size_t)e->off, m->offset, &m->data, &m->size);
+            st = sooc_logs_mcap_message(lf, buf + e->off, n - (size_t)e->off, m->offset, &m->data, &m->size);
     } else {
         /* an unchunked MCAP message record at file offset e->off */
         uint8_t h[9];
         m->offset = e->off;
-        if ((st = logs_pread(lf, e->off, h, 9, "record header"))) return st;
+        if ((st = sooc_logs_pread(lf, e->off, h, 9, "record header"))) return st;
         uint64_t len = logs_u64(h + 1);
         if (len > LOGS_MAX_RECORD)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: record of %llu bytes is too large", lf->path,
                                (unsigned long long)e->off, (unsigned long long)len);
-        if ((st = logs_reserve(&lf->raw, &lf->rawcap, (size_t)len + 9))) return st;
+        if ((st = sooc_logs_reserve(&lf->raw, &lf->rawcap, (size_t)len + 9))) return st;
         memcpy(lf->raw, h, 9);
-        if ((st = logs_pread(lf, e->off + 9, lf->raw + 9, (size_t)len, "message record"))) return st;
-        st = logs_mcap_message(lf, lf->raw, (size_t)len + 9, e->off, &m->data, &m->size);
+        if ((st = sooc_logs_pread(lf, e->off + 9, lf->raw + 9, (size_t)len, "message record"))) return st;
+        st = sooc_logs_mcap_message(lf, lf->raw, (size_t)len + 9, e->off, &m->data, &m->size);
     }
     return st;
 }
@@ -484,8 +249,8 @@ sooc_status sooc_logfile_verify(sooc_logfile *lf) {
     for (int64_t c = 0; c < lf->nchunks; c++) {
         const uint8_t *d;
         size_t n;
-        sooc_status st = logs_chunk_data(lf, (int32_t)c, &d, &n);
+        sooc_status st = sooc_logs_chunk_data(lf, (int32_t)c, &d, &n);
         if (st) return st;
     }
-    return lf->kind == SOOC_LOGFILE_MCAP ? logs_mcap_verify(lf) : SOOC_OK;
+    return lf->kind == SOOC_LOGFILE_MCAP ? sooc_logs_mcap_verify(lf) : SOOC_OK;
 }

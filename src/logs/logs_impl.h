@@ -85,42 +85,37 @@ static inline uint32_t logs_u32(const uint8_t *p) {
 static inline uint64_t logs_u64(const uint8_t *p) { return (uint64_t)logs_u32(p) | ((uint64_t)logs_u32(p + 4) << 32); }
 
 /* pread exactly n bytes at off; EFORMAT naming the offset when the file ends first. */
-sooc_status logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, const char *what);
+sooc_status sooc_logs_pread(sooc_logfile *lf, uint64_t off, void *buf, size_t n, const char *what);
 /* EFORMAT: the record at byte i of the n-byte chunk at file offset where is cut short. */
-sooc_status logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n);
+sooc_status sooc_logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i, size_t n);
 /* A NUL-terminated copy of n bytes (sooc_malloc). */
-char *logs_dupn(const char *s, size_t n);
+char *sooc_logs_dupn(const char *s, size_t n);
 /* Grow the array *p of *cap elements of elem bytes to hold need (doubling). */
-sooc_status logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path);
+sooc_status sooc_logs_grow(void **p, int64_t *cap, int64_t need, size_t elem, const char *path);
 /* Grow *buf to at least n bytes. */
-sooc_status logs_reserve(uint8_t **buf, size_t *cap, size_t n);
+sooc_status sooc_logs_reserve(uint8_t **buf, size_t *cap, size_t n);
 /* Add a channel (strings copied); *index gets its position. */
-sooc_status logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *topic, size_t ntopic, const char *type,
+sooc_status sooc_logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char *topic, size_t ntopic, const char *type,
                              size_t ntype, const char *encoding, const char *definition, size_t ndef, int schema,
                              int *index);
 /* Channel index of a file id, -1 when unknown. */
-int logs_find_channel(const sooc_logfile *lf, uint32_t file_id);
-sooc_status logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index);
-sooc_status logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch);
+int sooc_logs_find_channel(const sooc_logfile *lf, uint32_t file_id);
+sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index);
+sooc_status sooc_logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch);
 /* The uncompressed records of chunk c (cached). */
-sooc_status logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, size_t *n);
-/* Decompress n bytes of method comp into exactly dn bytes. ctx names the place. */
-sooc_status logs_decompress(int comp, const uint8_t *src, size_t n, uint8_t *dst, size_t dn, const char *path,
-                            uint64_t off);
-const char *logs_comp_name(int comp);
+sooc_status sooc_logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, size_t *n);
+const char *sooc_logs_comp_name(int comp);
 /* "none"/"" -> NONE, "lz4", "bz2", "zstd"; -1 otherwise. */
-int logs_comp_parse(const char *s, size_t n);
+int sooc_logs_comp_parse(const char *s, size_t n);
 
 /* ---- per format ---- */
-sooc_status logs_bag_open(sooc_logfile *lf);
+sooc_status sooc_logs_bag_open(sooc_logfile *lf);
 /* The message record at off in a decompressed bag chunk. */
-sooc_status logs_bag_message(sooc_logfile *lf, const uint8_t *chunk, size_t n, uint64_t off, uint64_t where,
+sooc_status sooc_logs_bag_message(sooc_logfile *lf, const uint8_t *chunk, size_t n, uint64_t off, uint64_t where,
                              const uint8_t **data, size_t *size);
-sooc_status logs_mcap_open(sooc_logfile *lf);
-sooc_status logs_mcap_message(sooc_logfile *lf, const uint8_t *rec, size_t n, uint64_t where, const uint8_t **data,
+sooc_status sooc_logs_mcap_open(sooc_logfile *lf);
+sooc_status sooc_logs_mcap_message(sooc_logfile *lf, const uint8_t *rec, size_t n, uint64_t where, const uint8_t **data,
                               size_t *size);
-/* Walk the records of a decompressed MCAP chunk (channels, schemas, messages). */
-sooc_status logs_mcap_scan_chunk(sooc_logfile *lf, int32_t c, int add_messages);
-sooc_status logs_mcap_verify(sooc_logfile *lf);
+sooc_status sooc_logs_mcap_verify(sooc_logfile *lf);
 
 #endif

@@ -112,10 +112,10 @@ static sooc_status probe(sooc_logseq *s, const char *topic, ls_stream *o) {
         snprintf(o->pub.frame_id, sizeof o->pub.frame_id, "%s", ci.header.frame_id);
         if (strstr(ci.format, "compressedDepth")) {
             o->kind = 2;
-            st = logs_depth_compressed(&ci, 0.001, &s->img, &s->zd, &s->zcap, &o->pub.width, &o->pub.height, name);
+            st = sooc_logs_depth_compressed(&ci, 0.001, &s->img, &s->zd, &s->zcap, &o->pub.width, &o->pub.height, name);
         } else {
             o->kind = 1;
-            st = logs_color_compressed(&ci, &s->img, name);
+            st = sooc_logs_color_compressed(&ci, &s->img, name);
             o->pub.width = s->img.width;
             o->pub.height = s->img.height;
         }
@@ -128,8 +128,8 @@ static sooc_status probe(sooc_logseq *s, const char *topic, ls_stream *o) {
     snprintf(o->pub.frame_id, sizeof o->pub.frame_id, "%s", im.header.frame_id);
     o->pub.width = im.width;
     o->pub.height = im.height;
-    logs_pix px = logs_pix_parse(im.encoding);
-    o->kind = px == LOGS_PIX_NONE ? 0 : logs_pix_is_depth(px) ? 2 : 1;
+    logs_pix px = sooc_logs_pix_parse(im.encoding);
+    o->kind = px == LOGS_PIX_NONE ? 0 : sooc_logs_pix_is_depth(px) ? 2 : 1;
     if (!o->kind)
         return sooc_seterr(SOOC_EUNSUPPORTED, "%s: unknown image encoding '%s' (rgb8, bgr8, rgba8, bgra8, mono8, mono16, "
                            "16UC1, 32FC1)", name, im.encoding);
@@ -279,7 +279,7 @@ static int find_stream_extrinsics(sooc_logseq *s, const char *image_topic, doubl
 }
 
 static sooc_status load_tf(sooc_logseq *s) {
-    sooc_status st = logs_tf_create(&s->tf);
+    sooc_status st = sooc_logs_tf_create(&s->tf);
     int cap = 64;
     sooc_ros_transform *buf = sooc_malloc(sizeof *buf * (size_t)cap);
     if (!buf) st = SOOC_ENOMEM;
@@ -304,11 +304,11 @@ static sooc_status load_tf(sooc_logseq *s) {
                 st = sooc_ros_decode_tf(m.data, m.size, ch->enc, buf, cap, &nt);
             }
             if (st) st = sooc_adderr(st, "%s", ctx(s, ch->topic, pos[k]));
-            for (int i = 0; i < nt && !st; i++) st = logs_tf_add(s->tf, &buf[i], is_static);
+            for (int i = 0; i < nt && !st; i++) st = sooc_logs_tf_add(s->tf, &buf[i], is_static);
         }
     }
     sooc_free(buf);
-    if (!st) logs_tf_finish(s->tf);
+    if (!st) sooc_logs_tf_finish(s->tf);
     return st;
 }
 
@@ -340,8 +340,8 @@ static sooc_status settle_registration(sooc_logseq *s) {
     d->registered = 1;
     const char *cf = s->col.pub.frame_id, *df = s->dep.pub.frame_id, *et = NULL;
     double Ec[16], Ed[16], Edi[16];
-    if (strcmp(cf, df) && logs_tf_has_frame(s->tf, cf) && logs_tf_has_frame(s->tf, df) &&
-        logs_tf_lookup(s->tf, cf, df, s->pr && s->n ? s->pr[0].t : 0, INT64_MAX / 4, d->T_color_depth) == SOOC_OK) {
+    if (strcmp(cf, df) && sooc_logs_tf_has_frame(s->tf, cf) && sooc_logs_tf_has_frame(s->tf, df) &&
+        sooc_logs_tf_lookup(s->tf, cf, df, s->pr && s->n ? s->pr[0].t : 0, INT64_MAX / 4, d->T_color_depth) == SOOC_OK) {
         snprintf(s->sbuf[0], sizeof s->sbuf[0], "tf %.70s <- %.70s", cf, df);
         d->extrinsics_source = s->sbuf[0];
     } else if (find_stream_extrinsics(s, s->col.pub.topic, Ec, &et)) {
@@ -432,7 +432,7 @@ sooc_status sooc_logseq_open(sooc_logseq **out, const char *path, const sooc_log
         d->depth_scale_source = "REP 118 default (millimetres)";
     }
     if ((st = load_tf(s))) goto fail;
-    d->tf_transforms = logs_tf_count(s->tf);
+    d->tf_transforms = sooc_logs_tf_count(s->tf);
     /* pairs */
     s->pr = sooc_malloc(sizeof *s->pr * (size_t)(s->col.n ? s->col.n : 1));
     if (!s->pr) { st = SOOC_ENOMEM; goto fail; }
@@ -443,24 +443,24 @@ sooc_status sooc_logseq_open(sooc_logseq **out, const char *path, const sooc_log
     const char *parent = s->p.pose_parent;
     const char *child = s->p.pose_child && *s->p.pose_child ? s->p.pose_child : s->col.pub.frame_id;
     if (parent && !strcmp(parent, "auto")) {
-        parent = logs_tf_root(s->tf, child);
+        parent = sooc_logs_tf_root(s->tf, child);
         if (parent && !strcmp(parent, child[0] == '/' ? child + 1 : child)) parent = NULL;
     }
     if (parent && *parent) {
         snprintf(d->pose_parent, sizeof d->pose_parent, "%s", parent);
         snprintf(d->pose_child, sizeof d->pose_child, "%s", child);
         char list[512];
-        logs_tf_frame_list(s->tf, list, sizeof list);
-        if (!logs_tf_has_frame(s->tf, d->pose_parent) || !logs_tf_has_frame(s->tf, d->pose_child)) {
+        sooc_logs_tf_frame_list(s->tf, list, sizeof list);
+        if (!sooc_logs_tf_has_frame(s->tf, d->pose_parent) || !sooc_logs_tf_has_frame(s->tf, d->pose_child)) {
             st = sooc_seterr(SOOC_ENOTFOUND, "%s: pose: frame '%s' is not in /tf or /tf_static (frames: %s)", path,
-                             logs_tf_has_frame(s->tf, d->pose_parent) ? d->pose_child : d->pose_parent, list);
+                             sooc_logs_tf_has_frame(s->tf, d->pose_parent) ? d->pose_child : d->pose_parent, list);
             goto fail;
         }
         d->has_pose = 1;
         double T[16];
         int64_t tol = (int64_t)llround(s->p.pose_tol_s * 1e9);
         for (int64_t i = 0; i < s->n; i++)
-            if (logs_tf_lookup(s->tf, d->pose_parent, d->pose_child, s->pr[i].t, tol, T)) d->n_unposed++;
+            if (sooc_logs_tf_lookup(s->tf, d->pose_parent, d->pose_child, s->pr[i].t, tol, T)) d->n_unposed++;
         sooc_clearerr();
     }
     d->color = s->col.pub;
@@ -477,7 +477,7 @@ void sooc_logseq_close(sooc_logseq *s) {
     sooc_logfile_close(s->lf);
     stream_free(&s->col);
     stream_free(&s->dep);
-    logs_tf_free(s->tf);
+    sooc_logs_tf_free(s->tf);
     sooc_free(s->pr);
     sooc_image_free(&s->img);
     sooc_free(s->zd);
@@ -487,7 +487,6 @@ void sooc_logseq_close(sooc_logseq *s) {
 int64_t sooc_logseq_count(const sooc_logseq *s) { return s ? s->n : 0; }
 int64_t sooc_logseq_frame_time(const sooc_logseq *s, int64_t i) { return i >= 0 && i < s->n ? s->pr[i].t : INT64_MIN; }
 const sooc_logseq_desc *sooc_logseq_describe(const sooc_logseq *s) { return &s->d; }
-sooc_logfile *sooc_logseq_file(sooc_logseq *s) { return s->lf; }
 
 static sooc_status read_color(sooc_logseq *s, int64_t k, sooc_frame *f, int64_t *stamp) {
     const ls_stream *c = &s->col;
@@ -504,7 +503,7 @@ static sooc_status read_color(sooc_logseq *s, int64_t k, sooc_frame *f, int64_t 
     }
     if (c->compressed) {
         sooc_ros_cimage ci;
-        if (!(st = sooc_ros_decode_cimage(m.data, m.size, ch->enc, &ci))) st = logs_color_compressed(&ci, &s->img, name);
+        if (!(st = sooc_ros_decode_cimage(m.data, m.size, ch->enc, &ci))) st = sooc_logs_color_compressed(&ci, &s->img, name);
         if (st) return sooc_adderr(st, "%s", name);
         if (s->img.width != w || s->img.height != h)
             return sooc_seterr(SOOC_EFORMAT, "%s: image is %dx%d, the stream's first was %dx%d", name, s->img.width,
@@ -518,7 +517,7 @@ static sooc_status read_color(sooc_logseq *s, int64_t k, sooc_frame *f, int64_t 
         return SOOC_OK;
     }
     sooc_ros_image im;
-    if (!(st = sooc_ros_decode_image(m.data, m.size, ch->enc, &im))) st = logs_color_image(&im, f->rgb, w, h);
+    if (!(st = sooc_ros_decode_image(m.data, m.size, ch->enc, &im))) st = sooc_logs_color_image(&im, f->rgb, w, h);
     *stamp = im.header.stamp_ns;
     return st ? sooc_adderr(st, "%s", name) : SOOC_OK;
 }
@@ -536,7 +535,7 @@ static sooc_status read_depth(sooc_logseq *s, int64_t k, float *dst) {
         sooc_ros_cimage ci;
         int gw = 0, gh = 0;
         if (!(st = sooc_ros_decode_cimage(m.data, m.size, ch->enc, &ci)))
-            st = logs_depth_compressed(&ci, s->d.depth_scale, &s->img, &s->zd, &s->zcap, &gw, &gh, name);
+            st = sooc_logs_depth_compressed(&ci, s->d.depth_scale, &s->img, &s->zd, &s->zcap, &gw, &gh, name);
         if (!st && (gw != w || gh != h))
             st = sooc_seterr(SOOC_EFORMAT, "%s: depth is %dx%d, the stream's first was %dx%d", name, gw, gh, w, h);
         if (!st && dst) memcpy(dst, s->zd, sizeof(float) * (size_t)w * (size_t)h);
@@ -544,11 +543,11 @@ static sooc_status read_depth(sooc_logseq *s, int64_t k, float *dst) {
     }
     float *z = dst;
     if (!z) {
-        if ((st = logs_reserve((uint8_t **)&s->zd, &s->zcap, sizeof(float) * (size_t)w * (size_t)h))) return st;
+        if ((st = sooc_logs_reserve((uint8_t **)&s->zd, &s->zcap, sizeof(float) * (size_t)w * (size_t)h))) return st;
         z = s->zd;
     }
     sooc_ros_image im;
-    if (!(st = sooc_ros_decode_image(m.data, m.size, ch->enc, &im))) st = logs_depth_image(&im, s->d.depth_scale, z, w, h);
+    if (!(st = sooc_ros_decode_image(m.data, m.size, ch->enc, &im))) st = sooc_logs_depth_image(&im, s->d.depth_scale, z, w, h);
     return st ? sooc_adderr(st, "%s", name) : SOOC_OK;
 }
 
@@ -561,7 +560,7 @@ sooc_status sooc_logseq_read(sooc_logseq *s, int64_t i, sooc_frame *f) {
     sooc_status st = read_color(s, p->kc, f, &stamp);   /* colour first: the next read may reuse its bytes */
     if (st) return st;
     if (s->d.registered) {
-        if (!(st = read_depth(s, p->kd, NULL))) logs_register_depth(s->zd, &s->dep.pub.K, s->d.T_color_depth, f->depth, &s->col.pub.K);
+        if (!(st = read_depth(s, p->kd, NULL))) sooc_logs_register_depth(s->zd, &s->dep.pub.K, s->d.T_color_depth, f->depth, &s->col.pub.K);
     } else {
         st = read_depth(s, p->kd, f->depth);
     }
@@ -579,7 +578,7 @@ sooc_status sooc_logseq_read(sooc_logseq *s, int64_t i, sooc_frame *f) {
     f->has_pose = 0;
     if (s->d.has_pose) {
         int64_t t = stamp ? stamp : p->t;
-        st = logs_tf_lookup(s->tf, s->d.pose_parent, s->d.pose_child, t, (int64_t)llround(s->p.pose_tol_s * 1e9), f->T_wc);
+        st = sooc_logs_tf_lookup(s->tf, s->d.pose_parent, s->d.pose_child, t, (int64_t)llround(s->p.pose_tol_s * 1e9), f->T_wc);
         if (!st) f->has_pose = 1;
         else if (st != SOOC_ENOTFOUND) return sooc_adderr(st, "%s", sooc_logfile_path(s->lf));
         else sooc_clearerr();

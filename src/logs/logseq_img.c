@@ -7,7 +7,7 @@
 #include <math.h>
 #include <stdio.h>
 
-logs_pix logs_pix_parse(const char *e) {
+logs_pix sooc_logs_pix_parse(const char *e) {
     static const struct { const char *name; logs_pix p; } t[] = {
         {"rgb8", LOGS_PIX_RGB8}, {"bgr8", LOGS_PIX_BGR8}, {"rgba8", LOGS_PIX_RGBA8}, {"bgra8", LOGS_PIX_BGRA8},
         {"mono8", LOGS_PIX_MONO8}, {"8UC1", LOGS_PIX_MONO8}, {"8UC3", LOGS_PIX_BGR8}, {"8UC4", LOGS_PIX_BGRA8},
@@ -17,7 +17,7 @@ logs_pix logs_pix_parse(const char *e) {
     return LOGS_PIX_NONE;
 }
 
-int logs_pix_is_depth(logs_pix p) { return p == LOGS_PIX_U16 || p == LOGS_PIX_F32; }
+int sooc_logs_pix_is_depth(logs_pix p) { return p == LOGS_PIX_U16 || p == LOGS_PIX_F32; }
 
 static int pix_bytes(logs_pix p) {
     switch (p) {
@@ -39,9 +39,9 @@ static sooc_status check_rows(const sooc_ros_image *im, logs_pix p, int w, int h
     return SOOC_OK;
 }
 
-sooc_status logs_color_image(const sooc_ros_image *im, uint8_t *rgb, int w, int h) {
-    logs_pix p = logs_pix_parse(im->encoding);
-    if (p == LOGS_PIX_NONE || logs_pix_is_depth(p))
+sooc_status sooc_logs_color_image(const sooc_ros_image *im, uint8_t *rgb, int w, int h) {
+    logs_pix p = sooc_logs_pix_parse(im->encoding);
+    if (p == LOGS_PIX_NONE || sooc_logs_pix_is_depth(p))
         return sooc_seterr(SOOC_EUNSUPPORTED, "unknown colour encoding '%s' (rgb8, bgr8, rgba8, bgra8, mono8)",
                            im->encoding);
     sooc_status st = check_rows(im, p, w, h);
@@ -66,7 +66,7 @@ sooc_status logs_color_image(const sooc_ros_image *im, uint8_t *rgb, int w, int 
     return SOOC_OK;
 }
 
-sooc_status logs_color_compressed(const sooc_ros_cimage *ci, sooc_image *img, const char *name) {
+sooc_status sooc_logs_color_compressed(const sooc_ros_cimage *ci, sooc_image *img, const char *name) {
     const uint8_t *d = ci->data;
     if (ci->size >= 3 && d[0] == 0xFF && d[1] == 0xD8 && d[2] == 0xFF) return sooc_jpeg_decode(d, ci->size, name, img);
     if (ci->size >= 8 && d[0] == 0x89 && d[1] == 'P' && d[2] == 'N' && d[3] == 'G')
@@ -76,9 +76,9 @@ sooc_status logs_color_compressed(const sooc_ros_cimage *ci, sooc_image *img, co
 
 static uint16_t u16(const uint8_t *q, int be) { return be ? (uint16_t)((q[0] << 8) | q[1]) : (uint16_t)(q[0] | (q[1] << 8)); }
 
-sooc_status logs_depth_image(const sooc_ros_image *im, double scale, float *z, int w, int h) {
-    logs_pix p = logs_pix_parse(im->encoding);
-    if (!logs_pix_is_depth(p))
+sooc_status sooc_logs_depth_image(const sooc_ros_image *im, double scale, float *z, int w, int h) {
+    logs_pix p = sooc_logs_pix_parse(im->encoding);
+    if (!sooc_logs_pix_is_depth(p))
         return sooc_seterr(SOOC_EUNSUPPORTED, "unknown depth encoding '%s' (16UC1, mono16, 32FC1)", im->encoding);
     sooc_status st = check_rows(im, p, w, h);
     if (st) return st;
@@ -102,7 +102,7 @@ sooc_status logs_depth_image(const sooc_ros_image *im, double scale, float *z, i
     return SOOC_OK;
 }
 
-sooc_status logs_depth_compressed(const sooc_ros_cimage *ci, double scale, sooc_image *img, float **z, size_t *cap,
+sooc_status sooc_logs_depth_compressed(const sooc_ros_cimage *ci, double scale, sooc_image *img, float **z, size_t *cap,
                                   int *w, int *h, const char *name) {
     const char *f = ci->format;
     int is_f32 = !strncmp(f, "32FC1", 5);
@@ -126,7 +126,7 @@ sooc_status logs_depth_compressed(const sooc_ros_cimage *ci, double scale, sooc_
         return sooc_seterr(SOOC_EFORMAT, "%s: compressedDepth PNG is %s, expected 16-bit", name,
                            sooc_pixfmt_name(img->fmt));
     size_t np = (size_t)img->width * (size_t)img->height;
-    if ((st = logs_reserve((uint8_t **)z, cap, np * sizeof(float)))) return st;
+    if ((st = sooc_logs_reserve((uint8_t **)z, cap, np * sizeof(float)))) return st;
     const uint16_t *v = img->data;
     for (size_t k = 0; k < np; k++) {
         if (!v[k]) (*z)[k] = 0;
@@ -140,7 +140,7 @@ sooc_status logs_depth_compressed(const sooc_ros_cimage *ci, double scale, sooc_
     return SOOC_OK;
 }
 
-void logs_register_depth(const float *zd, const sooc_intrinsics *Kd, const double T[16], float *out,
+void sooc_logs_register_depth(const float *zd, const sooc_intrinsics *Kd, const double T[16], float *out,
                          const sooc_intrinsics *Kc) {
     const int wd = Kd->width, hd = Kd->height, wc = Kc->width, hc = Kc->height;
     for (size_t k = 0; k < (size_t)wc * (size_t)hc; k++) out[k] = 0;

@@ -51,13 +51,13 @@ static sooc_status add_schema(sooc_logfile *lf, const uint8_t *p, size_t n, uint
     const char *name = mc_str(&c, &nn), *enc = mc_str(&c, &ne), *data = mc_str(&c, &nd);
     if (c.bad) return cut(lf, where, "schema");
     if (id == 0 || find_schema(lf, id)) return SOOC_OK;
-    sooc_status st = logs_grow((void **)&lf->sc, &lf->capsc, lf->nsc + 1, sizeof *lf->sc, lf->path);
+    sooc_status st = sooc_logs_grow((void **)&lf->sc, &lf->capsc, lf->nsc + 1, sizeof *lf->sc, lf->path);
     if (st) return st;
     logs_schema *s = &lf->sc[lf->nsc];
     s->id = (uint16_t)id;
-    s->name = logs_dupn(name, nn);
-    s->encoding = logs_dupn(enc, ne);
-    s->data = logs_dupn(data, nd);
+    s->name = sooc_logs_dupn(name, nn);
+    s->encoding = sooc_logs_dupn(enc, ne);
+    s->data = sooc_logs_dupn(data, nd);
     if (!s->name || !s->encoding || !s->data) {
         sooc_free(s->name);
         sooc_free(s->encoding);
@@ -74,18 +74,18 @@ static sooc_status add_channel(sooc_logfile *lf, const uint8_t *p, size_t n, uin
     int id = (int)mc_int(&c, 2), sid = (int)mc_int(&c, 2);
     const char *topic = mc_str(&c, &nt), *enc = mc_str(&c, &ne);
     if (c.bad) return cut(lf, where, "channel");
-    if (logs_find_channel(lf, (uint32_t)id) >= 0) return SOOC_OK;
+    if (sooc_logs_find_channel(lf, (uint32_t)id) >= 0) return SOOC_OK;
     const logs_schema *s = find_schema(lf, sid);
     char encs[64];
     snprintf(encs, sizeof encs, "%.*s", (int)(ne < 63 ? ne : 63), enc);
-    return logs_add_channel(lf, (uint32_t)id, topic, nt, s ? s->name : "", s ? strlen(s->name) : 0, encs,
+    return sooc_logs_add_channel(lf, (uint32_t)id, topic, nt, s ? s->name : "", s ? strlen(s->name) : 0, encs,
                             s ? s->data : "", s ? strlen(s->data) : 0, sid, NULL);
 }
 
 /* The Chunk record at off: its header fields into a logs_chunk. */
 static sooc_status read_chunk_header(sooc_logfile *lf, uint64_t off, logs_chunk *k) {
     uint8_t h[41];
-    sooc_status st = logs_pread(lf, off, h, sizeof h, "chunk header");
+    sooc_status st = sooc_logs_pread(lf, off, h, sizeof h, "chunk header");
     if (st) return st;
     if (h[0] != OP_CHUNK)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: expected a chunk record, found opcode 0x%02x", lf->path,
@@ -94,8 +94,8 @@ static sooc_status read_chunk_header(sooc_logfile *lf, uint64_t off, logs_chunk 
     uint32_t nc = logs_u32(h + 37);
     if (nc > 64 || len < 40 + (uint64_t)nc) return cut(lf, off, "chunk");
     uint8_t tail[72];
-    if ((st = logs_pread(lf, off + 41, tail, nc + 8, "chunk header"))) return st;
-    int comp = logs_comp_parse((const char *)tail, nc);
+    if ((st = sooc_logs_pread(lf, off + 41, tail, nc + 8, "chunk header"))) return st;
+    int comp = sooc_logs_comp_parse((const char *)tail, nc);
     if (comp < 0 || comp == LOGS_COMP_BZ2)
         return sooc_seterr(SOOC_EUNSUPPORTED,
                            "%s: offset %llu: unknown chunk compression '%.*s' (MCAP chunks are read uncompressed, lz4 "
@@ -118,10 +118,11 @@ static sooc_status read_chunk_header(sooc_logfile *lf, uint64_t off, logs_chunk 
     return SOOC_OK;
 }
 
-sooc_status logs_mcap_scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages) {
+/* Walk the records of a decompressed MCAP chunk (channels, schemas, messages). */
+static sooc_status sooc_logs_mcap_scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages) {
     const uint8_t *d;
     size_t n;
-    sooc_status st = logs_chunk_data(lf, ci, &d, &n);
+    sooc_status st = sooc_logs_chunk_data(lf, ci, &d, &n);
     if (st) return st;
     uint64_t where = lf->chunks[ci].pos;
     size_t i = 0;
@@ -135,11 +136,11 @@ sooc_status logs_mcap_scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages)
         else if (op == OP_CHANNEL) st = add_channel(lf, p, (size_t)len, where);
         else if (op == OP_MESSAGE && add_messages) {
             if (len < 22) goto bad;
-            int ch = logs_find_channel(lf, logs_u16(p));
+            int ch = sooc_logs_find_channel(lf, logs_u16(p));
             if (ch < 0)
                 return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: message at chunk byte %zu has unknown channel %u",
                                    lf->path, (unsigned long long)where, i, logs_u16(p));
-            st = logs_add_entry(lf, (int64_t)logs_u64(p + 6), i, ci, ch);
+            st = sooc_logs_add_entry(lf, (int64_t)logs_u64(p + 6), i, ci, ch);
         }
         if (st) return st;
         i += 9 + (size_t)len;
@@ -147,7 +148,7 @@ sooc_status logs_mcap_scan_chunk(sooc_logfile *lf, int32_t ci, int add_messages)
     lf->chunks[ci].scanned = 1;
     return SOOC_OK;
 bad:
-    return logs_chunk_cut(lf, where, i, n);
+    return sooc_logs_chunk_cut(lf, where, i, n);
 }
 
 /* Message Index records in [off, end) for chunk ci. */
@@ -160,17 +161,17 @@ static sooc_status read_msg_indexes(sooc_logfile *lf, int32_t ci, uint64_t off, 
         int unknown = 0;
         for (uint64_t o = off; o < end;) {
             uint8_t h[9];
-            if ((st = logs_pread(lf, o, h, 9, "record header"))) return st;
+            if ((st = sooc_logs_pread(lf, o, h, 9, "record header"))) return st;
             uint64_t len = logs_u64(h + 1);
             if (h[0] != OP_MSGINDEX) break;
             if (len > lf->size - o - 9 || len > LOGS_MAX_RECORD) return cut(lf, o, "message index");
-            if ((st = logs_reserve(buf, cap, (size_t)len + 1))) return st;
-            if ((st = logs_pread(lf, o + 9, *buf, (size_t)len, "message index"))) return st;
+            if ((st = sooc_logs_reserve(buf, cap, (size_t)len + 1))) return st;
+            if ((st = sooc_logs_pread(lf, o + 9, *buf, (size_t)len, "message index"))) return st;
             mc c = {*buf, (size_t)len, 0, 0};
             uint32_t id = (uint32_t)mc_int(&c, 2);
             uint32_t nb = (uint32_t)mc_int(&c, 4);
             if (c.bad || nb > len - 6 || nb % 16) return cut(lf, o, "message index");
-            int ch = logs_find_channel(lf, id);
+            int ch = sooc_logs_find_channel(lf, id);
             if (ch < 0) unknown = 1;
             if (pass == 1) {
                 if (ch < 0)
@@ -183,13 +184,13 @@ static sooc_status read_msg_indexes(sooc_logfile *lf, int32_t ci, uint64_t off, 
                         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: message index points at byte %llu of a "
                                            "%llu-byte chunk", lf->path, (unsigned long long)o, (unsigned long long)mo,
                                            (unsigned long long)lf->chunks[ci].usize);
-                    if ((st = logs_add_entry(lf, (int64_t)logs_u64(q), mo, ci, ch))) return st;
+                    if ((st = sooc_logs_add_entry(lf, (int64_t)logs_u64(q), mo, ci, ch))) return st;
                 }
                 (*n_index)++;
             }
             o += 9 + len;
         }
-        if (pass == 0 && unknown && (st = logs_mcap_scan_chunk(lf, ci, 0))) return st;
+        if (pass == 0 && unknown && (st = sooc_logs_mcap_scan_chunk(lf, ci, 0))) return st;
     }
     return SOOC_OK;
 }
@@ -203,7 +204,7 @@ static sooc_status scan_data(sooc_logfile *lf) {
     int ended = 0, first = 1;
     while (!st && off < lf->size) {
         uint8_t h[9];
-        if ((st = logs_pread(lf, off, h, 9, "record header"))) break;
+        if ((st = sooc_logs_pread(lf, off, h, 9, "record header"))) break;
         uint64_t len = logs_u64(h + 1);
         if (len > lf->size - off - 9) {
             st = sooc_seterr(SOOC_EFORMAT,
@@ -221,29 +222,29 @@ static sooc_status scan_data(sooc_logfile *lf) {
         uint64_t next = off + 9 + len;
         if (h[0] == OP_SCHEMA || h[0] == OP_CHANNEL) {
             if (len > LOGS_MAX_RECORD) { st = cut(lf, off, "schema"); break; }
-            if (!(st = logs_reserve(&buf, &cap, (size_t)len + 1)) && !(st = logs_pread(lf, off + 9, buf, (size_t)len, "record")))
+            if (!(st = sooc_logs_reserve(&buf, &cap, (size_t)len + 1)) && !(st = sooc_logs_pread(lf, off + 9, buf, (size_t)len, "record")))
                 st = h[0] == OP_SCHEMA ? add_schema(lf, buf, (size_t)len, off) : add_channel(lf, buf, (size_t)len, off);
         } else if (h[0] == OP_MESSAGE) {
             uint8_t m[22];
             if (len < 22) { st = cut(lf, off, "message"); break; }
-            if ((st = logs_pread(lf, off + 9, m, 22, "message"))) break;
-            int ch = logs_find_channel(lf, logs_u16(m));
+            if ((st = sooc_logs_pread(lf, off + 9, m, 22, "message"))) break;
+            int ch = sooc_logs_find_channel(lf, logs_u16(m));
             if (ch < 0)
                 st = sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: message on unknown channel %u", lf->path,
                                  (unsigned long long)off, logs_u16(m));
             else
-                st = logs_add_entry(lf, (int64_t)logs_u64(m + 6), off, -1, ch);
+                st = sooc_logs_add_entry(lf, (int64_t)logs_u64(m + 6), off, -1, ch);
         } else if (h[0] == OP_CHUNK) {
             logs_chunk k;
             int32_t ci;
             int n_index = 0;
             if ((st = read_chunk_header(lf, off, &k))) break;
-            if ((st = logs_add_chunk(lf, &k, &ci))) break;
+            if ((st = sooc_logs_add_chunk(lf, &k, &ci))) break;
             if ((st = read_msg_indexes(lf, ci, next, lf->size, &buf, &cap, &n_index))) break;
-            if (n_index == 0) st = logs_mcap_scan_chunk(lf, ci, 1);
+            if (n_index == 0) st = sooc_logs_mcap_scan_chunk(lf, ci, 1);
         } else if (h[0] == OP_DATAEND) {
             uint8_t c4[4] = {0};
-            if (len >= 4) st = logs_pread(lf, off + 9, c4, 4, "data end");
+            if (len >= 4) st = sooc_logs_pread(lf, off + 9, c4, 4, "data end");
             lf->data_end = off;
             lf->data_crc = logs_u32(c4);
             ended = 1;
@@ -273,7 +274,7 @@ static sooc_status read_summary(sooc_logfile *lf, int *used) {
     uint8_t *s = sooc_malloc(n), *buf = NULL;
     size_t cap = 0;
     if (!s) return SOOC_ENOMEM;
-    sooc_status st = logs_pread(lf, ss, s, n, "summary section");
+    sooc_status st = sooc_logs_pread(lf, ss, s, n, "summary section");
     if (!st && lf->summary_crc) {
         uint32_t got = sooc_crc32(0, s, n);
         if (got != lf->summary_crc)
@@ -306,13 +307,13 @@ static sooc_status read_summary(sooc_logfile *lf, int *used) {
                 int32_t ci;
                 int n_index = 0;
                 if ((st = read_chunk_header(lf, cstart, &k))) break;
-                if ((st = logs_add_chunk(lf, &k, &ci))) break;
+                if ((st = sooc_logs_add_chunk(lf, &k, &ci))) break;
                 if (mapb && milen) {
                     uint64_t a = cstart + clen;
                     if (a > lf->size || milen > lf->size - a) { st = cut(lf, where, "chunk index"); break; }
                     st = read_msg_indexes(lf, ci, a, a + milen, &buf, &cap, &n_index);
                 }
-                if (!st && n_index == 0) st = logs_mcap_scan_chunk(lf, ci, 1);
+                if (!st && n_index == 0) st = sooc_logs_mcap_scan_chunk(lf, ci, 1);
                 *used = 1;
             }
             i += 9 + (size_t)len;
@@ -333,14 +334,14 @@ static void reset_index(sooc_logfile *lf) {
     lf->slot[0].chunk = lf->slot[1].chunk = -1;
 }
 
-sooc_status logs_mcap_open(sooc_logfile *lf) {
+sooc_status sooc_logs_mcap_open(sooc_logfile *lf) {
     if (lf->size < 8 + 9 + 8)
         return sooc_seterr(SOOC_EFORMAT, "%s: %llu bytes is too short for an MCAP file: the file is truncated",
                            lf->path, (unsigned long long)lf->size);
     uint8_t tail[37];
     int has_footer = 0;
     if (lf->size >= 8 + 37) {
-        sooc_status st = logs_pread(lf, lf->size - 37, tail, 37, "footer");
+        sooc_status st = sooc_logs_pread(lf, lf->size - 37, tail, 37, "footer");
         if (st) return st;
         static const uint8_t magic[8] = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
         if (!memcmp(tail + 29, magic, 8) && tail[0] == OP_FOOTER && logs_u64(tail + 1) == 20) {
@@ -367,7 +368,7 @@ sooc_status logs_mcap_open(sooc_logfile *lf) {
     return st;
 }
 
-sooc_status logs_mcap_message(sooc_logfile *lf, const uint8_t *rec, size_t n, uint64_t where, const uint8_t **data,
+sooc_status sooc_logs_mcap_message(sooc_logfile *lf, const uint8_t *rec, size_t n, uint64_t where, const uint8_t **data,
                               size_t *size) {
     if (n < 9 || rec[0] != OP_MESSAGE)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: the index points at %s, not a message record", lf->path,
@@ -379,19 +380,19 @@ sooc_status logs_mcap_message(sooc_logfile *lf, const uint8_t *rec, size_t n, ui
     return SOOC_OK;
 }
 
-sooc_status logs_mcap_verify(sooc_logfile *lf) {
+sooc_status sooc_logs_mcap_verify(sooc_logfile *lf) {
     if (!lf->data_end || !lf->data_crc) {
         /* find the Data End record by walking the data section */
         uint64_t off = 8;
         while (off + 9 <= lf->size) {
             uint8_t h[9];
-            sooc_status st = logs_pread(lf, off, h, 9, "record header");
+            sooc_status st = sooc_logs_pread(lf, off, h, 9, "record header");
             if (st) return st;
             uint64_t len = logs_u64(h + 1);
             if (len > lf->size - off - 9) return cut(lf, off, "data section");
             if (h[0] == OP_DATAEND) {
                 uint8_t c4[4] = {0};
-                if (len >= 4 && (st = logs_pread(lf, off + 9, c4, 4, "data end"))) return st;
+                if (len >= 4 && (st = sooc_logs_pread(lf, off + 9, c4, 4, "data end"))) return st;
                 lf->data_end = off;
                 lf->data_crc = logs_u32(c4);
                 break;
@@ -407,7 +408,7 @@ sooc_status logs_mcap_verify(sooc_logfile *lf) {
     sooc_status st = SOOC_OK;
     for (uint64_t off = 0; off < lf->data_end && !st;) {
         size_t k = lf->data_end - off < (1u << 20) ? (size_t)(lf->data_end - off) : (1u << 20);
-        if (!(st = logs_pread(lf, off, buf, k, "data section"))) crc = sooc_crc32(crc, buf, k);
+        if (!(st = sooc_logs_pread(lf, off, buf, k, "data section"))) crc = sooc_crc32(crc, buf, k);
         off += k;
     }
     sooc_free(buf);

@@ -119,7 +119,7 @@ sooc_status sooc_mcap_writer_open(sooc_mcap_writer **outp, const char *path, con
     if (!w->p.profile) w->p.profile = "";
     if (!w->p.compression) w->p.compression = "";
     if (!w->p.chunk_size) w->p.chunk_size = 1 << 20;
-    w->comp = logs_comp_parse(w->p.compression, strlen(w->p.compression));
+    w->comp = sooc_logs_comp_parse(w->p.compression, strlen(w->p.compression));
     if (w->comp < 0 || w->comp == LOGS_COMP_BZ2) {
         sooc_free(w);
         return sooc_seterr(SOOC_EINVAL, "%s: MCAP compression '%s' (one of \"\", lz4, zstd)", path, w->p.compression);
@@ -220,12 +220,12 @@ static sooc_status flush_chunk(sooc_mcap_writer *w) {
     size_t usize = w->chunk.size, csize = usize;
     if (w->comp == LOGS_COMP_ZSTD || w->comp == LOGS_COMP_LZ4) {
         size_t bound = w->comp == LOGS_COMP_ZSTD ? ZSTD_compressBound(usize) : LZ4F_compressFrameBound(usize, NULL);
-        sooc_status st = logs_reserve(&w->cbuf, &w->ccap, bound);
+        sooc_status st = sooc_logs_reserve(&w->cbuf, &w->ccap, bound);
         if (st) return st;
         size_t r = w->comp == LOGS_COMP_ZSTD ? ZSTD_compress(w->cbuf, bound, data, usize, 3)
                                              : LZ4F_compressFrame(w->cbuf, bound, data, usize, NULL);
         if (w->comp == LOGS_COMP_ZSTD ? ZSTD_isError(r) : LZ4F_isError(r))
-            return sooc_seterr(SOOC_EIO, "%s: %s compression failed", w->f.path, logs_comp_name(w->comp));
+            return sooc_seterr(SOOC_EIO, "%s: %s compression failed", w->f.path, sooc_logs_comp_name(w->comp));
         data = w->cbuf;
         csize = r;
     }
@@ -238,7 +238,7 @@ static sooc_status flush_chunk(sooc_mcap_writer *w) {
     b_int(b, (uint64_t)t1, 8);
     b_int(b, usize, 8);
     b_int(b, sooc_crc32(0, w->chunk.data, usize), 4);
-    b_str(b, w->comp == LOGS_COMP_NONE ? "" : logs_comp_name(w->comp));
+    b_str(b, w->comp == LOGS_COMP_NONE ? "" : sooc_logs_comp_name(w->comp));
     b_int(b, csize, 8);
     b_put(b, data, csize);
     rec_end(b, at);
@@ -270,7 +270,7 @@ static sooc_status flush_chunk(sooc_mcap_writer *w) {
         b_int(ci, map.size, 4);
         b_put(ci, map.data, map.size);
         b_int(ci, w->pos - idx_start, 8);
-        b_str(ci, w->comp == LOGS_COMP_NONE ? "" : logs_comp_name(w->comp));
+        b_str(ci, w->comp == LOGS_COMP_NONE ? "" : sooc_logs_comp_name(w->comp));
         b_int(ci, csize, 8);
         b_int(ci, usize, 8);
         rec_end(ci, at);

@@ -149,16 +149,6 @@ static int type_is(const char *type, const char *base) {
     return !strcmp(sooc_ros_type_base(type, b, sizeof b), base);
 }
 
-int sooc_ros_type_known(const char *type) {
-    static const char *const k[] = {"sensor_msgs/Image", "sensor_msgs/CompressedImage", "sensor_msgs/CameraInfo",
-                                    "tf2_msgs/TFMessage", "tf/tfMessage", "geometry_msgs/TransformStamped",
-                                    "geometry_msgs/Transform", "geometry_msgs/PoseStamped", "geometry_msgs/Pose",
-                                    "nav_msgs/Odometry", "std_msgs/Float32", "std_msgs/Float64"};
-    for (size_t i = 0; i < sizeof k / sizeof k[0]; i++)
-        if (type_is(type, k[i])) return 1;
-    return 0;
-}
-
 /* --------------------------------------------------------------- decoders */
 
 sooc_status sooc_ros_decode_image(const uint8_t *d, size_t n, sooc_msg_encoding enc, sooc_ros_image *o) {

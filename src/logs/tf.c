@@ -27,12 +27,12 @@ struct logs_tf {
     int64_t count, reparented;
 };
 
-sooc_status logs_tf_create(logs_tf **out) {
+sooc_status sooc_logs_tf_create(logs_tf **out) {
     *out = sooc_calloc(1, sizeof **out);
     return *out ? SOOC_OK : SOOC_ENOMEM;
 }
 
-void logs_tf_free(logs_tf *tf) {
+void sooc_logs_tf_free(logs_tf *tf) {
     if (!tf) return;
     for (int i = 0; i < tf->n; i++) sooc_free(tf->f[i].s);
     sooc_free(tf->f);
@@ -65,7 +65,7 @@ static int intern(logs_tf *tf, const char *name) {
     return tf->n++;
 }
 
-sooc_status logs_tf_add(logs_tf *tf, const sooc_ros_transform *t, int is_static) {
+sooc_status sooc_logs_tf_add(logs_tf *tf, const sooc_ros_transform *t, int is_static) {
     int c = intern(tf, t->child), p = intern(tf, t->header.frame_id);
     if (c < 0 || p < 0) return sooc_seterr(SOOC_ENOMEM, "tf: out of memory");
     if (c == p || !t->child[0]) return SOOC_OK;
@@ -106,16 +106,15 @@ static int cmp_sample(const void *a, const void *b) {
     return x->t < y->t ? -1 : x->t > y->t;
 }
 
-void logs_tf_finish(logs_tf *tf) {
+void sooc_logs_tf_finish(logs_tf *tf) {
     for (int i = 0; i < tf->n; i++)
         if (tf->f[i].n > 1) qsort(tf->f[i].s, tf->f[i].n, sizeof(tf_sample), cmp_sample);
 }
 
-int64_t logs_tf_count(const logs_tf *tf) { return tf->count; }
-int64_t logs_tf_reparented(const logs_tf *tf) { return tf->reparented; }
-int logs_tf_has_frame(const logs_tf *tf, const char *name) { return find(tf, name) >= 0; }
+int64_t sooc_logs_tf_count(const logs_tf *tf) { return tf->count; }
+int sooc_logs_tf_has_frame(const logs_tf *tf, const char *name) { return find(tf, name) >= 0; }
 
-void logs_tf_frame_list(const logs_tf *tf, char *buf, size_t cap) {
+void sooc_logs_tf_frame_list(const logs_tf *tf, char *buf, size_t cap) {
     size_t m = 0;
     if (cap) buf[0] = 0;
     for (int i = 0; i < tf->n && m + 1 < cap; i++) {
@@ -192,12 +191,12 @@ static int common_ancestor(const logs_tf *tf, int a, int b) {
     return -1;
 }
 
-sooc_status logs_tf_lookup(const logs_tf *tf, const char *parent, const char *child, int64_t t, int64_t tol_ns,
+sooc_status sooc_logs_tf_lookup(const logs_tf *tf, const char *parent, const char *child, int64_t t, int64_t tol_ns,
                            double T[16]) {
     int p = find(tf, parent), c = find(tf, child);
     if (p < 0 || c < 0) {
         char list[512];
-        logs_tf_frame_list(tf, list, sizeof list);
+        sooc_logs_tf_frame_list(tf, list, sizeof list);
         return sooc_seterr(SOOC_ENOTFOUND, "tf: no frame '%s' (frames: %s)", p < 0 ? parent : child, list);
     }
     int a = common_ancestor(tf, p, c);
@@ -211,20 +210,9 @@ sooc_status logs_tf_lookup(const logs_tf *tf, const char *parent, const char *ch
     return SOOC_OK;
 }
 
-const char *logs_tf_root(const logs_tf *tf, const char *frame) {
+const char *sooc_logs_tf_root(const logs_tf *tf, const char *frame) {
     int i = find(tf, frame);
     if (i < 0) return NULL;
     while (tf->f[i].parent >= 0) i = tf->f[i].parent;
     return tf->f[i].name;
-}
-
-int logs_tf_is_static(const logs_tf *tf, const char *parent, const char *child) {
-    int p = find(tf, parent), c = find(tf, child);
-    int a = p >= 0 && c >= 0 ? common_ancestor(tf, p, c) : -1;
-    if (a < 0) return 0;
-    for (int x = p; x != a; x = tf->f[x].parent)
-        if (!tf->f[x].is_static) return 0;
-    for (int x = c; x != a; x = tf->f[x].parent)
-        if (!tf->f[x].is_static) return 0;
-    return 1;
 }

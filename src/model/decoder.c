@@ -1,5 +1,7 @@
 /* The fused object/layout NeRF decoder, composition, two-sample likelihood and
- * KL terms, forward and backward (the SOOC3D paper, arXiv:2309.14010; docs/model.md).
+ * the KL terms of a decode, forward and backward (the SOOC3D paper,
+ * arXiv:2309.14010; docs/model.md). The rays and samples are dec_rays.c's, the
+ * KL divergences dec_kl.c's.
  *
  * Rows: every (point, object slot) pair whose object-local point falls inside
  * the slot's locality box becomes one row of the object MLP (all slots share
@@ -26,196 +28,9 @@ static int nthreads(const sooc_model *m) {
 #endif
 }
 
-/* ---------------------------------------------------------------- Π, trick */
-
-void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]) {
-    float c = cosf(th), s = sinf(th);
-    float vx = x[0] - px, vy = x[1] + h, vz = x[2] - pz;
-    xk[0] = c * vx - s * vz;
-    xk[1] = vy;
-    xk[2] = s * vx + c * vz;
-}
-
-/* gw = (d/dpx, d/dpz, d/dth) given gxk = dL/dxk (accumulates). */
-void mdl_pi_backward(const float xk[3], float th, const float g[3], float gw[3]) {
-    float c = cosf(th), s = sinf(th);
-    gw[0] += -(c * g[0] + s * g[2]);
-    gw[1] += s * g[0] - c * g[2];
-    gw[2] += -xk[2] * g[0] + xk[0] * g[2];
-}
-
-void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]) {
-    float sh = sig * zp, is2 = 1.0f / (s * s);
-    gxk[0] += g * sh * (-xk[0] * is2);
-    gxk[2] += g * sh * (-xk[2] * is2);
-}
-
-/* ---------------------------------------------------------------- noise, rays */
-
-void mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n) {
-    memset(n, 0, sizeof *n);
-    const sooc_model_config *c = &m->cfg;
-    for (int k = 0; k < c->K; k++) {
-        for (int i = 0; i < 3; i++) n->eps_where[k][i] = (float)sooc_rng_normal(r);
-        for (int i = 0; i < c->d_what; i++) n->eps_what[k][i] = (float)sooc_rng_normal(r);
-        n->logistic[k] = (float)sooc_rng_logistic(r);
-    }
-    for (int i = 0; i < c->d_layout; i++) n->eps_lay[i] = (float)sooc_rng_normal(r);
-}
-
-sooc_status mdl_rays_alloc(view_rays *vr, int gw, int gh) {
-    memset(vr, 0, sizeof *vr);
-    int N = gw * gh;
-    vr->N = N;
-    vr->gw = gw;
-    vr->gh = gh;
-    vr->dir = sooc_calloc((size_t)N * 3, sizeof(float));
-    vr->rgb = sooc_calloc((size_t)N * 3, sizeof(float));
-    vr->depth = sooc_calloc(N, sizeof(float));
-    vr->surf = sooc_calloc(N, 1);
-    vr->unk = sooc_calloc(N, 1);
-    vr->W = sooc_calloc(N, sizeof(float));
-    vr->pts = sooc_calloc((size_t)N * 6, sizeof(float));
-    if (!vr->dir || !vr->rgb || !vr->depth || !vr->surf || !vr->unk || !vr->W || !vr->pts) {
-        mdl_rays_free(vr);
-        return SOOC_ENOMEM;
-    }
-    return SOOC_OK;
-}
-
-void mdl_rays_free(view_rays *vr) {
-    sooc_free(vr->dir);
-    sooc_free(vr->rgb);
-    sooc_free(vr->depth);
-    sooc_free(vr->surf);
-    sooc_free(vr->unk);
-    sooc_free(vr->W);
-    sooc_free(vr->pts);
-    memset(vr, 0, sizeof *vr);
-}
-
-sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r, view_rays *vr,
-                          const double T_wg[16], double h, double pitch, const double blk_local[2]) {
-    const sooc_model_config *c = &m->cfg;
-    if (f->width != c->img_w || f->height != c->img_h)
-        return sooc_seterr(SOOC_EINVAL, "frame %lld: size %dx%d, model expects %dx%d", (long long)f->index, f->width,
-                           f->height, c->img_w, c->img_h);
-    int sx = c->img_w / c->ray_w, sy = c->img_h / c->ray_h;
-    double Rwg[9], Rwc[9], tt[3], Rgc[9], RwgT[9];
-    sooc_se3_to_rt(Rwg, tt, T_wg);
-    sooc_se3_to_rt(Rwc, tt, f->T_wc);
-    sooc_m3_transpose(RwgT, Rwg);
-    sooc_m3_mul(Rgc, RwgT, Rwc);
-    /* h, blk_local and the frame's depth are in metres: model units from here on (config.unit_m) */
-    float iu = 1.0f / c->unit_m;
-    vr->h = (float)h * iu;
-    vr->pitch = (float)pitch;
-    vr->blk[0] = (float)blk_local[0] * iu;
-    vr->blk[1] = (float)-h * iu;
-    vr->blk[2] = (float)blk_local[1] * iu;
-    float cut = c->air_cut;
-    int unk_mode = c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN;
-    for (int i = 0; i < c->ray_h; i++)
-        for (int j = 0; j < c->ray_w; j++) {
-            int rr = i * c->ray_w + j, u = j * sx + ox, v = i * sy + oy;
-            double dc[3], dg[3];
-            double uz = sooc_cam_ray(&f->K, u, v, dc);
-            sooc_m3_mulv(dg, Rgc, dc);
-            for (int a = 0; a < 3; a++) vr->dir[rr * 3 + a] = (float)dg[a];
-            size_t pix = (size_t)v * f->width + u;
-            for (int a = 0; a < 3; a++) vr->rgb[rr * 3 + a] = f->rgb[pix * 3 + a] * (1.0f / 255.0f);
-            float z = f->depth ? f->depth[pix] : 0.0f;
-            int valid = (f->valid ? f->valid[pix] != 0 : 1) && z > 0 && isfinite(z);
-            float d = valid ? (float)(z / uz) * iu : 0.0f;
-            int surf = valid && d <= c->d_clip && d > c->t_near;
-            /* UNKNOWN: a hole (or a reading inside the near plane) says nothing about the ray;
-             * a valid depth beyond d_clip still says "no surface up to d_clip" */
-            int unk = unk_mode && !surf && !(valid && d > c->d_clip);
-            vr->surf[rr] = (uint8_t)surf;
-            vr->unk[rr] = (uint8_t)unk;
-            vr->depth[rr] = d;
-            float *ps = vr->pts + rr * 6, *pa = ps + 3;
-            float ta;
-            if (surf) {
-                float es = c->delta_s * sooc_rng_uniformf(r);
-                for (int a = 0; a < 3; a++) ps[a] = (d + es) * vr->dir[rr * 3 + a];
-                int near = sooc_rng_uniformf(r) < 0.5f;
-                float U = sooc_rng_uniformf(r);
-                if (near) {
-                    ta = d * (cut + (1 - cut) * U);
-                    vr->W[rr] = 2 * (1 - cut) * d;
-                } else {
-                    ta = d * cut * U;
-                    vr->W[rr] = 2 * cut * d;
-                }
-            } else if (unk) {
-                for (int a = 0; a < 3; a++) ps[a] = 0;
-                ta = 0;
-                vr->W[rr] = 0;
-            } else {
-                for (int a = 0; a < 3; a++) ps[a] = 0;
-                ta = c->d_clip * sooc_rng_uniformf(r);
-                vr->W[rr] = c->d_clip;
-            }
-            for (int a = 0; a < 3; a++) pa[a] = ta * vr->dir[rr * 3 + a];
-        }
-    return SOOC_OK;
-}
-
-/* ---------------------------------------------------------------- KL */
-
-double mdl_kl_gauss(int n, const float *mu, const float *rho, const float *mu0, const float *rho0, float rmin,
-                    float rmax, float beta, float *gmu, float *grho, float *gmu0, float *grho0) {
-    double kl = 0;
-    for (int i = 0; i < n; i++) {
-        float r = clampf(rho[i], rmin, rmax), r0 = clampf(rho0[i], rmin, rmax);
-        float dm = mu[i] - mu0[i];
-        float e = expf(r), ie0 = expf(-r0);
-        kl += 0.5 * (r0 - r) + 0.5 * (e + dm * dm) * ie0 - 0.5;
-        if (gmu) gmu[i] += beta * dm * ie0;
-        if (gmu0) gmu0[i] -= beta * dm * ie0;
-        if (grho && rho[i] >= rmin && rho[i] <= rmax) grho[i] += beta * (-0.5f + 0.5f * e * ie0);
-        if (grho0 && rho0[i] >= rmin && rho0[i] <= rmax) grho0[i] += beta * (0.5f - 0.5f * (e + dm * dm) * ie0);
-    }
-    return beta * kl;
-}
-
-static float log_sigm(float a) { return a >= 0 ? -log1pf(expf(-a)) : a - log1pf(expf(a)); }
-
-double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta, float *g,
-                   float *g0) {
-    int d = cfg->d_what;
-    float rmin = cfg->rho_min, rmax = cfg->rho_max;
-    double kl = 0;
-    /* x and z share rho_t; θ wrapped */
-    float mu[3] = {lam[0], lam[1], lam[2]}, mu0[3] = {lam0[0], lam0[1], lam0[2]};
-    float dth = (float)sooc_wrap_angle((double)lam[2] - lam0[2]);
-    mu[2] = mu0[2] + dth;
-    float rho[3] = {lam[3], lam[3], lam[4]}, rho0[3] = {lam0[3], lam0[3], lam0[4]};
-    float gm[3] = {0}, gr[3] = {0}, gm0[3] = {0}, gr0[3] = {0};
-    kl += mdl_kl_gauss(3, mu, rho, mu0, rho0, rmin, rmax, beta, gm, gr, gm0, gr0);
-    if (g) {
-        g[0] += gm[0], g[1] += gm[1], g[2] += gm[2];
-        g[3] += gr[0] + gr[1], g[4] += gr[2];
-    }
-    if (g0) {
-        g0[0] += gm0[0], g0[1] += gm0[1], g0[2] += gm0[2];
-        g0[3] += gr0[0] + gr0[1], g0[4] += gr0[2];
-    }
-    kl += mdl_kl_gauss(d, lam + 5, lam + 5 + d, lam0 + 5, lam0 + 5 + d, rmin, rmax, beta, g ? g + 5 : NULL,
-                       g ? g + 5 + d : NULL, g0 ? g0 + 5 : NULL, g0 ? g0 + 5 + d : NULL);
-    float a = lam[5 + 2 * d], a0 = lam0[5 + 2 * d];
-    float p = sigm(a), p0 = sigm(a0);
-    float lp = log_sigm(a), lq = log_sigm(-a), lp0 = log_sigm(a0), lq0 = log_sigm(-a0);
-    kl += beta * (p * (lp - lp0) + (1 - p) * (lq - lq0));
-    if (g) g[5 + 2 * d] += beta * p * (1 - p) * (a - a0);
-    if (g0) g0[5 + 2 * d] += beta * (p0 - p);
-    return kl;
-}
-
 /* ---------------------------------------------------------------- MLP */
 
-void mdl_pe_row(const float *x, float inv, int nf, float *out) {
+void sooc_mdl_pe_row(const float *x, float inv, int nf, float *out) {
     float v[3] = {x[0] * inv, x[1] * inv, x[2] * inv}, sn[3], cs[3];
     out[0] = v[0], out[1] = v[1], out[2] = v[2];
     for (int a = 0; a < 3; a++) {
@@ -252,7 +67,7 @@ static void pe_row_back(const float *pe, const float *gpe, float inv, int nf, fl
 /* Rows per dynamically scheduled block of the decode (forward, and backward without weight gradients). */
 #define MDL_DYN_ROWS 128
 
-/* Layers 2.. of the decoders run on the engine (sooc3d/nn_kern.h, src/nn/nerf.c).
+/* Layers 2.. of the decoders run on the engine (nn/nn_kern.h, src/nn/nerf.c).
  * Transposed weights ([out x in]) for the input-gradient GEMMs: dec_wt. */
 typedef struct dec_wt {
     const float *W2, *W3, *Wc1, *W1x;
@@ -273,7 +88,7 @@ static void tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1
     sooc_nn_nerf_tail_forward(&t, R, a1, a2, a3, ac, sig, col, !a1_relu);
 }
 
-void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+void sooc_mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col) {
     tail_forward(m, n, R, a1, a2, a3, ac, sig, col, 0);
 }
@@ -333,7 +148,7 @@ typedef struct slot_sample {
     float sig_t, sig_th, sig_what[SOOC_MODEL_D_MAX];
 } slot_sample;
 
-/* Backward of one block of object / layout rows (step 7 of mdl_decode). Leaves
+/* Backward of one block of object / layout rows (step 7 of sooc_mdl_decode). Leaves
  * each row's layer-1 pre-activation gradient in gA (object row r at r, layout
  * row r at loff + r) and, for object rows, the row's z^where gradient in the
  * first 3 floats of its gpe row. Weight gradients (ws != 0) go to tg. */
@@ -366,9 +181,9 @@ static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
         float gx[3], *gw = w->gpe + (size_t)r * no->din;
         const float *xk = w->o_xk + (size_t)r * 3;
         pe_row_back(w->o_pe + (size_t)r * no->din, gw, x->inv_o, no->nfreq, gx);
-        mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, x->s_g, gx);
+        sooc_mdl_gauss_backward(w->gsh[(size_t)pt * C + 1 + k], w->o_sig[r], c->zp[k], xk, x->s_g, gx);
         gw[0] = gw[1] = gw[2] = 0.0f;   /* the row's dL/dpe is consumed: reuse it for dL/d(px, pz, th) */
-        mdl_pi_backward(xk, c->zw[k][2], gx, gw);
+        sooc_mdl_pi_backward(xk, c->zw[k][2], gx, gw);
     }
 }
 
@@ -406,7 +221,7 @@ static void fwd_task(void *ctx, int blk, int tid) {
     (void)tid;
     if (blk < nbo) {
         int r0 = blk * MDL_DYN_ROWS, r1 = r0 + MDL_DYN_ROWS < nro ? r0 + MDL_DYN_ROWS : nro;
-        for (int r = r0; r < r1; r++) mdl_pe_row(w->o_xk + (size_t)r * 3, j->inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
+        for (int r = r0; r < r1; r++) sooc_mdl_pe_row(w->o_xk + (size_t)r * 3, j->inv_o, no->nfreq, w->o_pe + (size_t)r * no->din);
         for (int r = r0; r < r1; r++)
             memcpy(w->o_a1 + (size_t)r * H, w->slot_bias + (size_t)(1 + w->ro_slot[r]) * H, H * sizeof(float));
         sooc_nn_dense_forward(r1 - r0, no->din, H, w->o_pe + (size_t)r0 * no->din, no->din, p + no->W1x, NULL,
@@ -418,7 +233,7 @@ static void fwd_task(void *ctx, int blk, int tid) {
         for (int r = r0; r < r1 && !j->lpe_keep; r++) {
             const float *x = vr->pts + (size_t)w->lr_pt[r] * 3;
             float xl[3] = {x[0] - vr->blk[0], x[1] - vr->blk[1], x[2] - vr->blk[2]};
-            mdl_pe_row(xl, j->inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
+            sooc_mdl_pe_row(xl, j->inv_l, nl->nfreq, w->l_pe + (size_t)r * nl->din);
         }
         sooc_nn_dense_forward(r1 - r0, nl->din, H, w->l_pe + (size_t)r0 * nl->din, nl->din, p + nl->W1x, w->slot_bias,
                               w->l_a1 + (size_t)r0 * H, H, 0, SOOC_NN_EP_RELU);
@@ -479,7 +294,7 @@ static void sb_task(void *ctx, int t, int tid) {
     }
 }
 
-/* One decode's shared state, passed through its parts (mdl_decode below). */
+/* One decode's shared state, passed through its parts (sooc_mdl_decode below). */
 typedef struct dec_run {
     sooc_model_ws *x;
     sooc_model *m;
@@ -575,7 +390,7 @@ static void dec_rows(dec_run *r) {
             if (c->zw_sg) {
                 float xs[3];
                 const float *zs = c->zw_sg + 3 * k;
-                mdl_pi(x, zs[0], zs[1], zs[2], vr->h, xs);
+                sooc_mdl_pi(x, zs[0], zs[1], zs[2], vr->h, xs);
                 float is = 1.0f / (2 * cfg->gauss_s * cfg->gauss_s);
                 gf = expf(-(xk[0] * xk[0] + xk[2] * xk[2] - xs[0] * xs[0] - xs[2] * xs[2]) * is);
             }
@@ -607,7 +422,7 @@ static void dec_forward(dec_run *r) {
     dec_ws *w = r->w;
     int keep = r->c->same_rays && w->lpe_vr == r->vr && w->lpe_nrl == nrl;
     fwd_job fj = {r->m, w, r->vr, nbo, nro, nrl, keep, r->inv_o, r->inv_l};
-    if (nro + nrl >= MDL_PAR_ROWS && r->nt > 1) mdl_par_run(r->x, nbo + nbl, fwd_task, &fj);
+    if (nro + nrl >= MDL_PAR_ROWS && r->nt > 1) sooc_mdl_par_run(r->x, nbo + nbl, fwd_task, &fj);
     else
         for (int blk = 0; blk < nbo + nbl; blk++) fwd_task(&fj, blk, 0);
     w->lpe_vr = r->vr;
@@ -617,7 +432,7 @@ static void dec_forward(dec_run *r) {
 #ifdef MDL_HAVE_AVX2_PATHS
 #define POST_AVX2 1
 
-/* mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
+/* sooc_mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
  * the normaliser summed in component order: bitwise equal). */
 static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
     const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
@@ -657,7 +472,7 @@ static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, i
 }
 #endif
 
-void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+void sooc_mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
 #ifdef POST_AVX2
     if (C <= 8 && mdl_kern_avx2()) {
         post_ray_avx2(w, vr, rr, C, is2);
@@ -781,7 +596,7 @@ static void comp_task(void *ctx, int blk, int tid) {
             l += -0.5f * e * is2 - lognorm;
         }
         w->ll[rr] = l;
-        if (c->aux_post && vr->surf[rr]) mdl_aux_post_ray(w, vr, rr, C, is2);
+        if (c->aux_post && vr->surf[rr]) sooc_mdl_aux_post_ray(w, vr, rr, C, is2);
     }
 }
 
@@ -796,7 +611,7 @@ static void dec_compose(dec_run *r) {
                   (float)(cfg->img_w * cfg->img_h) / (float)N, 3.0f * logf(sigc * sqrtf(2.0f * (float)M_PI)),
                   1.0f / (sigc * sigc)};
     int nb = (N + COMPOSE_RAYS - 1) / COMPOSE_RAYS;
-    if (N >= MDL_PAR_ROWS / 4 && r->nt > 1) mdl_par_run(r->x, nb, comp_task, &j);
+    if (N >= MDL_PAR_ROWS / 4 && r->nt > 1) sooc_mdl_par_run(r->x, nb, comp_task, &j);
     else
         for (int b = 0; b < nb; b++) comp_task(&j, b, 0);
     double sum_d = 0, sum_c = 0;   /* ray order, as the terms were added one by one */
@@ -821,10 +636,10 @@ static void dec_kl(dec_run *r) {
     c->kl = 0;
     if (c->lam0) {
         for (int k = 0; k < K; k++)
-            c->kl += mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, 1.0f, NULL, NULL);
+            c->kl += sooc_mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, 1.0f, NULL, NULL);
     }
     if (c->lay0)
-        c->kl += mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, r->rmin, r->rmax, 1.0f, NULL, NULL, NULL,
+        c->kl += sooc_mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, r->rmin, r->rmax, 1.0f, NULL, NULL, NULL,
                               NULL);
     c->loss = c->nll + c->beta_kl * c->kl;
 }
@@ -836,10 +651,10 @@ static void dec_kl_backward(dec_run *r) {
     float beta = c->beta_kl;
     if (c->lam0)
         for (int k = 0; k < K; k++)
-            mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, beta,
+            sooc_mdl_kl_slot(cfg, c->lam + (size_t)k * NL, c->lam0 + (size_t)k * NL, beta,
                         c->g_lam ? c->g_lam + (size_t)k * NL : NULL, c->g_lam0 ? c->g_lam0 + (size_t)k * NL : NULL);
     if (c->lay0)
-        mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, r->rmin, r->rmax, beta, c->g_lay,
+        sooc_mdl_kl_gauss(dl, c->lay, c->lay + dl, c->lay0, c->lay0 + dl, r->rmin, r->rmax, beta, c->g_lay,
                      c->g_lay ? c->g_lay + dl : NULL, c->g_lay0, c->g_lay0 ? c->g_lay0 + dl : NULL);
 }
 
@@ -914,14 +729,14 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
         } else {
             int nbo = (no_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nl_ + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
             bwd_job bj = {&bx, nbo, no_, nl_};
-            if (rows >= MDL_PAR_ROWS && ntb > 1) mdl_par_run(r->x, nbo + nbl, bwd_task, &bj);
+            if (rows >= MDL_PAR_ROWS && ntb > 1) sooc_mdl_par_run(r->x, nbo + nbl, bwd_task, &bj);
             else
                 for (int blk = 0; blk < nbo + nbl; blk++) bwd_task(&bj, blk, 0);
         }
         /* slot-bias (layer-1 pre-activation) and z^where gradients, row order; split
          * by columns across the pool (each sum keeps its row order: bitwise the same) */
         sb_job sj = {w, no_, nl_, loff, H, no->din, r->gzw};
-        if (rows >= MDL_PAR_ROWS && nt > 1) mdl_par_run(r->x, SB_TASKS + 1, sb_task, &sj);
+        if (rows >= MDL_PAR_ROWS && nt > 1) sooc_mdl_par_run(r->x, SB_TASKS + 1, sb_task, &sj);
         else
             for (int t = 0; t <= SB_TASKS; t++) sb_task(&sj, t, 0);
     }
@@ -994,7 +809,7 @@ static void dec_reparam_backward(dec_run *r) {
         }
 }
 
-sooc_status mdl_decode(sooc_model_ws *x, dec_call *c) {
+sooc_status sooc_mdl_decode(sooc_model_ws *x, dec_call *c) {
     dec_run run, *r = &run;
     memset(r, 0, sizeof *r);
     sooc_model *m = x->m;
@@ -1033,7 +848,7 @@ sooc_status mdl_decode(sooc_model_ws *x, dec_call *c) {
 
 /* The decoder's part of a runner's workspace (sooc_model_ws): every buffer
  * of a decode, sized for P = 2 ray_w ray_h points and K slots. */
-sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
+sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
     *out = NULL;
     const sooc_model_config *c = &m->cfg;
     dec_ws *w = sooc_calloc(1, sizeof *w);
@@ -1044,7 +859,7 @@ sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
     w->Kmax = K;
     int dmax = m->dobj.din > m->dlay.din ? m->dobj.din : m->dlay.din;
     size_t Rall = R > (size_t)P ? R : (size_t)P;
-#define A(p, n, t) if (!(w->p = sooc_calloc((n), sizeof(t)))) { mdl_dec_ws_destroy(w); return SOOC_ENOMEM; }
+#define A(p, n, t) if (!(w->p = sooc_calloc((n), sizeof(t)))) { sooc_mdl_dec_ws_destroy(w); return SOOC_ENOMEM; }
     A(ro_pt, R, int);
     A(ro_slot, R, int);
     A(o_pe, R * m->dobj.din, float);
@@ -1092,7 +907,7 @@ sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
     return SOOC_OK;
 }
 
-void mdl_dec_ws_destroy(dec_ws *w) {
+void sooc_mdl_dec_ws_destroy(dec_ws *w) {
     if (!w) return;
     float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
                     &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,

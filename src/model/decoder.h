@@ -1,7 +1,9 @@
 /* Layer 1 of src/model (docs/model.md "Layers"): the decoder (decoder.c:
- * rays, the fused object/layout NeRF decode, likelihood and KL; dec_own.c:
+ * the fused object/layout NeRF decode and likelihood; dec_rays.c: rays;
+ * dec_kl.c: KL terms; dec_own.c:
  * a decoder on its own weights; field.c: the render.h field). Includes only
- * layer 0. Internal: not a public API. */
+ * layer 0. Internal interface of src/model (docs/architecture.md "Layers"):
+ * the modules above it see it through step.h; not a public API. */
 #ifndef SOOC3D_MODEL_DECODER_H
 #define SOOC3D_MODEL_DECODER_H
 
@@ -48,7 +50,7 @@ struct dec_ws {
     float *sh, *ct, *gsh, *gct; int *rowof;
     float *S, *Sb, *cc;           /* per point */
     float *ll;                    /* per ray log-lik (ell_c + ell_d) */
-    float *ll_cf;                 /* N x (K+1): the aux inputs' colour posterior (mdl_aux_post_ray) */
+    float *ll_cf;                 /* N x (K+1): the aux inputs' colour posterior (sooc_mdl_aux_post_ray) */
     float *lt;                    /* N x 3 per-ray likelihood terms (surface density, colour, air) */
     int *lr_pt;                   /* layout row -> point */
     float *tbuf;                  /* nthr x (dec_np + (K+1) H + 3K) thread-private grads */
@@ -82,7 +84,7 @@ typedef struct dec_call {
                                      workspace (the next iteration of the same view): the layout
                                      rows' positional encoding is kept                          */
     int aux_post;                 /* 1: also the aux inputs' colour posterior (w->ll_cf, per
-                                     surface ray; mdl_aux_post_ray) during the composition      */
+                                     surface ray; sooc_mdl_aux_post_ray) during the composition      */
     /* outputs */
     double loss, nll, nll_d, nll_c, kl;
     float *g_lam, *g_lam0, *g_lay, *g_lay0;   /* ACCUMULATED (+=) when non-NULL; UNWEIGHTED */
@@ -92,29 +94,29 @@ typedef struct dec_call {
 } dec_call;
 
 /* The decoder's part of a workspace (sized for the model's ray grid and K). */
-sooc_status mdl_dec_ws_create(const sooc_model *m, dec_ws **out);
-void mdl_dec_ws_destroy(dec_ws *w);   /* NULL-safe */
+sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, dec_ws **out);
+void sooc_mdl_dec_ws_destroy(dec_ws *w);   /* NULL-safe */
 
-void mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n);
+void sooc_mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n);
 /* One decode on workspace x (its model, its decoder scratch and pool). */
-sooc_status mdl_decode(sooc_model_ws *x, dec_call *c);
+sooc_status sooc_mdl_decode(sooc_model_ws *x, dec_call *c);
 /* KL between two slot posteriors (accumulates gradients when non-NULL). */
-double mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta,
+double sooc_mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta,
                    float *g_lam, float *g_lam0);
-double mdl_kl_gauss(int n, const float *mu, const float *rho, const float *mu0, const float *rho0,
+double sooc_mdl_kl_gauss(int n, const float *mu, const float *rho, const float *mu0, const float *rho0,
                     float rmin, float rmax, float beta, float *gmu, float *grho, float *gmu0,
                     float *grho0);
 /* Rays of a frame: stratified grid with offset (ox, oy), samples from rng. */
-sooc_status mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r,
+sooc_status sooc_mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r,
                           view_rays *vr, const double T_wg[16], double h, double pitch,
                           const double blk_local[2]);
-sooc_status mdl_rays_alloc(view_rays *vr, int gw, int gh);
-void mdl_rays_free(view_rays *vr);
+sooc_status sooc_mdl_rays_alloc(view_rays *vr, int gw, int gh);
+void sooc_mdl_rays_free(view_rays *vr);
 /* Gaussian-trick density on a single point (exposed for tests):
  * value = sig * zp; adds dL/dxk for upstream g into gxk (3). */
-void mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]);
+void sooc_mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]);
 /* Π: G point -> object-local; and its backward to (px, pz, th). */
-void mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]);
+void sooc_mdl_pi(const float x[3], float px, float pz, float th, float h, float xk[3]);
 /* Π with cos/sin of θ precomputed (hot loops). */
 static inline void mdl_pi_cs(const float x[3], float px, float pz, float c, float s, float h, float xk[3]) {
     float vx = x[0] - px, vz = x[2] - pz;
@@ -122,9 +124,9 @@ static inline void mdl_pi_cs(const float x[3], float px, float pz, float c, floa
     xk[1] = x[1] + h;
     xk[2] = s * vx + c * vz;
 }
-void mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
+void sooc_mdl_pi_backward(const float xk[3], float th, const float gxk[3], float gw[3]);
 
-void mdl_pe_row(const float *x, float inv, int nf, float *out);
+void sooc_mdl_pe_row(const float *x, float inv, int nf, float *out);
 
 #if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
@@ -162,9 +164,9 @@ static MDL_TGT_AVX2 inline __m256 mdl_logf_pos8(__m256 x) {
 /* The aux inputs' colour-likelihood posterior of surface ray rr after a composition:
  * softmax_k [log pi_k + log N(C; c_k, sigma_C^2)] into w->ll_cf row rr (C components;
  * is2 = 1 / sigma_C^2). */
-void mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2);
+void sooc_mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2);
 /* Layers 2.. of a decoder on R rows (serial), layer-1 pre-activation in a1. */
-void mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+void sooc_mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col);
 
 #endif

@@ -56,24 +56,24 @@ static void field_eval(void *user, int worker, int comp, const float *pts, int n
             const float x[3] = {xm[0] * F->iu, xm[1] * F->iu, xm[2] * F->iu};   /* metres -> model units */
             float xk[3];
             if (comp) {
-                mdl_pi(x, fc->px, fc->pz, fc->th, F->h, xk);
+                sooc_mdl_pi(x, fc->px, fc->pz, fc->th, F->h, xk);
                 in[i] = fabsf(xk[0]) <= c->box_rh && fabsf(xk[2]) <= c->box_rh && xk[1] >= 0 && xk[1] <= c->box_hb;
-                mdl_pe_row(xk, 1.0f / c->box_rh, net->nfreq, pe + (size_t)i * din);
+                sooc_mdl_pe_row(xk, 1.0f / c->box_rh, net->nfreq, pe + (size_t)i * din);
             } else {
                 float xl[3] = {x[0] - F->blk[0], x[1] - F->blk[1], x[2] - F->blk[2]};
                 in[i] = 1;
-                mdl_pe_row(xl, 1.0f / c->block_size, net->nfreq, pe + (size_t)i * din);
+                sooc_mdl_pe_row(xl, 1.0f / c->block_size, net->nfreq, pe + (size_t)i * din);
             }
         }
         if (fc->w) {   /* finetuned copy */
-            mdl_own_forward(fc->w, &fc->rel, nb, pe, fc->bias, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
+            sooc_mdl_own_forward(fc->w, &fc->rel, nb, pe, fc->bias, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
             for (int i = 0; i < nb; i++) sigma_hat[b0 + i] = in[i] ? sig[i] : 0.0f;
             continue;
         }
         for (int i = 0; i < nb; i++) memcpy(a1 + (size_t)i * H, fc->bias, H * sizeof(float));
         cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, nb, H, din, 1.0f, pe, din, m->p + net->W1x, H, 1.0f, a1,
                     H);
-        mdl_mlp_tail_forward(m, net, nb, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
+        sooc_mdl_mlp_tail_forward(m, net, nb, a1, a2, a3, ac, sig, rgb + (size_t)b0 * 3);
         for (int i = 0; i < nb; i++) sigma_hat[b0 + i] = in[i] ? sig[i] : 0.0f;
     }
 }
@@ -133,7 +133,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
         for (int i = 0; i < nret; i++) world_lam(map, slots[i].id, slots[i].lam);
     else if ((st = sooc_cogmap_active_block(map, T_wc, cam.d_clip, &bi, &bj, blk)))
         goto fail;
-    for (int i = 0; i < nret; i++) mdl_lam_from_m(c, slots[i].lam, 1, SOOC_LAM_SIZE(c->d_what));
+    for (int i = 0; i < nret; i++) sooc_mdl_lam_from_m(c, slots[i].lam, 1, SOOC_LAM_SIZE(c->d_what));
     F->blk[0] = (float)blk[0] * F->iu, F->blk[1] = (float)-h * F->iu, F->blk[2] = (float)blk[1] * F->iu;
     int nc = 1 + nret, H = c->dec_width, d = c->d_what, dl = c->d_layout;
     F->comp = sooc_calloc(nc, sizeof(fcomp));
@@ -182,10 +182,10 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
         const float *pl = c->global_frame ? NULL
                           : k ? sooc_cogmap_payload_get(map, fc->id, &npl)
                               : sooc_cogmap_block_payload_get(map, bi, bj, &npl);
-        if (pl && mdl_ft_payload_ok(net, k ? MDL_FT_OBJ : MDL_FT_LAY, pl, npl)) {
+        if (pl && sooc_mdl_ft_payload_ok(net, k ? MDL_FT_OBJ : MDL_FT_LAY, pl, npl)) {
             fc->w = mdl_ft_payload_w(net, pl);
-            mdl_dec_rel(net, &fc->rel);
-            mdl_own_bias(fc->w, &fc->rel, mdl_ft_payload_z(pl), fc->bias);
+            sooc_mdl_dec_rel(net, &fc->rel);
+            sooc_mdl_own_bias(fc->w, &fc->rel, mdl_ft_payload_z(pl), fc->bias);
             continue;
         }
         for (int j = 0; j < H; j++) fc->bias[j] = m->p[net->b1 + j];

@@ -136,7 +136,7 @@ static void layout_ref(sooc_model *m, size_t *off, ref_net *n, int obj) {
                                     {"ref.obj.conv1.W", "ref.obj.conv2.W", "ref.obj.conv3.W", "ref.obj.conv4.W"}};
     static const char *cbn[2][4] = {{"ref.lay.conv1.b", "ref.lay.conv2.b", "ref.lay.conv3.b", "ref.lay.conv4.b"},
                                     {"ref.obj.conv1.b", "ref.obj.conv2.b", "ref.obj.conv3.b", "ref.obj.conv4.b"}};
-    n->cin = mdl_aux_channels(!obj);
+    n->cin = sooc_mdl_aux_channels(!obj);
     int prev = n->cin;
     for (int i = 0; i < 4; i++) {
         n->ch[i] = c->ref_ch[i];
@@ -144,7 +144,7 @@ static void layout_ref(sooc_model *m, size_t *off, ref_net *n, int obj) {
         n->cb[i] = add_t(m, off, cbn[obj][i], n->ch[i], 1, 1);
         prev = n->ch[i];
     }
-    n->nflat = prev * (c->ray_w > 32 ? 2 : c->ray_w / 16) * (c->ray_h > 32 ? 2 : c->ray_h / 16);   /* mdl_ref_flatten */
+    n->nflat = prev * (c->ray_w > 32 ? 2 : c->ray_w / 16) * (c->ray_h > 32 ? 2 : c->ray_h / 16);   /* sooc_mdl_ref_flatten */
     n->fc = c->ref_fc;
     n->hid = c->ref_hidden;
     int NL = MDL_NL(c->d_what);
@@ -226,7 +226,7 @@ static void init_priors_global(sooc_model *m) {
 }
 
 /* Image channels of a refinement net's input (refine.c builds them). */
-int mdl_aux_channels(int layout) { return layout ? 25 : 26; }
+int sooc_mdl_aux_channels(int layout) { return layout ? 25 : 26; }
 
 /* The baseline's queries on the config (its step and mapper: src/global). */
 int sooc_model_is_global(const sooc_model *m) { return m && m->cfg.global_frame; }
@@ -312,13 +312,13 @@ sooc_status sooc_model_set_cam_heights(sooc_model *m, double lo_m, double hi_m) 
     m->cfg.cam_h_max = (float)(hi_m / u);
     return SOOC_OK;
 }
-void mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL) {
+void sooc_mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL) {
     float u = c->unit_m;
     if (u == 1.0f) return;   /* bit-identical for the unit model */
     float iu = 1.0f / u, dr = 2.0f * logf(u);
     for (int k = 0; k < n; k++, lam += NL) lam[0] *= iu, lam[1] *= iu, lam[3] -= dr;
 }
-void mdl_lam_to_m(const sooc_model_config *c, float *lam, int n, int NL) {
+void sooc_mdl_lam_to_m(const sooc_model_config *c, float *lam, int n, int NL) {
     float u = c->unit_m;
     if (u == 1.0f) return;
     float dr = 2.0f * logf(u);
@@ -399,7 +399,7 @@ sooc_status sooc_model_copy_rays(const sooc_model *m, int ray_w, int ray_h, sooc
     if (st) return sooc_adderr(st, "model copy with a %dx%d ray grid", ray_w, ray_h);
     sooc_model *w;
     if ((st = sooc_model_create(&w, &c, 0))) return sooc_adderr(st, "model copy with a %dx%d ray grid", ray_w, ray_h);
-    if (w->np != m->np) {   /* below 32 x 32 the grid sets the refinement FC size (mdl_ref_flatten) */
+    if (w->np != m->np) {   /* below 32 x 32 the grid sets the refinement FC size (sooc_mdl_ref_flatten) */
         sooc_model_destroy(w);
         return sooc_seterr(SOOC_EINVAL,
                            "model copy: its %dx%d ray grid and %dx%d give the refinement nets different FC sizes "

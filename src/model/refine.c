@@ -1,9 +1,9 @@
 /* Refinement inputs and the refinement network (docs/model.md "Layers"):
  * conv 3x3 stride 2 SAME (TF padding: 0 before, 1 after) + ELU, FC + ELU,
- * LSTMCell, linear head, on the src/nn pairs of sooc3d/nn_refine.h.
+ * LSTMCell, linear head, on the src/nn pairs of nn/nn_refine.h.
  * Activations are [channel][item][pixel]. */
 #include "model/refine.h"
-#include "sooc3d/nn_refine.h"
+#include "nn/nn_refine.h"
 
 #include <math.h>
 #include <string.h>
@@ -208,7 +208,7 @@ static void aux_task(void *ctx, int comp, int tid) {
 #undef CH
 }
 
-void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
+void sooc_mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
                     float *vec_o, float *img_l, float *vec_l) {
     MDL_PT(tprof);
     const sooc_model *m = x->m;
@@ -225,7 +225,7 @@ void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, con
     float *post_all = w->ll_cf;   /* N x C */
     if (!c->aux_post)
         for (int rr = 0; rr < N; rr++)
-            if (vr->surf[rr]) mdl_aux_post_ray(x->dec, vr, rr, C, is2);
+            if (vr->surf[rr]) sooc_mdl_aux_post_ray(x->dec, vr, rr, C, is2);
     /* Channels 0-7 (colour, depth, beyond-clip flag, ray direction) are the same for every
      * component: written once into the layout image, copied into each object's. */
     {
@@ -244,7 +244,7 @@ void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, con
         for (int rr = 0; rr < N; rr++) c5[rr] = vr->dir[rr * 3], c6[rr] = vr->dir[rr * 3 + 1], c7[rr] = vr->dir[rr * 3 + 2];
     }
     aux_job aj = {w, c, img_o, img_l, post_all, N, K, C, smax, eps_s, is2, lognorm, inv_rh, inv_b, s2};
-    if (N >= MDL_PAR_ROWS && mdl_par_threads(x) > 1) mdl_par_run(x, C, aux_task, &aj);
+    if (N >= MDL_PAR_ROWS && sooc_mdl_par_threads(x) > 1) sooc_mdl_par_run(x, C, aux_task, &aj);
     else
         for (int comp = 0; comp < C; comp++) aux_task(&aj, comp, 0);
     /* vector inputs */
@@ -272,7 +272,7 @@ void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, con
 
 /* ---------------------------------------------------------------- network */
 
-sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a) {
+sooc_status sooc_mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a) {
     memset(a, 0, sizeof *a);
     a->B = B;
     size_t HW = (size_t)gw * gh;
@@ -290,13 +290,13 @@ sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *
     A(h, (size_t)B * n->hid);
 #undef A
     if (!ok) {
-        mdl_ref_act_free(a);
+        sooc_mdl_ref_act_free(a);
         return SOOC_ENOMEM;
     }
     return SOOC_OK;
 }
 
-void mdl_ref_act_free(ref_act *a) {
+void sooc_mdl_ref_act_free(ref_act *a) {
     float **p[] = {&a->x0, &a->y[0], &a->y[1], &a->y[2], &a->y[3], &a->flat, &a->f, &a->xin, &a->gates,
                    &a->c_prev, &a->h_prev, &a->c, &a->h};
     for (size_t i = 0; i < sizeof p / sizeof p[0]; i++) {
@@ -305,7 +305,7 @@ void mdl_ref_act_free(ref_act *a) {
     }
 }
 
-/* The layers are the src/nn pairs of sooc3d/nn_refine.h (conv 3x3 stride 2 +
+/* The layers are the src/nn pairs of nn/nn_refine.h (conv 3x3 stride 2 +
  * ELU, pool + flatten, linear + ELU, LSTM cell, linear head); this file wires
  * them to the model's slab and workspace and splits items across the pool. */
 
@@ -315,12 +315,12 @@ void mdl_ref_act_free(ref_act *a) {
  * 32 x 32 grid, so the FC weights (and every other weight) do not depend on
  * the ray grid and a model trained on one grid runs on another
  * (sooc_model_copy_rays). */
-void mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
+void sooc_mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
     sooc_nn_pool2_forward(flat, y3, n->ch[3], B, gh >> 4, gw >> 4);
 }
 
-/* Backward of mdl_ref_flatten: writes (not adds) the gradient w.r.t. y3. */
-void mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
+/* Backward of sooc_mdl_ref_flatten: writes (not adds) the gradient w.r.t. y3. */
+static void sooc_mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
     memset(gy3, 0, sizeof(float) * (size_t)n->ch[3] * B * (gh >> 4) * (gw >> 4));
     sooc_nn_pool2_backward(gy3, gflat, n->ch[3], B, gh >> 4, gw >> 4);
 }
@@ -344,7 +344,7 @@ static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const
 static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int gh, float *out, int prof) {
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
     MDL_PT(tprof);
-    mdl_ref_flatten(n, a->y[3], B, gw, gh, a->flat);
+    sooc_mdl_ref_flatten(n, a->y[3], B, gw, gh, a->flat);
     sooc_nn_rlinear_forward(a->f, a->flat, n->nflat, p + n->fcW, p + n->fcb, B, n->nflat, n->fc, SOOC_NN_ACT_ELU);
     for (int b = 0; b < B; b++) memcpy(a->xin + (size_t)b * nin, a->f + (size_t)b * n->fc, n->fc * sizeof(float));
     if (prof) MDL_PACC(MDL_PR_FC, tprof);
@@ -378,7 +378,7 @@ static void ref_tail_task(void *ctx, int q, int tid) {
     ref_tail(j->p, j->nn[q], j->aa[q], j->gw, j->gh, j->oo[q], tid == 0);
 }
 
-void mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
+void sooc_mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
                       float *out1, int gw, int gh) {
     const float *p = x->m->p;
     const ref_ws *rw = x->ref;
@@ -408,16 +408,16 @@ void mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *o
         }
         if (s > cstride) cstride = s;
     }
-    int nt = mdl_par_threads(x);
+    int nt = sooc_mdl_par_threads(x);
     if ((size_t)nt * cstride > rw->ncols) nt = 1;   /* a column slice per thread does not fit (never at K >= threads) */
     /* Items are independent through the conv stack: each runs all four layers on one
      * thread (the second net's items first: the layout item has no shared channels and
      * costs the most); then each net's FC/LSTM/head on one thread. */
     ref_job j = {p, {nn[0], nn[1]}, {aa[0], aa[1]}, {oo[0], oo[1]}, {ysh[0], ysh[1]}, rw->cols, cstride, nnet, gw, gh};
     if (nt > 1) {
-        mdl_par_run(x, ntask, ref_conv_task, &j);
+        sooc_mdl_par_run(x, ntask, ref_conv_task, &j);
         MDL_PACC(MDL_PR_CONV0, tprof);
-        mdl_par_run(x, nnet, ref_tail_task, &j);
+        sooc_mdl_par_run(x, nnet, ref_tail_task, &j);
     } else {
         for (int t = 0; t < ntask; t++) ref_conv_task(&j, t, 0);
         MDL_PACC(MDL_PR_CONV0, tprof);
@@ -425,8 +425,8 @@ void mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *o
     }
 }
 
-void mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
-    mdl_ref_forward2(x, n, a, out, NULL, NULL, NULL, gw, gh);
+void sooc_mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
+    sooc_mdl_ref_forward2(x, n, a, out, NULL, NULL, NULL, gw, gh);
 }
 
 /* The conv stack's backward on items [bb[q], bb[q + 1]) (a pool task): weight
@@ -467,7 +467,7 @@ static void conv_bwd_task(void *ctx, int q, int tid) {
     }
 }
 
-void mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
+void sooc_mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
                       float *dc, float *gvec) {
     const float *p = x->m->p;
     float *g = x->m->g;
@@ -499,7 +499,7 @@ void mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, in
     sooc_nn_rlinear_backward(gflat, g + n->fcW, g + n->fcb, gf, a->flat, n->nflat, a->f, p + n->fcW, B, n->nflat,
                              n->fc, SOOC_NN_ACT_ELU);
     /* conv stack, top down */
-    mdl_ref_flatten_backward(n, gflat, B, gw, gh, s->gy[3]);
+    sooc_mdl_ref_flatten_backward(n, gflat, B, gw, gh, s->gy[3]);
     /* shared leading channels stored for item 0 only: fill the other items' copies */
     for (int c = 0; c < a->nsh; c++)
         for (int b = 1; b < B; b++)
@@ -512,7 +512,7 @@ void mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, in
     int nblk = B >= 2 ? 2 : 1;
     if (nblk == 2) memset(s->gconv, 0, ng * sizeof(float));
     conv_bjob j = {p, s, n, a, gw, gh, nblk, {0, (B + 1) / 2, B}, {g + g0, s->gconv}, g0};
-    if (nblk == 2 && mdl_par_threads(x) > 1) mdl_par_run(x, 2, conv_bwd_task, &j);
+    if (nblk == 2 && sooc_mdl_par_threads(x) > 1) sooc_mdl_par_run(x, 2, conv_bwd_task, &j);
     else
         for (int q = 0; q < nblk; q++) conv_bwd_task(&j, q, 0);
     if (nblk == 2)
@@ -523,7 +523,7 @@ void mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, in
 
 /* The refinement's part of a runner's workspace (sooc_model_ws): conv
  * columns, the backward's gradient maps, sized for K items. */
-sooc_status mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
+sooc_status sooc_mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
     *out = NULL;
     const sooc_model_config *c = &m->cfg;
     int K = c->K;
@@ -536,7 +536,7 @@ sooc_status mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
         size_t s = (size_t)c->ref_ch[i - 1] * 9 * K * (gw >> (i + 1)) * (gh >> (i + 1));
         if (s > colmax) colmax = s;
     }
-#define B(p, n) if (!(r->p = sooc_calloc((n), sizeof(float)))) { mdl_ref_ws_destroy(r); return SOOC_ENOMEM; }
+#define B(p, n) if (!(r->p = sooc_calloc((n), sizeof(float)))) { sooc_mdl_ref_ws_destroy(r); return SOOC_ENOMEM; }
     B(cols, colmax);
     B(gcols, colmax);
     r->ncols = colmax;
@@ -557,7 +557,7 @@ sooc_status mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
     return SOOC_OK;
 }
 
-void mdl_ref_ws_destroy(ref_ws *r) {
+void sooc_mdl_ref_ws_destroy(ref_ws *r) {
     if (!r) return;
     float **rp[] = {&r->cols, &r->gcols, &r->ysh, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
                     &r->gg, &r->gh, &r->gconv};

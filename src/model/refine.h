@@ -1,6 +1,7 @@
 /* Layer 2 of src/model (docs/model.md "Layers"): the refinement networks
  * (refine.c: auxiliary inputs, conv encoder + LSTM forward and backward).
- * Includes only the decoder layer (and, through it, layer 0). Internal. */
+ * Includes only the decoder layer (and, through it, layer 0). Internal
+ * interface of src/model (docs/architecture.md "Layers"), seen through step.h. */
 #ifndef SOOC3D_MODEL_REFINE_H
 #define SOOC3D_MODEL_REFINE_H
 
@@ -30,32 +31,31 @@ struct ref_ws {           /* scratch for conv forward/backward */
 typedef struct ref_ws ref_ws;
 
 /* The refinement's part of a workspace. */
-sooc_status mdl_ref_ws_create(const sooc_model *m, ref_ws **out);
-void mdl_ref_ws_destroy(ref_ws *r);   /* NULL-safe */
+sooc_status sooc_mdl_ref_ws_create(const sooc_model *m, ref_ws **out);
+void sooc_mdl_ref_ws_destroy(ref_ws *r);   /* NULL-safe */
 
 /* Build the refinement inputs of every object slot (and the layout) after a
  * decode with backward: images img[c][b][hw] for B = nslot (objects) and 1
  * (layout), vector inputs vec [B x nvec]. */
-void mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, const float *g_lay,
+void sooc_mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, const float *g_lay,
                     float *img_o, float *vec_o, float *img_l, float *vec_l);
-sooc_status mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a);
-void mdl_ref_act_free(ref_act *a);
+sooc_status sooc_mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a);
+void sooc_mdl_ref_act_free(ref_act *a);
 /* forward: a->x0 (and a->nsh) and the vector part of a->xin must be filled; h_prev/c_prev too. out: B x nout */
-void mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, float *out);
+void sooc_mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, float *out);
 /* The conv stack's last map flattened (average-pooled to 2 x 2 above a 32 x 32
  * ray grid) for the FC layer, and its backward (writes gy3). */
-void mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat);
-void mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3);
+void sooc_mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat);
 /* Two nets' forwards in one parallel pass (the object and the layout refinement: their
  * items split across the threads together). n1 / a1 / out1 NULL: one net. */
-void mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
+void sooc_mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
                       float *out1, int gw, int gh);
 /* Leading object-image aux channels that are the same for every slot (colour, depth,
- * beyond-clip flag, ray direction): mdl_aux_inputs writes them for slot 0 only. */
+ * beyond-clip flag, ray direction): sooc_mdl_aux_inputs writes them for slot 0 only. */
 #define MDL_AUX_NSH 8
 /* backward: gout B x nout; dh/dc: in = from the next iteration, out = to the previous.
  * gvec (B x nvec) receives d/d(vector inputs) (+=). Weight grads accumulated. */
-void mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh,
+void sooc_mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh,
                       const float *gout, float *dh, float *dc, float *gvec);
 
 #endif

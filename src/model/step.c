@@ -10,10 +10,10 @@
 #include <string.h>
 
 static void free_view(view_rec *V) {
-    mdl_rays_free(&V->vr);
+    sooc_mdl_rays_free(&V->vr);
     for (int l = 0; l < V->Lcap; l++) {
-        mdl_ref_act_free(&V->ao[l]);
-        mdl_ref_act_free(&V->al[l]);
+        sooc_mdl_ref_act_free(&V->ao[l]);
+        sooc_mdl_ref_act_free(&V->al[l]);
     }
     sooc_free(V->ao);
     sooc_free(V->al);
@@ -22,11 +22,11 @@ static void free_view(view_rec *V) {
     memset(V, 0, sizeof *V);
 }
 
-sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
+sooc_status sooc_mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
     const sooc_model_config *c = &m->cfg;
     memset(V, 0, sizeof *V);
     int K = c->K, NL = m->NL, D2 = 2 * c->d_layout;
-    sooc_status st = mdl_rays_alloc(&V->vr, c->ray_w, c->ray_h);
+    sooc_status st = sooc_mdl_rays_alloc(&V->vr, c->ray_w, c->ray_h);
     if (st) return st;
     V->Lcap = L;
     size_t nf = (size_t)(L + 1) * K * NL * 2 + (size_t)(L + 1) * D2 * 2 + (size_t)K * NL * 3 + (size_t)D2 * 3;
@@ -50,8 +50,8 @@ sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
     V->glay0 = p, p += D2;
     V->Glay = p, p += D2;
     for (int l = 0; l < L; l++) {
-        if ((st = mdl_ref_act_alloc(&m->robj, K, c->ray_w, c->ray_h, &V->ao[l])) ||
-            (st = mdl_ref_act_alloc(&m->rlay, 1, c->ray_w, c->ray_h, &V->al[l]))) {
+        if ((st = sooc_mdl_ref_act_alloc(&m->robj, K, c->ray_w, c->ray_h, &V->ao[l])) ||
+            (st = sooc_mdl_ref_act_alloc(&m->rlay, 1, c->ray_w, c->ray_h, &V->al[l]))) {
             free_view(V);
             return st;
         }
@@ -59,9 +59,9 @@ sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
     return SOOC_OK;
 }
 
-void mdl_view_free(view_rec *V) { free_view(V); }
+void sooc_mdl_view_free(view_rec *V) { free_view(V); }
 
-step_state *mdl_step_state(sooc_model_ws *x, int T, int L) {
+step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L) {
     sooc_model *m = x->m;
     step_state *S = x->step;
     const sooc_model_config *c = &m->cfg;
@@ -104,12 +104,12 @@ step_state *mdl_step_state(sooc_model_ws *x, int T, int L) {
         S->ncap = nc;
         S->L = nl;
         for (int i = 0; i < nc; i++)
-            if (mdl_view_alloc(m, &S->views[i], nl)) return NULL;
+            if (sooc_mdl_view_alloc(m, &S->views[i], nl)) return NULL;
     }
     return S;
 }
 
-void mdl_step_free(step_state *S) {
+void sooc_mdl_step_free(step_state *S) {
     if (!S) return;
     for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
     sooc_free(S->views);
@@ -129,7 +129,7 @@ void mdl_step_free(step_state *S) {
     sooc_free(S);
 }
 
-void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam) {
+void sooc_mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam) {
     memset(cam, 0, sizeof *cam);
     memcpy(cam->T_wc, f->T_wc, sizeof cam->T_wc);
     cam->K = f->K;
@@ -174,7 +174,7 @@ static void pick_priors(const sooc_model *m, const float *lam_ret, int n_ret, in
 }
 
 /* Set up a view: frame, rays, retrieved slots + priors, layout. */
-sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
+sooc_status sooc_mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
                            sooc_rng *rng, int *n_inview) {
     const sooc_model_config *c = &m->cfg;
     int K = c->K, NL = m->NL, dl = c->d_layout;
@@ -184,7 +184,7 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
     if (st) return st;
     sooc_floor_frame_of(&V->gf, Twg);
     sooc_cogmap_camera cam;
-    mdl_camera_of(m, f, &cam);
+    sooc_mdl_camera_of(m, f, &cam);
     sooc_cogmap_slot slots[SOOC_MODEL_K_MAX];
     int nret = 0;
     sooc_floor_frame gq;
@@ -196,7 +196,7 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
         V->src_view[k] = slots[k].last_view;
         V->prior_idx[k] = -1;
     }
-    mdl_lam_from_m(c, V->lam0, nret, NL);   /* the map's metres -> model units */
+    sooc_mdl_lam_from_m(c, V->lam0, nret, NL);   /* the map's metres -> model units */
     V->nslot = pad ? K : nret;
     if (pad) {
         int pr[SOOC_MODEL_K_MAX];
@@ -224,7 +224,7 @@ sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const s
     int ox = (int)sooc_rng_below(rng, (uint32_t)(c->img_w / c->ray_w));
     int oy = (int)sooc_rng_below(rng, (uint32_t)(c->img_h / c->ray_h));
     V->t_ns = f->t_ns;
-    return mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twg, h, pitch, blk);
+    return sooc_mdl_make_rays(m, f, ox, oy, rng, &V->vr, Twg, h, pitch, blk);
 }
 
 /* Bounded refinement update (models/experiments/README.md, "The unity training recipe"): the
@@ -263,7 +263,7 @@ static float bound_deriv(float delta, float s) {
  * train = 1: decodes l = 0..L with local backward (weight grads w_l = l/L),
  * stores everything for the reverse sweep. train = 0: decodes l = 0..L-1
  * (backward to the inputs only, for the auxiliary inputs), no final decode. */
-sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
+sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
                              sooc_rng *rng, double *loss_w, dec_call *last) {
     sooc_model *m = x->m;
     const sooc_model_config *c = &m->cfg;
@@ -287,7 +287,7 @@ sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L
         float *lam = V->lam + (size_t)l * K * NL, *lay = V->lay + (size_t)l * D2;
         float *glam = V->glam + (size_t)l * K * NL, *glay = V->glay + (size_t)l * D2;
         float wl = L > 0 ? (float)l / (float)L : 1.0f;
-        mdl_sample_noise(m, rng, &V->noise[l]);   /* drawn either way: same RNG stream */
+        sooc_mdl_sample_noise(m, rng, &V->noise[l]);   /* drawn either way: same RNG stream */
         if (o->mean_latents) memset(&V->noise[l], 0, sizeof V->noise[l]);
         dec_call dc;
         memset(&dc, 0, sizeof dc);
@@ -306,7 +306,7 @@ sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L
         memset(S->tmpl0, 0, D2 * sizeof(float));
         dc.g_lam0 = S->tmp0, dc.g_lay0 = S->tmpl0;
         if (S->aux_replay) dc.zw_sg = V->zwb[l];
-        if ((st = mdl_decode(x, &dc))) return st;
+        if ((st = sooc_mdl_decode(x, &dc))) return st;
         if (!S->aux_replay)
             for (int k = 0; k < K; k++)
                 for (int i = 0; i < 3; i++) V->zwb[l][k * 3 + i] = dc.zw[k][i];
@@ -322,7 +322,7 @@ sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L
         ao->B = K;
         int nvo = m->robj.nvec, fco = m->robj.fc, nvl = m->rlay.nvec, fcl = m->rlay.fc;
         if (!S->aux_replay) {
-            mdl_aux_inputs(x, &dc, glam, glay, ao->x0, S->vec_o, al->x0, S->vec_l);
+            sooc_mdl_aux_inputs(x, &dc, glam, glay, ao->x0, S->vec_o, al->x0, S->vec_l);
             ao->nsh = K > 1 ? MDL_AUX_NSH : 0;
             al->nsh = 0;
             for (int k = 0; k < K; k++)
@@ -345,7 +345,7 @@ sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L
         }
         /* objects and layout in one pass (their conv items split across the threads together) */
         float *dl_lay = S->delta + (size_t)c->K * NL;
-        mdl_ref_forward2(x, &m->robj, ao, S->delta, &m->rlay, al, dl_lay, gw, gh);
+        sooc_mdl_ref_forward2(x, &m->robj, ao, S->delta, &m->rlay, al, dl_lay, gw, gh);
         float *nlam = lam + (size_t)K * NL, *nlay = lay + D2;
         for (int k = 0; k < K; k++)
             for (int i = 0; i < NL; i++) {
@@ -360,7 +360,7 @@ sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L
 /* Reverse sweep of one view: V->G / V->Glay hold the gradient w.r.t. λ^L from
  * later views and queries. On return, V->G / V->Glay hold the gradient w.r.t.
  * the view's starting λ^0 = its prior (including the KL-prior terms). */
-void mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L) {
+void sooc_mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L) {
     sooc_model *m = x->m;
     const sooc_model_config *c = &m->cfg;
     int K = V->nslot, NL = m->NL, D2 = 2 * c->d_layout, H = c->ref_hidden;
@@ -389,14 +389,14 @@ void mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L) {
                 float s = bound_scale_obj(i, c->d_what);
                 S->tmp0[j] = G[j] * bound_deriv(lb[j] - la[j], s);
             }
-        mdl_ref_backward(x, &m->robj, &V->ao[l], gw, gh, S->tmp0, S->dh, S->dc, S->gvec);
+        sooc_mdl_ref_backward(x, &m->robj, &V->ao[l], gw, gh, S->tmp0, S->dh, S->dc, S->gvec);
         const float *gl = V->glam + (size_t)l * K * NL;
         for (int k = 0; k < K; k++)
             for (int i = 0; i < NL; i++) G[k * NL + i] += S->gvec[(size_t)k * nvo + i] + wl * gl[k * NL + i];
         memset(S->gvec, 0, nvl * sizeof(float));
         const float *ya = V->lay + (size_t)l * D2, *yb = ya + D2;
         for (int i = 0; i < D2; i++) S->tmpl0[i] = Gl[i] * bound_deriv(yb[i] - ya[i], bound_scale_lay(i, c->d_layout));
-        mdl_ref_backward(x, &m->rlay, &V->al[l], gw, gh, S->tmpl0, dhl, dcl, S->gvec);
+        sooc_mdl_ref_backward(x, &m->rlay, &V->al[l], gw, gh, S->tmpl0, dhl, dcl, S->gvec);
         const float *gll = V->glay + (size_t)l * D2;
         for (int i = 0; i < D2; i++) Gl[i] += S->gvec[i] + wl * gll[i];
     }
@@ -429,13 +429,13 @@ static sooc_status view_propose(sooc_model *m, step_state *S, view_rec *V, const
                                 const sooc_step_opts *opt) {
     mdl_prop_params pp;
     sooc_cluster_params cp;
-    mdl_prop_from_opts(opt, &pp, &cp);
+    sooc_mdl_prop_from_opts(opt, &pp, &cp);
     sooc_status st;
     if (!S->prop && (st = sooc_cluster_map_create(&S->prop, &cp))) return st;
     float before[SOOC_MODEL_K_MAX][2];
     for (int k = 0; k < V->nslot; k++)
         before[k][0] = V->lam0[(size_t)k * m->NL + SOOC_LAM_X], before[k][1] = V->lam0[(size_t)k * m->NL + SOOC_LAM_Z];
-    mdl_propose(S->prop, &m->cfg, m->NL, f, V, &pp, &st);
+    sooc_mdl_propose(S->prop, &m->cfg, m->NL, f, V, &pp, &st);
     if (st) return st;
     for (int k = V->n_ret; k < V->nslot; k++)
         if (V->lam0[(size_t)k * m->NL + SOOC_LAM_X] != before[k][0] ||
@@ -458,7 +458,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     const sooc_model_config *c = &m->cfg;
     int L = opt->L > 0 ? opt->L : c->L, K = c->K, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "train step: L must be >= 1");
-    step_state *S = mdl_step_state(x, T + 1, L);
+    step_state *S = sooc_mdl_step_state(x, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_cogmap_clear(S->map, 1);
@@ -469,7 +469,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     /* ---- forward over input views ---- */
     for (int t = 0; t < T; t++) {
         view_rec *V = &S->views[t];
-        if ((st = mdl_view_setup(m, S->map, V, &views[t], 1, rng, NULL))) goto fail;
+        if ((st = sooc_mdl_view_setup(m, S->map, V, &views[t], 1, rng, NULL))) goto fail;
         if (opt->proposals && (st = view_propose(m, S, V, &views[t], opt))) goto fail;
         int li = lay_find(S, V->bi, V->bj);
         V->lay_src = li >= 0 ? S->lay_view[li] : -1;
@@ -479,14 +479,14 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
             V->src_view[k] = ok ? S->id_view[id] : -1;
             V->src_slot[k] = ok ? S->id_slot[id] : -1;
         }
-        if ((st = mdl_view_forward_train(x, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
+        if ((st = sooc_mdl_view_forward_train(x, S, V, L, opt, rng, &total, out, &nonfinite))) goto fail;
         if (nonfinite) break;
         /* register */
         const float *lamL = V->lam + (size_t)L * K * NL;
         uint64_t ids[SOOC_MODEL_K_MAX];
         sooc_cogmap_reg_stats rs;
         memcpy(S->tmp0, lamL, (size_t)K * NL * sizeof(float));   /* model units -> the map's metres */
-        mdl_lam_to_m(c, S->tmp0, K, NL);
+        sooc_mdl_lam_to_m(c, S->tmp0, K, NL);
         if ((st = sooc_cogmap_register(S->map, &V->gf, K, S->tmp0, V->src_id, V->t_ns, t, ids, NULL, &rs))) {
             if (st == SOOC_ENUMERIC) {
                 nonfinite = 1;
@@ -520,10 +520,10 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     if (!nonfinite)
         for (int q = 0; q < Q; q++) {
             view_rec *V = &S->views[T];   /* scratch record */
-            if ((st = mdl_view_setup(m, S->map, V, &queries[q], 0, rng, NULL))) goto fail;
+            if ((st = sooc_mdl_view_setup(m, S->map, V, &queries[q], 0, rng, NULL))) goto fail;
             int li = lay_find(S, V->bi, V->bj);
             V->lay_src = li >= 0 ? S->lay_view[li] : -1;
-            if ((st = mdl_query_decode(x, S, V, q, V->nslot, V->lam0, V->lay0, opt, rng, &total, out, &nonfinite)))
+            if ((st = sooc_mdl_query_decode(x, S, V, q, V->nslot, V->lam0, V->lay0, opt, rng, &total, out, &nonfinite)))
                 goto fail;
             if (nonfinite) break;
             /* route to the registering views */
@@ -544,7 +544,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
             view_rec *V = &S->views[t];
-            mdl_view_backward(x, S, V, L);
+            sooc_mdl_view_backward(x, S, V, L);
             for (int k = 0; k < K; k++) {
                 const float *g = V->G + (size_t)k * NL;
                 if (V->prior_idx[k] >= 0) {
@@ -562,7 +562,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
                 for (int i = 0; i < D2; i++) m->g[m->prior_lay + i] += V->Glay[i];
         }
     out->sec_backward = sooc_seconds() - t_rev;
-    return mdl_step_finish(m, S, total, nonfinite, out);
+    return sooc_mdl_step_finish(m, S, total, nonfinite, out);
 fail:
     memcpy(m->g, S->gbak, m->np * sizeof(float));
     return st;
@@ -571,7 +571,7 @@ fail:
 /* End of a training step (plain and global-frame): record the loss and, if
  * the loss or any accumulated gradient is non-finite, restore the gradient
  * slab to its value at entry (S->gbak) and flag the step as skipped. */
-sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out) {
+sooc_status sooc_mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out) {
     out->total = total;
     int bad = nonfinite || !isfinite(total);
     for (size_t i = 0; i < m->np && !bad; i++) bad = !isfinite(m->g[i]);
@@ -585,11 +585,11 @@ sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonf
 /* Training forward of one input view (plain and global-frame steps): add its
  * weighted loss to *total and its final-iterate terms to out. A non-finite
  * loss is not an error: it sets *nonfinite and returns SOOC_OK. */
-sooc_status mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
                                    sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite) {
     double lw;
     dec_call last;
-    sooc_status st = mdl_view_forward(x, S, V, L, opt, 1, rng, &lw, &last);
+    sooc_status st = sooc_mdl_view_forward(x, S, V, L, opt, 1, rng, &lw, &last);
     if (st == SOOC_ENUMERIC) {
         *nonfinite = 1;
         return SOOC_OK;
@@ -609,11 +609,11 @@ sooc_status mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V,
  * route; the loss goes to *total and out. The sampled z_where are kept in
  * S->zq[q] (or replayed from it, S->aux_replay) for the gradient checks. A
  * non-finite loss sets *nonfinite and returns SOOC_OK. */
-sooc_status mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+sooc_status sooc_mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
                              const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
                              sooc_step_losses *out, int *nonfinite) {
     sooc_model *m = x->m;
-    mdl_sample_noise(m, rng, &V->noise[0]);
+    sooc_mdl_sample_noise(m, rng, &V->noise[0]);
     memset(S->tmp0, 0, (size_t)nslot * m->NL * sizeof(float));
     memset(S->tmpl0, 0, 2 * (size_t)m->cfg.d_layout * sizeof(float));
     dec_call dc;
@@ -631,7 +631,7 @@ sooc_status mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q
     dc.backward = 1;
     dc.g_lam = S->tmp0, dc.g_lay = S->tmpl0;
     if (S->aux_replay) dc.zw_sg = S->zq[q];
-    sooc_status st = mdl_decode(x, &dc);
+    sooc_status st = sooc_mdl_decode(x, &dc);
     if (st == SOOC_ENUMERIC) {
         *nonfinite = 1;
         return SOOC_OK;

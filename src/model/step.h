@@ -2,7 +2,8 @@
  * training step (step.c: per-view records, retrieve -> refine -> register,
  * the reverse sweep; workspace.c: the runner's workspace, sooc_model_ws).
  * Includes only the refinement layer (and, through it, the lower ones).
- * Internal: the mapper layer, src/global and tests include it. */
+ * Internal interface of src/model (docs/architecture.md "Layers"): src/mapper,
+ * src/global and tests include it; not a public API. */
 #ifndef SOOC3D_MODEL_STEP_H
 #define SOOC3D_MODEL_STEP_H
 
@@ -53,21 +54,21 @@ struct step_state {
 typedef struct step_state step_state;
 
 /* The workspace's step scratch (created on first use, x->step) with room for T view records of L iterations. */
-step_state *mdl_step_state(sooc_model_ws *x, int T, int L);
-void mdl_step_free(step_state *S);   /* NULL-safe */
-sooc_status mdl_view_alloc(sooc_model *m, view_rec *V, int L);
-void mdl_view_free(view_rec *V);
-void mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam);
-sooc_status mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
+step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L);
+void sooc_mdl_step_free(step_state *S);   /* NULL-safe */
+sooc_status sooc_mdl_view_alloc(sooc_model *m, view_rec *V, int L);
+void sooc_mdl_view_free(view_rec *V);
+void sooc_mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam);
+sooc_status sooc_mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
                            sooc_rng *rng, int *n_inview);
-sooc_status mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
+sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
                              sooc_rng *rng, double *loss_w, dec_call *last);
-void mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L);
-sooc_status mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+void sooc_mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L);
+sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
                                    sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite);
-sooc_status mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+sooc_status sooc_mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
                              const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
                              sooc_step_losses *out, int *nonfinite);
-sooc_status mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out);
+sooc_status sooc_mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out);
 
 #endif

@@ -1,14 +1,14 @@
 /* Layer 0 of src/model (docs/model.md "Layers"): configuration and weights
  * (model.c) and the kernels every layer above runs on (kern.c: the GEMM
  * aliases, the task pool of a workspace). Includes no other model header.
- * Internal: not a public API (tests, src/finetune and src/global include it
- * through the headers above it). */
+ * Internal interface of src/model (docs/architecture.md "Layers"): src/finetune
+ * includes it; not installed, not a public API. */
 #ifndef SOOC3D_MODEL_WEIGHTS_H
 #define SOOC3D_MODEL_WEIGHTS_H
 
 #include "sooc3d/model.h"
 #include "sooc3d/geom.h"
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 
 #define MDL_NL(d) (6 + 2 * (d))   /* λ size per slot */
 /* Parallel regions only pay off with enough rows: with fewer, thread start-up
@@ -84,14 +84,14 @@ struct sooc_model_ws {
  * (flat cogmap.h layout, stride NL) in a G frame: metres -> model units
  * (x, z divided by unit_m, rho_t less 2 ln unit_m) and back. No-ops at
  * unit_m = 1 (bit-identical). */
-void mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL);
-void mdl_lam_to_m(const sooc_model_config *c, float *lam, int n, int NL);
+void sooc_mdl_lam_from_m(const sooc_model_config *c, float *lam, int n, int NL);
+void sooc_mdl_lam_to_m(const sooc_model_config *c, float *lam, int n, int NL);
 
 /* Image channels of a refinement net's input (its first conv's width in
  * the slab): 26 for objects, 25 for the layout (refine.c builds them). */
-int mdl_aux_channels(int layout);
+int sooc_mdl_aux_channels(int layout);
 
-/* The engine's GEMM (src/nn/gemm.c, sooc3d/nn_kern.h) under the model's old names:
+/* The engine's GEMM (src/nn/gemm.c, nn/nn_kern.h) under the model's old names:
  * C[M x N] = init + A[M x K] B[K x N], all row-major (leading dimensions
  * lda, ldb, ldc), init = C (acc != 0), else the row vector bias (N; NULL: 0);
  * then the epilogue ep: MDL_EP_RELU max(0, .), MDL_EP_MASK zero where
@@ -103,13 +103,13 @@ static inline void mdl_gemm(int M, int N, int K, const float *A, int lda, const 
     sooc_nn_gemm(M, N, K, A, lda, B, ldb, C, ldc, bias, acc, ep, mask, ldm);
 }
 static inline int mdl_kern_avx2(void) { return sooc_nn_gemm_avx2(); }
-/* kern.c: the task pool (sooc_nn_pool) of a workspace. mdl_par_run runs fn(ctx, t, tid) for t = 0..n-1, the
- * caller being tid 0 and up to mdl_par_threads(w) - 1 helpers the others (tid < mdl_par_threads(w));
+/* kern.c: the task pool (sooc_nn_pool) of a workspace. sooc_mdl_par_run runs fn(ctx, t, tid) for t = 0..n-1, the
+ * caller being tid 0 and up to sooc_mdl_par_threads(w) - 1 helpers the others (tid < sooc_mdl_par_threads(w));
  * tasks are claimed one at a time and the caller waits only for claimed tasks. A task's
- * result must not depend on tid. mdl_par_threads makes w's pool (w->m->threads) if needed. */
+ * result must not depend on tid. sooc_mdl_par_threads makes w's pool (w->m->threads) if needed. */
 typedef sooc_nn_task_fn mdl_task_fn;
-int mdl_par_threads(sooc_model_ws *w);
-void mdl_par_run(sooc_model_ws *w, int n, mdl_task_fn fn, void *ctx);
-void mdl_pool_free(sooc_model_ws *w);
+int sooc_mdl_par_threads(sooc_model_ws *w);
+void sooc_mdl_par_run(sooc_model_ws *w, int n, mdl_task_fn fn, void *ctx);
+void sooc_mdl_pool_free(sooc_model_ws *w);
 
 #endif

@@ -11,7 +11,7 @@ sooc_status sooc_model_ws_create(sooc_model_ws **out, sooc_model *m) {
     if (!w) return SOOC_ENOMEM;
     w->m = m;
     sooc_status st;
-    if ((st = mdl_dec_ws_create(m, &w->dec)) || (st = mdl_ref_ws_create(m, &w->ref))) {
+    if ((st = sooc_mdl_dec_ws_create(m, &w->dec)) || (st = sooc_mdl_ref_ws_create(m, &w->ref))) {
         sooc_model_ws_destroy(w);
         return sooc_adderr(st, "model workspace");
     }
@@ -21,11 +21,9 @@ sooc_status sooc_model_ws_create(sooc_model_ws **out, sooc_model *m) {
 
 void sooc_model_ws_destroy(sooc_model_ws *w) {
     if (!w) return;
-    mdl_step_free(w->step);
-    mdl_ref_ws_destroy(w->ref);
-    mdl_dec_ws_destroy(w->dec);
-    mdl_pool_free(w);
+    sooc_mdl_step_free(w->step);
+    sooc_mdl_ref_ws_destroy(w->ref);
+    sooc_mdl_dec_ws_destroy(w->dec);
+    sooc_mdl_pool_free(w);
     sooc_free(w);
 }
-
-sooc_model *sooc_model_ws_model(const sooc_model_ws *w) { return w->m; }

@@ -8,7 +8,11 @@ int sooc_nn_blas_set_threads(int n) {
     return prev;
 }
 
-void sooc_nn_blas_single(void) {
+/* Put OpenBLAS in single-thread mode (process-global; all nn parallelism is
+ * OpenMP). Measured: restoring OpenBLAS' threads after every call left its
+ * workers spinning against the OpenMP threads, making the conv encoder up to
+ * 50x slower on a loaded machine. */
+static void sooc_nn_blas_single(void) {
     if (openblas_get_num_threads() != 1) openblas_set_num_threads(1);
 }
 

@@ -1,5 +1,5 @@
 /* Small row-major GEMMs for the decoder MLPs and the refinement network
- * (sooc3d/nn_kern.h). The layers are narrow (N = 16..64 outputs, K = 3..576),
+ * (nn/nn_kern.h). The layers are narrow (N = 16..64 outputs, K = 3..576),
  * so a general BLAS spends a good part of its time packing A and B and in its
  * beta pass; these kernels read A and B in place (B rows are contiguous in N,
  * A elements are broadcast), start from the bias, the existing C or zero, and
@@ -19,7 +19,7 @@
  * -ffp-contract=off), which every other CPU and SOOC_NO_AVX2 run. Neither
  * depends on which BLAS library or kernel is installed. */
 #include "nn_impl.h"
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 
 #include <stdatomic.h>
 #include <stdint.h>

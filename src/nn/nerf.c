@@ -1,10 +1,10 @@
 /* The decoder MLP layers the model runs (docs/engine.md §9), as forward / backward
- * pairs (sooc3d/nn_kern.h): dense + ReLU on sooc_nn_gemm with the bias and the
+ * pairs (nn/nn_kern.h): dense + ReLU on sooc_nn_gemm with the bias and the
  * activation fused into the GEMM, the density / colour sigmoid heads, and
  * their composition, layers 2.. of a decoder. Weights are [in x out]
  * row-major (Y = X W + b), the layout of the model's checkpoints. */
 #include "nn_impl.h"
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 
 #include <string.h>
 

@@ -21,12 +21,6 @@
  * OpenMP off. Avoids mixing OpenBLAS' own threads with OpenMP threads
  * (measured: oversubscription made the conv encoder 50x slower on a loaded
  * 2-core machine). */
-/* Put OpenBLAS in single-thread mode (process-global; all nn parallelism is
- * OpenMP). Measured: restoring OpenBLAS' threads after every call left its
- * workers spinning against the OpenMP threads, making the conv encoder up to
- * 50x slower on a loaded machine. */
-void sooc_nn_blas_single(void);
-
 void sooc_nn_sgemm(int transa, int transb, int M, int N, int K, float alpha, const float *A,
                    int lda, const float *B, int ldb, float beta, float *C, int ldc);
 

@@ -1,4 +1,4 @@
-/* Task pool (sooc3d/nn_kern.h; moved here from src/model/kern.c).
+/* Task pool (nn/nn_kern.h).
  *
  * The model's inference passes (decode forward / backward without weight
  * gradients, aux inputs, refinement convs) run through a small pthread pool
@@ -9,7 +9,7 @@
  * region ends with a barrier that every thread must reach). Which thread runs
  * a task never changes its result. The helpers are started once, at create,
  * and sleep on a condition variable between jobs. */
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 
 #include <pthread.h>
 #include <stdatomic.h>

@@ -3,7 +3,7 @@
  * on even sizes, CBHW activations, fused bias + ELU; im2col + one GEMM per
  * call over all the items it is given (items x pixels as the N dimension).
  *
- * The forward GEMM (sooc_nn_gemm, sooc3d/nn_kern.h) keeps every output one
+ * The forward GEMM (sooc_nn_gemm, nn/nn_kern.h) keeps every output one
  * FMA chain over k in order, so splitting items across threads, or taking the shared leading
  * channels' share from a precomputed ysh, never changes a result. The
  * backward's two GEMMs (sooc_nn_gemm_nt for dw, sooc_nn_gemm_tn for the
@@ -41,7 +41,8 @@ __attribute__((target("avx2"))) static int64_t elu_bias_avx2(float *y, int64_t n
 #define NN_ELU_AVX2 1
 #endif
 
-void sooc_nn_r_elu_bias(float *y, int64_t n, float bias) {
+/* y[j] = elu(y[j] + bias) over n values (the Cephes-polynomial ELU of nn_refine.h). */
+static void sooc_nn_r_elu_bias(float *y, int64_t n, float bias) {
     int64_t j = 0;
 #ifdef NN_ELU_AVX2
     if (sooc_nn_gemm_avx2()) j = elu_bias_avx2(y, n, bias);
@@ -177,7 +178,8 @@ __attribute__((target("avx2"))) static inline void deint_row_avx2(const float *r
 /* Each input row feeds one or two output rows per kx (even columns, odd columns,
  * even columns shifted by one with the pad last): deint_row_avx2 writes both
  * at once 8 wide when the AVX2 kernels run, else deint_row per output row. */
-void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int Hi, int Wi, float *cols) {
+/* Columns of channels [c0, c0 + nc) of items [b0, b1): row (c, ky, kx), column (b, oy, ox). */
+static void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int Hi, int Wi, float *cols) {
     int Ho = Hi / 2, Wo = Wi / 2, HWo = Ho * Wo;
     size_t No = (size_t)(b1 - b0) * HWo;
     SOOC_ASSERT(Hi % 2 == 0 && Wi % 2 == 0);

@@ -66,8 +66,6 @@ void sooc_nn_tape_reset(sooc_nn_tape *t) {
 
 sooc_status sooc_nn_tape_status(const sooc_nn_tape *t) { return t->status; }
 const char *sooc_nn_tape_errmsg(const sooc_nn_tape *t) { return t->msg; }
-sooc_nn_arena *sooc_nn_tape_arena(sooc_nn_tape *t) { return t->arena; }
-int sooc_nn_tape_n_nodes(const sooc_nn_tape *t) { return t->n; }
 int sooc_nn_tape_mark(const sooc_nn_tape *t) { return t->n; }
 
 void sooc_nn_tape_cut(sooc_nn_tape *t, int mark) {

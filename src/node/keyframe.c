@@ -1,6 +1,7 @@
 /* Keyframe policy (translation / rotation / time thresholds) and a latency
  * window with percentiles. */
 #include "sooc3d/node.h"
+#include "node/node_parts.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -493,7 +493,7 @@ static const kspec g_keys[] = {
     KV("odometry", "color_tx", KV_NUM, odom_color_tx, -1, 1),
     KV("odometry", "color_ty", KV_NUM, odom_color_ty, -1, 1),
     KV("odometry", "color_tz", KV_NUM, odom_color_tz, -1, 1),
-    KV_CH("model", "kind", model_kind, "learnt|geometric"),   /* order of SOOC3D_MAPPER_* */
+    KV_CH("model", "kind", model_kind, "learnt|geometric"),   /* order of SOOC_MAPPER_* */
     KV("model", "voxel_m", KV_NUM, geo_voxel_m, 0.0005, 1),
     KV("model", "join_m", KV_NUM, geo_join_m, 0.0005, 1),
     KV("model", "min_height_m", KV_NUM, geo_min_height_m, 0, 10),
@@ -508,10 +508,10 @@ static const kspec g_keys[] = {
     KV_CH("model", "depth_resample", depth_resample, "min|nearest"),   /* order of sooc_node_depth_resample */
     KV("model", "clip_m", KV_NUM, clip_m, 0, 1000),
     KV("model", "merge_m", KV_NUM, merge_m, 0, 100),
-    KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC3D_LATENTS_* */
+    KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC_LATENTS_* */
     KV("model", "slots", KV_INT, slots, 0, SOOC_MODEL_K_MAX),
     KV_CH("model", "invalid_depth", invalid_depth, "model|free|unknown"),   /* 1 + SOOC_INVALID_DEPTH_* */
-    KV("model", "gate_min_rays", KV_NUM, gate_min_rays, -1, 1),   /* sooc3d_mapper_params.gate_* */
+    KV("model", "gate_min_rays", KV_NUM, gate_min_rays, -1, 1),   /* sooc_mapper_params.gate_* */
     KV("model", "gate_ratio", KV_NUM, gate_ratio, -1, 100),
     KV("model", "gate_part", KV_NUM, gate_part, -1, 1),
     KV("keyframe", "translation_m", KV_NUM, kf_translation_m, 0, 1000),
@@ -711,7 +711,7 @@ sooc_status sooc_node_config_parse_sets(sooc_node_config *c, const char *text, s
         st = sooc_seterr(SOOC_EINVAL, "%s: odometry.color_fx/color_fy: give both or neither", name);
     if (!st && c->min_depth_m >= c->max_depth_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: pipeline.min_depth_m: must be below max_depth_m", name);
-    if (!st && c->model_kind == SOOC3D_MAPPER_GEOMETRIC && c->geo_join_m < c->geo_voxel_m)
+    if (!st && c->model_kind == SOOC_MAPPER_GEOMETRIC && c->geo_join_m < c->geo_voxel_m)
         st = sooc_seterr(SOOC_EINVAL, "%s: model.join_m %g: must be at least model.voxel_m %g", name, c->geo_join_m,
                          c->geo_voxel_m);
     if (!st && (c->input_width > 0) != (c->input_height > 0))
@@ -772,10 +772,10 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
     OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, wall_m: %g, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s, gate_min_rays: %g, "
         "gate_ratio: %g, gate_part: %g}\n",
-        c->calib_path, c->model_kind == SOOC3D_MAPPER_GEOMETRIC ? "geometric" : "learnt", c->geo_voxel_m, c->geo_join_m,
+        c->calib_path, c->model_kind == SOOC_MAPPER_GEOMETRIC ? "geometric" : "learnt", c->geo_voxel_m, c->geo_join_m,
         c->geo_min_height_m, c->geo_max_extent_m, c->geo_wall_m, c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
-        c->latents == SOOC3D_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
+        c->latents == SOOC_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
         c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model", c->gate_min_rays,
         c->gate_ratio, c->gate_part);
     OUT("keyframe: {translation_m: %g, rotation_deg: %g, time_s: %g}\n", c->kf_translation_m,

@@ -5,6 +5,7 @@
 #define SOOC3D_NODE_IMPL_H
 
 #include "sooc3d/node.h"
+#include "node/node_parts.h"
 #include "sooc3d/support.h"
 
 #include <math.h>
@@ -13,23 +14,13 @@
 #include <stdio.h>
 #include <string.h>
 
-#if SOOC_NODE_HAVE_DRIVERS
 #include "sooc3d/driver.h"
 #include "sooc3d/pose.h"
-#endif
-#if SOOC_NODE_HAVE_TABLE
 #include "sooc3d/table.h"
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
 #include "node/store_guard.h"
 #include "sooc3d/mapstore.h"
-#endif
-#if SOOC_NODE_HAVE_CALIB
 #include "sooc3d/calib.h"
-#endif
-#if SOOC_NODE_HAVE_CV
 #include "sooc3d/cv.h"
-#endif
 
 #include "sooc3d/view.h"
 
@@ -43,7 +34,7 @@ struct sooc_node {
     size_t view_cap;
     sooc_node_config cfg;
     sooc_node_options opt;
-    sooc3d_mapper *mapper;
+    sooc_mapper *mapper;
     int own_mapper;
     int tw, th;
 
@@ -51,20 +42,14 @@ struct sooc_node {
     int have_src;
     sooc_node_pose_source pose;
     int have_pose;
-#if SOOC_NODE_HAVE_CV
     sooc_odom *odom;               /* pose.source: odometry */
     int odom_lost;                 /* frames failed in a row (for the log) */
-#endif
-#if SOOC_NODE_HAVE_DRIVERS
     sooc_sensor *sensor;           /* swapped by a reconnect under sensor_mu */
     sooc_sensor_params sensor_params;   /* to open it again */
     sooc_pose_src *psrc;
-#endif
     pthread_mutex_t sensor_mu;     /* guards the sensor pointer: a reconnect (capture thread) against
                                       sooc_node_request_stop (any thread); a leaf lock */
-#if SOOC_NODE_HAVE_CALIB
     sooc_calib calib;
-#endif
     int have_calib;
     sooc_intrinsics Kc;            /* calib intrinsics (colour) */
     int calib_registered;          /* -1 unknown, 0 needs registration, 1 registered */
@@ -104,15 +89,11 @@ struct sooc_node {
     int has_gravity;
     double gravity[3];             /* world.gravity (source frame, pointing down) */
 
-#if SOOC_NODE_HAVE_TABLE
     sooc_table_writer *table;
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
     sooc_mapstore *store;
     sooc_sg *sg;                   /* its writes, queued and retried under faults (store_guard.h) */
     int store_layout_dim;          /* 0: this database keeps no layout latents */
     int extent_stored;             /* meta "extent" written / read */
-#endif
     float extent[3];               /* box extent from the database (resume of a mapper without one) */
     int db_exists;
     uint64_t model_id;       /* table latent_model_id: FNV-1a 64 of the checkpoint file */
@@ -120,7 +101,7 @@ struct sooc_node {
 
     sooc_map_entry *prev;          /* start-up only: the map republished at create */
     size_t n_prev, cap_prev;
-    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc3d_mapper_changed */
+    sooc_map_entry changed[SOOC_MAPPER_CHANGED_MAX];   /* per keyframe: sooc_mapper_changed */
     uint64_t removed[SOOC_MAPPER_CHANGED_MAX];
     uint64_t kf_seq;               /* keyframe rows written */
 
@@ -155,9 +136,7 @@ sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const do
 /* map.db: open (a new database when absent) and resume its map into the
  * mapper (*resumed = 1), or nothing without map.db. */
 sooc_status sooc__node_store_resume(sooc_node *n, int *resumed);
-#if SOOC_NODE_HAVE_MAPSTORE
 sooc_status sooc__node_store_world(sooc_node *n, const sooc_map_frame *mf);
-#endif
 sooc_status sooc__node_store_retry(sooc_node *n, int force);
 sooc_status sooc__node_store_final(sooc_node *n, sooc_status result);
 

@@ -1,62 +1,21 @@
 /* The node: capture thread -> frame ring -> (mapping thread = caller of
  * sooc_node_run) pose association, keyframe policy, preprocessing,
- * sooc3d_mapper_update, publisher (shm table batch + SQLite transaction per
+ * sooc_mapper_update, publisher (shm table batch + SQLite transaction per
  * keyframe) and periodic stats. */
 #include "node/node_impl.h"
 
 /* ------------------------------------------------------------- helpers */
 
-sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem) {
-    if (need <= *cap) return SOOC_OK;
-    size_t nc = *cap ? *cap : 64;
-    while (nc < need) nc *= 2;
-    void *q = sooc_realloc(*p, nc * elem);
-    if (!q) return sooc_seterr(SOOC_ENOMEM, "node: out of memory (%zu entries)", nc);
-    *p = q;
-    *cap = nc;
-    return SOOC_OK;
-}
-
-void sooc__node_stats_refresh(sooc_node *n) {
-    /* caller holds n->mu */
-    n->st.update_p50_ms = sooc_latency_pct(&n->lat_upd, 0.5);
-    n->st.update_p99_ms = sooc_latency_pct(&n->lat_upd, 0.99);
-    n->st.c2t_p50_ms = sooc_latency_pct(&n->lat_c2t, 0.5);
-    n->st.c2t_p99_ms = sooc_latency_pct(&n->lat_c2t, 0.99);
-    n->st.publish_p50_ms = sooc_latency_pct(&n->lat_pub, 0.5);
-    n->st.publish_p99_ms = sooc_latency_pct(&n->lat_pub, 0.99);
-    if (n->ring) {
-        uint64_t pushed, dropped;
-        sooc_frame_ring_counts(n->ring, &pushed, &dropped, NULL);
-        n->st.frames_dropped = dropped;
-    }
-    n->st.elapsed_s = sooc_seconds() - n->t_start;
-    memcpy(n->st.T_world_src, n->T_world_src, sizeof n->T_world_src);
-}
-
-
-void sooc_node_get_stats(sooc_node *n, sooc_node_stats *out) {
-    pthread_mutex_lock(&n->mu);
-    sooc__node_stats_refresh(n);
-    *out = n->st;
-    pthread_mutex_unlock(&n->mu);
-}
-
 void sooc_node_request_stop(sooc_node *n) {
     atomic_store(&n->stop, 1);
-#if SOOC_NODE_HAVE_DRIVERS
     pthread_mutex_lock(&n->sensor_mu);
     if (n->sensor) sooc_sensor_interrupt(n->sensor);
     pthread_mutex_unlock(&n->sensor_mu);
-#endif
     if (n->ring) sooc_frame_ring_close(n->ring);
 }
 
-int sooc_node_stop_requested(const sooc_node *n) { return atomic_load((atomic_int *)&n->stop); }
-
 /* ------------------------------------------------ driver / pose adapters */
 
-#if SOOC_NODE_HAVE_DRIVERS
 /* ctx = the node: a reconnect swaps its sensor (capture thread only) */
 static sooc_status drv_start(void *ctx) { return sooc_sensor_start(((sooc_node *)ctx)->sensor); }
 static sooc_frame_fault drv_frame_fault(void *ctx) { return sooc_sensor_frame_fault(((sooc_node *)ctx)->sensor); }
@@ -130,7 +89,6 @@ static sooc_status open_sensor(sooc_node *n) {
     }
     sp.depth_min = (float)c->min_depth_m;
     sp.depth_max = (float)c->max_depth_m;
-#if SOOC_NODE_HAVE_CALIB
     if (n->have_calib && n->calib.depth_scale > 0 && !sooc_node_param_get(c, "depth_scale"))
         sp.depth_scale = n->calib.depth_scale;
     /* the calib's depth decoding keys, like depth_scale (replay; seq.h) */
@@ -138,7 +96,6 @@ static sooc_status open_sensor(sooc_node *n) {
         sp.depth_shift = n->calib.depth_shift;
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
         sp.depth_invalid = n->calib.depth_invalid;
-#endif
     n->sensor_params = sp;   /* its strings live in the node's config */
     sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
     if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);
@@ -187,13 +144,11 @@ static sooc_status open_pose(sooc_node *n) {
     n->have_pose = 1;
     return SOOC_OK;
 }
-#endif
 
 /* ---------------------------------------------------------------- create */
 
 static sooc_status load_calib(sooc_node *n) {
     if (!n->cfg.calib_path[0]) return SOOC_OK;
-#if SOOC_NODE_HAVE_CALIB
     sooc_status st = sooc_calib_load(n->cfg.calib_path, &n->calib);
     if (st) return sooc_adderr(st, "%s: calib", n->cfg.path);
     n->have_calib = 1;
@@ -211,9 +166,6 @@ static sooc_status load_calib(sooc_node *n) {
         return sooc_seterr(SOOC_EINVAL, "%s: depth_registered is false but T_color_depth is missing",
                            n->cfg.calib_path);
     return SOOC_OK;
-#else
-    return sooc_seterr(SOOC_EUNSUPPORTED, "%s: calib: the calibration loader is not built in", n->cfg.path);
-#endif
 }
 
 
@@ -237,7 +189,6 @@ static void set_world(sooc_node *n, const double T[16]) {
  * frame is stored now; an estimated one when it is made. */
 static sooc_status world_from_store(sooc_node *n, int resumed) {
     const sooc_node_config *c = &n->cfg;
-#if SOOC_NODE_HAVE_MAPSTORE
     if (n->sg) {   /* a store, or one to be created later (store_guard.h) */
         sooc_map_frame mf;
         int found = 0;
@@ -273,10 +224,6 @@ static sooc_status world_from_store(sooc_node *n, int resumed) {
             return sooc__node_store_world(n, &mf);
         }
     }
-#else
-    (void)resumed;
-    (void)c;
-#endif
     return SOOC_OK;
 }
 
@@ -344,8 +291,8 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     if (n->opt.mapper) {
         n->mapper = n->opt.mapper;
     } else {
-        sooc3d_mapper_params mp;
-        sooc3d_mapper_params_default(&mp);
+        sooc_mapper_params mp;
+        sooc_mapper_params_default(&mp);
         mp.model_path = c->model_path;
         mp.iterations = c->iterations;
         mp.seed = c->seed;
@@ -359,14 +306,14 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         mp.gate_min_rays = c->gate_min_rays;   /* the creation gate (revisit rule 5): 0 = default */
         mp.gate_ratio = c->gate_ratio;
         mp.gate_part = c->gate_part;
-        if (c->model_kind == SOOC3D_MAPPER_GEOMETRIC) {   /* the geometric map (docs/geometric.md "In the node") */
-            mp.kind = SOOC3D_MAPPER_GEOMETRIC;
+        if (c->model_kind == SOOC_MAPPER_GEOMETRIC) {   /* the geometric map (docs/geometric.md "In the node") */
+            mp.kind = SOOC_MAPPER_GEOMETRIC;
             mp.cluster.voxel_m = c->geo_voxel_m, mp.cluster.dist_m = c->geo_join_m;
             mp.cluster.min_height_m = c->geo_min_height_m, mp.cluster.max_extent_m = c->geo_max_extent_m;
             mp.cluster.wall_m = c->geo_wall_m;
             mp.cluster.max_depth_m = c->max_depth_m < 3.0 ? c->max_depth_m : 3.0;
             if (c->input_width > 0) mp.input_width = c->input_width, mp.input_height = c->input_height;
-            if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+            if ((st = sooc_mapper_create(&n->mapper, &mp))) {
                 sooc_adderr(st, "%s: model.kind geometric", c->path);
                 goto fail;
             }
@@ -380,7 +327,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                 st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);
                 goto fail;
             }
-            if ((st = sooc3d_mapper_create(&n->mapper, &mp))) {
+            if ((st = sooc_mapper_create(&n->mapper, &mp))) {
                 sooc_adderr(st, "%s: model.path %s", c->path, c->model_path);
                 goto fail;
             }
@@ -394,7 +341,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             }
         }
     }
-    sooc3d_mapper_input_size(n->mapper, &n->tw, &n->th);
+    sooc_mapper_input_size(n->mapper, &n->tw, &n->th);
     if (c->input_width > 0 && (c->input_width != n->tw || c->input_height != n->th)) {
         st = sooc_seterr(SOOC_EINVAL, "%s: model.width/height: %dx%d, but the model takes %dx%d", c->path,
                          c->input_width, c->input_height, n->tw, n->th);
@@ -415,17 +362,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
         n->pose = *n->opt.pose;
         n->have_pose = 1;
     }
-#if SOOC_NODE_HAVE_DRIVERS
     if (!n->have_src && (st = open_sensor(n))) goto fail;
     if (!n->have_pose && (st = open_pose(n))) goto fail;
-#else
-    if (!n->have_src) {
-        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: sensor: the drivers module is not built in", c->path);
-        goto fail;
-    }
-#endif
     if (c->pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->have_pose) {
-#if SOOC_NODE_HAVE_CV
         sooc_odom_params op;
         sooc_odom_params_default(&op);
         op.variant = (sooc_odom_variant)c->odom_variant;
@@ -451,10 +390,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             sooc_adderr(st, "%s: pose.source: odometry", c->path);
             goto fail;
         }
-#else
-        st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose.source: odometry: the cv module is not built in", c->path);
-        goto fail;
-#endif
     } else if (c->pose_kind != SOOC_NODE_POSE_SENSOR && c->pose_kind != SOOC_NODE_POSE_TF && !n->have_pose) {
         st = sooc_seterr(SOOC_EUNSUPPORTED, "%s: pose: no pose source available", c->path);
         goto fail;
@@ -477,9 +412,9 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     /* what the mapper holds now (resumed, or preloaded by the caller) is republished at start */
     {
         size_t cnt = 0;
-        if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
+        if ((st = sooc_mapper_entries(n->mapper, NULL, 0, &cnt))) goto fail;
         if ((st = sooc__node_grow((void **)&n->prev, &n->cap_prev, cnt + 1, sizeof *n->prev))) goto fail;
-        if ((st = sooc3d_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
+        if ((st = sooc_mapper_entries(n->mapper, n->prev, n->cap_prev, &n->n_prev))) goto fail;
         for (size_t i = 0; i < n->n_prev; i++)   /* a mapper without a box extent: the stored one */
             if (n->prev[i].extent[0] <= 0) memcpy(n->prev[i].extent, n->extent, sizeof n->extent);
         n->st.n_objects = n->n_prev;
@@ -487,7 +422,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
 
     /* shm table */
     if (c->shm_name[0]) {
-#if SOOC_NODE_HAVE_TABLE
         int rc = sooc_table_create_writer(c->shm_name, c->shm_capacity, 0, "map", &n->table);
         if (rc) {
             st = sooc_seterr(rc == SOOC_TABLE_ELOCKED ? SOOC_EBUSY : SOOC_EIO, "%s:shm.name: table '%s': %s",
@@ -500,9 +434,6 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                              c->shm_capacity, n->n_prev);
             goto fail;
         }
-#else
-        sooc_log(SOOC_LOG_WARN, "%s: shm.name set but the table module is not built in", c->path);
-#endif
     } else {
         sooc_log(SOOC_LOG_WARN, "%s: no shm.name: no object table for planners, the map goes to map.db only "
                                 "(set shm.name, or --set shm.name=NAME)", c->path);
@@ -595,7 +526,7 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
         sp.cam_height_min_m = c->cam_height_min_m;
         sp.cam_height_max_m = c->cam_height_max_m;
     } else {   /* the model's trained range */
-        sooc3d_mapper_cam_heights(n->mapper, &sp.cam_height_min_m, &sp.cam_height_max_m);
+        sooc_mapper_cam_heights(n->mapper, &sp.cam_height_min_m, &sp.cam_height_max_m);
     }
     sp.seed = c->seed + 1;
     const sooc_frame *fp[32];
@@ -635,7 +566,6 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
                  "node: the camera is %.2f m above the support plane, outside the %.2f-%.2f m the model was trained "
                  "for (world.camera_height_min_m / _max_m); objects may be mapped at the wrong scale",
                  sup.cam_height_m, sp.cam_height_min_m, sp.cam_height_max_m);
-#if SOOC_NODE_HAVE_MAPSTORE
     sooc_map_frame mf;
     memset(&mf, 0, sizeof mf);
     memcpy(mf.T_world_src, sup.T_world_src, sizeof mf.T_world_src);
@@ -647,7 +577,6 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
         *err = st;
         return -1;
     }
-#endif
     return 1;
 }
 
@@ -694,7 +623,6 @@ static sooc_status fix_intrinsics_and_register(sooc_node *n, sooc_frame *f) {
  * (counted and skipped: the mapper never sees a frame without a trusted
  * pose); -1: error (message set). */
 static int odom_pose(sooc_node *n, sooc_frame *f, double T_src_c[16]) {
-#if SOOC_NODE_HAVE_CV
     sooc_odom_result r;
     if (sooc_odom_track(n->odom, f, &r)) return -1;
     if (r.state == SOOC_ODOM_FIRST || r.state == SOOC_ODOM_TRACKED) {
@@ -719,11 +647,6 @@ static int odom_pose(sooc_node *n, sooc_frame *f, double T_src_c[16]) {
     n->st.frames_no_pose++;
     pthread_mutex_unlock(&n->mu);
     return 0;
-#else
-    (void)n; (void)f; (void)T_src_c;
-    sooc_seterr(SOOC_EUNSUPPORTED, "node: odometry is not built in");
-    return -1;
-#endif
 }
 
 static void log_stats(sooc_node *n) {
@@ -754,10 +677,10 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     }
     memcpy(n->pre.T_wc, T_wc, sizeof T_wc);
     n->pre.has_pose = 1;
-    sooc3d_update_stats us;
+    sooc_update_stats us;
     memset(&us, 0, sizeof us);
     double t0 = sooc_seconds();
-    st = sooc3d_mapper_update(n->mapper, &n->pre, &us);
+    st = sooc_mapper_update(n->mapper, &n->pre, &us);
     double ms = (sooc_seconds() - t0) * 1e3;
     if (st) {
         pthread_mutex_lock(&n->mu);
@@ -767,7 +690,7 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
                  sooc_errmsg());
         /* a late failure may have changed the map already: keep table and database in step */
         size_t pc = 0, pr = 0;
-        if (!sooc3d_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
+        if (!sooc_mapper_changed(n->mapper, NULL, 0, &pc, NULL, 0, &pr) && (pc || pr)) {
             sooc_status s2 = sooc__node_publish_keyframe(n, f->t_ns, T_wc, t_cap);
             if (s2) { *result = s2; return 1; }
         }
@@ -897,21 +820,13 @@ void sooc_node_destroy(sooc_node *n) {
         pthread_join(n->cap_thread, NULL);
     }
     if (n->have_src && n->src.close) n->src.close(n->src.ctx);
-#if SOOC_NODE_HAVE_DRIVERS
     sooc_sensor_close(n->sensor);
-#endif
     if (n->have_pose && n->pose.close) n->pose.close(n->pose.ctx);
-#if SOOC_NODE_HAVE_CV
     sooc_odom_destroy(n->odom);
-#endif
-#if SOOC_NODE_HAVE_TABLE
     if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
     sooc_sg_destroy(n->sg);
     sooc_mapstore_close(n->store);
-#endif
-    if (n->own_mapper) sooc3d_mapper_destroy(n->mapper);
+    if (n->own_mapper) sooc_mapper_destroy(n->mapper);
     sooc_frame_ring_destroy(n->ring);
     sooc_view_stop(n->view);
     sooc_free(n->view_entries);

@@ -4,7 +4,6 @@
  * "Publisher", "Resume", "Faults"). Mapping thread only. */
 #include "node/node_impl.h"
 
-#if SOOC_NODE_HAVE_TABLE
 static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     memset(r, 0, sizeof *r);
     r->object_id = e->id;
@@ -37,9 +36,7 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     r->latent_dim = (uint32_t)d;
     memcpy(r->latent, e->what_mu, (size_t)d * sizeof(float));
 }
-#endif
 
-#if SOOC_NODE_HAVE_MAPSTORE
 typedef struct load_ctx_l {
     sooc_node *n;
     sooc_status st;
@@ -48,7 +45,7 @@ typedef struct load_ctx_l {
 
 static int load_block(void *user, int32_t bi, int32_t bj, const float *mu, const float *logvar) {
     load_ctx_l *L = user;
-    L->st = sooc3d_mapper_load_layout(L->n->mapper, bi, bj, mu, logvar);
+    L->st = sooc_mapper_load_layout(L->n->mapper, bi, bj, mu, logvar);
     if (!L->st) L->count++;
     return L->st != SOOC_OK;
 }
@@ -67,9 +64,7 @@ static int load_visit(void *user, const sooc_cogmap_entry *c) {
     return 0;
 }
 
-#if SOOC_NODE_HAVE_MAPSTORE
 static void store_sync(sooc_node *n);
-#endif
 
 /* Open the database: an existing one with its own dims (checked against the
  * mapper's), or a new one with the mapper's latent and layout dims. */
@@ -77,8 +72,8 @@ static sooc_status store_open(sooc_node *n, int create) {
     sooc_mapstore_params mp;
     sooc_mapstore_params_default(&mp);
     mp.create = create;
-    mp.dim = create ? sooc3d_mapper_latent_dim(n->mapper) : 0;
-    mp.layout_dim = create ? sooc3d_mapper_layout_dim(n->mapper) : 0;
+    mp.dim = create ? sooc_mapper_latent_dim(n->mapper) : 0;
+    mp.layout_dim = create ? sooc_mapper_layout_dim(n->mapper) : 0;
     mp.model_id = n->model_id_str[0] ? n->model_id_str : NULL; /* stored, and checked on resume */
     if (create && mp.dim <= 0)
         return sooc_seterr(SOOC_EINVAL, "%s: map.db: the mapper reports latent dim %d", n->cfg.path, mp.dim);
@@ -86,15 +81,15 @@ static sooc_status store_open(sooc_node *n, int create) {
     if (st) return sooc_adderr(st, "%s: map.db", n->cfg.path);
     sooc_mapstore_info info;
     if ((st = sooc_mapstore_info_get(n->store, &info))) return sooc_adderr(st, "%s: map.db", n->cfg.path);
-    int md = sooc3d_mapper_latent_dim(n->mapper);
+    int md = sooc_mapper_latent_dim(n->mapper);
     if (md > 0 && info.dim != md)
         return sooc_seterr(SOOC_EVERSION, "%s: map.db %s holds latents of dim %d, the model produces %d", n->cfg.path,
                            n->cfg.map_db, info.dim, md);
     /* a database written without layout latents (or with other ones) keeps none */
-    n->store_layout_dim = info.layout_dim == sooc3d_mapper_layout_dim(n->mapper) ? info.layout_dim : 0;
+    n->store_layout_dim = info.layout_dim == sooc_mapper_layout_dim(n->mapper) ? info.layout_dim : 0;
     if (info.layout_dim && !n->store_layout_dim)
         sooc_log(SOOC_LOG_WARN, "%s: map.db layout dim %d differs from the model's %d: layout not persisted",
-                 n->cfg.map_db, info.layout_dim, sooc3d_mapper_layout_dim(n->mapper));
+                 n->cfg.map_db, info.layout_dim, sooc_mapper_layout_dim(n->mapper));
     char b[128];
     if (!sooc_mapstore_meta_get(n->store, "extent", b, sizeof b) &&
         sscanf(b, "%f %f %f", &n->extent[0], &n->extent[1], &n->extent[2]) == 3)
@@ -127,7 +122,7 @@ static sooc_status store_guard(sooc_node *n, int create) {
         sooc_mapstore_close(n->store);
         n->store = NULL;
         if (!create || !sooc_mapstore_open_fault() || st == SOOC_EINVAL || st == SOOC_EVERSION) return st;
-        n->store_layout_dim = sooc3d_mapper_layout_dim(n->mapper);   /* what the new database will keep */
+        n->store_layout_dim = sooc_mapper_layout_dim(n->mapper);   /* what the new database will keep */
     }
     if ((st = sooc_sg_create(&n->sg, n->store, n->cfg.map_db, n->store_layout_dim, n->cfg.map_retry_s,
                              n->cfg.map_retry_max_s, store_create_later, n)))
@@ -135,12 +130,10 @@ static sooc_status store_guard(sooc_node *n, int create) {
     store_sync(n);
     return SOOC_OK;
 }
-#endif
 
 /* ------------------------------------------------------------ publisher */
 
 
-#if SOOC_NODE_HAVE_MAPSTORE
 /* The store's state into the stats and the table header (store block). */
 static void store_sync(sooc_node *n) {
     sooc_sg_status s;
@@ -155,12 +148,10 @@ static void store_sync(sooc_node *n) {
     n->st.store_kf_dropped = s.kf_dropped;
     n->st.store_committed_ns = s.committed_ns;
     pthread_mutex_unlock(&n->mu);
-#if SOOC_NODE_HAVE_TABLE
     if (n->table) {
         sooc_table_store ts = {(uint32_t)s.state, (uint32_t)s.fault, s.pending, s.pending_kf, s.committed_ns};
         sooc_table_set_store(n->table, &ts);
     }
-#endif
 }
 
 /* Queue one publish for the database (changed entries when to_db, removed
@@ -183,11 +174,11 @@ static sooc_status store_queue(sooc_node *n, const sooc_map_entry *chg, size_t n
     if (!st && kf && n->store_layout_dim) {
         int32_t bi = 0, bj = 0;
         float mu[SOOC_MAP_LATENT_MAX], lv[SOOC_MAP_LATENT_MAX];
-        sooc_status s2 = sooc3d_mapper_last_layout(n->mapper, &bi, &bj, mu, lv);
+        sooc_status s2 = sooc_mapper_last_layout(n->mapper, &bi, &bj, mu, lv);
         if (!s2) st = sooc_sg_layout(n->sg, bi, bj, mu, lv);
         else if (s2 != SOOC_ENOTFOUND) st = s2;
     }
-    if (!st) sooc_sg_next_id(n->sg, sooc3d_mapper_next_id(n->mapper));
+    if (!st) sooc_sg_next_id(n->sg, sooc_mapper_next_id(n->mapper));
     if (!st && kf) {
         sooc_sg_row r;
         memset(&r, 0, sizeof r);
@@ -203,19 +194,17 @@ static sooc_status store_queue(sooc_node *n, const sooc_map_entry *chg, size_t n
     store_sync(n);
     return st;
 }
-#endif
 
 sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
                            int clear_first, int to_db, const kf_info *kf) {
     sooc_status st = SOOC_OK;
     double t0 = sooc_seconds();
     size_t n_entries = 0;
-    if ((st = sooc3d_mapper_entries(n->mapper, NULL, 0, &n_entries))) return sooc_adderr(st, "mapper entries");
-#if SOOC_NODE_HAVE_TABLE
+    if ((st = sooc_mapper_entries(n->mapper, NULL, 0, &n_entries))) return sooc_adderr(st, "mapper entries");
     if (n->table) {
         int rc = sooc_table_begin_batch(n->table);
         if (clear_first && !rc) rc = sooc_table_clear(n->table);
-        uint32_t ld = (uint32_t)sooc3d_mapper_latent_dim(n->mapper);
+        uint32_t ld = (uint32_t)sooc_mapper_latent_dim(n->mapper);
         double T_src_map[16];
         sooc_se3_inverse(T_src_map, n->T_world_src);
         /* T_src_map (and HFLAG_FLOOR_SET) only once the world frame is known:
@@ -236,20 +225,13 @@ sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t n
         if (!rc) rc = rc2;
         if (rc) st = sooc_seterr(SOOC_EIO, "shm table '%s': %s", n->cfg.shm_name, sooc_table_strerror(rc));
     }
-#else
-    (void)clear_first;
-#endif
     if (kf && kf->t_cap_mono > 0) {
         double ms = (double)(sooc_now_ns() - kf->t_cap_mono) * 1e-6;
         pthread_mutex_lock(&n->mu);
         sooc_latency_add(&n->lat_c2t, ms);
         pthread_mutex_unlock(&n->mu);
     }
-#if SOOC_NODE_HAVE_MAPSTORE
     if (!st && n->sg && (kf || (to_db && nc))) st = store_queue(n, chg, nc, rem, nr, to_db, kf, n_entries);
-#else
-    (void)to_db;
-#endif
     double ms = (sooc_seconds() - t0) * 1e3;
     pthread_mutex_lock(&n->mu);
     if (kf) sooc_latency_add(&n->lat_pub, ms);
@@ -260,10 +242,10 @@ sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t n
     return st;
 }
 
-/* Publish what the last update changed (sooc3d_mapper_changed): O(changes). */
+/* Publish what the last update changed (sooc_mapper_changed): O(changes). */
 sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap) {
     size_t nc = 0, nr = 0;
-    sooc_status st = sooc3d_mapper_changed(n->mapper, n->changed, SOOC_MAPPER_CHANGED_MAX, &nc, n->removed,
+    sooc_status st = sooc_mapper_changed(n->mapper, n->changed, SOOC_MAPPER_CHANGED_MAX, &nc, n->removed,
                                            SOOC_MAPPER_CHANGED_MAX, &nr);
     if (st) return sooc_adderr(st, "mapper changed");
     kf_info kf = {stamp_ns, T_wc, t_cap};
@@ -277,7 +259,6 @@ sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const do
     return st;
 }
 
-#if SOOC_NODE_HAVE_MAPSTORE
 sooc_status sooc__node_store_world(sooc_node *n, const sooc_map_frame *mf) {
     if (!n->sg) return SOOC_OK;
     sooc_sg_world(n->sg, mf);
@@ -285,26 +266,18 @@ sooc_status sooc__node_store_world(sooc_node *n, const sooc_map_frame *mf) {
     store_sync(n);
     return st ? sooc_adderr(st, "%s: map.db: storing the world frame", n->cfg.path) : SOOC_OK;
 }
-#endif
 
 /* Retry the map store when it failed and its backoff has passed (force: now). */
 sooc_status sooc__node_store_retry(sooc_node *n, int force) {
-#if SOOC_NODE_HAVE_MAPSTORE
     if (!n->sg || !sooc_sg_pending(n->sg)) return SOOC_OK;
     sooc_status st = sooc_sg_flush(n->sg, sooc_seconds(), force);
     store_sync(n);
     return st;
-#else
-    (void)n;
-    (void)force;
-    return SOOC_OK;
-#endif
 }
 
 /* The end of a run: one last try to write what waits; what still cannot be
  * written is named (the run itself succeeded: exit 0). */
 sooc_status sooc__node_store_final(sooc_node *n, sooc_status result) {
-#if SOOC_NODE_HAVE_MAPSTORE
     if (!n->sg || !sooc_sg_pending(n->sg)) return result;
     char saved[1024];
     snprintf(saved, sizeof saved, "%s", sooc_errmsg());
@@ -320,9 +293,6 @@ sooc_status sooc__node_store_final(sooc_node *n, sooc_status result) {
                  "node: map store still failing at the end of the run: %s. %llu objects and %llu keyframes of this "
                  "run are not in the database; it holds %s (and what earlier runs committed)",
                  sooc_sg_reason(n->sg), (unsigned long long)s.pending, (unsigned long long)s.pending_kf, upto);
-#else
-    (void)n;
-#endif
     return result;
 }
 
@@ -331,7 +301,6 @@ sooc_status sooc__node_store_resume(sooc_node *n, int *resumed) {
     sooc_status st = SOOC_OK;
     *resumed = 0;
     n->db_exists = c->map_db[0] && sooc_file_exists(c->map_db);
-#if SOOC_NODE_HAVE_MAPSTORE
     int empty = 0;   /* a file left by a creation that failed (full disk): created anew */
     if (n->db_exists && !sooc_mapstore_file_empty(c->map_db, &empty) && empty) n->db_exists = 0;
     sooc_clearerr();
@@ -356,7 +325,7 @@ sooc_status sooc__node_store_resume(sooc_node *n, int *resumed) {
                 return st;
             }
         }
-        if (n->n_prev && (st = sooc3d_mapper_load_entries(n->mapper, n->prev, n->n_prev))) {
+        if (n->n_prev && (st = sooc_mapper_load_entries(n->mapper, n->prev, n->n_prev))) {
             sooc_adderr(st, "%s: resume: mapper refused %zu stored entries", c->path, n->n_prev);
             return st;
         }
@@ -367,17 +336,12 @@ sooc_status sooc__node_store_resume(sooc_node *n, int *resumed) {
             return st;
         }
         /* ids of entries removed before the restart are not handed out again */
-        sooc3d_mapper_reserve_ids(n->mapper, info.next_id);
+        sooc_mapper_reserve_ids(n->mapper, info.next_id);
         n->st.resumed = n->n_prev;
         n->st.resumed_blocks = LB.count;
         *resumed = 1;
     } else if (c->map_db[0]) {
         if ((st = store_guard(n, 1))) return st;
     }
-#else
-    if (c->map_db[0])
-        sooc_log(SOOC_LOG_WARN, "%s: map.db set but the SQLite map store is not built in; not persisting",
-                 c->path);
-#endif
     return st;
 }

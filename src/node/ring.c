@@ -2,6 +2,7 @@
  * push never blocks; when full, the oldest frame is dropped and counted.
  * Frames move by swapping sooc_frame structs, so no pixel copies happen. */
 #include "sooc3d/node.h"
+#include "node/node_parts.h"
 
 #include <pthread.h>
 #include <string.h>

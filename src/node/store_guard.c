@@ -1,5 +1,4 @@
 /* The node's map database under storage faults: see store_guard.h. */
-#if SOOC_NODE_HAVE_MAPSTORE
 #include "node/store_guard.h"
 
 #include <math.h>
@@ -98,8 +97,6 @@ sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, const char *path, in
     *out = g;
     return SOOC_OK;
 }
-
-sooc_mapstore *sooc_sg_store(const sooc_sg *g) { return g->s; }
 
 void sooc_sg_destroy(sooc_sg *g) {
     if (!g) return;
@@ -394,6 +391,3 @@ void sooc_sg_status_get(const sooc_sg *g, sooc_sg_status *o) {
 }
 
 const char *sooc_sg_reason(const sooc_sg *g) { return g->reason; }
-#else
-typedef int sooc_sg_not_built;   /* no map store in this build */
-#endif

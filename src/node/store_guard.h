@@ -57,8 +57,6 @@ typedef sooc_status (*sooc_sg_open_fn)(void *ctx, sooc_mapstore **out);
 sooc_status sooc_sg_create(sooc_sg **out, sooc_mapstore *s, const char *path, int layout_dim, double retry_s,
                            double retry_max_s, sooc_sg_open_fn open, void *ctx);
 void sooc_sg_destroy(sooc_sg *g);
-/* The store (NULL while it could not be opened). */
-sooc_mapstore *sooc_sg_store(const sooc_sg *g);
 
 /* Queue changes (copied). */
 sooc_status sooc_sg_put(sooc_sg *g, const sooc_map_entry *e);

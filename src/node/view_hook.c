@@ -8,7 +8,7 @@
 
 sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f) {
     size_t cnt = 0;
-    sooc_status st = sooc3d_mapper_entries(n->mapper, NULL, 0, &cnt);
+    sooc_status st = sooc_mapper_entries(n->mapper, NULL, 0, &cnt);
     if (st) return st;
     if (cnt > n->view_cap) {
         size_t cap = cnt + cnt / 2 + 16;
@@ -19,7 +19,7 @@ sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f) {
         if (!e || !o) return sooc_seterr(SOOC_ENOMEM, "node: view: out of memory");
         n->view_cap = cap;
     }
-    if ((st = sooc3d_mapper_entries(n->mapper, n->view_entries, n->view_cap, &cnt))) return st;
+    if ((st = sooc_mapper_entries(n->mapper, n->view_entries, n->view_cap, &cnt))) return st;
     for (size_t i = 0; i < cnt; i++) {
         const sooc_map_entry *e = &n->view_entries[i];
         double cov[4];

@@ -11,6 +11,7 @@
  *  - bad options fail with a message naming the problem. */
 #include "check.h"
 #include "sooc3d/framepath.h"
+#include "sooc3d/node.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/mapstore.h"
 #include "sooc3d/seq.h"

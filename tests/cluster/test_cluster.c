@@ -177,7 +177,7 @@ int main(void) {
         cast(&f, g_cams[0], (double[3]){0, 0.04, 0}, b, 2);
         mdl_prop_params pp = {0.02, 0.5, 1.5, NAN};
         sooc_status st;
-        int placed = mdl_propose(pm, &c, NL, &f, &V, &pp, &st);
+        int placed = sooc_mdl_propose(pm, &c, NL, &f, &V, &pp, &st);
         CHECK_MSG(st == SOOC_OK && placed == 2, "placed %d (want 2)", placed);
         int found[2] = {0, 0};
         for (int k = 1; k < 4; k++) {
@@ -197,7 +197,7 @@ int main(void) {
         sooc_floor_to_local(&V.gf, wb, lb);
         for (int k = 0; k < 4; k++) lam[k * NL + SOOC_LAM_X] = (float)k + 5, lam[k * NL + SOOC_LAM_Z] = 3;
         lam[SOOC_LAM_X] = (float)(lb[0] / c.unit_m), lam[SOOC_LAM_Z] = (float)(lb[1] / c.unit_m);
-        placed = mdl_propose(pm, &c, NL, &f, &V, &pp, &st);
+        placed = sooc_mdl_propose(pm, &c, NL, &f, &V, &pp, &st);
         CHECK_MSG(st == SOOC_OK && placed == 1, "with box 0 retrieved: placed %d (want 1)", placed);
         sooc_cluster_map_destroy(pm);
     }

@@ -144,10 +144,10 @@ int main(void) {
             fr[30].has_pose = fr[31].has_pose = 0;
         }
         sooc_node_source src = {&fd, fd_start, fd_read, fd_stop, fd_close, NULL, NULL};
-        sooc3d_mapper *m = NULL;
-        sooc3d_mapper_params mp;
-        sooc3d_mapper_params_default(&mp);
-        CHECK(sooc3d_mapper_create(&m, &mp) == SOOC_OK);
+        sooc_mapper *m = NULL;
+        sooc_mapper_params mp;
+        sooc_mapper_params_default(&mp);
+        CHECK(sooc_mapper_create(&m, &mp) == SOOC_OK);
         sooc_node_options o;
         memset(&o, 0, sizeof o);
         o.source = &src;
@@ -164,7 +164,7 @@ int main(void) {
             if (run) CHECK(strstr(line, "untracked 2") != NULL);
             sooc_node_destroy(n);
         }
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
     CHECK(s_odo.frames_in == NF);
     CHECK_MSG(s_odo.frames_untracked == 2 && s_odo.frames_no_pose == 2, "untracked %llu",

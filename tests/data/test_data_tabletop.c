@@ -5,7 +5,7 @@
  * at depth edges and beyond range, disparity quantisation, determinism. */
 #include "util.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/sensor_noise.h"
+#include "gen/sensor_noise.h"
 #include "sooc3d/seq.h"
 
 #include <math.h>

@@ -12,12 +12,10 @@
 
 #include "check.h"
 #include "sooc3d/driver.h"
-#ifdef SOOC_V4L2_MJPEG
 #include "sooc3d/image.h"
 /* MJPEG frames by sequence number, made by the test (hand-made JPEGs in memory) */
 static void *g_jpg[32];
 static size_t g_jpgn[32];
-#endif
 
 #define MAXEV 64
 #define PERIOD_NS 33333333LL
@@ -104,11 +102,9 @@ static void fill(fnode *n, uint8_t *dst, uint32_t seq) {
                 uint16_t v = (uint16_t)(1000 + seq);
                 if (x == 0 && y == 0) v = 0;
                 memcpy(row + 2 * x, &v, 2);
-#ifdef SOOC_V4L2_MJPEG
             } else if (n->cur_fmt == V4L2_PIX_FMT_MJPEG) {
                 if (x == 0 && y == 0 && seq < 32 && g_jpg[seq]) memcpy(dst, g_jpg[seq], g_jpgn[seq]);
                 x = n->w; /* compressed: the whole frame is written once */
-#endif
             } else if (n->cur_fmt == V4L2_PIX_FMT_YUYV) {
                 row[2 * x] = (uint8_t)(16 + 5 * seq);     /* Y  */
                 row[2 * x + 1] = 128;                      /* U or V */
@@ -190,9 +186,7 @@ static int f_ioctl(void *u, int fd, unsigned long req, void *arg) {
         fill(n, n->buf[idx], e->seq);
         b->index = (uint32_t)idx;
         b->bytesused = (uint32_t)n->len;
-#ifdef SOOC_V4L2_MJPEG
         if (n->cur_fmt == V4L2_PIX_FMT_MJPEG) b->bytesused = e->seq < 32 ? (uint32_t)g_jpgn[e->seq] : 0;
-#endif
         b->sequence = e->seq;
         b->flags = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
         b->timestamp.tv_sec = e->t_ns / 1000000000;
@@ -360,7 +354,6 @@ static void test_errors(void) {
     CHECK(s == NULL);
 }
 
-#ifdef SOOC_V4L2_MJPEG
 /* Remove the DHT segments (before SOS), as Motion-JPEG cameras send frames. */
 static size_t strip_dht(uint8_t *b, size_t n) {
     size_t i = 2, o = 2;
@@ -430,14 +423,11 @@ static void run_mjpeg(int cw, int ch) {
     }
     for (int i = 0; i < 20; i++) { sooc_free(g_jpg[i]); g_jpg[i] = NULL; }
 }
-#endif
 
 int main(void) {
     test_errors();
-#ifdef SOOC_V4L2_MJPEG
     run_mjpeg(64, 48);
     run_mjpeg(128, 96);
-#endif
     run_pairing(V4L2_PIX_FMT_Z16, NULL, V4L2_PIX_FMT_YUYV, 64, 48);
     run_pairing(v4l2_fourcc('Y', '1', '6', ' '), "Y16", V4L2_PIX_FMT_RGB24, 64, 48);
     run_pairing(V4L2_PIX_FMT_Z16, "Z16", V4L2_PIX_FMT_RGB24, 32, 24);   /* colour resampled */

@@ -47,7 +47,7 @@ static double render_err(sooc_model *m, const sooc_cogmap *map, const sooc_frame
 }
 
 /* Central differences of Σ ℓ over `rays` w.r.t. some of unit k's weights and
- * all of its z, against ft_objective's gradient. float32 forward: step h on
+ * all of its z, against sooc_ft_objective's gradient. float32 forward: step h on
  * parameters of size ~0.1-1, rays few enough that Σ ℓ is O(10); an element
  * whose difference quotients at h and h/2 disagree crossed a ReLU kink and is
  * not compared (at most 15% may). */
@@ -67,7 +67,7 @@ static void fd_check(sooc_finetune *ft, int k, const char *what) {
         int in = c->kind == SOOC_FT_LAYOUT;
         for (int q = 0; q < v->nc && !in; q++)
             if (v->comp[q] == (int)(c - ft->comp)) {
-                mdl_pi(x, v->pose[q][0], v->pose[q][1], v->pose[q][2], v->h, xk);
+                sooc_mdl_pi(x, v->pose[q][0], v->pose[q][1], v->pose[q][2], v->h, xk);
                 in = fabsf(xk[0]) <= mc->box_rh && fabsf(xk[2]) <= mc->box_rh && xk[1] >= 0 && xk[1] <= mc->box_hb;
             }
         if (in) rays[n++] = r;
@@ -79,7 +79,7 @@ static void fd_check(sooc_finetune *ft, int k, const char *what) {
     float *gw = calloc(nw, sizeof(float));
     float gz[SOOC_MODEL_D_MAX] = {0};
     double ll0 = 0;
-    CHECK_OK(ft_objective(ft, k, rays, n, 11, gw, gz, &ll0));
+    CHECK_OK(sooc_ft_objective(ft, k, rays, n, 11, gw, gz, &ll0));
     sooc_rng r;
     sooc_rng_seed(&r, 5, (uint64_t)k);
     int tested = 0, kinks = 0, bad = 0;
@@ -96,13 +96,13 @@ static void fd_check(sooc_finetune *ft, int k, const char *what) {
             float h = s ? 1e-3f : 2e-3f, p0 = *p;
             double lp = 0, lm = 0;
             *p = p0 + h;
-            ft_comp_bias(c);
-            ft_objective(ft, -1, rays, n, 11, NULL, NULL, &lp);
+            sooc_ft_comp_bias(c);
+            sooc_ft_objective(ft, -1, rays, n, 11, NULL, NULL, &lp);
             *p = p0 - h;
-            ft_comp_bias(c);
-            ft_objective(ft, -1, rays, n, 11, NULL, NULL, &lm);
+            sooc_ft_comp_bias(c);
+            sooc_ft_objective(ft, -1, rays, n, 11, NULL, NULL, &lm);
             *p = p0;
-            ft_comp_bias(c);
+            sooc_ft_comp_bias(c);
             q[s] = (lp - lm) / (2.0 * ((double)(p0 + h) - (double)(p0 - h)) / 2.0);
         }
         double scale = fabs(q[0]) > fabs(q[1]) ? fabs(q[0]) : fabs(q[1]);

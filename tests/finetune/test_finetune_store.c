@@ -196,9 +196,9 @@ static void test_field(void) {
     double s0 = render_sum(m, map, T, a);
     /* the model's own weights and the entry's z as a payload: the same image */
     const float *p = sooc_model_params(m);
-    size_t np = mdl_ft_payload_size(&m->dobj);
+    size_t np = sooc_mdl_ft_payload_size(&m->dobj);
     float *pl = malloc(np * sizeof(float));
-    mdl_ft_payload_pack(&m->dobj, MDL_FT_OBJ, e.what_mu, p + m->dobj.W1x, pl);
+    sooc_mdl_ft_payload_pack(&m->dobj, MDL_FT_OBJ, e.what_mu, p + m->dobj.W1x, pl);
     CHECK_OK(sooc_cogmap_payload_set(map, id, pl, np));
     double s1 = render_sum(m, map, T, b);
     CHECK_CLOSE(s1, s0, 1e-3, 1e-5);
@@ -207,7 +207,7 @@ static void test_field(void) {
     CHECK_MSG(md < 1e-4, "max |diff| %g", md);
     /* a finetuned copy (denser object): the image changes */
     dec_net rel;
-    mdl_dec_rel(&m->dobj, &rel);
+    sooc_mdl_dec_rel(&m->dobj, &rel);
     pl[MDL_FT_HDR + c.d_what + rel.bd] += 4.0f;   /* denser */
     for (int a3 = 0; a3 < 3; a3++) pl[MDL_FT_HDR + c.d_what + rel.bc2 + a3] += a3 == 1 ? 6.0f : -6.0f;   /* green */
     CHECK_OK(sooc_cogmap_payload_set(map, id, pl, np));
@@ -221,10 +221,10 @@ static void test_field(void) {
     CHECK_OK(sooc_cogmap_payload_set(map, id, NULL, 0));
     int32_t bi, bj;
     CHECK_OK(sooc_cogmap_active_block(map, T, c.d_clip, &bi, &bj, NULL));
-    size_t npl = mdl_ft_payload_size(&m->dlay);
+    size_t npl = sooc_mdl_ft_payload_size(&m->dlay);
     float *ll = malloc(npl * sizeof(float)), zl[SOOC_MODEL_D_MAX];
     memcpy(zl, p + 0, sizeof zl);   /* any z */
-    mdl_ft_payload_pack(&m->dlay, MDL_FT_LAY, zl, p + m->dlay.W1x, ll);
+    sooc_mdl_ft_payload_pack(&m->dlay, MDL_FT_LAY, zl, p + m->dlay.W1x, ll);
     CHECK_OK(sooc_cogmap_block_payload_set(map, bi, bj, ll, npl));
     double s4 = render_sum(m, map, T, b);
     CHECK(isfinite(s4) && fabs(s4 - s0) > 1e-3);

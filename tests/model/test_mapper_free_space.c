@@ -1,4 +1,4 @@
-/* The free-space evidence of the node's revisit rules (sooc3d_mapper_free_space,
+/* The free-space evidence of the node's revisit rules (sooc_mapper_free_space,
  * docs/cogmap.md "Revisits"), on crafted depth: a 64x64 camera 1.5 m above the
  * floor looking along +z, tilted 30 degrees down, depth rendered exactly (floor
  * plane y = 0 and an optional axis-aligned box on it). */
@@ -89,27 +89,27 @@ int main(void) {
 
     /* empty floor: an entry 3 m ahead claims an object where the rays reach the floor behind it */
     render(&cam, NULL, depth, valid);
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.0, 3.0) == 1);
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.5, 4.5) == 1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.0, 3.0) == 1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.5, 4.5) == 1);
     /* behind the camera / outside the image: no evidence */
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.0, -3.0) == -1);
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 9.0, 3.0) == -1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.0, -3.0) == -1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 9.0, 3.0) == -1);
 
     /* a 0.6 m box, 0.8 m tall, centred 3 m ahead */
     box b = {1, -0.3, 0.3, 0.8, 2.7, 3.3};
     render(&cam, &b, depth, valid);
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.0, 3.0) == 0);      /* on the object */
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.15, 2.9) == 0);     /* offset inside its footprint */
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.0, 3.7) == -1);     /* right behind it: hidden, no evidence */
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.8, 3.0) == 1);      /* a duplicate 0.8 m beside it: free */
-    CHECK(sooc3d_mapper_free_space(&cam, &f, -1.0, 3.0) == 1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.0, 3.0) == 0);      /* on the object */
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.15, 2.9) == 0);     /* offset inside its footprint */
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.0, 3.7) == -1);     /* right behind it: hidden, no evidence */
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.8, 3.0) == 1);      /* a duplicate 0.8 m beside it: free */
+    CHECK(sooc_mapper_free_space(&cam, &f, -1.0, 3.0) == 1);
 
     /* invalid depth is no evidence */
     memset(valid, 0, sizeof valid);
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.8, 3.0) == -1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.8, 3.0) == -1);
     f.valid = NULL;   /* depth 0 = invalid without a valid mask */
     memset(depth, 0, sizeof depth);
-    CHECK(sooc3d_mapper_free_space(&cam, &f, 0.8, 3.0) == -1);
+    CHECK(sooc_mapper_free_space(&cam, &f, 0.8, 3.0) == -1);
 
     printf("%d checks, %d failed\n", g_check_n, g_check_fail);
     return g_check_fail ? 1 : 0;

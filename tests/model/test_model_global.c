@@ -117,7 +117,7 @@ static void test_persist(void) {
     CHECK_OK(sooc_global_mapper_create(&gm, m, 0, 0, 1, 1));
     double X1 = NAN, Z1 = NAN;
     for (int v = 0; v < 3; v++) {
-        sooc3d_update_stats us;
+        sooc_update_stats us;
         CHECK_OK(sooc_global_mapper_update(gm, &F[v], &us));
         sooc_cogmap_entry e;
         CHECK_OK(sooc_cogmap_get(sooc_global_mapper_cogmap(gm), 1, &e));   /* id = slot + 1 */

@@ -5,7 +5,7 @@
  * baseline_global}/model.bin; a missing one is skipped with a message), on a
  * fixed synthetic view at the model's resolution, one thread:
  *   - one decode forward + backward from the slot priors plus fixed offsets
- *     (mdl_decode): loss, nll_d, nll_c, kl, z^pres, the first 4 slots' λ and the layout gradients, the
+ *     (sooc_mdl_decode): loss, nll_d, nll_c, kl, z^pres, the first 4 slots' λ and the layout gradients, the
  *     decoder weight gradients (first 16 of each of dec.obj / dec.lay, their
  *     sum of squares);
  *   - one training step on two input views and one query view
@@ -45,7 +45,7 @@
 #include "check.h"
 #include "model/step.h"
 #include "sooc3d/global.h"
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 #include "model/synth.h"
 #include "model/chain.h"
 
@@ -150,14 +150,14 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     const double TOL = 2.0 * check_gamma_n(nred);
     printf("  decode bound: 2 gamma_n with n = %.0f: %.3g of the group's scale\n", nred, TOL);
     view_rays vr;
-    CHECK_OK(mdl_rays_alloc(&vr, c->ray_w, c->ray_h));
+    CHECK_OK(sooc_mdl_rays_alloc(&vr, c->ray_w, c->ray_h));
     sooc_rng r;
     sooc_rng_seed(&r, 77, 0);
     double T_wg[16];
     memcpy(T_wg, f->T_wc, sizeof T_wg);   /* G frame: the camera's position, axes of the world */
     T_wg[0] = 1, T_wg[1] = 0, T_wg[2] = 0, T_wg[4] = 0, T_wg[5] = 1, T_wg[6] = 0, T_wg[8] = 0, T_wg[9] = 0, T_wg[10] = 1;
     double blk[2] = {0, 0};
-    CHECK_OK(mdl_make_rays(m, f, 0, 0, &r, &vr, T_wg, T_wg[7], -0.45, blk));
+    CHECK_OK(sooc_mdl_make_rays(m, f, 0, 0, &r, &vr, T_wg, T_wg[7], -0.45, blk));
     float lam[SOOC_MODEL_K_MAX * (6 + 2 * SOOC_MODEL_D_MAX)], lay[2 * SOOC_MODEL_D_MAX];
     float g_lam[SOOC_MODEL_K_MAX * (6 + 2 * SOOC_MODEL_D_MAX)], g_lay[2 * SOOC_MODEL_D_MAX];
     memcpy(lam, m->p + m->prior, sizeof(float) * (size_t)K * NL);
@@ -169,7 +169,7 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     memcpy(lay, m->p + m->prior_lay, sizeof(float) * 2 * dl);
     for (int i = 0; i < dl; i++) lay[i] += 0.03f * (float)((i % 3) - 1);
     dec_noise nz;
-    mdl_sample_noise(m, &r, &nz);
+    sooc_mdl_sample_noise(m, &r, &nz);
     memset(g_lam, 0, sizeof g_lam);
     memset(g_lay, 0, sizeof g_lay);
     dec_call dc;
@@ -188,7 +188,7 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     dc.g_lam = g_lam;
     dc.g_lay = g_lay;
     sooc_model_zero_grad(m);
-    CHECK_OK(mdl_decode(w, &dc));
+    CHECK_OK(sooc_mdl_decode(w, &dc));
     grp_begin(tag, "decode.loss");
     grp_add(dc.loss), grp_add(dc.nll_d), grp_add(dc.nll_c), grp_add(dc.kl);
     for (int k = 0; k < K; k++) grp_add(dc.zp[k]);
@@ -213,7 +213,7 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
         }
         grp_end(1, TOL, 1);
     }
-    mdl_rays_free(&vr);
+    sooc_mdl_rays_free(&vr);
 }
 
 static void check_step(sooc_model_ws *w, const char *tag, const sooc_frame *F) {

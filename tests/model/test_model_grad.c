@@ -38,15 +38,15 @@ static void test_pi_gauss(void) {
         double q[3] = {sooc_rng_range(&r, -2, 2), sooc_rng_range(&r, 1, 5), sooc_rng_range(&r, -3, 3)};
         float a[3] = {(float)sooc_rng_normal(&r), (float)sooc_rng_normal(&r), (float)sooc_rng_normal(&r)};
         float h = 1.4f, xk[3], gw[3] = {0, 0, 0};
-        mdl_pi(x, (float)q[0], (float)q[1], (float)q[2], h, xk);
-        mdl_pi_backward(xk, (float)q[2], a, gw);
+        sooc_mdl_pi(x, (float)q[0], (float)q[1], (float)q[2], h, xk);
+        sooc_mdl_pi_backward(xk, (float)q[2], a, gw);
         for (int i = 0; i < 3; i++) {
             double e = 1e-3, fp = 0, fm = 0;
             double qp[3] = {q[0], q[1], q[2]}, qm[3] = {q[0], q[1], q[2]};
             qp[i] += e, qm[i] -= e;
             float xp[3], xm[3];
-            mdl_pi(x, (float)qp[0], (float)qp[1], (float)qp[2], h, xp);
-            mdl_pi(x, (float)qm[0], (float)qm[1], (float)qm[2], h, xm);
+            sooc_mdl_pi(x, (float)qp[0], (float)qp[1], (float)qp[2], h, xp);
+            sooc_mdl_pi(x, (float)qm[0], (float)qm[1], (float)qm[2], h, xm);
             for (int j = 0; j < 3; j++) fp += a[j] * xp[j], fm += a[j] * xm[j];
             cmp(&w, "pi", i, gw[i], (fp - fm) / (2 * e), 1e-3, 1e-3);
         }
@@ -59,7 +59,7 @@ static void test_pi_gauss(void) {
                        (float)sooc_rng_range(&r, -0.6, 0.6)};
         float sig = (float)sooc_rng_uniform(&r), zp = (float)sooc_rng_uniform(&r), g = (float)sooc_rng_normal(&r);
         float s = 0.3f, gx[3] = {0, 0, 0};
-        mdl_gauss_backward(g, sig, zp, xk, s, gx);
+        sooc_mdl_gauss_backward(g, sig, zp, xk, s, gx);
         double w0 = exp(-(xk[0] * xk[0] + xk[2] * xk[2]) / (2.0 * s * s));
         for (int i = 0; i < 3; i++) {
             double e = 1e-4, v[2];
@@ -87,15 +87,15 @@ static void test_kl(void) {
         float lam[70], lam0[70], g[70] = {0}, g0[70] = {0};
         for (int i = 0; i < NL; i++) lam[i] = (float)sooc_rng_normal(&r), lam0[i] = (float)sooc_rng_normal(&r);
         lam[2] = 3.0f, lam0[2] = -3.0f;   /* θ difference wraps */
-        mdl_kl_slot(&c, lam, lam0, 0.7f, g, g0);
+        sooc_mdl_kl_slot(&c, lam, lam0, 0.7f, g, g0);
         for (int i = 0; i < NL; i++) {
             for (int side = 0; side < 2; side++) {
                 float *v = side ? lam0 : lam, keep = v[i];
                 double e = 1e-3;
                 v[i] = keep + (float)e;
-                double fp = mdl_kl_slot(&c, lam, lam0, 0.7f, NULL, NULL);
+                double fp = sooc_mdl_kl_slot(&c, lam, lam0, 0.7f, NULL, NULL);
                 v[i] = keep - (float)e;
-                double fm = mdl_kl_slot(&c, lam, lam0, 0.7f, NULL, NULL);
+                double fm = sooc_mdl_kl_slot(&c, lam, lam0, 0.7f, NULL, NULL);
                 v[i] = keep;
                 cmp(&w, side ? "dKL/dlam0" : "dKL/dlam", i, side ? g0[i] : g[i], (fp - fm) / (2 * e), 2e-3, 2e-2);
             }
@@ -105,7 +105,7 @@ static void test_kl(void) {
     /* KL of identical posteriors is 0 */
     float l[70];
     for (int i = 0; i < NL; i++) l[i] = 0.3f * i;
-    CHECK_CLOSE(mdl_kl_slot(&c, l, l, 1.0f, NULL, NULL), 0.0, 1e-5, 0);
+    CHECK_CLOSE(sooc_mdl_kl_slot(&c, l, l, 1.0f, NULL, NULL), 0.0, 1e-5, 0);
 }
 
 /* ---- the fused decoder and the per-view loss of one decode ---- */
@@ -130,12 +130,12 @@ static void fixture(dec_fixture *F, int use_box, uint64_t seed) {
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
     CHECK_OK(synth_frame(&F->f, 32, 32, 60, T, sp, 2));
     CHECK_OK(sooc_gframe(T, Twg, &h, &pitch, &roll));
-    CHECK_OK(mdl_rays_alloc(&F->vr, 16, 16));
+    CHECK_OK(sooc_mdl_rays_alloc(&F->vr, 16, 16));
     sooc_rng r;
     sooc_rng_seed(&r, seed, 1);
     double blk[2] = {0.5, 4.0};
-    CHECK_OK(mdl_make_rays(F->m, &F->f, 1, 0, &r, &F->vr, Twg, h, pitch, blk));
-    mdl_sample_noise(F->m, &r, &F->nz);
+    CHECK_OK(sooc_mdl_make_rays(F->m, &F->f, 1, 0, &r, &F->vr, Twg, h, pitch, blk));
+    sooc_mdl_sample_noise(F->m, &r, &F->nz);
     int NL = F->m->NL, d = c.d_what, dl = c.d_layout;
     memcpy(F->lam0, F->m->p + F->m->prior, sizeof(float) * 2 * NL);
     for (int k = 0; k < 2; k++)
@@ -148,7 +148,7 @@ static void fixture(dec_fixture *F, int use_box, uint64_t seed) {
     (void)d;
 }
 static void fixture_free(dec_fixture *F) {
-    mdl_rays_free(&F->vr);
+    sooc_mdl_rays_free(&F->vr);
     sooc_frame_free(&F->f);
     sooc_model_ws_destroy(F->w);
     sooc_model_destroy(F->m);
@@ -168,7 +168,7 @@ static double run_dec(dec_fixture *F, int backward, float *g_lam, float *g_lam0,
     c.backward = backward;
     c.g_lam = g_lam, c.g_lam0 = g_lam0, c.g_lay = g_lay, c.g_lay0 = g_lay0;
     c.zw_sg = use_sg ? F->zw_sg : NULL;
-    CHECK_OK(mdl_decode(F->w, &c));
+    CHECK_OK(sooc_mdl_decode(F->w, &c));
     if (backward)
         for (int k = 0; k < 2; k++)
             for (int i = 0; i < 3; i++) F->zw_sg[k * 3 + i] = c.zw[k][i];
@@ -250,19 +250,19 @@ static double ref_run(sooc_model_ws *x, const ref_net *n, ref_act a[2], const fl
             memcpy(a[1].h_prev, a[0].h, sizeof(float) * B * H);
             memcpy(a[1].c_prev, a[0].c, sizeof(float) * B * H);
         }
-        mdl_ref_forward(x, n, &a[s], gw, gh, out[s]);
+        sooc_mdl_ref_forward(x, n, &a[s], gw, gh, out[s]);
         for (int i = 0; i < B * n->nout; i++) f += coef[s * B * n->nout + i] * out[s][i];
     }
     if (backward) {
         float dh[16 * 128] = {0}, dc[16 * 128] = {0};
         for (int s = 1; s >= 0; s--)
-            mdl_ref_backward(x, n, &a[s], gw, gh, coef + s * B * n->nout, dh, dc, gvec + s * B * n->nvec);
+            sooc_mdl_ref_backward(x, n, &a[s], gw, gh, coef + s * B * n->nout, dh, dc, gvec + s * B * n->nvec);
     }
     return f;
 }
 
 /* pooled = 1: a 64 x 64 ray grid, whose last conv map (4 x 4) is average-pooled
- * to the 2 x 2 of a 32 x 32 grid before the FC layer (mdl_ref_flatten). */
+ * to the 2 x 2 of a 32 x 32 grid before the FC layer (sooc_mdl_ref_flatten). */
 static void test_refine(int pooled) {
     sooc_model_config c;
     synth_tiny_cfg(&c, 2, 1);
@@ -280,8 +280,8 @@ static void test_refine(int pooled) {
         const ref_net *n = which ? &m->rlay : &m->robj;
         int B = which ? 1 : 2, nin = n->fc + n->nvec;
         ref_act a[2];
-        CHECK_OK(mdl_ref_act_alloc(n, B, c.ray_w, c.ray_h, &a[0]));
-        CHECK_OK(mdl_ref_act_alloc(n, B, c.ray_w, c.ray_h, &a[1]));
+        CHECK_OK(sooc_mdl_ref_act_alloc(n, B, c.ray_w, c.ray_h, &a[0]));
+        CHECK_OK(sooc_mdl_ref_act_alloc(n, B, c.ray_w, c.ray_h, &a[1]));
         for (int s = 0; s < 2; s++) {
             for (int i = 0; i < n->cin * B * c.ray_w * c.ray_h; i++) a[s].x0[i] = (float)sooc_rng_normal(&r);
             for (int b = 0; b < B; b++)
@@ -321,8 +321,8 @@ static void test_refine(int pooled) {
                 }
         report(&w, which ? (pooled ? "refinement net (layout, 64x64 rays, pooled)" : "refinement net (layout)")
                          : (pooled ? "refinement net (objects, 64x64 rays, pooled)" : "refinement net (objects)"));
-        mdl_ref_act_free(&a[0]);
-        mdl_ref_act_free(&a[1]);
+        sooc_mdl_ref_act_free(&a[0]);
+        sooc_mdl_ref_act_free(&a[1]);
     }
     sooc_model_ws_destroy(x);
     sooc_model_destroy(m);

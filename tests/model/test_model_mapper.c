@@ -25,18 +25,18 @@ static void small_cfg(sooc_model_config *c) {
 }
 
 static int run_seq_l(const char *path, uint64_t seed, int latents, int slots, sooc_map_entry *out, size_t cap,
-                     size_t *n, sooc3d_mapper **keep) {
-    sooc3d_mapper_params p;
-    sooc3d_mapper_params_default(&p);
+                     size_t *n, sooc_mapper **keep) {
+    sooc_mapper_params p;
+    sooc_mapper_params_default(&p);
     p.model_path = path;
     p.seed = seed;
     p.latents = latents;
     p.slots = slots;
     p.threads = 2;
-    sooc3d_mapper *mp;
-    CHECK_OK(sooc3d_mapper_create(&mp, &p));
+    sooc_mapper *mp;
+    CHECK_OK(sooc_mapper_create(&mp, &p));
     int w, h;
-    sooc3d_mapper_input_size(mp, &w, &h);
+    sooc_mapper_input_size(mp, &w, &h);
     CHECK(w == 32 && h == 32);
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
     int retrieved = 0;
@@ -46,28 +46,28 @@ static int run_seq_l(const char *path, uint64_t seed, int latents, int slots, so
         sooc_frame f;
         CHECK_OK(synth_frame(&f, 32, 32, 60, T, sp, 2));
         f.index = i, f.t_ns = 1000 * i;
-        sooc3d_update_stats st;
-        CHECK_OK(sooc3d_mapper_update(mp, &f, &st));
+        sooc_update_stats st;
+        CHECK_OK(sooc_mapper_update(mp, &f, &st));
         if (i) retrieved += st.n_retrieved;
         sooc_frame_free(&f);
     }
-    CHECK_OK(sooc3d_mapper_entries(mp, out, cap, n));
+    CHECK_OK(sooc_mapper_entries(mp, out, cap, n));
     if (keep)
         *keep = mp;
     else
-        sooc3d_mapper_destroy(mp);
+        sooc_mapper_destroy(mp);
     return retrieved;
 }
 
 /* One update from the first camera pose of a frame showing one sphere 3 m ahead. */
-static void update_one_sphere(sooc3d_mapper *mp, int index, sooc3d_update_stats *us) {
+static void update_one_sphere(sooc_mapper *mp, int index, sooc_update_stats *us) {
     double T[16];
     synth_pose(T, 0, 1.5, 0, 0, -0.45);
     synth_sphere sp1 = {{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}};
     sooc_frame fr;
     CHECK_OK(synth_frame(&fr, 32, 32, 60, T, &sp1, 1));
     fr.index = index, fr.t_ns = 1000 * (int64_t)index;
-    CHECK_OK(sooc3d_mapper_update(mp, &fr, us));
+    CHECK_OK(sooc_mapper_update(mp, &fr, us));
     sooc_frame_free(&fr);
 }
 
@@ -76,8 +76,8 @@ static int cmp_float(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-static int run_seq(const char *path, uint64_t seed, sooc_map_entry *out, size_t cap, size_t *n, sooc3d_mapper **keep) {
-    return run_seq_l(path, seed, SOOC3D_LATENTS_MEAN, 0, out, cap, n, keep);
+static int run_seq(const char *path, uint64_t seed, sooc_map_entry *out, size_t cap, size_t *n, sooc_mapper **keep) {
+    return run_seq_l(path, seed, SOOC_LATENTS_MEAN, 0, out, cap, n, keep);
 }
 
 /* The shared map entry <-> cogmap entry converters (mapper.h): round trip,
@@ -169,15 +169,15 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
     /* the mapper: its own K is the default; more slots retrieve more entries */
     static sooc_map_entry e[256];
     size_t n;
-    run_seq_l(path, 7, SOOC3D_LATENTS_MEAN, K0, e, 256, &n, NULL);
+    run_seq_l(path, 7, SOOC_LATENTS_MEAN, K0, e, 256, &n, NULL);
     CHECK(n == n_ref && !memcmp(e, e_ref, n * sizeof e[0]));
     for (int pass = 0; pass < 2; pass++) {
-        sooc3d_mapper_params p;
-        sooc3d_mapper_params_default(&p);
+        sooc_mapper_params p;
+        sooc_mapper_params_default(&p);
         p.model_path = path, p.threads = 2, p.slots = pass ? K : 0;
-        sooc3d_mapper *mp;
-        CHECK_OK(sooc3d_mapper_create(&mp, &p));
-        CHECK(sooc_model_get_config(sooc3d_mapper_model(mp))->K == (pass ? K : K0));
+        sooc_mapper *mp;
+        CHECK_OK(sooc_mapper_create(&mp, &p));
+        CHECK(sooc_model_get_config(sooc_mapper_model(mp))->K == (pass ? K : K0));
         sooc_map_entry ent[8];
         for (int i = 0; i < 8; i++) {   /* 8 entries in front of the camera */
             memcpy(&ent[i], e_ref, sizeof ent[i]);
@@ -185,12 +185,12 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
             ent[i].presence_logit = 4.0f - 0.1f * (float)i;
             ent[i].presence = 1.0f / (1.0f + expf(-ent[i].presence_logit));
         }
-        CHECK_OK(sooc3d_mapper_load_entries(mp, ent, 8));
-        sooc3d_update_stats us;
+        CHECK_OK(sooc_mapper_load_entries(mp, ent, 8));
+        sooc_update_stats us;
         update_one_sphere(mp, 1, &us);
         printf("mapper with %d slots: retrieved %d of 8 in-view entries\n", pass ? K : K0, us.n_retrieved);
         CHECK(us.n_retrieved == (pass ? K : K0));
-        sooc3d_mapper_destroy(mp);
+        sooc_mapper_destroy(mp);
     }
     /* a checkpoint that carries its inference slot count: the mapper uses it
      * unless told otherwise */
@@ -203,21 +203,21 @@ static void test_slots(sooc_model *m, const char *path, const sooc_map_entry *e_
         CHECK_OK(sooc_model_save(ms, ps, NULL, 0));
         sooc_model_destroy(ms);
         for (int ask = 0; ask <= K0; ask += K0) {
-            sooc3d_mapper_params q;
-            sooc3d_mapper_params_default(&q);
+            sooc_mapper_params q;
+            sooc_mapper_params_default(&q);
             q.model_path = ps, q.slots = ask;
-            sooc3d_mapper *mq;
-            CHECK_OK(sooc3d_mapper_create(&mq, &q));
-            CHECK(sooc_model_get_config(sooc3d_mapper_model(mq))->K == (ask ? K0 : K));
-            sooc3d_mapper_destroy(mq);
+            sooc_mapper *mq;
+            CHECK_OK(sooc_mapper_create(&mq, &q));
+            CHECK(sooc_model_get_config(sooc_mapper_model(mq))->K == (ask ? K0 : K));
+            sooc_mapper_destroy(mq);
         }
         remove(ps);
     }
-    sooc3d_mapper_params p;
-    sooc3d_mapper_params_default(&p);
+    sooc_mapper_params p;
+    sooc_mapper_params_default(&p);
     p.model_path = path, p.slots = K0 - 1;
-    sooc3d_mapper *bad = NULL;
-    CHECK(sooc3d_mapper_create(&bad, &p) == SOOC_EINVAL && !bad);
+    sooc_mapper *bad = NULL;
+    CHECK(sooc_mapper_create(&bad, &p) == SOOC_EINVAL && !bad);
     CHECK_MSG(strstr(sooc_errmsg(), path) != NULL, "error does not name the model file: %s", sooc_errmsg());
 }
 
@@ -235,8 +235,8 @@ static void nonzero_heads(sooc_model *m) {
 /* Five views of the two-sphere scene at w x h through a mapper around model m
  * (owned by the mapper); the final entries. */
 static void run_seq_model(sooc_model *m, int w, int h, sooc_map_entry *out, size_t cap, size_t *n) {
-    sooc3d_mapper *mp;
-    CHECK_OK(sooc3d_mapper_create_with_model(&mp, m, 0, 7, 2));
+    sooc_mapper *mp;
+    CHECK_OK(sooc_mapper_create_with_model(&mp, m, 0, 7, 2));
     synth_sphere sp[2] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}}};
     for (int i = 0; i < 5; i++) {
         double T[16];
@@ -244,13 +244,13 @@ static void run_seq_model(sooc_model *m, int w, int h, sooc_map_entry *out, size
         sooc_frame f;
         CHECK_OK(synth_frame(&f, w, h, 60, T, sp, 2));
         f.index = i, f.t_ns = 1000 * i;
-        sooc3d_update_stats st;
-        CHECK_OK(sooc3d_mapper_update(mp, &f, &st));
+        sooc_update_stats st;
+        CHECK_OK(sooc_mapper_update(mp, &f, &st));
         sooc_frame_free(&f);
     }
     *n = 0;
-    CHECK_OK(sooc3d_mapper_entries(mp, out, cap, n));
-    sooc3d_mapper_destroy(mp);
+    CHECK_OK(sooc_mapper_entries(mp, out, cap, n));
+    sooc_mapper_destroy(mp);
 }
 
 /* Ray grid (sooc_model_copy_rays): above 32 x 32 the refinement nets pool
@@ -384,7 +384,7 @@ int main(void) {
     /* mapper: deterministic for a seed, registration and retrieval */
     static sooc_map_entry e1[256], e2[256], e3[256];
     size_t n1, n2, n3;
-    sooc3d_mapper *mp;
+    sooc_mapper *mp;
     int ret = run_seq(path, 7, e1, 256, &n1, &mp);
     run_seq(path, 7, e2, 256, &n2, NULL);
     printf("mapper: %zu entries after 5 views, %d slots retrieved over views 2..5\n", n1, ret);
@@ -396,8 +396,8 @@ int main(void) {
     {
         static sooc_map_entry s1[256], s2[256];
         size_t m1, m2;
-        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, 0, s1, 256, &m1, NULL);
-        run_seq_l(path, 7, SOOC3D_LATENTS_SAMPLE, 0, s2, 256, &m2, NULL);
+        run_seq_l(path, 7, SOOC_LATENTS_SAMPLE, 0, s1, 256, &m1, NULL);
+        run_seq_l(path, 7, SOOC_LATENTS_SAMPLE, 0, s2, 256, &m2, NULL);
         CHECK(m1 == m2 && !memcmp(s1, s2, m1 * sizeof s1[0]));
         int differ = m1 != n1;
         for (size_t i = 0; i < m1 && i < n1 && !differ; i++) differ = s1[i].x != e1[i].x || s1[i].z != e1[i].z;
@@ -406,8 +406,8 @@ int main(void) {
     test_slots(m, path, e1, n1);
     test_rays(m);
     /* load_entries round trip */
-    CHECK_OK(sooc3d_mapper_load_entries(mp, e1, n1));
-    CHECK_OK(sooc3d_mapper_entries(mp, e3, 256, &n3));
+    CHECK_OK(sooc_mapper_load_entries(mp, e1, n1));
+    CHECK_OK(sooc_mapper_entries(mp, e3, 256, &n3));
     CHECK(n3 == n1);
     for (size_t i = 0; i < n3 && i < n1; i++) {
         CHECK(e3[i].id == e1[i].id);
@@ -427,15 +427,15 @@ int main(void) {
         dup[1].id = 41, dup[1].x = 0.4, dup[1].z = 3.05, dup[1].obs_count = 2;
         dup[0].presence_logit = dup[1].presence_logit = 4.0f;
         dup[0].presence = dup[1].presence = 1.0f / (1.0f + expf(-4.0f));
-        CHECK_OK(sooc3d_mapper_load_entries(mp, dup, 2));
-        sooc3d_mapper_set_merge_radius(mp, pass ? 0.0 : SOOC3D_MAPPER_MERGE_SUGGESTED);   /* 0.35 m, then off */
-        sooc3d_update_stats us;
+        CHECK_OK(sooc_mapper_load_entries(mp, dup, 2));
+        sooc_mapper_set_merge_radius(mp, pass ? 0.0 : SOOC_MAPPER_MERGE_SUGGESTED);   /* 0.35 m, then off */
+        sooc_update_stats us;
         update_one_sphere(mp, 9, &us);
         sooc_map_entry chg[SOOC_MAPPER_CHANGED_MAX];
         uint64_t rm[SOOC_MAPPER_CHANGED_MAX];
         size_t nc, nrm;
-        CHECK_OK(sooc3d_mapper_changed(mp, chg, SOOC_MAPPER_CHANGED_MAX, &nc, rm, SOOC_MAPPER_CHANGED_MAX, &nrm));
-        CHECK_OK(sooc3d_mapper_entries(mp, e3, 256, &n3));
+        CHECK_OK(sooc_mapper_changed(mp, chg, SOOC_MAPPER_CHANGED_MAX, &nc, rm, SOOC_MAPPER_CHANGED_MAX, &nrm));
+        CHECK_OK(sooc_mapper_entries(mp, e3, 256, &n3));
         int has40 = 0, has41 = 0, chg40 = 0, rm40 = 0;
         for (size_t i = 0; i < n3; i++) has40 |= e3[i].id == 40, has41 |= e3[i].id == 41;
         for (size_t i = 0; i < nc; i++) chg40 |= chg[i].id == 40;
@@ -454,7 +454,7 @@ int main(void) {
     memset(&K, 0, sizeof K);
     K.width = K.height = 32, K.fx = K.fy = 16 / tan(M_PI / 6), K.cx = K.cy = 16;
     sooc_model_field *fld;
-    CHECK_OK(sooc_model_field_create(&fld, sooc3d_mapper_model(mp), sooc3d_mapper_cogmap(mp), T, &K, 16, NULL));
+    CHECK_OK(sooc_model_field_create(&fld, sooc_mapper_model(mp), sooc_mapper_cogmap(mp), T, &K, 16, NULL));
     const sooc_field *f = sooc_model_field_get(fld);
     printf("field: %d components (layout + %d objects)\n", f->n_comp, f->n_comp - 1);
     CHECK(f->n_comp >= 2);
@@ -472,7 +472,7 @@ int main(void) {
         CHECK(sh[0] > 0 && sh[1] > 0);
     }
     sooc_model_field_destroy(fld);
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper_destroy(mp);
     remove(path);
     sooc_model_destroy(m);
     return check_report("test_model_mapper");

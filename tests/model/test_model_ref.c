@@ -86,7 +86,7 @@ static int run_ref(int unknown) {
     CHECK_OK(sooc_model_ws_create(&w, m));
     int NL = m->NL, P = 2 * N, C = K + 1;
     view_rays vr;
-    CHECK_OK(mdl_rays_alloc(&vr, 16, 16));
+    CHECK_OK(sooc_mdl_rays_alloc(&vr, 16, 16));
     vr.h = Fl[11];
     vr.blk[0] = Fl[13], vr.blk[1] = Fl[14], vr.blk[2] = Fl[15];
     float *surf = malloc(N * sizeof(float));
@@ -123,7 +123,7 @@ static int run_ref(int unknown) {
     dc.tau = tau, dc.beta_kl = beta, dc.wgrad = 1.0f, dc.backward = 1;
     dc.g_lam = g_lam, dc.g_lam0 = g_lam0, dc.g_lay = g_lay, dc.g_lay0 = g_lay0;
     sooc_model_zero_grad(m);
-    CHECK_OK(mdl_decode(w, &dc));
+    CHECK_OK(sooc_mdl_decode(w, &dc));
     printf("test_model_ref: loss C %.6f ref %.6f | nll C %.6f ref %.6f | kl C %.6f ref %.6f | %d object rows\n",
            dc.loss, ref3[0], dc.nll, ref3[1], dc.kl, ref3[2], w->dec->nro);
     CHECK_CLOSE(dc.loss, ref3[0], 1e-3, 1e-5);
@@ -145,7 +145,7 @@ static int run_ref(int unknown) {
         size_t o = m->t[t].offset - m->dobj.W1x;
         cmp_arr(m->t[t].name, m->g + m->t[t].offset, r_gw + o, m->t[t].count, 2e-3);
     }
-    mdl_rays_free(&vr);
+    sooc_mdl_rays_free(&vr);
     sooc_model_ws_destroy(w);
     sooc_model_destroy(m);
     free(surf), free(lam), free(lam0), free(lay), free(lay0), free(r_sh), free(r_col), free(r_gl), free(r_gl0);

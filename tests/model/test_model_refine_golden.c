@@ -4,10 +4,10 @@
  * commit 71da594: refine.c with its own conv, ELU, layer norm and LSTM, and
  * OpenBLAS in its backward):
  *
- *   1. mdl_ref_forward2 of the object net (K = 7 items, the 8 shared leading
+ *   1. sooc_mdl_ref_forward2 of the object net (K = 7 items, the 8 shared leading
  *      channels stored once) and the layout net on fixed pseudo-random inputs:
  *      outputs, LSTM state;
- *   2. mdl_ref_backward of both nets from fixed output / state gradients:
+ *   2. sooc_mdl_ref_backward of both nets from fixed output / state gradients:
  *      dh, dc, the vector-input gradients and the weight gradients (large
  *      arrays as digests: sum, absolute sum and 16 entries at fixed positions);
  *   3. two keyframe updates (query on an empty map, pad with the priors, L = 3
@@ -195,8 +195,8 @@ static void nets(gold *g, sooc_model_ws *w) {
     const ref_net *no = &m->robj, *nl = &m->rlay;
     double n_o = chain_n(no), n_l = chain_n(nl);
     ref_act ao, al;
-    CHECK_OK(mdl_ref_act_alloc(no, K, gw, gh, &ao));
-    CHECK_OK(mdl_ref_act_alloc(nl, 1, gw, gh, &al));
+    CHECK_OK(sooc_mdl_ref_act_alloc(no, K, gw, gh, &ao));
+    CHECK_OK(sooc_mdl_ref_act_alloc(nl, 1, gw, gh, &al));
     sooc_rng r;
     sooc_rng_seed(&r, 2021, 4);
     /* images in [0, 1]-ish ranges like the aux inputs; shared channels for item 0 only */
@@ -214,7 +214,7 @@ static void nets(gold *g, sooc_model_ws *w) {
     fill(al.h_prev, (size_t)H, &r, 0.3f);
     fill(al.c_prev, (size_t)H, &r, 0.3f);
     float *out_o = calloc((size_t)K * no->nout, sizeof(float)), *out_l = calloc((size_t)nl->nout, sizeof(float));
-    mdl_ref_forward2(w, no, &ao, out_o, nl, &al, out_l, gw, gh);
+    sooc_mdl_ref_forward2(w, no, &ao, out_o, nl, &al, out_l, gw, gh);
     put_arr(g, "fwd.obj.out", out_o, (size_t)K * no->nout, n_o);
     put_digest(g, "fwd.obj.h", ao.h, (size_t)K * H, n_o);
     put_digest(g, "fwd.obj.c", ao.c, (size_t)K * H, n_o);
@@ -223,10 +223,10 @@ static void nets(gold *g, sooc_model_ws *w) {
     put_digest(g, "fwd.lay.c", al.c, (size_t)H, n_l);
     /* the one-net entry point gives the same numbers */
     float *out1 = calloc((size_t)K * no->nout, sizeof(float));
-    mdl_ref_forward(w, no, &ao, gw, gh, out1);
+    sooc_mdl_ref_forward(w, no, &ao, gw, gh, out1);
     double d1 = 0;
     for (int i = 0; i < K * no->nout; i++) d1 = fmax(d1, fabs(out1[i] - out_o[i]));
-    CHECK_MSG(d1 == 0, "mdl_ref_forward vs mdl_ref_forward2: max diff %.3g", d1);
+    CHECK_MSG(d1 == 0, "sooc_mdl_ref_forward vs sooc_mdl_ref_forward2: max diff %.3g", d1);
 
     /* backward */
     float *go = malloc(sizeof(float) * (size_t)K * no->nout), *gl = malloc(sizeof(float) * (size_t)nl->nout);
@@ -245,8 +245,8 @@ static void nets(gold *g, sooc_model_ws *w) {
         memset(dc + (size_t)(K - 1) * H, 0, sizeof(float) * (size_t)H);
     }
     memset(m->g, 0, m->np * sizeof(float));
-    mdl_ref_backward(w, no, &ao, gw, gh, go, dh, dc, gvo);
-    mdl_ref_backward(w, nl, &al, gw, gh, gl, dhl, dcl, gvl);
+    sooc_mdl_ref_backward(w, no, &ao, gw, gh, go, dh, dc, gvo);
+    sooc_mdl_ref_backward(w, nl, &al, gw, gh, gl, dhl, dcl, gvl);
     put_digest(g, "bwd.obj.dh", dh, (size_t)K * H, n_o);
     put_digest(g, "bwd.obj.dc", dc, (size_t)K * H, n_o);
     put_digest(g, "bwd.obj.gvec", gvo, (size_t)K * no->nvec, n_o);
@@ -263,8 +263,8 @@ static void nets(gold *g, sooc_model_ws *w) {
         put_digest(g, name, m->g + t[i].offset, t[i].count,
                    (obj ? n_o : n_l) + wgrad_n(t[i].name, obj ? K : 1, gw, gh));
     }
-    mdl_ref_act_free(&ao);
-    mdl_ref_act_free(&al);
+    sooc_mdl_ref_act_free(&ao);
+    sooc_mdl_ref_act_free(&al);
     free(out_o), free(out_l), free(out1), free(go), free(gl), free(dh), free(dc), free(dhl), free(dcl), free(gvo),
         free(gvl);
 }
@@ -289,8 +289,8 @@ static void keyframes(gold *g, sooc_model_ws *w, float *out, size_t cap, size_t 
     CHECK_OK(sooc_cogmap_create(&map, &cp));
     view_rec V;
     memset(&V, 0, sizeof V);
-    CHECK_OK(mdl_view_alloc(m, &V, L));
-    step_state *S = mdl_step_state(w, 1, L);
+    CHECK_OK(sooc_mdl_view_alloc(m, &V, L));
+    step_state *S = sooc_mdl_step_state(w, 1, L);
     CHECK(S != NULL);
     if (!map || !S) return;
     synth_sphere sp[4] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}},
@@ -304,14 +304,14 @@ static void keyframes(gold *g, sooc_model_ws *w, float *out, size_t cap, size_t 
         CHECK_OK(synth_frame(&f, c->img_w, c->img_h, 60, T, sp, 4));
         f.index = v, f.t_ns = (int64_t)v * 100000000;
         S->aux_replay = 0;
-        CHECK_OK(mdl_view_setup(m, map, &V, &f, 1, &rng, NULL));
+        CHECK_OK(sooc_mdl_view_setup(m, map, &V, &f, 1, &rng, NULL));
         sooc_step_opts o;
         sooc_step_opts_default(&o);
         o.tau = 0.7f;   /* the mapper's */
         o.L = L;
         o.mean_latents = 1;
         double lw = 0;
-        CHECK_OK(mdl_view_forward(w, S, &V, L, &o, 0, &rng, &lw, NULL));
+        CHECK_OK(sooc_mdl_view_forward(w, S, &V, L, &o, 0, &rng, &lw, NULL));
         char name[64];
         snprintf(name, sizeof name, "kf%d.lam", v);
         put_arr(g, name, V.lam + (size_t)L * c->K * NL, (size_t)c->K * NL, n_kf);
@@ -321,7 +321,7 @@ static void keyframes(gold *g, sooc_model_ws *w, float *out, size_t cap, size_t 
         memcpy(out + *n, V.lay + (size_t)L * D2, sizeof(float) * (size_t)D2), *n += (size_t)D2;
         sooc_frame_free(&f);
     }
-    mdl_view_free(&V);
+    sooc_mdl_view_free(&V);
     sooc_cogmap_destroy(map);
 }
 

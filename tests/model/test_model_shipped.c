@@ -34,14 +34,14 @@ static float column_colour(const sooc_model *m, const float *z, const float tgt[
     }
     for (int r = 0; r < NPT; r++) {
         float x[3] = {0, (r + 0.5f) / NPT * 0.5f, 0};
-        mdl_pe_row(x, 1.0f / m->cfg.box_rh, n->nfreq, pe + (size_t)r * din);
+        sooc_mdl_pe_row(x, 1.0f / m->cfg.box_rh, n->nfreq, pe + (size_t)r * din);
         for (int j = 0; j < H; j++) {
             float s = bias[j];
             for (int q = 0; q < din; q++) s += pe[(size_t)r * din + q] * m->p[n->W1x + (size_t)q * H + j];
             a1[(size_t)r * H + j] = s;
         }
     }
-    mdl_mlp_tail_forward(m, n, NPT, a1, a2, a3, ac, sig, rgb);
+    sooc_mdl_mlp_tail_forward(m, n, NPT, a1, a2, a3, ac, sig, rgb);
     float e = 0, zz = 0;
     col[0] = col[1] = col[2] = 0;
     for (int r = 0; r < NPT; r++)

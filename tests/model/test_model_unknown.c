@@ -91,7 +91,7 @@ static void rays_of(fix *F, uint64_t seed) {
     sooc_rng r;
     sooc_rng_seed(&r, seed, 1);
     double blk[2] = {0.5, 4.0};
-    CHECK_OK(mdl_make_rays(F->m, &F->f, 1, 0, &r, &F->vr, F->Twg, F->h, F->pitch, blk));
+    CHECK_OK(sooc_mdl_make_rays(F->m, &F->f, 1, 0, &r, &F->vr, F->Twg, F->h, F->pitch, blk));
 }
 
 static void fix_init(fix *F, int mode, uint64_t seed) {
@@ -109,11 +109,11 @@ static void fix_init(fix *F, int mode, uint64_t seed) {
     /* one valid reading beyond d_clip (5 m): known free up to d_clip in both modes */
     F->f.depth[2 * 32 + 5] = 9.0f, F->f.valid[2 * 32 + 5] = 1;
     CHECK_OK(sooc_gframe(T, F->Twg, &F->h, &F->pitch, &roll));
-    CHECK_OK(mdl_rays_alloc(&F->vr, 16, 16));
+    CHECK_OK(sooc_mdl_rays_alloc(&F->vr, 16, 16));
     rays_of(F, seed);
     sooc_rng r;
     sooc_rng_seed(&r, seed, 2);
-    mdl_sample_noise(F->m, &r, &F->nz);
+    sooc_mdl_sample_noise(F->m, &r, &F->nz);
     int NL = F->m->NL, d = c.d_what, dl = c.d_layout;
     memcpy(F->lam0, F->m->p + F->m->prior, sizeof(float) * 2 * NL);
     for (int k = 0; k < 2; k++)
@@ -124,7 +124,7 @@ static void fix_init(fix *F, int mode, uint64_t seed) {
     for (int i = 0; i < 2 * dl; i++) F->lay[i] = 0.1f * (float)sooc_rng_normal(&r), F->lay0[i] = 0.05f * i;
 }
 static void fix_free(fix *F) {
-    mdl_rays_free(&F->vr);
+    sooc_mdl_rays_free(&F->vr);
     sooc_frame_free(&F->f);
     sooc_model_ws_destroy(F->w);
     sooc_model_destroy(F->m);
@@ -145,7 +145,7 @@ static double run(fix *F, int backward, float *g_lam, float *g_lam0, float *g_la
     /* forward-only runs replay the Gaussian trick's stop-gradient z^where of the
      * last backward run (as test_model_grad) */
     c.zw_sg = backward || !F->have_sg ? NULL : F->zw_sg;
-    CHECK_OK(mdl_decode(F->w, &c));
+    CHECK_OK(sooc_mdl_decode(F->w, &c));
     if (backward)
         for (int k = 0; k < 2; k++)
             for (int i = 0; i < 3; i++) F->zw_sg[k * 3 + i] = c.zw[k][i];
@@ -390,20 +390,20 @@ static void test_checkpoint(void) {
     CHECK(!memcmp(sooc_model_params(l), sooc_model_params(m), sooc_model_param_count(m) * sizeof(float)));
     sooc_model_destroy(l);
     /* the mapper's override (node launch key model.invalid_depth, eval --invalid-depth) */
-    sooc3d_mapper_params mpp;
-    sooc3d_mapper_params_default(&mpp);
+    sooc_mapper_params mpp;
+    sooc_mapper_params_default(&mpp);
     mpp.model_path = p;
     mpp.invalid_depth = 1 + SOOC_INVALID_DEPTH_FREE;
-    sooc3d_mapper *mp = NULL;
-    CHECK_OK(sooc3d_mapper_create(&mp, &mpp));
-    if (mp) CHECK(sooc_model_get_config(sooc3d_mapper_model(mp))->invalid_depth == SOOC_INVALID_DEPTH_FREE);
-    sooc3d_mapper_destroy(mp);
+    sooc_mapper *mp = NULL;
+    CHECK_OK(sooc_mapper_create(&mp, &mpp));
+    if (mp) CHECK(sooc_model_get_config(sooc_mapper_model(mp))->invalid_depth == SOOC_INVALID_DEPTH_FREE);
+    sooc_mapper_destroy(mp);
     mpp.invalid_depth = 0;   /* the model's */
-    CHECK_OK(sooc3d_mapper_create(&mp, &mpp));
-    if (mp) CHECK(sooc_model_get_config(sooc3d_mapper_model(mp))->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN);
-    sooc3d_mapper_destroy(mp);
+    CHECK_OK(sooc_mapper_create(&mp, &mpp));
+    if (mp) CHECK(sooc_model_get_config(sooc_mapper_model(mp))->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN);
+    sooc_mapper_destroy(mp);
     mpp.invalid_depth = 7;
-    CHECK(sooc3d_mapper_create(&mp, &mpp) == SOOC_EINVAL);
+    CHECK(sooc_mapper_create(&mp, &mpp) == SOOC_EINVAL);
     /* a version-3 file: the same bytes with the config cut before invalid_depth */
     uint32_t csz3 = (uint32_t)offsetof(sooc_model_config, invalid_depth);
     CHECK(csz3 < sizeof(sooc_model_config));   /* later versions appended more */

@@ -18,7 +18,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "sooc3d/eval_geom.h"
+#include "eval/eval_geom.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
 #include "sooc3d/objgeom.h"
@@ -56,10 +56,10 @@ int main(void) {
         sooc_scene_init(&sc);
         CHECK_OK(sooc_gen_scene(&sc, &gp, s));
         sooc_model *copy = NULL;
-        sooc3d_mapper *mp = NULL;
+        sooc_mapper *mp = NULL;
         CHECK_OK(sooc_model_copy_slots(m, 0, &copy));
-        CHECK_OK(sooc3d_mapper_create_with_model(&mp, copy, 0, 1, 0));
-        if (mp) sooc3d_mapper_set_geometry_budget(mp, 0);   /* boxes once, at the end (cost) */
+        CHECK_OK(sooc_mapper_create_with_model(&mp, copy, 0, 1, 0));
+        if (mp) sooc_mapper_set_geometry_budget(mp, 0);   /* boxes once, at the end (cost) */
         if (!mp) {
             sooc_model_destroy(copy);
             sooc_scene_free(&sc);
@@ -73,15 +73,15 @@ int main(void) {
             f.has_pose = 1;
             f.index = v;
             f.t_ns = (int64_t)v * 33333333;
-            CHECK_OK(sooc3d_mapper_update(mp, &f, NULL));
+            CHECK_OK(sooc_mapper_update(mp, &f, NULL));
         }
-        CHECK_OK(sooc3d_mapper_refresh_geometry(mp, -1, NULL));
+        CHECK_OK(sooc_mapper_refresh_geometry(mp, -1, NULL));
         size_t n = 0;
-        CHECK_OK(sooc3d_mapper_entries(mp, NULL, 0, &n));
+        CHECK_OK(sooc_mapper_entries(mp, NULL, 0, &n));
         sooc_map_entry *e = sooc_calloc(n + 1, sizeof *e);
         sooc_geom_match *mt = sooc_calloc((size_t)sc.n_objects + 1, sizeof *mt);
         int nm = 0;
-        CHECK_OK(sooc3d_mapper_entries(mp, e, n, &n));
+        CHECK_OK(sooc_mapper_entries(mp, e, n, &n));
         CHECK_OK(sooc_geom_eval_scene(e, n, &sc, 0.5, mt, &nm));
         float box[3];
         sooc_model_box_extent(c, box);
@@ -107,7 +107,7 @@ int main(void) {
         n_match += nm;
         sooc_free(e);
         sooc_free(mt);
-        sooc3d_mapper_destroy(mp);
+        sooc_mapper_destroy(mp);
         sooc_scene_free(&sc);
     }
     sooc_frame_free(&f);

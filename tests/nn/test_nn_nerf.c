@@ -1,5 +1,5 @@
 /*
- * The decoder MLP layers the model runs (sooc3d/nn_kern.h, src/nn/nerf.c):
+ * The decoder MLP layers the model runs (nn/nn_kern.h, src/nn/nerf.c):
  * float64 finite-difference checks of every forward / backward pair, and the
  * GEMMs against a float64 product.
  *
@@ -25,7 +25,7 @@
  * both keep row splits bitwise (docs/engine.md "Determinism contract").
  */
 #include "check.h"
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -2,7 +2,7 @@
  * PyTorch reference of the decoder MLP as the model runs it (llm.c style).
  * Runs tests/ref/nerf_ref.py with /usr/bin/python3 (Debian python3-torch) to
  * write the reference into the build directory, then runs the same decoder on
- * the engine's pairs (sooc3d/nn_kern.h) the way src/model/decoder.c does:
+ * the engine's pairs (nn/nn_kern.h) the way src/model/decoder.c does:
  * the slot bias b1 + z W1z as the layer-1 init, sooc_nn_dense_forward (ReLU),
  * sooc_nn_nerf_tail_forward; backward through sooc_nn_nerf_tail_backward (with
  * the transposed weights of the AVX2 path and without), sooc_nn_dense_backward
@@ -12,7 +12,7 @@
  * torch is missing.
  */
 #include "check.h"
-#include "sooc3d/nn_kern.h"
+#include "nn/nn_kern.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

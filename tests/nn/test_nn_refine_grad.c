@@ -1,5 +1,5 @@
 /*
- * The refinement network's kernel pairs (sooc3d/nn_refine.h):
+ * The refinement network's kernel pairs (nn/nn_refine.h):
  *
  *  1. float64 finite differences: for every pair's _f64 version, the loss
  *     L = sum(r * y) (fixed random r) differentiated by the 4-point central
@@ -16,7 +16,7 @@
  * Shapes are small (every pair at its model layout, odd sizes, strided rows).
  */
 #include "check.h"
-#include "sooc3d/nn_refine.h"
+#include "nn/nn_refine.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,5 +1,5 @@
 /*
- * The refinement-network kernel pairs (sooc3d/nn_refine.h) against PyTorch.
+ * The refinement-network kernel pairs (nn/nn_refine.h) against PyTorch.
  * Runs tests/ref/refine_ref.py with /usr/bin/python3 (Debian python3-torch),
  * which writes a small refinement net in float64 (MulMON LN of image channels
  * and vector entries, two conv 3x3 s2 + ELU, pool 4x4 -> 2x2 + flatten, FC +
@@ -11,7 +11,7 @@
  * 1e-5 (max|t| + |t|) (gradients); the worst err/tol is printed (about 0.1).
  */
 #include "check.h"
-#include "sooc3d/nn_refine.h"
+#include "nn/nn_refine.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

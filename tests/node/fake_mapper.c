@@ -2,7 +2,7 @@
  * keyframe registers one new object 1.5 m in front of the camera on the
  * floor, re-observes the object registered before it, and every 5th
  * keyframe removes the oldest remaining object. Deterministic. It reports
- * what changed (sooc3d_mapper_changed) and keeps a 4-float layout latent per
+ * what changed (sooc_mapper_changed) and keeps a 4-float layout latent per
  * 4 m floor block under the camera. */
 #include "sooc3d/mapper.h"
 
@@ -16,7 +16,7 @@
 #define FAKE_LDIM 4
 #define FAKE_MAX_BLOCKS 256
 
-struct sooc3d_mapper {
+struct sooc_mapper {
     sooc_map_entry *e;
     size_t n, cap;
     uint64_t next_id, updates;
@@ -28,13 +28,13 @@ struct sooc3d_mapper {
     int n_blocks;
 };
 
-static int find_block(const sooc3d_mapper *m, int32_t bi, int32_t bj) {
+static int find_block(const sooc_mapper *m, int32_t bi, int32_t bj) {
     for (int i = 0; i < m->n_blocks; i++)
         if (m->blocks[i].bi == bi && m->blocks[i].bj == bj) return i;
     return -1;
 }
 
-static sooc_status set_block(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu, const float *lv) {
+static sooc_status set_block(sooc_mapper *m, int32_t bi, int32_t bj, const float *mu, const float *lv) {
     int i = find_block(m, bi, bj);
     if (i < 0) {
         if (m->n_blocks == FAKE_MAX_BLOCKS) return sooc_seterr(SOOC_ENOMEM, "fake mapper: too many blocks");
@@ -47,11 +47,11 @@ static sooc_status set_block(sooc3d_mapper *m, int32_t bi, int32_t bj, const flo
     return SOOC_OK;
 }
 
-void sooc3d_mapper_params_default(sooc3d_mapper_params *p) { memset(p, 0, sizeof *p); }
+void sooc_mapper_params_default(sooc_mapper_params *p) { memset(p, 0, sizeof *p); }
 
-sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params *p) {
+sooc_status sooc_mapper_create(sooc_mapper **out, const sooc_mapper_params *p) {
     (void)p;
-    sooc3d_mapper *m = sooc_calloc(1, sizeof *m);
+    sooc_mapper *m = sooc_calloc(1, sizeof *m);
     if (!m) return SOOC_ENOMEM;
     m->next_id = 1;
     const char *d = getenv("SOOC_FAKE_MAPPER_DELAY_MS");
@@ -60,24 +60,24 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
     return SOOC_OK;
 }
 
-void sooc3d_mapper_destroy(sooc3d_mapper *m) {
+void sooc_mapper_destroy(sooc_mapper *m) {
     if (!m) return;
     sooc_free(m->e);
     sooc_free(m);
 }
 
-void sooc3d_mapper_input_size(const sooc3d_mapper *m, int *w, int *h) {
+void sooc_mapper_input_size(const sooc_mapper *m, int *w, int *h) {
     (void)m;
     *w = FAKE_W;
     *h = FAKE_H;
 }
 
-void sooc3d_mapper_cam_heights(const sooc3d_mapper *m, double *lo_m, double *hi_m) {
+void sooc_mapper_cam_heights(const sooc_mapper *m, double *lo_m, double *hi_m) {
     (void)m;
     *lo_m = 1.2, *hi_m = 2.0;   /* the unity generator's, as a model without a stored range */
 }
 
-static sooc_status push(sooc3d_mapper *m, const sooc_map_entry *e) {
+static sooc_status push(sooc_mapper *m, const sooc_map_entry *e) {
     if (m->n == m->cap) {
         size_t nc = m->cap ? 2 * m->cap : 16;
         void *q = sooc_realloc(m->e, nc * sizeof *m->e);
@@ -89,7 +89,7 @@ static sooc_status push(sooc3d_mapper *m, const sooc_map_entry *e) {
     return SOOC_OK;
 }
 
-sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_update_stats *st) {
+sooc_status sooc_mapper_update(sooc_mapper *m, const sooc_frame *f, sooc_update_stats *st) {
     if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "fake mapper: frame without pose");
     if (f->width != FAKE_W || f->height != FAKE_H)
         return sooc_seterr(SOOC_EINVAL, "fake mapper: frame is %dx%d, want %dx%d", f->width, f->height, FAKE_W,
@@ -163,13 +163,13 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *m, const sooc_frame *f, sooc3d_u
     return SOOC_OK;
 }
 
-static const sooc_map_entry *find_entry(const sooc3d_mapper *m, uint64_t id) {
+static const sooc_map_entry *find_entry(const sooc_mapper *m, uint64_t id) {
     for (size_t i = m->n; i-- > 0;)
         if (m->e[i].id == id) return &m->e[i];
     return NULL;
 }
 
-sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
+sooc_status sooc_mapper_changed(const sooc_mapper *m, sooc_map_entry *out, size_t cap, size_t *n,
                                   uint64_t *removed_ids, size_t cap_r, size_t *n_removed) {
     if (n) *n = (size_t)m->n_chg;
     if (n_removed) *n_removed = (size_t)m->n_rem;
@@ -184,17 +184,17 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *m, sooc_map_entry *out, s
     return SOOC_OK;
 }
 
-int sooc3d_mapper_latent_dim(const sooc3d_mapper *m) {
+int sooc_mapper_latent_dim(const sooc_mapper *m) {
     (void)m;
     return FAKE_DIM;
 }
 
-int sooc3d_mapper_layout_dim(const sooc3d_mapper *m) {
+int sooc_mapper_layout_dim(const sooc_mapper *m) {
     (void)m;
     return FAKE_LDIM;
 }
 
-sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
+sooc_status sooc_mapper_last_layout(const sooc_mapper *m, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
     if (!m->has_block) return SOOC_ENOTFOUND;
     int i = find_block(m, m->bi, m->bj);
     if (i < 0) return SOOC_ENOTFOUND;
@@ -205,34 +205,34 @@ sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *m, int32_t *bi, int32
     return SOOC_OK;
 }
 
-sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *m, int32_t bi, int32_t bj, const float *mu,
+sooc_status sooc_mapper_load_layout(sooc_mapper *m, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar) {
     return set_block(m, bi, bj, mu, logvar);
 }
 
 /* Test hook: the layout latent of block (bi, bj). */
-int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu);
-int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu) {
+int fake_mapper_get_block(const sooc_mapper *m, int32_t bi, int32_t bj, float *mu);
+int fake_mapper_get_block(const sooc_mapper *m, int32_t bi, int32_t bj, float *mu) {
     int i = find_block(m, bi, bj);
     if (i < 0) return -1;
     memcpy(mu, m->blocks[i].mu, sizeof m->blocks[i].mu);
     return 0;
 }
 
-void sooc3d_mapper_reserve_ids(sooc3d_mapper *m, uint64_t next_id) {
+void sooc_mapper_reserve_ids(sooc_mapper *m, uint64_t next_id) {
     if (next_id > m->next_id) m->next_id = next_id;
 }
 
-uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *m) { return m->next_id; }
+uint64_t sooc_mapper_next_id(const sooc_mapper *m) { return m->next_id; }
 
-sooc_status sooc3d_mapper_entries(const sooc3d_mapper *m, sooc_map_entry *out, size_t cap, size_t *n) {
+sooc_status sooc_mapper_entries(const sooc_mapper *m, sooc_map_entry *out, size_t cap, size_t *n) {
     *n = m->n;
     if (out)
         for (size_t i = 0; i < m->n && i < cap; i++) out[i] = m->e[i];
     return SOOC_OK;
 }
 
-sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *m, const sooc_map_entry *e, size_t n) {
+sooc_status sooc_mapper_load_entries(sooc_mapper *m, const sooc_map_entry *e, size_t n) {
     m->n = 0;
     m->n_chg = m->n_rem = m->has_block = 0;
     for (size_t i = 0; i < n; i++) {

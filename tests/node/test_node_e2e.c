@@ -15,15 +15,9 @@
 #include "node_fixture.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
-#if SOOC_NODE_HAVE_TABLE
 #include "sooc3d/table.h"
-#endif
-#if SOOC_NODE_HAVE_MAPSTORE
 #include "sooc3d/mapstore.h"
-#endif
-#if SOOC_NODE_HAVE_DRIVERS
 #include "sooc3d/driver.h"
-#endif
 
 static char g_tmp[256], g_shm[64];
 
@@ -43,7 +37,6 @@ static sooc_status make_cfg(sooc_node_config *c, const char *extra_sensor, const
     return sooc_node_config_parse(c, text, strlen(text), "e2e.yaml");
 }
 
-#if SOOC_NODE_HAVE_TABLE
 /* Child: wait for the table, follow it until the writer has exited, then
  * print "id flags" lines of the final snapshot and the max object count seen
  * while the writer was alive. */
@@ -79,7 +72,6 @@ static int reader_child(int fd) {
     sooc_table_close_reader(r);
     return 0;
 }
-#endif
 
 typedef struct rrow {
     uint64_t id;
@@ -87,11 +79,11 @@ typedef struct rrow {
     float x, z;
 } rrow;
 
-static void check_reader(FILE *in, sooc3d_mapper *m, uint32_t *max_live) {
+static void check_reader(FILE *in, sooc_mapper *m, uint32_t *max_live) {
     size_t ne = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &ne);
+    sooc_mapper_entries(m, NULL, 0, &ne);
     sooc_map_entry *e = calloc(ne + 1, sizeof *e);
-    sooc3d_mapper_entries(m, e, ne, &ne);
+    sooc_mapper_entries(m, e, ne, &ne);
     unsigned long long ep;
     CHECK(fscanf(in, "max %u epoch %llu\n", max_live, &ep) == 2);
     rrow rows[64];
@@ -121,7 +113,6 @@ static void check_reader(FILE *in, sooc3d_mapper *m, uint32_t *max_live) {
     free(e);
 }
 
-#if SOOC_NODE_HAVE_MAPSTORE
 static int count_visit(void *u, const sooc_cogmap_entry *e) {
     (void)e;
     (*(size_t *)u)++;
@@ -139,9 +130,7 @@ static size_t db_count(const char *db) {
     sooc_mapstore_close(s);
     return n;
 }
-#endif
 
-#if SOOC_NODE_HAVE_MAPSTORE
 /* keyframe rows, layout blocks and the stored box extent */
 static void db_info(const char *db, sooc_mapstore_info *info, float ext[3]) {
     sooc_mapstore *s;
@@ -159,16 +148,14 @@ static void db_info(const char *db, sooc_mapstore_info *info, float ext[3]) {
     CHECK(sscanf(b, "%f %f %f", &ext[0], &ext[1], &ext[2]) == 3);
     sooc_mapstore_close(s);
 }
-#endif
 
-int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu);
+int fake_mapper_get_block(const sooc_mapper *m, int32_t bi, int32_t bj, float *mu);
 
 /* Run the node over `nframes` synthetic frames with a reader process. */
-static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_frame, uint64_t *kf_out,
+static void run_once(const char *db, sooc_mapper *m, int nframes, int first_frame, uint64_t *kf_out,
                      uint64_t *resumed_out) {
     sooc_node_config c;
     CHECK_OK(make_cfg(&c, NULL, db));
-#if SOOC_NODE_HAVE_TABLE
     char shm_path[128];
     sooc_table_shm_name(g_shm, shm_path, sizeof shm_path);
     shm_unlink(shm_path);   /* the reader must see this run's table, not the last one */
@@ -180,7 +167,6 @@ static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_fr
         _exit(reader_child(pfd[1]));
     }
     close(pfd[1]);
-#endif
     fx_src s = {first_frame, first_frame + nframes, 0.15, 0};
     sooc_node_source src = fx_source(&s);
     sooc_node_options o;
@@ -202,7 +188,6 @@ static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_fr
     sooc_node_stats_format(&sn, line, sizeof line);
     printf("e2e run: %s\n", line);
     sooc_node_destroy(n);
-#if SOOC_NODE_HAVE_TABLE
     FILE *in = fdopen(pfd[0], "r");
     uint32_t max_live = 0;
     check_reader(in, m, &max_live);
@@ -211,26 +196,24 @@ static void run_once(const char *db, sooc3d_mapper *m, int nframes, int first_fr
     waitpid(pid, &status, 0);
     CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 0, "reader exit %d", WEXITSTATUS(status));
     CHECK(max_live > 0);
-#endif
 }
 
 static void test_e2e_and_restart(void) {
     char db[512];
     snprintf(db, sizeof db, "%s/map.sqlite", g_tmp);
-    sooc3d_mapper *m;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m;
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     uint64_t kf = 0, resumed = 0;
     run_once(db, m, 12, 0, &kf, &resumed);
     CHECK(resumed == 0);
     CHECK_MSG(kf == 12, "keyframes %llu (every frame moves 0.15 m > 0.10 m)", (unsigned long long)kf);
     size_t n1 = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &n1);
+    sooc_mapper_entries(m, NULL, 0, &n1);
     sooc_map_entry *e1 = calloc(n1 + 1, sizeof *e1);
-    sooc3d_mapper_entries(m, e1, n1, &n1);
+    sooc_mapper_entries(m, e1, n1, &n1);
     CHECK(n1 == 12 - 2);   /* 12 registered, 2 removed by the fake mapper */
-#if SOOC_NODE_HAVE_MAPSTORE
     CHECK_MSG(db_count(db) == n1, "db holds %zu, map %zu", db_count(db), n1);
     /* one keyframe row per keyframe, the layout block(s), the box extent */
     sooc_mapstore_info info;
@@ -243,20 +226,18 @@ static void test_e2e_and_restart(void) {
     CHECK(info.next_id == 13);
     float mu1[4] = {0}, mu2[4] = {0};
     CHECK(fake_mapper_get_block(m, 0, 0, mu1) == 0);
-#endif
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
-#if SOOC_NODE_HAVE_MAPSTORE
     /* restart with a fresh mapper and the same db: nothing lost */
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     run_once(db, m, 0, 100, &kf, &resumed);
     CHECK_MSG(resumed == n1, "resumed %llu of %zu", (unsigned long long)resumed, n1);
     CHECK_MSG(fake_mapper_get_block(m, 0, 0, mu2) == 0 && !memcmp(mu1, mu2, sizeof mu1),
               "layout block (0,0) restored: %g vs %g", mu2[0], mu1[0]);
     size_t n2 = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &n2);
+    sooc_mapper_entries(m, NULL, 0, &n2);
     sooc_map_entry *e2 = calloc(n2 + 1, sizeof *e2);
-    sooc3d_mapper_entries(m, e2, n2, &n2);
+    sooc_mapper_entries(m, e2, n2, &n2);
     CHECK(n2 == n1);
     for (size_t i = 0; i < n1 && i < n2; i++) {
         CHECK(e2[i].id == e1[i].id);
@@ -274,9 +255,9 @@ static void test_e2e_and_restart(void) {
     run_once(db, m, 3, 200, &kf, &resumed);
     CHECK(kf == 3);
     size_t n3 = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &n3);
+    sooc_mapper_entries(m, NULL, 0, &n3);
     sooc_map_entry *e3 = calloc(n3 + 1, sizeof *e3);
-    sooc3d_mapper_entries(m, e3, n3, &n3);
+    sooc_mapper_entries(m, e3, n3, &n3);
     CHECK(n3 == n1 + 3);
     CHECK(e3[n3 - 1].id == maxid + 3);
     CHECK_MSG(db_count(db) == n3, "db holds %zu, map %zu", db_count(db), n3);
@@ -284,15 +265,11 @@ static void test_e2e_and_restart(void) {
     CHECK_MSG(info.n_keyframes == 15, "keyframe rows %llu", (unsigned long long)info.n_keyframes);
     free(e2);
     free(e3);
-    sooc3d_mapper_destroy(m);
-#else
-    fprintf(stderr, "test_node_e2e: map store not built: restart part skipped\n");
-#endif
+    sooc_mapper_destroy(m);
     free(e1);
 }
 
 static void test_replay_driver(void) {
-#if SOOC_NODE_HAVE_DRIVERS
     if (!sooc_sensor_has_driver("replay")) {
         fprintf(stderr, "test_node_e2e: replay driver absent: part skipped\n");
         return;
@@ -303,10 +280,10 @@ static void test_replay_driver(void) {
     CHECK(fx_write_tum(dir, 10, 0.15) == 0);
     sooc_node_config c;
     CHECK_OK(make_cfg(&c, ", format: tum, speed: fast, depth_scale: 0.0002", db));
-    sooc3d_mapper *m;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m;
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     sooc_node_options o;
     memset(&o, 0, sizeof o);
     o.mapper = m;
@@ -324,23 +301,14 @@ static void test_replay_driver(void) {
         CHECK(s.frames_dropped == 0);
         CHECK_MSG(s.keyframes == 10, "keyframes %llu", (unsigned long long)s.keyframes);
         sooc_node_destroy(n);
-#if SOOC_NODE_HAVE_MAPSTORE
         size_t ne = 0;
-        sooc3d_mapper_entries(m, NULL, 0, &ne);
+        sooc_mapper_entries(m, NULL, 0, &ne);
         CHECK(db_count(db) == ne);
-#endif
     }
-    sooc3d_mapper_destroy(m);
-#else
-    fprintf(stderr, "test_node_e2e: drivers not built: replay part skipped\n");
-#endif
+    sooc_mapper_destroy(m);
 }
 
 static void test_bad_calib(void) {
-#if !SOOC_NODE_HAVE_CALIB
-    fprintf(stderr, "test_node_e2e: calib loader not built: bad-calib part skipped\n");
-    return;
-#endif
     char cal[512], launch[1024];
     const char *cases[][2] = {
         {"%YAML 1.2\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: {rows: 3, cols: 3, data: [1, 0, 0]}\n",
@@ -364,10 +332,10 @@ static void test_bad_calib(void) {
                  "sensor: {driver: replay, path: %s/none}\ncalib: %s\nmodel: {path: fake.bin}\n", g_tmp, cal);
         sooc_node_config c;
         CHECK_OK(sooc_node_config_parse(&c, launch, strlen(launch), "cal.yaml"));
-        sooc3d_mapper *m;
-        sooc3d_mapper_params mp;
-        sooc3d_mapper_params_default(&mp);
-        sooc3d_mapper_create(&m, &mp);
+        sooc_mapper *m;
+        sooc_mapper_params mp;
+        sooc_mapper_params_default(&mp);
+        sooc_mapper_create(&m, &mp);
         fx_src s = {0, 0, 0.1, 0};
         sooc_node_source src = fx_source(&s);
         sooc_node_options o;
@@ -380,7 +348,7 @@ static void test_bad_calib(void) {
         CHECK_MSG(strstr(sooc_errmsg(), cases[i][1]) && strstr(sooc_errmsg(), "bad_calib_"),
                   "calib case %zu: '%s' lacks '%s'", i, sooc_errmsg(), cases[i][1]);
         sooc_node_destroy(n);
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
 }
 
@@ -391,11 +359,9 @@ int main(void) {
     test_e2e_and_restart();
     test_replay_driver();
     test_bad_calib();
-#if SOOC_NODE_HAVE_TABLE
     char name[128];
     sooc_table_shm_name(g_shm, name, sizeof name);
     shm_unlink(name);
-#endif
     char cmd[512];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_tmp);
     if (system(cmd)) fprintf(stderr, "cleanup of %s failed\n", g_tmp);

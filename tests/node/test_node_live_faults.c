@@ -133,7 +133,7 @@ typedef struct run_out {
 static sooc_node_kf_fn g_on_kf;
 static void *g_on_kf_user;
 
-static void run(sooc_node_config *c, sooc3d_mapper *m, live_src *ls, const sooc_node_pose_source *pose, run_out *o) {
+static void run(sooc_node_config *c, sooc_mapper *m, live_src *ls, const sooc_node_pose_source *pose, run_out *o) {
     logs_reset();
     sooc_node_source src;
     memset(&src, 0, sizeof src);
@@ -161,12 +161,12 @@ static void run(sooc_node_config *c, sooc3d_mapper *m, live_src *ls, const sooc_
 }
 
 /* A fresh database and fake mapper, then run(); returns the mapper (the caller destroys it). */
-static sooc3d_mapper *fresh_run(const char *db, const char *extra_pipeline, const char *kf, live_src *ls,
+static sooc_mapper *fresh_run(const char *db, const char *extra_pipeline, const char *kf, live_src *ls,
                                 const sooc_node_pose_source *pose, run_out *o) {
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc3d_mapper *m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    sooc_mapper *m = NULL;
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     unlink(db);
     sooc_node_config c;
     make_cfg(&c, db, extra_pipeline, kf);
@@ -194,7 +194,7 @@ static void test_sensor(void) {
 
     /* lost at frame 10, back at the 4th attempt */
     live_src ls = {0, 30, 10, 0, 3, 0, {0, 0}, {0, 0}, 0, NULL};
-    sooc3d_mapper *m = fresh_run(db, ", reconnect_s: 0.001, reconnect_max_s: 0.004", NULL, &ls, NULL, &o);
+    sooc_mapper *m = fresh_run(db, ", reconnect_s: 0.001, reconnect_max_s: 0.004", NULL, &ls, NULL, &o);
     CHECK_MSG(o.st == SOOC_OK, "reconnect: %s", sooc_errmsg());
     CHECK_MSG(o.s.keyframes == 30 && o.s.frames_in == 30 && o.s.sensor_lost == 1 && o.s.sensor_reconnects == 1 &&
                   !o.s.sensor_down && ls.reopens == 4,
@@ -204,20 +204,20 @@ static void test_sensor(void) {
               "reconnect: %d lost, %d back, %d still-lost lines", atomic_load(&g_lost), atomic_load(&g_back),
               atomic_load(&g_still));
     size_t ne = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &ne);
-    CHECK_MSG(sooc3d_mapper_next_id(m) == 31 && db_count(db) == ne,
+    sooc_mapper_entries(m, NULL, 0, &ne);
+    CHECK_MSG(sooc_mapper_next_id(m) == 31 && db_count(db) == ne,
               "reconnect: next id %llu (want 31: one map), %zu objects in the database for %zu in the map",
-              (unsigned long long)sooc3d_mapper_next_id(m), db_count(db), ne);
+              (unsigned long long)sooc_mapper_next_id(m), db_count(db), ne);
     printf("sensor: lost at frame 10, back at the 4th reopen: 30 keyframes into one map (%zu objects), "
            "1 'lost' and 1 'back' line\n", ne);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* negative control: no reconnection, the run ends at the loss */
     live_src l2 = {0, 30, 10, 0, 3, 0, {0, 0}, {0, 0}, 0, NULL};
     m = fresh_run(db, ", reconnect_s: 0", NULL, &l2, NULL, &o);
     CHECK_MSG(o.st == SOOC_EIO && o.s.keyframes == 10 && l2.reopens == 0 && atomic_load(&g_lost) == 0,
               "no reconnect: status %d, %llu keyframes", o.st, (unsigned long long)o.s.keyframes);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* a stop request while the device stays away: a clean end */
     live_src l3 = {0, 30, 10, 0, 0, 0, {0, 0}, {0, 0}, 1, NULL};
@@ -226,7 +226,7 @@ static void test_sensor(void) {
                   l3.reopens == 3 && db_count(db) > 0,
               "stopped while lost: status %d, %llu keyframes, down %d, %d reopens", o.st,
               (unsigned long long)o.s.keyframes, o.s.sensor_down, l3.reopens);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 }
 
 static void test_pose(void) {
@@ -239,7 +239,7 @@ static void test_pose(void) {
         gap_pose g = {T0 + cases[k].a * DT - DT / 2, T0 + cases[k].b * DT - DT / 2};
         sooc_node_pose_source ps = {&g, gap_lookup, NULL};
         live_src ls = {0, 60, -1, 0, 0, 0, {0, 0}, {0, 0}, 0, NULL};
-        sooc3d_mapper *m = fresh_run(db, NULL, NULL, &ls, &ps, &o);
+        sooc_mapper *m = fresh_run(db, NULL, NULL, &ls, &ps, &o);
         int gap = cases[k].b - cases[k].a;
         CHECK_MSG(o.st == SOOC_OK && o.s.frames_no_pose == (uint64_t)gap && o.s.keyframes == (uint64_t)(60 - gap) &&
                       o.s.pose_gaps == (uint64_t)cases[k].warn && atomic_load(&g_silent) == cases[k].warn &&
@@ -250,7 +250,7 @@ static void test_pose(void) {
         if (k == 0)
             printf("pose: silent for 40 frames (1.3 s): 40 counted no_pose, 20 keyframes, 1 'no pose' and 1 'back' "
                    "line\n");
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
 }
 
@@ -305,7 +305,7 @@ static void test_clock(void) {
         kf_rec rec = {&ls, {0}, 0};
         g_on_kf = on_kf;
         g_on_kf_user = &rec;
-        sooc3d_mapper *m = fresh_run(db, k == 2 ? ", time_jump_s: 1e6" : NULL, kf, &ls, NULL, &o);
+        sooc_mapper *m = fresh_run(db, k == 2 ? ", time_jump_s: 1e6" : NULL, kf, &ls, NULL, &o);
         g_on_kf = NULL;
         CHECK_OK(o.st);
         char got[256];
@@ -318,7 +318,7 @@ static void test_clock(void) {
         else
             CHECK(o.s.time_jumps == 0 && atomic_load(&g_jump_back) == 0 && atomic_load(&g_jump_fwd) == 0);
         printf("clock case %d: keyframes at frames %s\n", k, got);
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
 }
 

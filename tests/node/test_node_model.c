@@ -403,15 +403,15 @@ static void run_inprocess(void) {
     text[len] = 0;
     sooc_node_config c;
     CHECK_OK(sooc_node_config_parse(&c, text, len, launch));
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
     char model[512];
     snprintf(model, sizeof model, "%s/hot.bin", g_tmp);
     mp.model_path = model;
     mp.threads = 1;
     mp.seed = 3;
-    sooc3d_mapper *m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m = NULL;
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     if (!m) return;
     sooc_node_options o;
     memset(&o, 0, sizeof o);
@@ -428,9 +428,9 @@ static void run_inprocess(void) {
     sooc_node_destroy(n);
 
     size_t ne = 0;
-    CHECK_OK(sooc3d_mapper_entries(m, NULL, 0, &ne));
+    CHECK_OK(sooc_mapper_entries(m, NULL, 0, &ne));
     sooc_map_entry *e = calloc(ne + 1, sizeof *e);
-    CHECK_OK(sooc3d_mapper_entries(m, e, ne, &ne));
+    CHECK_OK(sooc_mapper_entries(m, e, ne, &ne));
     CHECK_MSG(ne > 0, "hot model: no entries");
     CHECK(s.n_objects == ne);
     idset T, D;
@@ -470,15 +470,15 @@ static void run_inprocess(void) {
               (unsigned long long)info.n_keyframes, (unsigned long long)s.keyframes);
     CHECK_MSG(info.layout_dim == 8 && info.n_layout > 0, "layout dim %d, %llu blocks", info.layout_dim,
               (unsigned long long)info.n_layout);
-    CHECK(info.next_id == sooc3d_mapper_next_id(m));
+    CHECK(info.next_id == sooc_mapper_next_id(m));
     char ext[128] = "";
     if (st) CHECK_OK(sooc_mapstore_meta_get(st, "extent", ext, sizeof ext));
     CHECK_MSG(!strcmp(ext, "1.20000005 1.20000005 1.20000005") || !strcmp(ext, "1.2 1.2 1.2"), "extent '%s'", ext);
     sooc_mapstore_close(st);
 
     /* restart: a fresh mapper resumes every entry and layout block */
-    sooc3d_mapper *m2 = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m2, &mp));
+    sooc_mapper *m2 = NULL;
+    CHECK_OK(sooc_mapper_create(&m2, &mp));
     sooc_node_source src;
     memset(&src, 0, sizeof src);
     src.read = empty_read;
@@ -494,22 +494,22 @@ static void run_inprocess(void) {
         sooc_node_destroy(n);
     }
     size_t ne2 = 0;
-    sooc3d_mapper_entries(m2, NULL, 0, &ne2);
+    sooc_mapper_entries(m2, NULL, 0, &ne2);
     sooc_map_entry *e2 = calloc(ne2 + 1, sizeof *e2);
-    sooc3d_mapper_entries(m2, e2, ne2, &ne2);
+    sooc_mapper_entries(m2, e2, ne2, &ne2);
     CHECK(ne2 == ne);
     for (size_t i = 0; i < ne && i < ne2; i++) {
         CHECK(e2[i].id == e[i].id && e2[i].x == e[i].x && e2[i].z == e[i].z);
         CHECK(e2[i].extent[0] == e[i].extent[0] && e2[i].what_mu[0] == e[i].what_mu[0]);
         CHECK(e2[i].geom.flags == e[i].geom.flags && e2[i].geom.reg_n == e[i].geom.reg_n);   /* stored geometry */
     }
-    CHECK(sooc3d_mapper_next_id(m2) == sooc3d_mapper_next_id(m));
+    CHECK(sooc_mapper_next_id(m2) == sooc_mapper_next_id(m));
     /* layout blocks equal */
-    const sooc_cogmap *c1 = sooc3d_mapper_cogmap(m), *c2 = sooc3d_mapper_cogmap(m2);
+    const sooc_cogmap *c1 = sooc_mapper_cogmap(m), *c2 = sooc_mapper_cogmap(m2);
     CHECK(sooc_cogmap_layout_count(c1) == sooc_cogmap_layout_count(c2));
     int32_t bi, bj;
     float mu1[32], lv1[32], mu2[32], lv2[32];
-    if (!sooc3d_mapper_last_layout(m, &bi, &bj, mu1, lv1)) {
+    if (!sooc_mapper_last_layout(m, &bi, &bj, mu1, lv1)) {
         CHECK_OK(sooc_cogmap_layout_get(c2, bi, bj, mu2, lv2));
         CHECK(!memcmp(mu1, mu2, 8 * sizeof(float)) && !memcmp(lv1, lv2, 8 * sizeof(float)));
     } else {
@@ -517,8 +517,8 @@ static void run_inprocess(void) {
     }
     free(e);
     free(e2);
-    sooc3d_mapper_destroy(m);
-    sooc3d_mapper_destroy(m2);
+    sooc_mapper_destroy(m);
+    sooc_mapper_destroy(m2);
     shm_unlink(shm_path);
 }
 

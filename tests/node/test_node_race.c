@@ -103,10 +103,10 @@ static void one_run(int run, uint64_t *reads_before, uint64_t *reads_after) {
     fx_src fs = {0, 24, 0.15, 0};
     sooc_node_source src = fx_source(&fs);
     src.read = read_frame;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc3d_mapper *m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    sooc_mapper *m = NULL;
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     sooc_node_options o;
     memset(&o, 0, sizeof o);
     o.source = &src;
@@ -114,7 +114,7 @@ static void one_run(int run, uint64_t *reads_before, uint64_t *reads_after) {
     sooc_node *n = NULL;
     CHECK_OK(sooc_node_create(&n, &c, &o));
     if (!n) {
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
         return;
     }
     reader r;
@@ -149,7 +149,7 @@ static void one_run(int run, uint64_t *reads_before, uint64_t *reads_after) {
     *reads_before += r.reads_before;
     *reads_after += r.reads_after;
     sooc_node_destroy(n);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 }
 
 int main(void) {

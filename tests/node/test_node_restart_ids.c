@@ -20,7 +20,6 @@
 #include "node_fixture.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
-#if SOOC_NODE_HAVE_TABLE && SOOC_NODE_HAVE_MAPSTORE
 #include "sooc3d/table.h"
 
 static char g_tmp[256], g_shm[64];
@@ -49,10 +48,10 @@ static void run_node(const char *db, int first, int n) {
              g_tmp, g_shm, db);
     sooc_node_config c;
     CHECK_OK(sooc_node_config_parse(&c, text, strlen(text), "restart_ids.yaml"));
-    sooc3d_mapper *m = NULL;
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper *m = NULL;
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     fx_src s = {first, first + n, 0.15, 0};
     sooc_node_source src = fx_source(&s);
     sooc_node_options o;
@@ -66,7 +65,7 @@ static void run_node(const char *db, int first, int n) {
         CHECK_OK(sooc_node_run(node));
         sooc_node_destroy(node);
     }
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 }
 
 /* The table as a planner reads it after the run (the writer closed it). */
@@ -164,9 +163,3 @@ int main(void) {
     if (system(cmd)) fprintf(stderr, "cleanup of %s failed\n", g_tmp);
     return check_report("test_node_restart_ids");
 }
-#else
-int main(void) {
-    fprintf(stderr, "test_node_restart_ids: node built without the table or the map store: skipped\n");
-    return 77;
-}
-#endif

@@ -1,6 +1,6 @@
 /* Slot counts and the same-pose rule, with the REAL model.
  *
- *  1. sooc3d_mapper_same_pose on crafted λ rows: the higher presence is kept
+ *  1. sooc_mapper_same_pose on crafted λ rows: the higher presence is kept
  *     (tie: the lower slot), the radius is exclusive, absent slots neither turn
  *     others off nor are counted, a retrieved id passes to the kept slot.
  *  2. A crafted mapper update: an untrained model with two identical "hot"
@@ -65,7 +65,7 @@ static void test_rule(void) {
     set_slot(lam, D, 4, 3.0f, 3.0f, 1.0f);             /* 1.01 r from slot 5: both stay                  */
     set_slot(lam, D, 5, 3.0f + 1.01f * (float)r, 3.0f, 0.5f);
     set_slot(lam, D, 6, 1.0f, 2.0f, -0.5f);            /* absent at slot 2's pose: untouched, not counted */
-    int off = sooc3d_mapper_same_pose(lam, src, K, D, r);
+    int off = sooc_mapper_same_pose(lam, src, K, D, r);
     CHECK_MSG(off == 2, "same_pose turned off %d slots, want 2", off);
     CHECK(pres(lam, D, 0) < 0 && pres(lam, D, 2) == 3.0f);
     CHECK(pres(lam, D, 1) == 1.0f && pres(lam, D, 3) < 0);
@@ -78,12 +78,12 @@ static void test_rule(void) {
     uint64_t src2[2] = {3, 4};
     set_slot(lam, D, 0, 0.0f, 1.0f, 0.2f);
     set_slot(lam, D, 1, 0.0f, 1.0f, 0.1f);
-    CHECK(sooc3d_mapper_same_pose(lam, src2, 2, D, r) == 1);
+    CHECK(sooc_mapper_same_pose(lam, src2, 2, D, r) == 1);
     CHECK(pres(lam, D, 1) < 0 && src2[0] == 3 && src2[1] == 4);
     /* off */
     set_slot(lam, D, 1, 0.0f, 1.0f, 0.1f);
-    CHECK(sooc3d_mapper_same_pose(lam, src2, 2, D, 0.0) == 0 && pres(lam, D, 1) == 0.1f);
-    CHECK(sooc3d_mapper_same_pose(lam, NULL, 2, D, r) == 1);
+    CHECK(sooc_mapper_same_pose(lam, src2, 2, D, 0.0) == 0 && pres(lam, D, 1) == 0.1f);
+    CHECK(sooc_mapper_same_pose(lam, NULL, 2, D, r) == 1);
 }
 
 /* ------------------------------------------ 2. a crafted mapper update */
@@ -130,22 +130,22 @@ static int first_frame(sooc_frame *f) {
 }
 
 static void crafted_update(const char *model, double same_pose, int want_registered, int want_same) {
-    sooc3d_mapper_params p;
-    sooc3d_mapper_params_default(&p);
+    sooc_mapper_params p;
+    sooc_mapper_params_default(&p);
     p.model_path = model;
     p.threads = 1;
     p.same_pose = same_pose;
-    sooc3d_mapper *m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &p));
+    sooc_mapper *m = NULL;
+    CHECK_OK(sooc_mapper_create(&m, &p));
     if (!m) return;
     sooc_frame f;
     memset(&f, 0, sizeof f);
     CHECK(first_frame(&f) == 0);
-    sooc3d_update_stats us;
-    CHECK_OK(sooc3d_mapper_update(m, &f, &us));
+    sooc_update_stats us;
+    CHECK_OK(sooc_mapper_update(m, &f, &us));
     sooc_map_entry e[4];
     size_t n = 0;
-    CHECK_OK(sooc3d_mapper_entries(m, e, 4, &n));
+    CHECK_OK(sooc_mapper_entries(m, e, 4, &n));
     double d = n == 2 ? hypot(e[0].x - e[1].x, e[0].z - e[1].z) : -1;
     printf("crafted update %s, same_pose %g: %d registered, %d turned off, %zu entries%s", strrchr(model, '/') + 1,
            same_pose, us.n_registered, us.n_same_pose, n, n == 2 ? "" : "\n");
@@ -156,7 +156,7 @@ static void crafted_update(const char *model, double same_pose, int want_registe
     if (same_pose < 0 && want_registered == 2) CHECK_MSG(d >= 0 && d < 1e-5, "identical priors %.3g m apart", d);
     if (same_pose >= 0 && n == 2) CHECK_MSG(d > 0.5, "priors 1 m apart end %.3g m apart", d);
     sooc_frame_free(&f);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 }
 
 /* -------------------------------------------- 3-5. the node per slot count */

@@ -35,7 +35,7 @@
 #include "sooc3d/node.h"
 #include "sooc3d/table.h"
 
-int fake_mapper_get_block(const sooc3d_mapper *m, int32_t bi, int32_t bj, float *mu);
+int fake_mapper_get_block(const sooc_mapper *m, int32_t bi, int32_t bj, float *mu);
 
 static char g_tmp[256], g_shm[64];
 static atomic_int g_log_failing, g_log_still, g_log_back, g_log_end;
@@ -116,7 +116,7 @@ static int db_read(const char *db, dbmap *m) {
 
 typedef struct blkchk {
     int bad, n;
-    sooc3d_mapper *m;
+    sooc_mapper *m;
 } blkchk;
 
 static int block_visit(void *u, int32_t bi, int32_t bj, const float *mu, const float *lv) {
@@ -131,16 +131,16 @@ static int block_visit(void *u, int32_t bi, int32_t bj, const float *mu, const f
 /* 1 when the database holds exactly the mapper's map: the same objects
  * (id, x, z, obs_count), its layout blocks, an id counter at least the
  * mapper's, and `keyframes` rows. why gets the first difference. */
-static int db_equals_map(const char *db, sooc3d_mapper *m, uint64_t keyframes, char *why, size_t cap) {
+static int db_equals_map(const char *db, sooc_mapper *m, uint64_t keyframes, char *why, size_t cap) {
     static dbmap d;
     if (db_read(db, &d)) {
         snprintf(why, cap, "cannot read %s: %s", db, sooc_errmsg());
         return 0;
     }
     size_t ne = 0;
-    sooc3d_mapper_entries(m, NULL, 0, &ne);
+    sooc_mapper_entries(m, NULL, 0, &ne);
     sooc_map_entry *e = calloc(ne + 1, sizeof *e);
-    sooc3d_mapper_entries(m, e, ne, &ne);
+    sooc_mapper_entries(m, e, ne, &ne);
     int ok = 1;
     if (d.n != ne) {
         snprintf(why, cap, "database has %zu objects, the map %zu", d.n, ne);
@@ -159,9 +159,9 @@ static int db_equals_map(const char *db, sooc3d_mapper *m, uint64_t keyframes, c
         }
     }
     free(e);
-    if (ok && d.next_id < sooc3d_mapper_next_id(m)) {
+    if (ok && d.next_id < sooc_mapper_next_id(m)) {
         snprintf(why, cap, "id counter %llu below the map's %llu", (unsigned long long)d.next_id,
-                 (unsigned long long)sooc3d_mapper_next_id(m));
+                 (unsigned long long)sooc_mapper_next_id(m));
         ok = 0;
     }
     if (ok && d.n_keyframes != keyframes) {
@@ -273,7 +273,7 @@ typedef struct run_out {
 } run_out;
 
 /* One run of nf keyframes into db (removed first) with the mapper m. */
-static void run_node(const char *db, sooc3d_mapper *m, int nf, double retry_s, int busy_ms, run_ctx *rc,
+static void run_node(const char *db, sooc_mapper *m, int nf, double retry_s, int busy_ms, run_ctx *rc,
                      run_out *out, const char *filler, int64_t filler_keep) {
     char p[600];
     snprintf(p, sizeof p, "%s-wal", db);
@@ -328,7 +328,7 @@ static void run_node(const char *db, sooc3d_mapper *m, int nf, double retry_s, i
 }
 
 /* The checks every recovered run passes. */
-static void check_recovered(const char *what, const char *db, sooc3d_mapper *m, const run_out *o) {
+static void check_recovered(const char *what, const char *db, sooc_mapper *m, const run_out *o) {
     char why[512];
     CHECK_MSG(o->run_st == SOOC_OK, "%s: run failed", what);
     CHECK_MSG(sql_integrity_ok(db, why, sizeof why), "%s: integrity_check: %s", what, why);
@@ -348,12 +348,12 @@ static void check_recovered(const char *what, const char *db, sooc3d_mapper *m, 
  * to) failing with `code` (from = INT64_MAX: none), rc preset by the caller
  * except that it is cleared when clear_rc; returns the mapper (the caller
  * destroys it). */
-static sooc3d_mapper *faulted_run(const char *db, int64_t from, int64_t to, int code, double retry_s, int busy_ms,
+static sooc_mapper *faulted_run(const char *db, int64_t from, int64_t to, int code, double retry_s, int busy_ms,
                                   run_ctx *rc, int clear_rc, run_out *o) {
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
-    sooc3d_mapper *m = NULL;
-    CHECK_OK(sooc3d_mapper_create(&m, &mp));
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
+    sooc_mapper *m = NULL;
+    CHECK_OK(sooc_mapper_create(&m, &mp));
     if (clear_rc) memset(rc, 0, sizeof *rc);
     fvfs_reset_count();
     fvfs_fail(from, to, code);
@@ -368,11 +368,11 @@ static void test_vfs(void) {
     /* a clean run: how many writes the create and the whole run make */
     run_ctx rc;
     run_out o;
-    sooc3d_mapper *m = faulted_run(db, INT64_MAX, INT64_MAX, SQLITE_FULL, 0, 50, &rc, 1, &o);
+    sooc_mapper *m = faulted_run(db, INT64_MAX, INT64_MAX, SQLITE_FULL, 0, 50, &rc, 1, &o);
     int64_t w0 = o.writes_after_create, w1 = fvfs_writes();
     check_recovered("clean run", db, m, &o);
     CHECK(o.st.keyframes == NF && o.st.store_failures == 0 && !rc.saw_failing);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
     printf("clean run: %lld writes at create, %lld in all, %llu keyframes\n", (long long)w0, (long long)w1,
            (unsigned long long)o.st.keyframes);
 
@@ -392,7 +392,7 @@ static void test_vfs(void) {
             CHECK_MSG(o.st.store_fault == (runs % 2 ? SOOC_MAPSTORE_FAULT_IO : SOOC_MAPSTORE_FAULT_FULL),
                       "%s: fault %d", what, o.st.store_fault);
         }
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
     printf("single failed writes: %d runs, %d of them failed a commit and recovered\n", runs, episodes);
     CHECK(episodes >= runs / 2);
@@ -408,7 +408,7 @@ static void test_vfs(void) {
     printf("window of 25 failed writes: %llu failed commits from keyframe %llu, %llu objects waited at most, "
            "1 recovery\n", (unsigned long long)o.st.store_failures, (unsigned long long)rc.kf_first_failing,
            (unsigned long long)rc.pending_max);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* 3. backoff: with retry_s 3600 the run makes no second attempt; the end of the run writes it all */
     m = faulted_run(db, w0 + (w1 - w0) / 3, w0 + (w1 - w0) / 3 + 1, SQLITE_FULL, 3600, 50, &rc, 1, &o);
@@ -417,7 +417,7 @@ static void test_vfs(void) {
                   o.st.store_failures == 1 && o.st.store_recoveries == 1 && rc.pending_max > 5,
               "backoff: %llu failures (%llu later), pending max %llu", (unsigned long long)o.st.store_failures,
               (unsigned long long)rc.failures_after_first_kf, (unsigned long long)rc.pending_max);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* 4. the database locked by another connection for 10 keyframes */
     memset(&rc, 0, sizeof rc);
@@ -429,7 +429,7 @@ static void test_vfs(void) {
                   o.st.store_recoveries == 1 && o.st.store_failures >= 9,
               "locked: failing from %llu, fault %d, %llu failures", (unsigned long long)rc.kf_first_failing,
               o.st.store_fault, (unsigned long long)o.st.store_failures);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* 5. negative control: the writes fail from the middle of the run on, for good */
     m = faulted_run(db, w0 + (w1 - w0) / 2, INT64_MAX, SQLITE_FULL, 0, 50, &rc, 1, &o);
@@ -446,7 +446,7 @@ static void test_vfs(void) {
     CHECK_MSG(after.n == rc.snap.n && after.n_keyframes == rc.snap.n_keyframes &&
                   !memcmp(after.r, rc.snap.r, after.n * sizeof *after.r),
               "negative control: the database changed after the failure (%zu -> %zu objects)", rc.snap.n, after.n);
-    sooc3d_mapper_destroy(m);
+    sooc_mapper_destroy(m);
 
     /* negative control of the integrity check: a copy with a page overwritten fails it */
     char bad[500];
@@ -486,11 +486,11 @@ static int test_tmpfs(void) {
     }
     snprintf(db, sizeof db, "%s/map.db", mnt);
     snprintf(filler, sizeof filler, "%s/filler", mnt);
-    sooc3d_mapper_params mp;
-    sooc3d_mapper_params_default(&mp);
+    sooc_mapper_params mp;
+    sooc_mapper_params_default(&mp);
     for (int freeit = 1; freeit >= 0; freeit--) {
-        sooc3d_mapper *m = NULL;
-        CHECK_OK(sooc3d_mapper_create(&m, &mp));
+        sooc_mapper *m = NULL;
+        CHECK_OK(sooc_mapper_create(&m, &mp));
         run_ctx rc;
         memset(&rc, 0, sizeof rc);
         rc.free_after = freeit ? 10 : (uint64_t)1 << 40;
@@ -531,7 +531,7 @@ static int test_tmpfs(void) {
                           !memcmp(d.r, rc.snap.r, d.n * sizeof *d.r),
                       "%s: the database changed after the disk filled (%zu -> %zu objects)", what, rc.snap.n, d.n);
         }
-        sooc3d_mapper_destroy(m);
+        sooc_mapper_destroy(m);
     }
     unlink(filler);
     if (umount2(mnt, MNT_DETACH)) fprintf(stderr, "umount %s: %s\n", mnt, strerror(errno));

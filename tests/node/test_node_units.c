@@ -10,6 +10,7 @@
 
 #include "check.h"
 #include "sooc3d/node.h"
+#include "node/node_parts.h"
 
 #define PI 3.14159265358979323846
 
@@ -90,10 +91,10 @@ static void test_launch(void) {
     CHECK_CLOSE(dflt.merge_m, 0.35, 0, 0);
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: -1\n", "t.yaml:3", "model.merge_m");
     /* model.latents: mean (default) | sample */
-    CHECK(c.latents == SOOC3D_LATENTS_MEAN && strstr(buf, "latents: mean"));
+    CHECK(c.latents == SOOC_LATENTS_MEAN && strstr(buf, "latents: mean"));
     const char *lat = "sensor: {driver: replay, path: x}\nmodel:\n  latents: sample\n";
     CHECK_OK(sooc_node_config_parse(&c, lat, strlen(lat), "l.yaml"));
-    CHECK(c.latents == SOOC3D_LATENTS_SAMPLE);
+    CHECK(c.latents == SOOC_LATENTS_SAMPLE);
     CHECK(sooc_node_config_format(&c, buf, sizeof buf) < sizeof buf && strstr(buf, "latents: sample"));
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  latents: median\n", "t.yaml:3", "model.latents");
     expect_bad("sensor: {driver: replay, path: x}\nmodel:\n  merge_m: wide\n", "t.yaml:3", "model.merge_m");

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """PyTorch reference (float64) for the refinement-network kernel pairs of
-include/sooc3d/nn_refine.h, in the model's layouts.
+src/nn/nn_refine.h, in the model's layouts.
 
 A small refinement net as src/model/refine.c wires it:
   * MulMON layer norm (x - mean) / (std + 1e-5) of image channels 1..2 of

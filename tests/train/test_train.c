@@ -262,7 +262,7 @@ static void test_resume(void) {
         }
         sooc_model_destroy(mm);
         /* every pixel (64 x 64 rays) from the 32 x 32 checkpoint: the same weights
-         * (mdl_ref_flatten pools), one step on the new grid */
+         * (sooc_mdl_ref_flatten pools), one step on the new grid */
         char oute[600];
         snprintf(oute, sizeof oute, "%s/run_e", g_dir);
         mk = mc;

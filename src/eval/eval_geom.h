@@ -48,10 +48,6 @@ typedef struct sooc_geom_match {
     int sym_pred, sym_gt;
 } sooc_geom_match;
 
-/* 1 if the shape's footprint is a disc (see above). */
-int sooc_geom_shape_round(sooc_shape s);
-/* GT tight box of object o in a frame with yaw `yaw` (extent x, y, z). */
-void sooc_geom_gt_extent(const sooc_scene_object *o, double yaw, double ext[3]);
 
 /* Match and score the entries e[0..n) against sc's objects (see above).
  * out: room for sc->n_objects; *n_out = matched pairs. */

@@ -1,5 +1,6 @@
 /*
- * sooc3d nn: the kernels the model runs.
+ * sooc3d nn: the kernels the model runs. The internal interface of src/nn for
+ * src/model (docs/architecture.md "Layers"): not installed, not a public API.
  *
  *  - sooc_nn_gemm / sooc_nn_gemm_tn: row-major GEMMs for narrow layers
  *    (N = 16..64 outputs, K = 33..576) with the bias / accumulate init and a

@@ -8,7 +8,7 @@
  * entry stays: a resumed map, or the far end of a large scene). The change
  * set of one update holds at most SOOC_MAPPER_CHANGED_MAX entries and as many
  * removals; the rest wait for the next updates (oldest change first). */
-#include "model/mapper_geo.h"
+#include "mapper/mapper_geo.h"
 #include "sooc3d/cluster.h"
 #include "sooc3d/geom.h"
 
@@ -40,7 +40,7 @@ struct mdl_geo {
     size_t n_chg, n_rep_rem;
 };
 
-sooc_status mdl_geo_create(mdl_geo **out, const sooc3d_mapper_params *p) {
+sooc_status sooc_mdl_geo_create(mdl_geo **out, const sooc_mapper_params *p) {
     *out = NULL;
     if (p->input_width < 8 || p->input_height < 8 || p->input_width > 8192 || p->input_height > 8192)
         return sooc_seterr(SOOC_EINVAL, "mapper (geometric): input size %dx%d (8..8192)", p->input_width,
@@ -59,7 +59,7 @@ sooc_status mdl_geo_create(mdl_geo **out, const sooc3d_mapper_params *p) {
     return SOOC_OK;
 }
 
-void mdl_geo_destroy(mdl_geo *g) {
+void sooc_mdl_geo_destroy(mdl_geo *g) {
     if (!g) return;
     sooc_cluster_map_destroy(g->cm);
     sooc_free(g->ent);
@@ -68,9 +68,9 @@ void mdl_geo_destroy(mdl_geo *g) {
     sooc_free(g);
 }
 
-void mdl_geo_input_size(const mdl_geo *g, int *w, int *h) { *w = g->w, *h = g->h; }
-uint64_t mdl_geo_next_id(const mdl_geo *g) { return g->next_id; }
-void mdl_geo_reserve_ids(mdl_geo *g, uint64_t next_id) {
+void sooc_mdl_geo_input_size(const mdl_geo *g, int *w, int *h) { *w = g->w, *h = g->h; }
+uint64_t sooc_mdl_geo_next_id(const mdl_geo *g) { return g->next_id; }
+void sooc_mdl_geo_reserve_ids(mdl_geo *g, uint64_t next_id) {
     if (next_id > g->next_id) g->next_id = next_id;
 }
 
@@ -137,7 +137,7 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
                 fabs(e->extent[2] - o->extent[2]) > GEO_MOVED_M || fabs(sooc_wrap_angle(e->yaw - o->yaw)) > 0.02;
     e->x = o->x, e->z = o->z, e->yaw = o->yaw;
     for (int i = 0; i < 3; i++) e->extent[i] = (float)o->extent[i];
-    e->latent_dim = SOOC3D_GEOMETRIC_LATENT_DIM;
+    e->latent_dim = SOOC_GEOMETRIC_LATENT_DIM;
     for (int i = 0; i < 3; i++) e->what_mu[i] = (float)o->rgb[i], e->what_logvar[i] = 0;
     if (!e->obs_count) e->first_seen_ns = f->t_ns;
     e->last_seen_ns = f->t_ns;
@@ -175,7 +175,7 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
     if (moved && !ge->dirty) ge->dirty = upd;
 }
 
-sooc_status mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc3d_update_stats *us) {
+sooc_status sooc_mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc_update_stats *us) {
     double t0 = sooc_seconds();
     memset(us, 0, sizeof *us);
     g->upd++;
@@ -256,7 +256,7 @@ sooc_status mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc3d_update_stats 
     return SOOC_OK;
 }
 
-sooc_status mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n) {
+sooc_status sooc_mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n) {
     if (!out) {
         *n = g->n;
         return SOOC_OK;
@@ -267,12 +267,12 @@ sooc_status mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t cap, s
     return SOOC_OK;
 }
 
-sooc_status mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_t n) {
+sooc_status sooc_mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_t n) {
     for (size_t i = 0; i < n; i++)
-        if (e[i].latent_dim != SOOC3D_GEOMETRIC_LATENT_DIM || !e[i].id)
+        if (e[i].latent_dim != SOOC_GEOMETRIC_LATENT_DIM || !e[i].id)
             return sooc_seterr(SOOC_EINVAL, "mapper (geometric): entry %llu has latent_dim %d, a geometric map's "
                                             "entries have %d (a map made by a learnt model?)",
-                               (unsigned long long)e[i].id, e[i].latent_dim, SOOC3D_GEOMETRIC_LATENT_DIM);
+                               (unsigned long long)e[i].id, e[i].latent_dim, SOOC_GEOMETRIC_LATENT_DIM);
     g->n = 0;
     sooc_status st = grow((void **)&g->ent, &g->cap, n, sizeof *g->ent);
     if (st) return st;
@@ -286,7 +286,7 @@ sooc_status mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_t n) 
     return SOOC_OK;
 }
 
-sooc_status mdl_geo_changed(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
+sooc_status sooc_mdl_geo_changed(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
                             size_t cap_r, size_t *n_removed) {
     if (n) *n = g->n_chg;
     if (n_removed) *n_removed = g->n_rep_rem;

@@ -1,6 +1,7 @@
 /*
  * sooc3d nn: the layers of the refinement network (docs/model.md "Layers") as the model
- * runs them, as forward/backward kernel pairs. src/model/refine.c
+ * runs them, as forward/backward kernel pairs (the internal interface of src/nn
+ * for src/model; docs/architecture.md "Layers"). src/model/refine.c
  * is built from these; tests/nn/test_nn_refine_grad.c checks every pair by
  * finite differences in float64, tests/nn/test_nn_refine_ref.c against
  * PyTorch (tests/ref/refine_ref.py).
@@ -15,7 +16,7 @@
  *
  * Every float32 kernel, forward and backward, computes each output as ONE
  * multiply-add chain over the reduction index in order (sooc_nn_gemm,
- * _gemm_tn and _gemm_nt of sooc3d/nn_kern.h: AVX2/FMA, or the portable C
+ * _gemm_tn and _gemm_nt of nn/nn_kern.h: AVX2/FMA, or the portable C
  * kernel), then adds the bias and applies the activation; results do not
  * depend on how items are split across threads nor on the BLAS library. ELU is exp(x) - 1 with a Cephes polynomial
  * (relative error < 1e-7, like expf).
@@ -42,8 +43,6 @@ extern "C" {
 static inline size_t sooc_nn_rconv_cols_floats(int Ci, int nb, int H, int W) {
     return (size_t)Ci * 9 * (size_t)nb * (size_t)(H / 2) * (size_t)(W / 2);
 }
-/* Columns of channels [c0, c0 + nc) of items [b0, b1): row (c, ky, kx), column (b, oy, ox). */
-void sooc_nn_rconv_im2col(const float *x, int c0, int nc, int B, int b0, int b1, int H, int W, float *cols);
 /* The share of input channels [0, nsh) of item 0 in the convolution (no bias):
  * ysh[Co][Ho*Wo]. For inputs whose first nsh channels are the same for every
  * item (and stored for item 0 only). cols: sooc_nn_rconv_cols_floats(nsh, 1, H, W). */

@@ -1,5 +1,5 @@
 /* The creation gate of the node's revisit rules (docs/cogmap.md "Revisits",
- * rule 5; include/sooc3d/mapper.h sooc3d_mapper_gate): on a keyframe's final
+ * rule 5; include/sooc3d/mapper.h sooc_mapper_gate): on a keyframe's final
  * decode, a new slot creates an entry only where it explains observed rays
  * that the registered retrieved entries leave unexplained, and not when the
  * rays it claims lie inside the floor box of one of them (the far part of a
@@ -8,32 +8,32 @@
 
 #include <math.h>
 
-int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double ratio, double part_frac,
-                       sooc3d_gate_verdict *out) {
+int sooc_mapper_gate(const sooc_gate_input *in, double min_rays, double ratio, double part_frac,
+                       sooc_gate_verdict *out) {
     const int K = in->n_slots;
     if (K <= 0) return 0;
     SOOC_ASSERT(K <= SOOC_MAPPER_CHANGED_MAX);
     const int NB = in->n_boxes > 0 ? in->n_boxes : 0, NC = K + NB;   /* part candidates: slots, then boxes */
-    SOOC_ASSERT(NB <= SOOC3D_GATE_MAX_BOXES);
-    enum { MAXC = SOOC_MAPPER_CHANGED_MAX + SOOC3D_GATE_MAX_BOXES };
+    SOOC_ASSERT(NB <= SOOC_GATE_MAX_BOXES);
+    enum { MAXC = SOOC_MAPPER_CHANGED_MAX + SOOC_GATE_MAX_BOXES };
     int known[MAXC], nk = 0, any_new = 0;
     double cs[MAXC], sn[MAXC], px[MAXC], pz[MAXC];
     int inbox[SOOC_MAPPER_CHANGED_MAX][MAXC];   /* [new slot][candidate] owned points in its box */
     float rsum[SOOC_MAPPER_CHANGED_MAX][MAXC];  /* sum of min(1, known / new density) there (slots) */
     for (int k = 0; k < K; k++) {
-        sooc3d_gate_verdict *v = &out[k];
+        sooc_gate_verdict *v = &out[k];
         v->owned = v->alone = 0;
         v->part = -1;
         v->part_share = v->part_ratio = 0.0f;
         v->create = 1;
-        v->reason = SOOC3D_GATE_NOT_NEW;
+        v->reason = SOOC_GATE_NOT_NEW;
         const float *ps = in->pose + (size_t)k * in->pose_stride;
         cs[k] = cos(ps[2]);
         sn[k] = sin(ps[2]);
         px[k] = ps[0];
         pz[k] = ps[1];
-        if (in->role[k] == SOOC3D_GATE_KNOWN) known[nk++] = k;
-        if (in->role[k] == SOOC3D_GATE_NEW) any_new = 1;
+        if (in->role[k] == SOOC_GATE_KNOWN) known[nk++] = k;
+        if (in->role[k] == SOOC_GATE_NEW) any_new = 1;
         for (int j = 0; j < NC; j++) inbox[k][j] = 0, rsum[k][j] = 0.0f;
     }
     for (int b = 0; b < NB; b++) {   /* map entries that are not slots: box test only */
@@ -53,7 +53,7 @@ int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double rati
         for (int c = 1; c <= K; c++)
             if (d[c] > d[best]) best = c;
         int k = best - 1;
-        if (k < 0 || in->role[k] != SOOC3D_GATE_NEW || !(d[best] > 0)) continue;
+        if (k < 0 || in->role[k] != SOOC_GATE_NEW || !(d[best] > 0)) continue;
         out[k].owned++;
         int alone = 1;
         const float *p = in->pts + (size_t)r * in->pts_stride;
@@ -71,8 +71,8 @@ int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double rati
     }
     int refused = 0;
     for (int k = 0; k < K; k++) {
-        if (in->role[k] != SOOC3D_GATE_NEW) continue;
-        sooc3d_gate_verdict *v = &out[k];
+        if (in->role[k] != SOOC_GATE_NEW) continue;
+        sooc_gate_verdict *v = &out[k];
         for (int a = 0; a < nk; a++) {
             int j = known[a];
             if (inbox[k][j] > 0 && (v->part < 0 || inbox[k][j] > inbox[k][v->part])) v->part = j;
@@ -81,10 +81,10 @@ int sooc3d_mapper_gate(const sooc3d_gate_input *in, double min_rays, double rati
             v->part_share = (float)inbox[k][v->part] / (float)v->owned;
             v->part_ratio = rsum[k][v->part] / (float)inbox[k][v->part];
         }
-        if (min_rays >= 0 && v->alone < min_rays * in->n_rays) v->reason = SOOC3D_GATE_FEW_RAYS;
-        else if (part_frac >= 0 && v->part >= 0 && v->part_share >= part_frac) v->reason = SOOC3D_GATE_PART_OF;
-        else v->reason = SOOC3D_GATE_CREATED;
-        v->create = v->reason == SOOC3D_GATE_CREATED;
+        if (min_rays >= 0 && v->alone < min_rays * in->n_rays) v->reason = SOOC_GATE_FEW_RAYS;
+        else if (part_frac >= 0 && v->part >= 0 && v->part_share >= part_frac) v->reason = SOOC_GATE_PART_OF;
+        else v->reason = SOOC_GATE_CREATED;
+        v->create = v->reason == SOOC_GATE_CREATED;
         refused += !v->create;
     }
     return refused;

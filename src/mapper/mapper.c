@@ -7,7 +7,7 @@
 #include <string.h>
 #include <stdio.h>
 
-#include "model/mapper_geo.h"
+#include "mapper/mapper_geo.h"
 #include "model/propose.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
@@ -21,18 +21,18 @@
 _Static_assert(SOOC_MAPPER_CHANGED_MAX >= SOOC_MODEL_K_MAX, "SOOC_MAPPER_CHANGED_MAX below SOOC_MODEL_K_MAX");
 _Static_assert(SOOC_MODEL_D_MAX <= SOOC_COGMAP_DIM_MAX, "λ rows of the same-pose copy");
 
-struct sooc3d_mapper {
+struct sooc_mapper {
     sooc_model *m;
     sooc_model_ws *ws;   /* the mapper runs the model: its workspace (decoder, refinement, step state, pool) */
     sooc_cogmap *map;
     view_rec V;
     int L, view_idx;
-    double merge_r;   /* sooc3d_mapper_params.merge_radius, resolved (0 = off) */
-    int merge_nb;     /* sooc3d_mapper_params.merge_neighbours */
+    double merge_r;   /* sooc_mapper_params.merge_radius, resolved (0 = off) */
+    int merge_nb;     /* sooc_mapper_params.merge_neighbours */
     double same_r;    /* same-pose radius in m, resolved (0 = off) */
-    int sample;       /* 1 = SOOC3D_LATENTS_SAMPLE */
+    int sample;       /* 1 = SOOC_LATENTS_SAMPLE */
     sooc_rng rng;
-    /* what the last update changed (sooc3d_mapper_changed / _last_layout) */
+    /* what the last update changed (sooc_mapper_changed / _last_layout) */
     uint64_t chg_ids[SOOC_MODEL_K_MAX], rem_ids[SOOC_MODEL_K_MAX];
     /* the final λ and source ids after the same-pose rule (registered from here) */
     float lam_reg[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
@@ -52,14 +52,14 @@ struct sooc3d_mapper {
     double gate_min, gate_ratio, gate_part;
     float lam_gate[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
     dec_noise gate_noise;
-    float gate_boxes[SOOC3D_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
-    uint64_t gate_box_ids[SOOC3D_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
+    float gate_boxes[SOOC_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
+    uint64_t gate_box_ids[SOOC_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
     mdl_geo *gm;               /* kind geometric (mapper_geo.c): the cluster map instead of the model */
     sooc_cluster_map *prop;    /* geometric proposals (propose.c): the keyframe's clusters; NULL = off */
     mdl_prop_params prop_p;
 };
 
-void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
+void sooc_mapper_params_default(sooc_mapper_params *p) {
     memset(p, 0, sizeof *p);
     p->model_path = "models/default/model.bin";
     p->seed = 1;
@@ -67,17 +67,17 @@ void sooc3d_mapper_params_default(sooc3d_mapper_params *p) {
     p->input_width = 160, p->input_height = 120;
 }
 
-sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads);
+static sooc_status sooc_mdl_mapper_create_from(sooc_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads);
 
-sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads) {
+static sooc_status sooc_mdl_mapper_create_from(sooc_mapper **out, sooc_model *m, int iterations, uint64_t seed, int threads) {
     *out = NULL;
-    sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
+    sooc_mapper *mp = sooc_calloc(1, sizeof *mp);
     if (!mp) return SOOC_ENOMEM;
     mp->m = m;   /* calloc: merge off, latents mean (the defaults) */
-    sooc3d_mapper_set_gate(mp, 0, 0, 0);
+    sooc_mapper_set_gate(mp, 0, 0, 0);
     const sooc_model_config *c = sooc_model_get_config(m);
     mp->L = iterations > 0 ? iterations : c->L;
-    mp->same_r = SOOC3D_MAPPER_SAME_POSE_FRAC * 2.0 * c->box_rh * c->unit_m;   /* metres */
+    mp->same_r = SOOC_MAPPER_SAME_POSE_FRAC * 2.0 * c->box_rh * c->unit_m;   /* metres */
     if (mp->L > 16) mp->L = 16;
     sooc_model_set_threads(m, threads);
     sooc_cogmap_params cp;
@@ -88,12 +88,12 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     sooc_status st = sooc_cogmap_create(&mp->map, &cp);
     if (!st) st = sooc_objgeom_cache_create(&mp->geo);
     mp->geo_budget = SOOC_OBJGEOM_BUDGET;
-    if (!st) st = mdl_view_alloc(m, &mp->V, mp->L);
+    if (!st) st = sooc_mdl_view_alloc(m, &mp->V, mp->L);
     if (!st) st = sooc_model_ws_create(&mp->ws, m);
-    if (!st && !mdl_step_state(mp->ws, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
+    if (!st && !sooc_mdl_step_state(mp->ws, 1, mp->L)) st = sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
     if (st) {
         mp->m = NULL;
-        sooc3d_mapper_destroy(mp);
+        sooc_mapper_destroy(mp);
         return st;
     }
     sooc_rng_seed(&mp->rng, seed, 0x6d6170ULL);
@@ -101,17 +101,17 @@ sooc_status mdl_mapper_create_from(sooc3d_mapper **out, sooc_model *m, int itera
     return SOOC_OK;
 }
 
-sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params *p) {
+sooc_status sooc_mapper_create(sooc_mapper **out, const sooc_mapper_params *p) {
     *out = NULL;
-    if (p->kind == SOOC3D_MAPPER_GEOMETRIC) {
-        sooc3d_mapper *mp = sooc_calloc(1, sizeof *mp);
+    if (p->kind == SOOC_MAPPER_GEOMETRIC) {
+        sooc_mapper *mp = sooc_calloc(1, sizeof *mp);
         if (!mp) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
-        sooc_status st = mdl_geo_create(&mp->gm, p);
+        sooc_status st = sooc_mdl_geo_create(&mp->gm, p);
         if (st) sooc_free(mp);
         else *out = mp;
         return st;
     }
-    if (p->kind != SOOC3D_MAPPER_LEARNT) return sooc_seterr(SOOC_EINVAL, "mapper: unknown kind %d", p->kind);
+    if (p->kind != SOOC_MAPPER_LEARNT) return sooc_seterr(SOOC_EINVAL, "mapper: unknown kind %d", p->kind);
     sooc_model *m;
     sooc_status st = sooc_model_load(&m, p->model_path, NULL, NULL);
     if (st) return sooc_adderr(st, "mapper");
@@ -129,24 +129,24 @@ sooc_status sooc3d_mapper_create(sooc3d_mapper **out, const sooc3d_mapper_params
         if (st) return sooc_adderr(st, "mapper: %s", p->model_path);
         m = w;
     }
-    st = mdl_mapper_create_from(out, m, p->iterations, p->seed, p->threads);
+    st = sooc_mdl_mapper_create_from(out, m, p->iterations, p->seed, p->threads);
     if (st) sooc_model_destroy(m);
     else {
-        sooc3d_mapper_set_merge_radius(*out, p->merge_radius);
-        sooc3d_mapper_set_merge_neighbours(*out, p->merge_neighbours);
-        sooc3d_mapper_set_latents(*out, p->latents);
-        sooc3d_mapper_set_gate(*out, p->gate_min_rays, p->gate_ratio, p->gate_part);
+        sooc_mapper_set_merge_radius(*out, p->merge_radius);
+        sooc_mapper_set_merge_neighbours(*out, p->merge_neighbours);
+        sooc_mapper_set_latents(*out, p->latents);
+        sooc_mapper_set_gate(*out, p->gate_min_rays, p->gate_ratio, p->gate_part);
         if (p->same_pose != 0)
             (*out)->same_r = p->same_pose > 0 ? p->same_pose * 2.0 * sooc_model_get_config(m)->box_rh * sooc_model_get_config(m)->unit_m : 0.0;
     }
     return st;
 }
 
-void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
+void sooc_mapper_destroy(sooc_mapper *mp) {
     if (!mp) return;
-    mdl_geo_destroy(mp->gm);
+    sooc_mdl_geo_destroy(mp->gm);
     sooc_cluster_map_destroy(mp->prop);
-    if (mp->V.buf) mdl_view_free(&mp->V);
+    if (mp->V.buf) sooc_mdl_view_free(&mp->V);
     sooc_model_ws_destroy(mp->ws);
     sooc_cogmap_destroy(mp->map);
     sooc_objgeom_cache_destroy(mp->geo);
@@ -154,9 +154,9 @@ void sooc3d_mapper_destroy(sooc3d_mapper *mp) {
     sooc_free(mp);
 }
 
-void sooc3d_mapper_input_size(const sooc3d_mapper *mp, int *w, int *h) {
+void sooc_mapper_input_size(const sooc_mapper *mp, int *w, int *h) {
     if (mp->gm) {
-        mdl_geo_input_size(mp->gm, w, h);
+        sooc_mdl_geo_input_size(mp->gm, w, h);
         return;
     }
     const sooc_model_config *c = sooc_model_get_config(mp->m);
@@ -164,7 +164,7 @@ void sooc3d_mapper_input_size(const sooc3d_mapper *mp, int *w, int *h) {
     *h = c->img_h;
 }
 
-void sooc3d_mapper_cam_heights(const sooc3d_mapper *mp, double *lo_m, double *hi_m) {
+void sooc_mapper_cam_heights(const sooc_mapper *mp, double *lo_m, double *hi_m) {
     if (mp->gm) {   /* no trained range */
         *lo_m = *hi_m = 0;
         return;
@@ -178,9 +178,9 @@ void sooc3d_mapper_cam_heights(const sooc3d_mapper *mp, double *lo_m, double *hi
  * registered, the entry not removed: it stays bit-identical); a new slot is
  * dropped when its centre lies behind the camera or beyond the clip depth
  * (at the image edge it is kept: a partly seen object). Returns the count. */
-static int hold_unseen(sooc3d_mapper *mp, const sooc_frame *f, const view_rec *V, int K, int d) {
+static int hold_unseen(sooc_mapper *mp, const sooc_frame *f, const view_rec *V, int K, int d) {
     sooc_cogmap_camera cam;
-    mdl_camera_of(mp->m, f, &cam);
+    sooc_mdl_camera_of(mp->m, f, &cam);
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
     int held = 0;
     for (int i = 0; i < K; i++) {
@@ -229,7 +229,7 @@ typedef struct gate_near {
 
 static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
     gate_near *g = user;
-    if (g->n >= SOOC3D_GATE_MAX_BOXES) return 1;
+    if (g->n >= SOOC_GATE_MAX_BOXES) return 1;
     for (int i = 0; i < g->K; i++)   /* a retrieved entry: its slot's box, unless it has settled */
         if (g->src[i] == e->id && e->obs_count < REVISIT_SETTLED) return 0;
     int close = 0;
@@ -243,7 +243,7 @@ static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
     return 0;
 }
 
-/* The node's revisit rules, part 5: the creation gate (sooc3d_mapper_gate,
+/* The node's revisit rules, part 5: the creation gate (sooc_mapper_gate,
  * docs/cogmap.md "Revisits"). When the keyframe has a new present slot, the
  * final λ^L (model units; slots that will not register forced off) is decoded
  * once more, forward only, and each new slot creates an entry only if it owns
@@ -251,20 +251,20 @@ static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
  * is not the part of one (its owned surface points inside that slot's floor
  * box). A refused slot is turned off (it has no entry: nothing is removed).
  * Every new slot's verdict is logged at debug level. Returns the count. */
-static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_status *err) {
+static int gate_new(sooc_mapper *mp, const view_rec *V, int K, int d, sooc_status *err) {
     sooc_model *m = mp->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
     int role[SOOC_MODEL_K_MAX], n_new = 0;
     for (int i = 0; i < K; i++) {
         const float *lam = mp->lam_reg + (size_t)i * NL;
-        role[i] = !(lam[PA] >= 0.0f) ? SOOC3D_GATE_OFF : mp->src_reg[i] ? SOOC3D_GATE_KNOWN : SOOC3D_GATE_NEW;
-        n_new += role[i] == SOOC3D_GATE_NEW;
+        role[i] = !(lam[PA] >= 0.0f) ? SOOC_GATE_OFF : mp->src_reg[i] ? SOOC_GATE_KNOWN : SOOC_GATE_NEW;
+        n_new += role[i] == SOOC_GATE_NEW;
     }
     if (!n_new || (mp->gate_min < 0 && mp->gate_part < 0)) return 0;
     memcpy(mp->lam_gate, V->lam + (size_t)mp->L * K * NL, sizeof(float) * (size_t)K * NL);
     for (int i = 0; i < K; i++)
-        if (role[i] == SOOC3D_GATE_OFF) mp->lam_gate[(size_t)i * NL + PA] = -30.0f;
+        if (role[i] == SOOC_GATE_OFF) mp->lam_gate[(size_t)i * NL + PA] = -30.0f;
     dec_call dc;
     memset(&dc, 0, sizeof dc);
     dc.rays = &V->vr;
@@ -273,26 +273,26 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
     dc.lay = V->lay + (size_t)mp->L * 2 * c->d_layout;
     dc.noise = &mp->gate_noise;
     dc.tau = MAPPER_TAU;
-    if ((*err = mdl_decode(mp->ws, &dc))) return 0;
+    if ((*err = sooc_mdl_decode(mp->ws, &dc))) return 0;
     const int C = K + 1;
     gate_near near = {.V = V, .src = mp->src_reg, .K = K, .d = d, .unit = c->unit_m, .out = mp->gate_boxes,
                       .ids = mp->gate_box_ids};
     near.reach = 2.0 * M_SQRT2 * c->box_rh * c->unit_m;   /* a box corner can reach the new slot's points */
     for (int i = 0; i < K; i++)
-        if (role[i] == SOOC3D_GATE_NEW) {
+        if (role[i] == SOOC_GATE_NEW) {
             sooc_cogmap_entry e;
             sooc_cogmap_lam_to_world(&V->gf, d, mp->lam_reg + (size_t)i * NL, &e);
             near.nx[near.n_new] = e.X, near.nz[near.n_new++] = e.Z;
         }
     sooc_cogmap_foreach(mp->map, gate_near_visit, &near);
-    sooc3d_gate_input in = {V->vr.N, K, mp->ws->dec->sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh,
+    sooc_gate_input in = {V->vr.N, K, mp->ws->dec->sh, 2 * C, V->vr.pts, 6, V->vr.surf, mp->lam_gate, NL, role, c->box_rh,
                             near.n, mp->gate_boxes, 3};
-    sooc3d_gate_verdict v[SOOC_MODEL_K_MAX];
-    int refused = sooc3d_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
+    sooc_gate_verdict v[SOOC_MODEL_K_MAX];
+    int refused = sooc_mapper_gate(&in, mp->gate_min, mp->gate_ratio, mp->gate_part, v);
     static const char *why[] = {"not new", "created", "refused: too few rays of its own",
                                 "refused: part of a mapped entry"};
     for (int i = 0; i < K; i++) {
-        if (role[i] != SOOC3D_GATE_NEW) continue;
+        if (role[i] != SOOC_GATE_NEW) continue;
         float *lam = mp->lam_reg + (size_t)i * NL;
         if (sooc_log_get_level() <= SOOC_LOG_DEBUG) {
             sooc_cogmap_entry e, ej;
@@ -334,7 +334,7 @@ static int gate_new(sooc3d_mapper *mp, const view_rec *V, int K, int d, sooc_sta
  * depth evidence (part 4) and mapped anew. Younger entries take the
  * refinement as it is (a single pass over a scene barely changes). Variances
  * and presence are the refined ones. */
-static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
+static void blend_revisits(sooc_mapper *mp, const view_rec *V, int K, int d) {
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
     for (int i = 0; i < K; i++) {
         float *lam = mp->lam_reg + (size_t)i * NL;
@@ -357,7 +357,7 @@ static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
 
 /* The node's revisit rules, part 4: depth evidence (docs/cogmap.md
  * "Revisits"). Each keyframe, every entry it registered that is not new is
- * probed against the keyframe's depth (sooc3d_mapper_free_space).
+ * probed against the keyframe's depth (sooc_mapper_free_space).
  * - Free space: an entry whose place the depth showed free in
  *   REVISIT_FREE_VIEWS consecutive verdicts (verdicts of "no evidence"
  *   neither count nor break the run; a surface at a probe resets it) is
@@ -373,7 +373,7 @@ static void blend_revisits(sooc3d_mapper *mp, const view_rec *V, int K, int d) {
 #define REVISIT_FREE_VIEWS 5
 #define REVISIT_FREE_RING 6
 #define REVISIT_UNSUPPORTED 48
-int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z) {
+int sooc_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, double X, double Z) {
     static const double hf[3] = {0.1, 0.2, 0.3};   /* centre probe heights / H_b */
     const double *T = cam->T_wc;
     const double rr = cam->R_h / 3.0;
@@ -411,7 +411,7 @@ int sooc3d_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f,
     return !hidden && vis >= 4 ? 1 : -1;
 }
 
-static int retire_at(sooc3d_mapper *mp, uint64_t *ids, int i) {
+static int retire_at(sooc_mapper *mp, uint64_t *ids, int i) {
     if (mp->n_rem >= SOOC_MODEL_K_MAX || sooc_cogmap_remove(mp->map, ids[i])) return 0;
     size_t c = (size_t)(ids[i] % MAPPER_FREE_SLOTS);
     mp->rem_ids[mp->n_rem++] = ids[i];
@@ -424,7 +424,7 @@ static int retire_at(sooc3d_mapper *mp, uint64_t *ids, int i) {
 /* Entry ids[i] joins ids[j]: one entry remains with ids[j]'s values, the
  * better-observed id (tie: the older) and both observation counts, as
  * sooc_cogmap_merge_neighbours does; the other id is removed. */
-static int merge_into(sooc3d_mapper *mp, uint64_t *ids, int i, int j) {
+static int merge_into(sooc_mapper *mp, uint64_t *ids, int i, int j) {
     sooc_cogmap_entry ei, ej;
     if (mp->n_rem >= SOOC_MODEL_K_MAX || sooc_cogmap_get(mp->map, ids[i], &ei) ||
         sooc_cogmap_get(mp->map, ids[j], &ej))
@@ -450,9 +450,9 @@ static int merge_into(sooc3d_mapper *mp, uint64_t *ids, int i, int j) {
     return 1;
 }
 
-static int retire_free(sooc3d_mapper *mp, const sooc_frame *f, uint64_t *ids, int K) {
+static int retire_free(sooc_mapper *mp, const sooc_frame *f, uint64_t *ids, int K) {
     sooc_cogmap_camera cam;
-    mdl_camera_of(mp->m, f, &cam);
+    sooc_mdl_camera_of(mp->m, f, &cam);
     int n = 0, vd[SOOC_MODEL_K_MAX];
     double X[SOOC_MODEL_K_MAX], Z[SOOC_MODEL_K_MAX];
     for (int i = 0; i < K; i++) {
@@ -466,7 +466,7 @@ static int retire_free(sooc3d_mapper *mp, const sooc_frame *f, uint64_t *ids, in
             mp->free_id[c] = ids[i];
             mp->free_run[c] = mp->unsup_run[c] = 0;
         }
-        vd[i] = sooc3d_mapper_free_space(&cam, f, e.X, e.Z);
+        vd[i] = sooc_mapper_free_space(&cam, f, e.X, e.Z);
         if (vd[i] == 0) mp->free_run[c] = mp->unsup_run[c] = 0;
         else {
             if (vd[i] == 1 && mp->free_run[c] < UINT16_MAX) mp->free_run[c]++;
@@ -497,7 +497,7 @@ static int retire_free(sooc3d_mapper *mp, const sooc_frame *f, uint64_t *ids, in
 
 /* Object geometry (objgeom.h): registration statistics of what this update
  * wrote, then at most geo_budget tight boxes recomputed. */
-static sooc_status mapper_geometry(sooc3d_mapper *mp) {
+static sooc_status mapper_geometry(sooc_mapper *mp) {
     for (int i = 0; i < mp->n_rem; i++) sooc_objgeom_cache_remove(mp->geo, mp->rem_ids[i]);
     for (int i = 0; i < mp->n_chg; i++) {
         sooc_cogmap_entry e;
@@ -513,7 +513,7 @@ static sooc_status mapper_geometry(sooc3d_mapper *mp) {
     sooc_objgeom_opts_default(&o);
     if (mp->geo_budget < 0) return sooc_objgeom_cache_refresh(mp->geo, mp->m, mp->map, &o, -1, NULL, NULL);
     /* a box computed for an entry this update did not register is republished
-     * with the update's changes (sooc3d_mapper_changed), while there is room */
+     * with the update's changes (sooc_mapper_changed), while there is room */
     int room = SOOC_MODEL_K_MAX - mp->n_chg, nd = 0, max = mp->geo_budget < room ? mp->geo_budget : room;
     uint64_t done[SOOC_MODEL_K_MAX];
     if (max <= 0) return SOOC_OK;
@@ -529,7 +529,7 @@ static sooc_status mapper_geometry(sooc3d_mapper *mp) {
     return s;
 }
 
-sooc_status sooc3d_mapper_refresh_geometry(sooc3d_mapper *mp, int max_objects, int *n_done) {
+sooc_status sooc_mapper_refresh_geometry(sooc_mapper *mp, int max_objects, int *n_done) {
     if (mp->gm) {   /* its boxes are always up to date */
         if (n_done) *n_done = 0;
         return SOOC_OK;
@@ -544,13 +544,13 @@ static int adopt_entry(void *user, const sooc_cogmap_entry *e) {
     return !sooc_objgeom_cache_has(c, e->id) && sooc_objgeom_cache_observe(c, e) != SOOC_OK;
 }
 
-void sooc3d_mapper_geometry_invalidate(sooc3d_mapper *mp) {
+void sooc_mapper_geometry_invalidate(sooc_mapper *mp) {
     if (mp->gm) return;
     if (sooc_cogmap_foreach(mp->map, adopt_entry, mp->geo)) sooc_clearerr();   /* out of memory: no box for it */
     sooc_objgeom_cache_invalidate(mp->geo);
 }
 
-sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal_params *p) {
+sooc_status sooc_mapper_set_proposals(sooc_mapper *mp, const sooc_proposal_params *p) {
     if (mp->gm) return sooc_seterr(SOOC_EINVAL, "mapper: proposals need a learnt model, not the geometric map");
     if (!p || !p->on) {
         sooc_cluster_map_destroy(mp->prop);
@@ -569,7 +569,7 @@ sooc_status sooc3d_mapper_set_proposals(sooc3d_mapper *mp, const sooc3d_proposal
     return SOOC_OK;
 }
 
-void sooc3d_proposal_params_default(sooc3d_proposal_params *p) {
+void sooc_proposal_params_default(sooc_proposal_params *p) {
     memset(p, 0, sizeof *p);
     sooc_cluster_params_default(&p->cluster);
     p->cover_m = 0.02;
@@ -578,17 +578,17 @@ void sooc3d_proposal_params_default(sooc3d_proposal_params *p) {
     p->rest_logit = NAN;
 }
 
-void sooc3d_mapper_set_geometry_budget(sooc3d_mapper *mp, int per_update) {
+void sooc_mapper_set_geometry_budget(sooc_mapper *mp, int per_update) {
     mp->geo_budget = per_update < 0 ? -1 : per_update;
 }
 
-sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_update_stats *stp) {
+sooc_status sooc_mapper_update(sooc_mapper *mp, const sooc_frame *f, sooc_update_stats *stp) {
     double t0 = sooc_seconds();
-    sooc3d_update_stats st0;
-    sooc3d_update_stats *st = stp ? stp : &st0;
+    sooc_update_stats st0;
+    sooc_update_stats *st = stp ? stp : &st0;
     if (mp->gm) {
         if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld has no pose", (long long)f->index);
-        return mdl_geo_update(mp->gm, f, st);
+        return sooc_mdl_geo_update(mp->gm, f, st);
     }
     memset(st, 0, sizeof *st);
     mp->n_chg = mp->n_rem = mp->has_block = 0;
@@ -598,14 +598,14 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     if (f->width != c->img_w || f->height != c->img_h)
         return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld is %dx%d, the model needs %dx%d", (long long)f->index,
                            f->width, f->height, c->img_w, c->img_h);
-    step_state *S = mdl_step_state(mp->ws, 1, mp->L);
+    step_state *S = sooc_mdl_step_state(mp->ws, 1, mp->L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
     S->aux_replay = 0;
     view_rec *V = &mp->V;
-    sooc_status s = mdl_view_setup(m, mp->map, V, f, 1, &mp->rng, NULL);
+    sooc_status s = sooc_mdl_view_setup(m, mp->map, V, f, 1, &mp->rng, NULL);
     if (s) return s;
     if (mp->prop) {
-        st->n_proposed = mdl_propose(mp->prop, c, MDL_NL(c->d_what), f, V, &mp->prop_p, &s);
+        st->n_proposed = sooc_mdl_propose(mp->prop, c, MDL_NL(c->d_what), f, V, &mp->prop_p, &s);
         if (s) return sooc_adderr(s, "mapper: proposals of frame %lld", (long long)f->index);
     }
     sooc_step_opts o;
@@ -614,14 +614,14 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     o.L = mp->L;
     o.mean_latents = !mp->sample;
     double lw;
-    if ((s = mdl_view_forward(mp->ws, S, V, mp->L, &o, 0, &mp->rng, &lw, NULL))) return s;
+    if ((s = sooc_mdl_view_forward(mp->ws, S, V, mp->L, &o, 0, &mp->rng, &lw, NULL))) return s;
     int NL = MDL_NL(c->d_what), D2 = 2 * c->d_layout;
     const float *lamL = V->lam + (size_t)mp->L * c->K * NL;
     const float *layL = V->lay + (size_t)mp->L * D2;
     memcpy(mp->lam_reg, lamL, sizeof(float) * (size_t)c->K * NL);
     memcpy(mp->src_reg, V->src_id, sizeof(uint64_t) * (size_t)c->K);
-    mdl_lam_to_m(c, mp->lam_reg, c->K, NL);   /* model units -> metres (config.unit_m) */
-    int n_same = sooc3d_mapper_same_pose(mp->lam_reg, mp->src_reg, c->K, c->d_what, mp->same_r);
+    sooc_mdl_lam_to_m(c, mp->lam_reg, c->K, NL);   /* model units -> metres (config.unit_m) */
+    int n_same = sooc_mapper_same_pose(mp->lam_reg, mp->src_reg, c->K, c->d_what, mp->same_r);
     int n_gated = 0;
     if (mp->merge_nb && mp->merge_r > 0) {
         hold_unseen(mp, f, V, c->K, c->d_what);
@@ -675,7 +675,7 @@ sooc_status sooc3d_mapper_update(sooc3d_mapper *mp, const sooc_frame *f, sooc3d_
     return SOOC_OK;
 }
 
-int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius) {
+int sooc_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double radius) {
     if (!(radius > 0) || k < 2 || k > SOOC_MAPPER_CHANGED_MAX) return 0;
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
     int order[SOOC_MAPPER_CHANGED_MAX], n = 0;
@@ -711,8 +711,8 @@ int sooc3d_mapper_same_pose(float *lam, uint64_t *src_ids, int k, int d, double 
     return off;
 }
 
-sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
-    if (mp->gm) return mdl_geo_entries(mp->gm, out, cap, n);
+sooc_status sooc_mapper_entries(const sooc_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n) {
+    if (mp->gm) return sooc_mdl_geo_entries(mp->gm, out, cap, n);
     size_t cnt = sooc_cogmap_count(mp->map);
     if (!out) {
         *n = cnt;
@@ -734,8 +734,8 @@ sooc_status sooc3d_mapper_entries(const sooc3d_mapper *mp, sooc_map_entry *out, 
     return s;
 }
 
-sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *e, size_t n) {
-    if (mp->gm) return mdl_geo_load_entries(mp->gm, e, n);
+sooc_status sooc_mapper_load_entries(sooc_mapper *mp, const sooc_map_entry *e, size_t n) {
+    if (mp->gm) return sooc_mdl_geo_load_entries(mp->gm, e, n);
     const sooc_model_config *c = sooc_model_get_config(mp->m);
     sooc_cogmap_entry *tmp = sooc_calloc(n ? n : 1, sizeof *tmp);
     if (!tmp) return SOOC_ENOMEM;
@@ -756,9 +756,9 @@ sooc_status sooc3d_mapper_load_entries(sooc3d_mapper *mp, const sooc_map_entry *
     return s;
 }
 
-sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n,
+sooc_status sooc_mapper_changed(const sooc_mapper *mp, sooc_map_entry *out, size_t cap, size_t *n,
                                   uint64_t *removed_ids, size_t cap_r, size_t *n_removed) {
-    if (mp->gm) return mdl_geo_changed(mp->gm, out, cap, n, removed_ids, cap_r, n_removed);
+    if (mp->gm) return sooc_mdl_geo_changed(mp->gm, out, cap, n, removed_ids, cap_r, n_removed);
     size_t nc = (size_t)mp->n_chg, nr = (size_t)mp->n_rem;
     if (n) *n = nc;
     if (n_removed) *n_removed = nr;
@@ -778,47 +778,46 @@ sooc_status sooc3d_mapper_changed(const sooc3d_mapper *mp, sooc_map_entry *out, 
     return SOOC_OK;
 }
 
-int sooc3d_mapper_layout_dim(const sooc3d_mapper *mp) { return mp->gm ? 0 : sooc_model_get_config(mp->m)->d_layout; }
-int sooc3d_mapper_latent_dim(const sooc3d_mapper *mp) {
-    return mp->gm ? SOOC3D_GEOMETRIC_LATENT_DIM : sooc_model_get_config(mp->m)->d_what;
+int sooc_mapper_layout_dim(const sooc_mapper *mp) { return mp->gm ? 0 : sooc_model_get_config(mp->m)->d_layout; }
+int sooc_mapper_latent_dim(const sooc_mapper *mp) {
+    return mp->gm ? SOOC_GEOMETRIC_LATENT_DIM : sooc_model_get_config(mp->m)->d_what;
 }
-int sooc3d_mapper_kind(const sooc3d_mapper *mp) { return mp->gm ? SOOC3D_MAPPER_GEOMETRIC : SOOC3D_MAPPER_LEARNT; }
 
-sooc_status sooc3d_mapper_last_layout(const sooc3d_mapper *mp, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
+sooc_status sooc_mapper_last_layout(const sooc_mapper *mp, int32_t *bi, int32_t *bj, float *mu, float *logvar) {
     if (mp->gm || !mp->has_block) return SOOC_ENOTFOUND;
     *bi = mp->bi;
     *bj = mp->bj;
     return sooc_cogmap_layout_get(mp->map, mp->bi, mp->bj, mu, logvar);
 }
 
-sooc_status sooc3d_mapper_load_layout(sooc3d_mapper *mp, int32_t bi, int32_t bj, const float *mu,
+sooc_status sooc_mapper_load_layout(sooc_mapper *mp, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar) {
     if (mp->gm) return SOOC_OK;   /* no layout */
     return sooc_cogmap_layout_set(mp->map, bi, bj, mu, logvar);
 }
 
-void sooc3d_mapper_reserve_ids(sooc3d_mapper *mp, uint64_t next_id) {
-    if (mp->gm) mdl_geo_reserve_ids(mp->gm, next_id);
+void sooc_mapper_reserve_ids(sooc_mapper *mp, uint64_t next_id) {
+    if (mp->gm) sooc_mdl_geo_reserve_ids(mp->gm, next_id);
     else sooc_cogmap_reserve_ids(mp->map, next_id);
 }
-void sooc3d_mapper_set_merge_neighbours(sooc3d_mapper *mp, int on) { mp->merge_nb = on != 0; }
-void sooc3d_mapper_set_gate(sooc3d_mapper *mp, double min_rays, double ratio, double part) {
-    mp->gate_min = min_rays == 0 ? SOOC3D_GATE_MIN_RAYS : min_rays < 0 ? -1.0 : min_rays;
-    mp->gate_ratio = ratio > 0 ? ratio : SOOC3D_GATE_RATIO;
-    mp->gate_part = part == 0 ? SOOC3D_GATE_PART : part < 0 ? -1.0 : part;
+void sooc_mapper_set_merge_neighbours(sooc_mapper *mp, int on) { mp->merge_nb = on != 0; }
+void sooc_mapper_set_gate(sooc_mapper *mp, double min_rays, double ratio, double part) {
+    mp->gate_min = min_rays == 0 ? SOOC_GATE_MIN_RAYS : min_rays < 0 ? -1.0 : min_rays;
+    mp->gate_ratio = ratio > 0 ? ratio : SOOC_GATE_RATIO;
+    mp->gate_part = part == 0 ? SOOC_GATE_PART : part < 0 ? -1.0 : part;
 }
 
-void sooc3d_mapper_set_merge_radius(sooc3d_mapper *mp, double radius) {
+void sooc_mapper_set_merge_radius(sooc_mapper *mp, double radius) {
     mp->merge_r = radius > 0 ? radius : 0;
 }
-void sooc3d_mapper_set_latents(sooc3d_mapper *mp, int latents) { mp->sample = latents == SOOC3D_LATENTS_SAMPLE; }
-uint64_t sooc3d_mapper_next_id(const sooc3d_mapper *mp) {
-    return mp->gm ? mdl_geo_next_id(mp->gm) : sooc_cogmap_next_id(mp->map);
+void sooc_mapper_set_latents(sooc_mapper *mp, int latents) { mp->sample = latents == SOOC_LATENTS_SAMPLE; }
+uint64_t sooc_mapper_next_id(const sooc_mapper *mp) {
+    return mp->gm ? sooc_mdl_geo_next_id(mp->gm) : sooc_cogmap_next_id(mp->map);
 }
 
-sooc_model *sooc3d_mapper_model(sooc3d_mapper *mp) { return mp->m; }
-const sooc_cogmap *sooc3d_mapper_cogmap(const sooc3d_mapper *mp) { return mp->map; }
-sooc_status sooc3d_mapper_create_with_model(sooc3d_mapper **out, sooc_model *m, int iterations, uint64_t seed,
+sooc_model *sooc_mapper_model(sooc_mapper *mp) { return mp->m; }
+const sooc_cogmap *sooc_mapper_cogmap(const sooc_mapper *mp) { return mp->map; }
+sooc_status sooc_mapper_create_with_model(sooc_mapper **out, sooc_model *m, int iterations, uint64_t seed,
                                             int threads) {
-    return mdl_mapper_create_from(out, m, iterations, seed, threads);
+    return sooc_mdl_mapper_create_from(out, m, iterations, seed, threads);
 }

@@ -8,9 +8,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#if SOOC_NODE_HAVE_MAPSTORE
 #include "sooc3d/mapstore.h"
-#endif
 
 struct sooc_framepath {
     char dir[1024];
@@ -201,7 +199,6 @@ static sooc_status world_estimate(sooc_framepath *fp) {
 static sooc_status world_stored(sooc_framepath *fp, int *found) {
     *found = 0;
     if (!fp->p.map_db || !fp->p.map_db[0] || !sooc_file_exists(fp->p.map_db)) return SOOC_OK;
-#if SOOC_NODE_HAVE_MAPSTORE
     sooc_mapstore *ms = NULL;
     sooc_mapstore_params mp;
     sooc_mapstore_params_default(&mp);
@@ -223,9 +220,6 @@ static sooc_status world_stored(sooc_framepath *fp, int *found) {
     sooc_log(SOOC_LOG_INFO, "%s: world frame stored in %s (up (%.3f %.3f %.3f), camera %.2f m above the plane)",
              fp->dir, fp->p.map_db, mf.up_src[0], mf.up_src[1], mf.up_src[2], mf.cam_height_m);
     return SOOC_OK;
-#else
-    return sooc_seterr(SOOC_EUNSUPPORTED, "%s: the SQLite map store is not built in", fp->p.map_db);
-#endif
 }
 
 sooc_status sooc_framepath_open(sooc_framepath **out, const char *dir, const sooc_framepath_params *p) {

@@ -3,7 +3,11 @@
  * that grows with z^2 and with the incidence angle (Nguyen et al. 2012),
  * disparity quantisation, white
  * balance, exposure drift and colour noise. One scratch buffer per frame. */
-#include "sooc3d/sensor_noise.h"
+#include "gen/sensor_noise.h"
+#include "sooc3d/image.h"
+#include "gen/gen_impl.h"
+
+#include <stdio.h>
 
 #include <math.h>
 #include <string.h>
@@ -171,4 +175,27 @@ sooc_status sooc_noise_apply(sooc_frame *f, const sooc_noise_params *p, uint64_t
     }
     sooc_free(z0);
     return SOOC_OK;
+}
+
+/* The noise of one generated view: gen_impl.h. */
+sooc_status sooc_gen_noise_view(sooc_frame *f, const char *scene_dir, int view, double depth_scale, uint64_t seed,
+                                int scene) {
+    sooc_image img = {0};
+    sooc_status s = sooc_image_alloc(&img, f->width, f->height, SOOC_PIX_GRAY16);
+    if (s) return s;
+    uint16_t *d = img.data;
+    size_t np = (size_t)f->width * (size_t)f->height;
+    for (size_t k = 0; k < np; k++) {
+        double q = f->valid[k] && f->depth[k] > 0 ? floor(f->depth[k] / depth_scale + 0.5) : 0;
+        d[k] = q > 65535 ? 0 : (uint16_t)q;
+    }
+    char name[64], path[4096];
+    snprintf(name, sizeof name, "depth_gt/%06d.png", view);
+    s = sooc_path_join(path, sizeof path, scene_dir, name);
+    if (!s) s = sooc_png_write(path, &img, 6);
+    sooc_image_free(&img);
+    if (s) return s;
+    sooc_noise_params np_;
+    sooc_noise_params_kinect(&np_);
+    return sooc_noise_apply(f, &np_, seed, (uint64_t)scene, view);
 }

@@ -20,7 +20,7 @@
 #include "sooc3d/support.h"
 
 #include "sooc3d/model.h"
-#include "sooc3d/node.h"
+#include "sooc3d/support.h"
 
 #include <lapacke.h>
 #include <math.h>
