@@ -401,6 +401,8 @@ typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_en
                                 size_t n_changed, const uint64_t *removed, size_t n_removed,
                                 const sooc_node_stats *st);
 
+struct sooc_v4l2_ops;   /* driver.h */
+
 typedef struct sooc_node_options {
     uint64_t max_keyframes;          /* 0 = unlimited */
     sooc_node_kf_fn on_keyframe;
@@ -412,6 +414,10 @@ typedef struct sooc_node_options {
     /* A ready mapper (tests/bench). When NULL the node creates one from the
      * config's model block and destroys it at the end. Not owned if given. */
     sooc3d_mapper *mapper;
+    /* The V4L2 driver's syscall table (tests: a fake device), passed to the
+     * configured sensor each time it is opened or reopened. NULL = the real
+     * syscalls. Not owned; must outlive the node. */
+    const struct sooc_v4l2_ops *v4l2_ops;
 } sooc_node_options;
 
 typedef struct sooc_node sooc_node;

@@ -139,6 +139,7 @@ static sooc_status open_sensor(sooc_node *n) {
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
         sp.depth_invalid = n->calib.depth_invalid;
 #endif
+    sp.v4l2_ops = n->opt.v4l2_ops;
     n->sensor_params = sp;   /* its strings live in the node's config */
     sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
     if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);
