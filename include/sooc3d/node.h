@@ -178,6 +178,10 @@ typedef struct sooc_node_config {
     /* view: the live view in a browser (include/sooc3d/view.h) */
     int view_port;                           /* 0 = off (default)                        */
     char view_bind[64];                      /* IPv4 address to listen on (127.0.0.1)    */
+    char record_mcap[512];                   /* record.mcap: the Foxglove SceneUpdate channel
+                                                written while the node runs ("" = off)   */
+    double record_period_s;                  /* record.period_s: the file is rewritten at most
+                                                this often (1 s; 0 = every keyframe)     */
 } sooc_node_config;
 
 void sooc_node_config_default(sooc_node_config *c);
