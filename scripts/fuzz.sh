@@ -70,8 +70,17 @@ for t in $TARGETS; do
   args=(-runs="$RUNS" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 -artifact_prefix="$art")
   [ "$MAXTIME" != 0 ] && args+=(-max_total_time="$MAXTIME")
   [ -f "$ROOT/tests/fuzz/dict/$t.dict" ] && args+=(-dict="$ROOT/tests/fuzz/dict/$t.dict")
+  asan="${ASAN_OPTIONS:-detect_leaks=1}"
+  if [ "$t" = ycb_meta ]; then
+    # libmatio allocates the array sizes a MAT-file declares before it reads
+    # them; when that fails it says so and sooc3d reports the file (corpus/
+    # ycb_meta/dims-*.mat). Such an allocation is let fail instead of ending
+    # the run; the RSS limit still catches memory that is really used.
+    asan="$asan:allocator_may_return_null=1"
+    args+=(-malloc_limit_mb=1000000000)
+  fi
   t0=$(date +%s.%N)
-  ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}" "$bin" "${args[@]}" "$work" "$ROOT/tests/fuzz/corpus/$t" >"$log" 2>&1
+  ASAN_OPTIONS="$asan" "$bin" "${args[@]}" "$work" "$ROOT/tests/fuzz/corpus/$t" >"$log" 2>&1
   rc=$?
   t1=$(date +%s.%N)
   execs=$(sed -n 's/^stat::number_of_executed_units: *\([0-9]*\).*/\1/p' "$log" | tail -1)
