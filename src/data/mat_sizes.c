@@ -28,6 +28,16 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
     if (dt >> 16) { dn = dt >> 16; dt &= 0xffff; dims = d + 4; }
     else { dn = rd32(d + 4, be); dims = d + 8; }
     if (dt != 5 || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
+    /* the array's name: its length must fit too (libmatio allocates and clears it) */
+    size_t name_at = (size_t)(dims - p) + dn + (dn % 8 ? 8 - dn % 8 : 0);
+    if (name_at + 8 <= n) {
+        uint32_t nt = rd32(p + name_at, be);
+        uint64_t nn = nt >> 16 ? nt >> 16 : rd32(p + name_at + 4, be);
+        if (nn > room)
+            return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array name of %llu bytes, more than the file can hold "
+                               "(%llu bytes): a damaged MAT-file", path, off, (unsigned long long)nn,
+                               (unsigned long long)room);
+    }
     if (cls == 1 || cls == 2 || cls == 3 || cls == 5) return SOOC_OK;   /* cell, struct, object, sparse */
     uint64_t prod = 1;
     for (uint32_t k = 0; k < dn / 4; k++) {
