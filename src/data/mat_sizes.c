@@ -35,7 +35,7 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
         uint64_t nn = nt >> 16 ? nt >> 16 : rd32(p + name_at + 4, be);
         if (nn > room)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array name of %llu bytes, more than the file can hold "
-                               "(%llu bytes): a damaged MAT-file", path, off, (unsigned long long)nn,
+                               "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)nn,
                                (unsigned long long)room);
     }
     if (cls == 1 || cls == 2 || cls == 3 || cls == 5) return SOOC_OK;   /* cell, struct, object, sparse */
@@ -46,11 +46,11 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
         else if (prod != UINT64_MAX) prod = v && prod > UINT64_MAX / v ? UINT64_MAX : prod * v;
     }
     if (prod == UINT64_MAX)
-        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares a dimension of 2^31 or more: a damaged "
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares a dimension of 2^31 or more: a corrupt "
                            "MAT-file", path, off);
     if (prod > room || prod > MAT_MAX_ELEMS)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares %llu elements, more than the file can hold "
-                           "(%llu bytes): a damaged MAT-file", path, off, (unsigned long long)prod,
+                           "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)prod,
                            (unsigned long long)room);
     return SOOC_OK;
 }
@@ -64,8 +64,8 @@ sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t
         if (type >> 16) { off += 8; continue; }      /* a small element: 4 bytes of data inline */
         nb = rd32(f + off + 4, be);
         if (nb > size - off - 8)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %zu: an element of %u bytes runs past the end of the file "
-                               "(%zu bytes): truncated or damaged", path, off, nb, size);
+            return sooc_seterr(SOOC_EFORMAT, "%s: truncated or corrupt MAT-file: offset %zu: an element of %u bytes runs "
+                               "past the end of the file (%zu bytes)", path, off, nb, size);
         const uint8_t *d = f + off + 8;
         sooc_status st = SOOC_OK;
         if (type == 14) st = check_matrix(path, d, nb, be, nb, (long)off);
