@@ -23,6 +23,18 @@
  *   bench_soak [--keyframes N] [--scale s|m|l] [--seed S] [--seq PATH] [--slots K] [--merge R] [--clip M] [--model PATH]
  *              [--out DIR] [--gate-min F] [--gate-ratio F] [--gate-part F] [--log debug|info|warn]
  *
+ * --list [--long] [--total N]: the fixed list of scenes (soak_list below: eight
+ * generated scenes of the three scales and 7-Scenes redkitchen when
+ * ../shared/real holds it), N keyframes in all shared evenly between them
+ * (10,000; --long 100,000), each scene in a child process of this program
+ * with the options above. The last line is one JSON object: every scene's
+ * run, how many stay within 10% of their first pass, the keyframe rate and
+ * the time the long mode would take at that rate.
+ *
+ * Every run also prints a series of (keyframes, entries, RSS kB, open fds)
+ * samples, and for a generated scene the objects the first pass missed
+ * (matched to the scene's ground truth) and whether the loop mapped them.
+ *
  * --gate-*: the creation gate's model.gate_* (0 = default, -1 = that test off);
  * --log debug prints the gate's verdict on every new slot (docs/cogmap.md).
  *
@@ -65,6 +77,8 @@ static int open_fds(void) {
     return n - 1;   /* the directory stream itself */
 }
 
+#define SERIES_MAX 64
+
 typedef struct mon {
     sooc_node *node;
     atomic_int done;
@@ -75,6 +89,9 @@ typedef struct mon {
     int have_first, have_tenth;
     uint64_t per_k[101];   /* entries at every 1,000th keyframe (per_k[i]: i x 1,000), up to 10^5 */
     int n_per_k;
+    uint64_t series_step;  /* a sample of (keyframes, entries, RSS, fds) every series_step keyframes */
+    long series[SERIES_MAX][4];
+    int n_series;
 } mon;
 
 static void *monitor(void *arg) {
@@ -85,6 +102,10 @@ static void *monitor(void *arg) {
         if (s.n_objects > m->entries_max) m->entries_max = s.n_objects;
         if (m->have_first && s.n_objects < m->entries_min) m->entries_min = s.n_objects;
         while (m->n_per_k < 101 && s.keyframes >= (uint64_t)m->n_per_k * 1000) m->per_k[m->n_per_k++] = s.n_objects;
+        if (m->series_step && m->n_series < SERIES_MAX && s.keyframes >= (uint64_t)m->n_series * m->series_step) {
+            long *r = m->series[m->n_series++];
+            r[0] = (long)s.keyframes, r[1] = (long)s.n_objects, r[2] = rss_kb(), r[3] = open_fds();
+        }
         if (!m->have_first && s.keyframes >= m->first_pass_kf) {
             m->entries_first = m->entries_min = s.n_objects;
             m->rss_first = rss_kb();
@@ -103,9 +124,11 @@ static void *monitor(void *arg) {
 }
 
 /* Ground truth of a map: the entries of db against the scene's objects. */
+#define GT_MAX_OBJ 256
 typedef struct gt_score {
     int entries, objects, mapped, dups, far;
     double med_dist;   /* median distance of the entries within reach to their object (m) */
+    int hit[GT_MAX_OBJ];   /* entries mapping each object (the first GT_MAX_OBJ) */
 } gt_score;
 typedef struct gt_visit {
     const sooc_scene *sc;
@@ -156,6 +179,7 @@ static int gt_score_db(const sooc_scene *sc, const char *db, gt_score *out) {
     out->far = g.hits[sc->n_objects];
     out->entries = out->far;
     for (int i = 0; i < sc->n_objects; i++) {
+        if (i < GT_MAX_OBJ) out->hit[i] = g.hits[i];
         out->entries += g.hits[i];
         out->mapped += g.hits[i] > 0;
         out->dups += g.hits[i] > 1 ? g.hits[i] - 1 : 0;
@@ -202,7 +226,11 @@ static void log_stderr(void *user, sooc_log_level level, const char *msg) {
     fprintf(stderr, "%s\n", msg);
 }
 
+int soak_list(int argc, char **argv);   /* bench_soak_list.c */
+
 int main(int argc, char **argv) {
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "--list")) return soak_list(argc, argv);
     long long keyframes = 10000;
     const char *scale = "m", *model = "models/sooc3d_unity/model.bin", *out = NULL;
     uint64_t seed = 7;
@@ -317,6 +345,7 @@ int main(int argc, char **argv) {
     atomic_init(&m.done, 0);
     m.first_pass_kf = (uint64_t)views;
     m.tenth_kf = (uint64_t)(keyframes / 10 > views ? keyframes / 10 : views);
+    m.series_step = (uint64_t)((keyframes + 31) / 32);
     pthread_t th;
     pthread_create(&th, NULL, monitor, &m);
     double t0 = sooc_seconds();
@@ -343,8 +372,29 @@ int main(int argc, char **argv) {
     memset(&g2, 0, sizeof g2);
     if (!seq && (sooc_gen_scene(&sc, &gp, 0) || gt_score_db(&sc, db1, &g1) || gt_score_db(&sc, db, &g2)))
         fprintf(stderr, "bench_soak: ground truth: %s\n", sooc_errmsg());
-    sooc_scene_free(&sc);
     char gt[512] = "\"gt_objects\": null, \"gt_one_pass\": null, \"gt_end\": null";
+    /* the objects the first pass missed, and whether the loop mapped them */
+    static char missed[64 * 160];
+    size_t ml = 0;
+    int n_missed = 0, n_gained = 0;
+    ml += (size_t)snprintf(missed, sizeof missed, "\"missed_first_pass\": %s", seq ? "null" : "[");
+    for (int i = 0; !seq && i < g1.objects && i < GT_MAX_OBJ; i++) {
+        if (g1.hit[i] || ml + 160 >= sizeof missed) continue;
+        const sooc_scene_object *ob = &sc.objects[i];
+        ml += (size_t)snprintf(missed + ml, sizeof missed - ml,
+                               "%s{\"object\": %d, \"shape\": \"%s\", \"x\": %.3f, \"z\": %.3f, \"mapped_at_end\": %s}",
+                               n_missed ? ", " : "", ob->id, sooc_shape_name(ob->shape), ob->x, ob->z,
+                               g2.hit[i] ? "true" : "false");
+        n_missed++;
+        n_gained += g2.hit[i] > 0;
+    }
+    if (!seq) snprintf(missed + ml, sizeof missed - ml, "], \"gained_from_missed\": %d", n_gained);
+    else snprintf(missed + ml, sizeof missed - ml, ", \"gained_from_missed\": null");
+    char series[SERIES_MAX * 64] = "";
+    size_t sl = 0;
+    for (int i = 0; i < m.n_series && sl + 64 < sizeof series; i++)
+        sl += (size_t)snprintf(series + sl, sizeof series - sl, "%s[%ld, %ld, %ld, %ld]", i ? ", " : "", m.series[i][0],
+                               m.series[i][1], m.series[i][2], m.series[i][3]);
     if (!seq) {
         snprintf(gt, sizeof gt,
                  "\"gt_objects\": %d, \"gt_one_pass\": {\"entries\": %d, \"objects\": %d, \"duplicates\": %d, "
@@ -371,12 +421,13 @@ int main(int argc, char **argv) {
            "\"entries_end\": %llu, \"entries_max\": %llu, \"entries_min\": %llu, \"entries_per_1000\": [%s], \"growth_vs_first_pass\": %.4f, \"rss_kb_start\": %ld, "
            "\"rss_kb_first_pass\": %ld, \"rss_kb_tenth\": %ld, \"rss_kb_end\": %ld, \"fds_start\": %d, "
            "\"fds_first_pass\": %d, \"fds_tenth\": %d, \"fds_end\": %d, \"fds_after_destroy\": %d, "
-           "%s, \"status\": \"%s\"}\n",
+           "\"series_kf_entries_rss_fds\": [%s], %s, %s, \"status\": \"%s\"}\n",
            seq ? "real" : scale, (unsigned long long)seed, seq ? seq : "", views, c.merge_m, c.clip_m, gate[0], gate[1], gate[2], c.slots,
            (unsigned long long)s.keyframes, secs,
            (unsigned long long)m.entries_first, (unsigned long long)m.entries_tenth, (unsigned long long)s.n_objects,
            (unsigned long long)m.entries_max, (unsigned long long)m.entries_min, perk, growth, rss0, m.rss_first, m.rss_tenth, rss_end, fds0, m.fds_first,
-           m.fds_tenth, fds_end, fds_after, gt, sooc_status_str(st));
+           m.fds_tenth, fds_end, fds_after, series, missed, gt, sooc_status_str(st));
+    sooc_scene_free(&sc);
     if (!out) {
         char cmd[600];
         snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);

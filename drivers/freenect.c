@@ -170,7 +170,8 @@ static sooc_status fn_read(sooc_sensor *s, sooc_frame *fr, int timeout_ms) {
         struct timeval tv = {0, (suseconds_t)(slice / 1000)};
         int r = freenect_process_events_timeout(f->ctx, &tv);
         if (r < 0) {
-            if (f->fake) return sooc_seterr(SOOC_EEOF, "freenect: end of the fakenect recording");
+            /* fakenect answers -1 at the end of its dump; a lost device is a libusb error */
+            if (f->fake && r == -1) return sooc_seterr(SOOC_EEOF, "freenect: end of the fakenect recording");
             return sooc_seterr(SOOC_EIO, "freenect: process_events failed (%d); device unplugged?", r);
         }
     }

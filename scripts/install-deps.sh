@@ -28,12 +28,25 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#PKGS[@]} packages present"
-  exit 0
+else
+  echo "install-deps: installing ${missing[*]}"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-echo "install-deps: installing ${missing[*]}"
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# The reference MCAP library the log tests write and read MCAP files with
+# (tests/logs/npm: package.json and package-lock.json pin it; node_modules is
+# not committed). Without Node.js or the npm registry those tests skip.
+NPM_DIR="$(cd "$(dirname "$0")/.." && pwd)/tests/logs/npm"
+if command -v npm >/dev/null 2>&1; then
+  if [ -d "$NPM_DIR/node_modules/@mcap/core" ]; then
+    echo "install-deps: @mcap/core present in $NPM_DIR"
+  else
+    (cd "$NPM_DIR" && npm ci --no-audit --no-fund) || echo "install-deps: npm ci in $NPM_DIR failed; test_logs_npm and the @mcap/core checks will skip"
+  fi
+else
+  echo "install-deps: no npm (apt-get install npm); test_logs_npm and the @mcap/core checks will skip"
+fi

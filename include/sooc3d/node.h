@@ -183,6 +183,10 @@ typedef struct sooc_node_config {
     /* view: the live view in a browser (include/sooc3d/view.h) */
     int view_port;                           /* 0 = off (default)                        */
     char view_bind[64];                      /* IPv4 address to listen on (127.0.0.1)    */
+    char record_mcap[512];                   /* record.mcap: the Foxglove SceneUpdate channel
+                                                written while the node runs ("" = off)   */
+    double record_period_s;                  /* record.period_s: the file is rewritten at most
+                                                this often (1 s; 0 = every keyframe)     */
 } sooc_node_config;
 
 void sooc_node_config_default(sooc_node_config *c);
@@ -290,6 +294,8 @@ typedef void (*sooc_node_kf_fn)(void *user, uint64_t keyframe, const sooc_map_en
                                 size_t n_changed, const uint64_t *removed, size_t n_removed,
                                 const sooc_node_stats *st);
 
+struct sooc_v4l2_ops;   /* driver.h */
+
 typedef struct sooc_node_options {
     uint64_t max_keyframes;          /* 0 = unlimited */
     sooc_node_kf_fn on_keyframe;
@@ -301,6 +307,10 @@ typedef struct sooc_node_options {
     /* A ready mapper (tests/bench). When NULL the node creates one from the
      * config's model block and destroys it at the end. Not owned if given. */
     sooc_mapper *mapper;
+    /* The V4L2 driver's syscall table (tests: a fake device), passed to the
+     * configured sensor each time it is opened or reopened. NULL = the real
+     * syscalls. Not owned; must outlive the node. */
+    const struct sooc_v4l2_ops *v4l2_ops;
 } sooc_node_options;
 
 typedef struct sooc_node sooc_node;

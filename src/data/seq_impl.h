@@ -22,6 +22,10 @@ typedef struct sooc_seqi_entry {
 
 /* Format-specific per-frame labels (APC: built from the predicted masks):
  * fills ids (w x h) for frame i; the message names the file on error. */
+/* The array sizes a MAT-file's headers declare against the file's size
+ * (mat_sizes.c), before libmatio allocates them. f: the whole file. */
+sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t size);
+
 typedef sooc_status (*sooc_seqi_labels_fn)(sooc_seq *s, int64_t i, uint16_t *ids, int w, int h);
 /* Name of label id, or NULL. */
 typedef const char *(*sooc_seqi_label_name_fn)(const sooc_seq *s, int id);

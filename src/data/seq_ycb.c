@@ -130,6 +130,12 @@ static sooc_status read_meta(const char *path, double rot_tol, ycb_meta *out) {
     pthread_once(&g_mat_once, mat_log_init);
     sooc_status st = mat_check_header(path);
     if (st) return st;
+    void *raw = NULL;
+    size_t nraw = 0;
+    if ((st = sooc_file_read_all(path, (size_t)1 << 30, &raw, &nraw))) return st;
+    st = sooc_seqi_mat_check_sizes(path, raw, nraw);
+    sooc_free(raw);
+    if (st) return st;
     mat_msg_clear();
     mat_t *m = Mat_Open(path, MAT_ACC_RDONLY);
     if (!m || t_mat_n) {

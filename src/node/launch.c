@@ -55,6 +55,7 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->max_depth_m = 10.0;
     c->log_level = SOOC_LOG_INFO;
     snprintf(c->view_bind, sizeof c->view_bind, "127.0.0.1");
+    c->record_period_s = 1.0;
     c->depth_resample = SOOC_NODE_DEPTH_MIN;
     c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/cv.h) */
     c->odom_width = 320;
@@ -546,6 +547,8 @@ static const kspec g_keys[] = {
     KV_F("log", "level", f_log_level),
     KV("view", "port", KV_INT, view_port, 0, 65535),
     KV("view", "bind", KV_STR, view_bind, 0, 0),
+    KV("record", "mcap", KV_STR0, record_mcap, 0, 0),
+    KV("record", "period_s", KV_NUM, record_period_s, 0, 86400),
 };
 #define N_KEYS (sizeof g_keys / sizeof *g_keys)
 
@@ -634,7 +637,8 @@ static sooc_status k_root(pctx *p, const char *key, yaml_node_t *kn, yaml_node_t
     q.section = NULL;
     if (!strcmp(key, "calib")) return get_str(&q, vn, key, c->calib_path, sizeof c->calib_path, 1);
     return unknown(&q, kn, key,
-                   "unknown key (known: sensor, pose, odometry, calib, model, keyframe, shm, map, world, pipeline, log, view)");
+                   "unknown key (known: sensor, pose, odometry, calib, model, keyframe, shm, map, world, pipeline, log, view, "
+                   "record)");
 }
 
 /* One --set override, "section.key=value", read as the launch file's own

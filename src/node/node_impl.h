@@ -26,9 +26,17 @@
 
 /* After a keyframe: the map, the frame and the counters to the live view (view_hook.c). */
 sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f);
+/* record: {mcap: FILE} (record.c): opened with the node, a SceneUpdate of the
+ * map after each keyframe, the file rewritten (atomically, with its summary and
+ * index) at most every record.period_s and when the node is destroyed. */
+typedef struct sooc__recorder sooc__recorder;
+sooc_status sooc__node_record_open(sooc_node *n);
+void sooc__node_record_keyframe(sooc_node *n, int64_t t_ns);
+void sooc__node_record_close(sooc_node *n);
 
 struct sooc_node {
     sooc_view *view;               /* view: {port} (NULL = off) */
+    sooc__recorder *rec;           /* record: {mcap} (NULL = off) */
     sooc_map_entry *view_entries;  /* its buffers, view_cap entries each */
     sooc_view_object *view_objects;
     size_t view_cap;

@@ -96,6 +96,7 @@ static sooc_status open_sensor(sooc_node *n) {
         sp.depth_shift = n->calib.depth_shift;
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
         sp.depth_invalid = n->calib.depth_invalid;
+    sp.v4l2_ops = n->opt.v4l2_ops;
     n->sensor_params = sp;   /* its strings live in the node's config */
     sooc_status st = sooc_sensor_open(&n->sensor, c->driver, &sp);
     if (st) return sooc_adderr(st, "%s: sensor (driver %s)", c->path, c->driver);
@@ -402,6 +403,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             goto fail;
         }
     }
+    if ((st = sooc__node_record_open(n))) goto fail;
     sooc_frame_ring_set_blocking(n->ring, c->block_when_full);
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE && (st = support_init(n))) goto fail;
 
@@ -708,6 +710,7 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     pthread_mutex_unlock(&n->mu);
     if (n->view && sooc__node_view_publish(n, f))   /* the view is a window, not the map: warn */
         sooc_log(SOOC_LOG_WARN, "node: view: %s", sooc_errmsg());
+    if (n->rec) sooc__node_record_keyframe(n, f->t_ns);
     sooc_log(SOOC_LOG_DEBUG, "node: keyframe %llu (frame %lld): %d retrieved, %d new, %d removed, %.1f ms",
              (unsigned long long)k, (long long)f->index, us.n_retrieved, us.n_new, us.n_removed, ms);
     if (n->opt.max_keyframes && k >= n->opt.max_keyframes) return 1;
@@ -826,6 +829,7 @@ void sooc_node_destroy(sooc_node *n) {
     if (n->table) sooc_table_close_writer(n->table, n->cfg.shm_unlink_on_exit);
     sooc_sg_destroy(n->sg);
     sooc_mapstore_close(n->store);
+    sooc__node_record_close(n);
     if (n->own_mapper) sooc_mapper_destroy(n->mapper);
     sooc_frame_ring_destroy(n->ring);
     sooc_view_stop(n->view);

@@ -440,6 +440,11 @@ static int msg_all(const uint8_t *d, size_t n, sooc_msg_encoding enc) {
 static int fz_ros1msg(const uint8_t *d, size_t n) { return msg_all(d, n, SOOC_MSGENC_ROS1); }
 static int fz_cdrmsg(const uint8_t *d, size_t n) { return msg_all(d, n, SOOC_MSGENC_CDR); }
 
+/* fuzz_targets_seq.c */
+int sooc_fuzz_ycb_meta(const uint8_t *d, size_t n);
+int sooc_fuzz_apc(const uint8_t *d, size_t n);
+int sooc_fuzz_node_set(const uint8_t *d, size_t n);
+
 const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"calib", fz_calib},
     {"scene", fz_scene},
@@ -457,6 +462,9 @@ const sooc_fuzz_target sooc_fuzz_targets[] = {
     {"mcap", fz_mcap},
     {"ros1msg", fz_ros1msg},
     {"cdrmsg", fz_cdrmsg},
+    {"ycb_meta", sooc_fuzz_ycb_meta},
+    {"apc", sooc_fuzz_apc},
+    {"node_set", sooc_fuzz_node_set},
     {NULL, NULL},
 };
 

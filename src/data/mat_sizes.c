@@ -1,0 +1,95 @@
+/* The sizes a MATLAB v5 MAT-file declares, checked before libmatio reads it
+ * (seq_ycb.c): libmatio allocates (and clears) each array at the size its
+ * header declares, so a damaged header would make it allocate gigabytes. */
+#include "seq_impl.h"
+
+#include <stdint.h>
+#include <string.h>
+#include <zlib.h>
+
+#define MAT_MAX_ELEMS (1ull << 27)   /* YCB-Video's largest variable, vertmap, has 921,600 */
+
+static uint32_t rd32(const uint8_t *p, int be) {
+    return be ? (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]
+              : (uint32_t)p[3] << 24 | (uint32_t)p[2] << 16 | (uint32_t)p[1] << 8 | p[0];
+}
+
+/* A miMATRIX's header (array flags, dimensions) in p[0..n); its elements must
+ * fit in `room` bytes. */
+static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, int be, uint64_t room, long off) {
+    if (n < 16) return SOOC_OK;                      /* libmatio reports a short header itself */
+    uint32_t ft = rd32(p, be), fn = rd32(p + 4, be);
+    if ((ft & 0xffff) != 6 || (ft >> 16) || fn != 8) return SOOC_OK;   /* not the usual flags: libmatio's call */
+    uint32_t cls = rd32(p + 8, be) & 0xff;
+    if (n < 24) return SOOC_OK;
+    const uint8_t *d = p + 16;
+    uint32_t dt = rd32(d, be), dn;
+    const uint8_t *dims;
+    if (dt >> 16) { dn = dt >> 16; dt &= 0xffff; dims = d + 4; }
+    else { dn = rd32(d + 4, be); dims = d + 8; }
+    if (dt != 5 || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
+    /* the array's name: its length must fit too (libmatio allocates and clears it) */
+    size_t name_at = (size_t)(dims - p) + dn + (dn % 8 ? 8 - dn % 8 : 0);
+    if (name_at + 8 <= n) {
+        uint32_t nt = rd32(p + name_at, be);
+        uint64_t nn = nt >> 16 ? nt >> 16 : rd32(p + name_at + 4, be);
+        if (nn > room)
+            return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array name of %llu bytes, more than the file can hold "
+                               "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)nn,
+                               (unsigned long long)room);
+    }
+    if (cls == 1 || cls == 2 || cls == 3 || cls == 5) return SOOC_OK;   /* cell, struct, object, sparse */
+    uint64_t prod = 1;
+    for (uint32_t k = 0; k < dn / 4; k++) {
+        uint32_t v = rd32(dims + 4 * k, be);
+        if (v > 0x7fffffffu) prod = UINT64_MAX;
+        else if (prod != UINT64_MAX) prod = v && prod > UINT64_MAX / v ? UINT64_MAX : prod * v;
+    }
+    if (prod == UINT64_MAX)
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares a dimension of 2^31 or more: a corrupt "
+                           "MAT-file", path, off);
+    if (prod > room || prod > MAT_MAX_ELEMS)
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares %llu elements, more than the file can hold "
+                           "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)prod,
+                           (unsigned long long)room);
+    return SOOC_OK;
+}
+
+sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t size) {
+    if (size < 128) return SOOC_OK;
+    int be = f[126] == 'M' && f[127] == 'I';
+    size_t off = 128;
+    while (off + 8 <= size) {
+        uint32_t type = rd32(f + off, be), nb;
+        if (type >> 16) { off += 8; continue; }      /* a small element: 4 bytes of data inline */
+        nb = rd32(f + off + 4, be);
+        if (nb > size - off - 8)
+            return sooc_seterr(SOOC_EFORMAT, "%s: truncated or corrupt MAT-file: offset %zu: an element of %u bytes runs "
+                               "past the end of the file (%zu bytes)", path, off, nb, size);
+        const uint8_t *d = f + off + 8;
+        sooc_status st = SOOC_OK;
+        if (type == 14) st = check_matrix(path, d, nb, be, nb, (long)off);
+        if (type == 15) {                            /* miCOMPRESSED: the inner header, inflated */
+            uint8_t hdr[8 + 16 + 8 + 4 * 32];
+            z_stream z;
+            memset(&z, 0, sizeof z);
+            if (inflateInit(&z) == Z_OK) {
+                z.next_in = (Bytef *)d;
+                z.avail_in = nb;
+                z.next_out = hdr;
+                z.avail_out = sizeof hdr;
+                int r = inflate(&z, Z_SYNC_FLUSH);
+                size_t got = sizeof hdr - z.avail_out;
+                inflateEnd(&z);
+                if ((r == Z_OK || r == Z_STREAM_END || r == Z_BUF_ERROR) && got >= 8 && rd32(hdr, be) == 14) {
+                    uint64_t inner = rd32(hdr + 4, be), room = (uint64_t)nb * 1032 + 1024;
+                    st = check_matrix(path, hdr + 8, got - 8, be, inner < room ? inner : room, (long)off);
+                }
+            }
+        }
+        if (st) return st;
+        off += 8 + nb;
+        if (type != 15) off += (8 - nb % 8) % 8;
+    }
+    return SOOC_OK;
+}
