@@ -36,7 +36,8 @@ typedef struct sooc_slamdb_kf {
 
 typedef struct sooc_slamdb_edge {
     int64_t a, b;
-    int32_t kind;             /* 0 odometry, 1 loop closure, 2 relocalisation */
+    int32_t kind;             /* 0 odometry, 1 loop closure, 2 relocalisation, 3 re-anchor
+                                 (weak), 4 local (recent keyframes)             */
     double T_ab[16];          /* T_a^-1 T_b as measured                        */
     double w_t, w_r;          /* 1 / sigma: metres, radians                    */
 } sooc_slamdb_edge;

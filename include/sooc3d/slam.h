@@ -46,6 +46,8 @@ typedef struct sooc_slam_params {
     int relocalise;             /* start lost over stored keyframes, relocalise when lost (1) */
     int n_features;             /* ORB features per keyframe (800)                      */
     int recent_window;          /* newest keyframes skipped by loop search (6)          */
+    int local_edges;            /* also verify a new keyframe against the recent window's
+                                   keyframes (besides the previous one): local edges (0) */
     int max_candidates;         /* candidates verified per query (3)                    */
     int min_matches;            /* descriptor matches for a candidate (40)              */
     int min_inliers;            /* PnP RANSAC inliers (30)                              */
@@ -81,7 +83,7 @@ typedef struct sooc_slam_result {
 
 typedef struct sooc_slam_stats {
     int64_t frames, tracked, failed, lost, relocalised, keyframes, stored_keyframes;
-    int64_t loops, loop_candidates, loop_rejected, reloc_attempts, optimisations;
+    int64_t loops, local_edges, loop_candidates, loop_rejected, reloc_attempts, optimisations;
     double ms_track, ms_features, ms_loop, ms_reloc, ms_pgo;   /* totals */
     double last_pgo_cost0, last_pgo_cost1;
 } sooc_slam_stats;

@@ -42,6 +42,10 @@ static void usage(FILE *f) {
             "                       optimisation (docs/slam.md); the trajectory written is the optimised one\n"
             "  --map DB             keep the keyframes in this map database (created if missing); with\n"
             "                       stored keyframes the run starts lost and relocalises into them\n"
+            "  --kf-depth WxH       keyframe depth kept for verification ICP (default 160x120)\n"
+            "  --loop-window N      newest keyframes left out of the loop search (default 6)\n"
+            "  --local-edges 0|1    verify each keyframe against the recent ones too (default 0)\n"
+            "  --loop-sigma M,R     loop/relocalisation edge sigma: metres, radians (default 0.01,0.01)\n"
             "  --no-relocalise      with --map or --loop-closure: never relocalise (a new run starts its own\n"
             "                       frame; a lost tracker re-anchors at its last pose)\n"
             "  --start-gt           start at the sequence's first pose instead of the identity\n"
@@ -76,7 +80,8 @@ int sooc_cmd_odometry(int argc, char **argv) {
     int delta_frames = 0, start_gt = 0;
     const char *color_K = "auto";
     long long max_frames = 0, first_frame = 0;
-    int loop_closure = 0, relocalise = 1;
+    int loop_closure = 0, relocalise = 1, kf_dw = 160, kf_dh = 120, local_edges = 0, loop_window = 6;
+    double loop_sig[2] = {0.01, 0.01};
     const char *map_path = NULL;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -163,6 +168,25 @@ int sooc_cmd_odometry(int argc, char **argv) {
         else if (!strcmp(a, "--first-frame")) { NEEDV(); if (!sooc_cli_count_opt(cmd, a, v, &first_frame)) return 2; }
         else if (!strcmp(a, "--loop-closure")) loop_closure = 1;
         else if (!strcmp(a, "--no-relocalise")) relocalise = 0;
+        else if (!strcmp(a, "--loop-window")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 100000, &loop_window)) return 2; }
+        else if (!strcmp(a, "--local-edges")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 1, &local_edges)) return 2; }
+        else if (!strcmp(a, "--kf-depth")) {
+            NEEDV();
+            int n2 = 0;
+            if (sscanf(v, "%dx%d%n", &kf_dw, &kf_dh, &n2) != 2 || v[n2] || kf_dw < 16 || kf_dh < 12 || kf_dw > 4096 ||
+                kf_dh > 4096) {
+                fprintf(stderr, "sooc3d odometry: --kf-depth: expected WxH (at least 16x12), got '%s'\n", v);
+                return 2;
+            }
+        } else if (!strcmp(a, "--loop-sigma")) {
+            NEEDV();
+            int n2 = 0;
+            if (sscanf(v, "%lf,%lf%n", &loop_sig[0], &loop_sig[1], &n2) != 2 || v[n2] || !(loop_sig[0] > 0) ||
+                !(loop_sig[1] > 0) || loop_sig[0] > 10 || loop_sig[1] > 10) {
+                fprintf(stderr, "sooc3d odometry: --loop-sigma: expected METRES,RADIANS (> 0), got '%s'\n", v);
+                return 2;
+            }
+        }
         else if (!strcmp(a, "--map")) { NEEDV(); map_path = v; }
         else if (!strcmp(a, "--start-gt")) start_gt = 1;
         else if (!strcmp(a, "--delta")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 1e-6, 1e6, &delta)) return 2; }
@@ -236,6 +260,12 @@ int sooc_cmd_odometry(int argc, char **argv) {
         sp2.odom = op;
         sp2.loop_closure = loop_closure;
         sp2.relocalise = relocalise;
+        sp2.depth_w = kf_dw;
+        sp2.depth_h = kf_dh;
+        sp2.local_edges = local_edges;
+        sp2.recent_window = loop_window;
+        sp2.sigma_loop_m = loop_sig[0];
+        sp2.sigma_loop_rad = loop_sig[1];
         if (map_path) {
             sooc_mapstore_params mp;
             sooc_mapstore_params_default(&mp);

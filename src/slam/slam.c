@@ -17,6 +17,7 @@ void sooc_slam_params_default(sooc_slam_params *p) {
     p->relocalise = 1;
     p->n_features = 800;
     p->recent_window = 6;
+    p->local_edges = 0;
     p->max_candidates = 3;
     p->min_matches = 40;
     p->min_inliers = 30;
@@ -297,7 +298,7 @@ static sooc_status optimise(sooc_slam *s) {
         memcpy(Tij + 16 * (size_t)e, E->T_ab, sizeof E->T_ab);
         w[2 * e] = E->w_t;
         w[2 * e + 1] = E->w_r;
-        robust[e] = E->kind == 1 || E->kind == 2;
+        robust[e] = E->kind == 1 || E->kind == 2 || E->kind == 4;
     }
     char err[512] = "";
     int iters = 0;
@@ -353,27 +354,37 @@ static sooc_status close_loops(sooc_slam *s, int c, int *closed) {
     /* nodes of this run's current session within the window are skipped;
      * stored nodes and older sessions are all candidates */
     if (limit <= 0) return SOOC_OK;
-    int cand[16];
+    int cand[32];
     int nc = find_candidates(s, &s->nodes[c], limit, cand);
     sooc_status st = SOOC_OK;
-    int added = 0;
+    int added = 0, local_added = 0;
+    /* local edges: the recent keyframes of this session besides the previous one */
+    int nlocal = 0;
+    for (int i = c - 2; s->p.local_edges && i >= 0 && i >= c - s->p.recent_window && nc < 32; i--)
+        if (s->nodes[i].session == s->nodes[c].session) {
+            cand[nc++] = i;
+            nlocal++;
+        }
     for (int k = 0; k < nc && !st; k++) {
-        s->st.loop_candidates++;
+        if (k < nc - nlocal) s->st.loop_candidates++;
         int ok = 0, inl = 0;
         double T_b_c[16];
         if ((st = sooc__slam_verify(s, &s->nodes[c], &s->nodes[cand[k]], &ok, T_b_c, &inl))) break;
         if (!ok) {
-            s->st.loop_rejected++;
+            if (k < nc - nlocal) s->st.loop_rejected++;
             continue;
         }
-        st = add_edge(s, cand[k], c, 1, T_b_c, 1.0 / s->p.sigma_loop_m, 1.0 / s->p.sigma_loop_rad);
-        added++;
+        int local = k >= nc - nlocal;
+        st = add_edge(s, cand[k], c, local ? 4 : 1, T_b_c, 1.0 / s->p.sigma_loop_m, 1.0 / s->p.sigma_loop_rad);
+        if (local) local_added++;
+        else added++;
     }
     s->st.ms_loop += (sooc_seconds() - t0) * 1e3;
-    if (!st && added) {
+    s->st.local_edges += local_added;
+    if (!st && (added || local_added)) {
         s->st.loops += added;
         st = optimise(s);
-        *closed = 1;
+        *closed = added > 0;
     }
     return st;
 }

@@ -25,7 +25,7 @@ typedef struct slam_node {
 } slam_node;
 
 typedef struct slam_edge {
-    int a, b, kind;       /* node indices; 0 odometry, 1 loop, 2 relocalisation, 3 re-anchor */
+    int a, b, kind;       /* node indices; 0 odometry, 1 loop, 2 relocalisation, 3 re-anchor, 4 local */
     double T_ab[16], w_t, w_r;
 } slam_edge;
 

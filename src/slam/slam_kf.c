@@ -104,38 +104,17 @@ sooc_status sooc__slam_extract(sooc_slam *s, slam_node *n) {
 #endif
 }
 
-static inline int hamming(const uint8_t *a, const uint8_t *b) {
-    uint64_t x[4], y[4];
-    memcpy(x, a, 32);
-    memcpy(y, b, 32);
-    return __builtin_popcountll(x[0] ^ y[0]) + __builtin_popcountll(x[1] ^ y[1]) +
-           __builtin_popcountll(x[2] ^ y[2]) + __builtin_popcountll(x[3] ^ y[3]);
-}
-
 int sooc__slam_match(const slam_node *q, const slam_node *b, int *pairs, int cap) {
-    int m = 0;
-    for (int i = 0; i < q->nf && m < cap; i++) {
-        const uint8_t *d = q->desc + 32 * (size_t)i;
-        int best = 257, second = 257, bj = -1;
-        for (int j = 0; j < b->nf; j++) {
-            int h = hamming(d, b->desc + 32 * (size_t)j);
-            if (h < best) {
-                second = best;
-                best = h;
-                bj = j;
-            } else if (h < second) {
-                second = h;
-            }
-        }
-        if (bj >= 0 && best <= 64 && best < 0.8 * second) {
-            if (pairs) {
-                pairs[2 * m] = i;
-                pairs[2 * m + 1] = bj;
-            }
-            m++;
-        }
-    }
-    return m;
+#if SOOC_HAVE_OPENCV
+    int m = sooc_slsh_match(q->desc, q->nf, b->desc, b->nf, 64, 0.8, pairs, cap, NULL, 0);
+    return m < 0 ? 0 : m;
+#else
+    (void)q;
+    (void)b;
+    (void)pairs;
+    (void)cap;
+    return 0;
+#endif
 }
 
 static double rot_deg(const double T[16]) {
