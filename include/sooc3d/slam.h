@@ -16,9 +16,10 @@
  *   verification  matches with a depth point in the candidate -> OpenCV
  *                 solvePnPRansac (reproj_px, >= min_inliers inliers) ->
  *                 depth-only ICP between the two stored depth images from
- *                 the PnP pose (>= min_icp_agree of the query's depth within
- *                 4 cm of the candidate's, and ICP moves PnP's pose by no
- *                 more than max_jump_m / max_jump_deg).
+ *                 the PnP pose (>= min_overlap of the query's depth points
+ *                 land on the candidate's depth, >= min_icp_agree of those
+ *                 within 4 cm of it, and ICP moves PnP's pose by no more
+ *                 than max_jump_m / max_jump_deg).
  *   loop closure  a verified candidate of a new keyframe adds a loop edge;
  *                 the pose graph (odometry, loop and relocalisation edges;
  *                 Ceres, Huber loss on loop edges) is optimised and the
@@ -52,7 +53,10 @@ typedef struct sooc_slam_params {
     int min_matches;            /* descriptor matches for a candidate (40)              */
     int min_inliers;            /* PnP RANSAC inliers (30)                              */
     double reproj_px;           /* PnP inlier threshold at the working resolution (2.0) */
-    double min_icp_agree;       /* (0.6)                                                */
+    double min_icp_agree;       /* of the query's depth points that land on the candidate's
+                                   depth, the fraction within 4 cm after ICP (0.6)      */
+    double min_overlap;         /* the fraction of the query's depth points that land on
+                                   the candidate's depth at all (0.3)                   */
     double max_jump_m, max_jump_deg;   /* ICP vs PnP disagreement bound (0.05 m, 5 deg) */
     double sigma_odom_m, sigma_odom_rad;   /* odometry edges (0.01 m, 0.01 rad)         */
     double sigma_loop_m, sigma_loop_rad;   /* loop and relocalisation edges (0.01, 0.01) */

@@ -23,6 +23,7 @@ void sooc_slam_params_default(sooc_slam_params *p) {
     p->min_inliers = 30;
     p->reproj_px = 2.0;
     p->min_icp_agree = 0.6;
+    p->min_overlap = 0.3;
     p->max_jump_m = 0.05;
     p->max_jump_deg = 5;
     p->sigma_odom_m = 0.01;
@@ -142,7 +143,7 @@ sooc_status sooc_slam_create(sooc_slam **out, const sooc_slam_params *p, sooc_ma
     if (p->odom.variant == SOOC_ODOM_ICP)
         return sooc_seterr(SOOC_EINVAL, "slam: the icp odometry variant has no grey image for features");
     if (p->n_features < 50 || p->n_features > 10000 || p->min_inliers < 6 || p->min_matches < p->min_inliers ||
-        p->max_candidates < 1 || p->recent_window < 0 || !(p->reproj_px > 0) || p->depth_w < 16 || p->depth_h < 12 ||
+        p->max_candidates < 1 || p->recent_window < 0 || !(p->reproj_px > 0) || !(p->min_overlap >= 0 && p->min_overlap <= 1) || p->depth_w < 16 || p->depth_h < 12 ||
         !(p->sigma_odom_m > 0 && p->sigma_odom_rad > 0 && p->sigma_loop_m > 0 && p->sigma_loop_rad > 0) ||
         p->pgo_iterations < 1)
         return sooc_seterr(SOOC_EINVAL, "slam: parameters out of range");

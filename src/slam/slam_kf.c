@@ -154,7 +154,7 @@ sooc_status sooc__slam_verify(sooc_slam *s, const slam_node *q, const slam_node 
     if (r < 0) return sooc_seterr(SOOC_ERR, "slam: %s", err);
     *inliers = ninl;
     if (!r || ninl < s->p.min_inliers) return SOOC_OK;
-    double init[16], T[16], agree = 0;
+    double init[16], T[16], agree = 0, overlap = 0;
     sooc_se3_inverse(init, T_q_b);
     if (!s->icp) {
         if (sooc_slsh_icp_create(&s->icp, b->Kd, b->dw, b->dh, s->p.odom.min_depth_m, s->p.odom.max_depth_m, 0.04, err,
@@ -162,9 +162,9 @@ sooc_status sooc__slam_verify(sooc_slam *s, const slam_node *q, const slam_node 
             return sooc_seterr(SOOC_ERR, "slam: %s", err);
     }
     if (q->dw != b->dw || q->dh != b->dh) return SOOC_OK;   /* stored at another size: not comparable */
-    r = sooc_slsh_icp_run(s->icp, q->depth, b->depth, init, T, &agree, err, sizeof err);
+    r = sooc_slsh_icp_run(s->icp, q->depth, b->depth, init, T, &agree, &overlap, err, sizeof err);
     if (r < 0) return sooc_seterr(SOOC_ERR, "slam: %s", err);
-    if (!r || agree < s->p.min_icp_agree) return SOOC_OK;
+    if (!r || agree < s->p.min_icp_agree || overlap < s->p.min_overlap) return SOOC_OK;
     double inv[16], D[16];
     sooc_se3_inverse(inv, init);
     sooc_se3_mul(D, inv, T);

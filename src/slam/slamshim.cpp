@@ -184,8 +184,8 @@ extern "C" int sooc_slsh_icp_create(sooc_slsh_icp **out, const double K[4], int 
 extern "C" void sooc_slsh_icp_destroy(sooc_slsh_icp *c) { delete c; }
 
 extern "C" int sooc_slsh_icp_run(sooc_slsh_icp *c, const float *src, const float *dst, const double init[16],
-                                 double T[16], double *agree, char *err, size_t errcap) {
-    *agree = 0;
+                                 double T[16], double *agree, double *overlap, char *err, size_t errcap) {
+    *agree = *overlap = 0;
     try {
         cv::Mat ds = cv::Mat(c->h, c->w, CV_32F, const_cast<float *>(src)).clone();
         cv::Mat dd = cv::Mat(c->h, c->w, CV_32F, const_cast<float *>(dst)).clone();
@@ -201,7 +201,7 @@ extern "C" int sooc_slsh_icp_run(sooc_slsh_icp *c, const float *src, const float
         for (int i = 0; i < 16; i++)
             if (!std::isfinite(T[i])) return 0;
         const double fx = c->K[0], fy = c->K[1], cx = c->K[2], cy = c->K[3];
-        long n = 0, good = 0;
+        long n = 0, inview = 0, good = 0;
         for (int y = 0; y < c->h; y += 2)
             for (int x = 0; x < c->w; x += 2) {
                 float z = src[(size_t)y * c->w + x];
@@ -215,9 +215,12 @@ extern "C" int sooc_slsh_icp_run(sooc_slsh_icp *c, const float *src, const float
                 int u = (int)std::lround(fx * px / pz + cx), v = (int)std::lround(fy * py / pz + cy);
                 if (u < 0 || v < 0 || u >= c->w || v >= c->h) continue;
                 float zd = dst[(size_t)v * c->w + u];
-                if (zd > c->min_depth && zd < c->max_depth && std::fabs(zd - pz) <= c->max_diff) good++;
+                if (!(zd > c->min_depth && zd < c->max_depth)) continue;
+                inview++;
+                if (std::fabs(zd - pz) <= c->max_diff) good++;
             }
-        *agree = n ? (double)good / (double)n : 0;
+        *agree = inview ? (double)good / (double)inview : 0;
+        *overlap = n ? (double)inview / (double)n : 0;
         return 1;
     } catch (const std::exception &e) {
         set_err(err, errcap, std::string("OpenCV ICP: ") + e.what());

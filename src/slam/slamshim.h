@@ -42,11 +42,12 @@ typedef struct sooc_slsh_icp sooc_slsh_icp;
 int sooc_slsh_icp_create(sooc_slsh_icp **out, const double K[4], int w, int h, double min_depth,
                          double max_depth, double max_depth_diff, char *err, size_t errcap);
 void sooc_slsh_icp_destroy(sooc_slsh_icp *c);   /* NULL-safe */
-/* T_dst_src (p_dst = T * p_src) from init; *agree = the fraction of the
- * source's valid pixels (every 2nd) that land within max_depth_diff of the
- * destination's depth. Returns 1 when ICP converged, 0 when it failed. */
+/* T_dst_src (p_dst = T * p_src) from init. Of the source's valid pixels
+ * (every 2nd), *overlap = the fraction that land on a valid destination
+ * pixel, *agree = the fraction of those within max_depth_diff of its depth.
+ * Returns 1 when ICP converged, 0 when it failed. */
 int sooc_slsh_icp_run(sooc_slsh_icp *c, const float *src, const float *dst, const double init[16], double T[16],
-                      double *agree, char *err, size_t errcap);
+                      double *agree, double *overlap, char *err, size_t errcap);
 
 /* Pose-graph optimisation (Ceres, Levenberg-Marquardt, sparse normal
  * Cholesky). Nodes: nn camera-to-world poses T (16 doubles each, updated in
