@@ -356,15 +356,29 @@ extern "C" int sooc_slsh_pgo(int nn, double *T, const uint8_t *fixed, int ne, co
 #endif
 }
 
-extern "C" int sooc_slsh_pgo_residual(const double Ti[16], const double Tj[16], const double Tij[16],
-                                      const double w[2], double r[6], double *Ji, double *Jj) {
+extern "C" void sooc_slsh_T_to_tq(const double T[16], double t[3], double q[4]) {
+#if SOOC_HAVE_CERES
+    T_to_tq(T, t, q);
+#else
+    (void)T; (void)t; (void)q;
+#endif
+}
+
+extern "C" void sooc_slsh_tq_to_T(const double t[3], const double q[4], double T[16]) {
+#if SOOC_HAVE_CERES
+    tq_to_T(t, q, T);
+#else
+    (void)t; (void)q; (void)T;
+#endif
+}
+
+extern "C" int sooc_slsh_pgo_residual(const double ti[3], const double qi[4], const double tj[3],
+                                      const double qj[4], const double Tij[16], const double w[2], double r[6],
+                                      double *Ji, double *Jj) {
 #if !SOOC_HAVE_CERES
-    (void)Ti; (void)Tj; (void)Tij; (void)w; (void)r; (void)Ji; (void)Jj;
+    (void)ti; (void)qi; (void)tj; (void)qj; (void)Tij; (void)w; (void)r; (void)Ji; (void)Jj;
     return -1;
 #else
-    double ti[3], qi[4], tj[3], qj[4];
-    T_to_tq(Ti, ti, qi);
-    T_to_tq(Tj, tj, qj);
     std::unique_ptr<ceres::CostFunction> cf(make_cost(Tij, w[0], w[1]));
     const double *params[4] = {ti, qi, tj, qj};
     double jt_i[18], jq_i[24], jt_j[18], jq_j[24];

@@ -61,11 +61,18 @@ int sooc_slsh_pgo(int nn, double *T, const uint8_t *fixed, int ne, const int *ij
                   const double *w, const uint8_t *robust, int max_iter, double *cost0, double *cost1, int *iters,
                   char *err, size_t errcap);
 
-/* The residual of one edge at poses Ti, Tj (for the derivative checks):
- * r[6] as in sooc_slsh_pgo, and the 6 x 7 Jacobians with respect to node
- * i's and node j's parameters (t then quaternion x y z w; may be NULL). */
-int sooc_slsh_pgo_residual(const double Ti[16], const double Tj[16], const double Tij[16], const double w[2],
-                           double r[6], double *Ji, double *Jj);
+/* A pose as the optimiser's parameters: t (3) and the unit quaternion
+ * (x y z w) of its rotation, and back. */
+void sooc_slsh_T_to_tq(const double T[16], double t[3], double q[4]);
+void sooc_slsh_tq_to_T(const double t[3], const double q[4], double T[16]);
+
+/* The residual of one edge at node parameters (ti, qi), (tj, qj) (for the
+ * derivative checks): r[6] as in sooc_slsh_pgo, and the 6 x 7 Jacobians
+ * (Ceres automatic differentiation) with respect to node i's and node j's
+ * parameters (t then quaternion x y z w, not normalised; may be NULL).
+ * Returns 0, or -1 without Ceres. */
+int sooc_slsh_pgo_residual(const double ti[3], const double qi[4], const double tj[3], const double qj[4],
+                           const double Tij[16], const double w[2], double r[6], double *Ji, double *Jj);
 
 /* 1 if the shim was built with Ceres. */
 int sooc_slsh_have_ceres(void);

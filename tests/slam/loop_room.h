@@ -9,7 +9,7 @@
 /* room.h's own walk is not used here */
 static inline void loop_room_unused(void) { (void)walk_pose; }
 
-static void loop_pose(int i, int n, double T[16]) {
+static inline void loop_pose(int i, int n, double T[16]) {
     double s = 2 * M_PI * i / n;
     double pos[3] = {0.7 * sin(s) - 0.5, 1.4 + 0.05 * sin(3 * s), 0.7 * cos(s) - 0.2};
     double yaw = 2.4 + s, pitch = 0.1 * sin(2 * s);
@@ -23,7 +23,7 @@ static void loop_pose(int i, int n, double T[16]) {
     sooc_se3_from_rt(T, Rc, pos);
 }
 
-static void room_K(sooc_intrinsics *K) {
+static inline void room_K(sooc_intrinsics *K) {
     memset(K, 0, sizeof *K);
     K->width = W;
     K->height = H;
@@ -33,7 +33,7 @@ static void room_K(sooc_intrinsics *K) {
 }
 
 /* frame i of an n-frame loop, rendered into f (allocated by the caller) */
-static void loop_frame(int i, int n, sooc_frame *f) {
+static inline void loop_frame(int i, int n, sooc_frame *f) {
     sooc_intrinsics K;
     room_K(&K);
     double T[16];
@@ -44,7 +44,7 @@ static void loop_frame(int i, int n, sooc_frame *f) {
 }
 
 /* translation and rotation (degrees) between two poses */
-static void pose_diff(const double A[16], const double B[16], double *dt, double *dr) {
+static inline void pose_diff(const double A[16], const double B[16], double *dt, double *dr) {
     double inv[16], D[16];
     sooc_se3_inverse(inv, A);
     sooc_se3_mul(D, inv, B);
