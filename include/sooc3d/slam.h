@@ -120,6 +120,45 @@ sooc_status sooc_slam_keyframe(const sooc_slam *s, int64_t i, int64_t *id, int32
 sooc_status sooc_slam_verify_pair(sooc_slam *s, int64_t a, int64_t b, int *accepted, double T_b_a[16],
                                   int *inliers);
 
+/* ------------------------------------------------------ tracking thread */
+
+/* The tracker on its own thread, between a frame source (the node's sensor
+ * ring) and the mapper: it pops frames from `pop` (the same contract as
+ * sooc_frame_ring_pop: SOOC_OK, SOOC_ETIMEOUT, SOOC_EEOF), tracks them with
+ * the sooc_slam it is given (which it then owns until destroy), and queues
+ * the tracked ones with their pose (has_pose = 1, T_wc) for the consumer.
+ * It never waits for the consumer: when the output queue is full the oldest
+ * queued frame is dropped and counted. Untracked frames are counted by
+ * reason and not queued. Frames move by swapping sooc_frame structs. */
+typedef sooc_status (*sooc_slam_source_fn)(void *ctx, sooc_frame *f, int64_t *t_mono_ns, int timeout_ms);
+
+typedef struct sooc_slam_tracker_stats {
+    int64_t frames_in;          /* frames popped from the source                         */
+    int64_t tracked;            /* tracked and queued                                    */
+    int64_t untracked_failed;   /* odometry failed on the frame                          */
+    int64_t untracked_lost;     /* lost: not yet relocalised                             */
+    int64_t dropped_queue_full; /* tracked, then dropped: the consumer was behind        */
+    int64_t errors;             /* frames the tracker refused (bad frame)                */
+    int64_t keyframes, loops, relocalised;
+    double ms_track_mean, ms_track_max;   /* per frame on the tracking thread         */
+} sooc_slam_tracker_stats;
+
+typedef struct sooc_slam_tracker sooc_slam_tracker;
+
+sooc_status sooc_slam_tracker_start(sooc_slam_tracker **out, sooc_slam *slam, sooc_slam_source_fn pop, void *ctx,
+                                    int queue_capacity);
+/* Next tracked frame (swapped into f): SOOC_ETIMEOUT after timeout_ms (< 0:
+ * wait), SOOC_EEOF when the source ended and the queue is empty, or the
+ * error that stopped the tracking thread. */
+sooc_status sooc_slam_tracker_pop(sooc_slam_tracker *t, sooc_frame *f, int64_t *t_mono_ns, int timeout_ms);
+void sooc_slam_tracker_get_stats(sooc_slam_tracker *t, sooc_slam_tracker_stats *st);
+/* One line: "tracking: N in, N tracked, N failed, N lost, N dropped (queue
+ * full), N keyframes, N loops, N relocalised, mean/max ms". */
+size_t sooc_slam_tracker_stats_format(const sooc_slam_tracker_stats *st, char *buf, size_t cap);
+/* Stop the thread (the source must return within its timeout), join, free
+ * the queued frames and the sooc_slam. NULL-safe. */
+void sooc_slam_tracker_destroy(sooc_slam_tracker *t);
+
 /* Keyframe blobs of the map store (mapstore_slam.h). Features: "SLF1", u32
  * version 1, u32 n, then n records (u, v, x, y, z float32; 32-byte ORB
  * descriptor; NaN xyz = no depth), u32 CRC-32 of all before it. Depth:
