@@ -30,6 +30,9 @@
 #if SOOC_NODE_HAVE_CV
 #include "sooc3d/cv.h"
 #endif
+#if SOOC_NODE_HAVE_SLAM
+#include "sooc3d/slam.h"
+#endif
 
 #include "sooc3d/view.h"
 
@@ -54,6 +57,11 @@ struct sooc_node {
 #if SOOC_NODE_HAVE_CV
     sooc_odom *odom;               /* pose.source: odometry */
     int odom_lost;                 /* frames failed in a row (for the log) */
+    sooc_odom_params odom_params;  /* for the tracking thread, started by sooc_node_run */
+#endif
+#if SOOC_NODE_HAVE_SLAM
+    sooc_slam_tracker *trk;        /* odometry.thread/loop_closure/relocalise (tracking.c) */
+    sooc_mapstore *trk_store;      /* its own connection to map.db (keyframe tables)       */
 #endif
 #if SOOC_NODE_HAVE_DRIVERS
     sooc_sensor *sensor;           /* swapped by a reconnect under sensor_mu */
@@ -171,5 +179,18 @@ void sooc__node_time_check(sooc_node *n, const sooc_frame *f);
 /* skip.c */
 sooc_status sooc__node_capture_skip(sooc_node *n, sooc_status st);
 int sooc__node_frame_size_skip(sooc_node *n, const sooc_frame *f, sooc_status *result);
+
+/* tracking.c: the tracking thread of pose.source odometry with
+ * odometry.thread / loop_closure / relocalise. wanted: 1 if the config asks
+ * for it. start: after the capture thread; pop: the mapping loop's source
+ * instead of the ring (frames carry has_pose, T_wc in the odometry frame);
+ * stop: after the capture thread ended. register: pipeline.c's intrinsics
+ * fix and depth registration, run on the tracking thread. */
+int sooc__node_tracking_wanted(const sooc_node *n);
+sooc_status sooc__node_tracking_start(sooc_node *n);
+sooc_status sooc__node_tracking_pop(sooc_node *n, sooc_frame *f, int64_t *t_cap, int timeout_ms);
+void sooc__node_tracking_log(sooc_node *n);
+void sooc__node_tracking_stop(sooc_node *n);
+sooc_status sooc__node_register_frame(sooc_node *n, sooc_frame *f);
 
 #endif

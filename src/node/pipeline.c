@@ -446,7 +446,8 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             op.T_color_depth[7] = c->odom_color_ty;
             op.T_color_depth[11] = c->odom_color_tz;
         }
-        if ((st = sooc_odom_create(&n->odom, &op))) {
+        n->odom_params = op;   /* the tracking thread's, when asked for (tracking.c) */
+        if (!sooc__node_tracking_wanted(n) && (st = sooc_odom_create(&n->odom, &op))) {
             sooc_adderr(st, "%s: pose.source: odometry", c->path);
             goto fail;
         }
@@ -689,6 +690,8 @@ static sooc_status fix_intrinsics_and_register(sooc_node *n, sooc_frame *f) {
     return SOOC_OK;
 }
 
+sooc_status sooc__node_register_frame(sooc_node *n, sooc_frame *f) { return fix_intrinsics_and_register(n, f); }
+
 /* pose.source: odometry. 1: T_src_c holds the frame's pose; 0: untracked
  * (counted and skipped: the mapper never sees a frame without a trusted
  * pose); -1: error (message set). */
@@ -731,6 +734,7 @@ static void log_stats(sooc_node *n) {
     char line[512];
     sooc_node_stats_format(&s, line, sizeof line);
     sooc_log(SOOC_LOG_INFO, "node: %s", line);
+    sooc__node_tracking_log(n);
 }
 
 /* Keyframe policy, preprocessing, mapper update and publishing of one frame
@@ -807,9 +811,11 @@ sooc_status sooc_node_run(sooc_node *n) {
         return sooc_seterr(SOOC_ERR, "node: cannot start the capture thread");
     n->cap_started = 1;
     sooc_status result = SOOC_OK;
+    int tracking = sooc__node_tracking_wanted(n);
+    if (tracking && (result = sooc__node_tracking_start(n))) tracking = 0;
     int eof = 0;
     const int64_t tol_ns = (int64_t)llround(n->cfg.pose_tolerance_s * 1e9);
-    while (!atomic_load(&n->stop)) {
+    while (!result && !atomic_load(&n->stop)) {
         if (n->cfg.stats_period_s > 0 && sooc_seconds() - n->t_last_stats >= n->cfg.stats_period_s) {
             n->t_last_stats = sooc_seconds();
             log_stats(n);
@@ -817,7 +823,8 @@ sooc_status sooc_node_run(sooc_node *n) {
         sooc_status st = sooc__node_store_retry(n, 0);
         if (st) { result = st; break; }
         int64_t t_cap = 0;
-        st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
+        st = tracking ? sooc__node_tracking_pop(n, &n->work, &t_cap, 100)
+                      : sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
         if (st == SOOC_ETIMEOUT) continue;
         if (st == SOOC_EEOF) { eof = 1; break; }
         if (st) { result = st; break; }
@@ -830,7 +837,10 @@ sooc_status sooc_node_run(sooc_node *n) {
         /* pose association */
         double T_src_c[16];
         int fixed = 0;
-        if (n->cfg.pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose) {
+        if (tracking) {   /* tracked on the tracking thread: registered, with its pose */
+            memcpy(T_src_c, f->T_wc, sizeof T_src_c);
+            fixed = 1;
+        } else if (n->cfg.pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose) {
             /* odometry tracks the colour-registered frame */
             if ((st = fix_intrinsics_and_register(n, f))) { result = st; break; }
             fixed = 1;
@@ -874,6 +884,10 @@ sooc_status sooc_node_run(sooc_node *n) {
     if (n->cap_started) {
         pthread_join(n->cap_thread, NULL);
         n->cap_started = 0;
+    }
+    if (tracking) {
+        log_stats(n);
+        sooc__node_tracking_stop(n);
     }
     if (!result && n->cap_status) {
         result = sooc_seterr(n->cap_status, "node: capture failed: %s", n->cap_err);

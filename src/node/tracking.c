@@ -1,0 +1,109 @@
+/* pose.source: odometry with odometry.thread / loop_closure / relocalise:
+ * the tracker (include/sooc3d/slam.h) on its own thread between the sensor
+ * ring and the mapping loop (docs/slam.md "The node"). */
+#include <stdio.h>
+#include <string.h>
+
+#include "node/node_impl.h"
+
+int sooc__node_tracking_wanted(const sooc_node *n) {
+    const sooc_node_config *c = &n->cfg;
+    return c->pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose &&
+           (c->odom_thread || c->odom_loop_closure || c->odom_relocalise);
+}
+
+#if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
+/* the tracker's source: the sensor ring, frames registered to colour */
+static sooc_status ring_source(void *ctx, sooc_frame *f, int64_t *t_mono, int timeout_ms) {
+    sooc_node *n = ctx;
+    for (;;) {
+        sooc_status st = sooc_frame_ring_pop(n->ring, f, t_mono, timeout_ms);
+        if (st) return st;
+        st = sooc__node_register_frame(n, f);
+        if (!st) return SOOC_OK;
+        if (st == SOOC_ENOMEM) return st;
+        /* a frame the calibration does not fit: counted by the tracker's log, skipped */
+        sooc_log(SOOC_LOG_WARN, "node: tracking: frame %lld skipped: %s", (long long)f->index, sooc_errmsg());
+    }
+}
+#endif
+
+sooc_status sooc__node_tracking_start(sooc_node *n) {
+#if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
+    const sooc_node_config *c = &n->cfg;
+    sooc_slam_params p;
+    sooc_slam_params_default(&p);
+    p.odom = n->odom_params;
+    p.loop_closure = c->odom_loop_closure;
+    p.relocalise = c->odom_relocalise && c->map_resume;
+    sooc_status st;
+#if SOOC_NODE_HAVE_MAPSTORE
+    if (c->map_db[0] && sooc_file_exists(c->map_db)) {
+        /* a connection of its own: one sooc_mapstore per thread */
+        sooc_mapstore_params mp;
+        sooc_mapstore_params_default(&mp);
+        mp.create = 0;
+        if ((st = sooc_mapstore_open(&n->trk_store, c->map_db, &mp)) ||
+            (st = sooc_mapstore_set_busy_timeout(n->trk_store, c->map_busy_timeout_ms)))
+            return sooc_adderr(st, "%s: odometry: keyframes in map.db", c->path);
+    } else if (c->map_db[0]) {
+        sooc_log(SOOC_LOG_WARN, "%s: odometry: map.db %s does not exist yet: tracking keyframes are not stored",
+                 c->path, c->map_db);
+    }
+#endif
+    sooc_slam *s = NULL;
+    if ((st = sooc_slam_create(&s, &p, n->trk_store))) return sooc_adderr(st, "%s: odometry", c->path);
+    sooc_slam_stats ss;
+    sooc_slam_get_stats(s, &ss);
+    if (ss.stored_keyframes)
+        sooc_log(SOOC_LOG_INFO, "node: %lld tracking keyframes in %s%s", (long long)ss.stored_keyframes, c->map_db,
+                 p.relocalise ? ": frames are untracked until one relocalises into them" : "");
+    if ((st = sooc_slam_tracker_start(&n->trk, s, ring_source, n, c->ring_capacity > 1 ? c->ring_capacity : 2))) {
+        sooc_slam_destroy(s);
+        return sooc_adderr(st, "%s: odometry", c->path);
+    }
+    return SOOC_OK;
+#else
+    return sooc_seterr(SOOC_EUNSUPPORTED, "%s: odometry.thread/loop_closure/relocalise: the slam module is not built in",
+                       n->cfg.path);
+#endif
+}
+
+sooc_status sooc__node_tracking_pop(sooc_node *n, sooc_frame *f, int64_t *t_cap, int timeout_ms) {
+#if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
+    return sooc_slam_tracker_pop(n->trk, f, t_cap, timeout_ms);
+#else
+    (void)n; (void)f; (void)t_cap; (void)timeout_ms;
+    return SOOC_EEOF;
+#endif
+}
+
+void sooc__node_tracking_log(sooc_node *n) {
+#if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
+    if (!n->trk) return;
+    sooc_slam_tracker_stats s;
+    sooc_slam_tracker_get_stats(n->trk, &s);
+    char line[512];
+    sooc_slam_tracker_stats_format(&s, line, sizeof line);
+    uint64_t pushed = 0, dropped = 0;
+    int fill = 0;
+    sooc_frame_ring_counts(n->ring, &pushed, &dropped, &fill);
+    sooc_log(SOOC_LOG_INFO, "node: %s; sensor ring: %llu in, %llu dropped before tracking", line,
+             (unsigned long long)pushed, (unsigned long long)dropped);
+#else
+    (void)n;
+#endif
+}
+
+void sooc__node_tracking_stop(sooc_node *n) {
+#if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
+    sooc_slam_tracker_destroy(n->trk);
+    n->trk = NULL;
+#if SOOC_NODE_HAVE_MAPSTORE
+    sooc_mapstore_close(n->trk_store);
+    n->trk_store = NULL;
+#endif
+#else
+    (void)n;
+#endif
+}
