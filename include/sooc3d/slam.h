@@ -11,8 +11,11 @@
  *                 (mapstore_slam.h), one transaction per keyframe.
  *   recognition   descriptor voting: the query's ORB descriptors are matched
  *                 (Hamming <= 64, Lowe ratio 0.8) against every keyframe
- *                 outside the recent window; the max_candidates keyframes
- *                 with the most matches (>= min_matches) are verified.
+ *                 outside the recent window (for loop search: whose pose
+ *                 lies within loop_max_dist_m / loop_max_angle_deg of the
+ *                 new keyframe's; relocalisation tries all); the
+ *                 max_candidates keyframes with the most matches
+ *                 (>= min_matches) are verified.
  *   verification  matches with a depth point in the candidate -> OpenCV
  *                 solvePnPRansac (reproj_px, >= min_inliers inliers) ->
  *                 depth-only ICP between the two stored depth images from
@@ -50,6 +53,9 @@ typedef struct sooc_slam_params {
     int local_edges;            /* also verify a new keyframe against the recent window's
                                    keyframes (besides the previous one): local edges (0) */
     int max_candidates;         /* candidates verified per query (3)                    */
+    double loop_max_dist_m;     /* loop search: only keyframes whose current pose lies
+                                   within this distance of the new one's (1.0; 0 = all) */
+    double loop_max_angle_deg;  /* ... and whose viewing direction is within this (60)   */
     int min_matches;            /* descriptor matches for a candidate (40)              */
     int min_inliers;            /* PnP RANSAC inliers (30)                              */
     double reproj_px;           /* PnP inlier threshold at the working resolution (2.0) */

@@ -18,6 +18,8 @@ void sooc_slam_params_default(sooc_slam_params *p) {
     p->n_features = 800;
     p->recent_window = 6;
     p->local_edges = 0;
+    p->loop_max_dist_m = 1.0;
+    p->loop_max_angle_deg = 60;
     p->max_candidates = 3;
     p->min_matches = 40;
     p->min_inliers = 30;
@@ -326,11 +328,23 @@ done:
 
 /* the best max_candidates nodes for query q among nodes [0, limit), by
  * descriptor matches; cand[] gets their indices, returns their number */
-static int find_candidates(sooc_slam *s, const slam_node *q, int limit, int *cand) {
+static int near_enough(const sooc_slam *s, const slam_node *q, const slam_node *b) {
+    if (s->p.loop_max_dist_m <= 0) return 1;
+    double dx = q->T[3] - b->T[3], dy = q->T[7] - b->T[7], dz = q->T[11] - b->T[11];
+    if (dx * dx + dy * dy + dz * dz > s->p.loop_max_dist_m * s->p.loop_max_dist_m) return 0;
+    /* viewing directions (camera z axes) within loop_max_angle_deg */
+    double c = q->T[2] * b->T[2] + q->T[6] * b->T[6] + q->T[10] * b->T[10];
+    return c >= cos(s->p.loop_max_angle_deg * M_PI / 180.0);
+}
+
+/* near: only nodes whose pose lies near q's (loop search; relocalisation
+ * has no pose and tries every node) */
+static int find_candidates(sooc_slam *s, const slam_node *q, int limit, int near, int *cand) {
     int nc = 0, k = s->p.max_candidates;
     int score[16];
     if (k > 16) k = 16;
     for (int i = 0; i < limit; i++) {
+        if (near && !near_enough(s, q, &s->nodes[i])) continue;
         int m = sooc__slam_match(q, &s->nodes[i], NULL, s->p.n_features);
         if (m < s->p.min_matches) continue;
         int pos = nc < k ? nc++ : k;
@@ -356,7 +370,7 @@ static sooc_status close_loops(sooc_slam *s, int c, int *closed) {
      * stored nodes and older sessions are all candidates */
     if (limit <= 0) return SOOC_OK;
     int cand[32];
-    int nc = find_candidates(s, &s->nodes[c], limit, cand);
+    int nc = find_candidates(s, &s->nodes[c], limit, 1, cand);
     sooc_status st = SOOC_OK;
     int added = 0, local_added = 0;
     /* local edges: the recent keyframes of this session besides the previous one */
@@ -461,7 +475,7 @@ static sooc_status start_session(sooc_slam *s, const sooc_frame *f, sooc_slam_re
         if ((st = new_node(s, f, I, I, &c))) return st;
         int cand[16], b = -1, ok = 0, inl = 0;
         double T_b_q[16];
-        int nc = find_candidates(s, &s->nodes[c], c, cand);
+        int nc = find_candidates(s, &s->nodes[c], c, 0, cand);
         for (int k = 0; k < nc && !ok; k++) {
             if ((st = sooc__slam_verify(s, &s->nodes[c], &s->nodes[cand[k]], &ok, T_b_q, &inl))) break;
             if (ok) b = cand[k];

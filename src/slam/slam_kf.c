@@ -104,17 +104,60 @@ sooc_status sooc__slam_extract(sooc_slam *s, slam_node *n) {
 #endif
 }
 
-int sooc__slam_match(const slam_node *q, const slam_node *b, int *pairs, int cap) {
-#if SOOC_HAVE_OPENCV
-    int m = sooc_slsh_match(q->desc, q->nf, b->desc, b->nf, 64, 0.8, pairs, cap, NULL, 0);
-    return m < 0 ? 0 : m;
+/* Hamming distances with the POPCNT instruction when the CPU has it (the
+ * build does not assume it: no -march) */
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define SLAM_POPCNT_TARGET __attribute__((target("popcnt")))
+#define SLAM_HAVE_TARGET 1
 #else
-    (void)q;
-    (void)b;
-    (void)pairs;
-    (void)cap;
-    return 0;
+#define SLAM_POPCNT_TARGET
+#define SLAM_HAVE_TARGET 0
 #endif
+
+#define SLAM_MATCH_BODY                                                                       \
+    int m = 0;                                                                                \
+    for (int i = 0; i < q->nf && m < cap; i++) {                                              \
+        uint64_t x[4];                                                                        \
+        memcpy(x, q->desc + 32 * (size_t)i, 32);                                              \
+        int best = 257, second = 257, bj = -1;                                                \
+        for (int j = 0; j < b->nf; j++) {                                                     \
+            uint64_t y[4];                                                                    \
+            memcpy(y, b->desc + 32 * (size_t)j, 32);                                          \
+            int h = __builtin_popcountll(x[0] ^ y[0]) + __builtin_popcountll(x[1] ^ y[1]) +   \
+                    __builtin_popcountll(x[2] ^ y[2]) + __builtin_popcountll(x[3] ^ y[3]);    \
+            if (h < best) {                                                                   \
+                second = best;                                                                \
+                best = h;                                                                     \
+                bj = j;                                                                       \
+            } else if (h < second) {                                                          \
+                second = h;                                                                   \
+            }                                                                                 \
+        }                                                                                     \
+        if (bj >= 0 && best <= 64 && best < 0.8 * second) {                                   \
+            if (pairs) {                                                                      \
+                pairs[2 * m] = i;                                                             \
+                pairs[2 * m + 1] = bj;                                                        \
+            }                                                                                 \
+            m++;                                                                              \
+        }                                                                                     \
+    }                                                                                         \
+    return m;
+
+static int match_generic(const slam_node *q, const slam_node *b, int *pairs, int cap) { SLAM_MATCH_BODY }
+
+#if SLAM_HAVE_TARGET
+SLAM_POPCNT_TARGET static int match_popcnt(const slam_node *q, const slam_node *b, int *pairs, int cap) {
+    SLAM_MATCH_BODY
+}
+#endif
+
+int sooc__slam_match(const slam_node *q, const slam_node *b, int *pairs, int cap) {
+#if SLAM_HAVE_TARGET
+    static int have = -1;
+    if (have < 0) have = __builtin_cpu_supports("popcnt") ? 1 : 0;
+    if (have) return match_popcnt(q, b, pairs, cap);
+#endif
+    return match_generic(q, b, pairs, cap);
 }
 
 static double rot_deg(const double T[16]) {

@@ -63,32 +63,6 @@ extern "C" int sooc_slsh_orb(const uint8_t *gray, int w, int h, int nmax, float 
     }
 }
 
-extern "C" int sooc_slsh_match(const uint8_t *a, int na, const uint8_t *b, int nb, int max_dist, double ratio,
-                               int *pairs, int cap, char *err, size_t errcap) {
-    if (na <= 0 || nb < 2) return 0;
-    try {
-        cv::Mat A(na, 32, CV_8U, const_cast<uint8_t *>(a)), B(nb, 32, CV_8U, const_cast<uint8_t *>(b));
-        thread_local cv::BFMatcher matcher(cv::NORM_HAMMING, false);
-        thread_local std::vector<std::vector<cv::DMatch>> knn;
-        knn.clear();
-        matcher.knnMatch(A, B, knn, 2);
-        int m = 0;
-        for (const auto &k : knn) {
-            if (m >= cap) break;
-            if (k.size() < 2 || k[0].distance > max_dist || k[0].distance >= ratio * k[1].distance) continue;
-            if (pairs) {
-                pairs[2 * m] = k[0].queryIdx;
-                pairs[2 * m + 1] = k[0].trainIdx;
-            }
-            m++;
-        }
-        return m;
-    } catch (const std::exception &e) {
-        set_err(err, errcap, std::string("OpenCV BFMatcher: ") + e.what());
-        return -1;
-    }
-}
-
 extern "C" int sooc_slsh_pnp_ransac(int n, const double *obj, const double *img, const double K[4], int iters,
                                     double reproj_px, double T[16], uint8_t *inl, int *ninl, char *err,
                                     size_t errcap) {

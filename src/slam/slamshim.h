@@ -20,14 +20,6 @@ extern "C" {
 int sooc_slsh_orb(const uint8_t *gray, int w, int h, int nmax, float *uv, uint8_t *desc, int *n, char *err,
                   size_t errcap);
 
-/* Brute-force Hamming matching of 32-byte descriptors (OpenCV BFMatcher,
- * two nearest): for each of the na query descriptors its best match in b
- * when its distance is <= max_dist and < ratio times the second best.
- * pairs: 2 ints per match (query, b; may be NULL), at most cap. Returns the
- * number of matches, < 0 on an error. */
-int sooc_slsh_match(const uint8_t *a, int na, const uint8_t *b, int nb, int max_dist, double ratio, int *pairs,
-                    int cap, char *err, size_t errcap);
-
 /* solvePnPRansac (EPnP hypotheses, then iterative refinement on the
  * inliers) of n 3D points obj (3 doubles, the model's frame) seen at pixels
  * img (2 doubles) by a pinhole camera K = fx fy cx cy: T_cam_obj (p_cam =
