@@ -38,6 +38,7 @@
 #define SOOC3D_SLAM_H
 
 #include "sooc3d/cv.h"
+#include "sooc3d/map_entry.h"
 #include "sooc3d/mapstore.h"
 
 #ifdef __cplusplus
@@ -125,6 +126,33 @@ sooc_status sooc_slam_keyframe(const sooc_slam *s, int64_t i, int64_t *id, int32
  * the PnP inliers (0 when it never got there). */
 sooc_status sooc_slam_verify_pair(sooc_slam *s, int64_t a, int64_t b, int *accepted, double T_b_a[16],
                                   int *inliers);
+
+/* ------------------------------------------- moving what was mapped */
+
+/* What the last pose-graph optimisation did to this run's keyframes, so that
+ * what was mapped from them can follow: each keyframe's time and its pose
+ * (tracker frame) before and after. */
+typedef struct sooc_slam_kf_change {
+    int64_t t_ns;
+    double T_before[16], T_after[16];
+} sooc_slam_kf_change;
+
+/* Incremented by every optimisation. */
+uint64_t sooc_slam_graph_version(const sooc_slam *s);
+/* The changes of the last optimisation: *n = their number (this run's
+ * keyframes, by time); the first min(n, cap) go to out (may be NULL). */
+sooc_status sooc_slam_last_changes(const sooc_slam *s, sooc_slam_kf_change *out, size_t cap, size_t *n);
+/* Move map entries (world frame: +y up, floor y = 0; T_world_src maps the
+ * tracker's frame into it) with the keyframe nearest in time to each
+ * entry's last_seen_ns: C = W T_after T_before^-1 W^-1 moves the point
+ * (x, geom.centre[1], z) and the registrations' mean floor position, turns
+ * yaw by C's rotation about +y (sooc_m3_rot_y's sense) and the xz
+ * covariance with it. Entries last seen outside the keyframes' time span
+ * (more than max_gap_ns before the first or after the last) are left
+ * alone. Returns the number moved. chg must be sorted by t_ns (as
+ * sooc_slam_last_changes gives it). */
+size_t sooc_slam_move_entries(const sooc_slam_kf_change *chg, size_t n_chg, const double T_world_src[16],
+                              int64_t max_gap_ns, sooc_map_entry *e, size_t n);
 
 /* ------------------------------------------------------ tracking thread */
 

@@ -200,7 +200,7 @@ void sooc_slam_destroy(sooc_slam *s) {
     sooc_free(s->pairs);
     sooc_free(s->obj);
     sooc_free(s->img);
-    sooc_free(s->cand_score);
+    sooc_free(s->changes);
 #if SOOC_HAVE_OPENCV
     sooc_slsh_icp_destroy(s->icp);
 #endif
@@ -216,6 +216,14 @@ void sooc_slam_get_stats(const sooc_slam *s, sooc_slam_stats *st) {
 }
 
 int64_t sooc_slam_keyframe_count(const sooc_slam *s) { return s->n_nodes; }
+
+uint64_t sooc_slam_graph_version(const sooc_slam *s) { return s->graph_version; }
+
+sooc_status sooc_slam_last_changes(const sooc_slam *s, sooc_slam_kf_change *out, size_t cap, size_t *n) {
+    *n = s->n_changes;
+    if (out) memcpy(out, s->changes, (cap < s->n_changes ? cap : s->n_changes) * sizeof *out);
+    return SOOC_OK;
+}
 
 sooc_status sooc_slam_keyframe(const sooc_slam *s, int64_t i, int64_t *id, int32_t *run, int64_t *frame,
                                double T_wc[16]) {
@@ -310,8 +318,31 @@ static sooc_status optimise(sooc_slam *s) {
         st = sooc_seterr(SOOC_ERR, "slam: %s", err);
         goto done;
     }
+    /* this run's keyframes before and after (nodes are in time order within a run) */
+    s->n_changes = 0;
+    for (int i = 0; i < nn; i++)
+        if (s->nodes[i].run == s->run) s->n_changes++;
+    if (s->n_changes > s->cap_changes) {
+        sooc_free(s->changes);
+        s->changes = sooc_malloc(s->n_changes * sizeof *s->changes);
+        s->cap_changes = s->changes ? s->n_changes : 0;
+        if (!s->changes) {
+            s->n_changes = 0;
+            st = sooc_seterr(SOOC_ENOMEM, "slam: out of memory (pose changes)");
+            goto done;
+        }
+    }
+    size_t k = 0;
+    for (int i = 0; i < nn; i++) {
+        if (s->nodes[i].run != s->run) continue;
+        sooc_slam_kf_change *c = &s->changes[k++];
+        c->t_ns = s->nodes[i].t_ns;
+        memcpy(c->T_before, s->nodes[i].T, sizeof c->T_before);
+        memcpy(c->T_after, T + 16 * (size_t)i, sizeof c->T_after);
+    }
     for (int i = 0; i < nn; i++) memcpy(s->nodes[i].T, T + 16 * (size_t)i, sizeof s->nodes[i].T);
     s->st.optimisations++;
+    s->graph_version++;
     if (s->store) st = sooc_mapstore_slam_set_poses(s->store, ids, T, (size_t)nn);
 done:
     sooc_free(T);

@@ -61,7 +61,9 @@ struct sooc_slam {
     float *depth;
     int *pairs;            /* 2 per match                    */
     double *obj, *img;     /* PnP input                      */
-    int *cand_score;       /* per node                       */
+    sooc_slam_kf_change *changes;   /* the last optimisation's, this run's keyframes */
+    size_t n_changes, cap_changes;
+    uint64_t graph_version;
 #if SOOC_HAVE_OPENCV
     sooc_slsh_icp *icp;
 #endif
