@@ -186,6 +186,11 @@ sooc_status sooc_slam_tracker_start(sooc_slam_tracker **out, sooc_slam *slam, so
  * error that stopped the tracking thread. */
 sooc_status sooc_slam_tracker_pop(sooc_slam_tracker *t, sooc_frame *f, int64_t *t_mono_ns, int timeout_ms);
 void sooc_slam_tracker_get_stats(sooc_slam_tracker *t, sooc_slam_tracker_stats *st);
+/* The graph version after the newest optimisation on the tracking thread and
+ * its keyframe pose changes (sooc_slam_last_changes): *n of them, the first
+ * min(n, cap) into out (may be NULL). */
+sooc_status sooc_slam_tracker_changes(sooc_slam_tracker *t, uint64_t *version, sooc_slam_kf_change *out, size_t cap,
+                                      size_t *n);
 /* One line: "tracking: N in, N tracked, N failed, N lost, N dropped (queue
  * full), N keyframes, N loops, N relocalised, mean/max ms". */
 size_t sooc_slam_tracker_stats_format(const sooc_slam_tracker_stats *st, char *buf, size_t cap);

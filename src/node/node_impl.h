@@ -62,6 +62,7 @@ struct sooc_node {
 #if SOOC_NODE_HAVE_SLAM
     sooc_slam_tracker *trk;        /* odometry.thread/loop_closure/relocalise (tracking.c) */
     sooc_mapstore *trk_store;      /* its own connection to map.db (keyframe tables)       */
+    uint64_t trk_version;          /* the graph version the map entries follow             */
 #endif
 #if SOOC_NODE_HAVE_DRIVERS
     sooc_sensor *sensor;           /* swapped by a reconnect under sensor_mu */
@@ -190,6 +191,10 @@ int sooc__node_tracking_wanted(const sooc_node *n);
 sooc_status sooc__node_tracking_start(sooc_node *n);
 sooc_status sooc__node_tracking_pop(sooc_node *n, sooc_frame *f, int64_t *t_cap, int timeout_ms);
 void sooc__node_tracking_log(sooc_node *n);
+/* After an optimisation on the tracking thread: the mapper's entries move
+ * with the keyframes nearest in time to their last sighting, and the whole
+ * map is published in one batch (table and store). */
+sooc_status sooc__node_tracking_follow(sooc_node *n);
 void sooc__node_tracking_stop(sooc_node *n);
 sooc_status sooc__node_register_frame(sooc_node *n, sooc_frame *f);
 

@@ -838,6 +838,7 @@ sooc_status sooc_node_run(sooc_node *n) {
         double T_src_c[16];
         int fixed = 0;
         if (tracking) {   /* tracked on the tracking thread: registered, with its pose */
+            if ((st = sooc__node_tracking_follow(n))) { result = st; break; }
             memcpy(T_src_c, f->T_wc, sizeof T_src_c);
             fixed = 1;
         } else if (n->cfg.pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose) {

@@ -78,6 +78,47 @@ sooc_status sooc__node_tracking_pop(sooc_node *n, sooc_frame *f, int64_t *t_cap,
 #endif
 }
 
+sooc_status sooc__node_tracking_follow(sooc_node *n) {
+#if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
+    if (!n->trk || !n->world_ready) return SOOC_OK;
+    uint64_t v = 0;
+    size_t nc = 0, ne = 0;
+    sooc_slam_tracker_changes(n->trk, &v, NULL, 0, &nc);
+    if (v == n->trk_version) return SOOC_OK;
+    sooc_slam_kf_change *chg = sooc_malloc((nc ? nc : 1) * sizeof *chg);
+    sooc_status st = chg ? SOOC_OK : sooc_seterr(SOOC_ENOMEM, "node: out of memory (pose changes)");
+    if (!st) st = sooc_slam_tracker_changes(n->trk, &v, chg, nc, &nc);
+    if (!st) st = sooc3d_mapper_entries(n->mapper, NULL, 0, &ne);
+    sooc_map_entry *e = NULL;
+    if (!st && ne) {
+        e = sooc_malloc(ne * sizeof *e);
+        if (!e) st = sooc_seterr(SOOC_ENOMEM, "node: out of memory (moving entries)");
+        else st = sooc3d_mapper_entries(n->mapper, e, ne, &ne);
+    }
+    size_t moved = 0;
+    if (!st && ne) {
+        /* entries last seen within 2 s of this run's keyframes follow them */
+        moved = sooc_slam_move_entries(chg, nc, n->T_world_src, 2000000000, e, ne);
+        if (moved) {
+            uint64_t next = sooc3d_mapper_next_id(n->mapper);
+            st = sooc3d_mapper_load_entries(n->mapper, e, ne);
+            if (!st) sooc3d_mapper_reserve_ids(n->mapper, next);
+            if (!st) st = sooc__node_publish(n, e, ne, NULL, 0, 0, 1, NULL);
+            if (!st)
+                sooc_log(SOOC_LOG_INFO, "node: the pose graph moved %zu keyframes: %zu map entries follow them",
+                         nc, moved);
+        }
+    }
+    n->trk_version = v;
+    sooc_free(e);
+    sooc_free(chg);
+    return st;
+#else
+    (void)n;
+    return SOOC_OK;
+#endif
+}
+
 void sooc__node_tracking_log(sooc_node *n) {
 #if SOOC_NODE_HAVE_SLAM && SOOC_NODE_HAVE_CV
     if (!n->trk) return;

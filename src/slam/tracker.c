@@ -26,6 +26,9 @@ struct sooc_slam_tracker {
     sooc_frame work;
     sooc_slam_tracker_stats st;
     double ms_sum;
+    uint64_t version;              /* graph version of chg */
+    sooc_slam_kf_change *chg;
+    size_t n_chg, cap_chg;
 };
 
 static void swap_frames(sooc_frame *a, sooc_frame *b) {
@@ -58,6 +61,19 @@ static void *tracker_main(void *arg) {
         sooc_slam_stats ss;
         sooc_slam_get_stats(t->slam, &ss);
         pthread_mutex_lock(&t->mu);
+        uint64_t v = sooc_slam_graph_version(t->slam);
+        if (v != t->version) {   /* the graph moved: keep its changes for the mapping side */
+            size_t nc = 0;
+            sooc_slam_last_changes(t->slam, NULL, 0, &nc);
+            if (nc > t->cap_chg) {
+                sooc_free(t->chg);
+                t->chg = sooc_malloc(nc * sizeof *t->chg);
+                t->cap_chg = t->chg ? nc : 0;
+            }
+            t->n_chg = t->chg ? nc : 0;
+            if (t->chg) sooc_slam_last_changes(t->slam, t->chg, t->cap_chg, &nc);
+            t->version = v;
+        }
         t->st.keyframes = ss.keyframes;
         t->st.loops = ss.loops;
         t->st.relocalised = ss.relocalised;
@@ -174,6 +190,16 @@ void sooc_slam_tracker_get_stats(sooc_slam_tracker *t, sooc_slam_tracker_stats *
     pthread_mutex_unlock(&t->mu);
 }
 
+sooc_status sooc_slam_tracker_changes(sooc_slam_tracker *t, uint64_t *version, sooc_slam_kf_change *out, size_t cap,
+                                      size_t *n) {
+    pthread_mutex_lock(&t->mu);
+    *version = t->version;
+    *n = t->n_chg;
+    if (out) memcpy(out, t->chg, (cap < t->n_chg ? cap : t->n_chg) * sizeof *out);
+    pthread_mutex_unlock(&t->mu);
+    return SOOC_OK;
+}
+
 size_t sooc_slam_tracker_stats_format(const sooc_slam_tracker_stats *s, char *buf, size_t cap) {
     int n = snprintf(buf, cap,
                      "tracking: %lld in, %lld tracked, %lld failed, %lld lost, %lld dropped (queue full), %lld refused, "
@@ -193,6 +219,7 @@ void sooc_slam_tracker_destroy(sooc_slam_tracker *t) {
     sooc_frame_free(&t->work);
     sooc_free(t->slot);
     sooc_free(t->t_mono);
+    sooc_free(t->chg);
     pthread_mutex_destroy(&t->mu);
     pthread_cond_destroy(&t->cv);
     sooc_slam_destroy(t->slam);

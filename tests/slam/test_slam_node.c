@@ -2,7 +2,8 @@
  * tests/node/fake_mapper.c), on the room loop (loop_room.h):
  *  1. odometry.loop_closure: every frame is tracked on the tracking thread
  *     (its stats line says so), the map gets keyframes, the keyframes of the
- *     tracker go into map.db's SLAM tables;
+ *     tracker go into map.db's SLAM tables, and when a loop closes the map
+ *     entries follow their keyframes (logged);
  *  2. a restart with map.resume and odometry.relocalise over part of the
  *     loop again: it relocalises into the stored keyframes, and tracks on
  *     in the stored map's frame (every frame accounted for).
@@ -47,10 +48,15 @@ static sooc_status fd_read(void *ctx, sooc_frame *f, int timeout_ms) {
 }
 
 static char g_track_line[1024];
+static int g_follow;
 
 static void log_cb(void *user, sooc_log_level level, const char *msg) {
     (void)user;
     if (level >= SOOC_LOG_INFO && strstr(msg, "tracking:")) snprintf(g_track_line, sizeof g_track_line, "%s", msg);
+    if (level >= SOOC_LOG_INFO && strstr(msg, "map entries follow them")) {
+        if (!g_follow) printf("  [log] %s\n", msg);
+        g_follow++;
+    }
     if (level >= SOOC_LOG_WARN) printf("  [log] %s\n", msg);
 }
 
@@ -138,6 +144,10 @@ int main(void) {
     CHECK(field(g_track_line, "lost") == 0 && field(g_track_line, "failed") == 0);
     CHECK(field(g_track_line, "loops") >= 1);
     CHECK(s1.frames_in == NLOOP && s1.keyframes >= 5);
+    /* the loop closures moved the map: entries followed their keyframes, published in one batch each */
+    printf("run 1: %d times map entries followed the pose graph (%llu objects)\n", g_follow,
+           (unsigned long long)s1.n_objects);
+    CHECK(g_follow >= 1 && s1.n_objects > 0);
     /* the tracking keyframes are in the map database */
     sooc_mapstore *ms = NULL;
     sooc_mapstore_params mp;
