@@ -95,7 +95,7 @@ static int load_kf(const sooc_slamdb_kf *k, void *user) {
     n->run = k->run;
     n->frame = k->frame;
     n->t_ns = k->t_ns;
-    n->session = -1;
+    n->segment = -1;
     memcpy(n->T, k->T_wc, sizeof n->T);
     memcpy(n->T_odo, k->T_wc, sizeof n->T_odo);
     if ((c->st = sooc__slam_decode(n, k->feat, k->feat_bytes, k->depth, k->depth_bytes))) {
@@ -397,17 +397,17 @@ static sooc_status close_loops(sooc_slam *s, int c, int *closed) {
     *closed = 0;
     double t0 = sooc_seconds();
     int limit = c - s->p.recent_window;
-    /* nodes of this run's current session within the window are skipped;
-     * stored nodes and older sessions are all candidates */
+    /* nodes of this run's current segment within the window are skipped;
+     * stored nodes and older segments are all candidates */
     if (limit <= 0) return SOOC_OK;
     int cand[32];
     int nc = find_candidates(s, &s->nodes[c], limit, 1, cand);
     sooc_status st = SOOC_OK;
     int added = 0, local_added = 0;
-    /* local edges: the recent keyframes of this session besides the previous one */
+    /* local edges: the recent keyframes of this segment besides the previous one */
     int nlocal = 0;
     for (int i = c - 2; s->p.local_edges && i >= 0 && i >= c - s->p.recent_window && nc < 32; i--)
-        if (s->nodes[i].session == s->nodes[c].session) {
+        if (s->nodes[i].segment == s->nodes[c].segment) {
             cand[nc++] = i;
             nlocal++;
         }
@@ -446,7 +446,7 @@ static sooc_status new_node(sooc_slam *s, const sooc_frame *f, const double T_w[
     n->run = s->run;
     n->frame = f->index;
     n->t_ns = f->t_ns;
-    n->session = s->session;
+    n->segment = s->segment;
     memcpy(n->T, T_w, sizeof n->T);
     memcpy(n->T_odo, T_odo, sizeof n->T_odo);
     if ((st = sooc__slam_extract(s, n))) {
@@ -487,16 +487,16 @@ static sooc_status push_frame(sooc_slam *s, const sooc_frame *f, int node, const
     return SOOC_OK;
 }
 
-/* start an odometry session on this frame: a new map, a relocalisation or
+/* start an odometry segment on this frame: a new map, a relocalisation or
  * a re-anchor at the last pose */
-static sooc_status start_session(sooc_slam *s, const sooc_frame *f, sooc_slam_result *r) {
+static sooc_status start_segment(sooc_slam *s, const sooc_frame *f, sooc_slam_result *r) {
     sooc_odom_destroy(s->odo);
     s->odo = NULL;
     sooc_status st = sooc_odom_create(&s->odo, &s->p.odom);
     if (st) return st;
     sooc_odom_result o;
     if ((st = sooc_odom_track(s->odo, f, &o))) return st;
-    s->session++;
+    s->segment++;
     double I[16];
     sooc_se3_identity(I);
     int c = -1;
@@ -564,7 +564,7 @@ sooc_status sooc_slam_track(sooc_slam *s, const sooc_frame *f, sooc_slam_result 
     s->st.frames++;
     sooc_status st = SOOC_OK;
     if (s->lost || s->reanchor || !s->odo) {
-        st = start_session(s, f, r);
+        st = start_segment(s, f, r);
         goto done;
     }
     double t1 = sooc_seconds();

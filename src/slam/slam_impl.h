@@ -13,9 +13,9 @@
 typedef struct slam_node {
     int64_t id, frame, t_ns;
     int32_t run;
-    int session;          /* odometry session of this run; -1 for stored keyframes */
+    int segment;          /* odometry segment of this run; -1 for stored keyframes */
     double T[16];         /* world pose (optimised)                                */
-    double T_odo[16];     /* pose in its odometry session's frame                  */
+    double T_odo[16];     /* pose in its odometry segment's frame                  */
     int nf;               /* features                                              */
     float *uv, *xyz;      /* 2 and 3 per feature; xyz NaN = no depth               */
     uint8_t *desc;        /* 32 bytes per feature                                  */
@@ -41,11 +41,11 @@ struct sooc_slam {
     sooc_odom *odo;
     int32_t run;
     int64_t next_id;
-    int session;          /* current odometry session                         */
+    int segment;          /* current odometry segment                         */
     int cur_node;         /* node of the odometry's keyframe (-1: none)        */
     int last_node;        /* newest node of this run                            */
     int lost;             /* 1: relocalise before tracking                      */
-    int reanchor;         /* 1: next frame starts a session at the last pose    */
+    int reanchor;         /* 1: next frame starts a segment at the last pose    */
     int started;
     double T_init[16], T_last[16];
     slam_node *nodes;
