@@ -11,7 +11,7 @@ PKGS=(
   libfreenect-dev libfreenect-bin
   libv4l-dev
   libcamera-dev
-  libopencv-dev libopencv-contrib-dev
+  libopencv-dev libopencv-contrib-dev libceres-dev
   libopenmpi-dev openmpi-bin
   python3 python3-numpy python3-torch
   python3-yaml python3-opencv

@@ -74,14 +74,15 @@ run build-ci-asan-omp "^test_(model|nn|eval|render|node_model|node_e2e)" -DCMAKE
 # `sooc3d node` threads are test_node_signal's) and test_node_slots runs 4 of
 # the slot counts (SOOC_TEST_SLOTS; all of them in the passes above).
 TSAN_TESTS="test_node_units test_node_e2e test_node_race test_node_signal sooc3d_node_fake test_node_slots sooc3d
-  sooc3d-planner-example test_table_basic test_table_stress test_table_crash test_table_examples"
+  sooc3d-planner-example test_table_basic test_table_stress test_table_crash test_table_examples
+  test_slam_tracker test_slam_node"
 cmake -S . -B build-ci-tsan -DSOOC_WERROR=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSOOC_TSAN=ON -DSOOC_OPENMP=OFF \
   -DSOOC_BUILD_BENCH=OFF >/dev/null
 # shellcheck disable=SC2086
 cmake --build build-ci-tsan -j"$JOBS" --target $TSAN_TESTS
 ct build-ci-tsan build-ci-tsan OPENBLAS_NUM_THREADS=1 SOOC_TEST_SLOTS=0,10,17,32 \
   TSAN_OPTIONS="halt_on_error=1 atexit_sleep_ms=0 second_deadlock_stack=1 suppressions=$PWD/tests/tsan.supp" \
-  -R "^test_(node_(units|floor_real|e2e|race|signal|slots)|table_(basic|stress|crash|examples))$"
+  -R "^test_(node_(units|floor_real|e2e|race|signal|slots)|table_(basic|stress|crash|examples)|slam_(tracker|node))$"
 # The summary: every skipped run with its reason, then one line counting them,
 # the real-data ones apart (their messages name the real data folder).
 if [ -s "$SKIPS" ]; then

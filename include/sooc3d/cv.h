@@ -133,6 +133,13 @@ void sooc_odom_set_initial_pose(sooc_odom *o, const double T_wc[16]);
  * it returns SOOC_OK with r->state FAILED; errors are bad frames. */
 sooc_status sooc_odom_track(sooc_odom *o, const sooc_frame *f, sooc_odom_result *r);
 void sooc_odom_get_stats(const sooc_odom *o, sooc_odom_stats *s);
+/* The frame of the last sooc_odom_track call as the tracker saw it, at the
+ * working resolution *w x *h in the depth camera: grey (colour resampled into
+ * the depth camera when not registered; w*h bytes) and depth (metres, 0 =
+ * invalid; w*h floats). gray and depth may be NULL (size and K only).
+ * K = fx fy cx cy at the working resolution (OpenCV pixel centres). The icp
+ * variant keeps no grey image: SOOC_EUNSUPPORTED when gray is asked for. */
+sooc_status sooc_odom_current_frame(const sooc_odom *o, uint8_t *gray, float *depth, int *w, int *h, double K[4]);
 void sooc_odom_destroy(sooc_odom *o);    /* NULL-safe */
 
 /* --------------------------------------------------------- trajectories */

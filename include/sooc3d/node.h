@@ -99,6 +99,12 @@ typedef struct sooc_node_config {
     double odom_color_fx, odom_color_fy;     /* colour camera when colour is not registered to */
     double odom_color_cx, odom_color_cy;     /* depth (sooc_odom_params.color_K; 0 = registered) */
     double odom_color_tx, odom_color_ty, odom_color_tz;   /* p_color = p_depth + t (metres) */
+    /* SLAM (include/sooc3d/slam.h, docs/slam.md): any of these runs the
+     * tracker on its own thread between the sensor ring and the mapper */
+    int odom_thread;                         /* tracking thread, odometry only (0)              */
+    int odom_loop_closure;                   /* + place recognition and pose graph (0)          */
+    int odom_relocalise;                     /* + relocalise into map.db's keyframes at start
+                                                (map.resume) and when lost (0)                  */
 
     /* calib: (optional for sources that carry intrinsics) */
     char calib_path[SOOC_NODE_PATH_MAX];

@@ -3,6 +3,7 @@
 #define SOOC3D_CLI_H
 
 #include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 /* Every subcommand: int sooc_cmd_<name>(int argc, char **argv), argv[0] is
  * the subcommand name. Returns the process exit code. */
@@ -51,6 +52,13 @@ struct sooc_cogmap;
 struct sooc_model_config;
 sooc_status sooc_cli_open_stored_map(const char *model, const struct sooc_model_config *mc, const char *db,
                                      const char *note_model, struct sooc_mapstore **ms, struct sooc_cogmap **map);
+/* render --map of a map made by a camera without a pose source: each frame's
+ * pose from the tracking keyframes stored in db, matched by timestamp (a
+ * keyframe's own, else interpolated between the keyframes around it in time;
+ * the latest run's when runs overlap), into the world frame by T_world_src. *moved = 0
+ * and *n_kf = 0 when the map holds no tracking keyframes (cli_slam.c). */
+sooc_status sooc_cli_slam_poses(const char *db, const double T_world_src[16], sooc_frame *fr, int n, int *moved,
+                                int64_t *n_kf);
 /* True if argv has -h or --help. */
 int sooc_cli_wants_help(int argc, char **argv);
 /* Parse "C" or "C,F" render sample counts (C >= 2, F >= 0); 1 on success. */

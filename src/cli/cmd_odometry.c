@@ -9,7 +9,9 @@
 #include "sooc3d/cv.h"
 #include "sooc3d/geom.h"
 #include "sooc3d/log.h"
+#include "sooc3d/mapstore.h"
 #include "sooc3d/seq.h"
+#include "sooc3d/slam.h"
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -35,7 +37,17 @@ static void usage(FILE *f) {
             "                       (frames' resolution), '7scenes' (f 525) or 'registered'; default auto:\n"
             "                       7scenes for a 7-Scenes sequence with its depth intrinsics (f 585)\n"
             "  --color-t X,Y,Z      colour camera translation, p_color = p_depth + t (metres, default 0)\n"
-            "  --max-frames N       stop after N frames\n"
+            "  --max-frames N       stop after N frames; --first-frame N starts at frame N\n"
+            "  --loop-closure       keyframe graph with place recognition, loop closure and pose-graph\n"
+            "                       optimisation (docs/slam.md); the trajectory written is the optimised one\n"
+            "  --map DB             keep the keyframes in this map database (created if missing); with\n"
+            "                       stored keyframes the run starts lost and relocalises into them\n"
+            "  --kf-depth WxH       keyframe depth kept for verification ICP (default 160x120)\n"
+            "  --loop-window N      newest keyframes left out of the loop search (default 6)\n"
+            "  --local-edges 0|1    verify each keyframe against the recent ones too (default 0)\n"
+            "  --loop-sigma M,R     loop/relocalisation edge sigma: metres, radians (default 0.01,0.01)\n"
+            "  --no-relocalise      with --map or --loop-closure: never relocalise (a new run starts its own\n"
+            "                       frame; a lost tracker re-anchors at its last pose)\n"
             "  --start-gt           start at the sequence's first pose instead of the identity\n"
             "  --gt-out FILE        also write the sequence's poses (TUM)\n"
             "  --write-seq DIR      also write the tracked frames with the odometry poses as a sooc3d\n"
@@ -67,7 +79,10 @@ int sooc_cmd_odometry(int argc, char **argv) {
     double delta = 1.0, max_dt = 0.02;
     int delta_frames = 0, start_gt = 0;
     const char *color_K = "auto";
-    long long max_frames = 0;
+    long long max_frames = 0, first_frame = 0;
+    int loop_closure = 0, relocalise = 1, kf_dw = 160, kf_dh = 120, local_edges = 0, loop_window = 6;
+    double loop_sig[2] = {0.01, 0.01};
+    const char *map_path = NULL;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -150,6 +165,29 @@ int sooc_cmd_odometry(int argc, char **argv) {
             op.T_color_depth[7] = t[1];
             op.T_color_depth[11] = t[2];
         } else if (!strcmp(a, "--max-frames")) { NEEDV(); if (!sooc_cli_count_opt(cmd, a, v, &max_frames)) return 2; }
+        else if (!strcmp(a, "--first-frame")) { NEEDV(); if (!sooc_cli_count_opt(cmd, a, v, &first_frame)) return 2; }
+        else if (!strcmp(a, "--loop-closure")) loop_closure = 1;
+        else if (!strcmp(a, "--no-relocalise")) relocalise = 0;
+        else if (!strcmp(a, "--loop-window")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 100000, &loop_window)) return 2; }
+        else if (!strcmp(a, "--local-edges")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 1, &local_edges)) return 2; }
+        else if (!strcmp(a, "--kf-depth")) {
+            NEEDV();
+            int n2 = 0;
+            if (sscanf(v, "%dx%d%n", &kf_dw, &kf_dh, &n2) != 2 || v[n2] || kf_dw < 16 || kf_dh < 12 || kf_dw > 4096 ||
+                kf_dh > 4096) {
+                fprintf(stderr, "sooc3d odometry: --kf-depth: expected WxH (at least 16x12), got '%s'\n", v);
+                return 2;
+            }
+        } else if (!strcmp(a, "--loop-sigma")) {
+            NEEDV();
+            int n2 = 0;
+            if (sscanf(v, "%lf,%lf%n", &loop_sig[0], &loop_sig[1], &n2) != 2 || v[n2] || !(loop_sig[0] > 0) ||
+                !(loop_sig[1] > 0) || loop_sig[0] > 10 || loop_sig[1] > 10) {
+                fprintf(stderr, "sooc3d odometry: --loop-sigma: expected METRES,RADIANS (> 0), got '%s'\n", v);
+                return 2;
+            }
+        }
+        else if (!strcmp(a, "--map")) { NEEDV(); map_path = v; }
         else if (!strcmp(a, "--start-gt")) start_gt = 1;
         else if (!strcmp(a, "--delta")) { NEEDV(); if (!sooc_cli_double_opt(cmd, a, v, 1e-6, 1e6, &delta)) return 2; }
         else if (!strcmp(a, "--delta-frames")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 1, 1000000, &delta_frames)) return 2; }
@@ -192,6 +230,8 @@ int sooc_cmd_odometry(int argc, char **argv) {
     }
     sooc_seq *seq = NULL;
     sooc_odom *odo = NULL;
+    sooc_slam *slam = NULL;
+    sooc_mapstore *store = NULL;
     sooc_frame f;
     memset(&f, 0, sizeof f);
     sooc_traj est = {0}, gt = {0};
@@ -213,18 +253,63 @@ int sooc_cmd_odometry(int argc, char **argv) {
                      "f %.1f, depth camera f %.1f (--color-K registered to turn off)", seq_dir, op.color_K[0], cal->K.fx);
         }
     }
-    if ((st = sooc_odom_create(&odo, &op))) goto fail;
+    int use_slam = loop_closure || map_path;
+    if (use_slam) {
+        sooc_slam_params sp2;
+        sooc_slam_params_default(&sp2);
+        sp2.odom = op;
+        sp2.loop_closure = loop_closure;
+        sp2.relocalise = relocalise;
+        sp2.depth_w = kf_dw;
+        sp2.depth_h = kf_dh;
+        sp2.local_edges = local_edges;
+        sp2.recent_window = loop_window;
+        sp2.sigma_loop_m = loop_sig[0];
+        sp2.sigma_loop_rad = loop_sig[1];
+        if (map_path) {
+            sooc_mapstore_params mp;
+            sooc_mapstore_params_default(&mp);
+            mp.create = 1;
+            FILE *ex = fopen(map_path, "rb");
+            if (ex) fclose(ex);
+            else mp.dim = 1;   /* a new map made by odometry: keyframes only, latent dim 1 */
+            if ((st = sooc_mapstore_open(&store, map_path, &mp))) goto fail;
+        }
+        if ((st = sooc_slam_create(&slam, &sp2, store))) goto fail;
+        sooc_slam_stats ss0;
+        sooc_slam_get_stats(slam, &ss0);
+        if (ss0.stored_keyframes)
+            printf("%s: %lld stored keyframes%s\n", map_path, (long long)ss0.stored_keyframes,
+                   relocalise ? ": relocalising into them" : "");
+    } else if ((st = sooc_odom_create(&odo, &op))) goto fail;
     int64_t n = sooc_seq_count(seq);
-    if (max_frames && max_frames < n) n = max_frames;
-    int64_t failed = 0, reanchor = 0;
+    if (first_frame >= n) {
+        st = sooc_seterr(SOOC_EINVAL, "odometry: --first-frame %lld: the sequence has %lld frames", first_frame,
+                         (long long)n);
+        goto fail;
+    }
+    if (max_frames && first_frame + max_frames < n) n = first_frame + max_frames;
+    int64_t failed = 0, reanchor = 0, n_slam = 0;
     kept = sooc_malloc((size_t)(n > 0 ? n : 1) * sizeof(int64_t));
     if (!kept) { st = sooc_seterr(SOOC_ENOMEM, "odometry: out of memory"); goto fail; }
     double t0 = sooc_seconds();
-    for (int64_t i = 0; i < n; i++) {
+    for (int64_t i = first_frame; i < n; i++) {
         if ((st = sooc_seq_read(seq, i, &f))) goto fail;
         double t = (double)f.t_ns * 1e-9;
         if (f.has_pose && (st = sooc_traj_push(&gt, t, f.T_wc))) goto fail;
-        if (i == 0 && start_gt && f.has_pose) sooc_odom_set_initial_pose(odo, f.T_wc);
+        if (slam) {
+            if (i == first_frame && start_gt && f.has_pose) sooc_slam_set_initial_pose(slam, f.T_wc);
+            sooc_slam_result sr;
+            if ((st = sooc_slam_track(slam, &f, &sr))) goto fail;
+            if (sr.state > SOOC_SLAM_RELOCALISED) failed++;
+            else kept[n_slam++] = i;   /* the order of sooc_slam_trajectory */
+            if (sr.state == SOOC_SLAM_RELOCALISED)
+                sooc_log(SOOC_LOG_INFO, "odometry: frame %lld relocalised into the stored keyframes", (long long)f.index);
+            if (sr.loop_closed)
+                sooc_log(SOOC_LOG_INFO, "odometry: frame %lld closed a loop", (long long)f.index);
+            continue;
+        }
+        if (i == first_frame && start_gt && f.has_pose) sooc_odom_set_initial_pose(odo, f.T_wc);
         sooc_odom_result r;
         if ((st = sooc_odom_track(odo, &f, &r))) goto fail;
         if (r.state == SOOC_ODOM_FIRST || r.state == SOOC_ODOM_TRACKED) {
@@ -240,7 +325,19 @@ int sooc_cmd_odometry(int argc, char **argv) {
     }
     double secs = sooc_seconds() - t0;
     sooc_odom_stats os;
-    sooc_odom_get_stats(odo, &os);
+    memset(&os, 0, sizeof os);
+    sooc_slam_stats ss;
+    memset(&ss, 0, sizeof ss);
+    if (slam) {
+        sooc_slam_get_stats(slam, &ss);
+        if ((st = sooc_slam_trajectory(slam, &est))) goto fail;
+        os.frames = ss.frames;
+        os.tracked = ss.tracked;
+        os.keyframes = ss.keyframes - ss.stored_keyframes;
+        os.ms_total = ss.ms_track + ss.ms_features + ss.ms_loop + ss.ms_reloc + ss.ms_pgo;
+    } else {
+        sooc_odom_get_stats(odo, &os);
+    }
     if ((st = sooc_traj_save_tum(out, &est))) goto fail;
     if (gt_out && gt.n && (st = sooc_traj_save_tum(gt_out, &gt))) goto fail;
     if (write_seq) {
@@ -280,6 +377,13 @@ int sooc_cmd_odometry(int argc, char **argv) {
            "\"odometry_ms_per_frame\": %.3f",
            (long long)os.frames, (long long)os.tracked, (long long)failed, (long long)os.keyframes, (long long)reanchor,
            os.frames ? os.ms_total / os.frames : 0);
+    if (slam)
+        printf(", \"slam\": {\"stored_keyframes\": %lld, \"relocalised\": %lld, \"lost_frames\": %lld, \"loops\": %lld, "
+               "\"loop_candidates\": %lld, \"loop_rejected\": %lld, \"optimisations\": %lld, \"ms_track\": %.1f, "
+               "\"ms_features\": %.1f, \"ms_loop\": %.1f, \"ms_reloc\": %.1f, \"ms_pgo\": %.1f}",
+               (long long)ss.stored_keyframes, (long long)ss.relocalised, (long long)ss.lost, (long long)ss.loops,
+               (long long)ss.loop_candidates, (long long)ss.loop_rejected, (long long)ss.optimisations, ss.ms_track,
+               ss.ms_features, ss.ms_loop, ss.ms_reloc, ss.ms_pgo);
     if (have_m)
         printf(", \"ate_rmse\": %.6f, \"ate_mean\": %.6f, \"ate_max\": %.6f, \"rpe_trans_rmse\": %.6f, "
                "\"rpe_rot_rmse_deg\": %.6f, \"rpe_delta\": %g",
@@ -295,6 +399,8 @@ done:
     sooc_traj_free(&est);
     sooc_traj_free(&gt);
     sooc_odom_destroy(odo);
+    sooc_slam_destroy(slam);
+    sooc_mapstore_close(store);
     sooc_seq_close(seq);
     return rc;
 }

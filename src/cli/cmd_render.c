@@ -127,7 +127,7 @@ static sooc_status on_step(void *user, const sooc_eval_step_info *s) {
 /* Every frame with a pose, through the frame path at the model's resolution,
  * poses in the map's world frame. *n_empty: frames without valid depth. */
 static sooc_status read_frames(const char *dir, const sooc_framepath_params *fpp, long long maxf, sooc_frame **out,
-                               int *n_out, int *resized, int64_t *n_empty) {
+                               int *n_out, int *resized, int64_t *n_empty, double T_world_src[16]) {
     sooc_framepath *fp = NULL;
     *out = NULL;
     *n_out = 0;
@@ -151,6 +151,7 @@ static sooc_status read_frames(const char *dir, const sooc_framepath_params *fpp
         const sooc_calib *c = sooc_seq_calib(sooc_framepath_seq(fp));
         *resized = c && c->K.width > 0 && (c->K.width != fpp->width || c->K.height != fpp->height);
         *n_empty = sooc_framepath_empty_depth(fp);
+        sooc_framepath_world_get(fp, T_world_src);
     }
     sooc_framepath_close(fp);
     if (st) {
@@ -255,7 +256,16 @@ int sooc_cmd_render(int argc, char **argv) {
     sooc_cli_framepath_model(&fpp, mc);
     fpp.map_db = mappath;
     int64_t n_empty = 0;
-    if ((st = read_frames(seqdir, &fpp, maxf, &fr, &nf, &resized, &n_empty))) goto fail;
+    double T_world_src[16];
+    if ((st = read_frames(seqdir, &fpp, maxf, &fr, &nf, &resized, &n_empty, T_world_src))) goto fail;
+    if (mappath) {   /* a map made by odometry: its keyframes place the cameras, not the recording's poses */
+        int moved = 0;
+        int64_t nkf = 0;
+        if ((st = sooc_cli_slam_poses(mappath, T_world_src, fr, nf, &moved, &nkf))) goto fail;
+        if (moved)
+            printf("render: %d cameras placed from the map's %lld tracking keyframes (the recording's poses are "
+                   "in another frame)\n", moved, (long long)nkf);
+    }
     if (resized) printf("render: frames cropped/resized to the model's %dx%d\n", mc->img_w, mc->img_h);
     if (n_empty > 0)
         fprintf(stderr, "sooc3d render: warning: %lld frames have no valid depth in [%g, %g] m after preprocessing "

@@ -252,6 +252,23 @@ extern "C" int sooc_cvodo_check(sooc_cvodo *o, const double T[16], double max_di
     return 0;
 }
 
+extern "C" int sooc_cvodo_current(const sooc_cvodo *o, uint8_t *gray, float *depth, int *w, int *h, double K[4],
+                                  char *err, size_t errcap) {
+    if (!o->cur || o->cur->depth.empty()) {
+        set_err(err, errcap, "odometry: no frame loaded");
+        return -1;
+    }
+    *w = o->w;
+    *h = o->h;
+    for (int i = 0; i < 4; i++) K[i] = o->K[i];
+    if (depth)
+        for (int y = 0; y < o->h; y++) std::memcpy(depth + (size_t)y * o->w, o->cur->depth.ptr<float>(y), sizeof(float) * o->w);
+    if (o->cur->image.empty() || o->cur->image.type() != CV_8UC1) return 1;
+    if (gray)
+        for (int y = 0; y < o->h; y++) std::memcpy(gray + (size_t)y * o->w, o->cur->image.ptr<uint8_t>(y), (size_t)o->w);
+    return 0;
+}
+
 // ------------------------------------------------------------ calibration
 
 struct sooc_cvboard {

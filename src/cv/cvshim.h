@@ -54,6 +54,14 @@ int sooc_cvodo_track(sooc_cvodo *o, const double init[16], double T_kf_cur[16], 
 int sooc_cvodo_check(sooc_cvodo *o, const double T_kf_cur[16], double max_diff, int step, double *agree,
                      char *err, size_t errcap);
 
+/* The loaded frame at the working resolution, in the depth camera: grey
+ * (8-bit, w x h; the colour resampled into the depth camera when it is not
+ * registered) and depth (metres, 0 = invalid). Either output may be NULL
+ * (only *w, *h and K). Returns 1 when the frame has no grey image (ICP
+ * variant), 0 on success, < 0 when no frame is loaded. K = fx fy cx cy. */
+int sooc_cvodo_current(const sooc_cvodo *o, uint8_t *gray, float *depth, int *w, int *h, double K[4], char *err,
+                       size_t errcap);
+
 /* ----------------------------------------------------------- calibration */
 
 typedef struct sooc_cvboard sooc_cvboard;

@@ -271,3 +271,17 @@ done:
     return SOOC_OK;
 #endif
 }
+
+sooc_status sooc_odom_current_frame(const sooc_odom *o, uint8_t *gray, float *depth, int *w, int *h, double K[4]) {
+#if !SOOC_HAVE_OPENCV
+    (void)o; (void)gray; (void)depth; (void)w; (void)h; (void)K;
+    return sooc_seterr(SOOC_EUNSUPPORTED, "odometry: sooc3d was built without OpenCV");
+#else
+    char err[256] = "";
+    if (!o->started) return sooc_seterr(SOOC_EINVAL, "odometry: no frame tracked yet");
+    int rc = sooc_cvodo_current(o->cv, gray, depth, w, h, K, err, sizeof err);
+    if (rc < 0) return sooc_seterr(SOOC_ERR, "odometry: %s", err);
+    if (rc > 0 && gray) return sooc_seterr(SOOC_EUNSUPPORTED, "odometry: the icp variant keeps no grey image");
+    return SOOC_OK;
+#endif
+}

@@ -494,6 +494,9 @@ static const kspec g_keys[] = {
     KV("odometry", "color_tx", KV_NUM, odom_color_tx, -1, 1),
     KV("odometry", "color_ty", KV_NUM, odom_color_ty, -1, 1),
     KV("odometry", "color_tz", KV_NUM, odom_color_tz, -1, 1),
+    KV("odometry", "thread", KV_BOOL, odom_thread, 0, 0),
+    KV("odometry", "loop_closure", KV_BOOL, odom_loop_closure, 0, 0),
+    KV("odometry", "relocalise", KV_BOOL, odom_relocalise, 0, 0),
     KV_CH("model", "kind", model_kind, "learnt|geometric"),   /* order of SOOC_MAPPER_* */
     KV("model", "voxel_m", KV_NUM, geo_voxel_m, 0.0005, 1),
     KV("model", "join_m", KV_NUM, geo_join_m, 0.0005, 1),
@@ -767,11 +770,13 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
         static const char *ov[] = {"rgbd", "icp", "rgbd_icp"};
         OUT("odometry: {variant: %s, width: %d, height: %d, keyframe_translation_m: %g, keyframe_rotation_deg: %g, "
             "keyframe_frames: %d, max_failures: %d, min_depth_m: %g, max_depth_m: %g, min_agreement: %g, "
-            "color_fx: %g, color_fy: %g, color_cx: %g, color_cy: %g, color_tx: %g, color_ty: %g, color_tz: %g}\n",
+            "color_fx: %g, color_fy: %g, color_cx: %g, color_cy: %g, color_tx: %g, color_ty: %g, color_tz: %g, "
+            "thread: %s, loop_closure: %s, relocalise: %s}\n",
             ov[c->odom_variant], c->odom_width, c->odom_height, c->odom_kf_translation_m, c->odom_kf_rotation_deg,
             c->odom_kf_frames, c->odom_max_failures, c->odom_min_depth_m, c->odom_max_depth_m, c->odom_min_agreement,
             c->odom_color_fx, c->odom_color_fy, c->odom_color_cx, c->odom_color_cy, c->odom_color_tx,
-            c->odom_color_ty, c->odom_color_tz);
+            c->odom_color_ty, c->odom_color_tz, c->odom_thread ? "true" : "false",
+            c->odom_loop_closure ? "true" : "false", c->odom_relocalise ? "true" : "false");
     }
     OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, wall_m: %g, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s, gate_min_rays: %g, "

@@ -21,6 +21,7 @@
 #include "sooc3d/mapstore.h"
 #include "sooc3d/calib.h"
 #include "sooc3d/cv.h"
+#include "sooc3d/slam.h"
 
 #include "sooc3d/view.h"
 
@@ -52,6 +53,10 @@ struct sooc_node {
     int have_pose;
     sooc_odom *odom;               /* pose.source: odometry */
     int odom_lost;                 /* frames failed in a row (for the log) */
+    sooc_odom_params odom_params;  /* for the tracking thread, started by sooc_node_run */
+    sooc_slam_tracker *trk;        /* odometry.thread/loop_closure/relocalise (tracking.c) */
+    sooc_mapstore *trk_store;      /* its own connection to map.db (keyframe tables)       */
+    uint64_t trk_version;          /* the graph version the map entries follow             */
     sooc_sensor *sensor;           /* swapped by a reconnect under sensor_mu */
     sooc_sensor_params sensor_params;   /* to open it again */
     sooc_pose_src *psrc;
@@ -158,5 +163,22 @@ void sooc__node_time_check(sooc_node *n, const sooc_frame *f);
 /* skip.c */
 sooc_status sooc__node_capture_skip(sooc_node *n, sooc_status st);
 int sooc__node_frame_size_skip(sooc_node *n, const sooc_frame *f, sooc_status *result);
+
+/* tracking.c: the tracking thread of pose.source odometry with
+ * odometry.thread / loop_closure / relocalise. wanted: 1 if the config asks
+ * for it. start: after the capture thread; pop: the mapping loop's source
+ * instead of the ring (frames carry has_pose, T_wc in the odometry frame);
+ * stop: after the capture thread ended. register: pipeline.c's intrinsics
+ * fix and depth registration, run on the tracking thread. */
+int sooc__node_tracking_wanted(const sooc_node *n);
+sooc_status sooc__node_tracking_start(sooc_node *n);
+sooc_status sooc__node_tracking_pop(sooc_node *n, sooc_frame *f, int64_t *t_cap, int timeout_ms);
+void sooc__node_tracking_log(sooc_node *n);
+/* After an optimisation on the tracking thread: the mapper's entries move
+ * with the keyframes nearest in time to their last sighting, and the whole
+ * map is published in one batch (table and store). */
+sooc_status sooc__node_tracking_follow(sooc_node *n);
+void sooc__node_tracking_stop(sooc_node *n);
+sooc_status sooc__node_register_frame(sooc_node *n, sooc_frame *f);
 
 #endif

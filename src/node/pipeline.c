@@ -387,7 +387,8 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             op.T_color_depth[7] = c->odom_color_ty;
             op.T_color_depth[11] = c->odom_color_tz;
         }
-        if ((st = sooc_odom_create(&n->odom, &op))) {
+        n->odom_params = op;   /* the tracking thread's, when asked for (tracking.c) */
+        if (!sooc__node_tracking_wanted(n) && (st = sooc_odom_create(&n->odom, &op))) {
             sooc_adderr(st, "%s: pose.source: odometry", c->path);
             goto fail;
         }
@@ -582,44 +583,6 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
     return 1;
 }
 
-static sooc_status fix_intrinsics_and_register(sooc_node *n, sooc_frame *f) {
-    if (!n->have_calib) {
-        if (f->K.fx == 0 || f->K.fy == 0)
-            return sooc_seterr(SOOC_EINVAL, "%s: the sensor gives no intrinsics; set calib: to a calib file",
-                               n->cfg.path);
-        if (f->K.width <= 0) { f->K.width = f->width; f->K.height = f->height; }
-        return SOOC_OK;
-    }
-    sooc_intrinsics Kc = n->Kc;
-    if (Kc.width != f->width || Kc.height != f->height) {
-        /* same aspect ratio: scale the calibration */
-        if ((long)Kc.width * f->height != (long)Kc.height * f->width)
-            return sooc_seterr(SOOC_EINVAL, "%s: calib is for %dx%d but the sensor gives %dx%d",
-                               n->cfg.calib_path, Kc.width, Kc.height, f->width, f->height);
-        sooc_intrinsics s;
-        sooc_cam_crop_resize(&s, &Kc, 0, 0, Kc.width, Kc.height, f->width, f->height);
-        Kc = s;
-    }
-    if (n->calib_registered == 0 && n->have_T_cd) {
-        /* depth is in the depth camera: the frame's K is the depth camera's */
-        sooc_intrinsics Kd = f->K;
-        if (Kd.fx == 0) Kd = Kc;   /* no depth intrinsics reported: assume the colour ones */
-        Kd.width = f->width;
-        Kd.height = f->height;
-        size_t np = (size_t)f->width * f->height;
-        if (n->reg_cap < np) {
-            sooc_free(n->reg_buf);
-            n->reg_buf = sooc_malloc(np * sizeof(float));
-            if (!n->reg_buf) { n->reg_cap = 0; return SOOC_ENOMEM; }
-            n->reg_cap = np;
-        }
-        sooc_node_register_depth(f->depth, &Kd, n->T_cd, &Kc, n->reg_buf);
-        memcpy(f->depth, n->reg_buf, np * sizeof(float));
-        for (size_t i = 0; i < np; i++) f->valid[i] = f->depth[i] > 0.0f;
-    }
-    f->K = Kc;
-    return SOOC_OK;
-}
 
 /* pose.source: odometry. 1: T_src_c holds the frame's pose; 0: untracked
  * (counted and skipped: the mapper never sees a frame without a trusted
@@ -657,6 +620,7 @@ static void log_stats(sooc_node *n) {
     char line[512];
     sooc_node_stats_format(&s, line, sizeof line);
     sooc_log(SOOC_LOG_INFO, "node: %s", line);
+    sooc__node_tracking_log(n);
 }
 
 /* Keyframe policy, preprocessing, mapper update and publishing of one frame
@@ -734,9 +698,11 @@ sooc_status sooc_node_run(sooc_node *n) {
         return sooc_seterr(SOOC_ERR, "node: cannot start the capture thread");
     n->cap_started = 1;
     sooc_status result = SOOC_OK;
+    int tracking = sooc__node_tracking_wanted(n);
+    if (tracking && (result = sooc__node_tracking_start(n))) tracking = 0;
     int eof = 0;
     const int64_t tol_ns = (int64_t)llround(n->cfg.pose_tolerance_s * 1e9);
-    while (!atomic_load(&n->stop)) {
+    while (!result && !atomic_load(&n->stop)) {
         if (n->cfg.stats_period_s > 0 && sooc_seconds() - n->t_last_stats >= n->cfg.stats_period_s) {
             n->t_last_stats = sooc_seconds();
             log_stats(n);
@@ -744,7 +710,8 @@ sooc_status sooc_node_run(sooc_node *n) {
         sooc_status st = sooc__node_store_retry(n, 0);
         if (st) { result = st; break; }
         int64_t t_cap = 0;
-        st = sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
+        st = tracking ? sooc__node_tracking_pop(n, &n->work, &t_cap, 100)
+                      : sooc_frame_ring_pop(n->ring, &n->work, &t_cap, 100);
         if (st == SOOC_ETIMEOUT) continue;
         if (st == SOOC_EEOF) { eof = 1; break; }
         if (st) { result = st; break; }
@@ -757,9 +724,13 @@ sooc_status sooc_node_run(sooc_node *n) {
         /* pose association */
         double T_src_c[16];
         int fixed = 0;
-        if (n->cfg.pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose) {
+        if (tracking) {   /* tracked on the tracking thread: registered, with its pose */
+            if ((st = sooc__node_tracking_follow(n))) { result = st; break; }
+            memcpy(T_src_c, f->T_wc, sizeof T_src_c);
+            fixed = 1;
+        } else if (n->cfg.pose_kind == SOOC_NODE_POSE_ODOMETRY && !n->opt.pose) {
             /* odometry tracks the colour-registered frame */
-            if ((st = fix_intrinsics_and_register(n, f))) { result = st; break; }
+            if ((st = sooc__node_register_frame(n, f))) { result = st; break; }
             fixed = 1;
             int r = odom_pose(n, f, T_src_c);
             if (r < 0) { result = sooc_adderr(SOOC_ERR, "node: odometry"); break; }
@@ -781,7 +752,7 @@ sooc_status sooc_node_run(sooc_node *n) {
         } else {
             sooc__node_pose_seen(n, f, 1);
         }
-        if (!fixed && (st = fix_intrinsics_and_register(n, f))) { result = st; break; }
+        if (!fixed && (st = sooc__node_register_frame(n, f))) { result = st; break; }
         if (!n->world_ready) {
             int r = try_support(n, f, T_src_c, t_cap, 0, &result);
             if (r < 0) break;
@@ -801,6 +772,10 @@ sooc_status sooc_node_run(sooc_node *n) {
     if (n->cap_started) {
         pthread_join(n->cap_thread, NULL);
         n->cap_started = 0;
+    }
+    if (tracking) {
+        log_stats(n);
+        sooc__node_tracking_stop(n);
     }
     if (!result && n->cap_status) {
         result = sooc_seterr(n->cap_status, "node: capture failed: %s", n->cap_err);

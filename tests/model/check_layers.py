@@ -35,13 +35,14 @@ import tempfile
 
 # The modules in layer order, lowest first. A module calls only modules of
 # lower layers; modules of one layer do not call each other. `drivers` is
-# the folder drivers/; cvshim and lcshim are the C++ shims of cv and drivers;
+# the folder drivers/; cvshim, slamshim and lcshim are the C++ shims of cv, slam and drivers;
 # cli (the sooc3d command, a program) is checked for its includes only.
 MODULE_LAYERS = [
     ("base", ["core"]),
     ("math", ["math"]),
     ("engines and stores", ["nn", "data", "cluster", "cogmap", "render", "table"]),
     ("readers and sources", ["gen", "logs", "view", "cv"]),
+    ("tracking", ["slam"]),
     ("frame path", ["frames"]),
     ("network", ["model"]),
     ("meshes", ["mesh"]),
@@ -52,7 +53,7 @@ MODULE_LAYERS = [
     ("node", ["node"]),
     ("command", ["cli"]),
 ]
-MODULE_ALIAS = {"cvshim": "cv", "lcshim": "drivers"}
+MODULE_ALIAS = {"cvshim": "cv", "lcshim": "drivers", "slamshim": "slam"}
 MODULE_LAYER = {m: i for i, (_, mods) in enumerate(MODULE_LAYERS) for m in mods}
 
 # Headers under src/<module>/ that the modules above it may include: the
@@ -251,7 +252,7 @@ SYNTHETIC = [
     ("a lower module calls a higher one", {
         ("math", "geom"): ({"sooc_se3_mul"}, {"sooc_model_create"}),
         ("model", "model"): ({"sooc_model_create"}, {"sooc_se3_mul"}),
-    }, "math/geom (module layer 1 (math)) calls model/model (module layer 5 (network))"),
+    }, "math/geom (module layer 1 (math)) calls model/model (module layer 6 (network))"),
     ("two modules of one layer call each other", {
         ("data", "seq"): ({"sooc_seq_open"}, {"sooc_cluster_add"}),
         ("cluster", "cluster"): ({"sooc_cluster_add"}, set()),
@@ -267,8 +268,8 @@ SYNTHETIC = [
     }, "cycle: gen/gen -> gen/tabletop -> gen/noise -> gen/gen"),
     ("a module in no layer", {
         ("core", "status"): ({"sooc_seterr"}, set()),
-        ("slam", "track"): ({"sooc_slam_track"}, {"sooc_seterr"}),
-    }, "module slam: in no layer"),
+        ("newmod", "track"): ({"sooc_newmod_track"}, {"sooc_seterr"}),
+    }, "module newmod: in no layer"),
     ("a model file in no model layer", {
         ("model", "model"): ({"mdl_w"}, set()),
         ("model", "newfile"): ({"mdl_n"}, {"mdl_w"}),
