@@ -27,7 +27,11 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
     const uint8_t *dims;
     if (dt >> 16) { dn = dt >> 16; dt &= 0xffff; dims = d + 4; }
     else { dn = rd32(d + 4, be); dims = d + 8; }
-    if (dt != 5 || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
+    if (dt != 5) return SOOC_OK;                    /* not the usual dimensions: libmatio's call */
+    if (dn > room)
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's dimensions take %u bytes, more than the file can "
+                           "hold (%llu bytes): a corrupt MAT-file", path, off, dn, (unsigned long long)room);
+    if (dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
     /* the array's name: its length must fit too (libmatio allocates and clears it) */
     size_t name_at = (size_t)(dims - p) + dn + (dn % 8 ? 8 - dn % 8 : 0);
     if (name_at + 8 <= n) {
