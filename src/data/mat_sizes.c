@@ -14,30 +14,31 @@ static uint32_t rd32(const uint8_t *p, int be) {
               : (uint32_t)p[3] << 24 | (uint32_t)p[2] << 16 | (uint32_t)p[1] << 8 | p[0];
 }
 
-/* A miMATRIX's header (array flags, dimensions) in p[0..n); its elements must
- * fit in `room` bytes. */
+/* A miMATRIX's header (array flags, dimensions, name, then the first data
+ * element) in p[0..n): every element there must fit in `room` bytes, and so
+ * must the array's elements (at least a byte each). */
 static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, int be, uint64_t room, long off) {
-    if (n < 16) return SOOC_OK;                      /* libmatio reports a short header itself */
-    uint32_t ft = rd32(p, be), fn = rd32(p + 4, be);
-    if ((ft & 0xffff) != 6 || (ft >> 16) || fn != 8) return SOOC_OK;   /* not the usual flags: libmatio's call */
-    uint32_t cls = rd32(p + 8, be) & 0xff;
-    if (n < 24) return SOOC_OK;
-    const uint8_t *d = p + 16;
-    uint32_t dt = rd32(d, be), dn;
-    const uint8_t *dims;
-    if (dt >> 16) { dn = dt >> 16; dt &= 0xffff; dims = d + 4; }
-    else { dn = rd32(d + 4, be); dims = d + 8; }
-    if (dt != 5 || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
-    /* the array's name: its length must fit too (libmatio allocates and clears it) */
-    size_t name_at = (size_t)(dims - p) + dn + (dn % 8 ? 8 - dn % 8 : 0);
-    if (name_at + 8 <= n) {
-        uint32_t nt = rd32(p + name_at, be);
-        uint64_t nn = nt >> 16 ? nt >> 16 : rd32(p + name_at + 4, be);
-        if (nn > room)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array name of %llu bytes, more than the file can hold "
-                               "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)nn,
+    uint32_t cls = 0;
+    const uint8_t *dims = NULL;
+    uint32_t dn = 0;
+    size_t at = 0;
+    for (int k = 0; k < 4 && at + 8 <= n; k++) {
+        uint32_t t = rd32(p + at, be), sz;
+        size_t adv;
+        if (t >> 16) { sz = t >> 16; t &= 0xffff; adv = 8; }
+        else { sz = rd32(p + at + 4, be); adv = 8 + (size_t)sz + (sz % 8 ? 8 - sz % 8 : 0); }
+        if (sz > room)
+            return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's element %d declares %u bytes, more than the "
+                               "file can hold (%llu bytes): a corrupt MAT-file", path, off, k, sz,
                                (unsigned long long)room);
+        if (t > 18 && k < 3)
+            return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's element %d has data type %u (MAT-files use 1-18): "
+                               "a corrupt MAT-file", path, off, k, t);
+        if (k == 0 && t == 6 && sz >= 8 && at + 12 <= n) cls = rd32(p + at + 8, be) & 0xff;
+        if (k == 1 && t == 5 && !(rd32(p + at, be) >> 16)) { dims = p + at + 8; dn = sz; }
+        at += adv;
     }
+    if (!dims || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
     if (cls == 1 || cls == 2 || cls == 3 || cls == 5) return SOOC_OK;   /* cell, struct, object, sparse */
     uint64_t prod = 1;
     for (uint32_t k = 0; k < dn / 4; k++) {
