@@ -157,11 +157,6 @@ int sooc_cli_map_at(int argc, char **argv) {
         fprintf(stderr, "sooc3d map at: %s: no such map database\n", db);
         return 2;
     }
-    sooc_mapstore_params mp;
-    sooc_mapstore_params_default(&mp);
-    mp.create = 0;
-    mp.readonly = 1;
-    char mid[128];
     sooc_model *m = NULL;
     sooc_cogmap *map = NULL;
     sooc_mapstore *s = NULL;
@@ -170,10 +165,16 @@ int sooc_cli_map_at(int argc, char **argv) {
     uint64_t *ids = NULL;
     sooc_status st = SOOC_OK;
     if (model) {   /* the map must have been built with this model (as the node checks on resume) */
-        if ((st = sooc_model_load(&m, model, NULL, NULL)) || (st = sooc_file_id(model, mid, sizeof mid, NULL))) goto fail;
-        mp.model_id = mid;
+        if ((st = sooc_model_load(&m, model, NULL, NULL)) ||
+            (st = sooc_cli_open_stored_map(model, sooc_model_get_config(m), db, model, &s, &map)))
+            goto fail;
+    } else {
+        sooc_mapstore_params mp;
+        sooc_mapstore_params_default(&mp);
+        mp.create = 0;
+        mp.readonly = 1;
+        if ((st = sooc_mapstore_open(&s, db, &mp))) goto fail;
     }
-    if ((st = sooc_mapstore_open(&s, db, &mp))) goto fail;
     /* the camera in the map's world frame */
     double T_wc[16], src_w[16];
     sooc_map_frame mf;
@@ -193,11 +194,6 @@ int sooc_cli_map_at(int argc, char **argv) {
     uint64_t id = 0;
     float depth = NAN;
     if (model) {
-        const sooc_model_config *c = sooc_model_get_config(m);
-        sooc_cogmap_params cp;
-        sooc_cogmap_params_default(&cp);
-        cp.dim = c->d_what, cp.layout_dim = c->d_layout, cp.block_size = (double)c->block_size * c->unit_m;
-        if ((st = sooc_cogmap_create(&map, &cp)) || (st = sooc_mapstore_load_map(s, map))) goto fail;
         if ((st = sooc_map_pick_model(m, map, T_wc, &K1, &KI, 0, &id, &depth))) goto fail;
         if (png && (ids = malloc((size_t)KI.width * (size_t)KI.height * sizeof *ids)))
             st = sooc_map_pick_model(m, map, T_wc, &KI, NULL, 0, ids, NULL);
