@@ -6,6 +6,7 @@
 #include "sooc3d/core.h"
 #include "sooc3d/log.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -96,6 +97,49 @@ static inline void lu_open_fails(const char *path, sooc_status st, const char *a
     if (b) CHECK_MSG(strstr(sooc_errmsg(), b) != NULL, "message lacks '%s': %s", b, sooc_errmsg());
     printf("  %s -> %s\n", sooc_status_str(got), sooc_errmsg());
     sooc_logfile_close(lf);
+}
+
+/* An object of a map.csv (`sooc3d infer --out`): its floor position. */
+typedef struct lu_obj { double x, z; } lu_obj;
+
+static inline int lu_read_map(const char *csv, lu_obj *o, int cap) {
+    FILE *f = fopen(csv, "r");
+    if (!f) return -1;
+    char line[512];
+    int n = 0;
+    while (fgets(line, sizeof line, f)) {
+        double x, z;
+        if (sscanf(line, "%*d,%lf,%lf", &x, &z) == 2 && n < cap) o[n++] = (lu_obj){x, z};
+    }
+    fclose(f);
+    return n;
+}
+
+/* `sooc3d infer` (binary bin, model) on sequence a into out_a and on b into
+ * out_b (b skipped when reuse_b and out_b exists: a map made once), then the
+ * two maps compared in order: *na, *nb objects, *worst the largest offset (m). */
+static inline void lu_infer_maps(const char *bin, const char *model, const char *a, const char *out_a, const char *b,
+                                 const char *out_b, int reuse_b, int *na, int *nb, double *worst) {
+    const char *outs[2] = {out_a, out_b}, *ins[2] = {a, b};
+    char cmd[4096];
+    for (int k = 0; k < 2; k++) {
+        struct stat sb;
+        if (k == 1 && reuse_b && stat(out_b, &sb) == 0) continue;
+        snprintf(cmd, sizeof cmd, "'%s' infer --model %s --seq '%s' --out '%s' --no-render --threads 1 > '%s.log' 2>&1",
+                 bin, model, ins[k], outs[k], outs[k]);
+        int rc = system(cmd);
+        CHECK_MSG(rc == 0, "%s failed (%d): see %s.log", cmd, rc, outs[k]);
+    }
+    static lu_obj A[4096], B[4096];
+    char ca[1100], cb[1100];
+    snprintf(ca, sizeof ca, "%s/map.csv", out_a);
+    snprintf(cb, sizeof cb, "%s/map.csv", out_b);
+    *na = lu_read_map(ca, A, 4096), *nb = lu_read_map(cb, B, 4096);
+    *worst = 0;
+    for (int i = 0; i < *na && i < *nb; i++) {
+        double d = hypot(A[i].x - B[i].x, A[i].z - B[i].z);
+        if (d > *worst) *worst = d;
+    }
 }
 
 #endif

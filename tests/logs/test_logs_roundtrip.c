@@ -57,42 +57,16 @@ done:
     sooc_framepath_close(fb);
 }
 
-typedef struct obj { double x, z; } obj;
-
-static int read_map(const char *csv, obj *o, int cap) {
-    FILE *f = fopen(csv, "r");
-    if (!f) return -1;
-    char line[512];
-    int n = 0;
-    while (fgets(line, sizeof line, f)) {
-        double x, z;
-        if (sscanf(line, "%*d,%lf,%lf", &x, &z) == 2 && n < cap) o[n++] = (obj){x, z};
-    }
-    fclose(f);
-    return n;
-}
-
 /* `sooc3d infer` on both, the maps compared: same count, each object within 1 cm. */
 static void same_maps(const char *bin, const char *a, const char *b, const char *tmp, const char *tag,
                       const char *label) {
-    char cmd[4096], oa[700], ob[700];
+    char oa[700], ob[700];
     snprintf(oa, sizeof oa, "%s/map_%s_folder", tmp, tag);
     snprintf(ob, sizeof ob, "%s/map_%s_log", tmp, tag);
-    const char *outs[2] = {oa, ob}, *ins[2] = {a, b};
-    for (int k = 0; k < 2; k++) {
-        snprintf(cmd, sizeof cmd, "'%s' infer --model %s --seq '%s' --out '%s' --no-render --threads 1 > '%s.log' 2>&1",
-                 bin, g_model, ins[k], outs[k], outs[k]);
-        int rc = system(cmd);
-        CHECK_MSG(rc == 0, "%s failed (%d): see %s.log", cmd, rc, outs[k]);
-    }
-    static obj A[4096], B[4096];
-    char ca[800], cb[800];
-    snprintf(ca, sizeof ca, "%s/map.csv", oa);
-    snprintf(cb, sizeof cb, "%s/map.csv", ob);
-    int na = read_map(ca, A, 4096), nb = read_map(cb, B, 4096);
+    int na, nb;
+    double worst;
+    lu_infer_maps(bin, g_model, a, oa, b, ob, 0, &na, &nb, &worst);
     CHECK_MSG(na > 0 && na == nb, "%s: %d objects from the folder, %d from the log", label, na, nb);
-    double worst = 0;
-    for (int i = 0; i < na && i < nb; i++) worst = fmax(worst, hypot(A[i].x - B[i].x, A[i].z - B[i].z));
     CHECK_MSG(worst <= 0.01, "%s: an object moved %.4f m", label, worst);
     printf("  %s: infer maps %d objects from the folder and %d from the log, largest offset %.2g m\n", label, na, nb,
            worst);
