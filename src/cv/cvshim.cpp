@@ -2,6 +2,7 @@
 // checkerboard detection, calibrateCamera, solvePnP, calibrateHandEye.
 // Every entry point catches OpenCV's exceptions and returns a message.
 #include "cvshim.h"
+#include "cv/cvmat.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -18,9 +19,8 @@
 
 namespace {
 
-void set_err(char *err, size_t cap, const std::string &msg) {
-    if (err && cap) std::snprintf(err, cap, "%s", msg.c_str());
-}
+using sooc_cv::camera_matrix;
+using sooc_cv::set_err;
 
 cv::Mat to_mat44(const double T[16]) {
     cv::Mat m(4, 4, CV_64F);
@@ -50,15 +50,6 @@ void rvec_to_T(const cv::Mat &rvec, const cv::Mat &tvec, double T[16]) {
     cv::Mat R;
     cv::Rodrigues(rvec, R);
     rt_to_T(R, tvec, T);
-}
-
-cv::Mat camera_matrix(const double K[4]) {
-    cv::Mat m = cv::Mat::eye(3, 3, CV_64F);
-    m.at<double>(0, 0) = K[0];
-    m.at<double>(1, 1) = K[1];
-    m.at<double>(0, 2) = K[2];
-    m.at<double>(1, 2) = K[3];
-    return m;
 }
 
 }  // namespace

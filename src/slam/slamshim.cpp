@@ -2,6 +2,7 @@
 // PnP RANSAC, depth-only ICP and the pose-graph optimisation. Every entry
 // point catches exceptions and returns a message.
 #include "slamshim.h"
+#include "cv/cvmat.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -21,22 +22,8 @@
 #include <ceres/ceres.h>
 #endif
 
-namespace {
-
-void set_err(char *err, size_t cap, const std::string &msg) {
-    if (err && cap) std::snprintf(err, cap, "%s", msg.c_str());
-}
-
-cv::Mat camera_matrix(const double K[4]) {
-    cv::Mat m = cv::Mat::eye(3, 3, CV_64F);
-    m.at<double>(0, 0) = K[0];
-    m.at<double>(1, 1) = K[1];
-    m.at<double>(0, 2) = K[2];
-    m.at<double>(1, 2) = K[3];
-    return m;
-}
-
-}  // namespace
+using sooc_cv::camera_matrix;
+using sooc_cv::set_err;
 
 extern "C" int sooc_slsh_orb(const uint8_t *gray, int w, int h, int nmax, float *uv, uint8_t *desc, int *n,
                              char *err, size_t errcap) {

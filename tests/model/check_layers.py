@@ -63,6 +63,7 @@ INTERFACE = {
     "model": {"weights.h", "decoder.h", "refine.h", "step.h", "propose.h", "dec_own.h"},
     "data": {"yaml_doc.h"},
     "nn": {"nn_kern.h", "nn_refine.h"},
+    "cv": {"cvmat.hpp"},
 }
 
 # Layer of every source file of src/model (by base name, without .c) and of
