@@ -48,6 +48,10 @@ typedef struct sooc_cluster_params {
     int pixel_step;        /* back-projection stride in pixels (1)                           */
     double wall_m;         /* vertical planes running on this far are walls, not objects (0.3;
                               0 = keep them)                                                  */
+    double free_ratio;     /* free space: a voxel that later frames saw through (their depth
+                              lies behind it) at least this many times per frame that put a
+                              point in it is not an object voxel: mixed pixels at depth
+                              edges, reflections (1; 0 = keep every voxel)                  */
 } sooc_cluster_params;
 void sooc_cluster_params_default(sooc_cluster_params *p);
 

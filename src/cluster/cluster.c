@@ -13,6 +13,9 @@ typedef struct voxel {
     double s[3];     /* summed world coordinates */
     float c[3];      /* summed colour 0..1       */
     uint32_t n;
+    uint32_t views;  /* frames that put a point in it */
+    uint32_t thru;   /* frames whose depth lies behind it there: they saw through it */
+    uint32_t last;   /* the last of them (1 + the count of frames added before it) */
     int32_t comp;    /* object label, -1 = background */
 } voxel;
 
@@ -26,6 +29,7 @@ struct sooc_cluster_map {
     sooc_cluster_object *obj;
     int n_obj, obj_cap;
     int segmented;
+    uint32_t n_frames;   /* frames added since the last clear */
 };
 
 void sooc_cluster_params_default(sooc_cluster_params *p) {
@@ -38,11 +42,13 @@ void sooc_cluster_params_default(sooc_cluster_params *p) {
     p->max_extent_m = 0.5;
     p->wall_m = 0.3;
     p->pixel_step = 1;
+    p->free_ratio = 1.0;
 }
 
 static sooc_status check_params(const sooc_cluster_params *p) {
     if (!(p->voxel_m > 0) || !(p->dist_m >= p->voxel_m) || !(p->max_height_m > p->min_height_m) ||
         !(p->max_depth_m > 0) || p->min_voxels < 1 || !(p->max_extent_m > 0) || p->pixel_step < 1 || !(p->wall_m >= 0) ||
+        !(p->free_ratio >= 0 && p->free_ratio <= 1000) ||
         !isfinite(p->voxel_m + p->dist_m + p->min_height_m + p->max_height_m + p->max_depth_m + p->max_extent_m))
         return sooc_seterr(SOOC_EINVAL,
                            "cluster: bad parameters (voxel %g m, dist %g m, heights %g..%g m, depth %g m, "
@@ -81,6 +87,7 @@ void sooc_cluster_map_clear(sooc_cluster_map *m) {
     m->n = 0;
     m->n_obj = 0;
     m->segmented = 0;
+    m->n_frames = 0;
 }
 
 /* 21 bits per axis, offset so that +-4 km at 4 mm fits */
@@ -137,6 +144,32 @@ static int32_t voxel_of(sooc_cluster_map *m, uint64_t key) {
     return (int32_t)m->n++;
 }
 
+/* Free-space evidence: every voxel above the plane that this frame's depth
+ * shows free (the surface at its pixel lies more than SEE_TOL_VOX voxels + 1%
+ * of the depth behind it) is counted as seen through. Noise of one frame (mixed
+ * pixels at a depth edge, a reflection) lies where the other frames see
+ * through; a surface does not. */
+#define SEE_TOL_VOX 2.0
+static void see_through(sooc_cluster_map *m, const sooc_frame *f) {
+    const sooc_cluster_params *p = &m->p;
+    const double *T = f->T_wc;
+    for (size_t i = 0; i < m->n; i++) {
+        voxel *vx = &m->vox[i];
+        double c[3] = {vx->s[0] / vx->n, vx->s[1] / vx->n, vx->s[2] / vx->n};
+        if (!(c[1] >= p->min_height_m && c[1] <= p->max_height_m)) continue;
+        double q[3] = {c[0] - T[3], c[1] - T[7], c[2] - T[11]};
+        double z = T[2] * q[0] + T[6] * q[1] + T[10] * q[2];
+        if (!(z > 0.05) || z > p->max_depth_m) continue;
+        double x = T[0] * q[0] + T[4] * q[1] + T[8] * q[2], y = T[1] * q[0] + T[5] * q[1] + T[9] * q[2];
+        double u = f->K.fx * x / z + f->K.cx, v = f->K.fy * y / z + f->K.cy;
+        if (!(u >= 0 && v >= 0 && u < f->width && v < f->height)) continue;
+        size_t k = (size_t)v * f->width + (size_t)u;
+        float d = f->depth[k];
+        if ((f->valid && !f->valid[k]) || !(d > 0)) continue;
+        if (d > z + SEE_TOL_VOX * p->voxel_m + 0.01 * z) vx->thru++;
+    }
+}
+
 sooc_status sooc_cluster_map_add_frame(sooc_cluster_map *m, const sooc_frame *f) {
     if (!m || !f || !f->depth || f->width < 1 || f->height < 1)
         return sooc_seterr(SOOC_EINVAL, "cluster: add_frame: bad arguments");
@@ -152,6 +185,7 @@ sooc_status sooc_cluster_map_add_frame(sooc_cluster_map *m, const sooc_frame *f)
     sooc_status st;
     if (hc != m->hcap && (st = rehash(m, hc))) return st;
     const double *T = f->T_wc, inv = 1.0 / p->voxel_m;
+    if (p->free_ratio > 0) see_through(m, f);
     for (int v = 0; v < f->height; v += p->pixel_step) {
         for (int u = 0; u < f->width; u += p->pixel_step) {
             size_t k = (size_t)v * f->width + u;
@@ -168,8 +202,10 @@ sooc_status sooc_cluster_map_add_frame(sooc_cluster_map *m, const sooc_frame *f)
             if (f->rgb)
                 for (int c = 0; c < 3; c++) vx->c[c] += f->rgb[3 * k + c] * (1.0f / 255.0f);
             vx->n++;
+            if (vx->last != m->n_frames + 1) vx->last = m->n_frames + 1, vx->views++;
         }
     }
+    m->n_frames++;
     m->segmented = 0;
     return SOOC_OK;
 }
@@ -358,6 +394,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         double c[3];
         centroid(&m->vox[i], c);
         if (!(c[1] >= p->min_height_m && c[1] <= p->max_height_m)) continue;
+        if (p->free_ratio > 0 && m->vox[i].thru >= p->free_ratio * m->vox[i].views) continue;   /* free space */
         ref[nr].key = pack((int64_t)floor(c[0] * inv), (int64_t)floor(c[1] * inv), (int64_t)floor(c[2] * inv));
         for (int q = 0; q < 3; q++) ref[nr].c[q] = (float)c[q];
         ref[nr++].vox = (int32_t)i;
