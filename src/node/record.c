@@ -1,7 +1,8 @@
 /* The node's recording for Foxglove (launch record: {mcap: FILE, period_s};
  * docs/logs.md "Foxglove"): the channels of `sooc3d map export --mcap`
  * (/sooc3d/objects foxglove.SceneUpdate, /sooc3d/frames foxglove.FrameTransform
- * map -> world) written while the node runs. After each keyframe a SceneUpdate
+ * map -> world and world -> source, the pose source's frame, as the node last
+ * placed it) written while the node runs. After each keyframe a SceneUpdate
  * holding every object of the map is kept; at most every period_s, and when
  * the node is destroyed, the file is written again whole through the MCAP
  * writer's temporary file and rename, so the path always holds a finished
@@ -35,6 +36,8 @@ struct sooc__recorder {
     sooc_map_entry *ent;
     size_t cap;
     uint64_t writes;
+    double T_ws[16];   /* world <- source at the latest keyframe */
+    int has_ws;
 };
 
 static sooc_status rec_write(sooc__recorder *r) {
@@ -55,6 +58,11 @@ static sooc_status rec_write(sooc__recorder *r) {
     if (!st) st = sooc_mcap_writer_channel(w, sc_scene, "/sooc3d/objects", "json", &ch_scene);
     if (!st) {
         sooc_foxglove_frame(&b, r->t0, "map", "world", sooc_foxglove_T_map_world);
+        st = b.oom ? SOOC_ENOMEM : sooc_mcap_writer_message(w, ch_frame, r->t0, r->t0, b.data, b.size);
+    }
+    if (!st && r->has_ws) {
+        b.size = 0;
+        sooc_foxglove_frame(&b, r->t0, "world", "source", r->T_ws);
         st = b.oom ? SOOC_ENOMEM : sooc_mcap_writer_message(w, ch_frame, r->t0, r->t0, b.data, b.size);
     }
     sooc_ros_buf_free(&b);
@@ -115,6 +123,8 @@ void sooc__node_record_keyframe(sooc_node *n, int64_t t_ns) {
         return;
     }
     if (!r->n) r->t0 = t_ns;
+    memcpy(r->T_ws, n->T_world_src, sizeof r->T_ws);   /* the mapping thread's own field: no lock to read it */
+    r->has_ws = n->world_ready;
     if (r->n == REC_KEEP) {   /* keep 0, 2, 4, ...: their buffers move down, the others' go to the free end */
         for (int i = 1; i < REC_KEEP / 2; i++) {
             rec_msg tmp = r->msg[i];

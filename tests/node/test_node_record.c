@@ -2,7 +2,8 @@
  * mapper and the synthetic stream of node_fixture.h (every frame a keyframe):
  *
  *  run     period_s 0, 20 keyframes: the file holds the /sooc3d/frames
- *          transform and 20 SceneUpdates in time order, the last with every
+ *          transforms (map -> world, and world -> source where the launch
+ *          file's world put it) and 20 SceneUpdates in time order, the last with every
  *          object of the map; the project's reader verifies every CRC, and
  *          @mcap/core's indexed reader (tests/logs/npm/read_mcap.mjs, when
  *          node and the package are there) reads the same counts.
@@ -13,6 +14,7 @@
  *  bad     a path in a folder that does not exist: sooc_node_create fails
  *          naming record.mcap.
  */
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,6 +27,7 @@
 #include "sooc3d/log.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
+#include "sooc3d/support.h"
 
 static char g_tmp[256];
 
@@ -43,7 +46,11 @@ static sooc_frame_fault s_fault(void *ctx) {
 }
 
 /* What a file holds: SceneUpdates, transforms, entities in the last update. */
-typedef struct rec_read { int ok, scenes, frames, last_entities, ordered; } rec_read;
+typedef struct rec_read {
+    int ok, scenes, frames, last_entities, ordered;
+    int has_source;       /* a world -> source FrameTransform */
+    double source_t[3];   /* its translation */
+} rec_read;
 
 static int count(const char *t, size_t n, const char *pat) {
     int k = 0;
@@ -53,7 +60,7 @@ static int count(const char *t, size_t n, const char *pat) {
 }
 
 static rec_read read_file(const char *path) {
-    rec_read r = {0, 0, 0, -1, 1};
+    rec_read r = {0, 0, 0, -1, 1, 0, {0, 0, 0}};
     sooc_logfile *lf = NULL;
     if (sooc_logfile_open(&lf, path) || sooc_logfile_verify(lf)) {
         printf("  %s: %s\n", path, sooc_errmsg());
@@ -67,7 +74,17 @@ static rec_read read_file(const char *path) {
     for (int64_t k = 0; k < sooc_logfile_count(lf); k++) {
         sooc_logfile_msg m;
         if (sooc_logfile_read(lf, k, &m)) { r.ok = 0; break; }
-        if (m.channel == frm) { r.frames++; continue; }
+        if (m.channel == frm) {
+            r.frames++;
+            char js[1024];
+            snprintf(js, sizeof js, "%.*s", (int)(m.size < sizeof js - 1 ? m.size : sizeof js - 1), (const char *)m.data);
+            const char *t = strstr(js, "\"parent_frame_id\": \"world\", \"child_frame_id\": \"source\"");
+            if (t && (t = strstr(t, "\"translation\": ")) &&
+                sscanf(t, "\"translation\": {\"x\": %lf, \"y\": %lf, \"z\": %lf}", &r.source_t[0], &r.source_t[1],
+                       &r.source_t[2]) == 3)
+                r.has_source = 1;
+            continue;
+        }
         r.scenes++;
         if (m.t_ns < prev) r.ordered = 0;
         prev = m.t_ns;
@@ -100,7 +117,7 @@ static sooc_status run(const char *path, double period, int n, run_ctx *rc, size
     snprintf(text, sizeof text,
              "sensor: {driver: replay, path: /nonexistent}\npose: {source: sensor}\nmodel: {path: fake.bin}\n"
              "keyframe: {translation_m: 0.10, rotation_deg: 10, time_s: 0}\nmap: {db: '%s', resume: false}\n"
-             "world: {up: +y, floor: 0.0}\npipeline: {ring_capacity: 4, block_when_full: true, stats_period_s: 0}\n"
+             "world: {up: +y, floor: 0.25}\npipeline: {ring_capacity: 4, block_when_full: true, stats_period_s: 0}\n"
              "record: {mcap: '%s', period_s: %g}\nlog: {level: warn}\n",
              db, path, period);
     sooc_node_config c;
@@ -167,10 +184,18 @@ int main(void) {
     run_ctx rc = {0, NULL, {0}};
     CHECK_OK(run(path, 0, 20, &rc, &objects));
     rec_read r = read_file(path);
-    CHECK_MSG(r.ok && r.scenes == 20 && r.frames == 1 && r.ordered && r.last_entities == (int)objects && objects > 0,
-              "run: ok %d, %d SceneUpdates, %d transforms, %d entities in the last for %zu objects", r.ok, r.scenes,
-              r.frames, r.last_entities, objects);
-    printf("run: %d SceneUpdates in time order, the last with all %zu objects; CRCs verified\n", r.scenes, objects);
+    CHECK_MSG(r.ok && r.scenes == 20 && r.frames == 2 && r.ordered && r.last_entities == (int)objects && objects > 0,
+              "run: ok %d, %d SceneUpdates, %d transforms (want map -> world, world -> source), %d entities in the "
+              "last for %zu objects", r.ok, r.scenes, r.frames, r.last_entities, objects);
+    /* world -> source is where the launch file's world put the pose source's frame: floor 0.25 below it */
+    double up[3] = {0, 1, 0}, Tws[16];
+    sooc_node_world_from_up(up, 0.25, Tws);
+    CHECK_MSG(r.has_source && fabs(r.source_t[0] - Tws[3]) < 1e-6 && fabs(r.source_t[1] - Tws[7]) < 1e-6 &&
+                  fabs(r.source_t[2] - Tws[11]) < 1e-6 && fabs(Tws[7]) > 0.2,
+              "world -> source: %s (%.4f, %.4f, %.4f), want (%.4f, %.4f, %.4f)", r.has_source ? "found" : "missing",
+              r.source_t[0], r.source_t[1], r.source_t[2], Tws[3], Tws[7], Tws[11]);
+    printf("run: %d SceneUpdates in time order, the last with all %zu objects; world -> source (%.2f, %.2f, %.2f); "
+           "CRCs verified\n", r.scenes, objects, r.source_t[0], r.source_t[1], r.source_t[2]);
     npm_check(path, 20, objects);
 
     /* killed at keyframe 12 */
