@@ -245,6 +245,9 @@ typedef struct sooc_eval_run_opts {
     /* SOOC3D mapper: geometric proposals for the new slots (mapper.h
      * sooc_mapper_set_proposals; docs/geometric.md); NULL = off       (NULL) */
     const struct sooc_proposal_params *proposals;
+    /* SOOC3D mapper: geometric support of the entries (mapper.h
+     * sooc_mapper_set_support): on with this margin in m; 0 = off     (0) */
+    double geo_support_m;
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 

@@ -228,7 +228,9 @@ typedef struct sooc_update_stats {
                                   this keyframe with a higher presence landed at
                                   the same pose (sooc_mapper_same_pose)     */
     int n_retired;             /* entries retired on free-space evidence (the
-                                  revisit rules, sooc_mapper_free_space)    */
+                                  revisit rules, sooc_mapper_free_space) or
+                                  for want of geometric support
+                                  (sooc_mapper_set_support)                 */
     int n_gated;               /* new slots the creation gate refused (revisit
                                   rule 5, sooc_mapper_gate)                 */
     int n_proposed;            /* prior slots placed on the keyframe's support-plane
@@ -313,6 +315,16 @@ typedef struct sooc_proposal_params {
 } sooc_proposal_params;
 void sooc_proposal_params_default(sooc_proposal_params *p);
 sooc_status sooc_mapper_set_proposals(sooc_mapper *mp, const sooc_proposal_params *p);
+/* Geometric support of the entries (docs/geometric.md "Geometric support"):
+ * with margin_m > 0 the mapper also keeps the support-plane clusters of every
+ * keyframe it maps (sooc_cluster_params_default with 1 cm voxels, depth up to
+ * the model's clip or 3 m) and after each update removes every entry in the
+ * keyframe's view whose floor position lies in no cluster's floor box grown by
+ * margin_m: with no object points under it, an entry explains only the support
+ * surface or a wall. Entries out of view stay. The removals are published as
+ * removals (counted as retired in the update's stats). margin_m 0 turns it
+ * off (the default). Learnt mappers only. */
+sooc_status sooc_mapper_set_support(sooc_mapper *mp, double margin_m);
 void sooc_mapper_set_merge_radius(sooc_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC_LATENTS_*). */
 void sooc_mapper_set_latents(sooc_mapper *m, int latents);

@@ -116,6 +116,8 @@ typedef struct sooc_node_config {
     double geo_voxel_m, geo_join_m;          /* geometric: model.voxel_m (0.004), model.join_m (0.02) */
     double geo_min_height_m, geo_max_extent_m; /* geometric: model.min_height_m (0.012), max_extent_m (0.5) */
     double geo_wall_m;                         /* geometric: model.wall_m (0.3; 0 = no wall test)          */
+    double geo_support_m;                      /* learnt: model.geo_support_m, the margin of the geometric
+                                                  support of entries (sooc_mapper_set_support; 0 = off)   */
     double geo_free_ratio;                     /* geometric: model.free_ratio (1; 0 = no free-space test)   */
     char model_path[SOOC_NODE_PATH_MAX];
     int input_width, input_height;           /* 0 = ask the model */

@@ -50,6 +50,9 @@ static void usage(FILE *f) {
             "                  (docs/geometric.md); scored on the same views as the models\n"
             "  --proposals     the mapper places the slots it pads with priors on each keyframe's\n"
             "                  support-plane clusters (docs/geometric.md \"Proposals\")\n"
+            "  --geo-support M the mapper removes entries that stand on no support-plane cluster of\n"
+            "                  the mapped keyframes (M: margin around a cluster's box, metres;\n"
+            "                  docs/geometric.md \"Geometric support\")\n"
             "  --finetune      SOOC3D+: also a '<name>+ft' row per model: online inference as for the\n"
             "                  base row, then per-object NeRF finetuning by EM on the input views\n"
             "                  (sooc3d finetune), then the same views scored from the finetuned map;\n"
@@ -257,6 +260,8 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (!prop.on) sooc_proposal_params_default(&prop), prop.on = 1;
             if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 1, &prop.cluster.dist_m)) return 2;
             ro.proposals = &prop;
+        } else if (!strcmp(a, "--geo-support") && has) {
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-4, 1, &ro.geo_support_m)) return 2;
         } else if (!strcmp(a, "--prop-logit") && has) {
             if (!prop.on) sooc_proposal_params_default(&prop), prop.on = 1;
             if (!sooc_cli_double_opt("eval", a, argv[++i], -20, 20, &prop.pres_logit)) return 2;

@@ -96,6 +96,11 @@ static uint64_t pack(int64_t i, int64_t j, int64_t k) {
     return ((uint64_t)(i + o) & 0x1fffff) << 42 | ((uint64_t)(j + o) & 0x1fffff) << 21 | ((uint64_t)(k + o) & 0x1fffff);
 }
 
+static void unpack(uint64_t key, int64_t *i, int64_t *j, int64_t *k) {
+    const int64_t o = 1 << 20;
+    *i = (int64_t)((key >> 42) & 0x1fffff) - o, *j = (int64_t)((key >> 21) & 0x1fffff) - o, *k = (int64_t)(key & 0x1fffff) - o;
+}
+
 static size_t hash64(uint64_t k) {
     k ^= k >> 33;
     k *= 0xff51afd7ed558ccdULL;
@@ -299,7 +304,8 @@ static int cmp_float(const void *a, const void *b) {
  * WALL_GAP_M for at least wall_m along the floor and WALL_MIN_H_M up (a bin's or shelf's side, a room's
  * wall). Their voxels are taken out of ref (they stay background), so objects that touch them are
  * joined to them no more. RANSAC over pairs of points (a vertical plane through two points), seeded:
- * the same grid gives the same walls. A row of objects whose faces line up leaves gaps between them and
+ * the same grid gives the same walls; hypotheses are scored on every k-th point (at most
+ * WALL_SCORE_PTS of them), the best one's inliers then counted over all. A row of objects whose faces line up leaves gaps between them and
  * is not a wall. */
 #define WALL_TOL_M 0.012   /* a point on the plane                                    */
 #define WALL_BAND_M 0.03   /* taken out with the wall: its noise and what sticks to it */
@@ -307,6 +313,7 @@ static int cmp_float(const void *a, const void *b) {
 #define WALL_MIN_H_M 0.08
 #define WALL_ITERS 300
 #define WALL_MAX 4
+#define WALL_SCORE_PTS 2048
 static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
     size_t nr = *nr_io;
     if (!(wall_m > 0) || nr < 64) return SOOC_OK;
@@ -315,7 +322,7 @@ static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
     uint64_t rng = 0x9e3779b97f4a7c15ULL ^ nr;
     for (int w = 0; w < WALL_MAX && nr >= 64; w++) {
         double bn[2] = {0, 0}, bo[2] = {0, 0};
-        size_t best = 0;
+        size_t best = 0, stride = nr / WALL_SCORE_PTS + 1;
         for (int it = 0; it < WALL_ITERS; it++) {
             rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
             size_t a = (size_t)(rng >> 33) % nr;
@@ -325,17 +332,18 @@ static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
             if (l < 0.05) continue;
             double n[2] = {dz / l, -dx / l};   /* horizontal normal of the vertical plane through a and b */
             size_t cnt = 0;
-            for (size_t i = 0; i < nr; i++)
+            for (size_t i = 0; i < nr; i += stride)
                 cnt += fabs(n[0] * (ref[i].c[0] - ref[a].c[0]) + n[1] * (ref[i].c[2] - ref[a].c[2])) < WALL_TOL_M;
             if (cnt > best) best = cnt, bn[0] = n[0], bn[1] = n[1], bo[0] = ref[a].c[0], bo[1] = ref[a].c[2];
         }
-        if (best < 32) break;
+        if (!best) break;
         /* the inliers' positions along the plane; the longest run without a gap */
         size_t ni = 0;
         for (size_t i = 0; i < nr; i++) {
             double dx = ref[i].c[0] - bo[0], dz = ref[i].c[2] - bo[1];
             if (fabs(bn[0] * dx + bn[1] * dz) < WALL_TOL_M) t[ni++] = (float)(-bn[1] * dx + bn[0] * dz);
         }
+        if (ni < 32) break;
         qsort(t, ni, sizeof *t, cmp_float);
         float r0 = t[0], r1 = t[0], b0 = 0, b1 = -1;
         for (size_t i = 1; i <= ni; i++) {
@@ -401,25 +409,34 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     }
     if ((st = remove_walls(ref, &nr, p->wall_m))) goto done;
     qsort(ref, nr, sizeof *ref, cmp_cell);
-    /* join every pair closer than dist_m: candidates in the 27 cells of side dist_m around each voxel */
-    for (size_t a = 0; a < nr; a++) {
-        const float *ca = ref[a].c;
-        int32_t ia = ref[a].vox;
-        int64_t gi = (int64_t)floor(ca[0] * inv), gj = (int64_t)floor(ca[1] * inv), gk = (int64_t)floor(ca[2] * inv);
-        for (int di = -1; di <= 1; di++)
-            for (int dj = -1; dj <= 1; dj++)
-                for (int dk = -1; dk <= 1; dk++) {
-                    uint64_t key = pack(gi + di, gj + dj, gk + dk);
-                    for (size_t b = lower(ref, nr, key); b < nr && ref[b].key == key; b++) {
-                        int32_t ib = ref[b].vox;
-                        if (ib <= ia) continue;
-                        const float *cb = ref[b].c;
-                        double dx = ca[0] - cb[0], dy = ca[1] - cb[1], dz = ca[2] - cb[2];
-                        if (dx * dx + dy * dy + dz * dz > d2) continue;
-                        int32_t ra = uf_find(par, ia), rb = uf_find(par, ib);
-                        if (ra != rb) par[ra > rb ? ra : rb] = ra < rb ? ra : rb;
-                    }
+    /* join every pair closer than dist_m: cell by cell (cells of side dist_m; ref is sorted by cell), the
+     * pairs within the cell and with the 13 cells after it of its 26 neighbours (the other 13 see it as
+     * theirs): every candidate pair once, one search per neighbour cell */
+    static const int8_t fwd[13][3] = {{0, 0, 1},  {0, 1, -1}, {0, 1, 0},  {0, 1, 1},  {1, -1, -1}, {1, -1, 0}, {1, -1, 1},
+                                      {1, 0, -1}, {1, 0, 0},  {1, 0, 1},  {1, 1, -1}, {1, 1, 0},   {1, 1, 1}};
+    for (size_t s0 = 0, e0; s0 < nr; s0 = e0) {
+        for (e0 = s0 + 1; e0 < nr && ref[e0].key == ref[s0].key;) e0++;
+        int64_t gi, gj, gk;   /* the run's own cell (its key, not recomputed from a float centroid) */
+        unpack(ref[s0].key, &gi, &gj, &gk);
+        for (int nb = -1; nb < 13; nb++) {
+            size_t b0 = s0, b1 = e0;   /* nb -1: the cell itself */
+            if (nb >= 0) {
+                uint64_t key = pack(gi + fwd[nb][0], gj + fwd[nb][1], gk + fwd[nb][2]);
+                b0 = lower(ref, nr, key);
+                for (b1 = b0; b1 < nr && ref[b1].key == key;) b1++;
+                if (b0 == b1) continue;
+            }
+            for (size_t a = s0; a < e0; a++) {
+                const float *ca = ref[a].c;
+                for (size_t b = nb < 0 ? a + 1 : b0; b < b1; b++) {
+                    const float *cb = ref[b].c;
+                    double dx = ca[0] - cb[0], dy = ca[1] - cb[1], dz = ca[2] - cb[2];
+                    if (dx * dx + dy * dy + dz * dz > d2) continue;
+                    int32_t ra = uf_find(par, ref[a].vox), rb = uf_find(par, ref[b].vox);
+                    if (ra != rb) par[ra > rb ? ra : rb] = ra < rb ? ra : rb;
                 }
+            }
+        }
     }
     /* components: sizes and moments, keyed by root */
     size_t na = 0;

@@ -448,6 +448,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         sooc_mapper_set_gate(C.mp, o->run.gate[0], o->run.gate[1], o->run.gate[2]);
         sooc_mapper_set_latents(C.mp, o->run.latents);
         if (o->run.proposals && (st = sooc_mapper_set_proposals(C.mp, o->run.proposals))) goto done;
+        if (o->run.geo_support_m > 0 && (st = sooc_mapper_set_support(C.mp, o->run.geo_support_m))) goto done;
     }
 
     /* pass 1 */

@@ -316,6 +316,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         sooc_mapper_set_gate(mp, o->gate[0], o->gate[1], o->gate[2]);
         sooc_mapper_set_latents(mp, o->latents);
         if (o->proposals && (st = sooc_mapper_set_proposals(mp, o->proposals))) goto done;
+        if (o->geo_support_m > 0 && (st = sooc_mapper_set_support(mp, o->geo_support_m))) goto done;
         C.model = sooc_mapper_model(mp);
         C.map = sooc_mapper_cogmap(mp);
     }

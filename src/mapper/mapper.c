@@ -57,6 +57,12 @@ struct sooc_mapper {
     mdl_geo *gm;               /* kind geometric (mapper_geo.c): the cluster map instead of the model */
     sooc_cluster_map *prop;    /* geometric proposals (propose.c): the keyframe's clusters; NULL = off */
     mdl_prop_params prop_p;
+    /* geometric support (sooc_mapper_set_support): the clusters of every
+     * mapped keyframe; NULL = off */
+    sooc_cluster_map *supp;
+    double supp_margin;
+    sooc_cluster_object *supp_obj;
+    int supp_cap;
 };
 
 void sooc_mapper_params_default(sooc_mapper_params *p) {
@@ -146,6 +152,8 @@ void sooc_mapper_destroy(sooc_mapper *mp) {
     if (!mp) return;
     sooc_mdl_geo_destroy(mp->gm);
     sooc_cluster_map_destroy(mp->prop);
+    sooc_cluster_map_destroy(mp->supp);
+    sooc_free(mp->supp_obj);
     if (mp->V.buf) sooc_mdl_view_free(&mp->V);
     sooc_model_ws_destroy(mp->ws);
     sooc_cogmap_destroy(mp->map);
@@ -569,6 +577,106 @@ sooc_status sooc_mapper_set_proposals(sooc_mapper *mp, const sooc_proposal_param
     return SOOC_OK;
 }
 
+/* the support's grid: 1 cm voxels (a model's input frames are coarse: finer
+ * cells hold one point each and only cost) */
+#define SUPPORT_VOXEL_M 0.01
+sooc_status sooc_mapper_set_support(sooc_mapper *mp, double margin_m) {
+    if (mp->gm) return sooc_seterr(SOOC_EINVAL, "mapper: geometric support needs a learnt model, not the geometric map");
+    if (!(margin_m >= 0 && margin_m < 10))
+        return sooc_seterr(SOOC_EINVAL, "mapper: geometric support margin %g m out of range", margin_m);
+    sooc_cluster_map *cm = NULL;
+    sooc_status st = SOOC_OK;
+    if (margin_m > 0) {
+        const sooc_model_config *c = sooc_model_get_config(mp->m);
+        sooc_cluster_params cp;
+        sooc_cluster_params_default(&cp);
+        cp.voxel_m = SUPPORT_VOXEL_M;
+        double clip = c->d_clip * c->unit_m;
+        if (clip > 0 && clip < cp.max_depth_m) cp.max_depth_m = clip;
+        st = sooc_cluster_map_create(&cm, &cp);
+    }
+    if (st) return sooc_adderr(st, "mapper: geometric support");
+    sooc_cluster_map_destroy(mp->supp);
+    mp->supp = cm;
+    mp->supp_margin = margin_m;
+    return SOOC_OK;
+}
+
+/* Geometric support, after registration: the keyframe joins the clusters of
+ * the keyframes before it, and every entry in the keyframe's view whose floor
+ * position lies in no cluster's floor box (grown by supp_margin) is removed:
+ * no object points stand under it, so it explains only the support surface or
+ * a wall. Entries out of view stay (the clusters hold only what the mapped
+ * keyframes saw: a resumed map's far entries). At most the room left in
+ * rem_ids per update; the rest go with the next keyframes. ids[] of removed
+ * entries become 0. */
+typedef struct supp_visit {
+    const sooc_cluster_object *o;
+    int n;
+    double margin;
+    const sooc_cogmap_camera *cam;
+    uint64_t *out;
+    int cap, k;
+} supp_visit;
+
+static int supp_on_geometry(const supp_visit *v, double X, double Z) {
+    for (int i = 0; i < v->n; i++) {
+        const sooc_cluster_object *o = &v->o[i];
+        double dx = X - o->x, dz = Z - o->z, c = cos(o->yaw), s = sin(o->yaw);
+        double a = fabs(c * dx - s * dz), b = fabs(s * dx + c * dz);   /* along the box's axes (R_y) */
+        if (a <= 0.5 * o->extent[0] + v->margin && b <= 0.5 * o->extent[2] + v->margin) return 1;
+    }
+    return 0;
+}
+
+/* 1 when the entry's place on the floor (X, 0, Z) projects into the view at
+ * a depth in (t_near, d_clip): the keyframe could show what stands there */
+static int supp_floor_in_view(const sooc_cogmap_camera *cam, double X, double Z) {
+    const double *T = cam->T_wc;
+    double q[3] = {X - T[3], -T[7], Z - T[11]};
+    double z = T[2] * q[0] + T[6] * q[1] + T[10] * q[2];
+    if (!(z > cam->t_near && z < cam->d_clip)) return 0;
+    double x = T[0] * q[0] + T[4] * q[1] + T[8] * q[2], y = T[1] * q[0] + T[5] * q[1] + T[9] * q[2];
+    double u = cam->K.fx * x / z + cam->K.cx, w = cam->K.fy * y / z + cam->K.cy;
+    return u >= 0 && w >= 0 && u < cam->K.width && w < cam->K.height;
+}
+
+static int supp_collect(void *user, const sooc_cogmap_entry *e) {
+    supp_visit *v = user;
+    if (v->k >= v->cap) return 1;
+    if (supp_floor_in_view(v->cam, e->X, e->Z) && !supp_on_geometry(v, e->X, e->Z)) v->out[v->k++] = e->id;
+    return 0;
+}
+
+static sooc_status support_prune(sooc_mapper *mp, const sooc_frame *f, uint64_t *ids, int K, int *n_pruned) {
+    *n_pruned = 0;
+    int n = 0;
+    sooc_status s = sooc_cluster_map_add_frame(mp->supp, f);
+    if (!s) s = sooc_cluster_map_segment(mp->supp, &n);
+    if (!s && n > mp->supp_cap) {
+        sooc_cluster_object *o = sooc_realloc(mp->supp_obj, (size_t)n * sizeof *o);
+        if (!o) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory for %d clusters", n);
+        mp->supp_obj = o, mp->supp_cap = n;
+    }
+    if (!s) s = sooc_cluster_map_objects(mp->supp, mp->supp_obj, mp->supp_cap, &n);
+    if (s) return sooc_adderr(s, "mapper: geometric support of frame %lld", (long long)f->index);
+    uint64_t out[SOOC_MODEL_K_MAX];
+    sooc_cogmap_camera cam;
+    sooc_mdl_camera_of(mp->m, f, &cam);
+    supp_visit v = {mp->supp_obj, n, mp->supp_margin, &cam, out, SOOC_MODEL_K_MAX - mp->n_rem, 0};
+    sooc_cogmap_foreach(mp->map, supp_collect, &v);
+    for (int i = 0; i < v.k; i++) {
+        if (sooc_cogmap_remove(mp->map, out[i])) continue;
+        mp->rem_ids[mp->n_rem++] = out[i];
+        size_t c = (size_t)(out[i] % MAPPER_FREE_SLOTS);
+        if (mp->free_id[c] == out[i]) mp->free_id[c] = 0, mp->free_run[c] = mp->unsup_run[c] = 0;
+        for (int j = 0; j < K; j++)
+            if (ids[j] == out[i]) ids[j] = 0;
+        (*n_pruned)++;
+    }
+    return SOOC_OK;
+}
+
 void sooc_proposal_params_default(sooc_proposal_params *p) {
     memset(p, 0, sizeof *p);
     sooc_cluster_params_default(&p->cluster);
@@ -647,6 +755,11 @@ sooc_status sooc_mapper_update(sooc_mapper *mp, const sooc_frame *f, sooc_update
         n_merged += n_nb;
         if (s) return s;
         n_retired = retire_free(mp, f, ids, c->K);
+    }
+    if (mp->supp) {
+        int n_pr = 0;
+        if ((s = support_prune(mp, f, ids, c->K, &n_pr))) return s;
+        n_retired += n_pr;
     }
     for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 32) */
         if (ids[i]) {

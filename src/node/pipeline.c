@@ -335,6 +335,11 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                 goto fail;
             }
             n->own_mapper = 1;
+            /* entries must stand on support-plane clusters (docs/geometric.md "Geometric support") */
+            if (c->geo_support_m > 0 && (st = sooc_mapper_set_support(n->mapper, c->geo_support_m))) {
+                sooc_adderr(st, "%s: model.geo_support_m", c->path);
+                goto fail;
+            }
             /* the model's identity is its checkpoint's content, not its path */
             if (sooc_file_id(c->model_path, n->model_id_str, sizeof n->model_id_str, &n->model_id)) {
                 /* a mapper that does not read model.path as a file (tests): no model check */

@@ -242,3 +242,10 @@ sooc_status sooc_mapper_load_entries(sooc_mapper *m, const sooc_map_entry *e, si
     }
     return SOOC_OK;
 }
+
+/* The fake mapper keeps no geometry: geometric support is accepted and has no
+ * effect (a launch file's model.geo_support_m parses and runs). */
+sooc_status sooc_mapper_set_support(sooc_mapper *m, double margin_m) {
+    (void)m, (void)margin_m;
+    return SOOC_OK;
+}
