@@ -577,8 +577,9 @@ sooc_status sooc_mapper_set_proposals(sooc_mapper *mp, const sooc_proposal_param
     return SOOC_OK;
 }
 
-/* the support's grid: 1 cm voxels (a model's input frames are coarse: finer
- * cells hold one point each and only cost) */
+/* the support's grid: 1 cm voxels (a model's input frames are coarse; at the
+ * clusters' default 4 mm the check costs twice as much for entries within the
+ * seeds' spread, docs/geometric.md "Geometric support") */
 #define SUPPORT_VOXEL_M 0.01
 sooc_status sooc_mapper_set_support(sooc_mapper *mp, double margin_m) {
     if (mp->gm) return sooc_seterr(SOOC_EINVAL, "mapper: geometric support needs a learnt model, not the geometric map");
@@ -630,7 +631,8 @@ static int supp_on_geometry(const supp_visit *v, double X, double Z) {
 }
 
 /* 1 when the entry's place on the floor (X, 0, Z) projects into the view at
- * a depth in (t_near, d_clip): the keyframe could show what stands there */
+ * a depth in (t_near, d_clip): the keyframe could show what stands there (or
+ * its box centre does: sooc_cogmap_in_view) */
 static int supp_floor_in_view(const sooc_cogmap_camera *cam, double X, double Z) {
     const double *T = cam->T_wc;
     double q[3] = {X - T[3], -T[7], Z - T[11]};
@@ -644,7 +646,8 @@ static int supp_floor_in_view(const sooc_cogmap_camera *cam, double X, double Z)
 static int supp_collect(void *user, const sooc_cogmap_entry *e) {
     supp_visit *v = user;
     if (v->k >= v->cap) return 1;
-    if (supp_floor_in_view(v->cam, e->X, e->Z) && !supp_on_geometry(v, e->X, e->Z)) v->out[v->k++] = e->id;
+    if ((supp_floor_in_view(v->cam, e->X, e->Z) || sooc_cogmap_in_view(v->cam, e)) && !supp_on_geometry(v, e->X, e->Z))
+        v->out[v->k++] = e->id;
     return 0;
 }
 
