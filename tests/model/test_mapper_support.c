@@ -40,21 +40,29 @@ static int has(const sooc_map_entry *e, size_t n, uint64_t id) {
     return 0;
 }
 
-/* One update with the three planted entries; support on with margin > 0.
- * *removed_b: B's id among the update's removals. Returns the entries after. */
-static size_t run(double margin, sooc_map_entry *out, size_t cap, int *removed_b) {
+/* A mapper around a fresh tiny model (seed 5); *d its latent size. */
+static sooc_mapper *tiny_mapper(int *d) {
     sooc_model_config c;
     synth_tiny_cfg(&c, 4, 1);
+    *d = c.d_what;
     sooc_model *m = NULL;
     CHECK_OK(sooc_model_create(&m, &c, 5));
     sooc_mapper *mp = NULL;
-    CHECK_OK(sooc_mapper_create_with_model(&mp, m, 0, 3, 1));
+    if (m) CHECK_OK(sooc_mapper_create_with_model(&mp, m, 0, 3, 1));
+    return mp;
+}
+
+/* One update with the three planted entries; support on with margin > 0.
+ * *removed_b: B's id among the update's removals. Returns the entries after. */
+static size_t run(double margin, sooc_map_entry *out, size_t cap, int *removed_b) {
+    int d = 0;
+    sooc_mapper *mp = tiny_mapper(&d);
     if (!mp) return 0;
     if (margin > 0) CHECK_OK(sooc_mapper_set_support(mp, margin));
     sooc_map_entry e[3];
-    plant(&e[0], 1, g_balls[0].c[0], g_balls[0].c[2], c.d_what);   /* A: on a ball      */
-    plant(&e[1], 2, 0.13, 1.55, c.d_what);                          /* B: bare floor     */
-    plant(&e[2], 3, 0.0, -2.0, c.d_what);                           /* C: behind the camera */
+    plant(&e[0], 1, g_balls[0].c[0], g_balls[0].c[2], d);   /* A: on a ball         */
+    plant(&e[1], 2, 0.13, 1.55, d);                          /* B: bare floor        */
+    plant(&e[2], 3, 0.0, -2.0, d);                           /* C: behind the camera */
     CHECK_OK(sooc_mapper_load_entries(mp, e, 3));
     double T[16];
     synth_pose(T, 0.0, 0.5, 0.5, 0.0, -0.49);
@@ -90,13 +98,9 @@ int main(void) {
     CHECK_MSG(has(out, n, 2) && !rb, "negative control: the bare-floor entry is gone without the support too");
 
     /* bad margin */
-    sooc_model_config c;
-    synth_tiny_cfg(&c, 4, 1);
-    sooc_model *m = NULL;
-    CHECK_OK(sooc_model_create(&m, &c, 5));
-    sooc_mapper *mp = NULL;
-    CHECK_OK(sooc_mapper_create_with_model(&mp, m, 0, 3, 1));
-    CHECK(sooc_mapper_set_support(mp, -1) == SOOC_EINVAL);
+    int d = 0;
+    sooc_mapper *mp = tiny_mapper(&d);
+    CHECK(mp && sooc_mapper_set_support(mp, -1) == SOOC_EINVAL);
     CHECK_OK(sooc_mapper_set_support(mp, 0));   /* off */
     sooc_mapper_destroy(mp);
     printf("test_mapper_support: %d checks, %d failed\n", g_check_n, g_check_fail);
