@@ -314,6 +314,10 @@ static int cmp_float(const void *a, const void *b) {
 #define WALL_ITERS 300
 #define WALL_MAX 4
 #define WALL_SCORE_PTS 2048
+#define WALL_TOP_TOL_M 0.03
+#define SLIVER_THICK_M 0.025
+#define SLIVER_RATIO 2.5
+#define WALL_RUNS 64
 static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
     size_t nr = *nr_io;
     if (!(wall_m > 0) || nr < 64) return SOOC_OK;
@@ -363,10 +367,33 @@ static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
             }
         }
         if (yhi - ylo < WALL_MIN_H_M) break;
+        /* the same wall past its gaps (missing depth, a shelf's post): the other runs on its plane as tall
+         * as it (their top within WALL_TOP_TOL_M of its top, at least WALL_MIN_H_M high) go with it */
+        float keep_lo[WALL_RUNS], keep_hi[WALL_RUNS];
+        int nk = 0;
+        keep_lo[nk] = b0, keep_hi[nk++] = b1;
+        for (size_t i = 0, s0 = 0; i <= ni && nk < WALL_RUNS; i++) {
+            if (i < ni && (i == 0 || t[i] - t[i - 1] <= WALL_GAP_M)) continue;
+            if (i > s0 && !(t[s0] == b0 && t[i - 1] == b1)) {   /* run t[s0 .. i) */
+                float lo = t[s0], hi = t[i - 1], rlo = INFINITY, rhi = -INFINITY;
+                for (size_t j = 0; j < nr; j++) {
+                    double dx = ref[j].c[0] - bo[0], dz = ref[j].c[2] - bo[1], s = -bn[1] * dx + bn[0] * dz;
+                    if (fabs(bn[0] * dx + bn[1] * dz) < WALL_TOL_M && s >= lo && s <= hi) {
+                        rlo = ref[j].c[1] < rlo ? ref[j].c[1] : rlo;
+                        rhi = ref[j].c[1] > rhi ? ref[j].c[1] : rhi;
+                    }
+                }
+                if (rhi - rlo >= WALL_MIN_H_M && fabsf(rhi - yhi) < WALL_TOP_TOL_M) keep_lo[nk] = lo, keep_hi[nk++] = hi;
+            }
+            s0 = i;
+        }
         size_t k = 0;
         for (size_t i = 0; i < nr; i++) {
             double dx = ref[i].c[0] - bo[0], dz = ref[i].c[2] - bo[1], s = -bn[1] * dx + bn[0] * dz;
-            int on = fabs(bn[0] * dx + bn[1] * dz) < WALL_BAND_M && s >= b0 - WALL_BAND_M && s <= b1 + WALL_BAND_M;
+            int on = 0;
+            for (int r = 0; r < nk && !on; r++)
+                on = fabs(bn[0] * dx + bn[1] * dz) < WALL_BAND_M && s >= keep_lo[r] - WALL_BAND_M &&
+                     s <= keep_hi[r] + WALL_BAND_M;
             if (!on) ref[k++] = ref[i];
         }
         nr = k;
@@ -513,6 +540,10 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         double ax = cos(th), az = sin(th);
         double ex = hi[0] - lo[0] + p->voxel_m, ez = hi[1] - lo[1] + p->voxel_m;
         if (ex > p->max_extent_m || ez > p->max_extent_m) continue;
+        /* a sliver: a vertical strip no thicker than SLIVER_THICK_M and SLIVER_RATIO times as tall as it is
+         * wide is a piece of a wall or a bin's side between gaps in the depth, not an object */
+        double top = c->ymax + 0.5 * p->voxel_m;
+        if (fmin(ex, ez) <= SLIVER_THICK_M + p->voxel_m && top > SLIVER_RATIO * fmax(ex, ez)) continue;
         sooc_cluster_object *o = &m->obj[m->n_obj];
         memset(o, 0, sizeof *o);
         o->label = m->n_obj;

@@ -260,6 +260,19 @@ int main(void) {
         sooc_cluster_map_destroy(nw);
     }
 
+    /* a sliver (a strip of a bin's side between gaps in the depth: 6 cm wide, 25 cm tall, 8 mm thick) is
+     * not an object; a book on its edge (15 x 20 x 3 cm) beside it is */
+    {
+        box sb[2];
+        sb[0] = (box){{-0.20, 0, 0.00}, {-0.14, 0.25, 0.008}};
+        sb[1] = (box){{0.00, 0, -0.015}, {0.15, 0.20, 0.015}};
+        n = map_scene(m, &f, sb, 2);
+        int book = 0;
+        if (n == 1 && sooc_cluster_map_objects(m, o, 4, &no) == SOOC_OK) book = o[0].x > 0.03 && o[0].x < 0.12;
+        CHECK_MSG(n == 1 && book, "sliver and book: %d objects (want 1, the book)", n);
+        printf("a sliver beside a book on its edge: %d object(s), the book\n", n);
+    }
+
     /* free space: a bridge that one view showed and the later ones see through does not join the boxes;
      * with the test off (free_ratio 0) it does */
     n = map_bridged(m, &f);
