@@ -118,6 +118,11 @@ typedef struct sooc_node_config {
     double geo_wall_m;                         /* geometric: model.wall_m (0.3; 0 = no wall test)          */
     double geo_support_m;                      /* learnt: model.geo_support_m, the margin of the geometric
                                                   support of entries (sooc_mapper_set_support; 0 = off)   */
+    int proposals;                             /* learnt: model.proposals, padded slots on the keyframe's
+                                                  support-plane clusters (sooc_mapper_set_proposals)       */
+    double prop_join_m, prop_logit;            /* model.prop_join_m (0 = the clusters' 0.02), model.prop_logit
+                                                  (presence logit of a placed slot; 0 = the prior's)       */
+    int prop_only;                             /* model.prop_only: only placed slots make new entries       */
     double geo_free_ratio;                     /* geometric: model.free_ratio (1; 0 = no free-space test)   */
     char model_path[SOOC_NODE_PATH_MAX];
     int input_width, input_height;           /* 0 = ask the model */

@@ -335,6 +335,18 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                 goto fail;
             }
             n->own_mapper = 1;
+            if (c->proposals || c->prop_only) {   /* docs/geometric.md "Proposals for the learnt mapper" */
+                sooc_proposal_params pp;
+                sooc_proposal_params_default(&pp);
+                pp.on = 1;
+                if (c->prop_join_m > 0) pp.cluster.dist_m = c->prop_join_m;
+                if (c->prop_logit != 0) pp.pres_logit = c->prop_logit;
+                if (c->prop_only) pp.rest_logit = -20;
+                if ((st = sooc_mapper_set_proposals(n->mapper, &pp))) {
+                    sooc_adderr(st, "%s: model.proposals", c->path);
+                    goto fail;
+                }
+            }
             /* entries must stand on support-plane clusters (docs/geometric.md "Geometric support") */
             if (c->geo_support_m > 0 && (st = sooc_mapper_set_support(n->mapper, c->geo_support_m))) {
                 sooc_adderr(st, "%s: model.geo_support_m", c->path);

@@ -249,3 +249,10 @@ sooc_status sooc_mapper_set_support(sooc_mapper *m, double margin_m) {
     (void)m, (void)margin_m;
     return SOOC_OK;
 }
+
+/* Proposals need clusters the fake mapper does not keep: accepted, no effect. */
+void sooc_proposal_params_default(sooc_proposal_params *p) { memset(p, 0, sizeof *p); }
+sooc_status sooc_mapper_set_proposals(sooc_mapper *m, const sooc_proposal_params *p) {
+    (void)m, (void)p;
+    return SOOC_OK;
+}
