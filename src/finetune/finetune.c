@@ -1,4 +1,4 @@
-/* Per-object NeRF finetuning by EM (include/sooc3d/finetune.h, docs/finetune.md).
+/* Per-object NeRF finetuning by EM (include/sooc3d/train.h, docs/finetune.md).
  *
  * Layout of the work: views are turned into rays once (direction in the
  * view's gravity-aligned frame G, colour, Euclidean depth, and the set of the

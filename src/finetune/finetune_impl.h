@@ -3,7 +3,7 @@
 #define SOOC3D_FINETUNE_IMPL_H
 
 #include "model/dec_own.h"
-#include "sooc3d/finetune.h"
+#include "sooc3d/train.h"
 
 /* One component: an object (map entry) or a layout block. */
 typedef struct ft_comp {

@@ -1,14 +1,13 @@
-/* The one frame path (include/sooc3d/framepath.h): sequence reader +
+/* The one frame path (include/sooc3d/frame.h): sequence reader +
  * sooc_node_preprocess + the map's world frame, for every command. */
-#include "sooc3d/framepath.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/log.h"
-#include "sooc3d/support.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 struct sooc_framepath {
     char dir[1024];

@@ -1,7 +1,7 @@
 /* Preprocessing: depth registration, crop + resize to the model resolution
  * (area-averaged RGB; min-of-valid or nearest depth, never averaged across
  * edges), intrinsics adjustment and the world frame from the launch file. */
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,5 +1,5 @@
 /* Support plane: the map's world frame from posed depth frames
- * (include/sooc3d/support.h, docs/node.md "Support plane").
+ * (include/sooc3d/frame.h, docs/node.md "Support plane").
  *
  *  1. Up prior: the caller's hint, else minus the gravity file's direction,
  *     else the cameras (camera_up below).
@@ -17,10 +17,9 @@
  *
  * All buffers are allocated once per call (no allocation per pixel).
  */
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include "sooc3d/model.h"
-#include "sooc3d/support.h"
 
 #include <lapacke.h>
 #include <math.h>

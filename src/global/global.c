@@ -9,7 +9,7 @@
  * calls it. Its slot priors' initial spiral is the model's (model.c, a
  * weights initialisation for config.global_frame). */
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 
 #include <math.h>
 #include <string.h>

@@ -3,8 +3,7 @@
 #ifndef SOOC3D_LOGSEQ_IMPL_H
 #define SOOC3D_LOGSEQ_IMPL_H
 
-#include "sooc3d/geom.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/log.h"
 
 /* ---- TF buffer (tf.c): each frame has one parent and a time series of its

@@ -11,7 +11,6 @@
 #include "model/propose.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
-#include "sooc3d/objgeom.h"
 
 #define MAPPER_TAU 0.7f
 #define MAPPER_FREE_SLOTS 1024   /* free-space evidence cache (ids are sequential: no collision below 1024 apart) */   /* the trainer's final relaxed-Bernoulli temperature (docs/training.md "Schedule") */
@@ -45,7 +44,7 @@ struct sooc_mapper {
     uint64_t free_id[MAPPER_FREE_SLOTS];
     uint16_t free_run[MAPPER_FREE_SLOTS];
     uint16_t unsup_run[MAPPER_FREE_SLOTS];   /* registrations since the depth last showed a surface there */
-    sooc_objgeom_cache *geo;   /* object geometry for planners (objgeom.h) */
+    sooc_objgeom_cache *geo;   /* object geometry for planners (mapper.h) */
     int geo_budget;            /* tight boxes recomputed per update */
     /* the creation gate (revisit rule 5, mapper_gate.c): resolved parameters
      * (< 0 = that test off), the final decode's λ and zero noise */
@@ -495,7 +494,7 @@ static int retire_free(sooc_mapper *mp, const sooc_frame *f, uint64_t *ids, int 
     return n;
 }
 
-/* Object geometry (objgeom.h): registration statistics of what this update
+/* Object geometry (mapper.h): registration statistics of what this update
  * wrote, then at most geo_budget tight boxes recomputed. */
 static sooc_status mapper_geometry(sooc_mapper *mp) {
     for (int i = 0; i < mp->n_rem; i++) sooc_objgeom_cache_remove(mp->geo, mp->rem_ids[i]);

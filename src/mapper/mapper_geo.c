@@ -1,6 +1,6 @@
 /* The geometric object map behind the mapper's interface (docs/geometric.md
  * "In the node"): every keyframe goes into one support-plane cluster map
- * (cluster.h); after it, the map's clusters are matched to the entries by
+ * (mapper.h); after it, the map's clusters are matched to the entries by
  * floor position (nearest first, within the larger of the two floor
  * half-diagonals plus match_m). A matched entry takes the cluster's box; a
  * cluster without an entry becomes one; an entry whose centre is in the
@@ -9,8 +9,8 @@
  * set of one update holds at most SOOC_MAPPER_CHANGED_MAX entries and as many
  * removals; the rest wait for the next updates (oldest change first). */
 #include "mapper/mapper_geo.h"
-#include "sooc3d/cluster.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <string.h>

@@ -177,7 +177,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
             b->lo[0] = -c->box_rh * u, b->lo[1] = 0, b->lo[2] = -c->box_rh * u;
             b->hi[0] = c->box_rh * u, b->hi[1] = c->box_hb * u, b->hi[2] = c->box_rh * u;
         }
-        /* a finetuned decoder kept with the map (include/sooc3d/finetune.h): its own weights and z */
+        /* a finetuned decoder kept with the map (include/sooc3d/train.h): its own weights and z */
         size_t npl = 0;
         const float *pl = c->global_frame ? NULL
                           : k ? sooc_cogmap_payload_get(map, fc->id, &npl)

@@ -1,6 +1,6 @@
 /* Geometric proposals for the mapper's new slots (docs/geometric.md
  * "Proposals"; mapper.h sooc_mapper_set_proposals): the keyframe's own
- * support-plane clusters (cluster.h) place the slots that the view pads
+ * support-plane clusters (mapper.h) place the slots that the view pads
  * with priors. A cluster that a retrieved slot already covers (its centre
  * within the cluster's half-diagonal plus cover_m) proposes nothing; each
  * other cluster, largest first, moves the nearest unused prior slot to its

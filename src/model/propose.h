@@ -6,7 +6,7 @@
 #define SOOC3D_MODEL_PROPOSE_H
 
 #include "model/step.h"
-#include "sooc3d/cluster.h"
+#include "sooc3d/mapper.h"
 
 typedef struct mdl_prop_params {
     double cover_m;      /* a retrieved slot within the cluster's half-diagonal + this covers it (m) */

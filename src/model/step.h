@@ -8,7 +8,7 @@
 #define SOOC3D_MODEL_STEP_H
 
 #include "model/refine.h"
-#include "sooc3d/cluster.h"
+#include "sooc3d/mapper.h"
 #include "sooc3d/cogmap.h"
 
 #define STEP_MAX_LAY 256

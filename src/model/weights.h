@@ -7,7 +7,7 @@
 #define SOOC3D_MODEL_WEIGHTS_H
 
 #include "sooc3d/model.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "nn/nn_kern.h"
 
 #define MDL_NL(d) (6 + 2 * (d))   /* λ size per slot */

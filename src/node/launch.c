@@ -2,10 +2,9 @@
  * -> sooc_node_config. Sections are read through key tables (field, type,
  * range). Every error names the file, the line and the key (section.key). */
 #include "sooc3d/node.h"
-#include "sooc3d/cluster.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 #include "data/yaml_doc.h"
 
 #include <ctype.h>
@@ -58,7 +57,7 @@ void sooc_node_config_default(sooc_node_config *c) {
     snprintf(c->view_bind, sizeof c->view_bind, "127.0.0.1");
     c->record_period_s = 1.0;
     c->depth_resample = SOOC_NODE_DEPTH_MIN;
-    c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/cv.h) */
+    c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/slam.h) */
     c->odom_width = 320;
     c->odom_height = 240;
     c->odom_kf_translation_m = 0.10;
@@ -204,7 +203,7 @@ typedef struct pspec {
 
 static const pspec g_pspecs[] = {
     {"replay", "path", PT_STR, NULL},
-    {"replay", "format", PT_FORMAT, NULL},          /* names: sooc_seq_format_parse (seq.h) */
+    {"replay", "format", PT_FORMAT, NULL},          /* names: sooc_seq_format_parse (frame.h) */
     {"replay", "speed", PT_SPEED, NULL},
     {"replay", "loop", PT_BOOL, NULL},
     {"replay", "start_s", PT_NUM, NULL},

@@ -6,7 +6,7 @@
 
 #include "sooc3d/node.h"
 #include "node/node_parts.h"
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -15,15 +15,12 @@
 #include <string.h>
 
 #include "sooc3d/driver.h"
-#include "sooc3d/pose.h"
 #include "sooc3d/table.h"
 #include "node/store_guard.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/calib.h"
-#include "sooc3d/cv.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/slam.h"
 
-#include "sooc3d/view.h"
+#include "sooc3d/render.h"
 
 /* After a keyframe: the map, the frame and the counters to the live view (view_hook.c). */
 sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f);

@@ -91,7 +91,7 @@ static sooc_status open_sensor(sooc_node *n) {
     sp.depth_max = (float)c->max_depth_m;
     if (n->have_calib && n->calib.depth_scale > 0 && !sooc_node_param_get(c, "depth_scale"))
         sp.depth_scale = n->calib.depth_scale;
-    /* the calib's depth decoding keys, like depth_scale (replay; seq.h) */
+    /* the calib's depth decoding keys, like depth_scale (replay; frame.h) */
     if (n->have_calib && n->calib.depth_shift >= 0 && !sooc_node_param_get(c, "depth_shift"))
         sp.depth_shift = n->calib.depth_shift;
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))

@@ -13,16 +13,16 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     r->x = (float)e->x;
     r->z = (float)e->z;
     r->yaw = (float)e->yaw;
-    double cov[4];   /* the one uncertainty of an entry (map_entry.h; NaN yaw: symmetric) */
+    double cov[4];   /* the one uncertainty of an entry (cogmap.h; NaN yaw: symmetric) */
     sooc_map_entry_planner_cov(e, cov);
     r->cov_xzyaw[0] = (float)cov[0];
     r->cov_xzyaw[1] = (float)cov[1];
     r->cov_xzyaw[3] = (float)cov[2];
     r->cov_xzyaw[5] = (float)cov[3];
-    double c[3], yaw;   /* the planner's box (map_entry.h) */
+    double c[3], yaw;   /* the planner's box (cogmap.h) */
     sooc_map_entry_box(e, c, &yaw, r->extent);
     r->y = (float)c[1];
-    const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
+    const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (mapper.h; docs/shm.md) */
     if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
     if (g->flags & SOOC_GEOM_TIGHT) r->flags |= SOOC_TABLE_FLAG_BOX_TIGHT;   /* the box's quality */
     if (g->flags & SOOC_GEOM_CLIPPED) r->flags |= SOOC_TABLE_FLAG_BOX_CLIPPED;

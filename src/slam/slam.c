@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "slam/slam_impl.h"
 
 static const char *const g_states[] = {"first", "tracked", "relocalised", "failed", "lost"};

@@ -3,7 +3,7 @@
 #define SOOC3D_SLAM_IMPL_H
 
 #include "sooc3d/slam.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/cogmap.h"
 
 #if SOOC_HAVE_OPENCV
 #include "slam/slamshim.h"

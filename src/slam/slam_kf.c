@@ -4,7 +4,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "slam/slam_impl.h"
 
 void sooc__slam_node_free(slam_node *n) {

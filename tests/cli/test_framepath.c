@@ -1,4 +1,4 @@
-/* The one frame path (include/sooc3d/framepath.h) on a generated scene:
+/* The one frame path (include/sooc3d/frame.h) on a generated scene:
  *  - frames of another size and aspect are cropped/resized to the target:
  *    depth stays valid (the old [0, 0] range emptied every resized frame),
  *    intrinsics follow the crop, ids follow by nearest sampling, poses are
@@ -10,11 +10,10 @@
  *  - the same preprocessing as the node's mapping thread (launch defaults);
  *  - bad options fail with a message naming the problem. */
 #include "check.h"
-#include "sooc3d/framepath.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/node.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/cogmap.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -1,4 +1,4 @@
-/* Support-plane clustering (cluster.h): boxes on a plane, ray-cast from known
+/* Support-plane clustering (mapper.h): boxes on a plane, ray-cast from known
  * cameras. Two boxes with a gap wider than the join distance are two objects
  * with their boxes; closer than it, one. A slab wider than max_extent_m is
  * the surround; so is a wall (a vertical plane running on for wall_m), and
@@ -7,8 +7,8 @@
  * the clusters and leave covered ones alone. Bad input is refused. */
 #include "check.h"
 #include "model/propose.h"
-#include "sooc3d/cluster.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <string.h>

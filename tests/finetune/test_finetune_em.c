@@ -1,4 +1,4 @@
-/* EM finetuning (include/sooc3d/finetune.h, docs/finetune.md) on a toy scene: two
+/* EM finetuning (include/sooc3d/train.h, docs/finetune.md) on a toy scene: two
  * spheres on a checkered floor, four views, the tiny model of the model tests.
  *  1. Finite differences of Σ ℓ with respect to a unit's copied weights and
  *     z^what (object and layout units) against the M-step gradient.
@@ -10,7 +10,7 @@
 #include "check.h"
 #include "finetune/finetune_impl.h"
 #include "toy_scene.h"
-#include "sooc3d/finetune.h"
+#include "sooc3d/train.h"
 #include "sooc3d/render.h"
 
 #include <math.h>

@@ -13,7 +13,6 @@
 #include "model/dec_own.h"
 #include "model/synth.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/mapstore.h"
 #include "sooc3d/render.h"
 
 #include <sqlite3.h>

@@ -17,7 +17,7 @@
 
 #include "check.h"
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "sooc3d/eval.h"
 #include "steptest.h"
 #include "synth.h"

@@ -44,7 +44,7 @@
 
 #include "check.h"
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "nn/nn_kern.h"
 #include "model/synth.h"
 #include "model/chain.h"

@@ -20,7 +20,7 @@
 
 #include "check.h"
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "steptest.h"
 #include "oldver.h"
 #include "synth.h"

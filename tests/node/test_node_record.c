@@ -27,7 +27,7 @@
 #include "sooc3d/log.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 static char g_tmp[256];
 
