@@ -405,10 +405,10 @@ sooc_status sooc_support_read_gravity(const char *path, double g[3]);
 /* The preprocessing and floor fit below are the frame path's
  * (src/frames): the node and the offline commands share them. */
 
-typedef enum sooc_node_depth_resample {
-    SOOC_NODE_DEPTH_MIN = 0,       /* min of the valid samples in the footprint (default) */
-    SOOC_NODE_DEPTH_NEAREST = 1    /* the sample nearest to the footprint centre */
-} sooc_node_depth_resample;
+typedef enum sooc_frames_depth_resample {
+    SOOC_FRAMES_DEPTH_MIN = 0,       /* min of the valid samples in the footprint (default) */
+    SOOC_FRAMES_DEPTH_NEAREST = 1    /* the sample nearest to the footprint centre */
+} sooc_frames_depth_resample;
 
 /* ---------------------------------------------------------- preprocessing */
 
@@ -416,40 +416,40 @@ typedef enum sooc_node_depth_resample {
  * into the colour camera: each depth pixel is back-projected with Kd, moved by
  * T_color_depth and splatted into the colour image (Kc's size) keeping the
  * nearest surface. Holes stay 0. `out` has Kc->width * Kc->height floats. */
-void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd,
-                              const double T_color_depth[16], const sooc_intrinsics *Kc, float *out);
+void sooc_frames_register_depth(const float *depth, const sooc_intrinsics *Kd,
+                                const double T_color_depth[16], const sooc_intrinsics *Kc, float *out);
 
 /* The centred crop of a (w, h) image with the aspect ratio of (tw, th). */
-void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch);
+void sooc_frames_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch);
 
 /* Resize a crop (x0, y0, cw, ch) of an RGB8 image (w x h) to tw x th by area
  * averaging (exact fractional pixel coverage). */
-void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
-                               uint8_t *dst, int tw, int th);
+void sooc_frames_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
+                                 uint8_t *dst, int tw, int th);
 /* Resize a crop of a depth image without ever averaging across edges: each
  * target pixel takes the min of the valid samples in its footprint
- * (SOOC_NODE_DEPTH_MIN) or the sample nearest the footprint centre
- * (SOOC_NODE_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
+ * (SOOC_FRAMES_DEPTH_MIN) or the sample nearest the footprint centre
+ * (SOOC_FRAMES_DEPTH_NEAREST). Samples outside [dmin, dmax] or non-finite are
  * invalid (0); dmax <= 0 means no upper limit. */
-void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
-                            float *dst, int tw, int th, sooc_node_depth_resample mode,
-                            double dmin, double dmax);
+void sooc_frames_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch,
+                              float *dst, int tw, int th, sooc_frames_depth_resample mode,
+                              double dmin, double dmax);
 /* Resize a crop of an id image (row stride w) to tw x th: the sample nearest
  * each footprint's centre (ids are never mixed). */
-void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
-                          int th);
+void sooc_frames_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
+                            int th);
 
 /* Full preprocessing of one frame to the model's resolution: crop to the
  * target aspect, resize RGB (area) and depth (min/nearest), set `valid`,
  * adjust the intrinsics, copy t_ns/index/pose; instance ids (when src has
  * them) by nearest sampling. `dst` is (re)allocated. */
-sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
-                                 sooc_node_depth_resample mode, double dmin, double dmax);
+sooc_status sooc_frames_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
+                                   sooc_frames_depth_resample mode, double dmin, double dmax);
 
 /* The rigid transform T_world_src that rotates the pose source's frame so that
  * `up` (unit, source coordinates) becomes +y and the floor (up . p = floor_h)
  * lands on y = 0. The rotation is the smallest one taking up to +y. */
-void sooc_node_world_from_up(const double up[3], double floor_h, double T_world_src[16]);
+void sooc_frames_world_from_up(const double up[3], double floor_h, double T_world_src[16]);
 
 /* -------------------------------------------------------------- floor fit */
 
@@ -474,8 +474,8 @@ sooc_status sooc_floor_fit(const double *pts, size_t n, const sooc_floor_fit_par
 
 /* Back-project valid depth pixels (stride `step`) into the pose source's frame
  * with T_src_c. Returns the number of points written (<= cap). */
-size_t sooc_node_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
-                              size_t cap);
+size_t sooc_frames_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
+                                size_t cap);
 
 /* ==== reading frame sequences (seq) ====================================== */
 
@@ -743,7 +743,7 @@ void sooc_seq_writer_destroy(sooc_seq_writer *w);  /* NULL-safe */
  * sooc_framepath_world; the caller stores a fresh estimate in its own map
  * with sooc_mapstore_frame_put (sooc_framepath_map_frame fills the record).
  *
- * The preprocessing is sooc_node_preprocess (include/sooc3d/frame.h), the
+ * The preprocessing is sooc_frames_preprocess (include/sooc3d/frame.h), the
  * step the live node runs on every keyframe, with the same defaults as a
  * launch file (depth 0.1 .. 10 m, min-of-valid depth resampling).
  *
@@ -783,7 +783,7 @@ typedef struct sooc_framepath_params {
     int width, height;        /* target resolution (the model's); 0 = keep each frame's own       */
     double min_depth_m;       /* valid depth range; defaults 0.1 and 10 (as a launch file).       */
     double max_depth_m;       /* max <= min is an error at open, never an all-invalid frame        */
-    sooc_node_depth_resample resample;  /* default SOOC_NODE_DEPTH_MIN                            */
+    sooc_frames_depth_resample resample;  /* default SOOC_FRAMES_DEPTH_MIN                            */
     /* world frame */
     sooc_framepath_world world;
     int has_up;               /* --up: 1 = up (source frame) is the support estimate's hint        */

@@ -119,7 +119,7 @@ typedef struct sooc_node_config {
     int input_width, input_height;           /* 0 = ask the model */
     int iterations, threads;
     uint64_t seed;
-    sooc_node_depth_resample depth_resample;
+    sooc_frames_depth_resample depth_resample;
     double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
     double merge_m;                          /* duplicate merge radius (sooc_mapper_params.
                                                 merge_radius): default 0.35 m (revisits refine

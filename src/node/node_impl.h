@@ -129,11 +129,11 @@ struct sooc_node {
  * row). Its cost depends on nc + nr, not on the map size. `kf` = NULL for the
  * start-up batch (no keyframe row); to_db = 0 when the entries came from the
  * database itself (resume). */
-typedef struct kf_info {
+typedef struct sooc_kf_info {
     int64_t stamp_ns;
     const double *T_wc;
     int64_t t_cap_mono;
-} kf_info;
+} sooc_kf_info;
 
 sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem);
 /* Caller holds n->mu. */
@@ -141,7 +141,7 @@ void sooc__node_stats_refresh(sooc_node *n);
 
 /* publish.c */
 sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                               int clear_first, int to_db, const kf_info *kf);
+                               int clear_first, int to_db, const sooc_kf_info *kf);
 sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap);
 /* map.db: open (a new database when absent) and resume its map into the
  * mapper (*resumed = 1), or nothing without map.db. */

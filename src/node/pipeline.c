@@ -285,7 +285,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     sooc_status st = SOOC_OK;
 
     if (c->floor_mode == SOOC_NODE_FLOOR_GIVEN) {
-        sooc_node_world_from_up(c->up, c->floor_height, n->T_world_src);
+        sooc_frames_world_from_up(c->up, c->floor_height, n->T_world_src);
         n->world_ready = 1;
     }
     /* model */
@@ -638,8 +638,8 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
         pthread_mutex_unlock(&n->mu);
         return 0;
     }
-    if ((st = sooc_node_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
-                                   n->cfg.max_depth_m))) {
+    if ((st = sooc_frames_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
+                                     n->cfg.max_depth_m))) {
         *result = st;
         return 1;
     }

@@ -159,7 +159,7 @@ static void store_sync(sooc_node *n) {
  * keyframe row) and write it: one transaction, or, while the store fails,
  * kept for the next retry (store_guard.h). */
 static sooc_status store_queue(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                               int to_db, const kf_info *kf, size_t n_entries) {
+                               int to_db, const sooc_kf_info *kf, size_t n_entries) {
     sooc_status st = SOOC_OK;
     for (size_t i = 0; i < nc && !st && to_db; i++) st = sooc_sg_put(n->sg, &chg[i]);
     for (size_t i = 0; i < nr && !st; i++) st = sooc_sg_remove(n->sg, rem[i]);
@@ -196,7 +196,7 @@ static sooc_status store_queue(sooc_node *n, const sooc_map_entry *chg, size_t n
 }
 
 sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                           int clear_first, int to_db, const kf_info *kf) {
+                           int clear_first, int to_db, const sooc_kf_info *kf) {
     sooc_status st = SOOC_OK;
     double t0 = sooc_seconds();
     size_t n_entries = 0;
@@ -248,7 +248,7 @@ sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const do
     sooc_status st = sooc_mapper_changed(n->mapper, n->changed, SOOC_MAPPER_CHANGED_MAX, &nc, n->removed,
                                            SOOC_MAPPER_CHANGED_MAX, &nr);
     if (st) return sooc_adderr(st, "mapper changed");
-    kf_info kf = {stamp_ns, T_wc, t_cap};
+    sooc_kf_info kf = {stamp_ns, T_wc, t_cap};
     st = sooc__node_publish(n, n->changed, nc, n->removed, nr, 0, 1, &kf);
     pthread_mutex_lock(&n->mu);
     sooc__node_stats_refresh(n);
