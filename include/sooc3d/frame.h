@@ -314,7 +314,7 @@ void sooc_pose_sender_close(sooc_pose_sender *s);
  * (sooc_mapstore_frame_put) and read back from there by resume, render, eval
  * and map export.
  *
- * This header is a contract between the node, the CLI commands and eval.
+ * This section is a contract between the node, the CLI commands and eval.
  *
  * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
  * otherwise. Ownership: the caller owns what it creates and releases it with
