@@ -11,7 +11,6 @@
  * uniformly random poses (worst case for caches). Validates the grid query
  * against a brute-force scan before timing. Last line: JSON. */
 #include "sooc3d/cogmap.h"
-#include "sooc3d/mapstore.h"
 #include "../tests/cogmap/cogmap_cam.h"
 
 #include <math.h>

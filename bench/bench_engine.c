@@ -12,7 +12,7 @@
  * Last line: JSON with mlp_gflops, mlp_vs_sgemm_peak, mlp_vs_torch,
  * conv_vs_torch (and the raw timings).
  */
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 #include <cblas.h>
 #include <math.h>
 #include <stdio.h>

@@ -12,10 +12,9 @@
  *
  *   bench_finetune [--model M] [--scenes N] [--iterations K] [--no-large] [--no-birth]
  * Prints a line per scene and a JSON object last. */
-#include "sooc3d/finetune.h"
+#include "sooc3d/train.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
-#include "sooc3d/scene.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -9,7 +9,7 @@
  *   bench_geometry MODEL DATA_DIR [--scenes N] [--csv OUT] [--budget B]
  *
  * --csv writes one row per matched object (for fitting the spread
- * constants in objgeom.h). Last line: a JSON object. */
+ * constants in mapper.h). Last line: a JSON object. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,8 +18,8 @@
 #include "sooc3d/eval.h"
 #include "eval/eval_geom.h"
 #include "sooc3d/model.h"
-#include "sooc3d/objgeom.h"
-#include "sooc3d/scene.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/gen.h"
 #include "sooc3d/train.h"
 
 static int cmp_d(const void *a, const void *b) {

@@ -5,7 +5,7 @@
  * sooc_seq_read from the folder and from each file, best of 3 passes.
  * Prints frames/s per source and the log/folder time ratios; the last line
  * is a JSON object. usage: bench_logs [REDKITCHEN_DIR [N]] */
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/log.h"
 
 #include <stdio.h>

@@ -1,14 +1,14 @@
 /* Mesh benchmark (docs/mesh.md): the shipped unity model maps the
  * input views of generated scenes (online inference, posterior means), then
- * every map entry is meshed (include/sooc3d/mesh.h) and the Atlas metric is
+ * every map entry is meshed (include/sooc3d/render.h) and the Atlas metric is
  * taken against the generator's true surfaces at several surface levels.
  * Prints per-level mean accuracy / completeness / empty meshes and the
  * meshing time per object; the last line is a JSON object.
  *   bench_mesh [DATA_DIR [N_SCENES [RES]]]   (default: out/data/test_m, 4, 64) */
 #include "sooc3d/mapper.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 #include "sooc3d/model.h"
-#include "sooc3d/scene.h"
+#include "sooc3d/gen.h"
 #include "sooc3d/train.h"
 
 #include <math.h>

@@ -11,8 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sooc3d/cv.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/slam.h"
+#include "sooc3d/frame.h"
 
 static int cmp_d(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;

@@ -9,8 +9,7 @@
 #include <string.h>
 
 #include "sooc3d/core.h"
-#include "sooc3d/image.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 static int cmp_d(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;

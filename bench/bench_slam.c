@@ -15,8 +15,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "sooc3d/mapstore.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/slam.h"
 
 #include "slam/loop_room.h"

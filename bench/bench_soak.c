@@ -40,9 +40,8 @@
  *
  * Run from the repository root (the default model path is relative to it). */
 #include "sooc3d/gen.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/node.h"
-#include "sooc3d/scene.h"
 
 #include <dirent.h>
 #include <errno.h>

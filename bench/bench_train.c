@@ -30,9 +30,8 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "sooc3d/dist.h"
-#include "sooc3d/gen.h"
 #include "sooc3d/model.h"
+#include "sooc3d/gen.h"
 #include "sooc3d/train.h"
 
 #ifndef SOOC_SOURCE_DIR

@@ -1,6 +1,6 @@
 /* Pose sources: TUM trajectory file, live UDP/UNIX datagram stream, pushed
- * buffer. A bounded, time-sorted ring with SLERP interpolation (pose.h). */
-#include "sooc3d/pose.h"
+ * buffer. A bounded, time-sorted ring with SLERP interpolation (frame.h). */
+#include "sooc3d/frame.h"
 
 #include <errno.h>
 #include <math.h>
@@ -17,7 +17,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "drivers_internal.h"
 
 typedef struct pose_rec {

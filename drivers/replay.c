@@ -1,7 +1,7 @@
 /* Replay driver: recorded sequences at recorded speed or as fast as possible,
  * with loop and start/stop times.
  *
- * Frames come from the data module's sequence readers (sooc3d/seq.h, every
+ * Frames come from the data module's sequence readers (sooc3d/frame.h, every
  * format it reads, named by sooc_seq_format_parse) and from ROS bags and MCAP
  * files through the logs module (docs/logs.md). */
 #include <math.h>
@@ -10,10 +10,9 @@
 #include <string.h>
 
 #include "drivers_internal.h"
-#include "sooc3d/pose.h"
+#include "sooc3d/frame.h"
 
-#include "sooc3d/image.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/core.h"
 #include "sooc3d/log.h"
 
 typedef struct replay {

@@ -23,7 +23,7 @@
 #include <unistd.h>
 
 #include "drivers_internal.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #define V4L_MAX_BUFS 8
 

@@ -84,7 +84,7 @@ typedef struct sooc_sensor_params {
     const char *uri;
     const char *uri2;          /* v4l2: the colour node (NULL = depth only)               */
     const char *format;        /* replay: a format name or alias of sooc_seq_format_parse
-                                  (seq.h, docs/formats.md §Format names; NULL = auto)     */
+                                  (frame.h, docs/formats.md §Format names; NULL = auto)     */
     const char *calib;         /* replay: calib YAML overriding <dir>/calib.yaml (NULL)    */
     int width, height;         /* requested mode (0 = driver default, usually 640x480)    */
     int fps;                   /* requested rate (0 = driver default, 30)                 */

@@ -1,4 +1,37 @@
 /*
+ * sooc3d logs: robot log files. Reading and writing ROS 1 bags and MCAP
+ * files, the ROS message codecs, log files as frame sequences, and the
+ * Foxglove JSON messages of the map.
+ *
+ * Sections: ROS bags and MCAP: reading, writing, ROS messages (log);
+ * Foxglove messages of the map (foxglove).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules"), for every section below where
+ * the section does not say otherwise. Ownership: the caller owns what it
+ * creates and releases it with the matching _destroy / _free / _close
+ * (NULL-safe); pointers a getter returns are borrowed and live as long as
+ * their object. Threads: an object is used by one thread at a time;
+ * functions without an object are reentrant. Errors: a status other than
+ * SOOC_OK comes with a message naming the file, key or line (sooc_errmsg);
+ * nothing here prints or exits.
+ */
+#ifndef SOOC3D_LOG_H
+#define SOOC3D_LOG_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "sooc3d/cogmap.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ==== ROS bags and MCAP: reading, writing, ROS messages (log) ============ */
+
+/*
  * sooc3d robot logs: ROS 1 bags (format 2.0) and MCAP files read without ROS,
  * the messages a camera rig records decoded from ROS 1 serialisation and ROS 2
  * CDR, a minimal MCAP writer, and RGB-D frames assembled from a log
@@ -12,7 +45,7 @@
  * (sooc_ros_image, ...) point into the bytes they were decoded from; their
  * fixed-size strings are copies. Encoders append to a sooc_ros_buf the
  * caller frees with sooc_ros_buf_free. sooc_logseq owns its reader and its
- * buffers; frames are filled as sooc_seq_read fills them (seq.h).
+ * buffers; frames are filled as sooc_seq_read fills them (frame.h).
  *
  * Threading: one thread at a time per sooc_logfile, sooc_logseq or
  * sooc_mcap_writer; distinct objects are independent. The decoders and
@@ -36,19 +69,6 @@
  * reentrant. Errors: a status other than SOOC_OK comes with a message naming
  * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
-#ifndef SOOC3D_LOG_H
-#define SOOC3D_LOG_H
-
-#include <stddef.h>
-#include <stdint.h>
-
-#include "sooc3d/core.h"
-#include "sooc3d/frame.h"
-#include "sooc3d/seq.h"
-
-#ifdef __cplusplus
-extern "C" {
-#endif
 
 /* ------------------------------------------------------------ containers */
 
@@ -310,7 +330,7 @@ int64_t sooc_logseq_frame_time(const sooc_logseq *s, int64_t i);
 sooc_status sooc_logseq_read(sooc_logseq *s, int64_t i, sooc_frame *f);
 const sooc_logseq_desc *sooc_logseq_describe(const sooc_logseq *s);
 
-/* Open path as a sequence (seq.h) whatever it is: a ROS bag or MCAP file
+/* Open path as a sequence (frame.h) whatever it is: a ROS bag or MCAP file
  * (detected by content) through sooc_logseq, anything else through
  * sooc_seq_open. For a log, sp gives calib_path (its K replaces the colour
  * CameraInfo's, and is needed when the log has none), depth_scale (over
@@ -320,6 +340,29 @@ const sooc_logseq_desc *sooc_logseq_describe(const sooc_logseq *s);
  * SOOC_EFORMAT naming the nearest gap. */
 sooc_status sooc_log_seq_open(sooc_seq **out, const char *path, const sooc_seq_open_params *sp,
                               const sooc_logseq_params *lp);
+
+/* ==== Foxglove messages of the map (foxglove) ============================ */
+
+/* Foxglove messages of the map (docs/logs.md "Foxglove"): the JSON schemas
+ * of foxglove.SceneUpdate and foxglove.FrameTransform, and the JSON of one
+ * map object as a SceneEntity (a cube of its box, its id as a text label, its
+ * presence and covariance as metadata) and of one transform. Shared by
+ * `sooc3d map export --mcap` and the node's `record: {mcap: FILE}`.
+ * Appends to a sooc_ros_buf (log.h); on allocation failure b->oom is set. */
+
+extern const char sooc_foxglove_scene_schema[];   /* "foxglove.SceneUpdate", encoding "jsonschema" */
+extern const char sooc_foxglove_frame_schema[];   /* "foxglove.FrameTransform"                    */
+
+/* printf-style append to b (JSON text, not NUL-terminated in b->size). */
+void sooc_foxglove_printf(sooc_ros_buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* One SceneEntity in the map's +y-up "world" frame: the box centred at half
+ * its height h (m), turned by yaw about +y; cov is the planner covariance of
+ * (x, z, yaw) (sooc_map_entry_planner_cov: xx, xz, zz, yaw). */
+void sooc_foxglove_entity(sooc_ros_buf *b, const sooc_map_entry *e, const double cov[4], double h, int64_t t_ns);
+/* One FrameTransform parent -> child of the 4x4 row-major T. */
+void sooc_foxglove_frame(sooc_ros_buf *b, int64_t t_ns, const char *parent, const char *child, const double T[16]);
+/* map (REP 103: x forward, y left, z up) <- world (+y up): x = -z_w, y = -x_w, z = y_w (table.h) */
+extern const double sooc_foxglove_T_map_world[16];
 
 #ifdef __cplusplus
 }

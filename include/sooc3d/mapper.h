@@ -1,4 +1,121 @@
 /*
+ * sooc3d mapper: the online mapper and its geometry. Geometric clusters
+ * of the voxelised frames, the mapper itself (keyframes, the gate, map
+ * updates, proposals) and the geometry of map objects.
+ *
+ * Sections: geometric clusters (cluster); the online mapper (mapper); object
+ * geometry (objgeom).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules"), for every section below where
+ * the section does not say otherwise. Ownership: the caller owns what it
+ * creates and releases it with the matching _destroy / _free / _close
+ * (NULL-safe); pointers a getter returns are borrowed and live as long as
+ * their object. Threads: an object is used by one thread at a time;
+ * functions without an object are reentrant. Errors: a status other than
+ * SOOC_OK comes with a message naming the file, key or line (sooc_errmsg);
+ * nothing here prints or exits.
+ */
+#ifndef SOOC3D_MAPPER_H
+#define SOOC3D_MAPPER_H
+
+#include "sooc3d/cogmap.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/render.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ==== geometric clusters (cluster) ======================================= */
+
+/*
+ * sooc3d support-plane clustering: the geometric object map (docs/geometric.md).
+ *
+ * The floor every learnt map must beat, and a mode users can pick
+ * (`model: {kind: geometric}`, `sooc3d eval --baseline geometric`): in the
+ * map's world frame (+y up, the support plane at y = 0; frame.h), the depth
+ * points of every keyframe are merged into a voxel grid; the voxels between
+ * min_height_m and max_height_m above the plane are joined when their
+ * centroids lie within dist_m of each other (single linkage: connected
+ * components in 3D), and each component of at least min_voxels voxels and
+ * at most max_extent_m across is an object with its box. The other voxels
+ * (the plane, the surround, what is too small or too large) stay in the grid
+ * as background, so a rendered view is occluded by them as the camera saw it.
+ *
+ * The same code gives the learnt mapper its proposals: the objects of a map
+ * made of one keyframe.
+ *
+ * Ownership: a sooc_cluster_map owns its grid; create / destroy. Results are
+ * written to caller buffers. Threading: one map per thread; no globals.
+ * Errors: sooc_status codes with a message (core.h); nothing prints.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
+ */
+
+typedef struct sooc_cluster_params {
+    double voxel_m;        /* grid cell: points of all keyframes merged per cell (0.004)    */
+    double dist_m;         /* two voxels join when their centroids are closer (0.02)         */
+    double min_height_m;   /* above the plane by at least this to be an object point (0.012) */
+    double max_height_m;   /* higher points are the surround (0.6)                           */
+    double max_depth_m;    /* depth beyond this is not used (3.0)                            */
+    int min_voxels;        /* smaller components are noise (12)                              */
+    double max_extent_m;   /* a component wider than this in x or z is the surround (0.5)    */
+    int pixel_step;        /* back-projection stride in pixels (1)                           */
+    double wall_m;         /* vertical planes running on this far are walls, not objects (0.3;
+                              0 = keep them)                                                  */
+    double free_ratio;     /* free space: a voxel that later frames saw through (their depth
+                              lies behind it) at least this many times per frame that put a
+                              point in it is not an object voxel: mixed pixels at depth
+                              edges, reflections (1; 0 = keep every voxel)                  */
+} sooc_cluster_params;
+void sooc_cluster_params_default(sooc_cluster_params *p);
+
+/* One object: a box on the floor (world frame, metres). */
+typedef struct sooc_cluster_object {
+    int label;             /* 0..n-1, the value sooc_cluster_render writes             */
+    double x, z, yaw;      /* box centre on the floor; heading of the smallest floor rectangle */
+    double extent[3];      /* box size along its own x, y (height), z                   */
+    double centre_y;       /* box centre height above the plane                         */
+    double rgb[3];         /* mean colour, 0..1                                          */
+    int n_voxels;
+} sooc_cluster_object;
+
+typedef struct sooc_cluster_map sooc_cluster_map;
+
+sooc_status sooc_cluster_map_create(sooc_cluster_map **out, const sooc_cluster_params *p);
+void sooc_cluster_map_destroy(sooc_cluster_map *m);   /* NULL-safe */
+void sooc_cluster_map_clear(sooc_cluster_map *m);
+
+/* Add a posed depth frame (world frame; frames without a pose are refused).
+ * Invalidates the last segmentation. */
+sooc_status sooc_cluster_map_add_frame(sooc_cluster_map *m, const sooc_frame *f);
+
+/* Connected components over the grid; *n_objects gets the object count.
+ * Objects are numbered by decreasing size. */
+sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects);
+
+/* Objects of the last segmentation: up to cap into out, the count in *n. */
+sooc_status sooc_cluster_map_objects(const sooc_cluster_map *m, sooc_cluster_object *out, int cap, int *n);
+
+/* Render the grid into a view (camera-to-world T_wc, intrinsics K at w x h):
+ * each voxel centroid goes to its pixel with a depth test; pixels that no
+ * centroid reached take the nearest in depth of their 8 neighbours. label
+ * (w*h) gets the object label or -1 (background or nothing); depth (w*h)
+ * planar metres or 0, and rgb (w*h*3) the voxels' mean colour 0..1 or 0 may
+ * be NULL. */
+sooc_status sooc_cluster_map_render(const sooc_cluster_map *m, const double T_wc[16], const sooc_intrinsics *K,
+                                    int w, int h, int16_t *label, float *depth, float *rgb);
+
+/* ==== the online mapper (mapper) ========================================= */
+
+/*
  * sooc3d online mapper: the amortised variational update, once per keyframe
  * (docs/model.md). This is the API the node calls.
  *
@@ -20,21 +137,9 @@
  * reentrant. Errors: a status other than SOOC_OK comes with a message naming
  * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
-#ifndef SOOC3D_MAPPER_H
-#define SOOC3D_MAPPER_H
-
-#include "sooc3d/cogmap.h"
-#include "sooc3d/cluster.h"
-#include "sooc3d/core.h"
-#include "sooc3d/frame.h"
-#include "sooc3d/map_entry.h"
-
-#ifdef __cplusplus
-extern "C" {
-#endif
 
 /* sooc_map_entry, sooc_map_geometry and their conversions to and from the
- * cognitive map's entries: sooc3d/map_entry.h (src/cogmap/map_entry.c). */
+ * cognitive map's entries: sooc3d/cogmap.h (src/cogmap/map_entry.c). */
 
 typedef struct sooc_mapper sooc_mapper;
 
@@ -276,7 +381,7 @@ sooc_status sooc_mapper_last_layout(const sooc_mapper *m, int32_t *bi, int32_t *
 sooc_status sooc_mapper_load_layout(sooc_mapper *m, int32_t bi, int32_t bj, const float *mu,
                                       const float *logvar);
 
-/* Object geometry (include/sooc3d/objgeom.h): every update keeps the
+/* Object geometry (include/sooc3d/mapper.h): every update keeps the
  * registration statistics of the entries it wrote and recomputes at most
  * `per_update` stale tight boxes (default SOOC_OBJGEOM_BUDGET; 0 = none
  * during updates, < 0 = all); an entry whose box it recomputed without
@@ -287,7 +392,7 @@ sooc_status sooc_mapper_load_layout(sooc_mapper *m, int32_t bi, int32_t bj, cons
 void sooc_mapper_set_geometry_budget(sooc_mapper *m, int per_update);
 /* Mark every cached tight box stale (the decoders changed, e.g. finetuning),
  * and take up the entries someone else put into the mapper's map (births
- * before finetuning, finetune.h): their statistics start from their current
+ * before finetuning, train.h): their statistics start from their current
  * pose, their boxes are computed by the next refresh. */
 void sooc_mapper_geometry_invalidate(sooc_mapper *m);
 sooc_status sooc_mapper_refresh_geometry(sooc_mapper *m, int max_objects, int *n_done);
@@ -300,8 +405,8 @@ void sooc_mapper_set_merge_neighbours(sooc_mapper *mp, int on);
 void sooc_mapper_set_gate(sooc_mapper *mp, double min_rays, double ratio, double part);
 
 /* Geometric proposals (docs/geometric.md "Proposals"): each keyframe's
- * support-plane clusters (cluster.h) place the slots the view pads with
- * priors, before the refinement. A cluster that a retrieved slot covers (its
+ * support-plane clusters (the cluster section) place the slots the view
+ * pads with priors, before the refinement. A cluster that a retrieved slot covers (its
  * centre within the cluster's half-diagonal + cover_m) proposes nothing. */
 typedef struct sooc_proposal_params {
     int on;                      /* 0 = off (the default)                                  */
@@ -333,6 +438,146 @@ void sooc_mapper_set_latents(sooc_mapper *m, int latents);
  * ids of entries removed before the restart are not handed out again). */
 void sooc_mapper_reserve_ids(sooc_mapper *m, uint64_t next_id);
 uint64_t sooc_mapper_next_id(const sooc_mapper *m);
+
+/* ==== object geometry (objgeom) ========================================== */
+
+/*
+ * sooc3d object geometry for planners (docs/shm.md "How
+ * each field is computed"): the tight box of an object's own density, its
+ * height, whether it is rotationally symmetric, and position / yaw spreads
+ * that mean something.
+ *
+ * Tight box. An object's density lives in its locality box,
+ * in its own frame: origin on the floor under the object, +y up, rotated by
+ * its yaw. The box is sampled on a res^3 grid of cell centres; a sample is
+ * inside when sigma_hat >= level (render.h's SOOC_MESH_LEVEL, the one surface
+ * level of the project). The coarse box of the inside samples is then
+ * refined face by face: on each face, the grid columns whose first inside
+ * sample is the extreme one are bisected between their last outside and
+ * first inside sample (`refine` halvings), and the face is the extreme
+ * crossing. A face whose first inside sample is the grid's edge is tested at
+ * the box wall itself: inside there means the density is cut by the
+ * locality box (SOOC_GEOM_CLIPPED; the face is the wall). Cost: res^3 +
+ * about 6 x 12 x refine field evaluations plus the symmetry test (4 x 3 x
+ * 144), all in batches: with the defaults about 6,000 decoder rows, no
+ * allocation per point. A density that reaches the level nowhere in the box
+ * but peaks at >= SOOC_OBJGEOM_FAINT_MIN gets the box of the points at or
+ * above half its peak instead (SOOC_GEOM_TIGHT | SOOC_GEOM_FAINT: a faint
+ * object still gets a box for planners; the mesh at the level is empty);
+ * below that it is SOOC_GEOM_EMPTY (extent 0).
+ *
+ * Symmetry. The density is rotationally symmetric about the vertical axis
+ * through the tight box's centre when the inside set of three horizontal
+ * slices (at 25/50/75% of the box height, 12 x 12 samples over the disc
+ * circumscribing the box's footprint) overlaps itself rotated by 25, 45 and
+ * 70 degrees with IoU >= SOOC_OBJGEOM_SYM_IOU each (a square footprint
+ * rotated by 45 degrees overlaps itself with IoU 0.71, a disc with 1).
+ *
+ * Spreads (world, per axis). Position: the posterior variance of the
+ * refined latents, exp(rho_t) (shared by x and z), combined with the sample
+ * covariance S of the entry's registered positions across keyframes:
+ *   cov = K_POST exp(rho_t) I + K_REG S + SIGMA0^2 I       (n >= 2 registrations)
+ *   cov = K_POST exp(rho_t) I + SIGMA_NEW^2 I              (one registration)
+ * with the constants below fitted on generated scenes of a calibration set
+ * (unity m, seed 8001) so that about 68% of the per-axis position errors of
+ * held-out scenes (seed 9001) fall within one sigma (docs/shm.md gives the
+ * figures; test_objgeom_calib checks it). Yaw: exp(rho_theta) plus the
+ * circular variance -2 ln R of the registered yaws (R = mean resultant
+ * length); NaN ("undefined") for a symmetric object.
+ *
+ * Cache. A mapper keeps one sooc_objgeom_cache: registration statistics are
+ * updated for every entry a keyframe registers (O(1) each), and the tight
+ * box of an entry is recomputed when it is new or its appearance latent has
+ * moved by more than SOOC_OBJGEOM_DRIFT (RMS per element) since the box was
+ * computed, at most `budget` entries per keyframe (new ones first, then by
+ * drift), so a keyframe's cost stays bounded whatever the map size.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
+ */
+
+#define SOOC_OBJGEOM_SYM_IOU 0.9     /* symmetric at or above this rotational self-IoU */
+#define SOOC_OBJGEOM_DRIFT 0.05      /* RMS z^what change that makes a cached box stale */
+#define SOOC_OBJGEOM_FAINT_MIN 0.05  /* a density peak below this (sigma_hat) is EMPTY, not FAINT */
+#define SOOC_OBJGEOM_BUDGET 1        /* boxes recomputed per keyframe by the mapper (default) */
+
+/* Position spread calibration (see above; fitted on unity m seed 8001). */
+#define SOOC_OBJGEOM_K_POST 1.0
+#define SOOC_OBJGEOM_K_REG 0.1
+#define SOOC_OBJGEOM_SIGMA0 0.039    /* m */
+#define SOOC_OBJGEOM_SIGMA_NEW 0.08  /* m */
+
+typedef struct sooc_objgeom_opts {
+    int res;          /* coarse samples per axis over the locality box (8), >= 4 */
+    int refine;       /* bisection halvings per face (5)                        */
+    float level;      /* surface level on sigma_hat (SOOC_MESH_LEVEL)           */
+    int symmetry;     /* 1 = run the symmetry test (1)                          */
+} sooc_objgeom_opts;
+void sooc_objgeom_opts_default(sooc_objgeom_opts *o);
+
+typedef struct sooc_objgeom_box {
+    uint32_t flags;        /* SOOC_GEOM_TIGHT, _EMPTY, _CLIPPED, _SYMMETRIC (mapper.h) */
+    double lo[3], hi[3];   /* the tight box in box-local coordinates (m); 0 when EMPTY */
+    double sym_iou;        /* min rotational self-IoU (1 when not tested or EMPTY)   */
+    long n_eval;           /* field evaluations used                                */
+} sooc_objgeom_box;
+
+/* The tight box of component `comp` of a render.h field inside `box` (its
+ * T_fb maps box-local points into the field's frame; lo/hi bound the
+ * search). f->prepare, if any, is called first. Scratch is allocated once
+ * per call. */
+sooc_status sooc_objgeom_field_box(const sooc_field *f, int comp, const sooc_render_box *box,
+                                   const sooc_objgeom_opts *o, sooc_objgeom_box *out);
+
+struct sooc_model;
+/* The tight box of map entry `id`: its component of the model's field
+ * (sooc_model_field_*, so an entry's own finetuned decoder is used when the
+ * field has one), seen by a virtual camera in front of it, over its
+ * locality box. SOOC_ENOTFOUND if the map has no such entry. */
+sooc_status sooc_objgeom_entry_box(struct sooc_model *m, const sooc_cogmap *map, uint64_t id,
+                                   const sooc_objgeom_opts *o, sooc_objgeom_box *out);
+
+/* Geometry fields of a map entry from a tight box: extent, centre, flags. */
+void sooc_objgeom_apply_box(const sooc_objgeom_box *b, float extent[3], sooc_map_geometry *g);
+/* Add one registration (world floor position and yaw) to g's statistics. */
+void sooc_objgeom_observe(sooc_map_geometry *g, double X, double Z, double yaw);
+/* g->cov_xz and g->var_yaw from the posterior log-variances and g's
+ * registration statistics (formulas above). */
+void sooc_objgeom_spread(double rho_t, double rho_theta, sooc_map_geometry *g);
+
+/* ---------------------------------------------------------------- cache */
+
+typedef struct sooc_objgeom_cache sooc_objgeom_cache;
+sooc_status sooc_objgeom_cache_create(sooc_objgeom_cache **out);
+void sooc_objgeom_cache_destroy(sooc_objgeom_cache *c);   /* NULL-safe */
+void sooc_objgeom_cache_clear(sooc_objgeom_cache *c);
+size_t sooc_objgeom_cache_count(const sooc_objgeom_cache *c);
+/* Entry e was registered (new or overwritten): update its statistics and
+ * mark its box stale if new or drifted. May grow the cache (amortised). */
+sooc_status sooc_objgeom_cache_observe(sooc_objgeom_cache *c, const sooc_cogmap_entry *e);
+void sooc_objgeom_cache_remove(sooc_objgeom_cache *c, uint64_t id);
+/* 1 if the cache holds entry id. */
+int sooc_objgeom_cache_has(const sooc_objgeom_cache *c, uint64_t id);
+/* Mark every box stale (recomputed by the next refresh). */
+void sooc_objgeom_cache_invalidate(sooc_objgeom_cache *c);
+/* Resume: take a stored entry's geometry (e->geom, e->extent) as cached for
+ * its current latent. */
+sooc_status sooc_objgeom_cache_seed(sooc_objgeom_cache *c, const sooc_map_entry *e);
+/* Recompute the stale boxes, at most `max` (< 0: all), new entries first,
+ * then by drift. *n_done (may be NULL) = boxes computed; their ids go to
+ * done_ids (may be NULL; room for max when max >= 0). Entries the map no
+ * longer holds are dropped. */
+sooc_status sooc_objgeom_cache_refresh(sooc_objgeom_cache *c, struct sooc_model *m, const sooc_cogmap *map,
+                                       const sooc_objgeom_opts *o, int max, int *n_done, uint64_t *done_ids);
+/* Fill out->extent and out->geom for cogmap entry e from the cache
+ * (spreads from e's posterior and the statistics; box fields only once a
+ * box was computed, else extent stays as it is). */
+void sooc_objgeom_cache_fill(const sooc_objgeom_cache *c, const sooc_cogmap_entry *e, sooc_map_entry *out);
 
 #ifdef __cplusplus
 }

@@ -1,4 +1,36 @@
 /*
+ * sooc3d model: the network (its parameters, weight files, inference and
+ * training steps) and the data-parallel support for training it over MPI.
+ *
+ * Sections: the network (model); data-parallel training over MPI (dist).
+ *
+ * Contract (CONTRIBUTING.md "Coding rules"), for every section below where
+ * the section does not say otherwise. Ownership: the caller owns what it
+ * creates and releases it with the matching _destroy / _free / _close
+ * (NULL-safe); pointers a getter returns are borrowed and live as long as
+ * their object. Threads: an object is used by one thread at a time;
+ * functions without an object are reentrant. Errors: a status other than
+ * SOOC_OK comes with a message naming the file, key or line (sooc_errmsg);
+ * nothing here prints or exits.
+ */
+#ifndef SOOC3D_MODEL_H
+#define SOOC3D_MODEL_H
+
+#include <stddef.h>
+
+#include "sooc3d/cogmap.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/render.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ==== the network (model) ================================================ */
+
+/*
  * sooc3d model (docs/model.md; the SOOC3D paper): latents and posteriors, the object-aware NeRF
  * decoder, the two-sample depth likelihood, KL terms, the refinement networks
  * and the differentiable retrieve -> refine -> register loop.
@@ -13,7 +45,7 @@
  *   - eval/render: sooc_model_field_* (a render.h field built from a map).
  *
  * Frames: every λ handed to the model is in the gravity-aligned camera frame
- * G_t of its view (geom.h sooc_gframe); the flat λ layout is cogmap.h's:
+ * G_t of its view (core.h sooc_gframe); the flat λ layout is cogmap.h's:
  *   [0] mu_x [1] mu_z [2] mu_theta [3] rho_t [4] rho_theta
  *   [5, 5+d) what mean  [5+d, 5+2d) what log-variance  [5+2d] presence logit a
  * Layout latent: [0, d_l) mean, [d_l, 2 d_l) log-variance.
@@ -30,18 +62,6 @@
  * reentrant. Errors: a status other than SOOC_OK comes with a message naming
  * the file, key or line (sooc_errmsg); nothing here prints or exits.
  */
-#ifndef SOOC3D_MODEL_H
-#define SOOC3D_MODEL_H
-
-#include "sooc3d/core.h"
-#include "sooc3d/frame.h"
-#include "sooc3d/cogmap.h"
-#include "sooc3d/render.h"
-#include "sooc3d/mapper.h"
-
-#ifdef __cplusplus
-extern "C" {
-#endif
 
 #define SOOC_MODEL_K_MAX 32   /* 32: the global-frame baseline needs K > 26 objects (docs/baseline.md) */
 #define SOOC_MODEL_D_MAX 32
@@ -244,7 +264,7 @@ typedef struct sooc_step_opts {
     int proposals;         /* 1 = each input view's padded slots start on its support-plane
                               clusters (docs/geometric.md "Proposals"); those slots take no
                               gradient to the learnt priors                         (0)  */
-    double prop_join_m;    /* the clusters' join distance; 0 = cluster.h's default  (0)  */
+    double prop_join_m;    /* the clusters' join distance; 0 = mapper.h's default  (0)  */
     double prop_logit;     /* presence logit of a proposed slot; NaN = the prior's (NaN) */
     double prop_rest_logit;/* presence logit of the other padded slots; NaN = the prior's (NaN) */
 } sooc_step_opts;
@@ -291,7 +311,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *w, const sooc_frame *views, int
  * deterministic per batch. The model and map must outlive the field; the
  * map is only read during create, except the finetuned decoders: an entry
  * or the active layout block with a finetuning payload (cogmap.h payloads,
- * include/sooc3d/finetune.h) is drawn with its own decoder copy and z^what,
+ * include/sooc3d/train.h) is drawn with its own decoder copy and z^what,
  * read from the map while the field lives (do not change payloads meanwhile). */
 typedef struct sooc_model_field sooc_model_field;
 sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const sooc_cogmap *map,
@@ -312,10 +332,70 @@ sooc_status sooc_mapper_create_with_model(sooc_mapper **out, sooc_model *m, int 
                                             int threads);
 
 /* The MulMON-style global-frame baseline (config.global_frame = 1): its
- * training step and mapper are in sooc3d/global.h (src/global). */
+ * training step and mapper are in sooc3d/train.h (src/global). */
 int sooc_model_is_global(const sooc_model *m);
 /* n = min(K, n_objects + 1) slots for a scene of n_objects (<= 0: K). */
 int sooc_model_global_slots(const sooc_model *m, int n_objects);
+
+/* ==== data-parallel training over MPI (dist) ============================= */
+
+/*
+ * Data-parallel training over MPI (docs/cluster.md).
+ *
+ * `mpirun -np N sooc3d train ...` runs N ranks. Every rank holds the whole
+ * model; each takes a disjoint share of a step's scenes, and the gradients
+ * are summed with one in-place allreduce over the flat gradient slab, so
+ * every rank applies the same Adam update. Rank 0 alone writes checkpoints,
+ * logs, validation and curves (src/train/trainer.c).
+ *
+ * This is the whole interface; the MPI calls live in src/train/dist.c.
+ * Without MPI (built with -DSOOC_WITH_MPI=OFF, or Open MPI absent) or when
+ * the process was not started by an MPI launcher (no OMPI_COMM_WORLD_SIZE,
+ * PMIX_RANK or PMI_RANK in the environment), it is one rank of one and every
+ * collective is a no-op. A build without MPI that finds itself started as one
+ * of several ranks refuses to run (sooc_dist_init fails) rather than let N
+ * copies write the same files.
+ *
+ * Errors: MPI_COMM_WORLD gets MPI_ERRORS_RETURN, every call is checked, and a
+ * failing collective returns SOOC_EIO with a message naming this rank, the
+ * call and MPI's error string. The caller (the CLI) then calls
+ * sooc_dist_abort so that no other rank waits forever. A rank that dies
+ * (signal, exit without finalising) is caught by the runtime: mpirun aborts
+ * the job and names the rank ("mpirun noticed that process rank R ...").
+ * The library never prints or exits; sooc_dist_abort is for the CLI only.
+ *
+ * Contract (CONTRIBUTING.md "Coding rules") where this header does not say
+ * otherwise. Ownership: the caller owns what it creates and releases it with
+ * the matching _destroy / _free / _close (NULL-safe); pointers a getter
+ * returns are borrowed and live as long as their object. Threads: an object
+ * is used by one thread at a time; functions without an object are
+ * reentrant. Errors: a status other than SOOC_OK comes with a message naming
+ * the file, key or line (sooc_errmsg); nothing here prints or exits.
+ */
+
+/* 1 if this build has MPI (SOOC_WITH_MPI and Open MPI found). */
+int sooc_dist_compiled(void);
+/* Start MPI if the process was started by an MPI launcher; otherwise (or
+ * without MPI) become rank 0 of 1. argc/argv may be NULL. Call once, before
+ * any other sooc_dist_* call. */
+sooc_status sooc_dist_init(int *argc, char ***argv);
+/* Finalise MPI if sooc_dist_init started it. */
+void sooc_dist_finalize(void);
+/* Abort every rank of the job (MPI_Abort) with exit code `code`; without MPI
+ * it returns (the caller exits). For the CLI's failure path. */
+void sooc_dist_abort(int code);
+
+int sooc_dist_rank(void);   /* 0 .. size-1 (0 without MPI)           */
+int sooc_dist_size(void);   /* number of ranks (1 without MPI)       */
+/* Processor name (host) of this rank, for messages. */
+const char *sooc_dist_host(void);
+
+/* In-place sums over all ranks (MPI_Allreduce with MPI_IN_PLACE, MPI_SUM).
+ * `what` names the collective in an error message. */
+sooc_status sooc_dist_sum_f32(float *buf, size_t n, const char *what);
+sooc_status sooc_dist_sum_f64(double *buf, size_t n, const char *what);
+/* Rank 0's bytes to every rank (MPI_Bcast). */
+sooc_status sooc_dist_bcast(void *buf, size_t bytes, const char *what);
 
 #ifdef __cplusplus
 }

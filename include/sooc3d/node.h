@@ -37,9 +37,7 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
-#include "sooc3d/geom.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/support.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -62,7 +60,7 @@ typedef enum sooc_node_pose_kind {
     SOOC_NODE_POSE_SENSOR = 0,     /* the sensor's frames carry poses (replay of a posed sequence) */
     SOOC_NODE_POSE_FILE = 1,       /* a trajectory file (TUM groundtruth format) */
     SOOC_NODE_POSE_SOCKET = 2,     /* live stream: unix:/path or udp:host:port */
-    SOOC_NODE_POSE_ODOMETRY = 3,   /* RGB-D odometry on the frames (OpenCV rgbd, include/sooc3d/cv.h) */
+    SOOC_NODE_POSE_ODOMETRY = 3,   /* RGB-D odometry on the frames (OpenCV rgbd, include/sooc3d/slam.h) */
     SOOC_NODE_POSE_TF = 4          /* the TF of a replayed log (drivers rosbag, mcap; docs/logs.md) */
 } sooc_node_pose_kind;
 
@@ -128,7 +126,7 @@ typedef struct sooc_node_config {
     int input_width, input_height;           /* 0 = ask the model */
     int iterations, threads;
     uint64_t seed;
-    sooc_node_depth_resample depth_resample;
+    sooc_frames_depth_resample depth_resample;
     double clip_m;                           /* model clip depth; 0 = the model's (default 0) */
     double merge_m;                          /* duplicate merge radius (sooc_mapper_params.
                                                 merge_radius): default 0.35 m (revisits refine
@@ -168,7 +166,7 @@ typedef struct sooc_node_config {
     double floor_height;                     /* floor coordinate along `up` */
     double floor_ransac_threshold_m;         /* default 0.02 */
     int floor_ransac_iterations;             /* default 200 */
-    /* support plane (floor: estimate; include/sooc3d/support.h, docs/node.md "Support plane") */
+    /* support plane (floor: estimate; include/sooc3d/frame.h, docs/node.md "Support plane") */
     char gravity_path[SOOC_NODE_PATH_MAX];   /* world.gravity: "" = auto (replay: <sensor.path>/
                                                 gravity-direction.txt when present), "none", or a file */
     double max_tilt_deg;                     /* world.max_tilt_deg, default 30 */
@@ -194,7 +192,7 @@ typedef struct sooc_node_config {
     /* log: */
     sooc_log_level log_level;                /* default info */
 
-    /* view: the live view in a browser (include/sooc3d/view.h) */
+    /* view: the live view in a browser (include/sooc3d/render.h) */
     int view_port;                           /* 0 = off (default)                        */
     char view_bind[64];                      /* IPv4 address to listen on (127.0.0.1)    */
     char record_mcap[512];                   /* record.mcap: the Foxglove SceneUpdate channel

@@ -83,11 +83,10 @@ int sooc_cli_parse_slots(const char *s, int *slots);
 /* sooc_log callback of the CLI: "[level] message" lines on stderr. */
 void sooc_cli_log(void *user, sooc_log_level level, const char *msg);
 
-/* The frame-path options (cli_frames.c, include/sooc3d/framepath.h): --calib, --format,
+/* The frame-path options (cli_frames.c, include/sooc3d/frame.h): --calib, --format,
  * --depth-scale, --depth-shift, --min-depth, --max-depth, --up, --world. At argv[*i]:
  * 1 = consumed (with its value, *i advanced), 0 = not one of them, -1 = bad value
  * (message printed). sooc_cli_framepath_check: the range is not empty (0 + message). */
-#include "sooc3d/framepath.h"
 #include "sooc3d/model.h"
 extern const char *const sooc_cli_framepath_help;
 int sooc_cli_framepath_opt(const char *cmd, int argc, char **argv, int *i, sooc_framepath_params *p);

@@ -1,5 +1,5 @@
 /* The frame-path options every command that reads a sequence takes
- * (include/sooc3d/framepath.h): one parser, one help text. */
+ * (include/sooc3d/frame.h): one parser, one help text. */
 #include "cli.h"
 
 #include <stdio.h>

@@ -1,13 +1,12 @@
 /* `sooc3d render --map` over a map made by a camera without a pose source:
  * the cameras go where the map's tracking keyframes put them
- * (include/sooc3d/mapstore_slam.h, docs/slam.md). */
+ * (include/sooc3d/cogmap.h, docs/slam.md). */
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/core.h"
+#include "sooc3d/cogmap.h"
 
 typedef struct kfpose {
     int64_t frame;   /* t_ns */

@@ -3,7 +3,6 @@
 #include "cli.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
-#include "sooc3d/mapstore.h"
 #include "sooc3d/cogmap.h"
 
 #include <errno.h>

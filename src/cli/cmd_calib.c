@@ -1,6 +1,6 @@
 /* sooc3d calib intrinsics | handeye, and `sooc3d gen --board` (board views
  * with known intrinsics and hand-eye, for tests and for trying the tools).
- * The work is in include/sooc3d/cv.h; this file parses options, lists
+ * The work is in include/sooc3d/slam.h; this file parses options, lists
  * images and writes the YAML (only when the calibration succeeded). */
 #include <dirent.h>
 #include <math.h>
@@ -9,10 +9,9 @@
 #include <string.h>
 
 #include "cli.h"
-#include "sooc3d/calib.h"
-#include "sooc3d/cv.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/image.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/slam.h"
+#include "sooc3d/core.h"
 
 #define NEEDV()                                                                 \
     do {                                                                        \

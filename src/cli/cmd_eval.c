@@ -4,11 +4,10 @@
 #include "cli.h"
 #include "cmd_eval_real.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/finetune.h"
-#include "sooc3d/mesh.h"
-#include "sooc3d/model.h"
-#include "sooc3d/scene.h"
 #include "sooc3d/train.h"
+#include "sooc3d/render.h"
+#include "sooc3d/model.h"
+#include "sooc3d/gen.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -1,14 +1,14 @@
 /* `sooc3d eval` on recorded sequences: read each sequence through the one
- * frame path (framepath.h) at the model's resolution, attach labels
+ * frame path (frame.h) at the model's resolution, attach labels
  * (label-fusion segm.png or mask.png, or the generic instance/ layout, resized with the
  * frames' crop), run sooc_eval_real_run per (model, sequence), and write one
  * JSON cell per pair (docs/metrics.md "Real sequences"). */
 #include "cli.h"
 #include "cmd_eval_real.h"
-#include "sooc3d/cluster.h"
-#include "sooc3d/image.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/core.h"
 #include "sooc3d/model.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 #include <dirent.h>
 #include <math.h>

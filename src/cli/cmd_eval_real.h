@@ -5,8 +5,8 @@
 #ifndef SOOC3D_CMD_EVAL_REAL_H
 #define SOOC3D_CMD_EVAL_REAL_H
 
-#include "sooc3d/eval_real.h"
-#include "sooc3d/framepath.h"
+#include "sooc3d/eval.h"
+#include "sooc3d/frame.h"
 
 typedef struct sooc_eval_real_cli {
     const char *const *models;    /* n_models checkpoints                    */

@@ -1,12 +1,12 @@
 /* sooc3d finetune: per-object NeRF finetuning by EM of a stored map
- * (include/sooc3d/finetune.h, docs/finetune.md). Every finished object / layout
+ * (include/sooc3d/train.h, docs/finetune.md). Every finished object / layout
  * block is committed to the map database in its own transaction; Ctrl-C stops
  * at the next progress report with the database consistent, and a second run
  * skips what is stored and finetunes the rest. */
 #include "cli.h"
-#include "sooc3d/finetune.h"
-#include "sooc3d/framepath.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/train.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/model.h"
 
 #include <math.h>

@@ -1,12 +1,11 @@
 /* sooc3d infer: run the online mapper over a sequence, write the final map
  * (JSON + CSV) and per-view renders from the final map. */
 #include "cli.h"
-#include "sooc3d/framepath.h"
-#include "sooc3d/image.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/core.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
 #include "sooc3d/render.h"
-#include "sooc3d/seq.h"
 
 #include <math.h>
 #include <stdio.h>

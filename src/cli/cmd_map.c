@@ -1,9 +1,8 @@
 /* sooc3d map: list, query, export or describe a stored map (SQLite, see
- * include/sooc3d/mapstore.h). Read-only: never modifies the database. */
+ * include/sooc3d/cogmap.h). Read-only: never modifies the database. */
 #include "cli.h"
-#include "sooc3d/map_entry.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/render.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -71,7 +70,7 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
     out_ctx *c = u;
     if (c->limit && c->n >= c->limit) return 1;
     c->n++;
-    /* the entry as a planner gets it: the stored box and spreads (one uncertainty, map_entry.h) */
+    /* the entry as a planner gets it: the stored box and spreads (one uncertainty, cogmap.h) */
     float ext[3] = {0, 0, 0};
     sooc_map_geometry g;
     memset(&g, 0, sizeof g);

@@ -3,8 +3,7 @@
  * Read-only: never modifies the database. */
 #include "cli.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/map_entry.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 #include <math.h>
 #include <stdio.h>

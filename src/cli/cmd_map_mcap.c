@@ -13,10 +13,8 @@
 #include <string.h>
 
 #include "cli.h"
-#include "sooc3d/foxglove.h"
 #include "sooc3d/log.h"
-#include "sooc3d/map_entry.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 typedef struct ex_obj {
     sooc_cogmap_entry e;

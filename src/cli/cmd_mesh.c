@@ -1,9 +1,9 @@
 /* sooc3d mesh: marching cubes on every object of a stored map and on its
- * layout, one binary PLY per object plus scene.ply (include/sooc3d/mesh.h,
+ * layout, one binary PLY per object plus scene.ply (include/sooc3d/render.h,
  * docs/mesh.md). `sooc3d map export --ply DIR --model M` calls the same code. */
 #include "cli.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/render.h"
 #include "sooc3d/model.h"
 
 #include <stdio.h>

@@ -14,7 +14,7 @@
  * "passive" and re-executes itself (/proc/self/exe with the same argv, same
  * pid) before doing anything else. An explicit OMP_WAIT_POLICY is kept. */
 #include "cli.h"
-#include "sooc3d/map_entry.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/node.h"
 
 #include <errno.h>
@@ -122,7 +122,7 @@ static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc,
            (unsigned long long)st->n_objects);
     if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x_m", "z_m", "yaw_deg", "pres", "obs", "sigma_m");
     for (size_t i = 0; i < nc; i++) {
-        double cov[4];   /* the table's uncertainty (map_entry.h) */
+        double cov[4];   /* the table's uncertainty (cogmap.h) */
         sooc_map_entry_planner_cov(&chg[i], cov);
         printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %6.3f\n", (unsigned long long)chg[i].id, chg[i].x, chg[i].z,
                chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count,

@@ -6,12 +6,11 @@
 #include <string.h>
 
 #include "cli.h"
-#include "sooc3d/cv.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/log.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/seq.h"
 #include "sooc3d/slam.h"
+#include "sooc3d/core.h"
+#include "sooc3d/log.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/frame.h"
 
 static void usage(FILE *f) {
     fprintf(f,

@@ -4,12 +4,10 @@
 #include "cli.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/framepath.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/model.h"
 #include "sooc3d/node.h"
-#include "sooc3d/scene.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/gen.h"
 
 #include <math.h>
 #include <stdio.h>

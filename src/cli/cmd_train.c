@@ -1,6 +1,5 @@
 /* sooc3d train: train a SOOC3D model on synthetic scenes. */
 #include "cli.h"
-#include "sooc3d/dist.h"
 #include "sooc3d/model.h"
 #include "sooc3d/train.h"
 

@@ -1,9 +1,9 @@
-/* Support-plane clustering (cluster.h, docs/geometric.md): a voxel grid of the
+/* Support-plane clustering (mapper.h, docs/geometric.md): a voxel grid of the
  * keyframes' depth points in the world frame, connected components of the
  * voxels above the support plane, boxes, and a depth-tested render of the
  * grid into any view. */
-#include "sooc3d/cluster.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <stdlib.h>

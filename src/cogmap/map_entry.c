@@ -1,5 +1,5 @@
-/* Map entry <-> cognitive-map entry (sooc3d/map_entry.h). */
-#include "sooc3d/map_entry.h"
+/* Map entry <-> cognitive-map entry (sooc3d/cogmap.h). */
+#include "sooc3d/cogmap.h"
 
 #include <stdio.h>
 

@@ -1,8 +1,8 @@
 /*
- * The persistent map in SQLite (see include/sooc3d/mapstore.h for the schema
+ * The persistent map in SQLite (see include/sooc3d/cogmap.h for the schema
  * and the contracts). Every error message starts with the database path.
  */
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "cogmap/mapstore_impl.h"
 
 #include <math.h>

@@ -1,7 +1,7 @@
 /* The map store's connection (mapstore_impl.h): SQLite errors as statuses,
  * statements without rows, transactions and the connection's accessors; the
  * other files of the store build on these. */
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "cogmap/mapstore_impl.h"
 
 #include <sqlite3.h>

@@ -1,5 +1,5 @@
 /* Finetuned decoders in the map database (schema version 2;
- * include/sooc3d/mapstore.h "finetuned decoders"). */
+ * include/sooc3d/cogmap.h "finetuned decoders"). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -7,7 +7,7 @@
 #include "cogmap/mapstore_impl.h"
 
 /* Schema version 2: finetuned decoders per entry and per layout
- * block (payloads of cogmap.h, include/sooc3d/finetune.h). A version-1 map
+ * block (payloads of cogmap.h, include/sooc3d/train.h). A version-1 map
  * gets these on its first read-write open (one transaction). */
 const char *const sooc__mapstore_ft_schema =
     "CREATE TABLE IF NOT EXISTS ft_objects(id INTEGER PRIMARY KEY, version INTEGER NOT NULL,"

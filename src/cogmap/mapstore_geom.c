@@ -1,5 +1,5 @@
 /* Object geometry in the map database (schema version 3;
- * include/sooc3d/mapstore.h "object geometry"). */
+ * include/sooc3d/cogmap.h "object geometry"). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>

@@ -6,7 +6,7 @@
 
 #include <sqlite3.h>
 
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 /* The entry columns in the order row readers expect (mapstore_read.c). */
 #define ENTRY_COLS                                                                                         \

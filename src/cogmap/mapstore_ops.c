@@ -1,5 +1,5 @@
 /* Storage faults and maintenance of the map database
- * (include/sooc3d/mapstore.h "storage faults"): what the last failure met,
+ * (include/sooc3d/cogmap.h "storage faults"): what the last failure met,
  * the lock wait, WAL checkpoints and SQLite's integrity check. */
 #include <stdio.h>
 #include <string.h>

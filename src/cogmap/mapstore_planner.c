@@ -1,9 +1,9 @@
-/* Every entry of a stored map as a planner receives it (include/sooc3d/mapstore.h
+/* Every entry of a stored map as a planner receives it (include/sooc3d/cogmap.h
  * "planner entries"): the entry with its stored box and spreads. */
 #include <string.h>
 
 #include "cogmap/mapstore_impl.h"
-#include "sooc3d/map_entry.h"
+#include "sooc3d/cogmap.h"
 
 typedef struct planner_ctx {
     sooc_mapstore *s;

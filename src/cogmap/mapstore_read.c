@@ -1,6 +1,6 @@
-/* Reading entries from the map store (include/sooc3d/mapstore.h): one entry
+/* Reading entries from the map store (include/sooc3d/cogmap.h): one entry
  * by id, every entry, and the entries in a box (through the R*Tree). */
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "cogmap/mapstore_impl.h"
 
 #include <sqlite3.h>

@@ -1,10 +1,10 @@
 /* The SLAM keyframe tables of the map database
- * (include/sooc3d/mapstore_slam.h). */
+ * (include/sooc3d/cogmap.h). */
 #include <math.h>
 #include <string.h>
 
 #include "cogmap/mapstore_impl.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/cogmap.h"
 
 static const char *const slam_schema =
     "CREATE TABLE IF NOT EXISTS slam_keyframes(id INTEGER PRIMARY KEY, run INTEGER NOT NULL,"

@@ -1,5 +1,5 @@
 /* Per-entry and per-layout-block float payloads of a cognitive map (cogmap.h
- * "payloads"): the finetuned decoders (include/sooc3d/finetune.h).
+ * "payloads"): the finetuned decoders (include/sooc3d/train.h).
  * A small array searched linearly: payloads exist only for finetuned objects
  * and blocks, and a field looks up at most 64 ids per view. */
 #include "cogmap/cogmap_impl.h"

@@ -1,15 +1,15 @@
-/* Calibration boards and calibration (include/sooc3d/cv.h): board specs,
+/* Calibration boards and calibration (include/sooc3d/slam.h): board specs,
  * a ray-traced board renderer for tests with known truth, detection,
  * intrinsics (calibrateCamera) and hand-eye (calibrateHandEye) through
  * cvshim.h. */
-#include "sooc3d/cv.h"
+#include "sooc3d/slam.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 
 #if SOOC_HAVE_OPENCV
 #include "cvshim.h"

@@ -1,7 +1,7 @@
 /* Minimal C interface to OpenCV (src/cv/cvshim.cpp, C++): RGB-D odometry
  * from the contrib `rgbd` module, ChArUco/checkerboard detection (`aruco`,
  * `calib3d`), calibrateCamera, solvePnP and calibrateHandEye. Only
- * the C files of src/cv call it; the public API is include/sooc3d/cv.h.
+ * the C files of src/cv call it; the public API is include/sooc3d/slam.h.
  *
  * Functions return 0 on success and a negative value on failure with a
  * message in err (errcap bytes); no function prints or throws (OpenCV

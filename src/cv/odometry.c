@@ -1,12 +1,12 @@
-/* Frame-to-keyframe RGB-D odometry (include/sooc3d/cv.h) on top of
+/* Frame-to-keyframe RGB-D odometry (include/sooc3d/slam.h) on top of
  * OpenCV's rgbd module (cvshim.h). The C side holds the keyframe rule and
  * the failure policy; OpenCV does the registration. */
-#include "sooc3d/cv.h"
+#include "sooc3d/slam.h"
 
 #include <math.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 
 #if SOOC_HAVE_OPENCV
 #include "cvshim.h"

@@ -1,7 +1,7 @@
 /* Trajectories in TUM format and the TUM RGB-D benchmark metrics: ATE
  * (absolute trajectory error after a closed-form rigid alignment) and RPE
  * (relative pose error over a fixed time or frame delta). Plain C + LAPACKE. */
-#include "sooc3d/cv.h"
+#include "sooc3d/slam.h"
 
 #include <errno.h>
 #include <lapacke.h>
@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 
 sooc_status sooc_traj_push(sooc_traj *tr, double t, const double T[16]) {
     if (tr->n == tr->cap) {

@@ -1,5 +1,5 @@
 /* Calibration YAML load/save with the libyaml document API. */
-#include "sooc3d/calib.h"
+#include "sooc3d/frame.h"
 #include "data/yaml_doc.h"
 
 #include <math.h>

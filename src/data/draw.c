@@ -1,6 +1,6 @@
 /* Drawing on RGB8 images: primitives, a 5x7 bitmap font, colour maps and
  * contact sheets. Everything clips; nothing here fails except allocation. */
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,7 +1,7 @@
 /* Image buffers and the PNG / PGM / JPEG codecs (libpng classic API,
  * libjpeg-turbo's libjpeg API; 16-bit samples are big-endian in PNG and PGM
  * and host order in memory). */
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <png.h>
 #include <setjmp.h>
@@ -68,7 +68,7 @@ sooc_status sooc_image_copy(sooc_image *dst, const sooc_image *src) {
     return SOOC_OK;
 }
 
-/* Reader size limits (image.h): checked on the header, before allocating. */
+/* Reader size limits (core.h): checked on the header, before allocating. */
 static sooc_status check_read_size(const char *path, const char *what, size_t w, size_t h, size_t bpp) {
     if (w > SOOC_IMAGE_READ_MAX_DIM || h > SOOC_IMAGE_READ_MAX_DIM)
         return sooc_seterr(SOOC_EFORMAT, "%s: %s of %zux%zu is larger than the %dx%d limit", path, what, w,

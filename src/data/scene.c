@@ -1,6 +1,6 @@
 /* Synthetic scene description: object parts, analytic distances, PLY meshes,
  * and scene.yaml load/save (libyaml document API). */
-#include "sooc3d/scene.h"
+#include "sooc3d/gen.h"
 #include "data/yaml_doc.h"
 
 #include <math.h>

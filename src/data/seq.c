@@ -2,9 +2,9 @@
  * 7-Scenes/label-fusion readers, and the frame read every layout shares
  * (seq_list.c: slambook2, Replica; seq_ycb.c: YCB-Video; seq_apc.c: APC;
  * seq_write.c: the synthetic writer). */
-#include "sooc3d/seq.h"
-#include "sooc3d/image.h"
-#include "sooc3d/scene.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/core.h"
+#include "sooc3d/gen.h"
 #include "seq_impl.h"
 
 #include <dirent.h>

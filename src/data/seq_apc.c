@@ -4,7 +4,7 @@
  * masks/frame-NNNNNN.<object>.mask.png with masks/<object>.thresh.txt;
  * docs/formats.md section 2.9. */
 #include "seq_impl.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <ctype.h>
 #include <stdio.h>

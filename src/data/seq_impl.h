@@ -3,8 +3,8 @@
 #ifndef SOOC3D_SEQ_IMPL_H
 #define SOOC3D_SEQ_IMPL_H
 
-#include "sooc3d/image.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 #include <stdint.h>
 

@@ -1,7 +1,7 @@
 /* The frame index every sequence layout fills (seq_impl.h): entries, close,
  * and the list, pose and calibration parsing the layout readers share. */
-#include "sooc3d/seq.h"
-#include "sooc3d/image.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/core.h"
 #include "seq_impl.h"
 
 #include <math.h>

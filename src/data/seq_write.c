@@ -1,7 +1,7 @@
 /* The sooc3d synthetic-layout writer (TUM lists + calib.yaml [+ instance/]),
  * docs/formats.md section 2.1. */
-#include "sooc3d/seq.h"
-#include "sooc3d/image.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -2,7 +2,7 @@
  * NNNNNN-color.png, NNNNNN-depth.png, NNNNNN-label.png and NNNNNN-meta.mat
  * (MATLAB v5, read with libmatio); docs/formats.md section 2.8. */
 #include "seq_impl.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <dirent.h>
 #include <math.h>

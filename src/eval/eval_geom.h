@@ -5,7 +5,7 @@
  *
  * Matching: every GT object is matched to the nearest map entry on the
  * floor, one-to-one, greedily by distance, within `gate_m` (0.5 m in
- * `sooc3d eval`), the rule of mesh.h's scene metric.
+ * `sooc3d eval`), the rule of render.h's scene metric.
  *
  * Extent error of a matched pair (cm): the mean over the three axes of
  * |extent_pred - extent_gt|, where extent_gt is the GT object's tight box in
@@ -29,7 +29,7 @@
 
 #include "sooc3d/core.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/scene.h"
+#include "sooc3d/gen.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -1,12 +1,11 @@
-/* The geometric baseline (eval.h sooc_eval_geometric_scene, eval_real.h
+/* The geometric baseline (eval.h: sooc_eval_geometric_scene,
  * sooc_eval_geometric_run; docs/geometric.md): the mapped frames go into one
  * support-plane cluster map, every scored view is rendered from it and
  * scored as a learnt map's render is (sooc_metric_view: the same valid mask,
  * the same best-match IoU, L2 over the objects' floor positions), and its
  * objects are the entries. */
-#include "sooc3d/cluster.h"
+#include "sooc3d/mapper.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/eval_real.h"
 #include "sooc3d/render.h"
 
 #include <math.h>

@@ -2,7 +2,7 @@
  * boxes (any map) or the model's rendering (a map built with that model).
  * `sooc3d map at` and tests call these (include/sooc3d/eval.h). */
 #include "sooc3d/eval.h"
-#include "sooc3d/map_entry.h"
+#include "sooc3d/cogmap.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,5 +1,5 @@
 /* The evaluation metrics; definitions in docs/metrics.md. */
-#include "sooc3d/metrics.h"
+#include "sooc3d/eval.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,14 +1,13 @@
-/* Metrics for real recorded sequences (eval_real.h, docs/metrics.md "Real
+/* Metrics for real recorded sequences (eval.h, docs/metrics.md "Real
  * sequences"): the query rule, the free-space test, yaw/position spread,
  * churn, per-object IoU, label images, and the runner that puts them
  * together around the SOOC3D mapper. */
-#include "sooc3d/eval_real.h"
+#include "sooc3d/eval.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/image.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/global.h"
+#include "sooc3d/core.h"
+#include "sooc3d/train.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 
 #include <math.h>
 #include <stdarg.h>

@@ -3,11 +3,10 @@
  * render + score every view from the map (query views from the final map,
  * input views from the final map and/or right after their own update). */
 #include "sooc3d/cogmap.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 #include "eval/eval_geom.h"
-#include "sooc3d/finetune.h"
 
 #include <math.h>
 #include <string.h>

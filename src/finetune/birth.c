@@ -1,4 +1,4 @@
-/* Births before finetuning (include/sooc3d/finetune.h "births").
+/* Births before finetuning (include/sooc3d/train.h "births").
  *
  * Every view is rendered from the map as it stands (the dense renderer, the
  * model's field). A pixel is unexplained when its sensor depth is valid and
@@ -17,8 +17,8 @@
  * nothing. */
 #include "finetune/finetune_impl.h"
 #include "model/weights.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/objgeom.h"
+#include "sooc3d/core.h"
+#include "sooc3d/mapper.h"
 #include "sooc3d/render.h"
 
 #include <math.h>

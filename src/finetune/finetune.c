@@ -1,4 +1,4 @@
-/* Per-object NeRF finetuning by EM (include/sooc3d/finetune.h, docs/finetune.md).
+/* Per-object NeRF finetuning by EM (include/sooc3d/train.h, docs/finetune.md).
  *
  * Layout of the work: views are turned into rays once (direction in the
  * view's gravity-aligned frame G, colour, Euclidean depth, and the set of the
@@ -34,11 +34,11 @@ float sooc_finetune_lr_scale(const sooc_finetune_params *p, int it) {
 
 /* ------------------------------------------------------------ components */
 
-void sooc_ft_comp_bias(ft_comp *c) { sooc_mdl_own_bias(c->w, &c->rel, c->z, c->bias); }
+void sooc_ft_comp_bias(sooc_ft_comp *c) { sooc_mdl_own_bias(c->w, &c->rel, c->z, c->bias); }
 
 static int find_comp(const sooc_finetune *ft, sooc_finetune_kind kind, uint64_t id, int32_t bi, int32_t bj) {
     for (int i = 0; i < ft->ncomp; i++) {
-        const ft_comp *c = &ft->comp[i];
+        const sooc_ft_comp *c = &ft->comp[i];
         if (c->kind == kind && (kind == SOOC_FT_OBJECT ? c->id == id : (c->bi == bi && c->bj == bj))) return i;
     }
     return -1;
@@ -54,11 +54,11 @@ static sooc_status get_comp(sooc_finetune *ft, sooc_finetune_kind kind, uint64_t
     }
     const sooc_model *m = ft->m;
     if (ft->ncomp % 16 == 0) {
-        ft_comp *nc = sooc_realloc(ft->comp, (size_t)(ft->ncomp + 16) * sizeof *nc);
+        sooc_ft_comp *nc = sooc_realloc(ft->comp, (size_t)(ft->ncomp + 16) * sizeof *nc);
         if (!nc) return SOOC_ENOMEM;
         ft->comp = nc;
     }
-    ft_comp *c = &ft->comp[ft->ncomp];
+    sooc_ft_comp *c = &ft->comp[ft->ncomp];
     memset(c, 0, sizeof *c);
     c->kind = kind, c->id = id, c->bi = bi, c->bj = bj;
     c->net = kind == SOOC_FT_OBJECT ? &m->dobj : &m->dlay;
@@ -246,11 +246,11 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
         return sooc_adderr(st, "finetune: frame %lld", (long long)f->index);
     if (ft->nv == ft->cap_v) {
         int nc = ft->cap_v ? 2 * ft->cap_v : 32;
-        ft_view *nvw = sooc_realloc(ft->views, (size_t)nc * sizeof *nvw);
+        sooc_ft_view *nvw = sooc_realloc(ft->views, (size_t)nc * sizeof *nvw);
         if (!nvw) return SOOC_ENOMEM;
         ft->views = nvw, ft->cap_v = nc;
     }
-    ft_view *v = &ft->views[ft->nv];
+    sooc_ft_view *v = &ft->views[ft->nv];
     memset(v, 0, sizeof *v);
     v->h = (float)h * iu;
     v->blk[0] = (float)blk[0] * iu, v->blk[1] = (float)-h * iu, v->blk[2] = (float)blk[1] * iu;
@@ -308,7 +308,7 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
 
 static int cmp_unit(const void *a, const void *b, void *ctx) {
     const sooc_finetune *ft = ctx;
-    const ft_comp *x = &ft->comp[*(const int *)a], *y = &ft->comp[*(const int *)b];
+    const sooc_ft_comp *x = &ft->comp[*(const int *)a], *y = &ft->comp[*(const int *)b];
     if (x->kind != y->kind) return x->kind < y->kind ? -1 : 1;
     if (x->kind == SOOC_FT_OBJECT) return x->id < y->id ? -1 : x->id > y->id;
     if (x->bi != y->bi) return x->bi < y->bi ? -1 : 1;
@@ -331,19 +331,19 @@ static sooc_status sooc_ft_build(sooc_finetune *ft) {
     /* count, then fill */
     for (int pass = 0; pass < 2; pass++) {
         for (size_t r = 0; r < ft->nr; r++) {
-            const ft_view *v = &ft->views[ft->rview[r]];
-            ft_comp *lc = &ft->comp[v->lay];
+            const sooc_ft_view *v = &ft->views[ft->rview[r]];
+            sooc_ft_comp *lc = &ft->comp[v->lay];
             if (pass) lc->rays[lc->nrays] = (uint32_t)r;
             lc->nrays++;
             for (uint64_t mk = ft->mask[r]; mk; mk &= mk - 1) {
-                ft_comp *oc = &ft->comp[v->comp[__builtin_ctzll(mk)]];
+                sooc_ft_comp *oc = &ft->comp[v->comp[__builtin_ctzll(mk)]];
                 if (pass) oc->rays[oc->nrays] = (uint32_t)r;
                 oc->nrays++;
             }
         }
         if (!pass)
             for (int i = 0; i < ft->ncomp; i++) {
-                ft_comp *c = &ft->comp[i];
+                sooc_ft_comp *c = &ft->comp[i];
                 c->rays = sooc_malloc((c->nrays ? c->nrays : 1) * sizeof(uint32_t));
                 if (!c->rays) return SOOC_ENOMEM;
                 c->nrays = 0;
@@ -351,7 +351,7 @@ static sooc_status sooc_ft_build(sooc_finetune *ft) {
     }
     /* views per component */
     for (int i = 0; i < ft->ncomp; i++) {
-        ft_comp *c = &ft->comp[i];
+        sooc_ft_comp *c = &ft->comp[i];
         uint32_t last = UINT32_MAX;
         for (size_t k = 0; k < c->nrays; k++)
             if (ft->rview[c->rays[k]] != last) last = ft->rview[c->rays[k]], c->n_views++;
@@ -370,7 +370,7 @@ static sooc_status sooc_ft_build(sooc_finetune *ft) {
     if (!ft->units || !ft->cnt || !ft->off || !ft->gw || !ft->gbias || !ft->am || !ft->av) return SOOC_ENOMEM;
     ft->nunits = 0;
     for (int i = 0; i < ft->ncomp; i++) {
-        const ft_comp *c = &ft->comp[i];
+        const sooc_ft_comp *c = &ft->comp[i];
         if (!c->nrays || (c->kind == SOOC_FT_LAYOUT && (!ft->p.layout || !ft->m->cfg.d_layout))) continue;
         ft->units[ft->nunits++] = i;
     }
@@ -386,7 +386,7 @@ int sooc_finetune_n_units(const sooc_finetune *ft) {
 
 sooc_status sooc_finetune_unit_get(const sooc_finetune *ft, int u, sooc_finetune_unit *out) {
     if (u < 0 || u >= sooc_finetune_n_units(ft)) return sooc_seterr(SOOC_EINVAL, "finetune: no unit %d", u);
-    const ft_comp *c = &ft->comp[ft->units[u]];
+    const sooc_ft_comp *c = &ft->comp[ft->units[u]];
     out->kind = c->kind, out->id = c->id, out->bi = c->bi, out->bj = c->bj;
     out->n_views = c->n_views, out->n_rays = c->nrays;
     return SOOC_OK;
@@ -436,7 +436,7 @@ static inline int in_box(const sooc_model_config *c, const float xk[3]) {
 
 /* Local coordinates of point x (G) for component slot k of view v (k < 0:
  * the layout), written as the decoder's positional encoding. 0 if outside. */
-static int local_pe(const sooc_finetune *ft, const ft_view *v, int k, const float x[3], float *pe) {
+static int local_pe(const sooc_finetune *ft, const sooc_ft_view *v, int k, const float x[3], float *pe) {
     const sooc_model_config *c = &ft->m->cfg;
     if (k < 0) {
         float xl[3] = {x[0] - v->blk[0], x[1] - v->blk[1], x[2] - v->blk[2]};
@@ -492,7 +492,7 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
         int air = (int)(p & 1);
         ft->pt_row0[p] = (int)nrow, ft->pt_nrow[p] = 0;
         if (!air && !ft->surf[r]) continue;   /* free ray: air sample only */
-        const ft_view *v = &ft->views[ft->rview[r]];
+        const sooc_ft_view *v = &ft->views[ft->rview[r]];
         const float *x = ft->pts + p * 3;
         /* layout first, then the crossed objects */
         ft->row_comp[nrow] = v->lay, ft->row_pt[nrow] = (int)p, nrow++, ft->cnt[v->lay]++, ft->pt_nrow[p]++;
@@ -512,7 +512,7 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
         int pos = ft->off[k] + ft->cnt[k]++;
         ft->row_pos[i] = pos;
         uint32_t r = rays[ft->row_pt[i] / 2];
-        const ft_view *v = &ft->views[ft->rview[r]];
+        const sooc_ft_view *v = &ft->views[ft->rview[r]];
         int slot = -1;
         if (k != v->lay)
             for (int j = 0; j < v->nc; j++)
@@ -526,7 +526,7 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
     for (int k = 0; k < nc; k++) {
         int R = ft->off[k + 1] - ft->off[k];
         if (!R) continue;
-        ft_comp *cp = &ft->comp[k];
+        sooc_ft_comp *cp = &ft->comp[k];
         int din = cp->net->din, o = ft->off[k];
         float *pe = ft->pe + (size_t)o * dinmax;
         if (din != dinmax)
@@ -607,7 +607,7 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
     *ll_out = ll;
     if (u < 0) return SOOC_OK;
     /* 5. backward through the unit's decoder copy */
-    ft_comp *cu = &ft->comp[u];
+    sooc_ft_comp *cu = &ft->comp[u];
     int o = ft->off[u], R = ft->off[u + 1] - o;
     if (!R) return SOOC_OK;
     memset(ft->gbias, 0, (size_t)H * sizeof(float));
@@ -622,7 +622,7 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
 
 sooc_status sooc_finetune_unit_payload(const sooc_finetune *ft, int u, const float **v, size_t *n) {
     if (u < 0 || u >= ft->nunits) return sooc_seterr(SOOC_EINVAL, "finetune: no unit %d", u);
-    const ft_comp *c = &ft->comp[ft->units[u]];
+    const sooc_ft_comp *c = &ft->comp[ft->units[u]];
     *v = c->kind == SOOC_FT_OBJECT ? sooc_cogmap_payload_get(ft->map, c->id, n)
                                    : sooc_cogmap_block_payload_get(ft->map, c->bi, c->bj, n);
     if (!*v) return sooc_seterr(SOOC_ENOTFOUND, "finetune: unit %d has no payload in the map yet", u);
@@ -638,7 +638,7 @@ sooc_status sooc_finetune_unit_run(sooc_finetune *ft, int u, sooc_finetune_progr
     if (st) return st;
     if (u < 0 || u >= ft->nunits) return sooc_seterr(SOOC_EINVAL, "finetune: no unit %d", u);
     int k = ft->units[u];
-    ft_comp *c = &ft->comp[k];
+    sooc_ft_comp *c = &ft->comp[k];
     size_t nw = c->nw;
     int dz = c->net->dz, iters = ft->p.iterations;
     size_t B = ft->p.rays > 0 && (size_t)ft->p.rays < c->nrays ? (size_t)ft->p.rays : c->nrays;

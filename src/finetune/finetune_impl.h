@@ -3,15 +3,15 @@
 #define SOOC3D_FINETUNE_IMPL_H
 
 #include "model/dec_own.h"
-#include "sooc3d/finetune.h"
+#include "sooc3d/train.h"
 
 /* One component: an object (map entry) or a layout block. */
-typedef struct ft_comp {
+typedef struct sooc_ft_comp {
     sooc_finetune_kind kind;
     uint64_t id;
     int32_t bi, bj;
-    const dec_net *net;   /* the model's net (object or layout)          */
-    dec_net rel;          /* offsets relative to w                       */
+    const sooc_dec_net *net;   /* the model's net (object or layout)          */
+    sooc_dec_net rel;          /* offsets relative to w                       */
     size_t nw;            /* weights                                     */
     float *w;             /* own weights (slab)                          */
     float z[SOOC_MODEL_D_MAX];
@@ -19,16 +19,16 @@ typedef struct ft_comp {
     uint32_t *rays;       /* rays crossing it (global ray indices)       */
     size_t nrays;
     int n_views;
-} ft_comp;
+} sooc_ft_comp;
 
-typedef struct ft_view {
+typedef struct sooc_ft_view {
     float h;              /* camera height (model units)                 */
     float blk[3];         /* active layout block origin in G             */
     int lay;              /* component index of its layout block         */
     int nc;               /* object components in view                   */
     int comp[SOOC_COGMAP_K_MAX];
     float pose[SOOC_COGMAP_K_MAX][3];   /* px, pz, th in G (model units) */
-} ft_view;
+} sooc_ft_view;
 
 struct sooc_finetune {
     sooc_model *m;
@@ -36,7 +36,7 @@ struct sooc_finetune {
     sooc_finetune_params p;
     float sigma_c;
     /* views and rays */
-    ft_view *views;
+    sooc_ft_view *views;
     int nv, cap_v;
     size_t nr, cap_r;
     float *dir, *rgb, *depth;   /* per ray: 3, 3, 1 (depth model units, Euclidean) */
@@ -45,7 +45,7 @@ struct sooc_finetune {
     uint64_t *mask;             /* view components (bit i = views[v].comp[i]) crossed */
     int max_cross;
     /* components */
-    ft_comp *comp;
+    sooc_ft_comp *comp;
     int ncomp, nobj;
     int built;                  /* units built (views frozen)                      */
     int *units;                 /* unit -> component                               */
@@ -68,6 +68,6 @@ struct sooc_finetune {
 sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t n, uint64_t seed, float *gw,
                          float *gz, double *ll);
 /* Recompute component c's layer-1 bias from its weights and z. */
-void sooc_ft_comp_bias(ft_comp *c);
+void sooc_ft_comp_bias(sooc_ft_comp *c);
 
 #endif

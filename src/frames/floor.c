@@ -1,7 +1,7 @@
 /* Floor plane estimate: RANSAC on 3-point hypotheses, then a total least
  * squares refit on the inliers (LAPACKE SVD of the centred inlier matrix; the
  * normal is the right singular vector of the smallest singular value). */
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include <lapacke.h>
 #include <math.h>

@@ -1,14 +1,13 @@
-/* The one frame path (include/sooc3d/framepath.h): sequence reader +
- * sooc_node_preprocess + the map's world frame, for every command. */
-#include "sooc3d/framepath.h"
+/* The one frame path (include/sooc3d/frame.h): sequence reader +
+ * sooc_frames_preprocess + the map's world frame, for every command. */
+#include "sooc3d/frame.h"
 #include "sooc3d/log.h"
-#include "sooc3d/support.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 struct sooc_framepath {
     char dir[1024];
@@ -49,7 +48,7 @@ void sooc_framepath_params_default(sooc_framepath_params *p) {
     p->depth_shift = -1;
     p->min_depth_m = 0.1;
     p->max_depth_m = 10.0;
-    p->resample = SOOC_NODE_DEPTH_MIN;
+    p->resample = SOOC_FRAMES_DEPTH_MIN;
     p->world = SOOC_WORLD_AUTO;
     sooc_se3_identity(p->T_world_src);
     p->support_frames = 30;
@@ -143,8 +142,8 @@ static sooc_status world_estimate(sooc_framepath *fp) {
         if (!fp->raw.has_pose) continue;
         int tw, th;
         estimate_size(fp->raw.width, fp->raw.height, &tw, &th);
-        if ((st = sooc_node_preprocess(&fp->raw, &fr[k], tw, th, SOOC_NODE_DEPTH_MIN, fp->p.min_depth_m,
-                                       fp->p.max_depth_m)))
+        if ((st = sooc_frames_preprocess(&fp->raw, &fr[k], tw, th, SOOC_FRAMES_DEPTH_MIN, fp->p.min_depth_m,
+                                         fp->p.max_depth_m)))
             break;
         pf[k] = &fr[k];
         k++;
@@ -317,7 +316,7 @@ sooc_status sooc_framepath_read(sooc_framepath *fp, int64_t i, sooc_frame *f) {
     sooc_status st = read_source(fp, i, &fp->raw);
     if (st) return st;
     int tw = fp->p.width > 0 ? fp->p.width : fp->raw.width, th = fp->p.height > 0 ? fp->p.height : fp->raw.height;
-    st = sooc_node_preprocess(&fp->raw, f, tw, th, fp->p.resample, fp->p.min_depth_m, fp->p.max_depth_m);
+    st = sooc_frames_preprocess(&fp->raw, f, tw, th, fp->p.resample, fp->p.min_depth_m, fp->p.max_depth_m);
     if (st) return sooc_adderr(st, "%s: frame %lld", fp->dir, (long long)i);
     fp->last_w = fp->raw.width, fp->last_h = fp->raw.height;
     return finish(fp, f);
@@ -327,8 +326,8 @@ sooc_status sooc_framepath_read_raw(sooc_framepath *fp, int64_t i, sooc_frame *f
     sooc_status st = read_source(fp, i, &fp->raw);
     if (st) return st;
     /* the identity crop: a copy with the depth range applied */
-    st = sooc_node_preprocess(&fp->raw, f, fp->raw.width, fp->raw.height, fp->p.resample, fp->p.min_depth_m,
-                              fp->p.max_depth_m);
+    st = sooc_frames_preprocess(&fp->raw, f, fp->raw.width, fp->raw.height, fp->p.resample, fp->p.min_depth_m,
+                                fp->p.max_depth_m);
     if (st) return sooc_adderr(st, "%s: frame %lld", fp->dir, (long long)i);
     fp->last_w = fp->raw.width, fp->last_h = fp->raw.height;
     return finish(fp, f);
@@ -340,7 +339,7 @@ sooc_status sooc_framepath_resize_ids(const sooc_framepath *fp, const uint16_t *
                            fp->last_h);
     int tw = fp->p.width > 0 ? fp->p.width : w, th = fp->p.height > 0 ? fp->p.height : h;
     int x0, y0, cw, ch;
-    sooc_node_crop_for_aspect(w, h, tw, th, &x0, &y0, &cw, &ch);
-    sooc_node_resize_ids(src, w, x0, y0, cw, ch, dst, tw, th);
+    sooc_frames_crop_for_aspect(w, h, tw, th, &x0, &y0, &cw, &ch);
+    sooc_frames_resize_ids(src, w, x0, y0, cw, ch, dst, tw, th);
     return SOOC_OK;
 }

@@ -1,13 +1,13 @@
 /* Preprocessing: depth registration, crop + resize to the model resolution
  * (area-averaged RGB; min-of-valid or nearest depth, never averaged across
  * edges), intrinsics adjustment and the world frame from the launch file. */
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <string.h>
 
-void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd, const double T_cd[16],
-                              const sooc_intrinsics *Kc, float *out) {
+void sooc_frames_register_depth(const float *depth, const sooc_intrinsics *Kd, const double T_cd[16],
+                                const sooc_intrinsics *Kc, float *out) {
     int W = Kc->width, H = Kc->height;
     for (int i = 0; i < W * H; i++) out[i] = 0.0f;
     for (int v = 0; v < Kd->height; v++) {
@@ -28,7 +28,7 @@ void sooc_node_register_depth(const float *depth, const sooc_intrinsics *Kd, con
     }
 }
 
-void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch) {
+void sooc_frames_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, int *cw, int *ch) {
     /* compare w/h with tw/th in integers */
     long lw = (long)w * th, lh = (long)h * tw;
     if (lw > lh) {            /* too wide: crop columns */
@@ -46,8 +46,8 @@ void sooc_node_crop_for_aspect(int w, int h, int tw, int th, int *x0, int *y0, i
     }
 }
 
-void sooc_node_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
-                               uint8_t *dst, int tw, int th) {
+void sooc_frames_resize_rgb_area(const uint8_t *src, int w, int h, int x0, int y0, int cw, int ch,
+                                 uint8_t *dst, int tw, int th) {
     (void)h;
     double sx = (double)cw / tw, sy = (double)ch / th;
     for (int ty = 0; ty < th; ty++) {
@@ -87,8 +87,8 @@ static inline int depth_ok(float z, double dmin, double dmax) {
     return isfinite(z) && z > 0.0f && z >= dmin && (dmax <= 0 || z <= dmax);
 }
 
-void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
-                          int th) {
+void sooc_frames_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, int ch, uint16_t *dst, int tw,
+                            int th) {
     double sx = (double)cw / tw, sy = (double)ch / th;
     for (int ty = 0; ty < th; ty++) {
         int y = (int)floor((ty + 0.5) * sy);
@@ -101,8 +101,8 @@ void sooc_node_resize_ids(const uint16_t *src, int w, int x0, int y0, int cw, in
     }
 }
 
-void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch, float *dst,
-                            int tw, int th, sooc_node_depth_resample mode, double dmin, double dmax) {
+void sooc_frames_resize_depth(const float *src, int w, int h, int x0, int y0, int cw, int ch, float *dst,
+                              int tw, int th, sooc_frames_depth_resample mode, double dmin, double dmax) {
     (void)h;
     double sx = (double)cw / tw, sy = (double)ch / th;
     for (int ty = 0; ty < th; ty++) {
@@ -110,7 +110,7 @@ void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int 
         for (int tx = 0; tx < tw; tx++) {
             double fx0 = tx * sx, fx1 = (tx + 1) * sx;
             float out = 0.0f;
-            if (mode == SOOC_NODE_DEPTH_NEAREST) {
+            if (mode == SOOC_FRAMES_DEPTH_NEAREST) {
                 int x = (int)floor(0.5 * (fx0 + fx1)), y = (int)floor(0.5 * (fy0 + fy1));
                 if (x >= cw) x = cw - 1;
                 if (y >= ch) y = ch - 1;
@@ -139,8 +139,8 @@ void sooc_node_resize_depth(const float *src, int w, int h, int x0, int y0, int 
     }
 }
 
-sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
-                                 sooc_node_depth_resample mode, double dmin, double dmax) {
+sooc_status sooc_frames_preprocess(const sooc_frame *src, sooc_frame *dst, int tw, int th,
+                                   sooc_frames_depth_resample mode, double dmin, double dmax) {
     if (!src->rgb || !src->depth || tw <= 0 || th <= 0 || src->width <= 0 || src->height <= 0)
         return sooc_seterr(SOOC_EINVAL, "preprocess: empty frame or bad target size %dx%d", tw, th);
     int with_ids = src->instance != NULL;
@@ -150,12 +150,12 @@ sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw,
         if (st) return st;
     }
     int x0, y0, cw, ch;
-    sooc_node_crop_for_aspect(src->width, src->height, tw, th, &x0, &y0, &cw, &ch);
-    sooc_node_resize_rgb_area(src->rgb, src->width, src->height, x0, y0, cw, ch, dst->rgb, tw, th);
-    sooc_node_resize_depth(src->depth, src->width, src->height, x0, y0, cw, ch, dst->depth, tw, th, mode,
-                           dmin, dmax);
+    sooc_frames_crop_for_aspect(src->width, src->height, tw, th, &x0, &y0, &cw, &ch);
+    sooc_frames_resize_rgb_area(src->rgb, src->width, src->height, x0, y0, cw, ch, dst->rgb, tw, th);
+    sooc_frames_resize_depth(src->depth, src->width, src->height, x0, y0, cw, ch, dst->depth, tw, th, mode,
+                             dmin, dmax);
     for (int i = 0; i < tw * th; i++) dst->valid[i] = dst->depth[i] > 0.0f;
-    if (with_ids) sooc_node_resize_ids(src->instance, src->width, x0, y0, cw, ch, dst->instance, tw, th);
+    if (with_ids) sooc_frames_resize_ids(src->instance, src->width, x0, y0, cw, ch, dst->instance, tw, th);
     sooc_intrinsics K = src->K;
     if (K.width <= 0 || K.height <= 0) {
         K.width = src->width;
@@ -173,7 +173,7 @@ sooc_status sooc_node_preprocess(const sooc_frame *src, sooc_frame *dst, int tw,
     return SOOC_OK;
 }
 
-void sooc_node_world_from_up(const double up_in[3], double floor_h, double T[16]) {
+void sooc_frames_world_from_up(const double up_in[3], double floor_h, double T[16]) {
     double u[3] = {up_in[0], up_in[1], up_in[2]};
     if (sooc_v3_normalize(u) < 1e-12) { u[0] = 0; u[1] = 1; u[2] = 0; }
     const double ey[3] = {0, 1, 0};
@@ -200,8 +200,8 @@ void sooc_node_world_from_up(const double up_in[3], double floor_h, double T[16]
     sooc_se3_from_rt(T, R, t);
 }
 
-size_t sooc_node_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
-                              size_t cap) {
+size_t sooc_frames_depth_points(const sooc_frame *f, const double T_src_c[16], int step, double *pts,
+                                size_t cap) {
     size_t n = 0;
     if (step < 1) step = 1;
     for (int v = 0; v < f->height && n < cap; v += step)

@@ -1,5 +1,5 @@
 /* Support plane: the map's world frame from posed depth frames
- * (include/sooc3d/support.h, docs/node.md "Support plane").
+ * (include/sooc3d/frame.h, docs/node.md "Support plane").
  *
  *  1. Up prior: the caller's hint, else minus the gravity file's direction,
  *     else the cameras (camera_up below).
@@ -13,14 +13,13 @@
  *     one along up. So a floor in view wins over a larger table top, and a bin
  *     bottom or table top is taken when no floor is in view.
  *  4. T_world_src: the smallest rotation taking the plane normal to +y, the
- *     plane to y = 0 (sooc_node_world_from_up).
+ *     plane to y = 0 (sooc_frames_world_from_up).
  *
  * All buffers are allocated once per call (no allocation per pixel).
  */
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include "sooc3d/model.h"
-#include "sooc3d/support.h"
 
 #include <lapacke.h>
 #include <math.h>
@@ -374,7 +373,7 @@ sooc_status sooc_support_estimate_points(const double *pts, size_t n_pts, const 
     const cand *q = &c[pick];
     memcpy(out->plane_src, q->plane, sizeof out->plane_src);
     memcpy(out->up_src, q->plane, 3 * sizeof(double));
-    sooc_node_world_from_up(q->plane, -q->plane[3], out->T_world_src);
+    sooc_frames_world_from_up(q->plane, -q->plane[3], out->T_world_src);
     out->tilt_deg = q->tilt_deg;
     out->cam_height_m = q->mean_clear;
     out->height_warning = q->mean_clear < p.cam_height_min_m || q->mean_clear > p.cam_height_max_m;

@@ -1,7 +1,7 @@
 /* Synthetic world generator: scene sampling (objects, lighting, camera walk,
  * query views), statistics, contact sheets, and the dataset writer loop. */
 #include "sooc3d/gen.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 #include "gen/gen_impl.h"
 
 #include <math.h>

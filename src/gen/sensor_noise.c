@@ -4,7 +4,7 @@
  * disparity quantisation, white
  * balance, exposure drift and colour noise. One scratch buffer per frame. */
 #include "gen/sensor_noise.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "gen/gen_impl.h"
 
 #include <stdio.h>

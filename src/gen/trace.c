@@ -368,7 +368,7 @@ static int objects_hit(const tworld *w, const double o[3], const double r[3], do
     return found;
 }
 
-/* A table top or a bin (scene.h, sooc_support_kind) as up to five boxes over a
+/* A table top or a bin (gen.h, sooc_support_kind) as up to five boxes over a
  * ground plane. An upward face at y = 0 is the layout (kind 1); the other
  * faces are support sides (kind 5); the ground is kind 4. */
 static void support_hit(const sooc_scene *sc, const double o[3], const double r[3], double *tmax, thit *h) {
@@ -485,7 +485,7 @@ static void floor_albedo(const sooc_scene *sc, double x, double z, double out[3]
     for (int k = 0; k < 3; k++) out[k] = sc->floor_color[k] * (1 - t) + sc->floor_color2[k] * t;
 }
 
-/* Procedural object texture (scene.h, sooc_obj_tex) at world point p. */
+/* Procedural object texture (gen.h, sooc_obj_tex) at world point p. */
 static void object_albedo(const tobj *ob, const double p[3], double out[3]) {
     const float *c = ob->col;
     int second = 0;

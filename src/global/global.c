@@ -9,7 +9,7 @@
  * calls it. Its slot priors' initial spiral is the model's (model.c, a
  * weights initialisation for config.global_frame). */
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 
 #include <math.h>
 #include <string.h>
@@ -19,7 +19,7 @@
  * plane y = -h_t exactly as in G_t and Π(z^where) of decoder.c maps a world
  * pose (X, Z, Θ) to the object frame unchanged. The layout block origin is
  * the world origin: the single layout latent sees world coordinates. */
-static sooc_status glob_view_setup(sooc_model *m, view_rec *V, const sooc_frame *f, sooc_rng *rng) {
+static sooc_status glob_view_setup(sooc_model *m, sooc_view_rec *V, const sooc_frame *f, sooc_rng *rng) {
     const sooc_model_config *c = &m->cfg;
     if (!f->has_pose) return sooc_seterr(SOOC_EINVAL, "frame %lld has no pose", (long long)f->index);
     double Twg[16], h, pitch, roll;
@@ -49,7 +49,7 @@ static sooc_status glob_view_setup(sooc_model *m, view_rec *V, const sooc_frame 
 
 /* The K (or n) persistent slots: view t starts from view t-1's final
  * posterior (the learnable slot priors for t = 0). */
-static void glob_view_start(sooc_model *m, view_rec *V, int n, int started, const float *lam, const float *lay) {
+static void glob_view_start(sooc_model *m, sooc_view_rec *V, int n, int started, const float *lam, const float *lay) {
     int NL = m->NL, D2 = 2 * m->cfg.d_layout;
     V->nslot = n;
     V->n_ret = started ? n : 0;
@@ -80,7 +80,7 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
     int L = opt->L > 0 ? opt->L : c->L, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     int n = sooc_model_global_slots(m, n_objects);
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "global train step: L must be >= 1");
-    step_state *S = sooc_mdl_step_state(x, T + 1, L);
+    sooc_step_state *S = sooc_mdl_step_state(x, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "global train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_status st = SOOC_OK;
@@ -88,12 +88,12 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
     int nonfinite = 0;
     /* ---- forward over the input views: one slot set carried through ---- */
     for (int t = 0; t < T; t++) {
-        view_rec *V = &S->views[t];
+        sooc_view_rec *V = &S->views[t];
         if ((st = glob_view_setup(m, V, &views[t], rng))) goto fail;
         if (t == 0)
             glob_view_start(m, V, n, 0, m->p + m->prior, m->p + m->prior_lay);
         else {
-            const view_rec *P = &S->views[t - 1];
+            const sooc_view_rec *P = &S->views[t - 1];
             glob_view_start(m, V, n, 1, P->lam + (size_t)L * n * NL, P->lay + (size_t)L * D2);
             for (int k = 0; k < n; k++) V->src_view[k] = t - 1;
         }
@@ -111,15 +111,15 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
     out->present_slots /= T;
     out->mean_pres_logit /= (double)T * n;
     /* ---- query views: every slot of the final posterior ---- */
-    const view_rec *VL = &S->views[T - 1];
+    const sooc_view_rec *VL = &S->views[T - 1];
     const float *lamF = VL->lam + (size_t)L * n * NL, *layF = VL->lay + (size_t)L * D2;
     if (!nonfinite)
         for (int q = 0; q < Q; q++) {
-            view_rec *V = &S->views[T];   /* scratch record */
+            sooc_view_rec *V = &S->views[T];   /* scratch record */
             if ((st = glob_view_setup(m, V, &queries[q], rng))) goto fail;
             if ((st = sooc_mdl_query_decode(x, S, V, q, n, lamF, layF, opt, rng, &total, out, &nonfinite))) goto fail;
             if (nonfinite) break;
-            view_rec *W = &S->views[T - 1];
+            sooc_view_rec *W = &S->views[T - 1];
             for (int i = 0; i < n * NL; i++) W->G[i] += S->tmp0[i];
             for (int i = 0; i < D2; i++) W->Glay[i] += S->tmpl0[i];
         }
@@ -127,11 +127,11 @@ sooc_status sooc_model_global_train_step(sooc_model_ws *x, const sooc_frame *vie
     double t_rev = sooc_seconds();
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
-            view_rec *V = &S->views[t];
+            sooc_view_rec *V = &S->views[t];
             sooc_mdl_view_backward(x, S, V, L);
             if (t > 0) {
                 if (!opt->truncate_views) {
-                    view_rec *P = &S->views[t - 1];
+                    sooc_view_rec *P = &S->views[t - 1];
                     for (int i = 0; i < n * NL; i++) P->G[i] += V->G[i];
                     for (int i = 0; i < D2; i++) P->Glay[i] += V->Glay[i];
                 }
@@ -155,7 +155,7 @@ struct sooc_global_mapper {
     sooc_model *m;
     sooc_model_ws *ws;         /* the mapper's workspace (it runs the model) */
     sooc_cogmap *map;          /* the present slots (id = slot + 1) + the layout at block (0, 0) */
-    view_rec V;
+    sooc_view_rec V;
     int L, n, started, view_idx;
     int sample;                /* 1 = SOOC_LATENTS_SAMPLE */
     sooc_rng rng;
@@ -231,10 +231,10 @@ sooc_status sooc_global_mapper_update(sooc_global_mapper *g, const sooc_frame *f
     if (f->width != c->img_w || f->height != c->img_h)
         return sooc_seterr(SOOC_EINVAL, "global mapper: frame %lld is %dx%d, the model needs %dx%d",
                            (long long)f->index, f->width, f->height, c->img_w, c->img_h);
-    step_state *S = sooc_mdl_step_state(g->ws, 1, g->L);
+    sooc_step_state *S = sooc_mdl_step_state(g->ws, 1, g->L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "global mapper: out of memory");
     S->aux_replay = 0;
-    view_rec *V = &g->V;
+    sooc_view_rec *V = &g->V;
     sooc_status s = glob_view_setup(m, V, f, &g->rng);
     if (s) return s;
     glob_view_start(m, V, g->n, g->started, g->lam, g->lay);

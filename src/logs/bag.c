@@ -128,7 +128,7 @@ static sooc_status read_connection(sooc_logfile *lf, const bag_rec *r) {
     return st;
 }
 
-static sooc_status check_chunk(sooc_logfile *lf, const bag_rec *r, logs_chunk *c) {
+static sooc_status check_chunk(sooc_logfile *lf, const bag_rec *r, sooc_logs_chunk *c) {
     const bag_hdr *h = &r->h;
     if (h->op != OP_CHUNK)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: expected a chunk record, found op 0x%02x", lf->path,
@@ -222,7 +222,7 @@ static sooc_status read_chunk_index(sooc_logfile *lf, int32_t ci, uint64_t off, 
 
 static sooc_status open_chunk(sooc_logfile *lf, const bag_rec *r, uint64_t end, uint8_t **buf, size_t *cap,
                               uint64_t *after) {
-    logs_chunk c;
+    sooc_logs_chunk c;
     int32_t ci;
     int n_index = 0;
     sooc_status st = check_chunk(lf, r, &c);

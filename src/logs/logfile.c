@@ -37,7 +37,7 @@ const char *sooc_logfile_kind_name(sooc_logfile_kind k) {
 /* ------------------------------------------------------------ open/close */
 
 static int cmp_entry(const void *a, const void *b) {
-    const logs_entry *x = a, *y = b;
+    const sooc_logs_entry *x = a, *y = b;
     if (x->t != y->t) return x->t < y->t ? -1 : 1;
     if (x->chunk != y->chunk) return x->chunk < y->chunk ? -1 : 1;
     if (x->off != y->off) return x->off < y->off ? -1 : 1;
@@ -54,19 +54,19 @@ static sooc_status finish_index(sooc_logfile *lf) {
         lf->ch[c].pub.count++;
     }
     for (int i = 0; i < lf->nch; i++) {
-        logs_chan *c = &lf->ch[i];
+        sooc_logs_chan *c = &lf->ch[i];
         c->msgs = c->pub.count ? sooc_malloc(sizeof(int64_t) * (size_t)c->pub.count) : NULL;
         if (c->pub.count && !c->msgs) return sooc_seterr(SOOC_ENOMEM, "%s: out of memory", lf->path);
         c->nmsgs = 0;
     }
     for (int64_t k = 0; k < lf->ne; k++) {
-        logs_chan *c = &lf->ch[lf->e[k].ch];
+        sooc_logs_chan *c = &lf->ch[lf->e[k].ch];
         if (c->nmsgs == 0) c->pub.t_first_ns = lf->e[k].t;
         c->pub.t_last_ns = lf->e[k].t;
         c->msgs[c->nmsgs++] = k;
     }
     for (int i = 0; i < lf->nch; i++) {
-        logs_chan *c = &lf->ch[i];
+        sooc_logs_chan *c = &lf->ch[i];
         c->pub.topic = c->topic;
         c->pub.type = c->type;
         c->pub.encoding = c->encoding;
@@ -212,7 +212,7 @@ sooc_status sooc_logfile_entry(const sooc_logfile *lf, int64_t k, int *channel, 
 sooc_status sooc_logfile_read(sooc_logfile *lf, int64_t k, sooc_logfile_msg *m) {
     sooc_status st = sooc_logfile_entry(lf, k, NULL, NULL);
     if (st) return st;
-    const logs_entry *e = &lf->e[k];
+    const sooc_logs_entry *e = &lf->e[k];
     memset(m, 0, sizeof *m);
     m->channel = e->ch;
     m->t_ns = e->t;

@@ -89,7 +89,7 @@ sooc_status sooc_logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char
                              int *index) {
     sooc_status st = sooc_logs_grow((void **)&lf->ch, &lf->capch, lf->nch + 1, sizeof *lf->ch, lf->path);
     if (st) return st;
-    logs_chan *c = &lf->ch[lf->nch];
+    sooc_logs_chan *c = &lf->ch[lf->nch];
     memset(c, 0, sizeof *c);
     c->file_id = file_id;
     c->schema = schema;
@@ -115,7 +115,7 @@ int sooc_logs_find_channel(const sooc_logfile *lf, uint32_t file_id) {
     return -1;
 }
 
-sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index) {
+sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const sooc_logs_chunk *c, int32_t *index) {
     /* the sizes a chunk header may claim before anything is allocated for it */
     if (c->usize > LOGS_MAX_RECORD || (c->comp == LOGS_COMP_NONE && c->usize != c->csize) ||
         (c->comp == LOGS_COMP_LZ4 && c->usize > 256 * c->csize + 1024))
@@ -136,7 +136,7 @@ sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *
 sooc_status sooc_logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch) {
     sooc_status st = sooc_logs_grow((void **)&lf->e, &lf->cape, lf->ne + 1, sizeof *lf->e, lf->path);
     if (st) return st;
-    lf->e[lf->ne++] = (logs_entry){t, off, chunk, ch};
+    lf->e[lf->ne++] = (sooc_logs_entry){t, off, chunk, ch};
     return SOOC_OK;
 }
 
@@ -220,8 +220,8 @@ sooc_status sooc_logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **da
             *n = (size_t)lf->chunks[c].usize;
             return SOOC_OK;
         }
-    logs_slot *sl = lf->slot[0].stamp <= lf->slot[1].stamp ? &lf->slot[0] : &lf->slot[1];
-    const logs_chunk *k = &lf->chunks[c];
+    sooc_logs_slot *sl = lf->slot[0].stamp <= lf->slot[1].stamp ? &lf->slot[0] : &lf->slot[1];
+    const sooc_logs_chunk *k = &lf->chunks[c];
     sl->chunk = -1;
     sooc_status st = sooc_logs_reserve(&sl->buf, &sl->cap, (size_t)k->usize + 1);
     if (st) return st;

@@ -14,42 +14,42 @@ enum { LOGS_COMP_NONE = 0, LOGS_COMP_LZ4 = 1, LOGS_COMP_BZ2 = 2, LOGS_COMP_ZSTD 
 /* Largest chunk or unchunked record this reader decompresses or loads. */
 #define LOGS_MAX_RECORD ((uint64_t)1 << 30)
 
-typedef struct logs_chunk {
+typedef struct sooc_logs_chunk {
     uint64_t pos;              /* file offset of the chunk record                          */
     uint64_t data_off;         /* file offset of its (compressed) records                  */
     uint64_t csize, usize;     /* compressed and uncompressed sizes                        */
     uint32_t crc;              /* MCAP: CRC-32 of the uncompressed records (0 = none)      */
     int comp;
     int scanned;               /* its records were walked at open                          */
-} logs_chunk;
+} sooc_logs_chunk;
 
-typedef struct logs_entry {
+typedef struct sooc_logs_entry {
     int64_t t;                 /* log time                                                 */
     uint64_t off;              /* offset in the uncompressed chunk, or the file offset of
                                   an unchunked record (chunk = -1)                         */
     int32_t chunk;
     int32_t ch;                /* channel index                                            */
-} logs_entry;
+} sooc_logs_entry;
 
-typedef struct logs_chan {
+typedef struct sooc_logs_chan {
     sooc_logfile_channel pub;
     uint32_t file_id;          /* bag conn id / MCAP channel id                            */
     int schema;                /* MCAP schema id (0 none)                                  */
     char *topic, *type, *encoding, *definition;
     int64_t *msgs, nmsgs;      /* positions in the sorted entries                          */
-} logs_chan;
+} sooc_logs_chan;
 
-typedef struct logs_schema {
+typedef struct sooc_logs_schema {
     uint16_t id;
     char *name, *encoding, *data;
-} logs_schema;
+} sooc_logs_schema;
 
-typedef struct logs_slot {     /* one decompressed chunk                                   */
+typedef struct sooc_logs_slot {     /* one decompressed chunk                                   */
     int32_t chunk;
     uint64_t stamp;            /* LRU clock                                                */
     uint8_t *buf;
     size_t cap;
-} logs_slot;
+} sooc_logs_slot;
 
 struct sooc_logfile {
     char *path;
@@ -57,16 +57,16 @@ struct sooc_logfile {
     sooc_logfile_kind kind;
     uint64_t size;
     int indexed;
-    logs_chan *ch;
+    sooc_logs_chan *ch;
     int64_t nch, capch;
-    logs_schema *sc;
+    sooc_logs_schema *sc;
     int64_t nsc, capsc;
-    logs_chunk *chunks;
+    sooc_logs_chunk *chunks;
     int64_t nchunks, capchunks;
-    logs_entry *e;
+    sooc_logs_entry *e;
     int64_t ne, cape;
     unsigned comp_seen;        /* bit per LOGS_COMP_*                                      */
-    logs_slot slot[2];
+    sooc_logs_slot slot[2];
     uint64_t clock;
     uint8_t *raw;              /* compressed bytes / an unchunked record                   */
     size_t rawcap;
@@ -100,7 +100,7 @@ sooc_status sooc_logs_add_channel(sooc_logfile *lf, uint32_t file_id, const char
                              int *index);
 /* Channel index of a file id, -1 when unknown. */
 int sooc_logs_find_channel(const sooc_logfile *lf, uint32_t file_id);
-sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const logs_chunk *c, int32_t *index);
+sooc_status sooc_logs_add_chunk(sooc_logfile *lf, const sooc_logs_chunk *c, int32_t *index);
 sooc_status sooc_logs_add_entry(sooc_logfile *lf, int64_t t, uint64_t off, int32_t chunk, int32_t ch);
 /* The uncompressed records of chunk c (cached). */
 sooc_status sooc_logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **data, size_t *n);

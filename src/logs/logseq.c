@@ -26,7 +26,7 @@ struct sooc_logseq {
     sooc_logseq_params p;
     ls_stream col, dep;
     sooc_logseq_desc d;
-    logs_tf *tf;
+    sooc_logs_tf *tf;
     ls_pair *pr;
     int64_t n;
     sooc_image img;
@@ -128,7 +128,7 @@ static sooc_status probe(sooc_logseq *s, const char *topic, ls_stream *o) {
     snprintf(o->pub.frame_id, sizeof o->pub.frame_id, "%s", im.header.frame_id);
     o->pub.width = im.width;
     o->pub.height = im.height;
-    logs_pix px = sooc_logs_pix_parse(im.encoding);
+    sooc_logs_pix px = sooc_logs_pix_parse(im.encoding);
     o->kind = px == LOGS_PIX_NONE ? 0 : sooc_logs_pix_is_depth(px) ? 2 : 1;
     if (!o->kind)
         return sooc_seterr(SOOC_EUNSUPPORTED, "%s: unknown image encoding '%s' (rgb8, bgr8, rgba8, bgra8, mono8, mono16, "

@@ -7,8 +7,8 @@
 #include <math.h>
 #include <stdio.h>
 
-logs_pix sooc_logs_pix_parse(const char *e) {
-    static const struct { const char *name; logs_pix p; } t[] = {
+sooc_logs_pix sooc_logs_pix_parse(const char *e) {
+    static const struct { const char *name; sooc_logs_pix p; } t[] = {
         {"rgb8", LOGS_PIX_RGB8}, {"bgr8", LOGS_PIX_BGR8}, {"rgba8", LOGS_PIX_RGBA8}, {"bgra8", LOGS_PIX_BGRA8},
         {"mono8", LOGS_PIX_MONO8}, {"8UC1", LOGS_PIX_MONO8}, {"8UC3", LOGS_PIX_BGR8}, {"8UC4", LOGS_PIX_BGRA8},
         {"mono16", LOGS_PIX_U16}, {"16UC1", LOGS_PIX_U16}, {"32FC1", LOGS_PIX_F32}};
@@ -17,9 +17,9 @@ logs_pix sooc_logs_pix_parse(const char *e) {
     return LOGS_PIX_NONE;
 }
 
-int sooc_logs_pix_is_depth(logs_pix p) { return p == LOGS_PIX_U16 || p == LOGS_PIX_F32; }
+int sooc_logs_pix_is_depth(sooc_logs_pix p) { return p == LOGS_PIX_U16 || p == LOGS_PIX_F32; }
 
-static int pix_bytes(logs_pix p) {
+static int pix_bytes(sooc_logs_pix p) {
     switch (p) {
     case LOGS_PIX_RGB8: case LOGS_PIX_BGR8: return 3;
     case LOGS_PIX_RGBA8: case LOGS_PIX_BGRA8: case LOGS_PIX_F32: return 4;
@@ -29,7 +29,7 @@ static int pix_bytes(logs_pix p) {
     }
 }
 
-static sooc_status check_rows(const sooc_ros_image *im, logs_pix p, int w, int h) {
+static sooc_status check_rows(const sooc_ros_image *im, sooc_logs_pix p, int w, int h) {
     if (im->width != w || im->height != h)
         return sooc_seterr(SOOC_EFORMAT, "image is %dx%d, expected %dx%d (the stream changed size)", im->width,
                            im->height, w, h);
@@ -40,7 +40,7 @@ static sooc_status check_rows(const sooc_ros_image *im, logs_pix p, int w, int h
 }
 
 sooc_status sooc_logs_color_image(const sooc_ros_image *im, uint8_t *rgb, int w, int h) {
-    logs_pix p = sooc_logs_pix_parse(im->encoding);
+    sooc_logs_pix p = sooc_logs_pix_parse(im->encoding);
     if (p == LOGS_PIX_NONE || sooc_logs_pix_is_depth(p))
         return sooc_seterr(SOOC_EUNSUPPORTED, "unknown colour encoding '%s' (rgb8, bgr8, rgba8, bgra8, mono8)",
                            im->encoding);
@@ -77,7 +77,7 @@ sooc_status sooc_logs_color_compressed(const sooc_ros_cimage *ci, sooc_image *im
 static uint16_t u16(const uint8_t *q, int be) { return be ? (uint16_t)((q[0] << 8) | q[1]) : (uint16_t)(q[0] | (q[1] << 8)); }
 
 sooc_status sooc_logs_depth_image(const sooc_ros_image *im, double scale, float *z, int w, int h) {
-    logs_pix p = sooc_logs_pix_parse(im->encoding);
+    sooc_logs_pix p = sooc_logs_pix_parse(im->encoding);
     if (!sooc_logs_pix_is_depth(p))
         return sooc_seterr(SOOC_EUNSUPPORTED, "unknown depth encoding '%s' (16UC1, mono16, 32FC1)", im->encoding);
     sooc_status st = check_rows(im, p, w, h);

@@ -1,7 +1,7 @@
 /* Logs as sequences: sooc_log_seq_open hands a sooc_logseq to the data
  * module's sequence interface, so every command that reads a folder reads a
  * ROS bag or an MCAP file the same way. */
-#include "sooc3d/calib.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/log.h"
 
 #include <stdio.h>

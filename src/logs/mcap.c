@@ -38,7 +38,7 @@ static sooc_status cut(const sooc_logfile *lf, uint64_t where, const char *what)
                        (unsigned long long)where, what);
 }
 
-static const logs_schema *find_schema(const sooc_logfile *lf, int id) {
+static const sooc_logs_schema *find_schema(const sooc_logfile *lf, int id) {
     for (int i = 0; i < lf->nsc; i++)
         if (lf->sc[i].id == id) return &lf->sc[i];
     return NULL;
@@ -53,7 +53,7 @@ static sooc_status add_schema(sooc_logfile *lf, const uint8_t *p, size_t n, uint
     if (id == 0 || find_schema(lf, id)) return SOOC_OK;
     sooc_status st = sooc_logs_grow((void **)&lf->sc, &lf->capsc, lf->nsc + 1, sizeof *lf->sc, lf->path);
     if (st) return st;
-    logs_schema *s = &lf->sc[lf->nsc];
+    sooc_logs_schema *s = &lf->sc[lf->nsc];
     s->id = (uint16_t)id;
     s->name = sooc_logs_dupn(name, nn);
     s->encoding = sooc_logs_dupn(enc, ne);
@@ -75,15 +75,15 @@ static sooc_status add_channel(sooc_logfile *lf, const uint8_t *p, size_t n, uin
     const char *topic = mc_str(&c, &nt), *enc = mc_str(&c, &ne);
     if (c.bad) return cut(lf, where, "channel");
     if (sooc_logs_find_channel(lf, (uint32_t)id) >= 0) return SOOC_OK;
-    const logs_schema *s = find_schema(lf, sid);
+    const sooc_logs_schema *s = find_schema(lf, sid);
     char encs[64];
     snprintf(encs, sizeof encs, "%.*s", (int)(ne < 63 ? ne : 63), enc);
     return sooc_logs_add_channel(lf, (uint32_t)id, topic, nt, s ? s->name : "", s ? strlen(s->name) : 0, encs,
                             s ? s->data : "", s ? strlen(s->data) : 0, sid, NULL);
 }
 
-/* The Chunk record at off: its header fields into a logs_chunk. */
-static sooc_status read_chunk_header(sooc_logfile *lf, uint64_t off, logs_chunk *k) {
+/* The Chunk record at off: its header fields into a sooc_logs_chunk. */
+static sooc_status read_chunk_header(sooc_logfile *lf, uint64_t off, sooc_logs_chunk *k) {
     uint8_t h[41];
     sooc_status st = sooc_logs_pread(lf, off, h, sizeof h, "chunk header");
     if (st) return st;
@@ -235,7 +235,7 @@ static sooc_status scan_data(sooc_logfile *lf) {
             else
                 st = sooc_logs_add_entry(lf, (int64_t)logs_u64(m + 6), off, -1, ch);
         } else if (h[0] == OP_CHUNK) {
-            logs_chunk k;
+            sooc_logs_chunk k;
             int32_t ci;
             int n_index = 0;
             if ((st = read_chunk_header(lf, off, &k))) break;
@@ -303,7 +303,7 @@ static sooc_status read_summary(sooc_logfile *lf, int *used) {
                 c.i += mapb;
                 uint64_t milen = mc_int(&c, 8);
                 if (c.bad || c.i > c.n) { st = cut(lf, where, "chunk index"); break; }
-                logs_chunk k;
+                sooc_logs_chunk k;
                 int32_t ci;
                 int n_index = 0;
                 if ((st = read_chunk_header(lf, cstart, &k))) break;

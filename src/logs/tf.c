@@ -21,18 +21,18 @@ typedef struct tf_frame {
     size_t n, cap;
 } tf_frame;
 
-struct logs_tf {
+struct sooc_logs_tf {
     tf_frame *f;
     int n, cap;
     int64_t count, reparented;
 };
 
-sooc_status sooc_logs_tf_create(logs_tf **out) {
+sooc_status sooc_logs_tf_create(sooc_logs_tf **out) {
     *out = sooc_calloc(1, sizeof **out);
     return *out ? SOOC_OK : SOOC_ENOMEM;
 }
 
-void sooc_logs_tf_free(logs_tf *tf) {
+void sooc_logs_tf_free(sooc_logs_tf *tf) {
     if (!tf) return;
     for (int i = 0; i < tf->n; i++) sooc_free(tf->f[i].s);
     sooc_free(tf->f);
@@ -41,14 +41,14 @@ void sooc_logs_tf_free(logs_tf *tf) {
 
 static const char *strip(const char *name) { return name[0] == '/' ? name + 1 : name; }   /* ROS 1 "/map" = "map" */
 
-static int find(const logs_tf *tf, const char *name) {
+static int find(const sooc_logs_tf *tf, const char *name) {
     name = strip(name);
     for (int i = 0; i < tf->n; i++)
         if (!strcmp(tf->f[i].name, name)) return i;
     return -1;
 }
 
-static int intern(logs_tf *tf, const char *name) {
+static int intern(sooc_logs_tf *tf, const char *name) {
     int i = find(tf, name);
     if (i >= 0) return i;
     if (tf->n == tf->cap) {
@@ -65,7 +65,7 @@ static int intern(logs_tf *tf, const char *name) {
     return tf->n++;
 }
 
-sooc_status sooc_logs_tf_add(logs_tf *tf, const sooc_ros_transform *t, int is_static) {
+sooc_status sooc_logs_tf_add(sooc_logs_tf *tf, const sooc_ros_transform *t, int is_static) {
     int c = intern(tf, t->child), p = intern(tf, t->header.frame_id);
     if (c < 0 || p < 0) return sooc_seterr(SOOC_ENOMEM, "tf: out of memory");
     if (c == p || !t->child[0]) return SOOC_OK;
@@ -106,15 +106,15 @@ static int cmp_sample(const void *a, const void *b) {
     return x->t < y->t ? -1 : x->t > y->t;
 }
 
-void sooc_logs_tf_finish(logs_tf *tf) {
+void sooc_logs_tf_finish(sooc_logs_tf *tf) {
     for (int i = 0; i < tf->n; i++)
         if (tf->f[i].n > 1) qsort(tf->f[i].s, tf->f[i].n, sizeof(tf_sample), cmp_sample);
 }
 
-int64_t sooc_logs_tf_count(const logs_tf *tf) { return tf->count; }
-int sooc_logs_tf_has_frame(const logs_tf *tf, const char *name) { return find(tf, name) >= 0; }
+int64_t sooc_logs_tf_count(const sooc_logs_tf *tf) { return tf->count; }
+int sooc_logs_tf_has_frame(const sooc_logs_tf *tf, const char *name) { return find(tf, name) >= 0; }
 
-void sooc_logs_tf_frame_list(const logs_tf *tf, char *buf, size_t cap) {
+void sooc_logs_tf_frame_list(const sooc_logs_tf *tf, char *buf, size_t cap) {
     size_t m = 0;
     if (cap) buf[0] = 0;
     for (int i = 0; i < tf->n && m + 1 < cap; i++) {
@@ -132,7 +132,7 @@ static void to_T(double T[16], const double p[3], const double q[4]) {
 }
 
 /* Pose of frame i in its parent at t. */
-static sooc_status edge(const logs_tf *tf, int i, int64_t t, int64_t tol, double T[16]) {
+static sooc_status edge(const sooc_logs_tf *tf, int i, int64_t t, int64_t tol, double T[16]) {
     const tf_frame *f = &tf->f[i];
     const char *pn = tf->f[f->parent].name;
     if (!f->n) return sooc_seterr(SOOC_ENOTFOUND, "tf: no transform %s -> %s", pn, f->name);
@@ -172,7 +172,7 @@ static sooc_status edge(const logs_tf *tf, int i, int64_t t, int64_t tol, double
 }
 
 /* T_anc_i: the pose of frame i in its ancestor anc. */
-static sooc_status chain(const logs_tf *tf, int anc, int i, int64_t t, int64_t tol, double T[16]) {
+static sooc_status chain(const sooc_logs_tf *tf, int anc, int i, int64_t t, int64_t tol, double T[16]) {
     sooc_se3_identity(T);
     for (int c = i; c != anc; c = tf->f[c].parent) {
         double E[16], tmp[16];
@@ -184,14 +184,14 @@ static sooc_status chain(const logs_tf *tf, int anc, int i, int64_t t, int64_t t
     return SOOC_OK;
 }
 
-static int common_ancestor(const logs_tf *tf, int a, int b) {
+static int common_ancestor(const sooc_logs_tf *tf, int a, int b) {
     for (int x = a; x >= 0; x = tf->f[x].parent)
         for (int y = b; y >= 0; y = tf->f[y].parent)
             if (x == y) return x;
     return -1;
 }
 
-sooc_status sooc_logs_tf_lookup(const logs_tf *tf, const char *parent, const char *child, int64_t t, int64_t tol_ns,
+sooc_status sooc_logs_tf_lookup(const sooc_logs_tf *tf, const char *parent, const char *child, int64_t t, int64_t tol_ns,
                            double T[16]) {
     int p = find(tf, parent), c = find(tf, child);
     if (p < 0 || c < 0) {
@@ -210,7 +210,7 @@ sooc_status sooc_logs_tf_lookup(const logs_tf *tf, const char *parent, const cha
     return SOOC_OK;
 }
 
-const char *sooc_logs_tf_root(const logs_tf *tf, const char *frame) {
+const char *sooc_logs_tf_root(const sooc_logs_tf *tf, const char *frame) {
     int i = find(tf, frame);
     if (i < 0) return NULL;
     while (tf->f[i].parent >= 0) i = tf->f[i].parent;

@@ -11,7 +11,6 @@
 #include "model/propose.h"
 #include "model/step.h"
 #include "sooc3d/model.h"
-#include "sooc3d/objgeom.h"
 
 #define MAPPER_TAU 0.7f
 #define MAPPER_FREE_SLOTS 1024   /* free-space evidence cache (ids are sequential: no collision below 1024 apart) */   /* the trainer's final relaxed-Bernoulli temperature (docs/training.md "Schedule") */
@@ -25,7 +24,7 @@ struct sooc_mapper {
     sooc_model *m;
     sooc_model_ws *ws;   /* the mapper runs the model: its workspace (decoder, refinement, step state, pool) */
     sooc_cogmap *map;
-    view_rec V;
+    sooc_view_rec V;
     int L, view_idx;
     double merge_r;   /* sooc_mapper_params.merge_radius, resolved (0 = off) */
     int merge_nb;     /* sooc_mapper_params.merge_neighbours */
@@ -45,18 +44,18 @@ struct sooc_mapper {
     uint64_t free_id[MAPPER_FREE_SLOTS];
     uint16_t free_run[MAPPER_FREE_SLOTS];
     uint16_t unsup_run[MAPPER_FREE_SLOTS];   /* registrations since the depth last showed a surface there */
-    sooc_objgeom_cache *geo;   /* object geometry for planners (objgeom.h) */
+    sooc_objgeom_cache *geo;   /* object geometry for planners (mapper.h) */
     int geo_budget;            /* tight boxes recomputed per update */
     /* the creation gate (revisit rule 5, mapper_gate.c): resolved parameters
      * (< 0 = that test off), the final decode's λ and zero noise */
     double gate_min, gate_ratio, gate_part;
     float lam_gate[SOOC_MODEL_K_MAX * SOOC_LAM_MAX];
-    dec_noise gate_noise;
+    sooc_dec_noise gate_noise;
     float gate_boxes[SOOC_GATE_MAX_BOXES * 3];   /* nearby map entries' floor boxes (G frame) */
     uint64_t gate_box_ids[SOOC_GATE_MAX_BOXES];  /* their entry ids (the debug log) */
-    mdl_geo *gm;               /* kind geometric (mapper_geo.c): the cluster map instead of the model */
+    sooc_mdl_geo *gm;               /* kind geometric (mapper_geo.c): the cluster map instead of the model */
     sooc_cluster_map *prop;    /* geometric proposals (propose.c): the keyframe's clusters; NULL = off */
-    mdl_prop_params prop_p;
+    sooc_mdl_prop_params prop_p;
     /* geometric support (sooc_mapper_set_support): the clusters of every
      * mapped keyframe; NULL = off */
     sooc_cluster_map *supp;
@@ -186,7 +185,7 @@ void sooc_mapper_cam_heights(const sooc_mapper *mp, double *lo_m, double *hi_m) 
  * registered, the entry not removed: it stays bit-identical); a new slot is
  * dropped when its centre lies behind the camera or beyond the clip depth
  * (at the image edge it is kept: a partly seen object). Returns the count. */
-static int hold_unseen(sooc_mapper *mp, const sooc_frame *f, const view_rec *V, int K, int d) {
+static int hold_unseen(sooc_mapper *mp, const sooc_frame *f, const sooc_view_rec *V, int K, int d) {
     sooc_cogmap_camera cam;
     sooc_mdl_camera_of(mp->m, f, &cam);
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
@@ -227,7 +226,7 @@ static int hold_unseen(sooc_mapper *mp, const sooc_frame *f, const view_rec *V, 
  * Nearest first is not needed: the cap is far above the entries one box can
  * touch. */
 typedef struct gate_near {
-    const view_rec *V;
+    const sooc_view_rec *V;
     const uint64_t *src;
     int K, d, n, n_new;
     double unit, reach, nx[SOOC_MODEL_K_MAX], nz[SOOC_MODEL_K_MAX];
@@ -259,7 +258,7 @@ static int gate_near_visit(void *user, const sooc_cogmap_entry *e) {
  * is not the part of one (its owned surface points inside that slot's floor
  * box). A refused slot is turned off (it has no entry: nothing is removed).
  * Every new slot's verdict is logged at debug level. Returns the count. */
-static int gate_new(sooc_mapper *mp, const view_rec *V, int K, int d, sooc_status *err) {
+static int gate_new(sooc_mapper *mp, const sooc_view_rec *V, int K, int d, sooc_status *err) {
     sooc_model *m = mp->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
@@ -273,7 +272,7 @@ static int gate_new(sooc_mapper *mp, const view_rec *V, int K, int d, sooc_statu
     memcpy(mp->lam_gate, V->lam + (size_t)mp->L * K * NL, sizeof(float) * (size_t)K * NL);
     for (int i = 0; i < K; i++)
         if (role[i] == SOOC_GATE_OFF) mp->lam_gate[(size_t)i * NL + PA] = -30.0f;
-    dec_call dc;
+    sooc_dec_call dc;
     memset(&dc, 0, sizeof dc);
     dc.rays = &V->vr;
     dc.nslot = K;
@@ -342,7 +341,7 @@ static int gate_new(sooc_mapper *mp, const view_rec *V, int K, int d, sooc_statu
  * depth evidence (part 4) and mapped anew. Younger entries take the
  * refinement as it is (a single pass over a scene barely changes). Variances
  * and presence are the refined ones. */
-static void blend_revisits(sooc_mapper *mp, const view_rec *V, int K, int d) {
+static void blend_revisits(sooc_mapper *mp, const sooc_view_rec *V, int K, int d) {
     const int NL = SOOC_LAM_SIZE(d), PA = SOOC_LAM_PRES(d);
     for (int i = 0; i < K; i++) {
         float *lam = mp->lam_reg + (size_t)i * NL;
@@ -503,7 +502,7 @@ static int retire_free(sooc_mapper *mp, const sooc_frame *f, uint64_t *ids, int 
     return n;
 }
 
-/* Object geometry (objgeom.h): registration statistics of what this update
+/* Object geometry (mapper.h): registration statistics of what this update
  * wrote, then at most geo_budget tight boxes recomputed. */
 static sooc_status mapper_geometry(sooc_mapper *mp) {
     for (int i = 0; i < mp->n_rem; i++) sooc_objgeom_cache_remove(mp->geo, mp->rem_ids[i]);
@@ -709,10 +708,10 @@ sooc_status sooc_mapper_update(sooc_mapper *mp, const sooc_frame *f, sooc_update
     if (f->width != c->img_w || f->height != c->img_h)
         return sooc_seterr(SOOC_EINVAL, "mapper: frame %lld is %dx%d, the model needs %dx%d", (long long)f->index,
                            f->width, f->height, c->img_w, c->img_h);
-    step_state *S = sooc_mdl_step_state(mp->ws, 1, mp->L);
+    sooc_step_state *S = sooc_mdl_step_state(mp->ws, 1, mp->L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "mapper: out of memory");
     S->aux_replay = 0;
-    view_rec *V = &mp->V;
+    sooc_view_rec *V = &mp->V;
     sooc_status s = sooc_mdl_view_setup(m, mp->map, V, f, 1, &mp->rng, NULL);
     if (s) return s;
     if (mp->prop) {

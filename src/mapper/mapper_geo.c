@@ -1,6 +1,6 @@
 /* The geometric object map behind the mapper's interface (docs/geometric.md
  * "In the node"): every keyframe goes into one support-plane cluster map
- * (cluster.h); after it, the map's clusters are matched to the entries by
+ * (mapper.h); after it, the map's clusters are matched to the entries by
  * floor position (nearest first, within the larger of the two floor
  * half-diagonals plus match_m). A matched entry takes the cluster's box; a
  * cluster without an entry becomes one; an entry whose centre is in the
@@ -9,8 +9,8 @@
  * set of one update holds at most SOOC_MAPPER_CHANGED_MAX entries and as many
  * removals; the rest wait for the next updates (oldest change first). */
 #include "mapper/mapper_geo.h"
-#include "sooc3d/cluster.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <string.h>
@@ -25,7 +25,7 @@ typedef struct geo_entry {
     uint32_t n_in, n_whole;  /* keyframes that saw its box's centre; of them, those that saw the whole box */
 } geo_entry;
 
-struct mdl_geo {
+struct sooc_mdl_geo {
     sooc_cluster_params cp;
     sooc_cluster_map *cm;
     int w, h;
@@ -40,12 +40,12 @@ struct mdl_geo {
     size_t n_chg, n_rep_rem;
 };
 
-sooc_status sooc_mdl_geo_create(mdl_geo **out, const sooc_mapper_params *p) {
+sooc_status sooc_mdl_geo_create(sooc_mdl_geo **out, const sooc_mapper_params *p) {
     *out = NULL;
     if (p->input_width < 8 || p->input_height < 8 || p->input_width > 8192 || p->input_height > 8192)
         return sooc_seterr(SOOC_EINVAL, "mapper (geometric): input size %dx%d (8..8192)", p->input_width,
                            p->input_height);
-    mdl_geo *g = sooc_calloc(1, sizeof *g);
+    sooc_mdl_geo *g = sooc_calloc(1, sizeof *g);
     if (!g) return sooc_seterr(SOOC_ENOMEM, "mapper (geometric): out of memory");
     g->cp = p->cluster;
     g->w = p->input_width, g->h = p->input_height;
@@ -59,7 +59,7 @@ sooc_status sooc_mdl_geo_create(mdl_geo **out, const sooc_mapper_params *p) {
     return SOOC_OK;
 }
 
-void sooc_mdl_geo_destroy(mdl_geo *g) {
+void sooc_mdl_geo_destroy(sooc_mdl_geo *g) {
     if (!g) return;
     sooc_cluster_map_destroy(g->cm);
     sooc_free(g->ent);
@@ -68,9 +68,9 @@ void sooc_mdl_geo_destroy(mdl_geo *g) {
     sooc_free(g);
 }
 
-void sooc_mdl_geo_input_size(const mdl_geo *g, int *w, int *h) { *w = g->w, *h = g->h; }
-uint64_t sooc_mdl_geo_next_id(const mdl_geo *g) { return g->next_id; }
-void sooc_mdl_geo_reserve_ids(mdl_geo *g, uint64_t next_id) {
+void sooc_mdl_geo_input_size(const sooc_mdl_geo *g, int *w, int *h) { *w = g->w, *h = g->h; }
+uint64_t sooc_mdl_geo_next_id(const sooc_mdl_geo *g) { return g->next_id; }
+void sooc_mdl_geo_reserve_ids(sooc_mdl_geo *g, uint64_t next_id) {
     if (next_id > g->next_id) g->next_id = next_id;
 }
 
@@ -175,7 +175,7 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
     if (moved && !ge->dirty) ge->dirty = upd;
 }
 
-sooc_status sooc_mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc_update_stats *us) {
+sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_update_stats *us) {
     double t0 = sooc_seconds();
     memset(us, 0, sizeof *us);
     g->upd++;
@@ -256,7 +256,7 @@ sooc_status sooc_mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc_update_sta
     return SOOC_OK;
 }
 
-sooc_status sooc_mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n) {
+sooc_status sooc_mdl_geo_entries(const sooc_mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n) {
     if (!out) {
         *n = g->n;
         return SOOC_OK;
@@ -267,7 +267,7 @@ sooc_status sooc_mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t c
     return SOOC_OK;
 }
 
-sooc_status sooc_mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_t n) {
+sooc_status sooc_mdl_geo_load_entries(sooc_mdl_geo *g, const sooc_map_entry *e, size_t n) {
     for (size_t i = 0; i < n; i++)
         if (e[i].latent_dim != SOOC_GEOMETRIC_LATENT_DIM || !e[i].id)
             return sooc_seterr(SOOC_EINVAL, "mapper (geometric): entry %llu has latent_dim %d, a geometric map's "
@@ -286,7 +286,7 @@ sooc_status sooc_mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_
     return SOOC_OK;
 }
 
-sooc_status sooc_mdl_geo_changed(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
+sooc_status sooc_mdl_geo_changed(const sooc_mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
                             size_t cap_r, size_t *n_removed) {
     if (n) *n = g->n_chg;
     if (n_removed) *n_removed = g->n_rep_rem;

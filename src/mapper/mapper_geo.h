@@ -6,17 +6,17 @@
 
 #include "sooc3d/mapper.h"
 
-typedef struct mdl_geo mdl_geo;
+typedef struct sooc_mdl_geo sooc_mdl_geo;
 
-sooc_status sooc_mdl_geo_create(mdl_geo **out, const sooc_mapper_params *p);
-void sooc_mdl_geo_destroy(mdl_geo *g);
-void sooc_mdl_geo_input_size(const mdl_geo *g, int *w, int *h);
-sooc_status sooc_mdl_geo_update(mdl_geo *g, const sooc_frame *f, sooc_update_stats *st);
-sooc_status sooc_mdl_geo_entries(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n);
-sooc_status sooc_mdl_geo_load_entries(mdl_geo *g, const sooc_map_entry *e, size_t n);
-sooc_status sooc_mdl_geo_changed(const mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
+sooc_status sooc_mdl_geo_create(sooc_mdl_geo **out, const sooc_mapper_params *p);
+void sooc_mdl_geo_destroy(sooc_mdl_geo *g);
+void sooc_mdl_geo_input_size(const sooc_mdl_geo *g, int *w, int *h);
+sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_update_stats *st);
+sooc_status sooc_mdl_geo_entries(const sooc_mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n);
+sooc_status sooc_mdl_geo_load_entries(sooc_mdl_geo *g, const sooc_map_entry *e, size_t n);
+sooc_status sooc_mdl_geo_changed(const sooc_mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
                             size_t cap_r, size_t *n_removed);
-uint64_t sooc_mdl_geo_next_id(const mdl_geo *g);
-void sooc_mdl_geo_reserve_ids(mdl_geo *g, uint64_t next_id);
+uint64_t sooc_mdl_geo_next_id(const sooc_mdl_geo *g);
+void sooc_mdl_geo_reserve_ids(sooc_mdl_geo *g, uint64_t next_id);
 
 #endif

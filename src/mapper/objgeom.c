@@ -1,11 +1,11 @@
 /* Object geometry for planners: tight boxes of an object's own density,
- * symmetry, calibrated spreads, and the mapper's cache (include/sooc3d/objgeom.h). */
-#include "sooc3d/objgeom.h"
+ * symmetry, calibrated spreads, and the mapper's cache (include/sooc3d/mapper.h). */
+#include "sooc3d/mapper.h"
 
 #include <math.h>
 #include <string.h>
 
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 #include "sooc3d/model.h"
 
 #ifdef SOOC_HAVE_OPENMP

@@ -1,5 +1,5 @@
 /* Vectors, rotations, SE(3), the pinhole camera and the gravity-aligned frame. */
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <string.h>

@@ -1,11 +1,11 @@
-/* Meshes of a map (include/sooc3d/mesh.h, docs/mesh.md): each entry's own
+/* Meshes of a map (include/sooc3d/render.h, docs/mesh.md): each entry's own
  * component of the model's field (model.h sooc_model_field_*, which picks up
  * a finetuned decoder kept with the map), sampled over its locality box in
  * its own frame; the layout over each layout block. The field is built for a
  * virtual camera that sees the entry (or whose active block is the block),
  * so the map is meshed with exactly the field that `render` and `eval` use. */
-#include "sooc3d/mesh.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/render.h"
+#include "sooc3d/core.h"
 #include "sooc3d/model.h"
 
 #include <math.h>

@@ -1,4 +1,4 @@
-/* Marching cubes on a render.h field component (include/sooc3d/mesh.h,
+/* Marching cubes on a render.h field component (include/sooc3d/render.h,
  * docs/mesh.md), plus the mesh container and its checks.
  *
  * The cube table is generated, not typed in: for each of the 256 corner
@@ -8,8 +8,8 @@
  * entered. A face is cut the same way from both cells sharing it, so the
  * mesh is watertight; segments chain into closed loops on the cube surface,
  * each fanned into triangles. */
-#include "sooc3d/mesh.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/render.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,10 +1,10 @@
-/* The Atlas mesh metric (docs/mesh.md; include/sooc3d/mesh.h):
+/* The Atlas mesh metric (docs/mesh.md; include/sooc3d/render.h):
  * points sampled on the predicted mesh and on the generator's true surfaces,
  * both voxel-downsampled at 2 cm (centroid per voxel, as Open3D's
  * voxel_down_sample), then accuracy = mean distance from predicted points to
  * the nearest GT point, completeness = the reverse, precision / recall at
  * 5 cm; nearest neighbours through a k-d tree. */
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 #include "sooc3d/model.h"
 
 #include <math.h>

@@ -1,7 +1,7 @@
-/* Binary little-endian PLY for sooc_mesh (include/sooc3d/mesh.h): written
+/* Binary little-endian PLY for sooc_mesh (include/sooc3d/render.h): written
  * into one buffer and saved atomically; the reader takes what the writer
  * writes and other triangle PLYs with float x y z and optional uchar colour. */
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 
 #include <stdio.h>
 #include <stdlib.h>

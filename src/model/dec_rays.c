@@ -32,7 +32,7 @@ void sooc_mdl_gauss_backward(float g, float sig, float zp, const float xk[3], fl
 
 /* ---------------------------------------------------------------- noise, rays */
 
-void sooc_mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n) {
+void sooc_mdl_sample_noise(const sooc_model *m, sooc_rng *r, sooc_dec_noise *n) {
     memset(n, 0, sizeof *n);
     const sooc_model_config *c = &m->cfg;
     for (int k = 0; k < c->K; k++) {
@@ -43,7 +43,7 @@ void sooc_mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n) {
     for (int i = 0; i < c->d_layout; i++) n->eps_lay[i] = (float)sooc_rng_normal(r);
 }
 
-sooc_status sooc_mdl_rays_alloc(view_rays *vr, int gw, int gh) {
+sooc_status sooc_mdl_rays_alloc(sooc_view_rays *vr, int gw, int gh) {
     memset(vr, 0, sizeof *vr);
     int N = gw * gh;
     vr->N = N;
@@ -63,7 +63,7 @@ sooc_status sooc_mdl_rays_alloc(view_rays *vr, int gw, int gh) {
     return SOOC_OK;
 }
 
-void sooc_mdl_rays_free(view_rays *vr) {
+void sooc_mdl_rays_free(sooc_view_rays *vr) {
     sooc_free(vr->dir);
     sooc_free(vr->rgb);
     sooc_free(vr->depth);
@@ -74,7 +74,7 @@ void sooc_mdl_rays_free(view_rays *vr) {
     memset(vr, 0, sizeof *vr);
 }
 
-sooc_status sooc_mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r, view_rays *vr,
+sooc_status sooc_mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r, sooc_view_rays *vr,
                           const double T_wg[16], double h, double pitch, const double blk_local[2]) {
     const sooc_model_config *c = &m->cfg;
     if (f->width != c->img_w || f->height != c->img_h)

@@ -73,7 +73,7 @@ typedef struct dec_wt {
     const float *W2, *W3, *Wc1, *W1x;
 } dec_wt;
 
-static sooc_nn_nerf_tail tail_of(const float *p, const dec_net *n, const dec_wt *wt) {
+static sooc_nn_nerf_tail tail_of(const float *p, const sooc_dec_net *n, const dec_wt *wt) {
     sooc_nn_nerf_tail t = {n->H, n->Hc, p + n->W2, p + n->b2, p + n->W3, p + n->b3, p + n->Wd, p + n->bd,
                            p + n->Wc1, p + n->bc1, p + n->Wc2, p + n->bc2,
                            wt ? wt->W2 : NULL, wt ? wt->W3 : NULL, wt ? wt->Wc1 : NULL};
@@ -82,18 +82,18 @@ static sooc_nn_nerf_tail tail_of(const float *p, const dec_net *n, const dec_wt 
 
 /* Layers 2.. of a decoder on R rows (serial; callers split rows across
  * threads) whose layer-1 pre-activation is in a1 (ReLU applied here unless a1_relu). */
-static void tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+static void tail_forward(const sooc_model *m, const sooc_dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                          float *sig, float *col, int a1_relu) {
     sooc_nn_nerf_tail t = tail_of(m->p, n, NULL);
     sooc_nn_nerf_tail_forward(&t, R, a1, a2, a3, ac, sig, col, !a1_relu);
 }
 
-void sooc_mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+void sooc_mdl_mlp_tail_forward(const sooc_model *m, const sooc_dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col) {
     tail_forward(m, n, R, a1, a2, a3, ac, sig, col, 0);
 }
 
-static size_t wt_floats(const dec_net *n, int with_w1) {
+static size_t wt_floats(const sooc_dec_net *n, int with_w1) {
     return (size_t)n->H * (2 * n->H + n->Hc + (with_w1 ? n->din : 0));
 }
 
@@ -102,7 +102,7 @@ static void transpose(const float *restrict W, int rows, int cols, float *restri
         for (int j = 0; j < cols; j++) T[(size_t)j * rows + i] = W[(size_t)i * cols + j];
 }
 
-static float *wt_build(const float *p, const dec_net *n, int with_w1, float *buf, dec_wt *t) {
+static float *wt_build(const float *p, const sooc_dec_net *n, int with_w1, float *buf, dec_wt *t) {
     int H = n->H, Hc = n->Hc;
     t->W2 = buf, transpose(p + n->W2, H, H, buf), buf += (size_t)H * H;
     t->W3 = buf, transpose(p + n->W3, H, H, buf), buf += (size_t)H * H;
@@ -117,7 +117,7 @@ static float *wt_build(const float *p, const dec_net *n, int with_w1, float *buf
  * (overwritten with pre-sigmoid grads). Weight grads scaled by ws go to the
  * slab `g` (a thread-private copy; 0 = skip). Scratch gA, gB (R x H each; the
  * colour hidden layer's gradient lives in gB); g1 may alias gA. */
-static void mlp_tail_backward(const sooc_model *m, float *g, const dec_net *n, const dec_wt *wt, int R,
+static void mlp_tail_backward(const sooc_model *m, float *g, const sooc_dec_net *n, const dec_wt *wt, int R,
                               const float *a1, const float *a2, const float *a3, const float *ac, const float *sig,
                               const float *col, float *gsig, float *gcol, float *gA, float *gB, float *g1, float ws) {
     if (R <= 0) return;
@@ -154,9 +154,9 @@ typedef struct slot_sample {
  * first 3 floats of its gpe row. Weight gradients (ws != 0) go to tg. */
 typedef struct bwd_ctx {
     const sooc_model *m;
-    const dec_ws *w;
-    const dec_call *c;
-    const dec_net *no, *nl;
+    const sooc_dec_ws *w;
+    const sooc_dec_call *c;
+    const sooc_dec_net *no, *nl;
     const dec_wt *pwo, *pwl;
     float *gsig, *gcol, ws, inv_o, s_g;
     int C, loff;
@@ -164,9 +164,9 @@ typedef struct bwd_ctx {
 
 static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
     const sooc_model *m = x->m;
-    const dec_ws *w = x->w;
-    const dec_net *no = x->no;
-    const dec_call *c = x->c;
+    const sooc_dec_ws *w = x->w;
+    const sooc_dec_net *no = x->no;
+    const sooc_dec_call *c = x->c;
     int H = no->H, C = x->C;
     float *g1 = w->gA + (size_t)b0 * H;
     mlp_tail_backward(m, tg, no, x->pwo, R, w->o_a1 + (size_t)b0 * H, w->o_a2 + (size_t)b0 * H, w->o_a3 + (size_t)b0 * H,
@@ -189,8 +189,8 @@ static void bwd_obj_block(const bwd_ctx *x, int b0, int R, float *tg) {
 
 static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
     const sooc_model *m = x->m;
-    const dec_ws *w = x->w;
-    const dec_net *nl = x->nl;
+    const sooc_dec_ws *w = x->w;
+    const sooc_dec_net *nl = x->nl;
     int H = nl->H, s0 = x->loff + b0;
     float *g1 = w->gA + (size_t)s0 * H;
     mlp_tail_backward(m, tg, nl, x->pwl, R, w->l_a1 + (size_t)b0 * H, w->l_a2 + (size_t)b0 * H, w->l_a3 + (size_t)b0 * H,
@@ -204,8 +204,8 @@ static void bwd_lay_block(const bwd_ctx *x, int b0, int R, float *tg) {
 /* One fixed block of object or layout rows of the decoder forward (a pool task). */
 typedef struct fwd_job {
     const sooc_model *m;
-    const dec_ws *w;
-    const view_rays *vr;
+    const sooc_dec_ws *w;
+    const sooc_view_rays *vr;
     int nbo, nro, nrl, lpe_keep;   /* lpe_keep: l_pe already holds the layout rows' PE */
     float inv_o, inv_l;
 } fwd_job;
@@ -213,9 +213,9 @@ typedef struct fwd_job {
 static void fwd_task(void *ctx, int blk, int tid) {
     const fwd_job *j = ctx;
     const sooc_model *m = j->m;
-    const dec_ws *w = j->w;
-    const dec_net *no = &m->dobj, *nl = &m->dlay;
-    const view_rays *vr = j->vr;
+    const sooc_dec_ws *w = j->w;
+    const sooc_dec_net *no = &m->dobj, *nl = &m->dlay;
+    const sooc_view_rays *vr = j->vr;
     const float *p = m->p;
     int H = m->cfg.dec_width, nro = j->nro, nrl = j->nrl, nbo = j->nbo;
     (void)tid;
@@ -263,14 +263,14 @@ static void bwd_task(void *ctx, int blk, int tid) {
  * the object rows' z^where gradients; every sum runs in row order. */
 #define SB_TASKS 4
 typedef struct sb_job {
-    dec_ws *w;
+    sooc_dec_ws *w;
     int no_, nl_, loff, H, din;
     float (*gzw)[3];
 } sb_job;
 
 static void sb_task(void *ctx, int t, int tid) {
     const sb_job *j = ctx;
-    dec_ws *w = j->w;
+    sooc_dec_ws *w = j->w;
     int H = j->H;
     (void)tid;
     if (t == SB_TASKS) {
@@ -299,10 +299,10 @@ typedef struct dec_run {
     sooc_model_ws *x;
     sooc_model *m;
     const sooc_model_config *cfg;
-    dec_ws *w;
-    dec_call *c;
-    const view_rays *vr;
-    const dec_net *no, *nl;
+    sooc_dec_ws *w;
+    sooc_dec_call *c;
+    const sooc_view_rays *vr;
+    const sooc_dec_net *no, *nl;
     const float *p;
     int N, P, K, C, d, dl, NL, H, nt;
     float rmin, rmax, tau, sigc;
@@ -317,13 +317,13 @@ typedef struct dec_run {
 
 /* 1. Samples: z^where, z^what, z^pres of every slot and the layout latent. */
 static void dec_samples(dec_run *r) {
-    dec_call *c = r->c;
+    sooc_dec_call *c = r->c;
     int K = r->K, d = r->d, dl = r->dl, NL = r->NL;
     float rmin = r->rmin, rmax = r->rmax, tau = r->tau;
     slot_sample *ss = r->ss;
     for (int k = 0; k < K; k++) {
         const float *l = c->lam + (size_t)k * NL;
-        const dec_noise *ns = c->noise;
+        const sooc_dec_noise *ns = c->noise;
         ss[k].sig_t = expf(0.5f * clampf(l[3], rmin, rmax));
         ss[k].sig_th = expf(0.5f * clampf(l[4], rmin, rmax));
         c->zw[k][0] = l[0] + ss[k].sig_t * ns->eps_where[k][0];
@@ -346,11 +346,11 @@ static void dec_samples(dec_run *r) {
 
 /* Layer-1 biases per component (comp 0 = layout, 1..K objects): b1 + z W1z. */
 static void dec_slot_biases(dec_run *r) {
-    const dec_call *c = r->c;
+    const sooc_dec_call *c = r->c;
     const float *p = r->p;
     int K = r->K, H = r->H;
     for (int k = 0; k <= K; k++) {
-        const dec_net *n = k ? r->no : r->nl;
+        const sooc_dec_net *n = k ? r->no : r->nl;
         const float *z = k ? c->zwhat[k - 1] : c->zlay;
         float *b = r->w->slot_bias + (size_t)k * H;
         for (int j = 0; j < H; j++) b[j] = p[n->b1 + j];
@@ -365,9 +365,9 @@ static void dec_slot_biases(dec_run *r) {
  * box, a layout row per used point; rowof maps (point, component) -> row. */
 static void dec_rows(dec_run *r) {
     const sooc_model_config *cfg = r->cfg;
-    const dec_call *c = r->c;
-    const view_rays *vr = r->vr;
-    dec_ws *w = r->w;
+    const sooc_dec_call *c = r->c;
+    const sooc_view_rays *vr = r->vr;
+    sooc_dec_ws *w = r->w;
     int P = r->P, K = r->K, C = r->C;
     float cth[SOOC_MODEL_K_MAX], sth[SOOC_MODEL_K_MAX];
     for (int k = 0; k < K; k++) cth[k] = cosf(c->zw[k][2]), sth[k] = sinf(c->zw[k][2]);
@@ -419,7 +419,7 @@ static void dec_rows(dec_run *r) {
 static void dec_forward(dec_run *r) {
     int nro = r->nro, nrl = r->nrl;
     int nbo = (nro + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS, nbl = (nrl + MDL_DYN_ROWS - 1) / MDL_DYN_ROWS;
-    dec_ws *w = r->w;
+    sooc_dec_ws *w = r->w;
     int keep = r->c->same_rays && w->lpe_vr == r->vr && w->lpe_nrl == nrl;
     fwd_job fj = {r->m, w, r->vr, nbo, nro, nrl, keep, r->inv_o, r->inv_l};
     if (nro + nrl >= MDL_PAR_ROWS && r->nt > 1) sooc_mdl_par_run(r->x, nbo + nbl, fwd_task, &fj);
@@ -434,7 +434,7 @@ static void dec_forward(dec_run *r) {
 
 /* sooc_mdl_aux_post_ray for C <= 8 components on one vector (the scalar loop's operations,
  * the normaliser summed in component order: bitwise equal). */
-static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+static MDL_TGT_AVX2 void post_ray_avx2(sooc_dec_ws *w, const sooc_view_rays *vr, int rr, int C, float is2) {
     const float *sh_s = w->sh + (size_t)2 * rr * C, *ct_s = w->ct + (size_t)2 * rr * C * 3;
     float S = w->S[2 * rr], *lv = w->ll_cf + (size_t)rr * C;
     __m256i k = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -472,7 +472,7 @@ static MDL_TGT_AVX2 void post_ray_avx2(dec_ws *w, const view_rays *vr, int rr, i
 }
 #endif
 
-void sooc_mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2) {
+void sooc_mdl_aux_post_ray(sooc_dec_ws *w, const sooc_view_rays *vr, int rr, int C, float is2) {
 #ifdef POST_AVX2
     if (C <= 8 && mdl_kern_avx2()) {
         post_ray_avx2(w, vr, rr, C, is2);
@@ -504,18 +504,18 @@ void sooc_mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float 
 #define COMPOSE_RAYS 64
 typedef struct comp_job {
     const sooc_model_config *cfg;
-    const dec_call *c;
-    const view_rays *vr;
-    dec_ws *w;
+    const sooc_dec_call *c;
+    const sooc_view_rays *vr;
+    sooc_dec_ws *w;
     int N, C;
     float smax, eps_s, scale, lognorm, is2;
 } comp_job;
 
 static void comp_task(void *ctx, int blk, int tid) {
     const comp_job *j = ctx;
-    const dec_call *c = j->c;
-    const view_rays *vr = j->vr;
-    dec_ws *w = j->w;
+    const sooc_dec_call *c = j->c;
+    const sooc_view_rays *vr = j->vr;
+    sooc_dec_ws *w = j->w;
     int C = j->C, r0 = blk * COMPOSE_RAYS, r1 = r0 + COMPOSE_RAYS < j->N ? r0 + COMPOSE_RAYS : j->N;
     float smax = j->smax, eps_s = j->eps_s, scale = j->scale, lognorm = j->lognorm, is2 = j->is2;
     (void)tid;
@@ -602,9 +602,9 @@ static void comp_task(void *ctx, int blk, int tid) {
 
 static void dec_compose(dec_run *r) {
     const sooc_model_config *cfg = r->cfg;
-    dec_call *c = r->c;
-    const view_rays *vr = r->vr;
-    dec_ws *w = r->w;
+    sooc_dec_call *c = r->c;
+    const sooc_view_rays *vr = r->vr;
+    sooc_dec_ws *w = r->w;
     int N = r->N;
     float sigc = r->sigc;
     comp_job j = {cfg, c, vr, w, N, r->C, cfg->sigma_max, cfg->eps_sigma_rel * cfg->sigma_max,
@@ -631,7 +631,7 @@ static void dec_compose(dec_run *r) {
 /* 5. KL terms (c->kl) and the loss; 6. (backward) their gradients. */
 static void dec_kl(dec_run *r) {
     const sooc_model_config *cfg = r->cfg;
-    dec_call *c = r->c;
+    sooc_dec_call *c = r->c;
     int K = r->K, NL = r->NL, dl = r->dl;
     c->kl = 0;
     if (c->lam0) {
@@ -646,7 +646,7 @@ static void dec_kl(dec_run *r) {
 
 static void dec_kl_backward(dec_run *r) {
     const sooc_model_config *cfg = r->cfg;
-    dec_call *c = r->c;
+    sooc_dec_call *c = r->c;
     int K = r->K, NL = r->NL, dl = r->dl;
     float beta = c->beta_kl;
     if (c->lam0)
@@ -666,9 +666,9 @@ static void dec_kl_backward(dec_run *r) {
  * fits; otherwise two passes. */
 static void dec_backward_rows(dec_run *r) {
     const sooc_model *m = r->m;
-    const dec_call *c = r->c;
-    dec_ws *w = r->w;
-    const dec_net *no = r->no, *nl = r->nl;
+    const sooc_dec_call *c = r->c;
+    sooc_dec_ws *w = r->w;
+    const sooc_dec_net *no = r->no, *nl = r->nl;
     int C = r->C, H = r->H, nt = r->nt, nro = r->nro, nrl = r->nrl;
     float ws = c->wgrad;
     size_t Rall = (size_t)w->Pmax * (w->Kmax > 1 ? w->Kmax : 1);
@@ -750,14 +750,14 @@ MDL_OMP(omp parallel num_threads(ntb) if (rows >= MDL_PAR_ROWS))
 /* Slot biases -> z^what / the layout latent (r->gzwhat, r->gzl) and, with
  * weight gradients, b1 and W1z. */
 static void dec_bias_backward(dec_run *r) {
-    const dec_call *c = r->c;
-    const dec_ws *w = r->w;
+    const sooc_dec_call *c = r->c;
+    const sooc_dec_ws *w = r->w;
     const float *p = r->p;
     float *g = r->m->g;
     int K = r->K, H = r->H;
     float ws = c->wgrad;
     for (int k = 0; k <= K; k++) {
-        const dec_net *n = k ? r->no : r->nl;
+        const sooc_dec_net *n = k ? r->no : r->nl;
         const float *gb = w->g_bias + (size_t)k * H;
         const float *z = k ? c->zwhat[k - 1] : c->zlay;
         float *gz = k ? r->gzwhat[k - 1] : r->gzl;
@@ -778,7 +778,7 @@ static void dec_bias_backward(dec_run *r) {
 
 /* 8. Reparameterisation backward: sample gradients -> λ and the layout posterior. */
 static void dec_reparam_backward(dec_run *r) {
-    dec_call *c = r->c;
+    sooc_dec_call *c = r->c;
     int K = r->K, d = r->d, dl = r->dl, NL = r->NL;
     float rmin = r->rmin, rmax = r->rmax, tau = r->tau;
     const slot_sample *ss = r->ss;
@@ -786,7 +786,7 @@ static void dec_reparam_backward(dec_run *r) {
         for (int k = 0; k < K; k++) {
             const float *l = c->lam + (size_t)k * NL;
             float *g = c->g_lam + (size_t)k * NL;
-            const dec_noise *ns = c->noise;
+            const sooc_dec_noise *ns = c->noise;
             g[0] += r->gzw[k][0];
             g[1] += r->gzw[k][1];
             g[2] += r->gzw[k][2];
@@ -809,7 +809,7 @@ static void dec_reparam_backward(dec_run *r) {
         }
 }
 
-sooc_status sooc_mdl_decode(sooc_model_ws *x, dec_call *c) {
+sooc_status sooc_mdl_decode(sooc_model_ws *x, sooc_dec_call *c) {
     dec_run run, *r = &run;
     memset(r, 0, sizeof *r);
     sooc_model *m = x->m;
@@ -848,10 +848,10 @@ sooc_status sooc_mdl_decode(sooc_model_ws *x, dec_call *c) {
 
 /* The decoder's part of a runner's workspace (sooc_model_ws): every buffer
  * of a decode, sized for P = 2 ray_w ray_h points and K slots. */
-sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
+sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, sooc_dec_ws **out) {
     *out = NULL;
     const sooc_model_config *c = &m->cfg;
-    dec_ws *w = sooc_calloc(1, sizeof *w);
+    sooc_dec_ws *w = sooc_calloc(1, sizeof *w);
     if (!w) return SOOC_ENOMEM;
     int P = 2 * c->ray_w * c->ray_h, K = c->K, C = K + 1, H = c->dec_width;
     size_t R = (size_t)P * K;
@@ -907,7 +907,7 @@ sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, dec_ws **out) {
     return SOOC_OK;
 }
 
-void sooc_mdl_dec_ws_destroy(dec_ws *w) {
+void sooc_mdl_dec_ws_destroy(sooc_dec_ws *w) {
     if (!w) return;
     float **fp[] = {&w->o_pe, &w->o_a1, &w->o_a2, &w->o_a3, &w->o_ac, &w->o_sig, &w->o_col, &w->o_xk, &w->o_gf, &w->l_pe,
                     &w->l_a1, &w->l_a2, &w->l_a3, &w->l_ac, &w->l_sig, &w->l_col, &w->gA, &w->gB, &w->gC, &w->gpe,

@@ -14,7 +14,7 @@
 
 /* Rays of one view in G_t (origin at the camera centre). P = 2 N points:
  * point 2r = surface sample, 2r + 1 = air sample. */
-typedef struct view_rays {
+typedef struct sooc_view_rays {
     int N, gw, gh;                /* N = gw * gh, ray r <-> grid cell (r / gw, r % gw) */
     float *dir;                   /* N x 3 unit direction in G                         */
     float *rgb;                   /* N x 3 observed colour in [0, 1]                   */
@@ -26,18 +26,18 @@ typedef struct view_rays {
     float *pts;                   /* 2N x 3 points in G                                */
     float h, pitch;               /* camera height, pitch                              */
     float blk[3];                 /* active layout block origin in G (x, -h, z)        */
-} view_rays;
+} sooc_view_rays;
 
 /* Noise of one decode, shared with the reference. */
-typedef struct dec_noise {
+typedef struct sooc_dec_noise {
     float eps_where[SOOC_MODEL_K_MAX][3];
     float eps_what[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX];
     float logistic[SOOC_MODEL_K_MAX];
     float eps_lay[SOOC_MODEL_D_MAX];
-} dec_noise;
+} sooc_dec_noise;
 
 /* Workspace of the fused decoder (sized for P points and K slots at create). */
-struct dec_ws {
+struct sooc_dec_ws {
     int Pmax, Kmax;
     /* object rows */
     int nro; int *ro_pt, *ro_slot; int cnt[SOOC_MODEL_K_MAX + 1];
@@ -60,19 +60,19 @@ struct dec_ws {
     float *wt;                    /* nwt: transposed decoder weights for the backward GEMMs */
     size_t nwt;
     float *g_bias;                /* (K+1) x H */
-    const view_rays *lpe_vr;      /* the rays whose layout rows' PE (nrl rows) l_pe holds */
+    const sooc_view_rays *lpe_vr;      /* the rays whose layout rows' PE (nrl rows) l_pe holds */
     int lpe_nrl;
 };
-typedef struct dec_ws dec_ws;
+typedef struct sooc_dec_ws sooc_dec_ws;
 
 /* One decode: inputs, outputs. */
-typedef struct dec_call {
-    const view_rays *rays;
+typedef struct sooc_dec_call {
+    const sooc_view_rays *rays;
     int nslot;                    /* active object slots (<= K)                 */
     const float *lam;             /* nslot x NL                                 */
     const float *lam0;            /* nslot x NL prior (NULL: no KL, query view) */
     const float *lay, *lay0;      /* 2 d_l (lay0 NULL: no layout KL)            */
-    const dec_noise *noise;
+    const sooc_dec_noise *noise;
     float tau, beta_kl, sigma_c;
     const uint8_t *hard;          /* per slot: 0 relaxed, 1 straight-through hard, 2 forced one */
     float wgrad;                  /* scale of decoder weight gradients (0: none)               */
@@ -91,15 +91,15 @@ typedef struct dec_call {
     /* samples (outputs, for aux inputs) */
     float zw[SOOC_MODEL_K_MAX][3], zwhat[SOOC_MODEL_K_MAX][SOOC_MODEL_D_MAX];
     float zp[SOOC_MODEL_K_MAX], zp_soft[SOOC_MODEL_K_MAX], zlay[SOOC_MODEL_D_MAX];
-} dec_call;
+} sooc_dec_call;
 
 /* The decoder's part of a workspace (sized for the model's ray grid and K). */
-sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, dec_ws **out);
-void sooc_mdl_dec_ws_destroy(dec_ws *w);   /* NULL-safe */
+sooc_status sooc_mdl_dec_ws_create(const sooc_model *m, sooc_dec_ws **out);
+void sooc_mdl_dec_ws_destroy(sooc_dec_ws *w);   /* NULL-safe */
 
-void sooc_mdl_sample_noise(const sooc_model *m, sooc_rng *r, dec_noise *n);
+void sooc_mdl_sample_noise(const sooc_model *m, sooc_rng *r, sooc_dec_noise *n);
 /* One decode on workspace x (its model, its decoder scratch and pool). */
-sooc_status sooc_mdl_decode(sooc_model_ws *x, dec_call *c);
+sooc_status sooc_mdl_decode(sooc_model_ws *x, sooc_dec_call *c);
 /* KL between two slot posteriors (accumulates gradients when non-NULL). */
 double sooc_mdl_kl_slot(const sooc_model_config *cfg, const float *lam, const float *lam0, float beta,
                    float *g_lam, float *g_lam0);
@@ -108,10 +108,10 @@ double sooc_mdl_kl_gauss(int n, const float *mu, const float *rho, const float *
                     float *grho0);
 /* Rays of a frame: stratified grid with offset (ox, oy), samples from rng. */
 sooc_status sooc_mdl_make_rays(const sooc_model *m, const sooc_frame *f, int ox, int oy, sooc_rng *r,
-                          view_rays *vr, const double T_wg[16], double h, double pitch,
+                          sooc_view_rays *vr, const double T_wg[16], double h, double pitch,
                           const double blk_local[2]);
-sooc_status sooc_mdl_rays_alloc(view_rays *vr, int gw, int gh);
-void sooc_mdl_rays_free(view_rays *vr);
+sooc_status sooc_mdl_rays_alloc(sooc_view_rays *vr, int gw, int gh);
+void sooc_mdl_rays_free(sooc_view_rays *vr);
 /* Gaussian-trick density on a single point (exposed for tests):
  * value = sig * zp; adds dL/dxk for upstream g into gxk (3). */
 void sooc_mdl_gauss_backward(float g, float sig, float zp, const float xk[3], float s, float gxk[3]);
@@ -164,9 +164,9 @@ static MDL_TGT_AVX2 inline __m256 mdl_logf_pos8(__m256 x) {
 /* The aux inputs' colour-likelihood posterior of surface ray rr after a composition:
  * softmax_k [log pi_k + log N(C; c_k, sigma_C^2)] into w->ll_cf row rr (C components;
  * is2 = 1 / sigma_C^2). */
-void sooc_mdl_aux_post_ray(dec_ws *w, const view_rays *vr, int rr, int C, float is2);
+void sooc_mdl_aux_post_ray(sooc_dec_ws *w, const sooc_view_rays *vr, int rr, int C, float is2);
 /* Layers 2.. of a decoder on R rows (serial), layer-1 pre-activation in a1. */
-void sooc_mdl_mlp_tail_forward(const sooc_model *m, const dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
+void sooc_mdl_mlp_tail_forward(const sooc_model *m, const sooc_dec_net *n, int R, float *a1, float *a2, float *a3, float *ac,
                           float *sig, float *col);
 
 #endif

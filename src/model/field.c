@@ -21,7 +21,7 @@ typedef struct fcomp {
     float px, pz, th;          /* object pose in G (objects) */
     float *bias;               /* H: W1z z + b1               */
     const float *w;            /* finetuned decoder (dec_own.h, a map payload), NULL = the model's */
-    dec_net rel;               /* its offsets relative to w   */
+    sooc_dec_net rel;               /* its offsets relative to w   */
 } fcomp;
 
 struct sooc_model_field {
@@ -42,7 +42,7 @@ static void field_eval(void *user, int worker, int comp, const float *pts, int n
     sooc_model_field *F = user;
     const sooc_model *m = F->m;
     const sooc_model_config *c = &m->cfg;
-    const dec_net *net = comp ? &m->dobj : &m->dlay;
+    const sooc_dec_net *net = comp ? &m->dobj : &m->dlay;
     int H = net->H, din = net->din;
     float *s = F->scratch + (size_t)(worker < F->nw ? worker : 0) * F->per_worker;
     float *pe = s, *a1 = pe + (size_t)F->maxb * din, *a2 = a1 + (size_t)F->maxb * H, *a3 = a2 + (size_t)F->maxb * H;
@@ -146,7 +146,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
     for (int k = 0; k < nc; k++) {
         fcomp *fc = &F->comp[k];
         fc->bias = F->biasbuf + (size_t)k * H;
-        const dec_net *net = k ? &m->dobj : &m->dlay;
+        const sooc_dec_net *net = k ? &m->dobj : &m->dlay;
         float z[SOOC_MODEL_D_MAX];
         if (k == 0) {
             float mu[SOOC_COGMAP_DIM_MAX], lv[SOOC_COGMAP_DIM_MAX];
@@ -177,7 +177,7 @@ sooc_status sooc_model_field_create(sooc_model_field **out, sooc_model *m, const
             b->lo[0] = -c->box_rh * u, b->lo[1] = 0, b->lo[2] = -c->box_rh * u;
             b->hi[0] = c->box_rh * u, b->hi[1] = c->box_hb * u, b->hi[2] = c->box_rh * u;
         }
-        /* a finetuned decoder kept with the map (include/sooc3d/finetune.h): its own weights and z */
+        /* a finetuned decoder kept with the map (include/sooc3d/train.h): its own weights and z */
         size_t npl = 0;
         const float *pl = c->global_frame ? NULL
                           : k ? sooc_cogmap_payload_get(map, fc->id, &npl)

@@ -31,6 +31,6 @@ int sooc_mdl_par_threads(sooc_model_ws *w) {
     return sooc_nn_pool_threads(w->pool);
 }
 
-void sooc_mdl_par_run(sooc_model_ws *w, int n, mdl_task_fn fn, void *ctx) {
+void sooc_mdl_par_run(sooc_model_ws *w, int n, sooc_mdl_task_fn fn, void *ctx) {
     sooc_nn_pool_run(n > 1 && sooc_mdl_par_threads(w) > 1 ? w->pool : NULL, n, fn, ctx);
 }

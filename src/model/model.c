@@ -106,7 +106,7 @@ static size_t add_t(sooc_model *m, size_t *off, const char *name, int rows, int 
     return t->offset;
 }
 
-static void layout_dec(sooc_model *m, size_t *off, dec_net *n, int obj) {
+static void layout_dec(sooc_model *m, size_t *off, sooc_dec_net *n, int obj) {
     const sooc_model_config *c = &m->cfg;
     n->nfreq = obj ? c->n_freq : c->n_freq_layout;
     n->din = 3 + 6 * n->nfreq;
@@ -130,7 +130,7 @@ static void layout_dec(sooc_model *m, size_t *off, dec_net *n, int obj) {
 #undef T
 }
 
-static void layout_ref(sooc_model *m, size_t *off, ref_net *n, int obj) {
+static void layout_ref(sooc_model *m, size_t *off, sooc_ref_net *n, int obj) {
     const sooc_model_config *c = &m->cfg;
     static const char *cwn[2][4] = {{"ref.lay.conv1.W", "ref.lay.conv2.W", "ref.lay.conv3.W", "ref.lay.conv4.W"},
                                     {"ref.obj.conv1.W", "ref.obj.conv2.W", "ref.obj.conv3.W", "ref.obj.conv4.W"}};
@@ -163,7 +163,7 @@ static void fill_unif(float *p, size_t n, float a, sooc_rng *r) {
     for (size_t i = 0; i < n; i++) p[i] = (2.0f * sooc_rng_uniformf(r) - 1.0f) * a;
 }
 
-static void init_dec(sooc_model *m, const dec_net *n, sooc_rng *r) {
+static void init_dec(sooc_model *m, const sooc_dec_net *n, sooc_rng *r) {
     float *p = m->p;
     fill_unif(p + n->W1x, (size_t)n->din * n->H, sqrtf(6.0f / (n->din + n->dz)), r);
     fill_unif(p + n->W1z, (size_t)n->dz * n->H, sqrtf(6.0f / (n->din + n->dz)), r);
@@ -175,7 +175,7 @@ static void init_dec(sooc_model *m, const dec_net *n, sooc_rng *r) {
     fill_unif(p + n->Wc2, (size_t)n->Hc * 3, sqrtf(3.0f / n->Hc), r);
 }
 
-static void init_ref(sooc_model *m, const ref_net *n, sooc_rng *r) {
+static void init_ref(sooc_model *m, const sooc_ref_net *n, sooc_rng *r) {
     float *p = m->p;
     int prev = n->cin;
     for (int i = 0; i < 4; i++) {

@@ -1,6 +1,6 @@
 /* Geometric proposals for the mapper's new slots (docs/geometric.md
  * "Proposals"; mapper.h sooc_mapper_set_proposals): the keyframe's own
- * support-plane clusters (cluster.h) place the slots that the view pads
+ * support-plane clusters (mapper.h) place the slots that the view pads
  * with priors. A cluster that a retrieved slot already covers (its centre
  * within the cluster's half-diagonal plus cover_m) proposes nothing; each
  * other cluster, largest first, moves the nearest unused prior slot to its
@@ -13,8 +13,8 @@
 #include <math.h>
 #include <string.h>
 
-int sooc_mdl_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, view_rec *V,
-                       const mdl_prop_params *pp, sooc_status *st) {
+int sooc_mdl_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, const sooc_frame *f, sooc_view_rec *V,
+                       const sooc_mdl_prop_params *pp, sooc_status *st) {
     *st = SOOC_OK;
     sooc_cluster_map_clear(cm);
     int n = 0;
@@ -63,7 +63,7 @@ int sooc_mdl_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, c
     return placed;
 }
 
-void sooc_mdl_prop_from_opts(const sooc_step_opts *o, mdl_prop_params *pp, sooc_cluster_params *cp) {
+void sooc_mdl_prop_from_opts(const sooc_step_opts *o, sooc_mdl_prop_params *pp, sooc_cluster_params *cp) {
     sooc_cluster_params_default(cp);
     if (o->prop_join_m > 0) cp->dist_m = o->prop_join_m;
     pp->cover_m = 0.02;

@@ -15,7 +15,7 @@ static inline float clampf(float x, float a, float b) { return x < a ? a : x > b
 
 /* The counterfactual channel (ell - ell_{-k}, aux_task below) of rays [0, n8), n8 a
  * multiple of 8, on 8 lanes: the scalar loop's operations in its order (bitwise equal). */
-static MDL_TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int comp, int C, int n8, float smax, float eps_s,
+static MDL_TGT_AVX2 void aux_cf_avx2(const sooc_dec_ws *w, const sooc_view_rays *vr, int comp, int C, int n8, float smax, float eps_s,
                                  float is2, float lognorm, float *d8) {
     const __m256 tiny = _mm256_set1_ps(1e-8f), zero = _mm256_setzero_ps(), vsmax = _mm256_set1_ps(smax);
     const __m256 veps = _mm256_set1_ps(eps_s), vis2 = _mm256_set1_ps(is2), vln = _mm256_set1_ps(lognorm);
@@ -76,8 +76,8 @@ static MDL_TGT_AVX2 void aux_cf_avx2(const dec_ws *w, const view_rays *vr, int c
 
 /* The image channels of one component (0 = layout, 1..K objects) after the shared ones (a pool task). */
 typedef struct aux_job {
-    const dec_ws *w;
-    const dec_call *c;
+    const sooc_dec_ws *w;
+    const sooc_dec_call *c;
     float *img_o, *img_l;
     const float *post_all;
     int N, K, C;
@@ -86,9 +86,9 @@ typedef struct aux_job {
 
 static void aux_task(void *ctx, int comp, int tid) {
     const aux_job *j = ctx;
-    const dec_call *c = j->c;
-    const dec_ws *w = j->w;
-    const view_rays *vr = c->rays;
+    const sooc_dec_call *c = j->c;
+    const sooc_dec_ws *w = j->w;
+    const sooc_view_rays *vr = c->rays;
     float *img_o = j->img_o, *img_l = j->img_l;
     const float *post_all = j->post_all;
     int N = j->N, K = j->K, C = j->C;
@@ -101,7 +101,7 @@ static void aux_task(void *ctx, int comp, int tid) {
 #define CH(ch) (img + ((size_t)(ch) * B + b) * N)
     /* Each channel is written by its own loop over rays: the channels of one item are
      * N floats (4 KB) apart, so writing all 26 per ray thrashes L1 associativity.
-     * The shared leading channels are stored for slot 0 only (ref_act.nsh). */
+     * The shared leading channels are stored for slot 0 only (sooc_ref_act.nsh). */
     if (!lay && b == 0)
         for (int ch = 0; ch < MDL_AUX_NSH; ch++) memcpy(CH(ch), img_l + (size_t)ch * N, (size_t)N * sizeof(float));
     int o = 8;
@@ -208,13 +208,13 @@ static void aux_task(void *ctx, int comp, int tid) {
 #undef CH
 }
 
-void sooc_mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
+void sooc_mdl_aux_inputs(sooc_model_ws *x, const sooc_dec_call *c, const float *g_lam, const float *g_lay, float *img_o,
                     float *vec_o, float *img_l, float *vec_l) {
     MDL_PT(tprof);
     const sooc_model *m = x->m;
     const sooc_model_config *cfg = &m->cfg;
-    const dec_ws *w = x->dec;
-    const view_rays *vr = c->rays;
+    const sooc_dec_ws *w = x->dec;
+    const sooc_view_rays *vr = c->rays;
     int N = vr->N, K = c->nslot, C = K + 1, NL = m->NL, d = cfg->d_what, dl = cfg->d_layout;
     float smax = cfg->sigma_max, eps_s = cfg->eps_sigma_rel * smax;
     float sigc = c->sigma_c > 0 ? c->sigma_c : cfg->sigma_c, is2 = 1.0f / (sigc * sigc);
@@ -272,7 +272,7 @@ void sooc_mdl_aux_inputs(sooc_model_ws *x, const dec_call *c, const float *g_lam
 
 /* ---------------------------------------------------------------- network */
 
-sooc_status sooc_mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_act *a) {
+sooc_status sooc_mdl_ref_act_alloc(const sooc_ref_net *n, int B, int gw, int gh, sooc_ref_act *a) {
     memset(a, 0, sizeof *a);
     a->B = B;
     size_t HW = (size_t)gw * gh;
@@ -296,7 +296,7 @@ sooc_status sooc_mdl_ref_act_alloc(const ref_net *n, int B, int gw, int gh, ref_
     return SOOC_OK;
 }
 
-void sooc_mdl_ref_act_free(ref_act *a) {
+void sooc_mdl_ref_act_free(sooc_ref_act *a) {
     float **p[] = {&a->x0, &a->y[0], &a->y[1], &a->y[2], &a->y[3], &a->flat, &a->f, &a->xin, &a->gates,
                    &a->c_prev, &a->h_prev, &a->c, &a->h};
     for (size_t i = 0; i < sizeof p / sizeof p[0]; i++) {
@@ -315,12 +315,12 @@ void sooc_mdl_ref_act_free(ref_act *a) {
  * 32 x 32 grid, so the FC weights (and every other weight) do not depend on
  * the ray grid and a model trained on one grid runs on another
  * (sooc_model_copy_rays). */
-void sooc_mdl_ref_flatten(const ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
+void sooc_mdl_ref_flatten(const sooc_ref_net *n, const float *y3, int B, int gw, int gh, float *flat) {
     sooc_nn_pool2_forward(flat, y3, n->ch[3], B, gh >> 4, gw >> 4);
 }
 
 /* Backward of sooc_mdl_ref_flatten: writes (not adds) the gradient w.r.t. y3. */
-static void sooc_mdl_ref_flatten_backward(const ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
+static void sooc_mdl_ref_flatten_backward(const sooc_ref_net *n, const float *gflat, int B, int gw, int gh, float *gy3) {
     memset(gy3, 0, sizeof(float) * (size_t)n->ch[3] * B * (gh >> 4) * (gw >> 4));
     sooc_nn_pool2_backward(gy3, gflat, n->ch[3], B, gh >> 4, gw >> 4);
 }
@@ -328,7 +328,7 @@ static void sooc_mdl_ref_flatten_backward(const ref_net *n, const float *gflat, 
 /* The four conv layers of item b of a (on the calling thread; ct: its column scratch).
  * The first a->nsh input channels are stored once (item 0) and their share of the first
  * convolution is in ysh (ch[0] x HW1): the item's own channels continue its FMA chains. */
-static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const float *ysh, float *ct, int gw, int gh) {
+static void conv_item(const float *p, const sooc_ref_net *n, sooc_ref_act *a, int b, const float *ysh, float *ct, int gw, int gh) {
     const float *x = a->x0;
     int Ci = n->cin, Hi = gh, Wi = gw;
     for (int i = 0; i < 4; i++) {
@@ -341,7 +341,7 @@ static void conv_item(const float *p, const ref_net *n, ref_act *a, int b, const
 }
 
 /* FC + ELU, LSTM cell and linear head of every item of a (serial). */
-static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int gh, float *out, int prof) {
+static void ref_tail(const float *p, const sooc_ref_net *n, sooc_ref_act *a, int gw, int gh, float *out, int prof) {
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
     MDL_PT(tprof);
     sooc_mdl_ref_flatten(n, a->y[3], B, gw, gh, a->flat);
@@ -357,8 +357,8 @@ static void ref_tail(const float *p, const ref_net *n, ref_act *a, int gw, int g
 
 typedef struct ref_job {
     const float *p;
-    const ref_net *nn[2];
-    ref_act *aa[2];
+    const sooc_ref_net *nn[2];
+    sooc_ref_act *aa[2];
     float *oo[2];
     const float *ysh[2];
     float *cols;
@@ -378,12 +378,12 @@ static void ref_tail_task(void *ctx, int q, int tid) {
     ref_tail(j->p, j->nn[q], j->aa[q], j->gw, j->gh, j->oo[q], tid == 0);
 }
 
-void sooc_mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, float *out0, const ref_net *n1, ref_act *a1,
+void sooc_mdl_ref_forward2(sooc_model_ws *x, const sooc_ref_net *n0, sooc_ref_act *a0, float *out0, const sooc_ref_net *n1, sooc_ref_act *a1,
                       float *out1, int gw, int gh) {
     const float *p = x->m->p;
-    const ref_ws *rw = x->ref;
-    const ref_net *nn[2] = {n0, n1};
-    ref_act *aa[2] = {a0, a1};
+    const sooc_ref_ws *rw = x->ref;
+    const sooc_ref_net *nn[2] = {n0, n1};
+    sooc_ref_act *aa[2] = {a0, a1};
     float *oo[2] = {out0, out1};
     int nnet = n1 ? 2 : 1;
     size_t HW = (size_t)gw * gh, HW1 = HW / 4;
@@ -393,8 +393,8 @@ void sooc_mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, flo
     size_t cstride = 0;
     int ntask = 0;
     for (int q = 0; q < nnet; q++) {
-        const ref_net *n = nn[q];
-        ref_act *a = aa[q];
+        const sooc_ref_net *n = nn[q];
+        sooc_ref_act *a = aa[q];
         ntask += a->B;
         if (a->nsh > 0 && a->nsh < n->cin && a->B > 1 && (size_t)n->ch[0] <= (size_t)rw->ysh_ch) {
             float *y = rw->ysh + (size_t)q * rw->ysh_ch * HW1;
@@ -425,7 +425,7 @@ void sooc_mdl_ref_forward2(sooc_model_ws *x, const ref_net *n0, ref_act *a0, flo
     }
 }
 
-void sooc_mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, float *out) {
+void sooc_mdl_ref_forward(sooc_model_ws *x, const sooc_ref_net *n, sooc_ref_act *a, int gw, int gh, float *out) {
     sooc_mdl_ref_forward2(x, n, a, out, NULL, NULL, NULL, gw, gh);
 }
 
@@ -434,9 +434,9 @@ void sooc_mdl_ref_forward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw
  * rws.cols / gcols, input gradients of those items only. */
 typedef struct conv_bjob {
     const float *p;
-    ref_ws *s;
-    const ref_net *n;
-    ref_act *a;
+    sooc_ref_ws *s;
+    const sooc_ref_net *n;
+    sooc_ref_act *a;
     int gw, gh, nblk, bb[3];
     float *gd[2];
     size_t g0;
@@ -444,9 +444,9 @@ typedef struct conv_bjob {
 
 static void conv_bwd_task(void *ctx, int q, int tid) {
     const conv_bjob *j = ctx;
-    const ref_net *n = j->n;
-    ref_act *a = j->a;
-    ref_ws *s = j->s;
+    const sooc_ref_net *n = j->n;
+    sooc_ref_act *a = j->a;
+    sooc_ref_ws *s = j->s;
     const float *p = j->p;
     int B = a->B, b0 = j->bb[q], b1 = j->bb[q + 1];
     size_t per_item = s->ncols / (size_t)B;   /* every layer's columns are a multiple of the items */
@@ -467,11 +467,11 @@ static void conv_bwd_task(void *ctx, int q, int tid) {
     }
 }
 
-void sooc_mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int gw, int gh, const float *gout, float *dh,
+void sooc_mdl_ref_backward(sooc_model_ws *x, const sooc_ref_net *n, sooc_ref_act *a, int gw, int gh, const float *gout, float *dh,
                       float *dc, float *gvec) {
     const float *p = x->m->p;
     float *g = x->m->g;
-    ref_ws *s = x->ref;
+    sooc_ref_ws *s = x->ref;
     int B = a->B, H = n->hid, nin = n->fc + n->nvec;
     size_t HW = (size_t)gw * gh;
     /* head (act NONE: gout is not written) */
@@ -523,11 +523,11 @@ void sooc_mdl_ref_backward(sooc_model_ws *x, const ref_net *n, ref_act *a, int g
 
 /* The refinement's part of a runner's workspace (sooc_model_ws): conv
  * columns, the backward's gradient maps, sized for K items. */
-sooc_status sooc_mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
+sooc_status sooc_mdl_ref_ws_create(const sooc_model *m, sooc_ref_ws **out) {
     *out = NULL;
     const sooc_model_config *c = &m->cfg;
     int K = c->K;
-    ref_ws *r = sooc_calloc(1, sizeof *r);
+    sooc_ref_ws *r = sooc_calloc(1, sizeof *r);
     if (!r) return SOOC_ENOMEM;
     int gw = c->ray_w, gh = c->ray_h;
     int cinmax = m->robj.cin > m->rlay.cin ? m->robj.cin : m->rlay.cin;
@@ -557,7 +557,7 @@ sooc_status sooc_mdl_ref_ws_create(const sooc_model *m, ref_ws **out) {
     return SOOC_OK;
 }
 
-void sooc_mdl_ref_ws_destroy(ref_ws *r) {
+void sooc_mdl_ref_ws_destroy(sooc_ref_ws *r) {
     if (!r) return;
     float **rp[] = {&r->cols, &r->gcols, &r->ysh, &r->gy[0], &r->gy[1], &r->gy[2], &r->gy[3], &r->gflat, &r->gf, &r->gx,
                     &r->gg, &r->gh, &r->gconv};

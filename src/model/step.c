@@ -9,7 +9,7 @@
 #include <math.h>
 #include <string.h>
 
-static void free_view(view_rec *V) {
+static void free_view(sooc_view_rec *V) {
     sooc_mdl_rays_free(&V->vr);
     for (int l = 0; l < V->Lcap; l++) {
         sooc_mdl_ref_act_free(&V->ao[l]);
@@ -22,7 +22,7 @@ static void free_view(view_rec *V) {
     memset(V, 0, sizeof *V);
 }
 
-sooc_status sooc_mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
+sooc_status sooc_mdl_view_alloc(sooc_model *m, sooc_view_rec *V, int L) {
     const sooc_model_config *c = &m->cfg;
     memset(V, 0, sizeof *V);
     int K = c->K, NL = m->NL, D2 = 2 * c->d_layout;
@@ -31,9 +31,9 @@ sooc_status sooc_mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
     V->Lcap = L;
     size_t nf = (size_t)(L + 1) * K * NL * 2 + (size_t)(L + 1) * D2 * 2 + (size_t)K * NL * 3 + (size_t)D2 * 3;
     V->buf = sooc_calloc(nf, sizeof(float));
-    V->ao = sooc_calloc(L > 0 ? L : 1, sizeof(ref_act));
-    V->al = sooc_calloc(L > 0 ? L : 1, sizeof(ref_act));
-    V->noise = sooc_calloc(L + 1, sizeof(dec_noise));
+    V->ao = sooc_calloc(L > 0 ? L : 1, sizeof(sooc_ref_act));
+    V->al = sooc_calloc(L > 0 ? L : 1, sizeof(sooc_ref_act));
+    V->noise = sooc_calloc(L + 1, sizeof(sooc_dec_noise));
     if (!V->buf || !V->ao || !V->al || !V->noise) {
         free_view(V);
         return SOOC_ENOMEM;
@@ -59,11 +59,11 @@ sooc_status sooc_mdl_view_alloc(sooc_model *m, view_rec *V, int L) {
     return SOOC_OK;
 }
 
-void sooc_mdl_view_free(view_rec *V) { free_view(V); }
+void sooc_mdl_view_free(sooc_view_rec *V) { free_view(V); }
 
-step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L) {
+sooc_step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L) {
     sooc_model *m = x->m;
-    step_state *S = x->step;
+    sooc_step_state *S = x->step;
     const sooc_model_config *c = &m->cfg;
     if (!S) {
         S = sooc_calloc(1, sizeof *S);
@@ -96,7 +96,7 @@ step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L) {
     if (L > S->L || T > S->ncap) {
         int nc = T > S->ncap ? T : S->ncap;
         int nl = L > S->L ? L : S->L;
-        view_rec *nv = sooc_calloc(nc, sizeof(view_rec));
+        sooc_view_rec *nv = sooc_calloc(nc, sizeof(sooc_view_rec));
         if (!nv) return NULL;
         for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
         sooc_free(S->views);
@@ -109,7 +109,7 @@ step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L) {
     return S;
 }
 
-void sooc_mdl_step_free(step_state *S) {
+void sooc_mdl_step_free(sooc_step_state *S) {
     if (!S) return;
     for (int i = 0; i < S->ncap; i++) free_view(&S->views[i]);
     sooc_free(S->views);
@@ -174,7 +174,7 @@ static void pick_priors(const sooc_model *m, const float *lam_ret, int n_ret, in
 }
 
 /* Set up a view: frame, rays, retrieved slots + priors, layout. */
-sooc_status sooc_mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
+sooc_status sooc_mdl_view_setup(sooc_model *m, sooc_cogmap *map, sooc_view_rec *V, const sooc_frame *f, int pad,
                            sooc_rng *rng, int *n_inview) {
     const sooc_model_config *c = &m->cfg;
     int K = c->K, NL = m->NL, dl = c->d_layout;
@@ -263,8 +263,8 @@ static float bound_deriv(float delta, float s) {
  * train = 1: decodes l = 0..L with local backward (weight grads w_l = l/L),
  * stores everything for the reverse sweep. train = 0: decodes l = 0..L-1
  * (backward to the inputs only, for the auxiliary inputs), no final decode. */
-sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
-                             sooc_rng *rng, double *loss_w, dec_call *last) {
+sooc_status sooc_mdl_view_forward(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int L, const sooc_step_opts *o, int train,
+                             sooc_rng *rng, double *loss_w, sooc_dec_call *last) {
     sooc_model *m = x->m;
     const sooc_model_config *c = &m->cfg;
     int K = V->nslot, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, H = c->ref_hidden;
@@ -289,7 +289,7 @@ sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, 
         float wl = L > 0 ? (float)l / (float)L : 1.0f;
         sooc_mdl_sample_noise(m, rng, &V->noise[l]);   /* drawn either way: same RNG stream */
         if (o->mean_latents) memset(&V->noise[l], 0, sizeof V->noise[l]);
-        dec_call dc;
+        sooc_dec_call dc;
         memset(&dc, 0, sizeof dc);
         dc.rays = &V->vr;
         dc.nslot = K;
@@ -318,7 +318,7 @@ sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, 
         if (last) *last = dc;
         if (l == L) break;
         /* refinement */
-        ref_act *ao = &V->ao[l], *al = &V->al[l];
+        sooc_ref_act *ao = &V->ao[l], *al = &V->al[l];
         ao->B = K;
         int nvo = m->robj.nvec, fco = m->robj.fc, nvl = m->rlay.nvec, fcl = m->rlay.fc;
         if (!S->aux_replay) {
@@ -360,7 +360,7 @@ sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, 
 /* Reverse sweep of one view: V->G / V->Glay hold the gradient w.r.t. λ^L from
  * later views and queries. On return, V->G / V->Glay hold the gradient w.r.t.
  * the view's starting λ^0 = its prior (including the KL-prior terms). */
-void sooc_mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L) {
+void sooc_mdl_view_backward(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int L) {
     sooc_model *m = x->m;
     const sooc_model_config *c = &m->cfg;
     int K = V->nslot, NL = m->NL, D2 = 2 * c->d_layout, H = c->ref_hidden;
@@ -404,7 +404,7 @@ void sooc_mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L)
     for (int i = 0; i < D2; i++) Gl[i] += V->glay0[i];
 }
 
-static sooc_status ensure_ids(step_state *S, uint64_t id) {
+static sooc_status ensure_ids(sooc_step_state *S, uint64_t id) {
     if (id < S->id_cap) return SOOC_OK;
     size_t nc = (size_t)(id + 64) * 2;
     int *a = sooc_realloc(S->id_view, nc * sizeof(int)), *b;
@@ -417,7 +417,7 @@ static sooc_status ensure_ids(step_state *S, uint64_t id) {
     return SOOC_OK;
 }
 
-static int lay_find(const step_state *S, int32_t bi, int32_t bj) {
+static int lay_find(const sooc_step_state *S, int32_t bi, int32_t bj) {
     for (int i = 0; i < S->n_lay; i++)
         if (S->lay_bi[i] == bi && S->lay_bj[i] == bj) return i;
     return -1;
@@ -425,9 +425,9 @@ static int lay_find(const step_state *S, int32_t bi, int32_t bj) {
 
 /* Proposals for an input view in training: its padded slots on its clusters; a
  * slot so placed starts at a constant (no gradient to the learnt priors). */
-static sooc_status view_propose(sooc_model *m, step_state *S, view_rec *V, const sooc_frame *f,
+static sooc_status view_propose(sooc_model *m, sooc_step_state *S, sooc_view_rec *V, const sooc_frame *f,
                                 const sooc_step_opts *opt) {
-    mdl_prop_params pp;
+    sooc_mdl_prop_params pp;
     sooc_cluster_params cp;
     sooc_mdl_prop_from_opts(opt, &pp, &cp);
     sooc_status st;
@@ -458,7 +458,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     const sooc_model_config *c = &m->cfg;
     int L = opt->L > 0 ? opt->L : c->L, K = c->K, NL = m->NL, dl = c->d_layout, D2 = 2 * dl, d = c->d_what;
     if (L < 1) return sooc_seterr(SOOC_EINVAL, "train step: L must be >= 1");
-    step_state *S = sooc_mdl_step_state(x, T + 1, L);
+    sooc_step_state *S = sooc_mdl_step_state(x, T + 1, L);
     if (!S) return sooc_seterr(SOOC_ENOMEM, "train step: out of memory");
     memcpy(S->gbak, m->g, m->np * sizeof(float));
     sooc_cogmap_clear(S->map, 1);
@@ -468,7 +468,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     int nonfinite = 0;
     /* ---- forward over input views ---- */
     for (int t = 0; t < T; t++) {
-        view_rec *V = &S->views[t];
+        sooc_view_rec *V = &S->views[t];
         if ((st = sooc_mdl_view_setup(m, S->map, V, &views[t], 1, rng, NULL))) goto fail;
         if (opt->proposals && (st = view_propose(m, S, V, &views[t], opt))) goto fail;
         int li = lay_find(S, V->bi, V->bj);
@@ -519,7 +519,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     /* ---- query views ---- */
     if (!nonfinite)
         for (int q = 0; q < Q; q++) {
-            view_rec *V = &S->views[T];   /* scratch record */
+            sooc_view_rec *V = &S->views[T];   /* scratch record */
             if ((st = sooc_mdl_view_setup(m, S->map, V, &queries[q], 0, rng, NULL))) goto fail;
             int li = lay_find(S, V->bi, V->bj);
             V->lay_src = li >= 0 ? S->lay_view[li] : -1;
@@ -543,7 +543,7 @@ sooc_status sooc_model_train_step(sooc_model_ws *x, const sooc_frame *views, int
     double t_rev = sooc_seconds();
     if (!nonfinite)
         for (int t = T - 1; t >= 0; t--) {
-            view_rec *V = &S->views[t];
+            sooc_view_rec *V = &S->views[t];
             sooc_mdl_view_backward(x, S, V, L);
             for (int k = 0; k < K; k++) {
                 const float *g = V->G + (size_t)k * NL;
@@ -571,7 +571,7 @@ fail:
 /* End of a training step (plain and global-frame): record the loss and, if
  * the loss or any accumulated gradient is non-finite, restore the gradient
  * slab to its value at entry (S->gbak) and flag the step as skipped. */
-sooc_status sooc_mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out) {
+sooc_status sooc_mdl_step_finish(sooc_model *m, sooc_step_state *S, double total, int nonfinite, sooc_step_losses *out) {
     out->total = total;
     int bad = nonfinite || !isfinite(total);
     for (size_t i = 0; i < m->np && !bad; i++) bad = !isfinite(m->g[i]);
@@ -585,10 +585,10 @@ sooc_status sooc_mdl_step_finish(sooc_model *m, step_state *S, double total, int
 /* Training forward of one input view (plain and global-frame steps): add its
  * weighted loss to *total and its final-iterate terms to out. A non-finite
  * loss is not an error: it sets *nonfinite and returns SOOC_OK. */
-sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int L, const sooc_step_opts *opt,
                                    sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite) {
     double lw;
-    dec_call last;
+    sooc_dec_call last;
     sooc_status st = sooc_mdl_view_forward(x, S, V, L, opt, 1, rng, &lw, &last);
     if (st == SOOC_ENUMERIC) {
         *nonfinite = 1;
@@ -609,14 +609,14 @@ sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_re
  * route; the loss goes to *total and out. The sampled z_where are kept in
  * S->zq[q] (or replayed from it, S->aux_replay) for the gradient checks. A
  * non-finite loss sets *nonfinite and returns SOOC_OK. */
-sooc_status sooc_mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+sooc_status sooc_mdl_query_decode(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int q, int nslot, const float *lam,
                              const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
                              sooc_step_losses *out, int *nonfinite) {
     sooc_model *m = x->m;
     sooc_mdl_sample_noise(m, rng, &V->noise[0]);
     memset(S->tmp0, 0, (size_t)nslot * m->NL * sizeof(float));
     memset(S->tmpl0, 0, 2 * (size_t)m->cfg.d_layout * sizeof(float));
-    dec_call dc;
+    sooc_dec_call dc;
     memset(&dc, 0, sizeof dc);
     dc.rays = &V->vr;
     dc.nslot = nslot;

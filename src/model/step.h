@@ -8,13 +8,13 @@
 #define SOOC3D_MODEL_STEP_H
 
 #include "model/refine.h"
-#include "sooc3d/cluster.h"
+#include "sooc3d/mapper.h"
 #include "sooc3d/cogmap.h"
 
 #define STEP_MAX_LAY 256
 
-typedef struct view_rec {
-    view_rays vr;
+typedef struct sooc_view_rec {
+    sooc_view_rays vr;
     sooc_floor_frame gf;          /* G_t floor frame                                   */
     int nslot, n_ret;             /* slots in use; of which retrieved (first n_ret)    */
     uint64_t src_id[SOOC_MODEL_K_MAX];
@@ -27,15 +27,15 @@ typedef struct view_rec {
     float *lay, *glay;            /* (L+1) x 2 d_l                                     */
     float *lam0, *glam0, *G;      /* K x NL: start/prior, sum_l w_l dKL^l/dλ^0, sweep grad */
     float *lay0, *glay0, *Glay;
-    ref_act *ao, *al;             /* L refinement activations (objects, layout)       */
-    dec_noise *noise;             /* L + 1                                             */
+    sooc_ref_act *ao, *al;             /* L refinement activations (objects, layout)       */
+    sooc_dec_noise *noise;             /* L + 1                                             */
     float *buf;
     float zwb[17][SOOC_MODEL_K_MAX * 3];   /* sampled z^where per decode (test replay) */
-} view_rec;
+} sooc_view_rec;
 
-struct step_state {
+struct sooc_step_state {
     sooc_cogmap *map;
-    view_rec *views;
+    sooc_view_rec *views;
     int ncap, L;
     float *vec_o, *vec_l, *gvec, *dh, *dc, *delta, *tmp0, *tmpl0, *gbak;
     int *id_view, *id_slot;       /* id -> (view, slot) that last registered it */
@@ -49,26 +49,26 @@ struct step_state {
                                      as a forward, for finite-difference checks); only the λ part
                                      of the refinement vector input is refreshed; the Gaussian
                                      trick is applied as a forward around the stored z^where
-                                     samples (dec_call.zw_sg) */
+                                     samples (sooc_dec_call.zw_sg) */
 };
-typedef struct step_state step_state;
+typedef struct sooc_step_state sooc_step_state;
 
 /* The workspace's step scratch (created on first use, x->step) with room for T view records of L iterations. */
-step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L);
-void sooc_mdl_step_free(step_state *S);   /* NULL-safe */
-sooc_status sooc_mdl_view_alloc(sooc_model *m, view_rec *V, int L);
-void sooc_mdl_view_free(view_rec *V);
+sooc_step_state *sooc_mdl_step_state(sooc_model_ws *x, int T, int L);
+void sooc_mdl_step_free(sooc_step_state *S);   /* NULL-safe */
+sooc_status sooc_mdl_view_alloc(sooc_model *m, sooc_view_rec *V, int L);
+void sooc_mdl_view_free(sooc_view_rec *V);
 void sooc_mdl_camera_of(const sooc_model *m, const sooc_frame *f, sooc_cogmap_camera *cam);
-sooc_status sooc_mdl_view_setup(sooc_model *m, sooc_cogmap *map, view_rec *V, const sooc_frame *f, int pad,
+sooc_status sooc_mdl_view_setup(sooc_model *m, sooc_cogmap *map, sooc_view_rec *V, const sooc_frame *f, int pad,
                            sooc_rng *rng, int *n_inview);
-sooc_status sooc_mdl_view_forward(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *o, int train,
-                             sooc_rng *rng, double *loss_w, dec_call *last);
-void sooc_mdl_view_backward(sooc_model_ws *x, step_state *S, view_rec *V, int L);
-sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, step_state *S, view_rec *V, int L, const sooc_step_opts *opt,
+sooc_status sooc_mdl_view_forward(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int L, const sooc_step_opts *o, int train,
+                             sooc_rng *rng, double *loss_w, sooc_dec_call *last);
+void sooc_mdl_view_backward(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int L);
+sooc_status sooc_mdl_view_forward_train(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int L, const sooc_step_opts *opt,
                                    sooc_rng *rng, double *total, sooc_step_losses *out, int *nonfinite);
-sooc_status sooc_mdl_query_decode(sooc_model_ws *x, step_state *S, view_rec *V, int q, int nslot, const float *lam,
+sooc_status sooc_mdl_query_decode(sooc_model_ws *x, sooc_step_state *S, sooc_view_rec *V, int q, int nslot, const float *lam,
                              const float *lay, const sooc_step_opts *opt, sooc_rng *rng, double *total,
                              sooc_step_losses *out, int *nonfinite);
-sooc_status sooc_mdl_step_finish(sooc_model *m, step_state *S, double total, int nonfinite, sooc_step_losses *out);
+sooc_status sooc_mdl_step_finish(sooc_model *m, sooc_step_state *S, double total, int nonfinite, sooc_step_losses *out);
 
 #endif

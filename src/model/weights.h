@@ -7,7 +7,7 @@
 #define SOOC3D_MODEL_WEIGHTS_H
 
 #include "sooc3d/model.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "nn/nn_kern.h"
 
 #define MDL_NL(d) (6 + 2 * (d))   /* λ size per slot */
@@ -35,15 +35,15 @@ extern double mdl_prof[MDL_PR_N];
 #define MDL_PACC(i, v) ((void)0)
 #endif
 
-typedef struct dec_net {          /* offsets into the slab */
+typedef struct sooc_dec_net {          /* offsets into the slab */
     size_t W1x, W1z, b1, W2, b2, W3, b3, Wd, bd, Wc1, bc1, Wc2, bc2;
     int din, dz, H, Hc, nfreq;
-} dec_net;
+} sooc_dec_net;
 
-typedef struct ref_net {
+typedef struct sooc_ref_net {
     size_t cw[4], cb[4], fcW, fcb, Wx, Wh, lb, hW, hb;
     int cin, ch[4], nflat, fc, hid, nvec, nout;
-} ref_net;
+} sooc_ref_net;
 
 /* The weights: configuration, the parameter slab and its gradient, the
  * tensor table and the networks' offsets. No workspace, no thread pool, no
@@ -55,8 +55,8 @@ struct sooc_model {
     size_t np;
     sooc_model_tensor t[MDL_MAXT];
     int nt;
-    dec_net dobj, dlay;
-    ref_net robj, rlay;
+    sooc_dec_net dobj, dlay;
+    sooc_ref_net robj, rlay;
     size_t prior, prior_lay;      /* K x NL, 2 d_l */
     int threads;                  /* sooc_model_set_threads: the thread count a workspace's pool uses */
 };
@@ -68,15 +68,15 @@ struct sooc_model {
  * the pool here (kern.c), `dec` the decoder's (decoder.h), `ref` the
  * refinement's (refine.h), `step` the training step's (step.h, made on the
  * first step). */
-struct dec_ws;
-struct ref_ws;
-struct step_state;
+struct sooc_dec_ws;
+struct sooc_ref_ws;
+struct sooc_step_state;
 struct sooc_model_ws {
     sooc_model *m;                /* the model it was made for (not owned) */
     sooc_nn_pool *pool;           /* kern.c: made on first use, remade when m->threads changes */
-    struct dec_ws *dec;
-    struct ref_ws *ref;
-    struct step_state *step;
+    struct sooc_dec_ws *dec;
+    struct sooc_ref_ws *ref;
+    struct sooc_step_state *step;
 };
 
 /* model.c */
@@ -107,9 +107,9 @@ static inline int mdl_kern_avx2(void) { return sooc_nn_gemm_avx2(); }
  * caller being tid 0 and up to sooc_mdl_par_threads(w) - 1 helpers the others (tid < sooc_mdl_par_threads(w));
  * tasks are claimed one at a time and the caller waits only for claimed tasks. A task's
  * result must not depend on tid. sooc_mdl_par_threads makes w's pool (w->m->threads) if needed. */
-typedef sooc_nn_task_fn mdl_task_fn;
+typedef sooc_nn_task_fn sooc_mdl_task_fn;
 int sooc_mdl_par_threads(sooc_model_ws *w);
-void sooc_mdl_par_run(sooc_model_ws *w, int n, mdl_task_fn fn, void *ctx);
+void sooc_mdl_par_run(sooc_model_ws *w, int n, sooc_mdl_task_fn fn, void *ctx);
 void sooc_mdl_pool_free(sooc_model_ws *w);
 
 #endif

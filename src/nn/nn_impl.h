@@ -1,7 +1,7 @@
 /* Private helpers shared by the nn sources. */
 #ifndef SOOC3D_NN_IMPL_H
 #define SOOC3D_NN_IMPL_H
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 #include <cblas.h>
 #include <math.h>
 #undef I /* complex.h (pulled in by OpenBLAS) defines I; we use it as a size */

@@ -30,7 +30,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 
 #ifdef __cplusplus
 extern "C" {

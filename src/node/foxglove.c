@@ -1,5 +1,5 @@
-/* Foxglove messages of the map (include/sooc3d/foxglove.h). */
-#include "sooc3d/foxglove.h"
+/* Foxglove messages of the map (include/sooc3d/log.h). */
+#include "sooc3d/log.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -7,7 +7,6 @@
 #include <string.h>
 
 #include "sooc3d/core.h"
-#include "sooc3d/geom.h"
 
 /* JSON schemas of the two Foxglove message types, written from the field
  * tables of Foxglove's schema documentation (only the fields used here are

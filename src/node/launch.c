@@ -2,10 +2,9 @@
  * -> sooc_node_config. Sections are read through key tables (field, type,
  * range). Every error names the file, the line and the key (section.key). */
 #include "sooc3d/node.h"
-#include "sooc3d/cluster.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/model.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 #include "data/yaml_doc.h"
 
 #include <ctype.h>
@@ -57,8 +56,8 @@ void sooc_node_config_default(sooc_node_config *c) {
     c->log_level = SOOC_LOG_INFO;
     snprintf(c->view_bind, sizeof c->view_bind, "127.0.0.1");
     c->record_period_s = 1.0;
-    c->depth_resample = SOOC_NODE_DEPTH_MIN;
-    c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/cv.h) */
+    c->depth_resample = SOOC_FRAMES_DEPTH_MIN;
+    c->odom_variant = 2;                 /* sooc_odom_params_default (include/sooc3d/slam.h) */
     c->odom_width = 320;
     c->odom_height = 240;
     c->odom_kf_translation_m = 0.10;
@@ -204,7 +203,7 @@ typedef struct pspec {
 
 static const pspec g_pspecs[] = {
     {"replay", "path", PT_STR, NULL},
-    {"replay", "format", PT_FORMAT, NULL},          /* names: sooc_seq_format_parse (seq.h) */
+    {"replay", "format", PT_FORMAT, NULL},          /* names: sooc_seq_format_parse (frame.h) */
     {"replay", "speed", PT_SPEED, NULL},
     {"replay", "loop", PT_BOOL, NULL},
     {"replay", "start_s", PT_NUM, NULL},
@@ -465,7 +464,7 @@ typedef struct kspec {
 #define KV_F(sec, key, fn) {sec, key, KV_FN, 0, 0, 0, 0, NULL, fn}
 
 /* KV_CHOICE stores through an int lvalue: the enum fields must be int-sized. */
-_Static_assert(sizeof(sooc_node_pose_kind) == sizeof(int) && sizeof(sooc_node_depth_resample) == sizeof(int),
+_Static_assert(sizeof(sooc_node_pose_kind) == sizeof(int) && sizeof(sooc_frames_depth_resample) == sizeof(int),
                "enum fields read as int");
 
 /* Every key of every section but sensor (g_pspecs) and the top-level calib;
@@ -516,7 +515,7 @@ static const kspec g_keys[] = {
     KV("model", "iterations", KV_INT, iterations, 0, 1000),
     KV("model", "threads", KV_INT, threads, 0, 1024),
     KV("model", "seed", KV_U64, seed, 0, 2147483647L),
-    KV_CH("model", "depth_resample", depth_resample, "min|nearest"),   /* order of sooc_node_depth_resample */
+    KV_CH("model", "depth_resample", depth_resample, "min|nearest"),   /* order of sooc_frames_depth_resample */
     KV("model", "clip_m", KV_NUM, clip_m, 0, 1000),
     KV("model", "merge_m", KV_NUM, merge_m, 0, 100),
     KV_CH("model", "latents", latents, "mean|sample"),   /* order of SOOC_LATENTS_* */
@@ -791,7 +790,7 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
         c->calib_path, c->model_kind == SOOC_MAPPER_GEOMETRIC ? "geometric" : "learnt", c->geo_voxel_m, c->geo_join_m,
         c->geo_min_height_m, c->geo_max_extent_m, c->geo_wall_m, c->geo_free_ratio, c->geo_support_m, c->proposals ? "true" : "false", c->prop_join_m, c->prop_logit,
         c->prop_only ? "true" : "false", c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
-        (unsigned long long)c->seed, c->depth_resample == SOOC_NODE_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
+        (unsigned long long)c->seed, c->depth_resample == SOOC_FRAMES_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
         c->latents == SOOC_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
         c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model", c->gate_min_rays,
         c->gate_ratio, c->gate_part);

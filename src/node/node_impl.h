@@ -6,7 +6,7 @@
 
 #include "sooc3d/node.h"
 #include "node/node_parts.h"
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -15,15 +15,12 @@
 #include <string.h>
 
 #include "sooc3d/driver.h"
-#include "sooc3d/pose.h"
 #include "sooc3d/table.h"
 #include "node/store_guard.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/calib.h"
-#include "sooc3d/cv.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/slam.h"
 
-#include "sooc3d/view.h"
+#include "sooc3d/render.h"
 
 /* After a keyframe: the map, the frame and the counters to the live view (view_hook.c). */
 sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f);
@@ -132,11 +129,11 @@ struct sooc_node {
  * row). Its cost depends on nc + nr, not on the map size. `kf` = NULL for the
  * start-up batch (no keyframe row); to_db = 0 when the entries came from the
  * database itself (resume). */
-typedef struct kf_info {
+typedef struct sooc_kf_info {
     int64_t stamp_ns;
     const double *T_wc;
     int64_t t_cap_mono;
-} kf_info;
+} sooc_kf_info;
 
 sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem);
 /* Caller holds n->mu. */
@@ -144,7 +141,7 @@ void sooc__node_stats_refresh(sooc_node *n);
 
 /* publish.c */
 sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                               int clear_first, int to_db, const kf_info *kf);
+                               int clear_first, int to_db, const sooc_kf_info *kf);
 sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap);
 /* map.db: open (a new database when absent) and resume its map into the
  * mapper (*resumed = 1), or nothing without map.db. */

@@ -91,7 +91,7 @@ static sooc_status open_sensor(sooc_node *n) {
     sp.depth_max = (float)c->max_depth_m;
     if (n->have_calib && n->calib.depth_scale > 0 && !sooc_node_param_get(c, "depth_scale"))
         sp.depth_scale = n->calib.depth_scale;
-    /* the calib's depth decoding keys, like depth_scale (replay; seq.h) */
+    /* the calib's depth decoding keys, like depth_scale (replay; frame.h) */
     if (n->have_calib && n->calib.depth_shift >= 0 && !sooc_node_param_get(c, "depth_shift"))
         sp.depth_shift = n->calib.depth_shift;
     if (n->have_calib && n->calib.depth_invalid >= 0 && !sooc_node_param_get(c, "depth_invalid"))
@@ -285,7 +285,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     sooc_status st = SOOC_OK;
 
     if (c->floor_mode == SOOC_NODE_FLOOR_GIVEN) {
-        sooc_node_world_from_up(c->up, c->floor_height, n->T_world_src);
+        sooc_frames_world_from_up(c->up, c->floor_height, n->T_world_src);
         n->world_ready = 1;
     }
     /* model */
@@ -655,8 +655,8 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
         pthread_mutex_unlock(&n->mu);
         return 0;
     }
-    if ((st = sooc_node_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
-                                   n->cfg.max_depth_m))) {
+    if ((st = sooc_frames_preprocess(f, &n->pre, n->tw, n->th, n->cfg.depth_resample, n->cfg.min_depth_m,
+                                     n->cfg.max_depth_m))) {
         *result = st;
         return 1;
     }

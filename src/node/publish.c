@@ -13,16 +13,16 @@ static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
     r->x = (float)e->x;
     r->z = (float)e->z;
     r->yaw = (float)e->yaw;
-    double cov[4];   /* the one uncertainty of an entry (map_entry.h; NaN yaw: symmetric) */
+    double cov[4];   /* the one uncertainty of an entry (cogmap.h; NaN yaw: symmetric) */
     sooc_map_entry_planner_cov(e, cov);
     r->cov_xzyaw[0] = (float)cov[0];
     r->cov_xzyaw[1] = (float)cov[1];
     r->cov_xzyaw[3] = (float)cov[2];
     r->cov_xzyaw[5] = (float)cov[3];
-    double c[3], yaw;   /* the planner's box (map_entry.h) */
+    double c[3], yaw;   /* the planner's box (cogmap.h) */
     sooc_map_entry_box(e, c, &yaw, r->extent);
     r->y = (float)c[1];
-    const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (objgeom.h; docs/shm.md) */
+    const sooc_map_geometry *g = &e->geom;   /* the mapper's geometry (mapper.h; docs/shm.md) */
     if (g->flags & SOOC_GEOM_SYMMETRIC) r->flags |= SOOC_TABLE_FLAG_SYMMETRIC;
     if (g->flags & SOOC_GEOM_TIGHT) r->flags |= SOOC_TABLE_FLAG_BOX_TIGHT;   /* the box's quality */
     if (g->flags & SOOC_GEOM_CLIPPED) r->flags |= SOOC_TABLE_FLAG_BOX_CLIPPED;
@@ -159,7 +159,7 @@ static void store_sync(sooc_node *n) {
  * keyframe row) and write it: one transaction, or, while the store fails,
  * kept for the next retry (store_guard.h). */
 static sooc_status store_queue(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                               int to_db, const kf_info *kf, size_t n_entries) {
+                               int to_db, const sooc_kf_info *kf, size_t n_entries) {
     sooc_status st = SOOC_OK;
     for (size_t i = 0; i < nc && !st && to_db; i++) st = sooc_sg_put(n->sg, &chg[i]);
     for (size_t i = 0; i < nr && !st; i++) st = sooc_sg_remove(n->sg, rem[i]);
@@ -196,7 +196,7 @@ static sooc_status store_queue(sooc_node *n, const sooc_map_entry *chg, size_t n
 }
 
 sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
-                           int clear_first, int to_db, const kf_info *kf) {
+                           int clear_first, int to_db, const sooc_kf_info *kf) {
     sooc_status st = SOOC_OK;
     double t0 = sooc_seconds();
     size_t n_entries = 0;
@@ -248,7 +248,7 @@ sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const do
     sooc_status st = sooc_mapper_changed(n->mapper, n->changed, SOOC_MAPPER_CHANGED_MAX, &nc, n->removed,
                                            SOOC_MAPPER_CHANGED_MAX, &nr);
     if (st) return sooc_adderr(st, "mapper changed");
-    kf_info kf = {stamp_ns, T_wc, t_cap};
+    sooc_kf_info kf = {stamp_ns, T_wc, t_cap};
     st = sooc__node_publish(n, n->changed, nc, n->removed, nr, 0, 1, &kf);
     pthread_mutex_lock(&n->mu);
     sooc__node_stats_refresh(n);

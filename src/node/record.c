@@ -13,7 +13,7 @@
  * the file's size is bounded. Chunks are not compressed (JSON, small). A
  * failed write is said once per change of state and the node goes on. */
 #include "node_impl.h"
-#include "sooc3d/foxglove.h"
+#include "sooc3d/log.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -35,7 +35,7 @@ sooc_status sooc__node_register_frame(sooc_node *n, sooc_frame *f) {
             if (!n->reg_buf) { n->reg_cap = 0; return SOOC_ENOMEM; }
             n->reg_cap = np;
         }
-        sooc_node_register_depth(f->depth, &Kd, n->T_cd, &Kc, n->reg_buf);
+        sooc_frames_register_depth(f->depth, &Kd, n->T_cd, &Kc, n->reg_buf);
         memcpy(f->depth, n->reg_buf, np * sizeof(float));
         for (size_t i = 0; i < np; i++) f->valid[i] = f->depth[i] > 0.0f;
     }

@@ -22,8 +22,7 @@
 #ifndef SOOC3D_NODE_STORE_GUARD_H
 #define SOOC3D_NODE_STORE_GUARD_H
 
-#include "sooc3d/map_entry.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 typedef struct sooc_sg sooc_sg;
 

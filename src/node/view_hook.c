@@ -1,4 +1,4 @@
-/* The node's live view (launch view: {port, bind}; include/sooc3d/view.h):
+/* The node's live view (launch view: {port, bind}; include/sooc3d/render.h):
  * after each keyframe the map's entries, the keyframe's colour frame and the
  * node's counters go to the view's server, which pushes them to browsers. */
 #include "node_impl.h"

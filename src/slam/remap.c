@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "slam/slam_impl.h"
 
 size_t sooc_slam_move_entries(const sooc_slam_kf_change *chg, size_t n_chg, const double T_world_src[16],

@@ -3,7 +3,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "slam/slam_impl.h"
 
 static const char *const g_states[] = {"first", "tracked", "relocalised", "failed", "lost"};
@@ -55,19 +55,19 @@ static sooc_status grow_i(void **p, int *cap, int need, size_t elem) {
     return st;
 }
 
-static sooc_status add_node(sooc_slam *s, slam_node **out) {
-    sooc_status st = grow_i((void **)&s->nodes, &s->cap_nodes, s->n_nodes + 1, sizeof(slam_node));
+static sooc_status add_node(sooc_slam *s, sooc_slam_node **out) {
+    sooc_status st = grow_i((void **)&s->nodes, &s->cap_nodes, s->n_nodes + 1, sizeof(sooc_slam_node));
     if (st) return st;
-    slam_node *n = &s->nodes[s->n_nodes++];
+    sooc_slam_node *n = &s->nodes[s->n_nodes++];
     memset(n, 0, sizeof *n);
     *out = n;
     return SOOC_OK;
 }
 
 static sooc_status add_edge(sooc_slam *s, int a, int b, int kind, const double T_ab[16], double wt, double wr) {
-    sooc_status st = grow_i((void **)&s->edges, &s->cap_edges, s->n_edges + 1, sizeof(slam_edge));
+    sooc_status st = grow_i((void **)&s->edges, &s->cap_edges, s->n_edges + 1, sizeof(sooc_slam_edge));
     if (st) return st;
-    slam_edge *e = &s->edges[s->n_edges++];
+    sooc_slam_edge *e = &s->edges[s->n_edges++];
     e->a = a;
     e->b = b;
     e->kind = kind;
@@ -89,7 +89,7 @@ typedef struct load_ctx {
 
 static int load_kf(const sooc_slamdb_kf *k, void *user) {
     load_ctx *c = user;
-    slam_node *n;
+    sooc_slam_node *n;
     if ((c->st = add_node(c->s, &n))) return 1;
     n->id = k->id;
     n->run = k->run;
@@ -120,12 +120,12 @@ static int load_edge(const sooc_slamdb_edge *e, void *user) {
                             (long long)e->b);
         return 1;
     }
-    sooc_status st = grow_i((void **)&c->s->edges, &c->s->cap_edges, c->s->n_edges + 1, sizeof(slam_edge));
+    sooc_status st = grow_i((void **)&c->s->edges, &c->s->cap_edges, c->s->n_edges + 1, sizeof(sooc_slam_edge));
     if (st) {
         c->st = st;
         return 1;
     }
-    slam_edge *d = &c->s->edges[c->s->n_edges++];
+    sooc_slam_edge *d = &c->s->edges[c->s->n_edges++];
     d->a = a;
     d->b = b;
     d->kind = e->kind;
@@ -228,7 +228,7 @@ sooc_status sooc_slam_last_changes(const sooc_slam *s, sooc_slam_kf_change *out,
 sooc_status sooc_slam_keyframe(const sooc_slam *s, int64_t i, int64_t *id, int32_t *run, int64_t *frame,
                                double T_wc[16]) {
     if (i < 0 || i >= s->n_nodes) return sooc_seterr(SOOC_EINVAL, "slam: keyframe %lld out of range", (long long)i);
-    const slam_node *n = &s->nodes[i];
+    const sooc_slam_node *n = &s->nodes[i];
     if (id) *id = n->id;
     if (run) *run = n->run;
     if (frame) *frame = n->frame;
@@ -236,7 +236,7 @@ sooc_status sooc_slam_keyframe(const sooc_slam *s, int64_t i, int64_t *id, int32
     return SOOC_OK;
 }
 
-static void frame_pose(const sooc_slam *s, const slam_frame *f, double T[16]) {
+static void frame_pose(const sooc_slam *s, const sooc_slam_frame *f, double T[16]) {
     sooc_se3_mul(T, s->nodes[f->node].T, f->T_rel);
 }
 
@@ -264,7 +264,7 @@ sooc_status sooc_slam_verify_pair(sooc_slam *s, int64_t a, int64_t b, int *accep
 
 /* ------------------------------------------------------------ the graph */
 
-static sooc_status store_node(sooc_slam *s, const slam_node *n) {
+static sooc_status store_node(sooc_slam *s, const sooc_slam_node *n) {
     if (!s->store) return SOOC_OK;
     void *fb = NULL, *db = NULL;
     size_t fn = 0, dn = 0;
@@ -303,7 +303,7 @@ static sooc_status optimise(sooc_slam *s) {
     }
     fixed[0] = 1;
     for (int e = 0; e < ne; e++) {
-        const slam_edge *E = &s->edges[e];
+        const sooc_slam_edge *E = &s->edges[e];
         ij[2 * e] = E->a;
         ij[2 * e + 1] = E->b;
         memcpy(Tij + 16 * (size_t)e, E->T_ab, sizeof E->T_ab);
@@ -359,7 +359,7 @@ done:
 
 /* the best max_candidates nodes for query q among nodes [0, limit), by
  * descriptor matches; cand[] gets their indices, returns their number */
-static int near_enough(const sooc_slam *s, const slam_node *q, const slam_node *b) {
+static int near_enough(const sooc_slam *s, const sooc_slam_node *q, const sooc_slam_node *b) {
     if (s->p.loop_max_dist_m <= 0) return 1;
     double dx = q->T[3] - b->T[3], dy = q->T[7] - b->T[7], dz = q->T[11] - b->T[11];
     if (dx * dx + dy * dy + dz * dz > s->p.loop_max_dist_m * s->p.loop_max_dist_m) return 0;
@@ -370,7 +370,7 @@ static int near_enough(const sooc_slam *s, const slam_node *q, const slam_node *
 
 /* near: only nodes whose pose lies near q's (loop search; relocalisation
  * has no pose and tries every node) */
-static int find_candidates(sooc_slam *s, const slam_node *q, int limit, int near, int *cand) {
+static int find_candidates(sooc_slam *s, const sooc_slam_node *q, int limit, int near, int *cand) {
     int nc = 0, k = s->p.max_candidates;
     int score[16];
     if (k > 16) k = 16;
@@ -439,7 +439,7 @@ static sooc_status close_loops(sooc_slam *s, int c, int *closed) {
 static sooc_status new_node(sooc_slam *s, const sooc_frame *f, const double T_w[16], const double T_odo[16],
                             int *index) {
     double t0 = sooc_seconds();
-    slam_node *n;
+    sooc_slam_node *n;
     sooc_status st = add_node(s, &n);
     if (st) return st;
     n->id = s->next_id++;
@@ -477,9 +477,9 @@ static sooc_status commit_node(sooc_slam *s, int c, int a, int kind, const doubl
 }
 
 static sooc_status push_frame(sooc_slam *s, const sooc_frame *f, int node, const double T_rel[16]) {
-    sooc_status st = grow((void **)&s->frames, &s->cap_frames, s->n_frames + 1, sizeof(slam_frame));
+    sooc_status st = grow((void **)&s->frames, &s->cap_frames, s->n_frames + 1, sizeof(sooc_slam_frame));
     if (st) return st;
-    slam_frame *fr = &s->frames[s->n_frames++];
+    sooc_slam_frame *fr = &s->frames[s->n_frames++];
     fr->index = f->index;
     fr->t_ns = f->t_ns;
     fr->node = node;
@@ -582,7 +582,7 @@ sooc_status sooc_slam_track(sooc_slam *s, const sooc_frame *f, sooc_slam_result 
     }
     int cur = s->cur_node;
     if (o.new_keyframe) {
-        const slam_node *pn = &s->nodes[cur];
+        const sooc_slam_node *pn = &s->nodes[cur];
         double inv[16], rel[16], T_w[16];
         sooc_se3_inverse(inv, pn->T_odo);
         sooc_se3_mul(rel, inv, o.T_wc);

@@ -3,14 +3,14 @@
 #define SOOC3D_SLAM_IMPL_H
 
 #include "sooc3d/slam.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/cogmap.h"
 
 #if SOOC_HAVE_OPENCV
 #include "slam/slamshim.h"
 #endif
 
 /* a graph node: one keyframe */
-typedef struct slam_node {
+typedef struct sooc_slam_node {
     int64_t id, frame, t_ns;
     int32_t run;
     int segment;          /* odometry segment of this run; -1 for stored keyframes */
@@ -22,18 +22,18 @@ typedef struct slam_node {
     float *depth;         /* dw x dh metres (0 = invalid)                          */
     int dw, dh;
     double Kf[4], Kd[4];  /* K of the feature image and of the stored depth        */
-} slam_node;
+} sooc_slam_node;
 
-typedef struct slam_edge {
+typedef struct sooc_slam_edge {
     int a, b, kind;       /* node indices; 0 odometry, 1 loop, 2 relocalisation, 3 re-anchor, 4 local */
     double T_ab[16], w_t, w_r;
-} slam_edge;
+} sooc_slam_edge;
 
-typedef struct slam_frame {
+typedef struct sooc_slam_frame {
     int64_t index, t_ns;
     int node;
     double T_rel[16];     /* pose relative to its node: T_node^-1 T_frame */
-} slam_frame;
+} sooc_slam_frame;
 
 struct sooc_slam {
     sooc_slam_params p;
@@ -48,11 +48,11 @@ struct sooc_slam {
     int reanchor;         /* 1: next frame starts a segment at the last pose    */
     int started;
     double T_init[16], T_last[16];
-    slam_node *nodes;
+    sooc_slam_node *nodes;
     int n_nodes, cap_nodes;
-    slam_edge *edges;
+    sooc_slam_edge *edges;
     int n_edges, cap_edges;
-    slam_frame *frames;
+    sooc_slam_frame *frames;
     int64_t n_frames, cap_frames;
     /* working buffers at the tracker's resolution */
     int w, h;
@@ -71,14 +71,14 @@ struct sooc_slam {
 };
 
 /* slam_kf.c: features, blobs, matching, verification */
-sooc_status sooc__slam_extract(sooc_slam *s, slam_node *n);
-void sooc__slam_node_free(slam_node *n);
-int sooc__slam_match(const slam_node *q, const slam_node *b, int *pairs, int cap);
-sooc_status sooc__slam_verify(sooc_slam *s, const slam_node *q, const slam_node *b, int *ok, double T_b_q[16],
+sooc_status sooc__slam_extract(sooc_slam *s, sooc_slam_node *n);
+void sooc__slam_node_free(sooc_slam_node *n);
+int sooc__slam_match(const sooc_slam_node *q, const sooc_slam_node *b, int *pairs, int cap);
+sooc_status sooc__slam_verify(sooc_slam *s, const sooc_slam_node *q, const sooc_slam_node *b, int *ok, double T_b_q[16],
                               int *inliers);
 /* encode into sooc_malloc'd blobs / decode into the node */
-sooc_status sooc__slam_encode(const slam_node *n, void **feat, size_t *feat_bytes, void **depth, size_t *depth_bytes);
-sooc_status sooc__slam_decode(slam_node *n, const void *feat, size_t feat_bytes, const void *depth,
+sooc_status sooc__slam_encode(const sooc_slam_node *n, void **feat, size_t *feat_bytes, void **depth, size_t *depth_bytes);
+sooc_status sooc__slam_decode(sooc_slam_node *n, const void *feat, size_t feat_bytes, const void *depth,
                               size_t depth_bytes);
 
 #endif

@@ -4,10 +4,10 @@
 #include <math.h>
 #include <string.h>
 
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "slam/slam_impl.h"
 
-void sooc__slam_node_free(slam_node *n) {
+void sooc__slam_node_free(sooc_slam_node *n) {
     sooc_free(n->uv);
     sooc_free(n->xyz);
     sooc_free(n->desc);
@@ -17,7 +17,7 @@ void sooc__slam_node_free(slam_node *n) {
     n->nf = 0;
 }
 
-static sooc_status node_alloc(slam_node *n, int nf, int dw, int dh) {
+static sooc_status node_alloc(sooc_slam_node *n, int nf, int dw, int dh) {
     sooc__slam_node_free(n);
     n->uv = sooc_malloc(sizeof(float) * 2 * (size_t)(nf > 0 ? nf : 1));
     n->xyz = sooc_malloc(sizeof(float) * 3 * (size_t)(nf > 0 ? nf : 1));
@@ -33,7 +33,7 @@ static sooc_status node_alloc(slam_node *n, int nf, int dw, int dh) {
     return SOOC_OK;
 }
 
-sooc_status sooc__slam_extract(sooc_slam *s, slam_node *n) {
+sooc_status sooc__slam_extract(sooc_slam *s, sooc_slam_node *n) {
 #if !SOOC_HAVE_OPENCV
     (void)s;
     (void)n;
@@ -143,15 +143,15 @@ sooc_status sooc__slam_extract(sooc_slam *s, slam_node *n) {
     }                                                                                         \
     return m;
 
-static int match_generic(const slam_node *q, const slam_node *b, int *pairs, int cap) { SLAM_MATCH_BODY }
+static int match_generic(const sooc_slam_node *q, const sooc_slam_node *b, int *pairs, int cap) { SLAM_MATCH_BODY }
 
 #if SLAM_HAVE_TARGET
-SLAM_POPCNT_TARGET static int match_popcnt(const slam_node *q, const slam_node *b, int *pairs, int cap) {
+SLAM_POPCNT_TARGET static int match_popcnt(const sooc_slam_node *q, const sooc_slam_node *b, int *pairs, int cap) {
     SLAM_MATCH_BODY
 }
 #endif
 
-int sooc__slam_match(const slam_node *q, const slam_node *b, int *pairs, int cap) {
+int sooc__slam_match(const sooc_slam_node *q, const sooc_slam_node *b, int *pairs, int cap) {
 #if SLAM_HAVE_TARGET
     static int have = -1;
     if (have < 0) have = __builtin_cpu_supports("popcnt") ? 1 : 0;
@@ -166,7 +166,7 @@ static double rot_deg(const double T[16]) {
     return acos(c) * 180.0 / M_PI;
 }
 
-sooc_status sooc__slam_verify(sooc_slam *s, const slam_node *q, const slam_node *b, int *ok, double T_b_q[16],
+sooc_status sooc__slam_verify(sooc_slam *s, const sooc_slam_node *q, const sooc_slam_node *b, int *ok, double T_b_q[16],
                               int *inliers) {
     *ok = 0;
     *inliers = 0;
@@ -253,7 +253,7 @@ static double get_f64(const unsigned char *p) {
 
 #define FEAT_REC 52   /* 5 float32 + 32 bytes */
 
-sooc_status sooc__slam_encode(const slam_node *n, void **feat, size_t *feat_bytes, void **depth, size_t *depth_bytes) {
+sooc_status sooc__slam_encode(const sooc_slam_node *n, void **feat, size_t *feat_bytes, void **depth, size_t *depth_bytes) {
     *feat = *depth = NULL;
     size_t fb = 12 + 32 + (size_t)n->nf * FEAT_REC + 4;
     size_t db = 16 + 32 + (size_t)n->dw * n->dh * 2 + 4;
@@ -295,7 +295,7 @@ sooc_status sooc__slam_encode(const slam_node *n, void **feat, size_t *feat_byte
     return SOOC_OK;
 }
 
-sooc_status sooc__slam_decode(slam_node *n, const void *feat, size_t fb, const void *depth, size_t db) {
+sooc_status sooc__slam_decode(sooc_slam_node *n, const void *feat, size_t fb, const void *depth, size_t db) {
     const unsigned char *f = feat, *d = depth;
     if (!f || fb < 48 || memcmp(f, "SLF1", 4) || get_u32(f + 4) != SOOC_SLAM_BLOB_VERSION)
         return sooc_seterr(SOOC_EFORMAT, "slam keyframe %lld: feature record missing or of another version",

@@ -1,11 +1,10 @@
 /* In-memory scene datasets for training and validation. Frames are read
- * through the one frame path (include/sooc3d/framepath.h): any resolution,
+ * through the one frame path (include/sooc3d/frame.h): any resolution,
  * cropped/resized to the model's, poses in the map's world frame. */
 #include "sooc3d/train.h"
-#include "sooc3d/framepath.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/scene.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/gen.h"
 
 #include <dirent.h>
 #include <math.h>

@@ -1,7 +1,7 @@
 /* Data-parallel training over MPI: the few collectives the trainer needs
- * (include/sooc3d/dist.h). Everything MPI is in this file; without
+ * (include/sooc3d/model.h). Everything MPI is in this file; without
  * SOOC_HAVE_MPI the same functions describe a world of one rank. */
-#include "sooc3d/dist.h"
+#include "sooc3d/model.h"
 
 #include <limits.h>
 #include <stdio.h>

@@ -1,10 +1,9 @@
 /* The training loop: curriculum, Adam with clipping, temperature and KL
  * schedules, checkpoints with exact resume, validation and logs. */
 #include "sooc3d/train.h"
-#include "sooc3d/dist.h"
+#include "sooc3d/model.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/global.h"
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -42,7 +41,7 @@ typedef struct trainer {
     size_t n;
     trainer_blob st;
     uint8_t *idbits;          /* 65536-bit scratch for counting ids    */
-    int rank, size;           /* data parallelism (include/sooc3d/dist.h) */
+    int rank, size;           /* data parallelism (include/sooc3d/model.h) */
     double t_val, t_ckpt;     /* seconds in validation / checkpoints since the last log row */
     char path_last[4096], path_best[4096], path_log[4096], path_val[4096], path_png[4096];
 } trainer;

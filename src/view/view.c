@@ -1,8 +1,8 @@
-/* The live view's server (include/sooc3d/view.h): libwebsockets in its own
+/* The live view's server (include/sooc3d/render.h): libwebsockets in its own
  * thread serving the page, the JSON state, the latest frame as JPEG, and a
  * WebSocket that gets one message per publication. */
-#include "sooc3d/view.h"
-#include "sooc3d/image.h"
+#include "sooc3d/render.h"
+#include "sooc3d/core.h"
 
 #include <arpa/inet.h>
 #include <errno.h>

@@ -1,4 +1,4 @@
-/* The one frame path (include/sooc3d/framepath.h) on a generated scene:
+/* The one frame path (include/sooc3d/frame.h) on a generated scene:
  *  - frames of another size and aspect are cropped/resized to the target:
  *    depth stays valid (the old [0, 0] range emptied every resized frame),
  *    intrinsics follow the crop, ids follow by nearest sampling, poses are
@@ -10,11 +10,10 @@
  *  - the same preprocessing as the node's mapping thread (launch defaults);
  *  - bad options fail with a message naming the problem. */
 #include "check.h"
-#include "sooc3d/framepath.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/node.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/cogmap.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -58,7 +57,7 @@ static void test_resize(const char *scene) {
         double vr = valid_frac(&raw), vf = valid_frac(&f);
         CHECK_MSG(vr > 0.5 && vf > 0.9 * vr, "frame %lld: valid fraction %.3f resized, %.3f raw", (long long)i, vf, vr);
         /* the render bug: a [0, 0] depth range must not empty the frame */
-        CHECK_OK(sooc_node_preprocess(&raw, &old, 32, 32, SOOC_NODE_DEPTH_NEAREST, 0.0, 0.0));
+        CHECK_OK(sooc_frames_preprocess(&raw, &old, 32, 32, SOOC_FRAMES_DEPTH_NEAREST, 0.0, 0.0));
         CHECK_MSG(valid_frac(&old) > 0.9 * vr, "frame %lld: [0,0] range leaves %.3f valid", (long long)i,
                   valid_frac(&old));
         double s = 32.0 / 60.0;
@@ -225,7 +224,7 @@ static void test_recorded(const char *scene, const char *rec) {
 /* The node's mapping thread and the commands preprocess alike: the frame
  * path's defaults are a launch file's (pipeline.min/max_depth_m,
  * model.depth_resample), and a frame read through the frame path equals
- * sooc_node_preprocess of the reader's frame with those settings. */
+ * sooc_frames_preprocess of the reader's frame with those settings. */
 static void test_same_as_node(const char *scene) {
     sooc_node_config c;
     sooc_node_config_default(&c);
@@ -244,7 +243,7 @@ static void test_same_as_node(const char *scene) {
     if (fp && sq) {
         CHECK_OK(sooc_framepath_read(fp, 1, &a));
         CHECK_OK(sooc_seq_read(sq, 1, &raw));
-        CHECK_OK(sooc_node_preprocess(&raw, &b, 40, 30, c.depth_resample, c.min_depth_m, c.max_depth_m));
+        CHECK_OK(sooc_frames_preprocess(&raw, &b, 40, 30, c.depth_resample, c.min_depth_m, c.max_depth_m));
         CHECK(a.width == b.width && a.height == b.height && a.width == 40);
         if (a.width == b.width && a.height == b.height) {
             size_t np = (size_t)a.width * a.height;

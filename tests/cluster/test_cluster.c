@@ -1,4 +1,4 @@
-/* Support-plane clustering (cluster.h): boxes on a plane, ray-cast from known
+/* Support-plane clustering (mapper.h): boxes on a plane, ray-cast from known
  * cameras. Two boxes with a gap wider than the join distance are two objects
  * with their boxes; closer than it, one. A slab wider than max_extent_m is
  * the surround; so is a wall (a vertical plane running on for wall_m), and
@@ -7,8 +7,8 @@
  * the clusters and leave covered ones alone. Bad input is refused. */
 #include "check.h"
 #include "model/propose.h"
-#include "sooc3d/cluster.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/mapper.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 #include <string.h>
@@ -182,7 +182,7 @@ int main(void) {
         memset(&c, 0, sizeof c);
         c.K = 4, c.d_what = 2, c.unit_m = 0.5;
         int NL = SOOC_LAM_SIZE(c.d_what);
-        view_rec V;
+        sooc_view_rec V;
         memset(&V, 0, sizeof V);
         float lam[4 * SOOC_LAM_SIZE(2)];
         memset(lam, 0, sizeof lam);
@@ -193,7 +193,7 @@ int main(void) {
         sooc_cluster_map *pm = NULL;
         CHECK(sooc_cluster_map_create(&pm, &p) == SOOC_OK);
         cast(&f, g_cams[0], (double[3]){0, 0.04, 0}, b, 2);
-        mdl_prop_params pp = {0.02, 0.5, 1.5, NAN};
+        sooc_mdl_prop_params pp = {0.02, 0.5, 1.5, NAN};
         sooc_status st;
         int placed = sooc_mdl_propose(pm, &c, NL, &f, &V, &pp, &st);
         CHECK_MSG(st == SOOC_OK && placed == 2, "placed %d (want 2)", placed);

@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "sooc3d/cogmap.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 
 static inline void cogmap_test_cam(sooc_cogmap_camera *c, double x, double h, double z, double psi,
                                    double down) {

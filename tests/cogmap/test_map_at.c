@@ -11,9 +11,9 @@
  *    naming both ids; a missing database, a bad pose: exit 2 naming it. */
 #include "../cli_util.h"
 #include "sooc3d/eval.h"
-#include "sooc3d/map_entry.h"
-#include "sooc3d/scene.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/gen.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/table.h"
 
 #include <math.h>

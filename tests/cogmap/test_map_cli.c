@@ -3,8 +3,6 @@
  * and the error path for a bad file. */
 #include "check.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/map_entry.h"
-#include "sooc3d/mapstore.h"
 
 #include <string.h>
 #include <sys/wait.h>

@@ -4,7 +4,6 @@
  * name the file. */
 #include "check.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/mapstore.h"
 
 #include <sqlite3.h>
 #include <string.h>

@@ -11,7 +11,7 @@
  * 3. A non-empty -wal (a writer that has not checkpointed) gives an error
  *    naming the database and the cause, not a wrong map. */
 #include "check.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 #include <grp.h>
 #include <sqlite3.h>

@@ -2,7 +2,7 @@
  * round trip across a reopen, absent frame reported as not found, invalid
  * frames refused, malformed stored text gives an error naming the file. */
 #include "check.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 #include <math.h>
 #include <stdlib.h>

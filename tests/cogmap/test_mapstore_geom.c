@@ -1,4 +1,4 @@
-/* Object geometry in the map database (schema 3, mapstore.h "object
+/* Object geometry in the map database (schema 3, cogmap.h "object
  * geometry"): round trip (NaN yaw variance kept as "undefined"), the delete
  * trigger, refused non-finite values; migrations applied in order: a
  * version-2 map (finetuned decoders, no geometry) and a version-1 map
@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 static char g_dir[64];
 

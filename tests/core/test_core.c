@@ -2,7 +2,6 @@
  * moments, CRC, atomic saves, rotations, SE(3), the G frame and floor poses. */
 #include "check.h"
 #include "sooc3d/core.h"
-#include "sooc3d/geom.h"
 #include "sooc3d/frame.h"
 
 #include <string.h>

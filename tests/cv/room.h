@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "sooc3d/frame.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 
 #define W 320
 #define H 240

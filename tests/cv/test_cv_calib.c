@@ -13,10 +13,9 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/calib.h"
-#include "sooc3d/cv.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/image.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/slam.h"
+#include "sooc3d/core.h"
 
 static char g_dir[64], g_bin[1024], g_log[256];
 

@@ -11,7 +11,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "sooc3d/cv.h"
+#include "sooc3d/slam.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
 #include "room.h"

@@ -14,9 +14,9 @@
 #include <string.h>
 
 #include "check.h"
-#include "sooc3d/cv.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/slam.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 #include "room.h"
 

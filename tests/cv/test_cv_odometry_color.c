@@ -16,8 +16,8 @@
 #include <string.h>
 
 #include "check.h"
-#include "sooc3d/cv.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/slam.h"
+#include "sooc3d/core.h"
 
 #include "room.h"
 

@@ -7,8 +7,8 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/cv.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/slam.h"
+#include "sooc3d/core.h"
 
 /* a smooth walk: position on a Lissajous curve, yaw and pitch turning */
 static void truth_pose(int i, double T[16]) {

@@ -3,7 +3,7 @@
  * double at %.17g (exact round trip). Used by test_calib_readers.py, which
  * compares it with PyYAML and OpenCV FileStorage.
  *   calib_dump <file.yaml>...   exit 1 (message on stderr) if a file fails */
-#include "sooc3d/calib.h"
+#include "sooc3d/frame.h"
 
 #include <stdio.h>
 

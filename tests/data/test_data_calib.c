@@ -1,7 +1,7 @@
 /* Calibration YAML: ROS and OpenCV styles, extensions, round trip, and
  * errors naming file, line and key. */
 #include "util.h"
-#include "sooc3d/calib.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 

@@ -3,7 +3,7 @@
  * generate -> read back round trip through the sequence reader. */
 #include "util.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <sys/stat.h>

@@ -1,7 +1,7 @@
 /* Images: PNG/PGM round trips (16-bit byte order), JPEG (libjpeg-turbo),
  * reading by content, drawing, colour maps, sheets. */
 #include "util.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <jpeglib.h>
 

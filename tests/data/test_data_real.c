@@ -1,8 +1,8 @@
 /* Reading the real recordings in ../shared/real (SOOC_SHARED_REAL); skipped
  * (exit 77) when the folder is absent. */
 #include "util.h"
-#include "sooc3d/image.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 #include <limits.h>
 #include <math.h>

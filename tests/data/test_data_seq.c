@@ -1,8 +1,8 @@
 /* Sequence readers: a crafted good sequence per format, then one crafted bad
  * file per reader check; every message must name the file and the line. */
 #include "util.h"
-#include "sooc3d/image.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <sys/stat.h>

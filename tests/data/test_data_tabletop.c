@@ -6,7 +6,7 @@
 #include "util.h"
 #include "sooc3d/gen.h"
 #include "gen/sensor_noise.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 

@@ -6,8 +6,8 @@
  * were read from the files outside sooc3d (a MAT v5 parser in Python over
  * zlib + struct; numpy + OpenCV for the PNGs and the masks). */
 #include "util.h"
-#include "sooc3d/image.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <stdlib.h>

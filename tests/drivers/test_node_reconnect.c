@@ -34,9 +34,9 @@
 #include "check.h"
 #include "drv_testutil.h"
 #include "sooc3d/driver.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/node.h"
 
 #define LOSE_AFTER 8       /* keyframes before the device goes away */

@@ -9,8 +9,8 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/pose.h"
+#include "sooc3d/core.h"
+#include "sooc3d/frame.h"
 
 #define T0 1700000000000000000LL   /* ns, CLOCK_REALTIME-like */
 #define DT 10000000LL              /* 100 Hz */

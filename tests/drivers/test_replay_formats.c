@@ -12,9 +12,9 @@
 
 #include "check.h"
 #include "sooc3d/driver.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/node.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 #include <matio.h>
 

@@ -12,7 +12,7 @@
 
 #include "check.h"
 #include "sooc3d/driver.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 /* MJPEG frames by sequence number, made by the test (hand-made JPEGs in memory) */
 static void *g_jpg[32];
 static size_t g_jpgn[32];

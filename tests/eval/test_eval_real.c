@@ -1,11 +1,11 @@
-/* Metrics for real sequences (eval_real.h) on hand-made frames: the query
+/* Metrics for real sequences (eval.h) on hand-made frames: the query
  * rule, the free-space / surface / never-seen test, yaw and position spread,
  * churn, per-object IoU, label images (8- and 16-bit, nearest resample), and
  * the runner on a tiny model (query frames never mapped, counts consistent,
  * the JSON contract keys). */
 #include "../data/util.h"
-#include "sooc3d/eval_real.h"
-#include "sooc3d/image.h"
+#include "sooc3d/eval.h"
+#include "sooc3d/core.h"
 #include "sooc3d/render.h"
 
 #include <math.h>

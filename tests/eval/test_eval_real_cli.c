@@ -11,10 +11,9 @@
  *    labels give one object, id 255. */
 #include "../data/util.h"
 #include "../cli_util.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/model.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <sys/wait.h>

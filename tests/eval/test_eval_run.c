@@ -12,9 +12,7 @@
 #include "sooc3d/cogmap.h"
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/scene.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <stdio.h>

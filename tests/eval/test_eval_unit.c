@@ -23,7 +23,7 @@
 #include "sooc3d/eval.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/train.h"
 
 #include <math.h>

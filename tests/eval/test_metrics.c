@@ -1,6 +1,6 @@
 /* Metrics on hand-computed cases (docs/metrics.md). */
 #include "check.h"
-#include "sooc3d/metrics.h"
+#include "sooc3d/eval.h"
 
 #include <string.h>
 

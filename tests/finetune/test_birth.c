@@ -1,4 +1,4 @@
-/* Births before finetuning (include/sooc3d/finetune.h "births") on the toy
+/* Births before finetuning (include/sooc3d/train.h "births") on the toy
  * scene of test_finetune_em: two spheres on a checkered floor, four views.
  * The tiny model's density biases are set so that what the map draws is
  * known: the layout draws nothing, and an object either nothing (bias -20) or
@@ -15,7 +15,7 @@
 #include "check.h"
 #include "finetune/finetune_impl.h"
 #include "toy_scene.h"
-#include "sooc3d/finetune.h"
+#include "sooc3d/train.h"
 
 #include <math.h>
 #include <string.h>

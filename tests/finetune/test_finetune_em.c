@@ -1,4 +1,4 @@
-/* EM finetuning (include/sooc3d/finetune.h, docs/finetune.md) on a toy scene: two
+/* EM finetuning (include/sooc3d/train.h, docs/finetune.md) on a toy scene: two
  * spheres on a checkered floor, four views, the tiny model of the model tests.
  *  1. Finite differences of Σ ℓ with respect to a unit's copied weights and
  *     z^what (object and layout units) against the M-step gradient.
@@ -10,7 +10,7 @@
 #include "check.h"
 #include "finetune/finetune_impl.h"
 #include "toy_scene.h"
-#include "sooc3d/finetune.h"
+#include "sooc3d/train.h"
 #include "sooc3d/render.h"
 
 #include <math.h>
@@ -52,7 +52,7 @@ static double render_err(sooc_model *m, const sooc_cogmap *map, const sooc_frame
  * whose difference quotients at h and h/2 disagree crossed a ReLU kink and is
  * not compared (at most 15% may). */
 static void fd_check(sooc_finetune *ft, int k, const char *what) {
-    ft_comp *c = &ft->comp[k];
+    sooc_ft_comp *c = &ft->comp[k];
     /* 30 rays whose surface lies in the unit's box (so its colour and density at
      * the surface matter), then 10 others */
     uint32_t rays[40];
@@ -61,7 +61,7 @@ static void fd_check(sooc_finetune *ft, int k, const char *what) {
     for (size_t j = 0; j < c->nrays && n < 30; j++) {
         uint32_t r = c->rays[(j * 7919) % c->nrays];
         if (!ft->surf[r]) continue;
-        const ft_view *v = &ft->views[ft->rview[r]];
+        const sooc_ft_view *v = &ft->views[ft->rview[r]];
         float x[3], xk[3];
         for (int a = 0; a < 3; a++) x[a] = (ft->depth[r] + 0.01f) * ft->dir[(size_t)r * 3 + a];
         int in = c->kind == SOOC_FT_LAYOUT;
@@ -169,14 +169,14 @@ int main(void) {
      * must be inside for at least some rays, and a ray of another view never
      * lists a component that is not in that view */
     for (int u = 0; u < nu; u++) {
-        const ft_comp *c = &ft->comp[ft->units[u]];
+        const sooc_ft_comp *c = &ft->comp[ft->units[u]];
         if (c->kind != SOOC_FT_OBJECT) continue;
         CHECK(c->nrays < ft->nr);   /* restricted: not every ray */
     }
 
     /* 1. gradient check: first object unit and the first layout unit */
     for (int u = 0; u < nu; u++) {
-        const ft_comp *c = &ft->comp[ft->units[u]];
+        const sooc_ft_comp *c = &ft->comp[ft->units[u]];
         if (u == 0 || (c->kind == SOOC_FT_LAYOUT && (u == 0 || ft->comp[ft->units[u - 1]].kind == SOOC_FT_OBJECT)))
             fd_check(ft, ft->units[u], c->kind == SOOC_FT_OBJECT ? "object" : "layout");
     }

@@ -13,7 +13,6 @@
 #include "model/dec_own.h"
 #include "model/synth.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/mapstore.h"
 #include "sooc3d/render.h"
 
 #include <sqlite3.h>
@@ -206,7 +205,7 @@ static void test_field(void) {
     for (int i = 0; i < 16 * 16 * 3; i++) md = fmax(md, fabs(a[i] - b[i]));
     CHECK_MSG(md < 1e-4, "max |diff| %g", md);
     /* a finetuned copy (denser object): the image changes */
-    dec_net rel;
+    sooc_dec_net rel;
     sooc_mdl_dec_rel(&m->dobj, &rel);
     pl[MDL_FT_HDR + c.d_what + rel.bd] += 4.0f;   /* denser */
     for (int a3 = 0; a3 < 3; a3++) pl[MDL_FT_HDR + c.d_what + rel.bc2 + a3] += a3 == 1 ? 6.0f : -6.0f;   /* green */

@@ -13,12 +13,9 @@
 #include "sooc3d/cogmap.h"
 #include "sooc3d/core.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/image.h"
 #include "sooc3d/log.h"
-#include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
-#include "sooc3d/pose.h"
-#include "sooc3d/scene.h"
+#include "sooc3d/frame.h"
 
 static const char *out_dir;
 

@@ -12,16 +12,13 @@
 
 #include <sqlite3.h>
 
-#include "sooc3d/calib.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/cogmap.h"
 #include "sooc3d/core.h"
-#include "sooc3d/image.h"
 #include "sooc3d/log.h"
-#include "sooc3d/mapstore.h"
 #include "sooc3d/model.h"
 #include "sooc3d/node.h"
-#include "sooc3d/pose.h"
-#include "sooc3d/scene.h"
+#include "sooc3d/gen.h"
 #include "sooc3d/train.h"
 
 /* ------------------------------------------------------------- helpers */

@@ -18,9 +18,7 @@
 #include "fuzz_targets.h"
 #include "sooc3d/core.h"
 #include "sooc3d/frame.h"
-#include "sooc3d/image.h"
 #include "sooc3d/node.h"
-#include "sooc3d/seq.h"
 
 static void put(const char *path, const uint8_t *d, size_t n) {
     FILE *f = fopen(path, "wb");

@@ -6,8 +6,6 @@
  * cube, label and metadata, and the frame transforms map -> world -> source. */
 #include "logs_util.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/map_entry.h"
-#include "sooc3d/mapstore.h"
 
 #include <math.h>
 

@@ -4,7 +4,7 @@
  * (16UC1 PNG, 32FC1 quantised), topic selection and its errors, damaged
  * copies of a written file (chunk CRC, data-section CRC). */
 #include "logs_util.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 

@@ -14,7 +14,7 @@
  * tests/logs/npm, scripts/install-deps.sh), the real recordings or the sooc3d
  * binary are missing. */
 #include "logs_util.h"
-#include "sooc3d/framepath.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <sys/wait.h>

@@ -14,8 +14,8 @@
  * python3-rosbag; skips (77) with the reason when one is missing. */
 #include "logs_util.h"
 #include "sooc3d/driver.h"
-#include "sooc3d/framepath.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/frame.h"
+#include "sooc3d/core.h"
 #include "sooc3d/node.h"
 
 #include <math.h>

@@ -8,7 +8,7 @@
  * python3-rosbag; the browser part without chromium. */
 #include "logs_util.h"
 #include "../view/http_util.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <signal.h>
 #include <sys/wait.h>

@@ -5,8 +5,7 @@
  * known transform, TF interpolation, topic selection and its errors; damaged
  * copies of a written file. */
 #include "logs_util.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 
 #include <math.h>
 

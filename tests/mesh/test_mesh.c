@@ -1,4 +1,4 @@
-/* Marching cubes on analytic fields (include/sooc3d/mesh.h): a sphere and a
+/* Marching cubes on analytic fields (include/sooc3d/render.h): a sphere and a
  * box give the analytic volume and area within 1%, every mesh is watertight
  * and consistently wound (each edge once in each direction, signed volume
  * positive), a noise field full of ambiguous cells is still closed, the
@@ -6,8 +6,8 @@
  * PLY round trip reads back what was written (here and by a small Python
  * reader, skipped without python3). */
 #include "check.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/core.h"
+#include "sooc3d/render.h"
 
 #include <math.h>
 #include <stdint.h>

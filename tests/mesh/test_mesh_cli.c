@@ -10,8 +10,7 @@
 #include "check.h"
 #include "cli_util.h"
 #include "sooc3d/cogmap.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mesh.h"
+#include "sooc3d/render.h"
 #include "sooc3d/model.h"
 
 #include <math.h>

@@ -7,7 +7,7 @@
 
 /* One decoder's chain: layer 1 on the positional code and the slot latent, two
  * hidden layers, the colour layer and the heads; the backward the same way. */
-static inline double dec_chain_n(const dec_net *d) {
+static inline double dec_chain_n(const sooc_dec_net *d) {
     return 2.0 * ((double)d->din + d->dz + 3.0 * d->H + d->Hc + 3.0);
 }
 

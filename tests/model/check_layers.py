@@ -62,7 +62,7 @@ MODULE_LAYER = {m: i for i, (_, mods) in enumerate(MODULE_LAYERS) for m in mods}
 INTERFACE = {
     "model": {"weights.h", "decoder.h", "refine.h", "step.h", "propose.h", "dec_own.h"},
     "data": {"yaml_doc.h"},
-    "nn": {"nn_kern.h", "nn_refine.h"},
+    "nn": {"nn.h", "nn_kern.h", "nn_refine.h"},
     "cv": {"cvmat.hpp"},
 }
 

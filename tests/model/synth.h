@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "sooc3d/frame.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "sooc3d/model.h"
 
 /* The tiny model of the gradient and step tests: K slots, d_what 4, d_layout

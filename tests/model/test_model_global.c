@@ -17,7 +17,7 @@
 
 #include "check.h"
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "sooc3d/eval.h"
 #include "steptest.h"
 #include "synth.h"
@@ -82,7 +82,7 @@ static void test_grad(void) {
     CHECK(total_of(m, 77, NULL) == L0);
     CHECK(memcmp(g, m->g, m->np * sizeof(float)) == 0);
     /* persistence in the training step: λ^0 of view t = λ^L of view t-1 */
-    step_state *S = W->step;
+    sooc_step_state *S = W->step;
     int NL = m->NL, n = 3, L = c.L;
     for (int t = 1; t < 3; t++) {
         CHECK(S->views[t].nslot == n);

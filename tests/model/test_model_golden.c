@@ -44,7 +44,7 @@
 
 #include "check.h"
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "nn/nn_kern.h"
 #include "model/synth.h"
 #include "model/chain.h"
@@ -149,7 +149,7 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     double nred = K + 1 + 2 + dec_chain_n(&m->dobj) + dec_chain_n(&m->dlay);
     const double TOL = 2.0 * check_gamma_n(nred);
     printf("  decode bound: 2 gamma_n with n = %.0f: %.3g of the group's scale\n", nred, TOL);
-    view_rays vr;
+    sooc_view_rays vr;
     CHECK_OK(sooc_mdl_rays_alloc(&vr, c->ray_w, c->ray_h));
     sooc_rng r;
     sooc_rng_seed(&r, 77, 0);
@@ -168,11 +168,11 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     }
     memcpy(lay, m->p + m->prior_lay, sizeof(float) * 2 * dl);
     for (int i = 0; i < dl; i++) lay[i] += 0.03f * (float)((i % 3) - 1);
-    dec_noise nz;
+    sooc_dec_noise nz;
     sooc_mdl_sample_noise(m, &r, &nz);
     memset(g_lam, 0, sizeof g_lam);
     memset(g_lay, 0, sizeof g_lay);
-    dec_call dc;
+    sooc_dec_call dc;
     memset(&dc, 0, sizeof dc);
     dc.rays = &vr;
     dc.nslot = K;
@@ -197,9 +197,9 @@ static void check_decode(sooc_model_ws *w, const char *tag, const sooc_frame *f)
     for (int i = 0; i < K * NL && i < 4 * NL; i++) grp_add(g_lam[i]);   /* the first 4 slots */
     for (int i = 0; i < 2 * dl; i++) grp_add(g_lay[i]);
     grp_end(1, TOL, 1);
-    const dec_net *nets[2] = {&m->dobj, &m->dlay};
+    const sooc_dec_net *nets[2] = {&m->dobj, &m->dlay};
     for (int q = 0; q < 2; q++) {
-        const dec_net *n = nets[q];
+        const sooc_dec_net *n = nets[q];
         size_t offs[] = {n->W1x, n->W1z, n->b1, n->W2, n->b2, n->W3, n->b3, n->Wd, n->bd, n->Wc1, n->bc1, n->Wc2, n->bc2};
         size_t cnt[] = {(size_t)n->din * n->H, (size_t)n->dz * n->H, (size_t)n->H, (size_t)n->H * n->H, (size_t)n->H,
                         (size_t)n->H * n->H, (size_t)n->H, (size_t)n->H, 1, (size_t)n->H * n->Hc, (size_t)n->Hc,

@@ -113,8 +113,8 @@ typedef struct dec_fixture {
     sooc_model *m;
     sooc_model_ws *w;
     sooc_frame f;
-    view_rays vr;
-    dec_noise nz;
+    sooc_view_rays vr;
+    sooc_dec_noise nz;
     float lam[2 * 70], lam0[2 * 70], lay[64], lay0[64], zw_sg[6];
     uint8_t hard[2];
 } dec_fixture;
@@ -156,7 +156,7 @@ static void fixture_free(dec_fixture *F) {
 
 static double run_dec(dec_fixture *F, int backward, float *g_lam, float *g_lam0, float *g_lay, float *g_lay0,
                       float wgrad, int use_sg) {
-    dec_call c;
+    sooc_dec_call c;
     memset(&c, 0, sizeof c);
     c.rays = &F->vr;
     c.nslot = 2;
@@ -238,7 +238,7 @@ static void test_decode(int use_box) {
 }
 
 /* ---- refinement network: d(sum a*out)/d(weights, vector inputs) over two LSTM steps ---- */
-static double ref_run(sooc_model_ws *x, const ref_net *n, ref_act a[2], const float *coef, int backward, float *gvec) {
+static double ref_run(sooc_model_ws *x, const sooc_ref_net *n, sooc_ref_act a[2], const float *coef, int backward, float *gvec) {
     const sooc_model *m = x->m;
     int gw = m->cfg.ray_w, gh = m->cfg.ray_h, B = a[0].B, H = n->hid;
     float out[2][16 * 80];
@@ -277,9 +277,9 @@ static void test_refine(int pooled) {
     for (size_t i = 0; i < m->np; i++)
         if (m->p[i] == 0.0f) m->p[i] = 0.1f * (float)sooc_rng_normal(&r);
     for (int which = 0; which < 2; which++) {
-        const ref_net *n = which ? &m->rlay : &m->robj;
+        const sooc_ref_net *n = which ? &m->rlay : &m->robj;
         int B = which ? 1 : 2, nin = n->fc + n->nvec;
-        ref_act a[2];
+        sooc_ref_act a[2];
         CHECK_OK(sooc_mdl_ref_act_alloc(n, B, c.ray_w, c.ray_h, &a[0]));
         CHECK_OK(sooc_mdl_ref_act_alloc(n, B, c.ray_w, c.ray_h, &a[1]));
         for (int s = 0; s < 2; s++) {

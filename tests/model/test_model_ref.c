@@ -85,13 +85,13 @@ static int run_ref(int unknown) {
     sooc_model_ws *w;
     CHECK_OK(sooc_model_ws_create(&w, m));
     int NL = m->NL, P = 2 * N, C = K + 1;
-    view_rays vr;
+    sooc_view_rays vr;
     CHECK_OK(sooc_mdl_rays_alloc(&vr, 16, 16));
     vr.h = Fl[11];
     vr.blk[0] = Fl[13], vr.blk[1] = Fl[14], vr.blk[2] = Fl[15];
     float *surf = malloc(N * sizeof(float));
     float *lam = malloc(K * NL * 4), *lam0 = malloc(K * NL * 4), *lay = malloc(2 * dl * 4), *lay0 = malloc(2 * dl * 4);
-    dec_noise nz;
+    sooc_dec_noise nz;
     memset(&nz, 0, sizeof nz);
     CHECK(!rd(vr.rgb, N * 12) && !rd(vr.depth, N * 4) && !rd(surf, N * 4) && !rd(vr.W, N * 4) && !rd(vr.pts, P * 12));
     int nunk = 0;
@@ -117,7 +117,7 @@ static int run_ref(int unknown) {
     if (g_check_fail) return 1;
 
     float g_lam[16 * 70] = {0}, g_lam0[16 * 70] = {0}, g_lay[64] = {0}, g_lay0[64] = {0};
-    dec_call dc;
+    sooc_dec_call dc;
     memset(&dc, 0, sizeof dc);
     dc.rays = &vr, dc.nslot = K, dc.lam = lam, dc.lam0 = lam0, dc.lay = lay, dc.lay0 = lay0, dc.noise = &nz;
     dc.tau = tau, dc.beta_kl = beta, dc.wgrad = 1.0f, dc.backward = 1;

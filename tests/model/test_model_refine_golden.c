@@ -143,7 +143,7 @@ static void put_digest(gold *g, const char *what, const float *x0, size_t n, dou
  * fc, the LSTM's input and recurrent products, the head) and the backward's
  * input gradients (head, LSTM gates, fc, the convs' column gradients over the
  * output channels plus the up to 9 overlapping taps of col2im). */
-static double chain_n(const ref_net *n) {
+static double chain_n(const sooc_ref_net *n) {
     double s = 9.0 * n->cin + n->nflat + (n->fc + n->nvec) + n->hid + n->hid;   /* forward */
     for (int l = 0; l < 3; l++) s += 9.0 * n->ch[l];
     s += n->nout + 4.0 * n->hid + n->fc;                                          /* backward */
@@ -192,9 +192,9 @@ static void nets(gold *g, sooc_model_ws *w) {
     sooc_model *m = w->m;
     const sooc_model_config *c = sooc_model_get_config(m);
     int K = c->K, gw = c->ray_w, gh = c->ray_h, HW = gw * gh, H = c->ref_hidden;
-    const ref_net *no = &m->robj, *nl = &m->rlay;
+    const sooc_ref_net *no = &m->robj, *nl = &m->rlay;
     double n_o = chain_n(no), n_l = chain_n(nl);
-    ref_act ao, al;
+    sooc_ref_act ao, al;
     CHECK_OK(sooc_mdl_ref_act_alloc(no, K, gw, gh, &ao));
     CHECK_OK(sooc_mdl_ref_act_alloc(nl, 1, gw, gh, &al));
     sooc_rng r;
@@ -287,10 +287,10 @@ static void keyframes(gold *g, sooc_model_ws *w, float *out, size_t cap, size_t 
     cp.block_size = (double)c->block_size * c->unit_m;
     sooc_cogmap *map = NULL;
     CHECK_OK(sooc_cogmap_create(&map, &cp));
-    view_rec V;
+    sooc_view_rec V;
     memset(&V, 0, sizeof V);
     CHECK_OK(sooc_mdl_view_alloc(m, &V, L));
-    step_state *S = sooc_mdl_step_state(w, 1, L);
+    sooc_step_state *S = sooc_mdl_step_state(w, 1, L);
     CHECK(S != NULL);
     if (!map || !S) return;
     synth_sphere sp[4] = {{{0.3, 0.4, 3.0}, 0.4, {0.9f, 0.2f, 0.1f}}, {{-0.8, 0.3, 2.2}, 0.3, {0.1f, 0.3f, 0.9f}},

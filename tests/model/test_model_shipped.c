@@ -25,7 +25,7 @@ static float pe[NPT * 256], a1[NPT * 256], a2[NPT * 256], a3[NPT * 256], ac[NPT 
 
 /* Mean colour on the column for z_what = z; returns the squared error to tgt (+ a small |z|^2 term). */
 static float column_colour(const sooc_model *m, const float *z, const float tgt[3], float col[3]) {
-    const dec_net *n = &m->dobj;
+    const sooc_dec_net *n = &m->dobj;
     int H = n->H, din = n->din;
     float bias[256];
     for (int j = 0; j < H; j++) {

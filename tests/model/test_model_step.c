@@ -5,7 +5,7 @@
  * moves points across its boundary) and the Gaussian-trick width s = 100 m
  * (the trick term is checked on its own in test_model_grad; with the box off
  * it makes the loss extremely stiff). Stop-gradient inputs are replayed from
- * the base run (step_state.aux_replay). Tolerance |a - n| <= 0.1 + 0.08 max:
+ * the base run (sooc_step_state.aux_replay). Tolerance |a - n| <= 0.1 + 0.08 max:
  * the loss is piecewise smooth (ReLU kinks over thousands of rows, registration
  * thresholds), measured worst ~5% relative. Also: determinism for a seed, and the
  * cross-view route actually carries gradient (retrieved slots exist). */
@@ -80,7 +80,7 @@ int main(void) {
     CHECK(total_of(m, 77, NULL) == L0);
     CHECK(memcmp(g, m->g, m->np * sizeof(float)) == 0);
     /* the second view retrieved entries registered by the first */
-    step_state *S = W->step;
+    sooc_step_state *S = W->step;
     printf("view 1 retrieved %d slots\n", S->views[1].n_ret);
     CHECK(S->views[1].n_ret >= 1);
     /* FD: replay the stored auxiliary inputs, i.e. the stop-gradients of

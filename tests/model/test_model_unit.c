@@ -20,7 +20,7 @@
 
 #include "check.h"
 #include "model/step.h"
-#include "sooc3d/global.h"
+#include "sooc3d/train.h"
 #include "steptest.h"
 #include "oldver.h"
 #include "synth.h"
@@ -210,7 +210,7 @@ static void test_fd(void) {
     CHECK(isfinite(L0));
     float *g = sooc_malloc(m->np * sizeof(float));
     memcpy(g, m->g, m->np * sizeof(float));
-    step_state *S = w->step;
+    sooc_step_state *S = w->step;
     S->aux_replay = 1;
     CHECK(total_of(w, FU, 0, NULL) == L0);
     steptest_fd_result fd;

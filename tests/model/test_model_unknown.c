@@ -79,8 +79,8 @@ typedef struct fix {
     sooc_model *m;
     sooc_model_ws *w;
     sooc_frame f;
-    view_rays vr;
-    dec_noise nz;
+    sooc_view_rays vr;
+    sooc_dec_noise nz;
     float lam[2 * 70], lam0[2 * 70], lay[64], lay0[64], zw_sg[6];
     int have_sg;
     uint8_t hard[2];
@@ -131,7 +131,7 @@ static void fix_free(fix *F) {
 }
 
 static double run(fix *F, int backward, float *g_lam, float *g_lam0, float *g_lay, float *g_lay0) {
-    dec_call c;
+    sooc_dec_call c;
     memset(&c, 0, sizeof c);
     c.rays = &F->vr;
     c.nslot = 2;
@@ -153,7 +153,7 @@ static double run(fix *F, int backward, float *g_lam, float *g_lam0, float *g_la
     return c.loss;
 }
 
-static void count_rays(const view_rays *vr, int *ns, int *nu, int *nf) {
+static void count_rays(const sooc_view_rays *vr, int *ns, int *nu, int *nf) {
     *ns = *nu = *nf = 0;
     for (int r = 0; r < vr->N; r++) {
         if (vr->surf[r]) (*ns)++;
@@ -165,7 +165,7 @@ static void count_rays(const view_rays *vr, int *ns, int *nu, int *nf) {
 
 /* Moves both samples of every hole ray (unknown = 1: the rays with unk set;
  * 0: the air-only rays of hole pixels under FREE) onto the first sphere. */
-static int move_hole_samples(view_rays *vr, int unknown) {
+static int move_hole_samples(sooc_view_rays *vr, int unknown) {
     int n = 0;
     for (int i = 0; i < vr->gh; i++)
         for (int j = 0; j < vr->gw; j++) {
@@ -362,7 +362,7 @@ static void test_step(void) {
     /* FD of d(total)/d(params) with unknown rays present (aux inputs replayed) */
     sooc_model_zero_grad(m);
     CHECK(total_of(m, NULL) == L0);
-    step_state *S = SW->step;
+    sooc_step_state *S = SW->step;
     S->aux_replay = 1;
     CHECK(total_of(m, NULL) == L0);
     steptest_fd_result fd;

@@ -1,4 +1,4 @@
-/* Object geometry for planners (include/sooc3d/objgeom.h) on crafted fields
+/* Object geometry for planners (include/sooc3d/mapper.h) on crafted fields
  * with known boxes: tight boxes of a sphere, a rotated-frame box, a cone, a
  * cylinder cut by the locality box and an empty field; the symmetry flag;
  * registration statistics and spreads; the cache (observe, budgeted
@@ -7,8 +7,8 @@
 #include <string.h>
 
 #include "check.h"
-#include "sooc3d/mesh.h"
-#include "sooc3d/objgeom.h"
+#include "sooc3d/render.h"
+#include "sooc3d/mapper.h"
 
 /* Analytic fields in the field frame: component 1 is a solid with density
  * 1 inside (sigma_hat 1) and 0 outside. The box frame maps into the field

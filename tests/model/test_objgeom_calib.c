@@ -21,7 +21,7 @@
 #include "eval/eval_geom.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/model.h"
-#include "sooc3d/objgeom.h"
+#include "sooc3d/mapper.h"
 
 #define MODEL "models/sooc3d_unity/model.bin"
 

@@ -14,7 +14,7 @@
  * smooth ops none.
  */
 #include "check.h"
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 #include "nn/nn_impl.h" /* sooc_nn_sgemm (internal) */
 #include <math.h>
 #include <stdio.h>

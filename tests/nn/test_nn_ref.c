@@ -12,7 +12,7 @@
  * err/tol is printed (about 0.1 at these tolerances).
  */
 #include "check.h"
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -3,7 +3,7 @@
  * and the mid-forward (segment) gradient mechanism of the tape.
  */
 #include "check.h"
-#include "sooc3d/nn.h"
+#include "nn/nn.h"
 #include <math.h>
 #include <stdio.h>
 #include <string.h>

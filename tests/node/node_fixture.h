@@ -10,7 +10,7 @@
 #include <string.h>
 
 #include "sooc3d/frame.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/node.h"
 
 #define FX_W 64

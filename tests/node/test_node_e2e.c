@@ -16,7 +16,7 @@
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
 #include "sooc3d/table.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/driver.h"
 
 static char g_tmp[256], g_shm[64];

@@ -32,7 +32,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/table.h"
 
 #define MODEL "models/sooc3d_real/model.bin"

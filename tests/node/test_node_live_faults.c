@@ -28,7 +28,7 @@
 #include "check.h"
 #include "node_fixture.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/node.h"
 #include "sooc3d/table.h"
 

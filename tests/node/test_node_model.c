@@ -30,7 +30,7 @@
 #include "check.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/model.h"
 #include "sooc3d/node.h"
 #include "sooc3d/table.h"
@@ -458,7 +458,7 @@ static void run_inprocess(void) {
         CHECK_CLOSE(rec.presence, e[i].presence, 1e-6, 0);
         CHECK(rec.obs_count == e[i].obs_count);
         CHECK(rec.extent[1] == e[i].extent[1] && e[i].extent[1] > 0);
-        /* object geometry (objgeom.h, docs/shm.md): the record carries the mapper's latest */
+        /* object geometry (mapper.h, docs/shm.md): the record carries the mapper's latest */
         if (e[i].geom.flags & SOOC_GEOM_TIGHT) CHECK(rec.y == e[i].geom.centre[1]);
         CHECK(e[i].geom.cov_xz[0] > 0 && rec.cov_xzyaw[0] == (float)e[i].geom.cov_xz[0]);
         CHECK(!(rec.flags & SOOC_TABLE_FLAG_SYMMETRIC) == !(e[i].geom.flags & SOOC_GEOM_SYMMETRIC));

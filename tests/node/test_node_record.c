@@ -27,7 +27,7 @@
 #include "sooc3d/log.h"
 #include "sooc3d/mapper.h"
 #include "sooc3d/node.h"
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 static char g_tmp[256];
 
@@ -189,7 +189,7 @@ int main(void) {
               "last for %zu objects", r.ok, r.scenes, r.frames, r.last_entities, objects);
     /* world -> source is where the launch file's world put the pose source's frame: floor 0.25 below it */
     double up[3] = {0, 1, 0}, Tws[16];
-    sooc_node_world_from_up(up, 0.25, Tws);
+    sooc_frames_world_from_up(up, 0.25, Tws);
     CHECK_MSG(r.has_source && fabs(r.source_t[0] - Tws[3]) < 1e-6 && fabs(r.source_t[1] - Tws[7]) < 1e-6 &&
                   fabs(r.source_t[2] - Tws[11]) < 1e-6 && fabs(Tws[7]) > 0.2,
               "world -> source: %s (%.4f, %.4f, %.4f), want (%.4f, %.4f, %.4f)", r.has_source ? "found" : "missing",

@@ -10,7 +10,7 @@
  *     grows the map by at most 5%. */
 #include "check.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/node.h"
 
 #include <math.h>

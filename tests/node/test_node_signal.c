@@ -15,7 +15,7 @@
 #include "check.h"
 #include "node_fixture.h"
 #include "sooc3d/table.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 
 static char g_tmp[256], g_shm[64];
 

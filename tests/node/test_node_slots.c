@@ -31,10 +31,10 @@
 #include "check.h"
 #include "sooc3d/gen.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/mapstore.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/model.h"
 #include "sooc3d/node.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/table.h"
 
 #define SHIPPED "models/sooc3d_unity/model.bin"

@@ -327,31 +327,31 @@ static void test_resize(void) {
         for (int x = 0; x < w; x++) d[y * w + x] = x < 5 ? 1.0f : 3.0f;
     d[0] = 0.0f;
     float o[8];
-    sooc_node_resize_depth(d, w, h, 0, 0, w, h, o, 4, 2, SOOC_NODE_DEPTH_MIN, 0.1, 10);
+    sooc_frames_resize_depth(d, w, h, 0, 0, w, h, o, 4, 2, SOOC_FRAMES_DEPTH_MIN, 0.1, 10);
     for (int i = 0; i < 8; i++) CHECK_MSG(o[i] == 1.0f || o[i] == 3.0f, "o[%d]=%g averaged", i, o[i]);
     CHECK(o[0] == 1.0f);     /* invalid pixel ignored, not averaged in */
     CHECK(o[2] == 1.0f);     /* footprint x 4..5 straddles the edge: min wins */
     CHECK(o[3] == 3.0f);
-    sooc_node_resize_depth(d, w, h, 0, 0, w, h, o, 4, 2, SOOC_NODE_DEPTH_NEAREST, 0.1, 10);
+    sooc_frames_resize_depth(d, w, h, 0, 0, w, h, o, 4, 2, SOOC_FRAMES_DEPTH_NEAREST, 0.1, 10);
     for (int i = 0; i < 8; i++) CHECK(o[i] == 1.0f || o[i] == 3.0f || o[i] == 0.0f);
     /* all-invalid footprint stays invalid */
     float z[16] = {0};
-    sooc_node_resize_depth(z, 4, 4, 0, 0, 4, 4, o, 2, 2, SOOC_NODE_DEPTH_MIN, 0.1, 10);
+    sooc_frames_resize_depth(z, 4, 4, 0, 0, 4, 4, o, 2, 2, SOOC_FRAMES_DEPTH_MIN, 0.1, 10);
     CHECK(o[0] == 0.0f && o[3] == 0.0f);
     /* RGB area average of a 2x2 checker -> grey */
     uint8_t rgb[4 * 4 * 3], out[3];
     for (int i = 0; i < 16; i++) memset(rgb + 3 * i, ((i % 4) + (i / 4)) % 2 ? 255 : 0, 3);
-    sooc_node_resize_rgb_area(rgb, 4, 4, 0, 0, 4, 4, out, 1, 1);
+    sooc_frames_resize_rgb_area(rgb, 4, 4, 0, 0, 4, 4, out, 1, 1);
     CHECK(out[0] >= 127 && out[0] <= 128);
     /* 3 -> 2 fractional: exact weights */
     uint8_t r3[9] = {0, 0, 0, 90, 90, 90, 180, 180, 180}, r2[6];
-    sooc_node_resize_rgb_area(r3, 3, 1, 0, 0, 3, 1, r2, 2, 1);
+    sooc_frames_resize_rgb_area(r3, 3, 1, 0, 0, 3, 1, r2, 2, 1);
     CHECK(r2[0] == 30 && r2[3] == 150);   /* (0*1 + 90*0.5)/1.5, (90*0.5 + 180)/1.5 */
 
     int x0, y0, cw, ch;
-    sooc_node_crop_for_aspect(640, 480, 64, 64, &x0, &y0, &cw, &ch);
+    sooc_frames_crop_for_aspect(640, 480, 64, 64, &x0, &y0, &cw, &ch);
     CHECK(x0 == 80 && y0 == 0 && cw == 480 && ch == 480);
-    sooc_node_crop_for_aspect(640, 480, 32, 24, &x0, &y0, &cw, &ch);
+    sooc_frames_crop_for_aspect(640, 480, 32, 24, &x0, &y0, &cw, &ch);
     CHECK(x0 == 0 && y0 == 0 && cw == 640 && ch == 480);
 
     /* full preprocess: intrinsics follow the crop + resize */
@@ -360,7 +360,7 @@ static void test_resize(void) {
     CHECK_OK(sooc_frame_alloc(&f, 640, 480, 0));
     for (int i = 0; i < 640 * 480; i++) f.depth[i] = 2.0f;
     f.K = (sooc_intrinsics){640, 480, 525, 525, 320, 240, SOOC_DIST_NONE, {0}};
-    CHECK_OK(sooc_node_preprocess(&f, &g, 64, 64, SOOC_NODE_DEPTH_MIN, 0.1, 10));
+    CHECK_OK(sooc_frames_preprocess(&f, &g, 64, 64, SOOC_FRAMES_DEPTH_MIN, 0.1, 10));
     CHECK(g.width == 64 && g.height == 64 && g.valid[100] == 1 && g.depth[100] == 2.0f);
     CHECK_CLOSE(g.K.fx, 525.0 * 64 / 480, 1e-9, 0);
     CHECK_CLOSE(g.K.cx, 32.0, 1e-9, 0);
@@ -374,14 +374,14 @@ static void test_resize(void) {
     for (int i = 0; i < 16 * 12; i++) dd[i] = 1.0f + 0.01f * (float)(i % 7);
     double I[16];
     sooc_se3_identity(I);
-    sooc_node_register_depth(dd, &K, I, &K, rr);
+    sooc_frames_register_depth(dd, &K, I, &K, rr);
     int same = 1;
     for (int i = 0; i < 16 * 12; i++) same &= fabsf(rr[i] - dd[i]) < 1e-6f;
     CHECK(same);
     /* a 5 cm baseline shifts the image by f * b / z = 20 * 0.05 / 1 = 1 pixel */
     for (int i = 0; i < 16 * 12; i++) dd[i] = 1.0f;
     I[3] = 0.05;
-    sooc_node_register_depth(dd, &K, I, &K, rr);
+    sooc_frames_register_depth(dd, &K, I, &K, rr);
     CHECK(rr[0] == 0.0f && rr[1] == 1.0f);
 }
 
@@ -390,7 +390,7 @@ static void test_resize(void) {
 static void test_world(void) {
     double T[16], p[3], q[3];
     double up[3] = {0, 0, 1};
-    sooc_node_world_from_up(up, 0.3, T);
+    sooc_frames_world_from_up(up, 0.3, T);
     p[0] = 1; p[1] = 2; p[2] = 0.3;   /* on the floor */
     sooc_se3_apply(q, T, p);
     CHECK_CLOSE(q[1], 0.0, 1e-12, 0);
@@ -401,7 +401,7 @@ static void test_world(void) {
     sooc_se3_to_rt(R, t, T);
     CHECK(sooc_m3_is_rotation(R, 1e-12, NULL));
     double dn[3] = {0, -1, 0};
-    sooc_node_world_from_up(dn, -1.0, T);   /* OpenCV-like: y down, floor at y = +1 */
+    sooc_frames_world_from_up(dn, -1.0, T);   /* OpenCV-like: y down, floor at y = +1 */
     p[0] = 0; p[1] = 1; p[2] = 0;
     sooc_se3_apply(q, T, p);
     CHECK_CLOSE(q[1], 0.0, 1e-12, 0);
@@ -409,7 +409,7 @@ static void test_world(void) {
     sooc_se3_apply(q, T, p);
     CHECK_CLOSE(q[1], 1.0, 1e-12, 0);
     double odd[3] = {0.3, 0.9, -0.2};
-    sooc_node_world_from_up(odd, 0.0, T);
+    sooc_frames_world_from_up(odd, 0.0, T);
     sooc_v3_normalize(odd);
     sooc_se3_rotate(q, T, odd);
     CHECK_CLOSE(q[1], 1.0, 1e-12, 0);
@@ -506,7 +506,7 @@ static int test_floor_real(void) {
     sooc_se3_identity(I);
     size_t cap = 40000;
     double *pts = malloc(3 * cap * sizeof *pts);
-    size_t n = sooc_node_depth_points(&f, I, 4, pts, cap);
+    size_t n = sooc_frames_depth_points(&f, I, 4, pts, cap);
     CHECK(n > 5000);
     sooc_floor_fit_params fp;
     sooc_floor_fit_params_default(&fp);

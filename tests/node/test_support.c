@@ -1,14 +1,13 @@
-/* Support plane (include/sooc3d/support.h): ray-cast depth frames of a floor,
+/* Support plane (include/sooc3d/frame.h): ray-cast depth frames of a floor,
  * a table with no floor in view, a table over a floor, and a shelf bin, in a
  * pose frame whose up axis is +z (like label-fusion); up from the hint, a
  * gravity vector and the cameras; a wrong hint fails with a message that
  * says what to check. `test_support real` runs on label-fusion and 7-Scenes
  * frames from ../shared/real (skipped when absent). */
 #include "check.h"
-#include "sooc3d/image.h"
+#include "sooc3d/core.h"
 #include "sooc3d/node.h"
-#include "sooc3d/seq.h"
-#include "sooc3d/support.h"
+#include "sooc3d/frame.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -13,8 +13,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/slam.h"
 
 #include "loop_room.h"

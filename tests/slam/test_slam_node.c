@@ -16,8 +16,7 @@
 
 #include "check.h"
 #include "sooc3d/mapper.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/node.h"
 #include "sooc3d/slam.h"
 

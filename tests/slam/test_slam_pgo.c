@@ -15,7 +15,6 @@
 #include "check.h"
 #include "slam/slamshim.h"
 #include "sooc3d/core.h"
-#include "sooc3d/geom.h"
 
 static uint64_t g_rng = 0x1234567;
 static double urand(void) {

@@ -15,8 +15,8 @@
 
 #include "check.h"
 #include "sooc3d/core.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/slam.h"
 
 static sooc_seq *g_seq;

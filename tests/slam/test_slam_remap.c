@@ -13,7 +13,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "sooc3d/geom.h"
+#include "sooc3d/core.h"
 #include "sooc3d/slam.h"
 
 #include "loop_room.h"

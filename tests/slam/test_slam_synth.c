@@ -19,9 +19,8 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/mapstore_slam.h"
+#include "sooc3d/core.h"
+#include "sooc3d/cogmap.h"
 #include "sooc3d/slam.h"
 
 #include "loop_room.h"

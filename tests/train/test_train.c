@@ -109,7 +109,7 @@ static void test_resume(void) {
     CHECK_OK(sooc_dataset_open(&ds, dirs, 1, 64, 64));
     if (!ds) return;
     CHECK(sooc_dataset_n_scenes(ds) == 3);
-    /* another size goes through the frame path (include/sooc3d/framepath.h):
+    /* another size goes through the frame path (include/sooc3d/frame.h):
      * cropped/resized, depth kept valid */
     sooc_dataset *small = NULL;
     CHECK_OK(sooc_dataset_open(&small, dirs, 1, 32, 32));

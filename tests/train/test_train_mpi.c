@@ -17,9 +17,8 @@
  * MPI runs (Open MPI's runtime keeps allocations until exit). */
 #include "check.h"
 #include "cli_util.h"
-#include "sooc3d/dist.h"
-#include "sooc3d/gen.h"
 #include "sooc3d/model.h"
+#include "sooc3d/gen.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -16,12 +16,11 @@
  */
 #include "check.h"
 #include "cli_util.h"
-#include "sooc3d/eval_real.h"
-#include "sooc3d/framepath.h"
+#include "sooc3d/eval.h"
+#include "sooc3d/frame.h"
 #include "sooc3d/gen.h"
-#include "sooc3d/mapstore.h"
-#include "sooc3d/geom.h"
-#include "sooc3d/seq.h"
+#include "sooc3d/cogmap.h"
+#include "sooc3d/core.h"
 #include "sooc3d/train.h"
 
 #include <dirent.h>

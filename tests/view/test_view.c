@@ -6,8 +6,8 @@
  * (skipped with a message when chromium is not installed). */
 #include "check.h"
 #include "http_util.h"
-#include "sooc3d/image.h"
-#include "sooc3d/view.h"
+#include "sooc3d/core.h"
+#include "sooc3d/render.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>

@@ -3,6 +3,10 @@
  * parameter slabs, checkpoints). See docs/engine.md for the design, the
  * measurements behind it and the test strategy.
  *
+ * An internal interface header of src/nn (docs/architecture.md "Headers"):
+ * src/model, src/train, the tests and benchmarks include it as "nn/nn.h";
+ * it is not installed and not part of the public API.
+ *
  * Three layers, use whichever fits:
  *
  *  1. Kernel pairs (llm.c style), on raw row-major float arrays:
