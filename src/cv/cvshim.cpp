@@ -221,25 +221,9 @@ extern "C" int sooc_cvodo_check(sooc_cvodo *o, const double T[16], double max_di
         set_err(err, errcap, "odometry: no keyframe or no frame loaded");
         return -1;
     }
-    const cv::Mat &dc = o->cur->depth, &dk = o->kf->depth;
-    const double fx = o->K[0], fy = o->K[1], cx = o->K[2], cy = o->K[3];
-    long n = 0, ok = 0;
-    for (int y = 0; y < dc.rows; y += step)
-        for (int x = 0; x < dc.cols; x += step) {
-            float z = dc.at<float>(y, x);
-            if (!(z > o->min_depth && z < o->max_depth)) continue;
-            n++;
-            double X = (x - cx) / fx * z, Y = (y - cy) / fy * z;
-            double px = T[0] * X + T[1] * Y + T[2] * z + T[3];
-            double py = T[4] * X + T[5] * Y + T[6] * z + T[7];
-            double pz = T[8] * X + T[9] * Y + T[10] * z + T[11];
-            if (pz <= 1e-6) continue;
-            int u = (int)std::lround(fx * px / pz + cx), v = (int)std::lround(fy * py / pz + cy);
-            if (u < 0 || v < 0 || u >= dk.cols || v >= dk.rows) continue;
-            float zk = dk.at<float>(v, u);
-            if (zk > o->min_depth && zk < o->max_depth && std::fabs(zk - pz) <= max_diff) ok++;
-        }
-    *agree = n ? (double)ok / (double)n : 0;
+    sooc_cv::DepthAgreement a =
+        sooc_cv::depth_agreement(o->cur->depth, o->kf->depth, o->K, T, o->min_depth, o->max_depth, max_diff, step);
+    *agree = a.n ? (double)a.agree / (double)a.n : 0;
     return 0;
 }
 

@@ -161,27 +161,11 @@ extern "C" int sooc_slsh_icp_run(sooc_slsh_icp *c, const float *src, const float
         for (int i = 0; i < 16; i++) T[i] = R64.at<double>(i / 4, i % 4);
         for (int i = 0; i < 16; i++)
             if (!std::isfinite(T[i])) return 0;
-        const double fx = c->K[0], fy = c->K[1], cx = c->K[2], cy = c->K[3];
-        long n = 0, inview = 0, good = 0;
-        for (int y = 0; y < c->h; y += 2)
-            for (int x = 0; x < c->w; x += 2) {
-                float z = src[(size_t)y * c->w + x];
-                if (!(z > c->min_depth && z < c->max_depth)) continue;
-                n++;
-                double X = (x - cx) / fx * z, Y = (y - cy) / fy * z;
-                double px = T[0] * X + T[1] * Y + T[2] * z + T[3];
-                double py = T[4] * X + T[5] * Y + T[6] * z + T[7];
-                double pz = T[8] * X + T[9] * Y + T[10] * z + T[11];
-                if (pz <= 1e-6) continue;
-                int u = (int)std::lround(fx * px / pz + cx), v = (int)std::lround(fy * py / pz + cy);
-                if (u < 0 || v < 0 || u >= c->w || v >= c->h) continue;
-                float zd = dst[(size_t)v * c->w + u];
-                if (!(zd > c->min_depth && zd < c->max_depth)) continue;
-                inview++;
-                if (std::fabs(zd - pz) <= c->max_diff) good++;
-            }
-        *agree = inview ? (double)good / (double)inview : 0;
-        *overlap = n ? (double)inview / (double)n : 0;
+        /* on the caller's depth, as given (the frames above are OpenCV's) */
+        const cv::Mat s0(c->h, c->w, CV_32F, const_cast<float *>(src)), d0(c->h, c->w, CV_32F, const_cast<float *>(dst));
+        sooc_cv::DepthAgreement a = sooc_cv::depth_agreement(s0, d0, c->K, T, c->min_depth, c->max_depth, c->max_diff, 2);
+        *agree = a.inview ? (double)a.agree / (double)a.inview : 0;
+        *overlap = a.n ? (double)a.inview / (double)a.n : 0;
         return 1;
     } catch (const std::exception &e) {
         set_err(err, errcap, std::string("OpenCV ICP: ") + e.what());
