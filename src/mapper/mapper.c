@@ -418,12 +418,20 @@ int sooc_mapper_free_space(const sooc_cogmap_camera *cam, const sooc_frame *f, d
     return !hidden && vis >= 4 ? 1 : -1;
 }
 
-static int retire_at(sooc_mapper *mp, uint64_t *ids, int i) {
-    if (mp->n_rem >= SOOC_MODEL_K_MAX || sooc_cogmap_remove(mp->map, ids[i])) return 0;
-    size_t c = (size_t)(ids[i] % MAPPER_FREE_SLOTS);
-    mp->rem_ids[mp->n_rem++] = ids[i];
+/* Remove entry id, publish it as a removal and forget its evidence (its
+ * cache slot: a collision forgets another's, which only delays a retirement).
+ * 1 on success; 0 when the update's removals are full or id is not mapped. */
+static int retire_id(sooc_mapper *mp, uint64_t id) {
+    if (mp->n_rem >= SOOC_MODEL_K_MAX || sooc_cogmap_remove(mp->map, id)) return 0;
+    size_t c = (size_t)(id % MAPPER_FREE_SLOTS);
+    mp->rem_ids[mp->n_rem++] = id;
     mp->free_id[c] = 0;
     mp->free_run[c] = mp->unsup_run[c] = 0;
+    return 1;
+}
+
+static int retire_at(sooc_mapper *mp, uint64_t *ids, int i) {
+    if (!retire_id(mp, ids[i])) return 0;
     ids[i] = 0;
     return 1;
 }
@@ -668,10 +676,7 @@ static sooc_status support_prune(sooc_mapper *mp, const sooc_frame *f, uint64_t 
     supp_visit v = {mp->supp_obj, n, mp->supp_margin, &cam, out, SOOC_MODEL_K_MAX - mp->n_rem, 0};
     sooc_cogmap_foreach(mp->map, supp_collect, &v);
     for (int i = 0; i < v.k; i++) {
-        if (sooc_cogmap_remove(mp->map, out[i])) continue;
-        mp->rem_ids[mp->n_rem++] = out[i];
-        size_t c = (size_t)(out[i] % MAPPER_FREE_SLOTS);
-        if (mp->free_id[c] == out[i]) mp->free_id[c] = 0, mp->free_run[c] = mp->unsup_run[c] = 0;
+        if (!retire_id(mp, out[i])) continue;
         for (int j = 0; j < K; j++)
             if (ids[j] == out[i]) ids[j] = 0;
         (*n_pruned)++;
