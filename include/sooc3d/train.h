@@ -281,6 +281,11 @@ typedef struct sooc_finetune_params {
     int layout;           /* 1 = finetune the layout blocks too                     (1) */
     int max_obj;          /* components per view (top by presence), as the renderer (63) */
     int fixed_samples;    /* 1 = the same surface / air samples every step (tests)  (0) */
+    float support_m;      /* rays whose surface lies within this height (metres) of the
+                             support plane are the layout's: their surface term has the
+                             layout alone, and every object is penalised for density
+                             there as for an air sample over the surface band;
+                             0 = off (docs/finetune.md "The support plane")      (0) */
     uint64_t seed;        /* ray batches and samples                                 (1) */
 } sooc_finetune_params;
 void sooc_finetune_params_default(sooc_finetune_params *p);

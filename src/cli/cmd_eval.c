@@ -60,6 +60,9 @@ static void usage(FILE *f) {
             "  --ft-iterations, --ft-rays, --ft-lr, --ft-lr-final   finetuning steps per object /\n"
             "                  block, rays per step, Adam learning rate, its final fraction after a\n"
             "                  half-cosine decay (defaults: those of sooc3d finetune)\n"
+            "  --ft-support M  finetuning: surfaces within M metres of the support plane are the\n"
+            "                  layout's, objects are kept empty there (0 = off, default;\n"
+            "                  docs/finetune.md \"The support plane\")\n"
             "  --ft-no-birth   no births and deaths: by default, before finetuning, new entries go\n"
             "                  where the input views show a surface the map does not draw, and after\n"
             "                  it the entries whose density is empty are removed (docs/finetune.md\n"
@@ -281,7 +284,11 @@ int sooc_cmd_eval(int argc, char **argv) {
         }
         else if (!strcmp(a, "--ft-iterations") && has) INTV(0, 1000000, &ftp.iterations);
         else if (!strcmp(a, "--ft-rays") && has) INTV(1, 1 << 20, &ftp.rays);
-        else if (!strcmp(a, "--ft-lr-final") && has) {
+        else if (!strcmp(a, "--ft-support") && has) {
+            double d;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &d)) return 2;
+            ftp.support_m = (float)d;
+        } else if (!strcmp(a, "--ft-lr-final") && has) {
             double d;
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &d)) return 2;
             ftp.lr_final = (float)d;

@@ -24,7 +24,7 @@ static void on_sigint(int sig) {
 static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d finetune --map DB --model M --seq DIR [--iterations N] [--rays N] [--lr X]\n"
-            "                       [--lr-z X] [--lr-final F] [--no-layout] [--restart] [--seed S] [--every K]\n"
+            "                       [--lr-z X] [--lr-final F] [--support M] [--no-layout] [--restart] [--seed S] [--every K]\n"
             "                       [--quiet] [--max-views N] [--no-birth] [--birth-margin U] [frame-path options]\n\n"
             "Per-object NeRF finetuning by EM (docs/finetune.md): every object of the map DB\n"
             "gets its own copy of the model's object decoder and a free z^what (z^where fixed), every\n"
@@ -42,6 +42,8 @@ static void usage(FILE *f) {
             "  --lr, --lr-z  Adam learning rates of the decoder weights and of z^what (default %g, %g)\n"
             "  --lr-final F  both rates fall by a half cosine over each unit's steps to F times their\n"
             "                start (default 1: constant)\n"
+            "  --support M   surfaces within M metres of the support plane are the layout's: objects\n"
+            "                are kept empty there (default 0: off; docs/finetune.md \"The support plane\")\n"
             "  --no-layout   do not finetune the layout blocks\n"
             "  --restart     delete the stored finetuned decoders first and start over\n"
             "  --max-views   use at most N views (evenly spread; 0 = all)\n"
@@ -121,6 +123,9 @@ int sooc_cmd_finetune(int argc, char **argv) {
         } else if (!strcmp(a, "--lr-final") && has) {
             if (!sooc_cli_double_opt("finetune", a, argv[++i], 0, 1, &d)) return 2;
             fp.lr_final = (float)d;
+        } else if (!strcmp(a, "--support") && has) {
+            if (!sooc_cli_double_opt("finetune", a, argv[++i], 0, 1, &d)) return 2;
+            fp.support_m = (float)d;
         } else if (!strcmp(a, "--seed") && has) {
             if (!sooc_cli_u64_opt("finetune", a, argv[++i], UINT64_MAX, &fp.seed)) return 2;
         } else if (!strcmp(a, "--every") && has) {

@@ -271,6 +271,7 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
     sooc_m3_transpose(RwgT, Rwg);
     sooc_m3_mul(Rgc, RwgT, Rwc);
     int unk_mode = c->invalid_depth == SOOC_INVALID_DEPTH_UNKNOWN;
+    float sup_h = ft->p.support_m * iu;
     for (int y = 0; y < f->height; y++)
         for (int x = 0; x < f->width; x++) {
             size_t pix = (size_t)y * f->width + x;
@@ -289,7 +290,8 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
                 ft->rgb[r * 3 + a] = f->rgb[pix * 3 + a] * (1.0f / 255.0f);
             }
             ft->depth[r] = surf ? d : 0.0f;
-            ft->surf[r] = (uint8_t)surf;
+            /* 2: the surface lies on the support plane (G: camera at the origin, plane at y = -h) */
+            ft->surf[r] = (uint8_t)(surf ? (sup_h > 0 && v->h + d * (float)dg[1] < sup_h ? 2 : 1) : 0);
             ft->rview[r] = (uint32_t)ft->nv;
             float t1 = surf ? d + c->delta_s : c->d_clip;
             uint64_t mk = 0;
@@ -470,6 +472,9 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
         if (ft->surf[r]) {
             float dep = ft->depth[r];
             float es = c->delta_s * sooc_rng_uniformf(&rng);
+            /* on the support plane the sample lies in front of the surface, where an
+             * object standing there would have its density */
+            if (ft->surf[r] == 2) es = -es;
             for (int a = 0; a < 3; a++) ps[a] = (dep + es) * d[a];
             int near = sooc_rng_uniformf(&rng) < 0.5f;
             float U = sooc_rng_uniformf(&rng);
@@ -565,6 +570,26 @@ sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, si
         if (!ft->surf[r]) continue;
         size_t p = 2 * i;
         const float *C = ft->rgb + (size_t)r * 3;
+        if (ft->surf[r] == 2) {
+            /* on the support plane: log(smax σ̂_lay + ε) + log N_lay - Wb smax Σ_obj σ̂_k(x_s), Wb = δ_s */
+            for (int j = 0; j < ft->pt_nrow[p]; j++) {
+                int row = ft->pt_row0[p] + j, pos = ft->row_pos[row];
+                float s = ft->sig[pos];
+                int mine = u >= 0 && ft->row_comp[row] == u;
+                if (j == 0) {   /* the layout's row comes first */
+                    const float *cc = ft->col + (size_t)pos * 3;
+                    float d0 = C[0] - cc[0], d1 = C[1] - cc[1], d2 = C[2] - cc[2];
+                    ll += log(smax * (double)s + eps_s) - 0.5 * (d0 * d0 + d1 * d1 + d2 * d2) * isc2;
+                    if (!mine) continue;
+                    ft->gsig[pos] += (float)(smax / (smax * (double)s + eps_s));
+                    for (int a = 0; a < 3; a++) ft->gcol[(size_t)pos * 3 + a] += (C[a] - cc[a]) * isc2;
+                } else {
+                    ll -= c->delta_s * smax * (double)s;
+                    if (mine) ft->gsig[pos] += -c->delta_s * smax;
+                }
+            }
+            continue;
+        }
         double S = 1e-8, Q2 = 0, lmax = -INFINITY;
         float lN[SOOC_COGMAP_K_MAX + 1];
         int nrp = ft->pt_nrow[p];

@@ -54,25 +54,29 @@ static double render_err(sooc_model *m, const sooc_cogmap *map, const sooc_frame
 static void fd_check(sooc_finetune *ft, int k, const char *what) {
     sooc_ft_comp *c = &ft->comp[k];
     /* 30 rays whose surface lies in the unit's box (so its colour and density at
-     * the surface matter), then 10 others */
+     * the surface matter; with the support plane on, up to 15 of them on the
+     * plane first), then 10 others */
     uint32_t rays[40];
-    size_t n = 0;
+    size_t n = 0, n_sup = 0;
     const sooc_model_config *mc = &ft->m->cfg;
-    for (size_t j = 0; j < c->nrays && n < 30; j++) {
+    for (size_t j = 0; j < 2 * c->nrays && n < 30; j++) {
         uint32_t r = c->rays[(j * 7919) % c->nrays];
-        if (!ft->surf[r]) continue;
+        int pass0 = j < c->nrays;
+        if (!ft->surf[r] || (pass0 && (ft->surf[r] != 2 || n_sup >= 15)) || (!pass0 && ft->surf[r] == 2)) continue;
         const sooc_ft_view *v = &ft->views[ft->rview[r]];
         float x[3], xk[3];
-        for (int a = 0; a < 3; a++) x[a] = (ft->depth[r] + 0.01f) * ft->dir[(size_t)r * 3 + a];
+        float off = ft->surf[r] == 2 ? -0.01f : 0.01f;   /* support-plane samples lie in front */
+        for (int a = 0; a < 3; a++) x[a] = (ft->depth[r] + off) * ft->dir[(size_t)r * 3 + a];
         int in = c->kind == SOOC_FT_LAYOUT;
         for (int q = 0; q < v->nc && !in; q++)
             if (v->comp[q] == (int)(c - ft->comp)) {
                 sooc_mdl_pi(x, v->pose[q][0], v->pose[q][1], v->pose[q][2], v->h, xk);
                 in = fabsf(xk[0]) <= mc->box_rh && fabsf(xk[2]) <= mc->box_rh && xk[1] >= 0 && xk[1] <= mc->box_hb;
             }
-        if (in) rays[n++] = r;
+        if (in) rays[n++] = r, n_sup += ft->surf[r] == 2;
     }
     CHECK(n == 30);
+    CHECK(ft->p.support_m <= 0 || n_sup >= 10);
     for (size_t j = 0; n < 40 && j < c->nrays; j++) rays[n++] = c->rays[(j * 104729) % c->nrays];
     size_t nw = c->nw;
     int dz = c->net->dz;
@@ -118,8 +122,8 @@ static void fd_check(sooc_finetune *ft, int k, const char *what) {
             fprintf(stderr, "%s: %s[%zu] analytic %.6g numeric %.6g\n", what, isz ? "z" : "w", i, ga, gn);
         }
     }
-    printf("%s: FD of sum ell (%zu rays, ell %.4f): %d elements compared, %d at a kink, worst %.3f of tol\n", what, n,
-           ll0, tested, kinks, worst);
+    printf("%s: FD of sum ell (%zu rays, %zu on the support plane, ell %.4f): %d elements compared, %d at a kink, "
+           "worst %.3f of tol\n", what, n, n_sup, ll0, tested, kinks, worst);
     CHECK_MSG(bad == 0, "%s: %d elements off", what, bad);
     CHECK_MSG(kinks * 100 <= 15 * (60 + dz), "%s: %d of %d elements at kinks", what, kinks, 60 + dz);
     CHECK(tested >= 40);
@@ -179,6 +183,28 @@ int main(void) {
         const sooc_ft_comp *c = &ft->comp[ft->units[u]];
         if (u == 0 || (c->kind == SOOC_FT_LAYOUT && (u == 0 || ft->comp[ft->units[u - 1]].kind == SOOC_FT_OBJECT)))
             fd_check(ft, ft->units[u], c->kind == SOOC_FT_OBJECT ? "object" : "layout");
+    }
+
+    /* 1b. the same with the support plane on (docs/finetune.md "The support
+     * plane"): floor rays within 5 cm of it carry the layout-only surface term
+     * and the objects' penalty */
+    {
+        sooc_finetune_params ps = p;
+        ps.support_m = 0.05f;
+        sooc_finetune *fs = NULL;
+        CHECK_OK(sooc_finetune_create(&fs, m, map, &ps));
+        for (int v = 0; v < NV; v++) CHECK_OK(sooc_finetune_add_view(fs, &fr[v]));
+        size_t nsup = 0;
+        for (size_t r = 0; r < fs->nr; r++) nsup += fs->surf[r] == 2;
+        printf("support plane 5 cm: %zu of %zu rays on it\n", nsup, fs->nr);
+        CHECK(nsup > fs->nr / 10 && nsup < fs->nr);
+        int nus = sooc_finetune_n_units(fs), lay_done = 0;
+        for (int u = 0; u < nus; u++) {
+            const sooc_ft_comp *c = &fs->comp[fs->units[u]];
+            if (u == 0) fd_check(fs, fs->units[u], "object, support plane");
+            else if (c->kind == SOOC_FT_LAYOUT && !lay_done) fd_check(fs, fs->units[u], "layout, support plane"), lay_done = 1;
+        }
+        sooc_finetune_destroy(fs);
     }
 
     /* 3 (before): rendering error of the base decoders */
