@@ -434,6 +434,13 @@ void sooc_mapper_set_merge_radius(sooc_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC_LATENTS_*). */
 void sooc_mapper_set_latents(sooc_mapper *m, int latents);
 
+/* Forget the map: every entry, layout block and payload, the evidence kept
+ * about them, and the clusters of the keyframes mapped so far (the geometric
+ * map, its support and proposals). The id counter goes on (ids are never
+ * handed out twice). For a change of world frame: the node's switch to the
+ * floor (docs/node.md "Support plane"). The caller publishes the removals. */
+sooc_status sooc_mapper_clear(sooc_mapper *m);
+
 /* Id counter: new entries get ids >= next_id. reserve_ids raises it (resume:
  * ids of entries removed before the restart are not handed out again). */
 void sooc_mapper_reserve_ids(sooc_mapper *m, uint64_t next_id);

@@ -171,6 +171,8 @@ typedef struct sooc_node_config {
                                                 gravity-direction.txt when present), "none", or a file */
     double max_tilt_deg;                     /* world.max_tilt_deg, default 30 */
     int support_frames;                      /* world.support_frames: frames the estimate uses (8) */
+    int floor_switch;                        /* world.floor_switch: move to a lower level plane (the
+                                                floor) that comes into view later (1; docs/node.md) */
     double cam_height_min_m, cam_height_max_m; /* world.camera_height_min_m / _max_m: the heights the
                                                 model was trained for; 0 (default) = the model's own
                                                 range (config cam_h_min / cam_h_max) */
@@ -267,6 +269,7 @@ typedef struct sooc_node_stats {
     double publish_p50_ms, publish_p99_ms;   /* publisher: table batch + SQLite transaction */
     double elapsed_s;
     int floor_estimated;
+    uint64_t floor_switches;     /* times the support plane moved to a lower one (the floor) */
     double T_world_src[16];
     /* broken input frames (docs/node.md "Faults") */
     uint64_t frames_skipped;                      /* skipped: the source could not read them */

@@ -916,6 +916,22 @@ sooc_status sooc_mapper_load_layout(sooc_mapper *mp, int32_t bi, int32_t bj, con
     return sooc_cogmap_layout_set(mp->map, bi, bj, mu, logvar);
 }
 
+sooc_status sooc_mapper_clear(sooc_mapper *mp) {
+    if (mp->gm) {
+        sooc_mdl_geo_clear(mp->gm);
+        return SOOC_OK;
+    }
+    sooc_cogmap_clear(mp->map, 0);
+    sooc_objgeom_cache_clear(mp->geo);
+    memset(mp->free_id, 0, sizeof mp->free_id);
+    memset(mp->free_run, 0, sizeof mp->free_run);
+    memset(mp->unsup_run, 0, sizeof mp->unsup_run);
+    if (mp->supp) sooc_cluster_map_clear(mp->supp);
+    if (mp->prop) sooc_cluster_map_clear(mp->prop);
+    mp->n_chg = mp->n_rem = mp->has_block = 0;
+    return SOOC_OK;
+}
+
 void sooc_mapper_reserve_ids(sooc_mapper *mp, uint64_t next_id) {
     if (mp->gm) sooc_mdl_geo_reserve_ids(mp->gm, next_id);
     else sooc_cogmap_reserve_ids(mp->map, next_id);

@@ -69,6 +69,12 @@ void sooc_mdl_geo_destroy(sooc_mdl_geo *g) {
 }
 
 void sooc_mdl_geo_input_size(const sooc_mdl_geo *g, int *w, int *h) { *w = g->w, *h = g->h; }
+void sooc_mdl_geo_clear(sooc_mdl_geo *g) {
+    sooc_cluster_map_clear(g->cm);
+    g->n = g->n_rem = 0;
+    g->n_chg = g->n_rep_rem = 0;
+}
+
 uint64_t sooc_mdl_geo_next_id(const sooc_mdl_geo *g) { return g->next_id; }
 void sooc_mdl_geo_reserve_ids(sooc_mdl_geo *g, uint64_t next_id) {
     if (next_id > g->next_id) g->next_id = next_id;

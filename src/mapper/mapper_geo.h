@@ -16,6 +16,7 @@ sooc_status sooc_mdl_geo_entries(const sooc_mdl_geo *g, sooc_map_entry *out, siz
 sooc_status sooc_mdl_geo_load_entries(sooc_mdl_geo *g, const sooc_map_entry *e, size_t n);
 sooc_status sooc_mdl_geo_changed(const sooc_mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n, uint64_t *removed_ids,
                             size_t cap_r, size_t *n_removed);
+void sooc_mdl_geo_clear(sooc_mdl_geo *g);   /* entries and clusters; ids go on */
 uint64_t sooc_mdl_geo_next_id(const sooc_mdl_geo *g);
 void sooc_mdl_geo_reserve_ids(sooc_mdl_geo *g, uint64_t next_id);
 

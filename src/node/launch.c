@@ -47,6 +47,7 @@ void sooc_node_config_default(sooc_node_config *c) {
         c->geo_free_ratio = cp.free_ratio;
     }
     c->support_frames = 8;
+    c->floor_switch = 1;
     c->cam_height_min_m = 0;   /* 0: the model's trained range (sooc_model_cam_heights_m) */
     c->cam_height_max_m = 0;
     c->ring_capacity = 8;
@@ -542,6 +543,7 @@ static const kspec g_keys[] = {
     KV("world", "gravity", KV_STR, gravity_path, 0, 0),
     KV("world", "max_tilt_deg", KV_NUM, max_tilt_deg, 1, 60),
     KV("world", "support_frames", KV_INT, support_frames, 1, 32),
+    KV("world", "floor_switch", KV_BOOL, floor_switch, 0, 0),
     KV("world", "camera_height_min_m", KV_NUM, cam_height_min_m, 0, 100),
     KV("world", "camera_height_max_m", KV_NUM, cam_height_max_m, 0, 100),
     KV("pipeline", "ring_capacity", KV_INT, ring_capacity, 1, 1024),
@@ -802,9 +804,10 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
         c->map_resume ? "true" : "false", c->map_retry_s, c->map_retry_max_s, c->map_busy_timeout_ms);
     if (c->floor_mode == SOOC_NODE_FLOOR_ESTIMATE)
         OUT("world: {up: [%g, %g, %g], floor: estimate, gravity: '%s', max_tilt_deg: %g, support_frames: %d, "
-            "camera_height_min_m: %g, camera_height_max_m: %g}\n",
+            "floor_switch: %s, camera_height_min_m: %g, camera_height_max_m: %g}\n",
             c->up[0], c->up[1], c->up[2], c->gravity_path[0] ? c->gravity_path : "auto",
-            c->max_tilt_deg, c->support_frames, c->cam_height_min_m, c->cam_height_max_m);
+            c->max_tilt_deg, c->support_frames, c->floor_switch ? "true" : "false", c->cam_height_min_m,
+            c->cam_height_max_m);
     else
         OUT("world: {up: [%g, %g, %g], floor: %g}\n", c->up[0], c->up[1], c->up[2], c->floor_height);
     OUT("pipeline: {ring_capacity: %d, block_when_full: %s, stats_period_s: %g, min_depth_m: %g, "

@@ -431,6 +431,8 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
     int resumed = 0;
     if ((st = sooc__node_store_resume(n, &resumed))) goto fail;
     if ((st = world_from_store(n, resumed))) goto fail;
+    /* world.floor: estimate and a frame from the store: it was estimated in an earlier run */
+    if ((st = sooc__node_floor_watch_init(n, n->world_ready))) goto fail;
     /* what the mapper holds now (resumed, or preloaded by the caller) is republished at start */
     {
         size_t cnt = 0;
@@ -529,28 +531,9 @@ static int try_support(sooc_node *n, const sooc_frame *f, const double T_src_c[1
         n->n_sup++;
     }
     if (n->n_sup == 0 || (n->n_sup < n->cap_sup && !final)) return 0;
-    const sooc_node_config *c = &n->cfg;
     sooc_support_params sp;
-    sooc_support_params_default(&sp);
-    if (c->up_given) {
-        sp.has_up_hint = 1;
-        memcpy(sp.up_hint, c->up, sizeof sp.up_hint);
-    }
-    if (n->has_gravity) {
-        sp.has_gravity = 1;
-        memcpy(sp.gravity, n->gravity, sizeof sp.gravity);
-    }
-    sp.max_tilt_deg = c->max_tilt_deg;
-    sp.threshold_m = c->floor_ransac_threshold_m;
-    sp.iterations = c->floor_ransac_iterations;
+    sooc__node_support_params(n, &sp);
     sp.max_frames = n->n_sup;
-    if (c->cam_height_min_m > 0) {   /* the launch file's (both given, min < max: launch.c) */
-        sp.cam_height_min_m = c->cam_height_min_m;
-        sp.cam_height_max_m = c->cam_height_max_m;
-    } else {   /* the model's trained range */
-        sooc_mapper_cam_heights(n->mapper, &sp.cam_height_min_m, &sp.cam_height_max_m);
-    }
-    sp.seed = c->seed + 1;
     const sooc_frame *fp[32];
     for (int i = 0; i < n->n_sup; i++) fp[i] = &n->sup_f[i];
     sooc_support sup;
@@ -691,6 +674,7 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     n->st.keyframes++;
     uint64_t k = n->st.keyframes;
     pthread_mutex_unlock(&n->mu);
+    if ((st = sooc__node_floor_watch(n, f, T_src_c))) { *result = st; return 1; }
     if (n->view && sooc__node_view_publish(n, f))   /* the view is a window, not the map: warn */
         sooc_log(SOOC_LOG_WARN, "node: view: %s", sooc_errmsg());
     if (n->rec) sooc__node_record_keyframe(n, f->t_ns);
@@ -833,6 +817,7 @@ void sooc_node_destroy(sooc_node *n) {
     sooc_frame_free(&n->pre);
     sooc_free(n->reg_buf);
     support_free(n);
+    sooc__node_floor_watch_free(n);
     sooc_free(n->prev);
     pthread_mutex_destroy(&n->mu);
     pthread_mutex_destroy(&n->sensor_mu);

@@ -231,7 +231,7 @@ sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t n
         sooc_latency_add(&n->lat_c2t, ms);
         pthread_mutex_unlock(&n->mu);
     }
-    if (!st && n->sg && (kf || (to_db && nc))) st = store_queue(n, chg, nc, rem, nr, to_db, kf, n_entries);
+    if (!st && n->sg && (kf || (to_db && (nc || nr)))) st = store_queue(n, chg, nc, rem, nr, to_db, kf, n_entries);
     double ms = (sooc_seconds() - t0) * 1e3;
     pthread_mutex_lock(&n->mu);
     if (kf) sooc_latency_add(&n->lat_pub, ms);

@@ -89,6 +89,10 @@ size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap) {
                  s->sensor_down ? ", down now" : "", (unsigned long long)s->pose_gaps, (unsigned long long)s->time_jumps);
         k = append(buf, cap, k, t);
     }
+    if (s->floor_switches) {
+        snprintf(t, sizeof t, " floor switches %llu", (unsigned long long)s->floor_switches);
+        k = append(buf, cap, k, t);
+    }
     if (s->store_state == SOOC_NODE_STORE_FAILING || s->store_failures) {
         snprintf(t, sizeof t, " store %s: %llu objects %llu keyframes pending, %llu failed commits, %llu recoveries",
                  s->store_state == SOOC_NODE_STORE_FAILING ? "FAILING" : "ok", (unsigned long long)s->store_pending,

@@ -219,6 +219,13 @@ int fake_mapper_get_block(const sooc_mapper *m, int32_t bi, int32_t bj, float *m
     return 0;
 }
 
+sooc_status sooc_mapper_clear(sooc_mapper *m) {
+    m->n = 0;
+    m->n_blocks = 0;
+    m->n_chg = m->n_rem = m->has_block = 0;
+    return SOOC_OK;
+}
+
 void sooc_mapper_reserve_ids(sooc_mapper *m, uint64_t next_id) {
     if (next_id > m->next_id) m->next_id = next_id;
 }
