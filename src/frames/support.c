@@ -376,7 +376,9 @@ sooc_status sooc_support_estimate_points(const double *pts, size_t n_pts, const 
     sooc_frames_world_from_up(q->plane, -q->plane[3], out->T_world_src);
     out->tilt_deg = q->tilt_deg;
     out->cam_height_m = q->mean_clear;
-    out->height_warning = q->mean_clear < p.cam_height_min_m || q->mean_clear > p.cam_height_max_m;
+    /* no range (min >= max: the geometric map has none): nothing to warn about */
+    out->height_warning = p.cam_height_max_m > p.cam_height_min_m &&
+                          (q->mean_clear < p.cam_height_min_m || q->mean_clear > p.cam_height_max_m);
     out->n_inliers = q->n_inliers;
     out->n_points = n_pts;
     out->rms_m = q->rms;

@@ -118,17 +118,13 @@ sooc_status sooc__node_floor_watch(sooc_node *n, const sooc_frame *f, const doub
     sp.has_gravity = 0;
     sp.max_frames = n->fw_n;
     const sooc_frame *fp[32];
-    double h_map = 0;   /* mean camera height in the map's frame */
-    for (int i = 0; i < n->fw_n; i++) {
-        fp[i] = &n->fw_f[i];
-        const double *C = n->fw_f[i].T_wc;
-        h_map += T[4] * C[3] + T[5] * C[7] + T[6] * C[11] + T[7];
-    }
-    h_map /= n->fw_n;
+    for (int i = 0; i < n->fw_n; i++) fp[i] = &n->fw_f[i];
     sooc_support sup;
     if (sooc_support_estimate(fp, n->fw_n, &sp, &sup)) return SOOC_OK;   /* no level plane: nothing to say */
     double cosang = up[0] * sup.up_src[0] + up[1] * sup.up_src[1] + up[2] * sup.up_src[2];
-    double dy = sup.cam_height_m - h_map;   /* how far below the map's plane the new one lies */
+    /* how far below the map's plane the new one lies: a point of it, -d n, in the map */
+    const double *q = sup.plane_src;
+    double dy = -(T[4] * -q[3] * q[0] + T[5] * -q[3] * q[1] + T[6] * -q[3] * q[2] + T[7]);
     if (cosang < cos(SWITCH_MAX_DEG * 3.14159265358979323846 / 180.0) || dy < SWITCH_MIN_M) return SOOC_OK;
     int ranged = sp.cam_height_max_m > sp.cam_height_min_m;
     if (ranged && (sup.cam_height_m < sp.cam_height_min_m || sup.cam_height_m > sp.cam_height_max_m)) {

@@ -27,6 +27,16 @@
 #define N1 12
 #define N2 24
 
+/* the node's log lines about the support plane: printed, and counted */
+static int g_said_switch, g_said_stays;
+static void log_cb(void *user, sooc_log_level level, const char *msg) {
+    (void)user;
+    (void)level;
+    if (strstr(msg, "support plane") || strstr(msg, "level plane")) fprintf(stderr, "    log: %s\n", msg);
+    g_said_switch += strstr(msg, "the map restarts in the new frame") != NULL;
+    g_said_stays += strstr(msg, "the support plane stays") != NULL;
+}
+
 typedef struct src {
     const scene *s;
     int i;
@@ -166,6 +176,7 @@ int main(void) {
     char dir[] = "/tmp/sooc_fsw_XXXXXX";
     CHECK(mkdtemp(dir) != NULL);
     result a, b, c;
+    sooc_log_set_callback(log_cb, NULL);
 
     run(&sc, dir, "switch", "", &a);
     CHECK_MSG(a.kf == N1 + N2, "keyframes %llu", (unsigned long long)a.kf);
@@ -176,6 +187,7 @@ int main(void) {
     CHECK_MSG(!a.cup && a.removed >= 1, "the cup's entry (made on the table top) is still stored (%llu removed)",
               (unsigned long long)a.removed);
     CHECK_MSG(a.floor_box, "no entry for the box on the floor with its 0.2 m height");
+    CHECK(g_said_switch == 1 && g_said_stays == 0);
 
     run(&sc, dir, "no_switch", ", floor_switch: false", &b);
     CHECK(b.switches == 0);
@@ -185,6 +197,7 @@ int main(void) {
     run(&sc, dir, "out_of_range", ", camera_height_min_m: 0.3, camera_height_max_m: 0.9", &c);
     CHECK(c.switches == 0);
     CHECK_MSG(fabs(c.plane_y + 0.75) < 0.02, "the table top at map y = %.3f", c.plane_y);
+    CHECK(g_said_switch == 1 && g_said_stays == 1);   /* said once, not at every check */
 
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
