@@ -286,10 +286,6 @@ typedef struct sooc_finetune_params {
                              layout alone, and every object is penalised for density
                              there as for an air sample over the surface band;
                              0 = off (docs/finetune.md "The support plane")      (0) */
-    int geo_background;   /* 1 = the same for every surface that the support-plane
-                             clustering of the views calls background: the plane,
-                             walls, the surround, specks (sooc_cluster_map at 1 cm;
-                             docs/finetune.md "The support plane")                 (0) */
     uint64_t seed;        /* ray batches and samples                                 (1) */
 } sooc_finetune_params;
 void sooc_finetune_params_default(sooc_finetune_params *p);

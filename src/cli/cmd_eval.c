@@ -63,8 +63,6 @@ static void usage(FILE *f) {
             "  --ft-support M  finetuning: surfaces within M metres of the support plane are the\n"
             "                  layout's, objects are kept empty there (0 = off, default;\n"
             "                  docs/finetune.md \"The support plane\")\n"
-            "  --ft-geo-background  finetuning: the same for every surface the support-plane\n"
-            "                  clustering of the views calls background (walls, surround)\n"
             "  --ft-no-birth   no births and deaths: by default, before finetuning, new entries go\n"
             "                  where the input views show a surface the map does not draw, and after\n"
             "                  it the entries whose density is empty are removed (docs/finetune.md\n"
@@ -286,7 +284,6 @@ int sooc_cmd_eval(int argc, char **argv) {
         }
         else if (!strcmp(a, "--ft-iterations") && has) INTV(0, 1000000, &ftp.iterations);
         else if (!strcmp(a, "--ft-rays") && has) INTV(1, 1 << 20, &ftp.rays);
-        else if (!strcmp(a, "--ft-geo-background")) ftp.geo_background = 1;
         else if (!strcmp(a, "--ft-support") && has) {
             double d;
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &d)) return 2;

@@ -24,9 +24,8 @@ static void on_sigint(int sig) {
 static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d finetune --map DB --model M --seq DIR [--iterations N] [--rays N] [--lr X]\n"
-            "                       [--lr-z X] [--lr-final F] [--support M] [--geo-background]\n"
-            "                       [--no-layout] [--restart] [--seed S] [--every K]\n"
-            "                       [--quiet] [--max-views N] [--no-birth] [--birth-margin U] [frame-path options]\n\n"
+            "                       [--lr-z X] [--lr-final F] [--support M] [--no-layout] [--restart] [--seed S]\n"
+            "                       [--every K] [--quiet] [--max-views N] [--no-birth] [--birth-margin U] [frame-path options]\n\n"
             "Per-object NeRF finetuning by EM (docs/finetune.md): every object of the map DB\n"
             "gets its own copy of the model's object decoder and a free z^what (z^where fixed), every\n"
             "layout block its own layout decoder and latent; each is fitted by Adam to the responsibility-\n"
@@ -45,8 +44,6 @@ static void usage(FILE *f) {
             "                start (default 1: constant)\n"
             "  --support M   surfaces within M metres of the support plane are the layout's: objects\n"
             "                are kept empty there (default 0: off; docs/finetune.md \"The support plane\")\n"
-            "  --geo-background  the same for every surface the support-plane clustering of the\n"
-            "                views calls background (walls, the surround)\n"
             "  --no-layout   do not finetune the layout blocks\n"
             "  --restart     delete the stored finetuned decoders first and start over\n"
             "  --max-views   use at most N views (evenly spread; 0 = all)\n"
@@ -126,8 +123,6 @@ int sooc_cmd_finetune(int argc, char **argv) {
         } else if (!strcmp(a, "--lr-final") && has) {
             if (!sooc_cli_double_opt("finetune", a, argv[++i], 0, 1, &d)) return 2;
             fp.lr_final = (float)d;
-        } else if (!strcmp(a, "--geo-background")) {
-            fp.geo_background = 1;
         } else if (!strcmp(a, "--support") && has) {
             if (!sooc_cli_double_opt("finetune", a, argv[++i], 0, 1, &d)) return 2;
             fp.support_m = (float)d;

@@ -152,8 +152,6 @@ void sooc_finetune_destroy(sooc_finetune *ft) {
     sooc_free(ft->rgb);
     sooc_free(ft->depth);
     sooc_free(ft->surf);
-    sooc_free(ft->rpix);
-    sooc_cluster_map_destroy(ft->bg);
     sooc_free(ft->rview);
     sooc_free(ft->mask);
     sooc_free(ft->units);
@@ -209,11 +207,9 @@ static sooc_status grow_rays(sooc_finetune *ft, size_t need) {
     if (s) ft->surf = s;
     uint32_t *v = sooc_realloc(ft->rview, nc * sizeof(uint32_t));
     if (v) ft->rview = v;
-    uint32_t *px = sooc_realloc(ft->rpix, nc * sizeof(uint32_t));
-    if (px) ft->rpix = px;
     uint64_t *mk = sooc_realloc(ft->mask, nc * sizeof(uint64_t));
     if (mk) ft->mask = mk;
-    if (!d || !r || !z || !s || !v || !px || !mk) return SOOC_ENOMEM;
+    if (!d || !r || !z || !s || !v || !mk) return SOOC_ENOMEM;
     ft->cap_r = nc;
     return SOOC_OK;
 }
@@ -257,9 +253,6 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
     sooc_ft_view *v = &ft->views[ft->nv];
     memset(v, 0, sizeof *v);
     v->h = (float)h * iu;
-    memcpy(v->T_wc, f->T_wc, sizeof v->T_wc);
-    v->K = f->K, v->K.width = f->width, v->K.height = f->height;
-    v->r0 = ft->nr;
     v->blk[0] = (float)blk[0] * iu, v->blk[1] = (float)-h * iu, v->blk[2] = (float)blk[1] * iu;
     if ((st = get_comp(ft, SOOC_FT_LAYOUT, 0, bi, bj, &v->lay))) return st;
     for (int i = 0; i < nret; i++) {
@@ -300,7 +293,6 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
             /* 2: the surface lies on the support plane (G: camera at the origin, plane at y = -h) */
             ft->surf[r] = (uint8_t)(surf ? (sup_h > 0 && v->h + d * (float)dg[1] < sup_h ? 2 : 1) : 0);
             ft->rview[r] = (uint32_t)ft->nv;
-            ft->rpix[r] = (uint32_t)pix;
             float t1 = surf ? d + c->delta_s : c->d_clip;
             uint64_t mk = 0;
             int nx = 0;
@@ -311,8 +303,6 @@ sooc_status sooc_finetune_add_view(sooc_finetune *ft, const sooc_frame *f) {
             ft->nr++;
         }
     ft->nv++;
-    if (ft->p.geo_background && (st = sooc_ft_bg_add(ft, f)))
-        return sooc_adderr(st, "finetune: frame %lld", (long long)f->index);
     return SOOC_OK;
 }
 
@@ -339,8 +329,6 @@ static void sort_units(sooc_finetune *ft) {
 /* Build the components' ray lists (done by the first unit call). */
 static sooc_status sooc_ft_build(sooc_finetune *ft) {
     if (ft->built) return SOOC_OK;
-    sooc_status st = ft->bg ? sooc_ft_bg_mark(ft) : SOOC_OK;
-    if (st) return st;
     for (int i = 0; i < ft->ncomp; i++) ft->comp[i].nrays = 0;
     /* count, then fill */
     for (int pass = 0; pass < 2; pass++) {

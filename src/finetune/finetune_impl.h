@@ -3,7 +3,6 @@
 #define SOOC3D_FINETUNE_IMPL_H
 
 #include "model/dec_own.h"
-#include "sooc3d/mapper.h"
 #include "sooc3d/train.h"
 
 /* One component: an object (map entry) or a layout block. */
@@ -29,9 +28,6 @@ typedef struct sooc_ft_view {
     int nc;               /* object components in view                   */
     int comp[SOOC_COGMAP_K_MAX];
     float pose[SOOC_COGMAP_K_MAX][3];   /* px, pz, th in G (model units) */
-    double T_wc[16];      /* the frame's pose and intrinsics (background test) */
-    sooc_intrinsics K;
-    size_t r0;            /* its first ray                               */
 } sooc_ft_view;
 
 struct sooc_finetune {
@@ -44,10 +40,8 @@ struct sooc_finetune {
     int nv, cap_v;
     size_t nr, cap_r;
     float *dir, *rgb, *depth;   /* per ray: 3, 3, 1 (depth model units, Euclidean) */
-    uint8_t *surf;              /* 1 surface ray, 2 surface ray on the background
-                                   (support plane, walls), 0 free (beyond clip)    */
-    uint32_t *rpix;             /* pixel of the ray in its view                    */
-    sooc_cluster_map *bg;       /* p.geo_background: every view's depth            */
+    uint8_t *surf;              /* 1 surface ray, 2 surface ray on the support plane
+                                   (p.support_m), 0 free (beyond clip)             */
     uint32_t *rview;            /* view of the ray                                 */
     uint64_t *mask;             /* view components (bit i = views[v].comp[i]) crossed */
     int max_cross;
@@ -74,11 +68,6 @@ struct sooc_finetune {
  * z (gz) is ACCUMULATED. Uses the components' current weights. */
 sooc_status sooc_ft_objective(sooc_finetune *ft, int u, const uint32_t *rays, size_t n, uint64_t seed, float *gw,
                          float *gz, double *ll);
-/* The background test (background.c): add a view's depth to ft->bg (created
- * on the first call); mark the surface rays whose surface the clustering of
- * all views calls background (surf 1 -> 2). */
-sooc_status sooc_ft_bg_add(sooc_finetune *ft, const sooc_frame *f);
-sooc_status sooc_ft_bg_mark(sooc_finetune *ft);
 /* Recompute component c's layer-1 bias from its weights and z. */
 void sooc_ft_comp_bias(sooc_ft_comp *c);
 
