@@ -10,7 +10,9 @@
  * difference, the map restarts in it (its entries are removed and published
  * as removals, the new frame goes to the table header and the store), and the
  * next keyframes map the scene again. A resumed map (its frame came from the
- * store) and a given floor never switch; nor does world.floor_switch: false. */
+ * store) and a given floor never switch; nor does world.floor_switch: false.
+ * The kept frames are the mapper's input frames, copied into buffers that
+ * are reused once the ring is full (no allocation per keyframe after that). */
 #include "node/node_impl.h"
 
 #include <math.h>
@@ -100,7 +102,19 @@ static sooc_status switch_world(sooc_node *n, const double T[16], double dy, con
 sooc_status sooc__node_floor_watch(sooc_node *n, const sooc_frame *f, const double T_src_c[16]) {
     if (!n->fw_f) return SOOC_OK;
     int slot = (int)(n->fw_total % (uint64_t)n->fw_cap);
-    if (sooc_frame_copy(&n->fw_f[slot], f)) return sooc_seterr(SOOC_ENOMEM, "node: out of memory (floor watch)");
+    sooc_frame *d = &n->fw_f[slot];
+    if (d->width == f->width && d->height == f->height && d->depth && !f->instance) {   /* reuse its buffers */
+        uint8_t *rgb = d->rgb, *valid = d->valid;
+        float *depth = d->depth;
+        size_t np = (size_t)f->width * f->height;
+        *d = *f;
+        d->rgb = rgb, d->valid = valid, d->depth = depth, d->instance = NULL;
+        memcpy(d->rgb, f->rgb, np * 3);
+        memcpy(d->depth, f->depth, np * sizeof(float));
+        memcpy(d->valid, f->valid, np);
+    } else if (sooc_frame_copy(d, f)) {
+        return sooc_seterr(SOOC_ENOMEM, "node: out of memory (floor watch)");
+    }
     n->fw_f[slot].has_pose = 1;
     memcpy(n->fw_f[slot].T_wc, T_src_c, 16 * sizeof(double));
     n->fw_total++;

@@ -674,7 +674,8 @@ static int map_frame(sooc_node *n, sooc_frame *f, const double T_src_c[16], int6
     n->st.keyframes++;
     uint64_t k = n->st.keyframes;
     pthread_mutex_unlock(&n->mu);
-    if ((st = sooc__node_floor_watch(n, f, T_src_c))) { *result = st; return 1; }
+    /* the mapper's input frame (the model's size: the estimate samples at most 60,000 points anyway) */
+    if ((st = sooc__node_floor_watch(n, &n->pre, T_src_c))) { *result = st; return 1; }
     if (n->view && sooc__node_view_publish(n, f))   /* the view is a window, not the map: warn */
         sooc_log(SOOC_LOG_WARN, "node: view: %s", sooc_errmsg());
     if (n->rec) sooc__node_record_keyframe(n, f->t_ns);
