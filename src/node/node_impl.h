@@ -144,7 +144,7 @@ sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem);
 void sooc__node_stats_refresh(sooc_node *n);
 
 /* publish.c */
-/* floor.c: the support plane's parameters from the launch file and the
+/* floor_watch.c: the support plane's parameters from the launch file and the
  * model; the watch for a lower level plane after start-up (rule 4). */
 void sooc__node_support_params(sooc_node *n, sooc_support_params *sp);
 sooc_status sooc__node_floor_watch_init(sooc_node *n, int from_store);

@@ -1,5 +1,5 @@
 /* The support plane after start-up (docs/node.md "Support plane", rule 4;
- * src/node/floor.c): the node with the geometric map over ray-cast frames of
+ * src/node/floor_watch.c): the node with the geometric map over ray-cast frames of
  * a table on a floor. The first 12 keyframes look down at the table top from
  * 0.5 m (no floor in view: the map's plane is the table top, a cup on it is an
  * entry); the next 24 step back and see the floor in front of the table and a
