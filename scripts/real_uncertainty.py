@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""How well the published position uncertainty of the shipped tabletop launch (launch/tabletop_geometric.yaml)
-fits real objects (docs/shm.md "The geometric map's fields").
+"""How well the published position uncertainty of the shipped tabletop launch (launch/tabletop_geometric.yaml,
+or the launch file in SOOC_LAUNCH, e.g. launch/labelfusion_replay.yaml for the learnt tabletop model) fits real
+objects (docs/shm.md "The geometric map's fields").
 
 The node maps YCB-Video 0000 (ground-truth object centres from its meta.mat, in the recording's frame) and the
 label-fusion labels set (the median of each labelled object's points over all frames: the centre of its
@@ -8,7 +9,10 @@ visible surface), and 8 generated tabletop scenes (their scene.yaml; the support
 each labelled object is scored against the entry whose floor box holds its centre (else the nearest), per map
 axis, in published sigmas (sqrt of cov_xx, cov_zz). Prints the rows and a JSON object as its last line.
 
-  /usr/bin/python3 scripts/real_uncertainty.py        (from the repository root; SOOC_BIN, SOOC_SHARED_REAL)
+  /usr/bin/python3 scripts/real_uncertainty.py        (from the repository root; SOOC_BIN, SOOC_SHARED_REAL,
+                                                      SOOC_LAUNCH)
+
+An object with no entry at all counts as missed (no error is scored for it).
 """
 import json, os, glob, re, subprocess, tempfile
 import numpy as np
@@ -17,6 +21,7 @@ import cv2
 BIN = os.environ.get('SOOC_BIN', 'build/bin/sooc3d')
 REAL = os.environ.get('SOOC_SHARED_REAL', '../shared/real')
 TMP = tempfile.mkdtemp(prefix='sooc_unc_')
+LAUNCH = os.environ.get('SOOC_LAUNCH', 'launch/tabletop_geometric.yaml')
 
 def world_frame(db):
     out = subprocess.run(['sqlite3', db, "select value from meta where key='world_frame'"], capture_output=True, text=True).stdout.split()
@@ -27,7 +32,7 @@ def world_frame(db):
 def run(seq, tag, extra=()):
     db = f'{TMP}/{tag}.sqlite'
     for f in glob.glob(db + '*'): os.remove(f)
-    subprocess.run([BIN, 'node', 'launch/tabletop_geometric.yaml', '--set', f'sensor.path={seq}', '--set', f'shm.name=unc_{tag}',
+    subprocess.run([BIN, 'node', LAUNCH, '--set', f'sensor.path={seq}', '--set', f'shm.name=unc_{tag}',
                     '--set', 'shm.unlink_on_exit=true', '--set', f'map.db={db}', '--quiet', *extra], check=True,
                    stderr=subprocess.DEVNULL)
     subprocess.run([BIN, 'map', 'export', '--db', db, '--json', f'{TMP}/{tag}.json'], check=True, stderr=subprocess.DEVNULL)
@@ -71,6 +76,8 @@ def score(objs, Tws, gt, name):
             inside = abs(bx) <= o['extent'][0] / 2 and abs(bz) <= o['extent'][2] / 2
             key = d - (10 if inside else 0)
             if key < bd: bd, best = key, o
+        if best is None:
+            continue   # no entry at all: missed
         used.add(best['id'])
         ex, ez = best['x'] - p[0], best['z'] - p[2]
         cov = best['cov_xz']
@@ -78,21 +85,27 @@ def score(objs, Tws, gt, name):
     un = [o['presence'] for o in objs if o['id'] not in used]
     return rows, [o['presence'] for o in objs if o['id'] in used], un
 
+def mean(v):
+    return float(np.mean(v)) if len(v) else None
+
 allz = []
 pm, pu = [], []
+nent_r = nobj_r = 0
 for seq, tag, gtf in [(f'{REAL}/ycb_video/data/0000', 'ycb', lambda: ycb_gt()),
                       (f'{REAL}/label_fusion/data/labels', 'lf', lambda: lf_gt(f'{REAL}/label_fusion/data/labels'))]:
     objs, T = run(seq, tag)
-    rows, m, u = score(objs, T, gtf(), tag)
+    gt = gtf()
+    rows, m, u = score(objs, T, gt, tag)
     pm += m; pu += u
-    print(f'{tag}: {len(objs)} entries for {len(rows)} objects; presence of the matched entries '
-          f'{np.mean(m):.3f}, of the others {np.mean(u) if u else float("nan"):.3f} ({len(u)})')
+    nent_r += len(objs); nobj_r += len(gt)
+    print(f'{tag}: {len(objs)} entries for {len(gt)} objects ({len(gt) - len(rows)} without an entry); presence of '
+          f'the matched entries {mean(m) or float("nan"):.3f}, of the others {mean(u) or float("nan"):.3f} ({len(u)})')
     for r in rows:
         print('  %s obj %d -> entry %d: err x %.3f z %.3f m = %.2f / %.2f sigma, presence %.3f' % r)
         allz += [r[5], r[6]]
 z = np.abs(np.array(allz))
-real = {'n_axis_errors': len(z), 'within_1sigma': float(np.mean(z <= 1)), 'within_2sigma': float(np.mean(z <= 2)),
-                  'presence_matched': float(np.mean(pm)), 'presence_unmatched': float(np.mean(pu)) if pu else None}
+real = {'launch': LAUNCH, 'objects': nobj_r, 'entries': nent_r, 'n_axis_errors': len(z), 'within_1sigma': mean(z <= 1),
+        'within_2sigma': mean(z <= 2), 'presence_matched': mean(pm), 'presence_unmatched': mean(pu)}
 
 # generated tabletop scenes: the scene's own object centres
 gz = []
@@ -107,10 +120,10 @@ for d in sorted(glob.glob(f'{TMP}/gen/scene_*')):
     objs, T = run(d, 'g' + d[-2:], ('--set', 'world.floor=0'))
     rows, m, u = score(objs, T, gt, 'gen')
     gpm += m; gpu += u
-    nent += len(objs); nobj += len(rows)
+    nent += len(objs); nobj += len(gt)
     gz += [r[5] for r in rows] + [r[6] for r in rows]
 z = np.abs(np.array(gz))
-gen = {'scenes': 8, 'objects': nobj, 'entries': nent, 'n_axis_errors': len(z), 'within_1sigma': float(np.mean(z <= 1)), 'within_2sigma': float(np.mean(z <= 2)),
-       'presence_matched': float(np.mean(gpm)), 'presence_unmatched': float(np.mean(gpu)) if gpu else None}
+gen = {'scenes': 8, 'objects': nobj, 'entries': nent, 'n_axis_errors': len(z), 'within_1sigma': mean(z <= 1),
+       'within_2sigma': mean(z <= 2), 'presence_matched': mean(gpm), 'presence_unmatched': mean(gpu)}
 print(json.dumps({'real': real, 'generated': gen}))
 subprocess.run(['rm', '-rf', TMP])
