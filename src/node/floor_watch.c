@@ -134,7 +134,14 @@ sooc_status sooc__node_floor_watch(sooc_node *n, const sooc_frame *f, const doub
     const sooc_frame *fp[32];
     for (int i = 0; i < n->fw_n; i++) fp[i] = &n->fw_f[i];
     sooc_support sup;
-    if (sooc_support_estimate(fp, n->fw_n, &sp, &sup)) return SOOC_OK;   /* no level plane: nothing to say */
+    double t0 = sooc_seconds();
+    sooc_status est = sooc_support_estimate(fp, n->fw_n, &sp, &sup);
+    sooc_log(SOOC_LOG_DEBUG, "node: floor watch at frame %lld: %s, %.1f ms", (long long)f->index,
+             est ? "no level plane" : "estimated", (sooc_seconds() - t0) * 1e3);
+    if (est) {   /* no level plane: nothing to say */
+        sooc_clearerr();
+        return SOOC_OK;
+    }
     double cosang = up[0] * sup.up_src[0] + up[1] * sup.up_src[1] + up[2] * sup.up_src[2];
     /* how far below the map's plane the new one lies: a point of it, -d n, in the map */
     const double *q = sup.plane_src;
