@@ -83,7 +83,8 @@ static inline const char *sooc_frame_fault_name(sooc_frame_fault f) {
  * Zeroes everything. On failure, the frame is left empty. */
 sooc_status sooc_frame_alloc(sooc_frame *f, int w, int h, int with_instance);
 void sooc_frame_free(sooc_frame *f);     /* NULL-safe; leaves *f zeroed */
-sooc_status sooc_frame_copy(sooc_frame *dst, const sooc_frame *src); /* dst is (re)allocated */
+sooc_status sooc_frame_copy(sooc_frame *dst, const sooc_frame *src); /* into dst's buffers when its size
+                                                                       matches, else (re)allocated */
 
 /* ==== camera calibration files (calib) =================================== */
 

@@ -32,6 +32,21 @@ void sooc_frame_free(sooc_frame *f) {
 }
 
 sooc_status sooc_frame_copy(sooc_frame *dst, const sooc_frame *src) {
+    if (dst == src) return SOOC_OK;
+    size_t np = (size_t)src->width * (size_t)src->height;
+    if (dst->rgb && dst->depth && dst->valid && dst->width == src->width && dst->height == src->height &&
+        !dst->instance == !src->instance) {   /* same size: into dst's own buffers */
+        uint8_t *rgb = dst->rgb, *valid = dst->valid;
+        float *depth = dst->depth;
+        uint16_t *inst = dst->instance;
+        *dst = *src;
+        dst->rgb = rgb, dst->depth = depth, dst->valid = valid, dst->instance = inst;
+        memcpy(rgb, src->rgb, np * 3);
+        memcpy(depth, src->depth, np * sizeof(float));
+        memcpy(valid, src->valid, np);
+        if (inst) memcpy(inst, src->instance, np * sizeof(uint16_t));
+        return SOOC_OK;
+    }
     sooc_frame tmp;
     sooc_status s = sooc_frame_alloc(&tmp, src->width, src->height, src->instance != NULL);
     if (s) return s;

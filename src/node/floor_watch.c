@@ -12,7 +12,8 @@
  * next keyframes map the scene again. A resumed map (its frame came from the
  * store) and a given floor never switch; nor does world.floor_switch: false.
  * The kept frames are the mapper's input frames, copied into buffers that
- * are reused once the ring is full (no allocation per keyframe after that). */
+ * are reused once the ring is full (sooc_frame_copy: no allocation per
+ * keyframe after that). */
 #include "node/node_impl.h"
 
 #include <math.h>
@@ -47,10 +48,10 @@ void sooc__node_support_params(sooc_node *n, sooc_support_params *sp) {
 sooc_status sooc__node_floor_watch_init(sooc_node *n, int from_store) {
     const sooc_node_config *c = &n->cfg;
     if (c->floor_mode != SOOC_NODE_FLOOR_ESTIMATE || !c->floor_switch || from_store) return SOOC_OK;
-    n->fw_cap = c->support_frames > 0 ? (c->support_frames < 32 ? c->support_frames : 32) : 8;
+    n->fw_cap = sooc__node_support_cap(c);
     n->fw_f = sooc_calloc((size_t)n->fw_cap, sizeof *n->fw_f);
     if (!n->fw_f) return sooc_seterr(SOOC_ENOMEM, "node: out of memory (floor watch)");
-    n->fw_n = n->fw_new = 0;
+    n->fw_total = 0;
     return SOOC_OK;
 }
 
@@ -58,7 +59,8 @@ void sooc__node_floor_watch_free(sooc_node *n) {
     for (int i = 0; i < n->fw_cap; i++) sooc_frame_free(&n->fw_f[i]);
     sooc_free(n->fw_f);
     n->fw_f = NULL;
-    n->fw_cap = n->fw_n = n->fw_new = 0;
+    n->fw_cap = 0;
+    n->fw_total = 0;
 }
 
 /* The map restarts in the world frame T (the old one moved up by dy). */
@@ -101,26 +103,13 @@ static sooc_status switch_world(sooc_node *n, const double T[16], double dy, con
 
 sooc_status sooc__node_floor_watch(sooc_node *n, const sooc_frame *f, const double T_src_c[16]) {
     if (!n->fw_f) return SOOC_OK;
-    int slot = (int)(n->fw_total % (uint64_t)n->fw_cap);
-    sooc_frame *d = &n->fw_f[slot];
-    if (d->width == f->width && d->height == f->height && d->depth && !f->instance) {   /* reuse its buffers */
-        uint8_t *rgb = d->rgb, *valid = d->valid;
-        float *depth = d->depth;
-        size_t np = (size_t)f->width * f->height;
-        *d = *f;
-        d->rgb = rgb, d->valid = valid, d->depth = depth, d->instance = NULL;
-        memcpy(d->rgb, f->rgb, np * 3);
-        memcpy(d->depth, f->depth, np * sizeof(float));
-        memcpy(d->valid, f->valid, np);
-    } else if (sooc_frame_copy(d, f)) {
-        return sooc_seterr(SOOC_ENOMEM, "node: out of memory (floor watch)");
-    }
-    n->fw_f[slot].has_pose = 1;
-    memcpy(n->fw_f[slot].T_wc, T_src_c, 16 * sizeof(double));
-    n->fw_total++;
-    if (n->fw_n < n->fw_cap) n->fw_n++;
-    if (++n->fw_new < n->fw_cap) return SOOC_OK;
-    n->fw_new = 0;
+    sooc_frame *d = &n->fw_f[n->fw_total % (uint64_t)n->fw_cap];
+    if (sooc_frame_copy(d, f)) return sooc_seterr(SOOC_ENOMEM, "node: out of memory (floor watch)");
+    d->has_pose = 1;
+    memcpy(d->T_wc, T_src_c, 16 * sizeof(double));
+    /* every fw_cap keyframes, on the last fw_cap of them */
+    if (++n->fw_total % (uint64_t)n->fw_cap) return SOOC_OK;
+    int nf = n->fw_cap;
 
     sooc_support_params sp;
     sooc__node_support_params(n, &sp);
@@ -130,12 +119,12 @@ sooc_status sooc__node_floor_watch(sooc_node *n, const sooc_frame *f, const doub
     sp.has_up_hint = 1;
     memcpy(sp.up_hint, up, sizeof up);
     sp.has_gravity = 0;
-    sp.max_frames = n->fw_n;
+    sp.max_frames = nf;
     const sooc_frame *fp[32];
-    for (int i = 0; i < n->fw_n; i++) fp[i] = &n->fw_f[i];
+    for (int i = 0; i < nf; i++) fp[i] = &n->fw_f[i];
     sooc_support sup;
     double t0 = sooc_seconds();
-    sooc_status est = sooc_support_estimate(fp, n->fw_n, &sp, &sup);
+    sooc_status est = sooc_support_estimate(fp, nf, &sp, &sup);
     sooc_log(SOOC_LOG_DEBUG, "node: floor watch at frame %lld: %s, %.1f ms", (long long)f->index,
              est ? "no level plane" : "estimated", (sooc_seconds() - t0) * 1e3);
     if (est) {   /* no level plane: nothing to say */

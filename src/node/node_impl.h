@@ -96,10 +96,11 @@ struct sooc_node {
     double *sup_T;                 /* their T_src_c */
     int64_t *sup_tcap;
     int n_sup, cap_sup;
-    /* world.floor_switch (floor.c): the last keyframes, for the estimate again */
+    /* world.floor_switch (floor_watch.c): the last fw_cap keyframes, a ring
+     * (keyframe k in slot k % fw_cap), for the estimate again */
     sooc_frame *fw_f;
-    int fw_cap, fw_n, fw_new, fw_told;
-    uint64_t fw_total;
+    int fw_cap, fw_told;
+    uint64_t fw_total;             /* keyframes put in the ring */
     int has_gravity;
     double gravity[3];             /* world.gravity (source frame, pointing down) */
 
@@ -143,13 +144,18 @@ sooc_status sooc__node_grow(void **p, size_t *cap, size_t need, size_t elem);
 /* Caller holds n->mu. */
 void sooc__node_stats_refresh(sooc_node *n);
 
-/* publish.c */
 /* floor_watch.c: the support plane's parameters from the launch file and the
- * model; the watch for a lower level plane after start-up (rule 4). */
+ * model; the watch for a lower level plane after start-up (rule 4). Both the
+ * start-up buffer and the watch hold world.support_frames frames (1-32). */
+static inline int sooc__node_support_cap(const sooc_node_config *c) {
+    return c->support_frames > 0 ? (c->support_frames < 32 ? c->support_frames : 32) : 8;
+}
 void sooc__node_support_params(sooc_node *n, sooc_support_params *sp);
 sooc_status sooc__node_floor_watch_init(sooc_node *n, int from_store);
 sooc_status sooc__node_floor_watch(sooc_node *n, const sooc_frame *f, const double T_src_c[16]);
 void sooc__node_floor_watch_free(sooc_node *n);
+
+/* publish.c */
 sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t nc, const uint64_t *rem, size_t nr,
                                int clear_first, int to_db, const sooc_kf_info *kf);
 sooc_status sooc__node_publish_keyframe(sooc_node *n, int64_t stamp_ns, const double T_wc[16], int64_t t_cap);

@@ -231,7 +231,7 @@ static sooc_status world_from_store(sooc_node *n, int resumed) {
 /* Buffers for world.floor: estimate, and the gravity hint. */
 static sooc_status support_init(sooc_node *n) {
     const sooc_node_config *c = &n->cfg;
-    n->cap_sup = c->support_frames > 0 ? (c->support_frames < 32 ? c->support_frames : 32) : 8;
+    n->cap_sup = sooc__node_support_cap(c);
     n->sup_f = sooc_calloc((size_t)n->cap_sup, sizeof *n->sup_f);
     n->sup_T = sooc_malloc(16 * sizeof(double) * (size_t)n->cap_sup);
     n->sup_tcap = sooc_malloc(sizeof(int64_t) * (size_t)n->cap_sup);
