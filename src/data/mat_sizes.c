@@ -8,6 +8,7 @@
 #include <zlib.h>
 
 #define MAT_MAX_ELEMS (1ull << 27)   /* YCB-Video's largest variable, vertmap, has 921,600 */
+#define MAT_MIN_MATRIX 40           /* array flags (16), dimensions (16: two), name (8: an inline tag) */
 
 static uint32_t rd32(const uint8_t *p, int be) {
     return be ? (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]
@@ -69,6 +70,11 @@ sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t
                                "past the end of the file (%zu bytes)", path, off, nb, size);
         const uint8_t *d = f + off + 8;
         sooc_status st = SOOC_OK;
+        /* an array's header (flags, dimensions, name tags) takes MAT_MIN_MATRIX bytes: libmatio reads that
+         * much whatever the element declares, so a shorter one would be read from the elements after it */
+        if (type == 14 && nb < MAT_MIN_MATRIX)
+            return sooc_seterr(SOOC_EFORMAT, "%s: corrupt MAT-file: offset %zu: an array element of %u bytes, too "
+                               "small for an array's header (%d bytes)", path, off, nb, MAT_MIN_MATRIX);
         if (type == 14) st = check_matrix(path, d, nb, be, nb, (long)off);
         if (type == 15) {                            /* miCOMPRESSED: the inner header, inflated */
             uint8_t hdr[8 + 16 + 8 + 4 * 32];
@@ -84,6 +90,10 @@ sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t
                 inflateEnd(&z);
                 if ((r == Z_OK || r == Z_STREAM_END || r == Z_BUF_ERROR) && got >= 8 && rd32(hdr, be) == 14) {
                     uint64_t inner = rd32(hdr + 4, be), room = (uint64_t)nb * 1032 + 1024;
+                    if (inner < MAT_MIN_MATRIX)
+                        return sooc_seterr(SOOC_EFORMAT, "%s: corrupt MAT-file: offset %zu: a compressed array of %llu "
+                                           "bytes, too small for an array's header (%d bytes)", path, off,
+                                           (unsigned long long)inner, MAT_MIN_MATRIX);
                     st = check_matrix(path, hdr + 8, got - 8, be, inner < room ? inner : room, (long)off);
                 }
             }

@@ -321,6 +321,18 @@ static void test_ycb_errors(const char *tmp) {
     CHECK_OK(sooc_seq_open(&s, d, NULL));   /* a meta.mat written by libmatio reads back */
     sooc_seq_close(s);
     s = NULL;
+    /* an empty array element after the variables (0 bytes declared): libmatio would read an array's header
+     * from the bytes after it (a name of 1.8 GB in the fuzz input tests/fuzz/corpus/ycb_meta/rss-1.8GB-*) */
+    {
+        FILE *fp = fopen(p, "ab");
+        static const uint8_t tail[40] = {14, 0, 0, 0, 0, 0, 0, 0, 6, 0, 0, 0, 8, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0,
+                                         5, 0, 0, 0, 8, 0, 0, 0, 1, 0, 0, 0, 0x21, 0, 0, 0x6f};
+        CHECK(fp && fwrite(tail, 1, sizeof tail, fp) == sizeof tail);
+        if (fp) fclose(fp);
+        CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "an array element of 0 bytes");
+        printf("an empty array element: %s\n", sooc_errmsg());
+        write_meta(p, 1066.778, rt);
+    }
 
     /* a depth PNG of the wrong size: open works, that frame's read names it */
     snprintf(p, sizeof p, "%s/000002-depth.png", d);
