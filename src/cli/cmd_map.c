@@ -66,6 +66,12 @@ typedef struct out_ctx {
 
 static float sigmoidf(float a) { return 1.0f / (1.0f + expf(-a)); }
 
+/* A JSON number, or null where there is none (NaN, infinite) */
+static void json_num(FILE *f, double v) {
+    if (isfinite(v)) fprintf(f, "%.9g", v);
+    else fprintf(f, "null");
+}
+
 static int print_cb(void *u, const sooc_cogmap_entry *e) {
     out_ctx *c = u;
     if (c->limit && c->n >= c->limit) return 1;
@@ -106,16 +112,18 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
     case 2:
         fprintf(c->f,
                 "%s\n    {\"id\": %llu, \"x\": %.9g, \"z\": %.9g, \"yaw\": %.9g, \"sigma_t\": %.9g, "
-                "\"sigma_yaw\": %.9g, \"presence\": %.9g, \"presence_logit\": %.9g, \"obs_count\": %u, "
+                "\"sigma_yaw\": ",
+                c->first ? "" : ",", (unsigned long long)e->id, e->X, e->Z, e->Theta, st);
+        json_num(c->f, sy);   /* a symmetric object's yaw has no spread: null */
+        fprintf(c->f,
+                ", \"presence\": %.9g, \"presence_logit\": %.9g, \"obs_count\": %u, "
                 "\"last_view\": %d, \"first_seen_ns\": %lld, \"last_seen_ns\": %lld, \"what_mu\": [",
-                c->first ? "" : ",", (unsigned long long)e->id, e->X, e->Z, e->Theta, st, sy, p, e->pres_logit,
-                e->obs_count, e->last_view, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
+                p, e->pres_logit, e->obs_count, e->last_view, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_mu[i]);
         fprintf(c->f, "], \"what_logvar\": [");
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_logvar[i]);
         fprintf(c->f, "], \"cov_xz\": [%.9g, %.9g, %.9g], \"var_yaw\": ", cov[0], cov[1], cov[2]);
-        if (isfinite(cov[3])) fprintf(c->f, "%.9g", cov[3]);
-        else fprintf(c->f, "null");
+        json_num(c->f, cov[3]);
         if (found)
             fprintf(c->f, ", \"extent\": [%.9g, %.9g, %.9g], \"height\": %.9g", me.extent[0], me.extent[1],
                     me.extent[2], h);

@@ -4,6 +4,7 @@
 #include "check.h"
 #include "sooc3d/cogmap.h"
 
+#include <math.h>
 #include <string.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -81,6 +82,10 @@ int main(void) {
         g.centre[1] = 0.1f;
         g.cov_xz[0] = 4e-4, g.cov_xz[1] = 1e-4, g.cov_xz[2] = 9e-4, g.var_yaw = 0.01;
         CHECK_OK(sooc_mapstore_geom_put(s, 8, ext, &g));
+        /* entry 15: a symmetric object, whose yaw has no variance (NaN in the store; null in JSON) */
+        g.flags = SOOC_GEOM_TIGHT | SOOC_GEOM_SYMMETRIC;
+        g.var_yaw = NAN;
+        CHECK_OK(sooc_mapstore_geom_put(s, 15, ext, &g));
     }
     sooc_mapstore_close(s);
     sooc_cogmap_destroy(m);
@@ -125,6 +130,13 @@ int main(void) {
     if (rc != 127 && !strstr(out, "not found"))
         CHECK_MSG(rc == 0 && !strcmp(out, "0.025495 tight,clipped [0.1, 0.2, 0.3] 0.200 0.367879 not computed None\n"),
                   "json planner fields: %s", out);
+    /* a symmetric entry's yaw spread is null in JSON (not nan, which no JSON reader takes) */
+    snprintf(cmd, sizeof cmd,
+             "python3 -c \"import json; d={o['id']: o for o in json.load(open('%s'))['objects']}; e=d[15];"
+             " print(e['sigma_yaw'], e['var_yaw'], e['box'])\"", f);
+    rc = run(cmd, out, sizeof out);
+    if (rc != 127 && !strstr(out, "not found"))
+        CHECK_MSG(rc == 0 && !strcmp(out, "None None tight,symmetric\n"), "json symmetric entry: %s", out);
     snprintf(cmd, sizeof cmd, "'%s' map query --box 1.5 1 3.5 1 --db '%s' 2>/dev/null", g_bin, db);
     CHECK(run(cmd, out, sizeof out) == 0);
     CHECK_MSG(strstr(out, "0.0255") && strstr(out, "0.100x0.200x0.300") && strstr(out, "tight,clipped") &&
