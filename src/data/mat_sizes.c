@@ -35,12 +35,18 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
         if (t > 18 && k < 3)
             return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's element %d has data type %u (MAT-files use 1-18): "
                                "a corrupt MAT-file", path, off, k, t);
+        /* the layout libmatio reads without looking at the tags: array flags miUINT32 of 8 bytes, dimensions
+         * miINT32 of two or more, the name miINT8 */
+        if ((k == 0 && (t != 6 || sz != 8 || adv != 16)) || (k == 1 && (t != 5 || sz < 8 || sz % 4 || adv == 8)) ||
+            (k == 2 && t != 1))
+            return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's %s element has data type %u and %u bytes: a "
+                               "corrupt MAT-file", path, off, k == 0 ? "flags" : k == 1 ? "dimensions" : "name", t, sz);
         if (k == 0 && t == 6 && sz >= 8 && at + 12 <= n) cls = rd32(p + at + 8, be) & 0xff;
         if (k == 1 && t == 5 && !(rd32(p + at, be) >> 16)) { dims = p + at + 8; dn = sz; }
         at += adv;
     }
     if (!dims || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
-    if (cls == 1 || cls == 2 || cls == 3 || cls == 5) return SOOC_OK;   /* cell, struct, object, sparse */
+    if (cls == 3 || cls == 5) return SOOC_OK;   /* object, sparse */
     uint64_t prod = 1;
     for (uint32_t k = 0; k < dn / 4; k++) {
         uint32_t v = rd32(dims + 4 * k, be);
@@ -50,7 +56,10 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
     if (prod == UINT64_MAX)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares a dimension of 2^31 or more: a corrupt "
                            "MAT-file", path, off);
-    if (prod > room || prod > MAT_MAX_ELEMS)
+    /* a cell's elements are arrays of their own, 8 bytes of tag at least each (libmatio allocates a pointer per
+     * element first); a struct's take a byte at least */
+    uint64_t need = cls == 1 ? (prod < UINT64_MAX / 8 ? prod * 8 : UINT64_MAX) : prod;
+    if (need > room || prod > MAT_MAX_ELEMS)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares %llu elements, more than the file can hold "
                            "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)prod,
                            (unsigned long long)room);
