@@ -332,6 +332,16 @@ static void test_ycb_errors(const char *tmp) {
         CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "an array element of 0 bytes");
         printf("an empty array element: %s\n", sooc_errmsg());
         write_meta(p, 1066.778, rt);
+        /* an array whose flags element declares 0 bytes (libmatio reads 8 there whatever it declares) */
+        static const uint8_t arr[56] = {14, 0, 0, 0, 48, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 8, 0, 0, 0,
+                                        3, 0, 0, 0, 3, 0, 0, 0, 1, 0, 1, 0, 'a', 0, 0, 0, 9, 0, 0, 0, 8, 0, 0, 0,
+                                        0, 0, 0, 0, 0, 0, 0xf0, 0x3f};
+        fp = fopen(p, "ab");
+        CHECK(fp && fwrite(arr, 1, sizeof arr, fp) == sizeof arr);
+        if (fp) fclose(fp);
+        CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "flags element has data type 6 and 0 bytes");
+        printf("an array's flags of 0 bytes: %s\n", sooc_errmsg());
+        write_meta(p, 1066.778, rt);
     }
 
     /* a depth PNG of the wrong size: open works, that frame's read names it */
