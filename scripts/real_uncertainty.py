@@ -117,7 +117,7 @@ for d in sorted(glob.glob(f'{TMP}/gen/scene_*')):
     y = open(d + '/scene.yaml').read()
     gt = {int(m[0]): [float(m[1]), float(m[4]) / 2, float(m[2])] for m in
           re.findall(r"\{id: (\d+), shape: \w+, x: ([-\d.e]+), z: ([-\d.e]+), yaw: [-\d.e]+, size: \[([-\d.e]+), ([-\d.e]+)", y)}
-    objs, T = run(d, 'g' + d[-2:], ('--set', 'world.floor=0'))
+    objs, T = run(d, 'g' + d[-2:], ('--set', 'world.floor=0', '--set', 'world.up=+y'))
     rows, m, u = score(objs, T, gt, 'gen')
     gpm += m; gpu += u
     nent += len(objs); nobj += len(gt)

@@ -74,6 +74,8 @@ typedef struct sooc_cluster_params {
                               lies behind it) at least this many times per frame that put a
                               point in it is not an object voxel: mixed pixels at depth
                               edges, reflections (1; 0 = keep every voxel)                  */
+    double rest_m;         /* a component whose lowest voxel is higher above the plane than
+                              this stands on nothing: not an object (0.06; 0 = keep them)   */
 } sooc_cluster_params;
 void sooc_cluster_params_default(sooc_cluster_params *p);
 

@@ -43,18 +43,19 @@ void sooc_cluster_params_default(sooc_cluster_params *p) {
     p->wall_m = 0.3;
     p->pixel_step = 1;
     p->free_ratio = 1.0;
+    p->rest_m = 0.06;
 }
 
 static sooc_status check_params(const sooc_cluster_params *p) {
     if (!(p->voxel_m > 0) || !(p->dist_m >= p->voxel_m) || !(p->max_height_m > p->min_height_m) ||
         !(p->max_depth_m > 0) || p->min_voxels < 1 || !(p->max_extent_m > 0) || p->pixel_step < 1 || !(p->wall_m >= 0) ||
-        !(p->free_ratio >= 0 && p->free_ratio <= 1000) ||
+        !(p->free_ratio >= 0 && p->free_ratio <= 1000) || !(p->rest_m >= 0) ||
         !isfinite(p->voxel_m + p->dist_m + p->min_height_m + p->max_height_m + p->max_depth_m + p->max_extent_m))
         return sooc_seterr(SOOC_EINVAL,
                            "cluster: bad parameters (voxel %g m, dist %g m, heights %g..%g m, depth %g m, "
-                           "min voxels %d, extent %g m, step %d)",
+                           "min voxels %d, extent %g m, step %d, wall %g m, free ratio %g, rest %g m)",
                            p->voxel_m, p->dist_m, p->min_height_m, p->max_height_m, p->max_depth_m, p->min_voxels,
-                           p->max_extent_m, p->pixel_step);
+                           p->max_extent_m, p->pixel_step, p->wall_m, p->free_ratio, p->rest_m);
     return SOOC_OK;
 }
 
@@ -147,6 +148,17 @@ static int32_t voxel_of(sooc_cluster_map *m, uint64_t key) {
     v->comp = -1;
     m->keys[h] = kk, m->slot[h] = (int32_t)m->n;
     return (int32_t)m->n++;
+}
+
+/* the voxel of key, -1 when the grid has none there */
+static int32_t voxel_find(const sooc_cluster_map *m, uint64_t key) {
+    uint64_t kk = key + 1;
+    size_t h = hash64(kk) & (m->hcap - 1);
+    while (m->keys[h]) {
+        if (m->keys[h] == kk) return m->slot[h];
+        h = (h + 1) & (m->hcap - 1);
+    }
+    return -1;
 }
 
 /* Free-space evidence: every voxel above the plane that this frame's depth
@@ -251,7 +263,7 @@ typedef struct comp_acc {
     int32_t root;
     int n;
     size_t first;    /* its voxels: mem[first .. first + n) */
-    double s[3], ymax;
+    double s[3], ymax, ymin;
     double c[3];
 } comp_acc;
 
@@ -403,6 +415,62 @@ static sooc_status remove_walls(cell_ref *ref, size_t *nr_io, double wall_m) {
     return SOOC_OK;
 }
 
+/* Which components stand (rule 3, docs/geometric.md): a component whose lowest voxel lies within rest_m
+ * of the plane, or one that rests on a standing component: one of its lowest voxels has a voxel of that
+ * component under it (its column or the 8 around it) within REST_GAP of the join distance. The faces of a
+ * box that the depth samples in bands a few cm apart (steep, far) rest on each other down to the plane; a
+ * shelf's lip 10 cm above what stands under it does not. Components in order of their lowest voxel, so
+ * those under one are decided first. out[k] = 1 where component k stands. */
+#define REST_GAP 2.0
+typedef struct comp_low {
+    double ymin;
+    size_t k;
+} comp_low;
+
+static int cmp_low(const void *a, const void *b) {
+    const comp_low *x = a, *y = b;
+    return x->ymin < y->ymin ? -1 : x->ymin > y->ymin ? 1 : (x->k > y->k) - (x->k < y->k);
+}
+
+static sooc_status standing(const sooc_cluster_map *m, const comp_acc *acc, size_t na, const int32_t *mem,
+                            uint8_t *out) {
+    const sooc_cluster_params *p = &m->p;
+    int32_t *lab = sooc_malloc((m->n ? m->n : 1) * sizeof *lab);
+    comp_low *ord = sooc_malloc((na ? na : 1) * sizeof *ord);
+    if (!lab || !ord) {
+        sooc_free(lab), sooc_free(ord);
+        return sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu voxels", m->n);
+    }
+    for (size_t i = 0; i < m->n; i++) lab[i] = -1;
+    for (size_t k = 0; k < na; k++) {
+        for (int a = 0; a < acc[k].n; a++) lab[mem[acc[k].first + (size_t)a]] = (int32_t)k;
+        ord[k].ymin = acc[k].ymin, ord[k].k = k;
+    }
+    qsort(ord, na, sizeof *ord, cmp_low);
+    const double inv = 1.0 / p->voxel_m;
+    const int64_t gap = (int64_t)ceil(REST_GAP * p->dist_m * inv);
+    for (size_t o = 0; o < na; o++) {
+        size_t k = ord[o].k;
+        const comp_acc *c = &acc[k];
+        out[k] = c->ymin <= p->rest_m;
+        for (int a = 0; a < c->n && !out[k]; a++) {
+            double w[3];
+            centroid(&m->vox[mem[c->first + (size_t)a]], w);
+            if (w[1] > c->ymin + 2 * p->voxel_m) continue;   /* its lowest voxels only */
+            int64_t vi = (int64_t)floor(w[0] * inv), vj = (int64_t)floor(w[1] * inv), vk = (int64_t)floor(w[2] * inv);
+            for (int64_t dj = 1; dj <= gap && !out[k]; dj++)
+                for (int di = -1; di <= 1 && !out[k]; di++)
+                    for (int dk = -1; dk <= 1 && !out[k]; dk++) {
+                        int32_t v = voxel_find(m, pack(vi + di, vj - dj, vk + dk));
+                        if (v >= 0 && lab[v] >= 0 && (size_t)lab[v] != k && out[lab[v]]) out[k] = 1;
+                    }
+        }
+    }
+    sooc_free(lab);
+    sooc_free(ord);
+    return SOOC_OK;
+}
+
 sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     if (!m) return sooc_seterr(SOOC_EINVAL, "cluster: segment: no map");
     const sooc_cluster_params *p = &m->p;
@@ -418,6 +486,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     int32_t *par = sooc_malloc((m->n ? m->n : 1) * sizeof *par), *mem = NULL;
     double *pts = NULL;
     comp_acc *acc = NULL;
+    uint8_t *stand = NULL;   /* components that stand on the plane (rest_m > 0) */
     if (!ref || !par) {
         st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu voxels", m->n);
         goto done;
@@ -478,6 +547,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
             *slot = (int32_t)na;
             acc[na].root = r;
             acc[na].ymax = -INFINITY;
+            acc[na].ymin = INFINITY;
             na++;
         }
         comp_acc *c = &acc[*slot];
@@ -487,6 +557,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         c->n++;
         for (int q = 0; q < 3; q++) c->s[q] += w[q], c->c[q] += m->vox[i].c[q] / m->vox[i].n;
         if (w[1] > c->ymax) c->ymax = w[1];
+        if (w[1] < c->ymin) c->ymin = w[1];
     }
     /* each component's voxels together (counting sort by slot), floor points for its box */
     if (!(mem = sooc_malloc((nr ? nr : 1) * sizeof *mem)) || !(pts = sooc_malloc((nr ? nr : 1) * 2 * sizeof *pts))) {
@@ -502,6 +573,13 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
         }
     }
     qsort(acc, na, sizeof *acc, cmp_comp);
+    if (p->rest_m > 0) {
+        if (!(stand = sooc_malloc(na ? na : 1))) {
+            st = sooc_seterr(SOOC_ENOMEM, "cluster: out of memory for %zu components", na);
+            goto done;
+        }
+        if ((st = standing(m, acc, na, mem, stand))) goto done;
+    }
     m->n_obj = 0;
     for (size_t k = 0; k < na; k++) m->vox[acc[k].root].comp = -1;
     int cap_needed = (int)(na < 32768 ? na : 32768);
@@ -516,6 +594,8 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     for (size_t k = 0; k < na && m->n_obj < m->obj_cap; k++) {
         comp_acc *c = &acc[k];
         if (c->n < p->min_voxels) break;   /* sorted by size */
+        /* floating: it stands on nothing here (a shelf's lip, the bin above, an overhang; `standing`) */
+        if (stand && !stand[k]) continue;
         double mx = c->s[0] / c->n, mz = c->s[2] / c->n;
         /* the heading of the smallest-area floor rectangle around the voxels (1 degree steps over a
          * quarter turn: a rectangle repeats itself every 90 degrees), over their floor hull */
@@ -568,6 +648,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     if (n_objects) *n_objects = m->n_obj;
 done:
     sooc_free(mem);
+    sooc_free(stand);
     sooc_free(pts);
     sooc_free(acc);
     sooc_free(ref);

@@ -599,6 +599,9 @@ sooc_status sooc_mapper_set_support(sooc_mapper *mp, double margin_m) {
         sooc_cluster_params cp;
         sooc_cluster_params_default(&cp);
         cp.voxel_m = SUPPORT_VOXEL_M;
+        /* floating clusters support entries too: without them the online label-fusion masks and APC rows
+         * fall (0.067 -> 0.055, 0.138 -> 0.115 over 3 seeds; docs/geometric.md "Geometric support") */
+        cp.rest_m = 0;
         double clip = c->d_clip * c->unit_m;
         if (clip > 0 && clip < cp.max_depth_m) cp.max_depth_m = clip;
         st = sooc_cluster_map_create(&cm, &cp);
@@ -687,6 +690,7 @@ static sooc_status support_prune(sooc_mapper *mp, const sooc_frame *f, uint64_t 
 void sooc_proposal_params_default(sooc_proposal_params *p) {
     memset(p, 0, sizeof *p);
     sooc_cluster_params_default(&p->cluster);
+    p->cluster.rest_m = 0;   /* a keyframe's own clusters: floating ones too (the foot of one often unseen) */
     p->cover_m = 0.02;
     p->sigma_frac = 0;
     p->pres_logit = NAN;

@@ -66,6 +66,7 @@ int sooc_mdl_propose(sooc_cluster_map *cm, const sooc_model_config *c, int NL, c
 void sooc_mdl_prop_from_opts(const sooc_step_opts *o, sooc_mdl_prop_params *pp, sooc_cluster_params *cp) {
     sooc_cluster_params_default(cp);
     if (o->prop_join_m > 0) cp->dist_m = o->prop_join_m;
+    cp->rest_m = 0;   /* as sooc_proposal_params_default */
     pp->cover_m = 0.02;
     pp->sigma_frac = 0;
     pp->pres_logit = o->prop_logit;

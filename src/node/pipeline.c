@@ -312,6 +312,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             mp.cluster.voxel_m = c->geo_voxel_m, mp.cluster.dist_m = c->geo_join_m;
             mp.cluster.min_height_m = c->geo_min_height_m, mp.cluster.max_extent_m = c->geo_max_extent_m;
             mp.cluster.wall_m = c->geo_wall_m;
+            mp.cluster.rest_m = c->geo_rest_m;
             mp.cluster.free_ratio = c->geo_free_ratio;
             mp.cluster.max_depth_m = c->max_depth_m < 3.0 ? c->max_depth_m : 3.0;
             if (c->input_width > 0) mp.input_width = c->input_width, mp.input_height = c->input_height;
@@ -321,10 +322,10 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             }
             n->own_mapper = 1;
             /* the map's identity: the clustering that made it (voxel, join, min height, max extent, wall in
-             * m; free-space ratio) */
-            snprintf(n->model_id_str, sizeof n->model_id_str, "geometric %.4g %.4g %.4g %.4g %.4g %.4g",
+             * m; free-space ratio; rest height in m) */
+            snprintf(n->model_id_str, sizeof n->model_id_str, "geometric %.4g %.4g %.4g %.4g %.4g %.4g %.4g",
                      mp.cluster.voxel_m, mp.cluster.dist_m, mp.cluster.min_height_m, mp.cluster.max_extent_m,
-                     mp.cluster.wall_m, mp.cluster.free_ratio);
+                     mp.cluster.wall_m, mp.cluster.free_ratio, mp.cluster.rest_m);
         } else {
             if (!c->model_path[0]) {
                 st = sooc_seterr(SOOC_EINVAL, "%s: model.path: missing", c->path);

@@ -112,6 +112,23 @@ static int map_bridged(sooc_cluster_map *m, sooc_frame *f) {
     return n;
 }
 
+/* As map_scene, with only every `row`-th image row's depth kept: the depth of a far or steep face comes
+ * in bands a few cm apart, each its own component. */
+static int map_rows(sooc_cluster_map *m, sooc_frame *f, const box *b, int nb, int row) {
+    const double t[3] = {0, 0.04, 0};
+    sooc_cluster_map_clear(m);
+    for (int i = 0; i < 3; i++) {
+        cast(f, g_cams[i], t, b, nb);
+        for (int v = 0; v < H; v++)
+            if (v % row)
+                for (int u = 0; u < W; u++) f->valid[(size_t)v * W + u] = 0, f->depth[(size_t)v * W + u] = 0;
+        if (sooc_cluster_map_add_frame(m, f)) return -1;
+    }
+    int n = -1;
+    if (sooc_cluster_map_segment(m, &n)) return -1;
+    return n;
+}
+
 int main(void) {
     sooc_frame f, q;
     CHECK(sooc_frame_alloc(&f, W, H, 1) == SOOC_OK);
@@ -273,6 +290,49 @@ int main(void) {
         printf("a sliver beside a book on its edge: %d object(s), the book\n", n);
     }
 
+    /* floating: a shelf's lip (20 x 3 x 4 cm, 20 cm above the plane, behind) is not an object; a box on the
+     * plane and a box stacked on it are one, the lip's lowest voxel is above rest_m; with rest_m 0 it is kept */
+    {
+        box fb[3];
+        fb[0] = (box){{-0.04, 0, -0.03}, {0.04, 0.08, 0.03}};
+        fb[1] = (box){{-0.02, 0.08, -0.02}, {0.02, 0.12, 0.02}};
+        fb[2] = (box){{-0.10, 0.20, 0.10}, {0.10, 0.23, 0.14}};
+        n = map_scene(m, &f, fb, 3);
+        int stack = 0;
+        if (n == 1 && sooc_cluster_map_objects(m, o, 4, &no) == SOOC_OK)
+            stack = fabs(o[0].extent[1] - 0.12) < 0.01 && fabs(o[0].z) < 0.02;
+        CHECK_MSG(n == 1 && stack, "a stack and a floating lip: %d objects (want 1, the stack 12 cm tall)", n);
+        sooc_cluster_params np = p;
+        np.rest_m = 0;
+        sooc_cluster_map *nr = NULL;
+        CHECK(sooc_cluster_map_create(&nr, &np) == SOOC_OK);
+        int nn = nr ? map_scene(nr, &f, fb, 3) : -1;
+        CHECK_MSG(nn == 2, "rest test off: %d objects (want 2: the stack and the lip)", nn);
+        sooc_cluster_map_destroy(nr);
+        printf("a stack of two boxes and a floating lip: %d object(s), the stack; with rest_m 0: %d\n", n, nn);
+    }
+
+    /* a tall box whose depth comes in bands (every 8th row of three views): its upper bands rest on the lower ones down to
+     * the plane and all stay, as with rest_m 0; a lip 10 cm above the box's top and behind it goes */
+    {
+        box tb[2];
+        tb[0] = (box){{-0.04, 0, -0.03}, {0.04, 0.25, 0.03}};
+        tb[1] = (box){{-0.10, 0.35, 0.10}, {0.10, 0.38, 0.14}};
+        sooc_cluster_params np = p;
+        np.rest_m = 0;
+        sooc_cluster_map *nr = NULL;
+        CHECK(sooc_cluster_map_create(&nr, &np) == SOOC_OK);
+        int n0 = nr ? map_rows(nr, &f, tb, 1, 8) : -1, n1 = map_rows(m, &f, tb, 1, 8);
+        CHECK_MSG(n0 >= 2 && n1 == n0, "a box in bands: %d objects, %d with rest_m 0 (want the same, 2 or more)", n1,
+                  n0);
+        int l0 = nr ? map_rows(nr, &f, tb, 2, 8) : -1, l1 = map_rows(m, &f, tb, 2, 8);
+        CHECK_MSG(l0 == n0 + 1 && l1 == n1, "a box in bands and a lip: %d objects, %d with rest_m 0 (want %d, %d)", l1,
+                  l0, n1, n0 + 1);
+        printf("a box whose depth comes in bands: %d components, all kept; with a lip above: %d (%d with rest_m 0)\n",
+               n1, l1, l0);
+        sooc_cluster_map_destroy(nr);
+    }
+
     /* free space: a bridge that one view showed and the later ones see through does not join the boxes;
      * with the test off (free_ratio 0) it does */
     n = map_bridged(m, &f);
@@ -296,6 +356,8 @@ int main(void) {
     bp = p, bp.min_voxels = 0;
     CHECK(sooc_cluster_map_create(&bad, &bp) == SOOC_EINVAL);
     bp = p, bp.free_ratio = -1;
+    CHECK(sooc_cluster_map_create(&bad, &bp) == SOOC_EINVAL);
+    bp = p, bp.rest_m = -0.1;
     CHECK(sooc_cluster_map_create(&bad, &bp) == SOOC_EINVAL);
     f.has_pose = 0;
     CHECK(sooc_cluster_map_add_frame(m, &f) == SOOC_EINVAL);
