@@ -18,12 +18,14 @@ static uint32_t rd32(const uint8_t *p, int be) {
 /* A miMATRIX's header (array flags, dimensions, name, then the first data
  * element) in p[0..n): every element there must fit in `room` bytes, and so
  * must the array's elements (at least a byte each). */
-static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, int be, uint64_t room, long off) {
+static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, int be, uint64_t room, long off,
+                                int whole) {
     uint32_t cls = 0;
     const uint8_t *dims = NULL;
     uint32_t dn = 0;
     size_t at = 0;
-    for (int k = 0; k < 4 && at + 8 <= n; k++) {
+    int k = 0;
+    for (; k < 4 && at + 8 <= n; k++) {
         uint32_t t = rd32(p + at, be), sz;
         size_t adv;
         if (t >> 16) { sz = t >> 16; t &= 0xffff; adv = 8; }
@@ -45,8 +47,21 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
         if (k == 1 && t == 5 && !(rd32(p + at, be) >> 16)) { dims = p + at + 8; dn = sz; }
         at += adv;
     }
+    /* p[0..n) is the whole array (whole): its flags, dimensions and name lie in it (libmatio reads them
+     * from the elements after it otherwise) */
+    if (whole && (k < 3 || at > n))
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's flags, dimensions and name run past its %zu bytes: a "
+                           "corrupt MAT-file", path, off, n);
+    /* character, sparse and numeric arrays (classes 4-15) only: cells, structs, objects, function handles and
+     * opaque classes nest arrays, and libmatio leaks what it has read of a damaged one; a YCB-Video meta.mat
+     * holds numeric arrays only */
+    if (cls < 4 || cls > 15)
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array of MATLAB class %u (%s): sooc3d reads numeric "
+                           "arrays from a meta.mat, as YCB-Video's hold", path, off, cls,
+                           cls == 1 ? "cell" : cls == 2 ? "struct" : cls == 3 ? "object" : cls == 16 ? "function" :
+                           cls == 17 ? "opaque" : "unknown");
     if (!dims || dn % 4 || dn > 4 * 32 || (size_t)(dims - p) + dn > n) return SOOC_OK;
-    if (cls == 3 || cls == 5) return SOOC_OK;   /* object, sparse */
+    if (cls == 5) return SOOC_OK;   /* sparse */
     uint64_t prod = 1;
     for (uint32_t k = 0; k < dn / 4; k++) {
         uint32_t v = rd32(dims + 4 * k, be);
@@ -56,10 +71,7 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
     if (prod == UINT64_MAX)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares a dimension of 2^31 or more: a corrupt "
                            "MAT-file", path, off);
-    /* a cell's elements are arrays of their own, 8 bytes of tag at least each (libmatio allocates a pointer per
-     * element first); a struct's take a byte at least */
-    uint64_t need = cls == 1 ? (prod < UINT64_MAX / 8 ? prod * 8 : UINT64_MAX) : prod;
-    if (need > room || prod > MAT_MAX_ELEMS)
+    if (prod > room || prod > MAT_MAX_ELEMS)
         return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array declares %llu elements, more than the file can hold "
                            "(%llu bytes): a corrupt MAT-file", path, off, (unsigned long long)prod,
                            (unsigned long long)room);
@@ -84,9 +96,9 @@ sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t
         if (type == 14 && nb < MAT_MIN_MATRIX)
             return sooc_seterr(SOOC_EFORMAT, "%s: corrupt MAT-file: offset %zu: an array element of %u bytes, too "
                                "small for an array's header (%d bytes)", path, off, nb, MAT_MIN_MATRIX);
-        if (type == 14) st = check_matrix(path, d, nb, be, nb, (long)off);
+        if (type == 14) st = check_matrix(path, d, nb, be, nb, (long)off, 1);
         if (type == 15) {                            /* miCOMPRESSED: the inner header, inflated */
-            uint8_t hdr[8 + 16 + 8 + 4 * 32];
+            uint8_t hdr[8 + 16 + 8 + 4 * 32 + 8 + 256];   /* tag, flags, dims (32), name (256 characters) */
             z_stream z;
             memset(&z, 0, sizeof z);
             if (inflateInit(&z) == Z_OK) {
@@ -103,7 +115,8 @@ sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t
                         return sooc_seterr(SOOC_EFORMAT, "%s: corrupt MAT-file: offset %zu: a compressed array of %llu "
                                            "bytes, too small for an array's header (%d bytes)", path, off,
                                            (unsigned long long)inner, MAT_MIN_MATRIX);
-                    st = check_matrix(path, hdr + 8, got - 8, be, inner < room ? inner : room, (long)off);
+                    st = check_matrix(path, hdr + 8, got - 8, be, inner < room ? inner : room, (long)off,
+                                      got - 8 >= inner);
                 }
             }
         }
