@@ -342,6 +342,21 @@ static void test_ycb_errors(const char *tmp) {
         CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "flags element has data type 6 and 0 bytes");
         printf("an array's flags of 0 bytes: %s\n", sooc_errmsg());
         write_meta(p, 1066.778, rt);
+        /* a cell array beside the numeric ones (written by libmatio): refused by name of its class */
+        mat_t *m = Mat_Open(p, MAT_ACC_RDWR);
+        CHECK(m != NULL);
+        if (m) {
+            size_t d11[2] = {1, 1};
+            double one = 1;
+            matvar_t *cells[2] = {Mat_VarCreate(NULL, MAT_C_DOUBLE, MAT_T_DOUBLE, 2, d11, &one, 0), NULL};
+            matvar_t *c = Mat_VarCreate("info", MAT_C_CELL, MAT_T_CELL, 2, d11, cells, 0);
+            CHECK(c && Mat_VarWrite(m, c, MAT_COMPRESSION_NONE) == 0);
+            Mat_VarFree(c);
+            Mat_Close(m);
+        }
+        CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "MATLAB class 1 (cell)");
+        printf("a cell array: %s\n", sooc_errmsg());
+        write_meta(p, 1066.778, rt);
     }
 
     /* a depth PNG of the wrong size: open works, that frame's read names it */
