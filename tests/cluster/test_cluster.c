@@ -129,6 +129,15 @@ static int map_rows(sooc_cluster_map *m, sooc_frame *f, const box *b, int nb, in
     return n;
 }
 
+/* map_scene (row 1) or map_rows on a map of its own with parameters np: the object count, -1 on failure */
+static int map_with(const sooc_cluster_params *np, sooc_frame *f, const box *b, int nb, int row) {
+    sooc_cluster_map *m = NULL;
+    if (sooc_cluster_map_create(&m, np) != SOOC_OK) return -1;
+    int n = row > 1 ? map_rows(m, f, b, nb, row) : map_scene(m, f, b, nb);
+    sooc_cluster_map_destroy(m);
+    return n;
+}
+
 int main(void) {
     sooc_frame f, q;
     CHECK(sooc_frame_alloc(&f, W, H, 1) == SOOC_OK);
@@ -266,15 +275,12 @@ int main(void) {
     {
         sooc_cluster_params np = p;
         np.wall_m = 0;
-        sooc_cluster_map *nw = NULL;
-        CHECK(sooc_cluster_map_create(&nw, &np) == SOOC_OK);
-        int nn = nw ? map_scene(nw, &f, wb, 2) : -1;
+        int nn = map_with(&np, &f, wb, 2, 1);
         CHECK_MSG(nn == 0, "wall test off: %d objects (want 0: box and wall are one surround)", nn);
         /* a row of boxes whose fronts line up, with 6 cm between them: three objects, not a wall */
         for (int i = 0; i < 3; i++) wb[i] = (box){{-0.15 + 0.12 * i, 0, -0.03}, {-0.09 + 0.12 * i, 0.12, 0.03}};
         n = map_scene(m, &f, wb, 3);
         CHECK_MSG(n == 3, "a row of three boxes: %d objects (want 3)", n);
-        sooc_cluster_map_destroy(nw);
     }
 
     /* a sliver (a strip of a bin's side between gaps in the depth: 6 cm wide, 25 cm tall, 8 mm thick) is
@@ -304,11 +310,8 @@ int main(void) {
         CHECK_MSG(n == 1 && stack, "a stack and a floating lip: %d objects (want 1, the stack 12 cm tall)", n);
         sooc_cluster_params np = p;
         np.rest_m = 0;
-        sooc_cluster_map *nr = NULL;
-        CHECK(sooc_cluster_map_create(&nr, &np) == SOOC_OK);
-        int nn = nr ? map_scene(nr, &f, fb, 3) : -1;
+        int nn = map_with(&np, &f, fb, 3, 1);
         CHECK_MSG(nn == 2, "rest test off: %d objects (want 2: the stack and the lip)", nn);
-        sooc_cluster_map_destroy(nr);
         printf("a stack of two boxes and a floating lip: %d object(s), the stack; with rest_m 0: %d\n", n, nn);
     }
 
@@ -320,17 +323,14 @@ int main(void) {
         tb[1] = (box){{-0.10, 0.35, 0.10}, {0.10, 0.38, 0.14}};
         sooc_cluster_params np = p;
         np.rest_m = 0;
-        sooc_cluster_map *nr = NULL;
-        CHECK(sooc_cluster_map_create(&nr, &np) == SOOC_OK);
-        int n0 = nr ? map_rows(nr, &f, tb, 1, 8) : -1, n1 = map_rows(m, &f, tb, 1, 8);
+        int n0 = map_with(&np, &f, tb, 1, 8), n1 = map_rows(m, &f, tb, 1, 8);
         CHECK_MSG(n0 >= 2 && n1 == n0, "a box in bands: %d objects, %d with rest_m 0 (want the same, 2 or more)", n1,
                   n0);
-        int l0 = nr ? map_rows(nr, &f, tb, 2, 8) : -1, l1 = map_rows(m, &f, tb, 2, 8);
+        int l0 = map_with(&np, &f, tb, 2, 8), l1 = map_rows(m, &f, tb, 2, 8);
         CHECK_MSG(l0 == n0 + 1 && l1 == n1, "a box in bands and a lip: %d objects, %d with rest_m 0 (want %d, %d)", l1,
                   l0, n1, n0 + 1);
         printf("a box whose depth comes in bands: %d components, all kept; with a lip above: %d (%d with rest_m 0)\n",
                n1, l1, l0);
-        sooc_cluster_map_destroy(nr);
     }
 
     /* free space: a bridge that one view showed and the later ones see through does not join the boxes;
