@@ -47,11 +47,11 @@ static sooc_status check_matrix(const char *path, const uint8_t *p, size_t n, in
         if (k == 1 && t == 5 && !(rd32(p + at, be) >> 16)) { dims = p + at + 8; dn = sz; }
         at += adv;
     }
-    /* p[0..n) is the whole array (whole): its flags, dimensions and name lie in it (libmatio reads them
-     * from the elements after it otherwise) */
-    if (whole && (k < 3 || at > n))
-        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's flags, dimensions and name run past its %zu bytes: a "
-                           "corrupt MAT-file", path, off, n);
+    /* p[0..n) is the whole array (whole): its flags, dimensions, name and data lie in it (libmatio reads
+     * them from the elements after it otherwise, or allocates the size a missing data tag declares) */
+    if (whole && (k < 4 || at > n))
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %ld: an array's flags, dimensions, name and data run past its %zu "
+                           "bytes: a corrupt MAT-file", path, off, n);
     /* character, sparse and numeric arrays (classes 4-15) only: cells, structs, objects, function handles and
      * opaque classes nest arrays, and libmatio leaks what it has read of a damaged one; a YCB-Video meta.mat
      * holds numeric arrays only */
@@ -115,8 +115,9 @@ sooc_status sooc_seqi_mat_check_sizes(const char *path, const uint8_t *f, size_t
                         return sooc_seterr(SOOC_EFORMAT, "%s: corrupt MAT-file: offset %zu: a compressed array of %llu "
                                            "bytes, too small for an array's header (%d bytes)", path, off,
                                            (unsigned long long)inner, MAT_MIN_MATRIX);
+                    /* whole: the stream inflated to its end (the buffer not filled) or past the array */
                     st = check_matrix(path, hdr + 8, got - 8, be, inner < room ? inner : room, (long)off,
-                                      got - 8 >= inner);
+                                      got < sizeof hdr || got - 8 >= inner);
                 }
             }
         }
