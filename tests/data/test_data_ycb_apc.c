@@ -342,6 +342,19 @@ static void test_ycb_errors(const char *tmp) {
         CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "flags element has data type 6 and 0 bytes");
         printf("an array's flags of 0 bytes: %s\n", sooc_errmsg());
         write_meta(p, 1066.778, rt);
+        /* a compressed array whose stream ends before its data tag (a 3x3 double named 'a', zlib stored
+         * block): libmatio would take the tag from what follows and allocate what it declares */
+        static const uint8_t zarr[67] = {
+            0x0f, 0x00, 0x00, 0x00, 0x3b, 0x00, 0x00, 0x00, 0x78, 0x01, 0x01, 0x30, 0x00, 0xcf, 0xff, 0x0e, 0x00,
+            0x00, 0x00, 0x64, 0x00, 0x00, 0x00, 0x06, 0x00, 0x00, 0x00, 0x08, 0x00, 0x00, 0x00, 0x06, 0x00, 0x00,
+            0x00, 0x00, 0x00, 0x00, 0x00, 0x05, 0x00, 0x00, 0x00, 0x08, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00,
+            0x03, 0x00, 0x00, 0x00, 0x01, 0x00, 0x01, 0x00, 0x61, 0x00, 0x00, 0x00, 0x19, 0xce, 0x00, 0xfd};
+        fp = fopen(p, "ab");
+        CHECK(fp && fwrite(zarr, 1, sizeof zarr, fp) == sizeof zarr);
+        if (fp) fclose(fp);
+        CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "name and data run past its 40 bytes");
+        printf("a compressed array without its data: %s\n", sooc_errmsg());
+        write_meta(p, 1066.778, rt);
         /* a cell array beside the numeric ones (written by libmatio): refused by name of its class */
         mat_t *m = Mat_Open(p, MAT_ACC_RDWR);
         CHECK(m != NULL);
