@@ -129,14 +129,24 @@ static sooc_status rehash(sooc_cluster_map *m, size_t cap) {
     return SOOC_OK;
 }
 
-/* the voxel of key (created empty when absent), -1 on allocation failure */
-static int32_t voxel_of(sooc_cluster_map *m, uint64_t key) {
+/* the table position of key: where it is, or the empty one where it would go */
+static size_t probe(const sooc_cluster_map *m, uint64_t key) {
     uint64_t kk = key + 1;
     size_t h = hash64(kk) & (m->hcap - 1);
-    while (m->keys[h]) {
-        if (m->keys[h] == kk) return m->slot[h];
-        h = (h + 1) & (m->hcap - 1);
-    }
+    while (m->keys[h] && m->keys[h] != kk) h = (h + 1) & (m->hcap - 1);
+    return h;
+}
+
+/* the voxel of key, -1 when the grid has none there */
+static int32_t voxel_find(const sooc_cluster_map *m, uint64_t key) {
+    size_t h = probe(m, key);
+    return m->keys[h] ? m->slot[h] : -1;
+}
+
+/* the voxel of key (created empty when absent), -1 on allocation failure */
+static int32_t voxel_of(sooc_cluster_map *m, uint64_t key) {
+    size_t h = probe(m, key);
+    if (m->keys[h]) return m->slot[h];
     if (m->n == m->cap) {
         size_t nc = m->cap ? 2 * m->cap : 4096;
         voxel *v = sooc_realloc(m->vox, nc * sizeof *v);
@@ -146,19 +156,8 @@ static int32_t voxel_of(sooc_cluster_map *m, uint64_t key) {
     voxel *v = &m->vox[m->n];
     memset(v, 0, sizeof *v);
     v->comp = -1;
-    m->keys[h] = kk, m->slot[h] = (int32_t)m->n;
+    m->keys[h] = key + 1, m->slot[h] = (int32_t)m->n;
     return (int32_t)m->n++;
-}
-
-/* the voxel of key, -1 when the grid has none there */
-static int32_t voxel_find(const sooc_cluster_map *m, uint64_t key) {
-    uint64_t kk = key + 1;
-    size_t h = hash64(kk) & (m->hcap - 1);
-    while (m->keys[h]) {
-        if (m->keys[h] == kk) return m->slot[h];
-        h = (h + 1) & (m->hcap - 1);
-    }
-    return -1;
 }
 
 /* Free-space evidence: every voxel above the plane that this frame's depth

@@ -50,6 +50,13 @@ static void put_gray16(const char *path, int w, int h, uint16_t v) {
 
 /* A meta.mat with libmatio's writer: K (row-major fx, fy, cx, cy),
  * factor_depth, and the world-to-camera 3x4 when rt != NULL (row-major). */
+/* n bytes appended to the file at path */
+static void append_bytes(const char *path, const uint8_t *d, size_t n) {
+    FILE *f = fopen(path, "ab");
+    CHECK(f && fwrite(d, 1, n, f) == n);
+    if (f) fclose(f);
+}
+
 static void write_meta(const char *path, double fx, const double *rt) {
     mat_t *m = Mat_CreateVer(path, NULL, MAT_FT_MAT5);
     if (!m) { fprintf(stderr, "%s: Mat_CreateVer failed\n", path); exit(1); }
@@ -324,11 +331,9 @@ static void test_ycb_errors(const char *tmp) {
     /* an empty array element after the variables (0 bytes declared): libmatio would read an array's header
      * from the bytes after it (a name of 1.8 GB in the fuzz input tests/fuzz/corpus/ycb_meta/rss-1.8GB-*) */
     {
-        FILE *fp = fopen(p, "ab");
         static const uint8_t tail[40] = {14, 0, 0, 0, 0, 0, 0, 0, 6, 0, 0, 0, 8, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0,
                                          5, 0, 0, 0, 8, 0, 0, 0, 1, 0, 0, 0, 0x21, 0, 0, 0x6f};
-        CHECK(fp && fwrite(tail, 1, sizeof tail, fp) == sizeof tail);
-        if (fp) fclose(fp);
+        append_bytes(p, tail, sizeof tail);
         CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "an array element of 0 bytes");
         printf("an empty array element: %s\n", sooc_errmsg());
         write_meta(p, 1066.778, rt);
@@ -336,9 +341,7 @@ static void test_ycb_errors(const char *tmp) {
         static const uint8_t arr[56] = {14, 0, 0, 0, 48, 0, 0, 0, 6, 0, 0, 0, 0, 0, 0, 0, 5, 0, 0, 0, 8, 0, 0, 0,
                                         3, 0, 0, 0, 3, 0, 0, 0, 1, 0, 1, 0, 'a', 0, 0, 0, 9, 0, 0, 0, 8, 0, 0, 0,
                                         0, 0, 0, 0, 0, 0, 0xf0, 0x3f};
-        fp = fopen(p, "ab");
-        CHECK(fp && fwrite(arr, 1, sizeof arr, fp) == sizeof arr);
-        if (fp) fclose(fp);
+        append_bytes(p, arr, sizeof arr);
         CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "flags element has data type 6 and 0 bytes");
         printf("an array's flags of 0 bytes: %s\n", sooc_errmsg());
         write_meta(p, 1066.778, rt);
@@ -349,9 +352,7 @@ static void test_ycb_errors(const char *tmp) {
             0x00, 0x00, 0x64, 0x00, 0x00, 0x00, 0x06, 0x00, 0x00, 0x00, 0x08, 0x00, 0x00, 0x00, 0x06, 0x00, 0x00,
             0x00, 0x00, 0x00, 0x00, 0x00, 0x05, 0x00, 0x00, 0x00, 0x08, 0x00, 0x00, 0x00, 0x03, 0x00, 0x00, 0x00,
             0x03, 0x00, 0x00, 0x00, 0x01, 0x00, 0x01, 0x00, 0x61, 0x00, 0x00, 0x00, 0x19, 0xce, 0x00, 0xfd};
-        fp = fopen(p, "ab");
-        CHECK(fp && fwrite(zarr, 1, sizeof zarr, fp) == sizeof zarr);
-        if (fp) fclose(fp);
+        append_bytes(p, zarr, sizeof zarr);
         CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "000002-meta.mat", "name and data run past its 40 bytes");
         printf("a compressed array without its data: %s\n", sooc_errmsg());
         write_meta(p, 1066.778, rt);
