@@ -356,7 +356,7 @@ static int64_t scenes_color_number(const char *name, int *ext) {
     int64_t k = 0;
     int nd = 0;
     while (*p >= '0' && *p <= '9') {
-        if (nd >= 12) return -1;
+        if (nd >= SOOC_SEQI_FRAME_DIGITS) return -1;
         k = k * 10 + (*p++ - '0');
         nd++;
     }
@@ -483,7 +483,7 @@ static sooc_status open_7scenes(sooc_seq *s, const sooc_seq_open_params *p) {
         }
         e->has_pose = !e->pose_err;
         e->number = fl[i].number;
-        e->t_ns = fl[i].number * 33333333LL; /* no timestamps in this layout: 30 Hz by frame number */
+        e->t_ns = fl[i].number * SOOC_SEQI_FRAME_NS; /* no timestamps in this layout: 30 Hz by frame number */
     }
     sooc_free(fl);
     if (st) return st;

@@ -171,6 +171,9 @@ static sooc_status heading(cam_info *c, int line, const char *t) {
         long long num = f ? strtoll(f + 6, &end, 10) : -1;
         if (!f || end == f + 6 || num < 0)
             return sooc_seterr(SOOC_EFORMAT, "%s:%d: camera pose heading names no frame-NNNNNN", c->file, line);
+        if (num > SOOC_SEQI_FRAME_MAX)
+            return sooc_seterr(SOOC_EFORMAT, "%s:%d: frame number '%.*s' is above %lld", c->file, line,
+                               (int)(end - (f + 6)), f + 6, SOOC_SEQI_FRAME_MAX);
         c->number = num;
         k = SEC_POSE;
     }
@@ -352,7 +355,7 @@ sooc_status sooc_seqi_open_apc(sooc_seq *s, const sooc_seq_open_params *p) {
         e->line = c.pose[i].line;
         e->src = s->srcname[0];
         e->number = c.pose[i].number;
-        e->t_ns = c.pose[i].number * 33333333LL; /* no timestamps in this layout: 30 Hz by frame number */
+        e->t_ns = c.pose[i].number * SOOC_SEQI_FRAME_NS; /* no timestamps in this layout: 30 Hz by frame number */
         e->has_pose = 1;
         memcpy(e->T, c.pose[i].T, sizeof e->T);
         st = sooc_seqi_need_file(c.file, e->line, e->rgb);

@@ -77,6 +77,13 @@ sooc_status sooc_seqi_need_file(const char *list, int line, const char *path);
  * exists; NULL when out of memory. */
 char *sooc_seqi_frame_path(const char *dir, const char *prefix, int width, int64_t i, const char *ext,
                            const char *alt_ext);
+/* Layouts without timestamps number their frames; the time stamp of frame
+ * i is i / 30 s. Frame numbers have at most SOOC_SEQI_FRAME_DIGITS digits
+ * in file names (at most SOOC_SEQI_FRAME_MAX), so that the time stamp fits
+ * int64 nanoseconds. */
+#define SOOC_SEQI_FRAME_DIGITS 11
+#define SOOC_SEQI_FRAME_MAX 99999999999LL
+#define SOOC_SEQI_FRAME_NS 33333333LL
 /* Calibration from p->calib_path, else <dir>/calib.yaml; ENOTFOUND without a
  * message when neither exists and !required. */
 sooc_status sooc_seqi_load_calib(sooc_seq *s, const sooc_seq_open_params *p, int required);

@@ -24,7 +24,7 @@ static sooc_status list_entry_done(list_ctx *c, int lineno, sooc_seqi_entry *e, 
     e->line = lineno;
     e->src = c->s->srcname[0];
     e->number = number;
-    e->t_ns = number * 33333333LL;
+    e->t_ns = number * SOOC_SEQI_FRAME_NS;
     if (!e->rgb || !e->depth) return SOOC_ENOMEM;
     if (!sooc_file_exists(e->rgb) && !sooc_file_exists(e->depth)) {
         sooc_free(e->rgb);

@@ -183,7 +183,7 @@ int64_t sooc_seqi_ycb_color_number(const char *name) {
     int nd = 0;
     const char *p = name;
     while (*p >= '0' && *p <= '9') {
-        if (nd >= 12) return -1;
+        if (nd >= SOOC_SEQI_FRAME_DIGITS) return -1;
         k = k * 10 + (*p++ - '0');
         nd++;
     }
@@ -284,7 +284,7 @@ sooc_status sooc_seqi_open_ycb(sooc_seq *s, const sooc_seq_open_params *p) {
         if (!st) memcpy(e->T, i ? m.T_wc : m0.T_wc, sizeof e->T);
         e->has_pose = 1;
         e->number = fl[i].number;
-        e->t_ns = fl[i].number * 33333333LL; /* no timestamps in this layout: 30 Hz by frame number */
+        e->t_ns = fl[i].number * SOOC_SEQI_FRAME_NS; /* no timestamps in this layout: 30 Hz by frame number */
         sooc_free(meta);
         sooc_free(label);
     }

@@ -486,6 +486,10 @@ static void test_apc_errors(const char *tmp) {
     write_cam_info(d, 2, h1 + 2, "0.5 0 0 0");
     snprintf(msg, sizeof msg, "cam.info.txt:%d: rotation is not orthonormal", h1 + 1);
     CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), msg);
+    /* a frame number whose 30 Hz time stamp would not fit int64 nanoseconds */
+    write_cam_info(d, 2, h1, "# Camera-to-world extrinsic matrix (camera pose) for frame-922337203685477580");
+    snprintf(msg, sizeof msg, "cam.info.txt:%d: frame number '922337203685477580' is above 99999999999", h1);
+    CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), msg);
     write_cam_info(d, 2, 5, "# Colour camera intrinsics, misspelt");
     CHECK_ERR_HAS(sooc_seq_open(&s, d, NULL), "cam.info.txt:6: numbers under no known heading");
     CHECK(s == NULL);
