@@ -208,7 +208,12 @@ typedef struct sooc_mapper_params {
     int kind;                  /* SOOC_MAPPER_LEARNT (0) or SOOC_MAPPER_GEOMETRIC      */
     sooc_cluster_params cluster;   /* geometric: the clustering (defaults: sooc_mapper_params_default) */
     int input_width, input_height; /* geometric: the frame size it maps at (160 x 120)      */
+    double min_presence;       /* geometric: an entry is shown (entries, changes, so the
+                                  table and the store) once its presence reaches this,
+                                  and withdrawn (reported removed) when it falls below
+                                  this - SOOC_MAPPER_PRESENCE_HYST; 0 = every entry (0) */
 } sooc_mapper_params;
+#define SOOC_MAPPER_PRESENCE_HYST 0.05
 
 enum { SOOC_MAPPER_LEARNT = 0, SOOC_MAPPER_GEOMETRIC = 1 };
 /* A geometric entry's appearance latent is its mean colour (RGB, 0..1). */

@@ -115,6 +115,8 @@ typedef struct sooc_node_config {
     double geo_min_height_m, geo_max_extent_m; /* geometric: model.min_height_m (0.012), max_extent_m (0.5) */
     double geo_wall_m;                         /* geometric: model.wall_m (0.3; 0 = no wall test)          */
     double geo_rest_m;                         /* geometric: model.rest_m (0.06; 0 = keep floating clusters) */
+    double geo_min_presence;                   /* geometric: model.min_presence, the presence an entry needs
+                                                  to be in the table and the store (0 = every entry)      */
     double geo_support_m;                      /* learnt: model.geo_support_m, the margin of the geometric
                                                   support of entries (sooc_mapper_set_support; 0 = off)   */
     int proposals;                             /* learnt: model.proposals, padded slots on the keyframe's

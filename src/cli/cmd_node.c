@@ -205,7 +205,10 @@ int sooc_cmd_node(int argc, char **argv) {
     }
     sooc_node_config cfg;
     sooc_status st = sooc_node_config_load_sets(&cfg, launch, sets, n_sets);
-    if (st) return sooc_cli_fail("node", st);
+    if (st) {   /* the launch file or a --set: what was asked cannot run (exit 2, as for a bad option) */
+        sooc_cli_fail("node", st);
+        return 2;
+    }
     if (level && sooc_log_level_parse(level, &cfg.log_level)) {
         fprintf(stderr, "sooc3d node: --log-level: expected debug|info|warn|error, got '%s'\n", level);
         return 2;

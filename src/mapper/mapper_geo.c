@@ -23,10 +23,12 @@ typedef struct geo_entry {
     sooc_map_entry e;
     uint64_t dirty;          /* 0 = published; else the update that changed it (oldest first) */
     uint32_t n_in, n_whole;  /* keyframes that saw its box's centre; of them, those that saw the whole box */
+    int shown;               /* in the entries and changes (presence reached min_presence) */
 } geo_entry;
 
 struct sooc_mdl_geo {
     sooc_cluster_params cp;
+    double min_pres;         /* the presence an entry needs to be shown (mapper.h min_presence) */
     sooc_cluster_map *cm;
     int w, h;
     geo_entry *ent;
@@ -47,7 +49,12 @@ sooc_status sooc_mdl_geo_create(sooc_mdl_geo **out, const sooc_mapper_params *p)
                            p->input_height);
     sooc_mdl_geo *g = sooc_calloc(1, sizeof *g);
     if (!g) return sooc_seterr(SOOC_ENOMEM, "mapper (geometric): out of memory");
+    if (!(p->min_presence >= 0 && p->min_presence <= 1)) {
+        sooc_free(g);
+        return sooc_seterr(SOOC_EINVAL, "mapper (geometric): min_presence %g (0..1)", p->min_presence);
+    }
     g->cp = p->cluster;
+    g->min_pres = p->min_presence;
     g->w = p->input_width, g->h = p->input_height;
     g->next_id = 1;
     sooc_status st = sooc_cluster_map_create(&g->cm, &g->cp);
@@ -181,6 +188,13 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
     if (moved && !ge->dirty) ge->dirty = upd;
 }
 
+/* An entry the table and the store hold leaves them with the next change sets. */
+static sooc_status report_removed(sooc_mdl_geo *g, uint64_t id) {
+    sooc_status st = grow((void **)&g->rem, &g->cap_rem, g->n_rem + 1, sizeof *g->rem);
+    if (!st) g->rem[g->n_rem++] = id;
+    return st;
+}
+
 sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_update_stats *us) {
     double t0 = sooc_seconds();
     memset(us, 0, sizeof *us);
@@ -235,19 +249,32 @@ sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_updat
             g->ent[k++] = g->ent[j];
             continue;
         }
-        if ((st = grow((void **)&g->rem, &g->cap_rem, g->n_rem + 1, sizeof *g->rem))) break;
-        g->rem[g->n_rem++] = g->ent[j].e.id;
+        if (g->ent[j].shown && (st = report_removed(g, g->ent[j].e.id))) break;
         us->n_removed++;
     }
     if (ue != used_e) sooc_free(ue);
     if (st) return st;
     g->n = k;
+    /* the presence gate: shown from min_presence on, withdrawn below it less the hysteresis */
+    for (size_t j = 0; j < g->n && !st; j++) {
+        geo_entry *ge = &g->ent[j];
+        if (!ge->shown && ge->e.presence >= g->min_pres) {
+            ge->shown = 1;
+            ge->dirty = g->upd;
+        } else if (ge->shown && ge->e.presence < g->min_pres - SOOC_MAPPER_PRESENCE_HYST) {
+            ge->shown = 0;
+            ge->dirty = 0;
+            st = report_removed(g, ge->e.id);
+        }
+    }
+    if (st) return st;
     /* this update's change set: the oldest changes first */
     g->n_chg = 0;
     for (;;) {
         size_t bj = (size_t)-1;
         for (size_t j = 0; j < g->n; j++)
-            if (g->ent[j].dirty && (bj == (size_t)-1 || g->ent[j].dirty < g->ent[bj].dirty)) bj = j;
+            if (g->ent[j].shown && g->ent[j].dirty && (bj == (size_t)-1 || g->ent[j].dirty < g->ent[bj].dirty))
+                bj = j;
         if (bj == (size_t)-1 || g->n_chg == SOOC_MAPPER_CHANGED_MAX) break;
         g->chg[g->n_chg++] = g->ent[bj].e.id;
         g->ent[bj].dirty = 0;
@@ -263,13 +290,13 @@ sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_updat
 }
 
 sooc_status sooc_mdl_geo_entries(const sooc_mdl_geo *g, sooc_map_entry *out, size_t cap, size_t *n) {
-    if (!out) {
-        *n = g->n;
-        return SOOC_OK;
+    size_t k = 0;
+    for (size_t i = 0; i < g->n; i++) {
+        if (!g->ent[i].shown) continue;
+        if (out && k < cap) out[k] = g->ent[i].e;
+        k++;
     }
-    size_t k = g->n < cap ? g->n : cap;
-    for (size_t i = 0; i < k; i++) out[i] = g->ent[i].e;
-    *n = k;
+    *n = out && k > cap ? cap : k;
     return SOOC_OK;
 }
 
@@ -285,6 +312,7 @@ sooc_status sooc_mdl_geo_load_entries(sooc_mdl_geo *g, const sooc_map_entry *e, 
     for (size_t i = 0; i < n; i++) {
         memset(&g->ent[i], 0, sizeof g->ent[i]);
         g->ent[i].e = e[i];
+        g->ent[i].shown = 1;   /* it was stored, so it was shown */
         if (e[i].id >= g->next_id) g->next_id = e[i].id + 1;
     }
     g->n = n;

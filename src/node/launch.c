@@ -506,6 +506,7 @@ static const kspec g_keys[] = {
     KV("model", "max_extent_m", KV_NUM, geo_max_extent_m, 0.01, 100),
     KV("model", "wall_m", KV_NUM, geo_wall_m, 0, 100),
     KV("model", "rest_m", KV_NUM, geo_rest_m, 0, 10),
+    KV("model", "min_presence", KV_NUM, geo_min_presence, 0, 1),
     KV("model", "free_ratio", KV_NUM, geo_free_ratio, 0, 1000),
     KV("model", "geo_support_m", KV_NUM, geo_support_m, 0, 1),
     KV("model", "proposals", KV_BOOL, proposals, 0, 0),
@@ -788,11 +789,11 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
             c->odom_color_ty, c->odom_color_tz, c->odom_thread ? "true" : "false",
             c->odom_loop_closure ? "true" : "false", c->odom_relocalise ? "true" : "false");
     }
-    OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, wall_m: %g, rest_m: %g, free_ratio: %g, geo_support_m: %g, proposals: %s, prop_join_m: %g, prop_logit: %g, prop_only: %s, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
+    OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, wall_m: %g, rest_m: %g, min_presence: %g, free_ratio: %g, geo_support_m: %g, proposals: %s, prop_join_m: %g, prop_logit: %g, prop_only: %s, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s, gate_min_rays: %g, "
         "gate_ratio: %g, gate_part: %g}\n",
         c->calib_path, c->model_kind == SOOC_MAPPER_GEOMETRIC ? "geometric" : "learnt", c->geo_voxel_m, c->geo_join_m,
-        c->geo_min_height_m, c->geo_max_extent_m, c->geo_wall_m, c->geo_rest_m, c->geo_free_ratio, c->geo_support_m, c->proposals ? "true" : "false", c->prop_join_m, c->prop_logit,
+        c->geo_min_height_m, c->geo_max_extent_m, c->geo_wall_m, c->geo_rest_m, c->geo_min_presence, c->geo_free_ratio, c->geo_support_m, c->proposals ? "true" : "false", c->prop_join_m, c->prop_logit,
         c->prop_only ? "true" : "false", c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_FRAMES_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
         c->latents == SOOC_LATENTS_SAMPLE ? "sample" : "mean", c->slots,

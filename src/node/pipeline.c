@@ -313,6 +313,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
             mp.cluster.min_height_m = c->geo_min_height_m, mp.cluster.max_extent_m = c->geo_max_extent_m;
             mp.cluster.wall_m = c->geo_wall_m;
             mp.cluster.rest_m = c->geo_rest_m;
+            mp.min_presence = c->geo_min_presence;
             mp.cluster.free_ratio = c->geo_free_ratio;
             mp.cluster.max_depth_m = c->max_depth_m < 3.0 ? c->max_depth_m : 3.0;
             if (c->input_width > 0) mp.input_width = c->input_width, mp.input_height = c->input_height;

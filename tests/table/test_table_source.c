@@ -6,8 +6,11 @@
  *    0000 (launch/tabletop_geometric.yaml, $SOOC_BIN), read from its table:
  *    the box of an entry, taken to the recording's frame through the header's
  *    T_src_map, holds the ground-truth centres (meta.mat `poses`, read here by
- *    the sequence reader's world) of the objects it covers. Skipped without
- *    ../shared/real. */
+ *    the sequence reader's world) of the objects it covers; the position
+ *    sigmas against those centres; the launch's presence gate (at most 1.5
+ *    entries per object, the same ids as an ungated run of the same frames)
+ *    and, ungated, the presence of the objects' entries against the others';
+ *    a gate outside 0..1 refused by name. Skipped without ../shared/real. */
 #include "check.h"
 #include "sooc3d/table.h"
 
@@ -15,7 +18,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
+#include "sooc3d/mapper.h"
 
 static void mat_test(void) {
     /* map +y is source +z: source = R * map + t, R = rotation of +90 deg about x */
@@ -65,6 +70,79 @@ static void pick_test(void) {
     CHECK(sooc_table_pick(r, 3, T, 500, 500, 320, 240, 320, 240, &t) == 1 && fabs(t - 2.9) < 1e-6);
 }
 
+/* One node run of the shipped tabletop launch on YCB-Video 0000 with `extra` launch overrides; its table's
+ * header and records. The node's exit status. */
+typedef struct node_run {
+    sooc_table_info info;
+    sooc_table_record rec[64];
+    uint32_t n;
+} node_run;
+
+static int live(const sooc_table_record *r) {
+    return (r->flags & SOOC_TABLE_FLAG_VALID) && !(r->flags & SOOC_TABLE_FLAG_REMOVED);
+}
+
+static int run_node(const char *bin, const char *ycb, const char *dir, const char *tag, const char *extra, node_run *out) {
+    char cmd[4096], name[64], shm[128];
+    snprintf(name, sizeof name, "tsrc_%s_%d", tag, (int)getpid());
+    snprintf(cmd, sizeof cmd,
+             "'%s' node launch/tabletop_geometric.yaml --set sensor.path=%s --set shm.name=%s --set map.db=%s/%s.sqlite "
+             "%s --quiet > %s/%s.log 2>&1",
+             bin, ycb, name, dir, tag, extra, dir, tag);
+    int rc = system(cmd);
+    CHECK_MSG(rc == 0, "node run failed (%s/%s.log)", dir, tag);
+    memset(out, 0, sizeof *out);
+    sooc_table_reader *rd = NULL;
+    CHECK(sooc_table_open_reader(name, &rd) == 0);
+    if (rd) {
+        CHECK(sooc_table_get_info(rd, &out->info) == 0);
+        CHECK(sooc_table_snapshot(rd, out->rec, 64, &out->n, NULL) == 0);
+        sooc_table_close_reader(rd);
+    }
+    if (!sooc_table_shm_name(name, shm, sizeof shm)) {
+        snprintf(cmd, sizeof cmd, "rm -f /dev/shm%s", shm);
+        if (system(cmd)) {}
+    }
+    return rd && rc == 0 ? 0 : 1;
+}
+
+/* ground truth: the centres of the three objects in the recording's frame (from meta.mat of frame 1:
+ * inverse(rotation_translation_matrix) * poses[:, 3, k]) */
+static const double gt[3][3] = {{-0.087, 0.018, 0.032}, {0.003, 0.041, 0.031}, {0.015, -0.061, 0.036}};
+
+/* Which record's floor position is nearest each object's (map frame); matched[i] marks them. */
+static void match_objects(const node_run *r, int best[3], uint8_t matched[64]) {
+    const double *T = r->info.T_src_map;   /* map -> source, rigid: the source point in the map is R^T (p - t) */
+    memset(matched, 0, 64);
+    for (int k = 0; k < 3; k++) {
+        double gm[3];
+        for (int a = 0; a < 3; a++)
+            gm[a] = T[a] * (gt[k][0] - T[3]) + T[4 + a] * (gt[k][1] - T[7]) + T[8 + a] * (gt[k][2] - T[11]);
+        best[k] = -1;
+        double bd = INFINITY;
+        for (uint32_t i = 0; i < r->n; i++) {
+            if (!live(&r->rec[i])) continue;
+            double d = hypot(gm[0] - r->rec[i].x, gm[2] - r->rec[i].z);
+            if (d < bd) bd = d, best[k] = (int)i;
+        }
+        if (best[k] >= 0) matched[best[k]] = 1;
+    }
+}
+
+/* Mean presence of the records nearest an object and of the others. */
+static void presence_split(const node_run *r, double *pm, double *pu, int *nm, int *nu) {
+    int best[3];
+    uint8_t matched[64];
+    match_objects(r, best, matched);
+    *pm = *pu = 0, *nm = *nu = 0;
+    for (uint32_t i = 0; i < r->n; i++) {
+        if (!live(&r->rec[i])) continue;
+        if (matched[i]) *pm += r->rec[i].presence, (*nm)++;
+        else *pu += r->rec[i].presence, (*nu)++;
+    }
+    *pm = *nm ? *pm / *nm : NAN, *pu = *nu ? *pu / *nu : NAN;
+}
+
 int main(void) {
     mat_test();
     pick_test();
@@ -76,36 +154,19 @@ int main(void) {
         printf("test_table_source: %d checks, %d failed\n", g_check_n, g_check_fail);
         return g_check_fail ? 1 : 0;
     }
-    char dir[] = "/tmp/sooc_tsrc_XXXXXX", cmd[4096], name[64];
+    char dir[] = "/tmp/sooc_tsrc_XXXXXX", cmd[4096];
     if (!mkdtemp(dir)) return 1;
-    snprintf(name, sizeof name, "tsrc_%d", (int)getpid());
-    snprintf(cmd, sizeof cmd,
-             "'%s' node launch/tabletop_geometric.yaml --set sensor.path=%s --set shm.name=%s --set map.db=%s/m.sqlite "
-             "--quiet > %s/log.txt 2>&1",
-             bin, ycb, name, dir, dir);
-    int rc = system(cmd);
-    CHECK_MSG(rc == 0, "node run failed (%s/log.txt)", dir);
-    sooc_table_reader *rd = NULL;
-    CHECK(sooc_table_open_reader(name, &rd) == 0);
-    sooc_table_info info;
-    sooc_table_record rec[64];
-    uint32_t n = 0;
-    if (rd) {
-        CHECK(sooc_table_get_info(rd, &info) == 0);
-        CHECK(sooc_table_snapshot(rd, rec, 64, &n, NULL) == 0);
-    }
-    /* ground truth: the centres of the three objects in the recording's frame (from meta.mat of frame 1:
-     * inverse(rotation_translation_matrix) * poses[:, 3, k]) */
-    static const double gt[3][3] = {{-0.087, 0.018, 0.032}, {0.003, 0.041, 0.031}, {0.015, -0.061, 0.036}};
+    static node_run shipped, all;
+    int ok = !run_node(bin, ycb, dir, "shipped", "", &shipped);
+    int ok_all = !run_node(bin, ycb, dir, "all", "--set model.min_presence=0", &all);
+    const sooc_table_record *rec = shipped.rec;
+    const sooc_table_info *info = &shipped.info;
+    uint32_t n = shipped.n;
     int inside[3] = {0, 0, 0};
-    if (rc) {
-        snprintf(cmd, sizeof cmd, "cat %s/log.txt", dir);
-        if (system(cmd)) {}
-    }
-    for (uint32_t i = 0; rd && i < n; i++) {
-        if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
+    for (uint32_t i = 0; ok && i < n; i++) {
+        if (!live(&rec[i])) continue;
         double p[3], R[9];
-        sooc_table_pose_source(info.T_src_map, &rec[i], p, R, NULL);
+        sooc_table_pose_source(info->T_src_map, &rec[i], p, R, NULL);
         for (int k = 0; k < 3; k++) {
             /* the GT centre in the box's own axes */
             double d[3] = {gt[k][0] - p[0], gt[k][1] - p[1], gt[k][2] - p[2]}, b[3];
@@ -123,32 +184,26 @@ int main(void) {
     for (int k = 0; k < 3; k++) CHECK_MSG(inside[k] >= 1, "GT object %d lies in no entry's box", k);
     /* the geometric map's boxes are its clusters' own: every valid record says BOX_TIGHT, and a reader of
      * this minor knows the flag */
-    CHECK(rd && info.abi_minor >= 2);
-    for (uint32_t i = 0; rd && i < n; i++)
-        if ((rec[i].flags & SOOC_TABLE_FLAG_VALID) && !(rec[i].flags & SOOC_TABLE_FLAG_REMOVED))
+    CHECK(ok && info->abi_minor >= 2);
+    for (uint32_t i = 0; ok && i < n; i++)
+        if (live(&rec[i]))
             CHECK_MSG(rec[i].flags & SOOC_TABLE_FLAG_BOX_TIGHT, "entry %llu: flags 0x%x",
                       (unsigned long long)rec[i].object_id, rec[i].flags);
     /* the published position uncertainty, calibrated on these real objects: each GT centre against the
-     * entry whose box holds it, per map axis, in sigmas (cov_xzyaw, the map frame); about two thirds within
-     * one sigma is the aim, 40-95% the band (docs/shm.md); with three objects, at least 2 of the 6 axis
-     * errors within one sigma, 5 within two and none beyond four */
-    {
-        const double *T = info.T_src_map;   /* map -> source, rigid: the source point in the map is R^T (p - t) */
-        double gm[3];
-        int in1 = 0, in2 = 0, out4 = 0, nz = 0;
-        uint8_t matched[64] = {0};
-        for (int k = 0; k < 3 && rd; k++) {
+     * nearest entry, per map axis, in sigmas (cov_xzyaw, the map frame); about two thirds within one sigma
+     * is the aim, 40-95% the band (docs/shm.md); with three objects, at least 2 of the 6 axis errors within
+     * one sigma, 5 within two and none beyond four */
+    if (ok) {
+        const double *T = info->T_src_map;
+        int best[3], in1 = 0, in2 = 0, out4 = 0, nz = 0;
+        uint8_t matched[64];
+        match_objects(&shipped, best, matched);
+        for (int k = 0; k < 3; k++) {
+            int bi = best[k];
+            if (bi < 0) continue;
+            double gm[3];
             for (int a = 0; a < 3; a++)
                 gm[a] = T[a] * (gt[k][0] - T[3]) + T[4 + a] * (gt[k][1] - T[7]) + T[8 + a] * (gt[k][2] - T[11]);
-            int bi = -1;
-            double bd = INFINITY;
-            for (uint32_t i = 0; i < n; i++) {
-                if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
-                double d = hypot(gm[0] - rec[i].x, gm[2] - rec[i].z);
-                if (d < bd) bd = d, bi = (int)i;
-            }
-            if (bi < 0) continue;
-            if (bi < 64) matched[bi] = 1;
             double zx = (rec[bi].x - gm[0]) / sqrt(rec[bi].cov_xzyaw[0]), zz = (rec[bi].z - gm[2]) / sqrt(rec[bi].cov_xzyaw[3]);
             printf("object %d: entry %llu, error x %+.3f z %+.3f m = %+.2f / %+.2f sigma\n", k,
                    (unsigned long long)rec[bi].object_id, rec[bi].x - gm[0], rec[bi].z - gm[2], zx, zz);
@@ -160,26 +215,57 @@ int main(void) {
         printf("position errors: %d of %d within 1 sigma, %d within 2\n", in1, nz, in2);
         CHECK_MSG(nz == 6 && in1 >= 2 && in2 >= 5 && out4 == 0, "%d of %d within 1 sigma, %d within 2, %d beyond 4", in1,
                   nz, in2, out4);
-        /* presence: the entries that hold the objects were seen whole more often than the others (keyboard
-         * pieces running out of the image) */
-        double pm = 0, pu = 0;
-        int nm = 0, nu = 0;
-        for (uint32_t i = 0; rd && i < n && i < 64; i++) {
-            if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
-            if (matched[i]) pm += rec[i].presence, nm++;
-            else pu += rec[i].presence, nu++;
-        }
-        printf("presence: %.3f for the %d entries holding the objects, %.3f for the %d others\n", nm ? pm / nm : NAN, nm,
-               nu ? pu / nu : NAN, nu);
-        CHECK_MSG(nm && nu && pm / nm > pu / nu + 0.2, "presence %.3f (objects) against %.3f (others)", nm ? pm / nm : NAN,
-                  nu ? pu / nu : NAN);
     }
+    /* the presence gate (model.min_presence 0.5 in the shipped launch): at most 1.5 entries per object, each
+     * with a presence of at least 0.5 less the hysteresis; the same map without the gate (min_presence 0)
+     * has more entries, every one of them with a presence of 0.5 or more is in the gated table under the
+     * same id, and the gated table holds nothing else */
+    int n_live = 0, n_all = 0;
+    for (uint32_t i = 0; ok && i < n; i++) {
+        if (!live(&rec[i])) continue;
+        n_live++;
+        CHECK_MSG(rec[i].presence >= 0.5 - SOOC_MAPPER_PRESENCE_HYST - 1e-6, "entry %llu: presence %.3f in the gated table",
+                  (unsigned long long)rec[i].object_id, rec[i].presence);
+        int found = 0;
+        for (uint32_t j = 0; ok_all && j < all.n; j++) found |= live(&all.rec[j]) && all.rec[j].object_id == rec[i].object_id;
+        CHECK_MSG(found, "gated entry %llu is not in the ungated table", (unsigned long long)rec[i].object_id);
+    }
+    for (uint32_t j = 0; ok_all && j < all.n; j++) {
+        if (!live(&all.rec[j])) continue;
+        n_all++;
+        if (all.rec[j].presence < 0.5f) continue;
+        int found = 0;
+        for (uint32_t i = 0; ok && i < n; i++) found |= live(&rec[i]) && rec[i].object_id == all.rec[j].object_id;
+        CHECK_MSG(found, "entry %llu (presence %.3f) is missing from the gated table",
+                  (unsigned long long)all.rec[j].object_id, all.rec[j].presence);
+    }
+    printf("entries: %d with the presence gate, %d without\n", n_live, n_all);
+    CHECK_MSG(n_live >= 3 && 2 * n_live <= 3 * 3, "%d entries for 3 objects with the gate", n_live);
+    CHECK_MSG(n_all > n_live, "the gate dropped nothing (%d entries without it, %d with)", n_all, n_live);
+    /* presence, without the gate: the entries that hold the objects were seen whole more often than the
+     * others (keyboard pieces running out of the image) */
+    if (ok_all) {
+        double pm, pu;
+        int nm, nu;
+        presence_split(&all, &pm, &pu, &nm, &nu);
+        printf("presence: %.3f for the %d entries holding the objects, %.3f for the %d others\n", pm, nm, pu, nu);
+        CHECK_MSG(nm && nu && pm > pu + 0.2, "presence %.3f (objects) against %.3f (others)", pm, pu);
+    }
+    /* a gate outside 0..1 is refused by name */
+    snprintf(cmd, sizeof cmd,
+             "'%s' node launch/tabletop_geometric.yaml --set sensor.path=%s --set model.min_presence=1.5 --set "
+             "map.db=%s/bad.sqlite --quiet > %s/bad.log 2>&1",
+             bin, ycb, dir, dir);
+    int rc = system(cmd);
+    CHECK_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 2, "min_presence 1.5: status %d", rc);
+    snprintf(cmd, sizeof cmd, "grep -q 'model.min_presence' %s/bad.log", dir);
+    CHECK_MSG(system(cmd) == 0, "min_presence 1.5: the message does not name the key (%s/bad.log)", dir);
     /* negative control: the same test in the map frame (T_src_map taken as the identity) does not put the
      * three objects in boxes: the recording's frame is z-up, the map's y-up */
     double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     int all_in_map = 0;
-    for (uint32_t i = 0; rd && i < n; i++) {
-        if (!(rec[i].flags & SOOC_TABLE_FLAG_VALID) || (rec[i].flags & SOOC_TABLE_FLAG_REMOVED)) continue;
+    for (uint32_t i = 0; ok && i < n; i++) {
+        if (!live(&rec[i])) continue;
         double p[3], R[9];
         sooc_table_pose_source(I, &rec[i], p, R, NULL);
         int cnt = 0;
@@ -193,10 +279,8 @@ int main(void) {
         all_in_map += cnt == 3;
     }
     CHECK_MSG(all_in_map == 0, "the map frame alone puts the objects in a box: the check cannot fail");
-    sooc_table_close_reader(rd);
-    char shm[128];
-    if (!sooc_table_shm_name(name, shm, sizeof shm)) {
-        snprintf(cmd, sizeof cmd, "rm -f /dev/shm%s; rm -rf %s", shm, dir);
+    if (!g_check_fail) {
+        snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
         if (system(cmd)) {}
     }
     printf("test_table_source: %d checks, %d failed\n", g_check_n, g_check_fail);
