@@ -37,6 +37,9 @@ struct sooc_mesh_opts;
 int sooc_cli_mesh_map(const char *cmd, const char *db, const char *model, const char *dir,
                       const struct sooc_mesh_opts *o, const double *box);
 
+/* An output file's folder must exist: 0, or "sooc3d <cmd>: <opt> <path>: the folder <dir> does not exist"
+ * (or is not a folder) on stderr and 2. "-" (stdout) passes. */
+int sooc_cli_need_parent(const char *cmd, const char *opt, const char *path);
 /* Print "sooc3d <cmd>: <status>: <errmsg>" to stderr and return 1. */
 int sooc_cli_fail(const char *cmd, sooc_status s);
 /* The same for a command that reads a stored map with a model: a map that does not fit (built by

@@ -120,7 +120,7 @@ static int cmd_intrinsics(int argc, char **argv) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--board")) { NEEDV(); board_s = v; }
-        else if (!strcmp(a, "--out")) { NEEDV(); out = v; }
+        else if (!strcmp(a, "--out")) { NEEDV(); out = v; if (sooc_cli_need_parent(cmd, a, v)) goto done; }
         else if (!strcmp(a, "--name")) { NEEDV(); name = v; }
         else if (!strcmp(a, "--dist")) {
             NEEDV();
@@ -190,7 +190,7 @@ static int cmd_handeye(int argc, char **argv) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--board")) { NEEDV(); board_s = v; }
-        else if (!strcmp(a, "--out")) { NEEDV(); out = v; }
+        else if (!strcmp(a, "--out")) { NEEDV(); out = v; if (sooc_cli_need_parent(cmd, a, v)) goto done; }
         else if (!strcmp(a, "--poses")) { NEEDV(); poses = v; }
         else if (!strcmp(a, "--calib")) { NEEDV(); calib_in = v; }
         else if (!strcmp(a, "--min-views")) {

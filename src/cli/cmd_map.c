@@ -237,6 +237,8 @@ int sooc_cmd_map(int argc, char **argv) {
         fprintf(stderr, "sooc3d map export --mcap: writes every object (no --box, --model)\n");
         return 2;
     }
+    if (is_export && sooc_cli_need_parent("map export", fmt == 1 ? "--csv" : fmt == 2 ? "--json" : fmt == 3 ? "--ply" : "--mcap", out))
+        return 2;
     if (fmt == 4) return sooc_cli_map_export_mcap(db, out);
     if ((model || mesh_opt) && !(is_export && fmt == 3)) {
         fprintf(stderr, "sooc3d map: --model/--res/--level/--layout-cell belong to export --ply DIR (meshes)\n");

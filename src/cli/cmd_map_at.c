@@ -103,7 +103,10 @@ int sooc_cli_map_at(int argc, char **argv) {
         int more = i + 1 < argc;
         if (!strcmp(a, "--db") && more) db = argv[++i];
         else if (!strcmp(a, "--model") && more) model = argv[++i];
-        else if (!strcmp(a, "--png") && more) png = argv[++i];
+        else if (!strcmp(a, "--png") && more) {
+            png = argv[++i];
+            if (sooc_cli_need_parent("map at", a, png)) return 2;
+        }
         else if (!strcmp(a, "--frame") && more) {
             frame = argv[++i];
             if (strcmp(frame, "source") && strcmp(frame, "world")) {

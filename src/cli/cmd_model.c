@@ -71,7 +71,10 @@ int sooc_cmd_model(int argc, char **argv) {
                         v);
                 return 2;
             }
-        } else if (!strcmp(a, "--out") && i + 1 < argc) out = argv[++i];
+        } else if (!strcmp(a, "--out") && i + 1 < argc) {
+            out = argv[++i];
+            if (sooc_cli_need_parent("model", a, out)) return 2;
+        }
         else if (a[0] != '-' && !path) path = a;
         else {
             fprintf(stderr, "sooc3d model: unknown or incomplete option '%s'\n", a);

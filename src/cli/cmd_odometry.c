@@ -94,8 +94,8 @@ int sooc_cmd_odometry(int argc, char **argv) {
         i++;                                                                      \
     } while (0)
         if (!strcmp(a, "--seq")) { NEEDV(); seq_dir = v; }
-        else if (!strcmp(a, "--out")) { NEEDV(); out = v; }
-        else if (!strcmp(a, "--gt-out")) { NEEDV(); gt_out = v; }
+        else if (!strcmp(a, "--out")) { NEEDV(); out = v; if (sooc_cli_need_parent(cmd, a, v)) return 2; }
+        else if (!strcmp(a, "--gt-out")) { NEEDV(); gt_out = v; if (sooc_cli_need_parent(cmd, a, v)) return 2; }
         else if (!strcmp(a, "--write-seq")) { NEEDV(); write_seq = v; }
         else if (!strcmp(a, "--eval")) { NEEDV(); eval_est = v; }
         else if (!strcmp(a, "--gt")) { NEEDV(); eval_gt = v; }

@@ -41,7 +41,16 @@ sooc_status sooc_afile_open(sooc_afile *f, const char *path) {
     snprintf(f->tmp, n, "%s.tmp.%ld", path, (long)getpid());
     f->fp = fopen(f->tmp, "wb");
     if (!f->fp) {
-        sooc_status s = sooc_seterr(SOOC_EIO, "%s: cannot create temp file: %s", f->tmp, strerror(errno));
+        int e = errno;
+        char dir[4096];
+        snprintf(dir, sizeof dir, "%s", path);
+        char *slash = strrchr(dir, '/');
+        if (slash == dir) slash[1] = 0;
+        else if (slash) *slash = 0;
+        struct stat sb;
+        sooc_status s = e == ENOENT && slash && stat(dir, &sb) != 0
+                            ? sooc_seterr(SOOC_ENOTFOUND, "%s: the folder %s does not exist", path, dir)
+                            : sooc_seterr(SOOC_EIO, "%s: cannot create temp file: %s", f->tmp, strerror(e));
         sooc_afile_abort(f);
         return s;
     }

@@ -170,6 +170,17 @@ int main(void) {
     snprintf(cmd, sizeof cmd, "'%s' map frobnicate --db '%s' 2>&1", g_bin, db);
     CHECK(run(cmd, out, sizeof out) == 2);
     CHECK(access(bad, F_OK) == 0);  /* never deleted or rewritten */
+    /* an output file in a folder that does not exist: exit 2, the folder named, nothing written */
+    static const char *fmts[] = {"--csv", "--json", "--ply", "--mcap"};
+    for (int k = 0; k < 4; k++) {
+        char want[640];
+        snprintf(cmd, sizeof cmd, "'%s' map export --db '%s' %s '%s/no_such_dir/out' 2>&1", g_bin, db, fmts[k], g_dir);
+        rc = run(cmd, out, sizeof out);
+        snprintf(want, sizeof want, "the folder %s/no_such_dir does not exist", g_dir);
+        CHECK_MSG(rc == 2 && strstr(out, want), "export %s into a missing folder: rc %d: %s", fmts[k], rc, out);
+    }
+    snprintf(cmd, sizeof cmd, "%s/no_such_dir", g_dir);
+    CHECK(access(cmd, F_OK) != 0);
 
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);

@@ -87,6 +87,9 @@ static void test_files(void) {
     sooc_free(buf);
     CHECK(sooc_file_read_all("/nonexistent/x", 10, &buf, &n) == SOOC_ENOTFOUND);
     CHECK(strstr(sooc_errmsg(), "/nonexistent/x") != NULL);
+    /* a save into a folder that does not exist names the folder */
+    CHECK(sooc_afile_open(&f, "/nonexistent/dir/x.bin") == SOOC_ENOTFOUND);
+    CHECK(strstr(sooc_errmsg(), "/nonexistent/dir/x.bin: the folder /nonexistent/dir does not exist") != NULL);
 }
 
 static void test_geom(void) {
