@@ -371,6 +371,11 @@ void sooc_map_entry_from_cogmap(const sooc_cogmap_entry *c, const float extent[3
  * correlation) and sigma_yaw^2. cov = {xx, xz, zz, yaw yaw}; returns 1 when
  * the calibrated spreads were used. */
 int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]);
+/* The sigmas printed beside it (map list, exports, the live view, MCAP):
+ * sigma_t = sqrt(cov xx) in metres (the table's sqrt(cov_xzyaw[0]); cov zz
+ * and xz are in the covariance), sigma_yaw = sqrt(cov yaw yaw) (NaN:
+ * symmetric). */
+void sooc_map_entry_planner_sigmas(const sooc_map_entry *e, double *sigma_t, double *sigma_yaw);
 /* The largest yaw variance published: that of an angle uniform on the
  * circle, (2 pi)^2 / 12 = pi^2 / 3 rad^2 (a yaw known not at all). */
 #define SOOC_MAP_YAW_VAR_MAX 3.289868133696453

@@ -349,6 +349,13 @@ void sooc_node_destroy(sooc_node *n);
 /* One-line stats summary for logs. */
 size_t sooc_node_stats_format(const sooc_node_stats *s, char *buf, size_t cap);
 
+/* The shm table record of a map entry, as the node publishes it (docs/shm.md):
+ * pose, the planner's covariance and box (cogmap.h), presence, flags (VALID,
+ * TENTATIVE below 2 observations, the box's quality). `sooc3d map list` and
+ * `map export` print the same numbers from a stored map. */
+struct sooc_table_record;
+void sooc_node_table_record(const sooc_map_entry *e, struct sooc_table_record *r);
+
 #ifdef __cplusplus
 }
 #endif

@@ -70,14 +70,16 @@ static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n,
     for (int k = 0; k < 16; k++) len += (size_t)snprintf(b + len, cap - len, "%s%.9g", k ? ", " : "", T[k]);
     len += (size_t)snprintf(b + len, cap - len, "]},\n  \"entries\": [\n");
     for (size_t i = 0; i < n; i++) {
+        double st, syaw;   /* the planner's sigmas, as the table and `map export` give them */
+        sooc_map_entry_planner_sigmas(&e[i], &st, &syaw);
         char sy[32] = "null";   /* a symmetric object's yaw has no spread */
-        if (isfinite(e[i].sigma_yaw)) snprintf(sy, sizeof sy, "%.6f", e[i].sigma_yaw);
+        if (isfinite(syaw)) snprintf(sy, sizeof sy, "%.6f", syaw);
         len += (size_t)snprintf(b + len, cap - len,
                                 "    {\"id\": %llu, \"x\": %.6f, \"z\": %.6f, \"yaw\": %.6f, \"sigma_t\": %.6f, "
                                 "\"sigma_yaw\": %s, \"presence\": %.6f, \"presence_logit\": %.6f, "
                                 "\"extent\": [%.3f, %.3f, %.3f], \"obs_count\": %u, \"first_seen_ns\": %lld, "
                                 "\"last_seen_ns\": %lld, \"what_mu\": [",
-                                (unsigned long long)e[i].id, e[i].x, e[i].z, e[i].yaw, e[i].sigma_t, sy,
+                                (unsigned long long)e[i].id, e[i].x, e[i].z, e[i].yaw, st, sy,
                                 e[i].presence, e[i].presence_logit, e[i].extent[0], e[i].extent[1], e[i].extent[2],
                                 e[i].obs_count, (long long)e[i].first_seen_ns, (long long)e[i].last_seen_ns);
         for (int k = 0; k < e[i].latent_dim; k++)
@@ -92,10 +94,13 @@ static sooc_status write_map(const char *dir, const sooc_map_entry *e, size_t n,
     if (!st) {
         len = 0;
         len += (size_t)snprintf(b + len, cap - len, "id,x,z,yaw,sigma_t,sigma_yaw,presence,obs_count\n");
-        for (size_t i = 0; i < n; i++)
+        for (size_t i = 0; i < n; i++) {
+            double st, syaw;
+            sooc_map_entry_planner_sigmas(&e[i], &st, &syaw);
             len += (size_t)snprintf(b + len, cap - len, "%llu,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%u\n",
-                                    (unsigned long long)e[i].id, e[i].x, e[i].z, e[i].yaw, e[i].sigma_t,
-                                    e[i].sigma_yaw, e[i].presence, e[i].obs_count);
+                                    (unsigned long long)e[i].id, e[i].x, e[i].z, e[i].yaw, st, syaw, e[i].presence,
+                                    e[i].obs_count);
+        }
         if (!(st = sooc_path_join(path, sizeof path, dir, "map.csv"))) st = sooc_file_write_atomic(path, b, len);
     }
     free(b);

@@ -2,6 +2,8 @@
  * include/sooc3d/cogmap.h). Read-only: never modifies the database. */
 #include "cli.h"
 #include "sooc3d/cogmap.h"
+#include "sooc3d/node.h"
+#include "sooc3d/table.h"
 #include "sooc3d/render.h"
 
 #include <math.h>
@@ -26,12 +28,13 @@ static void map_usage(FILE *f) {
             "  list     one line per object, ordered by id: id x z (m) yaw (rad) sigma_t (m)\n"
             "           sigma_yaw (rad) presence obs_count first_seen_ns last_seen_ns, its box (x*y*z m),\n"
             "           height above the floor (m) and box quality (tight, clipped, empty, faint, symmetric,\n"
-            "           not computed). sigma_t / sigma_yaw are the uncertainty the shm table gives a planner:\n"
-            "           the calibrated spreads when computed, else the posterior's (docs/shm.md)\n"
+            "           not computed). The numbers of the shm table's record (docs/shm.md): sigma_t is\n"
+            "           sqrt(cov_xx) in metres, sigma_yaw sqrt(cov_yawyaw) in radians\n"
             "  query    the same for objects whose (x, z) lies in the closed box [X0,X1] x [Z0,Z1]\n"
             "           (R*Tree lookup)\n"
             "  export   --csv FILE   header + one row per object (incl. what_mu / what_logvar, the\n"
-            "                        covariance, box, height and box quality)\n"
+            "                        covariance, box, height, box quality, the box centre's y and\n"
+            "                        the record's flags)\n"
             "           --json FILE  {\"info\": {...}, \"objects\": [...]}\n"
             "           --ply FILE   ASCII PLY point cloud, one vertex per object at (x, 0, z),\n"
             "                        coloured by a hash of its id, with properties id, yaw,\n"
@@ -64,8 +67,6 @@ typedef struct out_ctx {
     sooc_status st;     /* a failed geometry read stops the walk */
 } out_ctx;
 
-static float sigmoidf(float a) { return 1.0f / (1.0f + expf(-a)); }
-
 /* A JSON number, or null where there is none (NaN, infinite) */
 static void json_num(FILE *f, double v) {
     if (isfinite(v)) fprintf(f, "%.9g", v);
@@ -85,13 +86,16 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
     sooc_map_entry me;
     sooc_map_entry_from_cogmap(e, found ? ext : NULL, &me);
     if (found) me.geom = g;
-    double cov[4];
-    sooc_map_entry_planner_cov(&me, cov);
-    double st = sqrt(0.5 * (cov[0] + cov[2])), sy = sqrt(cov[3]);   /* NaN yaw: symmetric */
+    /* the numbers of the shm table's record: sigma_t = sqrt(cov_xx), the yaw's sqrt(cov_yawyaw) (NaN:
+     * symmetric), the covariance, box, y, presence and flags */
+    sooc_table_record r;
+    sooc_node_table_record(&me, &r);
+    double cov[4] = {r.cov_xzyaw[0], r.cov_xzyaw[1], r.cov_xzyaw[3], r.cov_xzyaw[5]};
+    double st = sqrt(cov[0]), sy = sqrt(cov[3]);
     double h = (g.flags & SOOC_GEOM_TIGHT) ? 2.0 * g.centre[1] : (double)me.extent[1];   /* top above the floor */
     char q[64];
     sooc_map_entry_box_quality(&g, q, sizeof q);
-    float p = sigmoidf(e->pres_logit);
+    float p = r.presence;
     switch (c->fmt) {
     case 0:
         fprintf(c->f, "%8llu %10.4f %10.4f %8.4f %8.4f %8.4f %7.4f %6u %20lld %20lld", (unsigned long long)e->id, e->X,
@@ -106,27 +110,27 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? " " : "\"", e->what_mu[i]);
         fprintf(c->f, "\",");
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? " " : "\"", e->what_logvar[i]);
-        fprintf(c->f, "\",%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%s\n", cov[0], cov[1], cov[2], cov[3], me.extent[0],
-                me.extent[1], me.extent[2], h, q);
+        fprintf(c->f, "\",%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%s,%.9g,%u\n", cov[0], cov[1], cov[2], cov[3],
+                r.extent[0], r.extent[1], r.extent[2], h, q, r.y, r.flags);
         break;
     case 2:
         fprintf(c->f,
-                "%s\n    {\"id\": %llu, \"x\": %.9g, \"z\": %.9g, \"yaw\": %.9g, \"sigma_t\": %.9g, "
+                "%s\n    {\"id\": %llu, \"x\": %.9g, \"y\": %.9g, \"z\": %.9g, \"yaw\": %.9g, \"sigma_t\": %.9g, "
                 "\"sigma_yaw\": ",
-                c->first ? "" : ",", (unsigned long long)e->id, e->X, e->Z, e->Theta, st);
+                c->first ? "" : ",", (unsigned long long)e->id, e->X, r.y, e->Z, e->Theta, st);
         json_num(c->f, sy);   /* a symmetric object's yaw has no spread: null */
         fprintf(c->f,
-                ", \"presence\": %.9g, \"presence_logit\": %.9g, \"obs_count\": %u, "
+                ", \"presence\": %.9g, \"presence_logit\": %.9g, \"flags\": %u, \"obs_count\": %u, "
                 "\"last_view\": %d, \"first_seen_ns\": %lld, \"last_seen_ns\": %lld, \"what_mu\": [",
-                p, e->pres_logit, e->obs_count, e->last_view, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
+                p, e->pres_logit, r.flags, e->obs_count, e->last_view, (long long)e->first_seen_ns, (long long)e->last_seen_ns);
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_mu[i]);
         fprintf(c->f, "], \"what_logvar\": [");
         for (int i = 0; i < e->dim; i++) fprintf(c->f, "%s%.9g", i ? ", " : "", e->what_logvar[i]);
         fprintf(c->f, "], \"cov_xz\": [%.9g, %.9g, %.9g], \"var_yaw\": ", cov[0], cov[1], cov[2]);
         json_num(c->f, cov[3]);
         if (found)
-            fprintf(c->f, ", \"extent\": [%.9g, %.9g, %.9g], \"height\": %.9g", me.extent[0], me.extent[1],
-                    me.extent[2], h);
+            fprintf(c->f, ", \"extent\": [%.9g, %.9g, %.9g], \"height\": %.9g", r.extent[0], r.extent[1],
+                    r.extent[2], h);
         else fprintf(c->f, ", \"extent\": null, \"height\": null");
         fprintf(c->f, ", \"box\": \"%s\"}", q);
         c->first = 0;
@@ -305,7 +309,7 @@ int sooc_cmd_map(int argc, char **argv) {
     } else if (fmt == 1) {
         fprintf(f, "id,x,z,yaw,sigma_t,sigma_yaw,rho_t,rho_yaw,presence,obs_count,last_view,first_seen_ns,"
                    "last_seen_ns,dim,what_mu,what_logvar,cov_xx,cov_xz,cov_zz,var_yaw,extent_x,extent_y,extent_z,"
-                   "height,box\n");
+                   "height,box,y,flags\n");
     } else {
         fprintf(f, "{\n  \"info\": {\"database\": ");
         json_str(f, db);

@@ -122,11 +122,10 @@ static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc,
            (unsigned long long)st->n_objects);
     if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x_m", "z_m", "yaw_deg", "pres", "obs", "sigma_m");
     for (size_t i = 0; i < nc; i++) {
-        double cov[4];   /* the table's uncertainty (cogmap.h) */
-        sooc_map_entry_planner_cov(&chg[i], cov);
+        double st, sy;   /* the table's uncertainty (cogmap.h): sqrt(cov_xx) */
+        sooc_map_entry_planner_sigmas(&chg[i], &st, &sy);
         printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %6.3f\n", (unsigned long long)chg[i].id, chg[i].x, chg[i].z,
-               chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count,
-               sqrt(0.5 * (cov[0] + cov[2])));
+               chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count, st);
     }
     for (size_t i = 0; i < nr; i++) printf("  %8llu removed\n", (unsigned long long)rem[i]);
     fflush(stdout);

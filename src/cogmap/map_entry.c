@@ -58,6 +58,13 @@ int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]) {
     return 0;
 }
 
+void sooc_map_entry_planner_sigmas(const sooc_map_entry *e, double *sigma_t, double *sigma_yaw) {
+    double cov[4];
+    sooc_map_entry_planner_cov(e, cov);
+    *sigma_t = sqrt(cov[0]);
+    *sigma_yaw = sqrt(cov[3]);
+}
+
 const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, size_t cap) {
     static const struct { uint32_t bit; const char *word; } w[] = {
         {SOOC_GEOM_TIGHT, "tight"}, {SOOC_GEOM_EMPTY, "empty"}, {SOOC_GEOM_CLIPPED, "clipped"},

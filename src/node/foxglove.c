@@ -77,7 +77,7 @@ void sooc_foxglove_entity(sooc_ros_buf *b, const sooc_map_entry *e, const double
           "{\"key\": \"cov_zz\", \"value\": \"%.6g\"}, {\"key\": \"var_yaw\", \"value\": \"%.6g\"}, "
           "{\"key\": \"obs_count\", \"value\": \"%u\"}, {\"key\": \"first_seen_ns\", \"value\": \"%lld\"}, "
           "{\"key\": \"last_seen_ns\", \"value\": \"%lld\"}], ",
-       (unsigned long long)e->id, p, sqrt(0.5 * (cov[0] + cov[2])), sqrt(cov[3]), cov[0], cov[1],
+       (unsigned long long)e->id, p, sqrt(cov[0]), sqrt(cov[3]), cov[0], cov[1],
        cov[2], isfinite(cov[3]) ? cov[3] : -1.0, e->obs_count, (long long)e->first_seen_ns,
        (long long)e->last_seen_ns);
     sooc_foxglove_printf(b, "\"cubes\": [{\"pose\": {\"position\": {\"x\": %.6f, \"y\": %.6f, \"z\": %.6f}, \"orientation\": {\"x\": 0, "

@@ -4,7 +4,7 @@
  * "Publisher", "Resume", "Faults"). Mapping thread only. */
 #include "node/node_impl.h"
 
-static void to_record(const sooc_map_entry *e, sooc_table_record *r) {
+void sooc_node_table_record(const sooc_map_entry *e, sooc_table_record *r) {
     memset(r, 0, sizeof *r);
     r->object_id = e->id;
     r->flags = SOOC_TABLE_FLAG_VALID | (e->obs_count < 2 ? SOOC_TABLE_FLAG_TENTATIVE : 0u);
@@ -214,7 +214,7 @@ sooc_status sooc__node_publish(sooc_node *n, const sooc_map_entry *chg, size_t n
                                      n->world_ready ? T_src_map : NULL);
         for (size_t i = 0; i < nc && !rc; i++) {
             sooc_table_record r;
-            to_record(&chg[i], &r);
+            sooc_node_table_record(&chg[i], &r);
             rc = sooc_table_upsert(n->table, &r);
         }
         for (size_t i = 0; i < nr && !rc; i++) {

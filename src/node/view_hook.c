@@ -22,11 +22,11 @@ sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f) {
     if ((st = sooc_mapper_entries(n->mapper, n->view_entries, n->view_cap, &cnt))) return st;
     for (size_t i = 0; i < cnt; i++) {
         const sooc_map_entry *e = &n->view_entries[i];
-        double cov[4];
-        sooc_map_entry_planner_cov(e, cov);
+        double st, sy;
+        sooc_map_entry_planner_sigmas(e, &st, &sy);
         double h = (e->geom.flags & SOOC_GEOM_TIGHT) ? 2.0 * e->geom.centre[1] : (double)e->extent[1];
         n->view_objects[i] = (sooc_view_object){e->id, e->x, e->z, e->yaw, {e->extent[0], h, e->extent[2]},
-                                                e->presence, sqrt(0.5 * (cov[0] + cov[2])), sqrt(cov[3]), e->obs_count};
+                                                e->presence, st, sy, e->obs_count};
     }
     char stats[512];
     pthread_mutex_lock(&n->mu);

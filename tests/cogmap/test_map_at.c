@@ -164,8 +164,8 @@ int main(void) {
     snprintf(db, sizeof db, "%s/m.sqlite", dir);
     snprintf(cmd, sizeof cmd,
              "'%s' node launch/tabletop_geometric.yaml --set sensor.path=%s/gen/scene_0000 --set shm.name=mapat_%d "
-             "--set shm.unlink_on_exit=true --set map.db=%s --quiet > %s/log.txt 2>&1",
-             bin, dir, (int)getpid(), db, dir);
+             "--set shm.unlink_on_exit=true --set map.db=%s --set model.min_presence=0 --quiet > %s/log.txt 2>&1",
+             bin, dir, (int)getpid(), db, dir);   /* every entry: the question here is the pick, not the gate */
     CHECK(tc_run(cmd) == 0);
 
     sooc_frame f;

@@ -120,15 +120,17 @@ int main(void) {
     int rc = run(cmd, out, sizeof out);
     if (rc == 127 || strstr(out, "not found")) fprintf(stderr, "python3 missing: JSON parse check skipped\n");
     else CHECK_MSG(rc == 0 && !strcmp(out, "19 cli-test 1\n"), "json check: %s", out);
-    /* one uncertainty: the list, the CSV and the JSON give the planner's sigma (the calibrated spreads of
-     * entry 8, the posterior's exp(rho / 2) of the others), and the box with its quality */
+    /* one uncertainty: the list, the CSV and the JSON give the table record's numbers: sigma_t =
+     * sqrt(cov_xx) (the calibrated spreads of entry 8, the posterior's exp(rho / 2) of the others), the
+     * box with its quality, the box centre's y and the flags (entry 8: VALID | TENTATIVE | BOX_TIGHT |
+     * BOX_CLIPPED; entry 1: VALID | TENTATIVE) */
     snprintf(cmd, sizeof cmd,
              "python3 -c \"import json; d={o['id']: o for o in json.load(open('%s'))['objects']}; e=d[8]; f=d[1];"
-             " print('%%.6f %%s %%s %%.3f %%.6f %%s %%s' %% (e['sigma_t'], e['box'], [round(x, 3) for x in e['extent']], e['height'],"
-             " f['sigma_t'], f['box'], f['extent']))\"", f);
+             " print('%%.6f %%s %%s %%.3f %%.6f %%s %%s %%.3f %%d %%d' %% (e['sigma_t'], e['box'], [round(x, 3) for x in e['extent']], e['height'],"
+             " f['sigma_t'], f['box'], f['extent'], e['y'], e['flags'], f['flags']))\"", f);
     rc = run(cmd, out, sizeof out);
     if (rc != 127 && !strstr(out, "not found"))
-        CHECK_MSG(rc == 0 && !strcmp(out, "0.025495 tight,clipped [0.1, 0.2, 0.3] 0.200 0.367879 not computed None\n"),
+        CHECK_MSG(rc == 0 && !strcmp(out, "0.020000 tight,clipped [0.1, 0.2, 0.3] 0.200 0.367879 not computed None 0.100 99 3\n"),
                   "json planner fields: %s", out);
     /* a symmetric entry's yaw spread is null in JSON (not nan, which no JSON reader takes) */
     snprintf(cmd, sizeof cmd,
@@ -139,7 +141,7 @@ int main(void) {
         CHECK_MSG(rc == 0 && !strcmp(out, "None None tight,symmetric\n"), "json symmetric entry: %s", out);
     snprintf(cmd, sizeof cmd, "'%s' map query --box 1.5 1 3.5 1 --db '%s' 2>/dev/null", g_bin, db);
     CHECK(run(cmd, out, sizeof out) == 0);
-    CHECK_MSG(strstr(out, "0.0255") && strstr(out, "0.100x0.200x0.300") && strstr(out, "tight,clipped") &&
+    CHECK_MSG(strstr(out, "0.0200") && strstr(out, "0.100x0.200x0.300") && strstr(out, "tight,clipped") &&
               strstr(out, "not computed"), "list with a box: %s", out);
 
     snprintf(f, sizeof f, "%s/m.ply", g_dir);
