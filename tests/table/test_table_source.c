@@ -260,6 +260,17 @@ int main(void) {
     CHECK_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 2, "min_presence 1.5: status %d", rc);
     snprintf(cmd, sizeof cmd, "grep -q 'model.min_presence' %s/bad.log", dir);
     CHECK_MSG(system(cmd) == 0, "min_presence 1.5: the message does not name the key (%s/bad.log)", dir);
+    /* and a key the launch file does not have */
+    snprintf(cmd, sizeof cmd,
+             "'%s' node launch/tabletop_geometric.yaml --set model.min_presense=0.5 --set map.db=%s/bad.sqlite --quiet "
+             "> %s/bad.log 2>&1",
+             bin, dir, dir);
+    rc = system(cmd);
+    CHECK_MSG(WIFEXITED(rc) && WEXITSTATUS(rc) == 2, "--set model.min_presense: status %d", rc);
+    snprintf(cmd, sizeof cmd, "grep -q 'model.min_presense: unknown key' %s/bad.log", dir);
+    CHECK_MSG(system(cmd) == 0, "--set model.min_presense: the message does not name the key (%s/bad.log)", dir);
+    snprintf(cmd, sizeof cmd, "%s/bad.sqlite", dir);
+    CHECK_MSG(access(cmd, F_OK) != 0, "a refused launch created its database");
     /* negative control: the same test in the map frame (T_src_map taken as the identity) does not put the
      * three objects in boxes: the recording's frame is z-up, the map's y-up */
     double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
