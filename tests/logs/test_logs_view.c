@@ -115,8 +115,14 @@ int main(void) {
                  "--user-data-dir=%s/chromium --window-size=1200,560 --virtual-time-budget=5000 --screenshot=%s "
                  "http://127.0.0.1:%d/ > /dev/null 2>&1",
                  tmp, shot, port);
-        CHECK_MSG(system(cmd) == 0, "chromium failed: %s", cmd);
-        int hit = palette_pixels(shot);
+        /* on a loaded machine the page may not have its first objects within the virtual time budget:
+         * up to three screenshots (the objects are known to be there: /api/objects above) */
+        int hit = 0;
+        for (int attempt = 0; attempt < 3 && hit <= 100; attempt++) {
+            CHECK_MSG(system(cmd) == 0, "chromium failed: %s", cmd);
+            hit = palette_pixels(shot);
+            if (hit <= 100) printf("  screenshot %d: %d pixels of the boxes' colours\n", attempt + 1, hit);
+        }
         CHECK_MSG(hit > 100, "the screenshot %s shows %d pixels of the boxes' colours", shot, hit);
         printf("  chromium headless during the replay: %d pixels of the objects' boxes\n", hit);
     } else {
