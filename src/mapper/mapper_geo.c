@@ -18,10 +18,12 @@
 #define GEO_MATCH_M 0.03     /* match distance beyond the half-diagonals (m)        */
 #define GEO_MOVED_M 0.003    /* a box that moves or grows less than this is unchanged */
 #define GEO_PRES_MOVED 0.05  /* a presence change that republishes the entry          */
+#define GEO_SIGMA_MOVED 0.1  /* a relative change of the position sigma that does     */
 
 typedef struct geo_entry {
     sooc_map_entry e;
     uint64_t dirty;          /* 0 = published; else the update that changed it (oldest first) */
+    sooc_map_entry pub;      /* the entry as last published (what the table and the store hold) */
     uint32_t n_in, n_whole;  /* keyframes that saw its box's centre; of them, those that saw the whole box */
     int shown;               /* in the entries and changes (presence reached min_presence) */
 } geo_entry;
@@ -129,25 +131,34 @@ static int box_view(const sooc_frame *f, const sooc_map_entry *e, double max_dep
 /* Presence: how often the keyframes that saw the entry's centre saw its whole box, (whole + 1) / (in + 2).
  * A cluster that always runs out of the image (a wall, a bin's side, the surround) stays near 0.5 or below;
  * an object seen whole goes to 1 (docs/shm.md "The geometric map's fields"). */
-static void take_presence(geo_entry *ge, const sooc_frame *f, double max_depth, uint64_t upd) {
+static void take_presence(geo_entry *ge, const sooc_frame *f, double max_depth) {
     int v = box_view(f, &ge->e, max_depth);
     if (v) ge->n_in++;
     if (v == 2) ge->n_whole++;
     sooc_map_entry *e = &ge->e;
-    float p = (float)(ge->n_whole + 1) / (float)(ge->n_in + 2), old = e->presence;
+    float p = (float)(ge->n_whole + 1) / (float)(ge->n_in + 2);
     e->presence = p;
     e->presence_logit = logf(p / (1.0f - p));
-    if (fabsf(p - old) > GEO_PRES_MOVED && !ge->dirty) ge->dirty = upd;
+}
+
+/* The entry differs from what was last published by more than the republish tolerances: its box moved or
+ * grew by 3 mm or turned by 0.02 rad, its presence changed by 0.05, its position sigma by 10%, or it stopped
+ * being tentative (fewer than 2 observations). Slow changes add up against the published values. */
+static int drifted(const geo_entry *ge) {
+    const sooc_map_entry *e = &ge->e, *q = &ge->pub;
+    int moved = fabs(e->x - q->x) > GEO_MOVED_M || fabs(e->z - q->z) > GEO_MOVED_M ||
+                fabs(sooc_wrap_angle(e->yaw - q->yaw)) > 0.02;
+    for (int i = 0; i < 3; i++) moved |= fabs(e->extent[i] - q->extent[i]) > GEO_MOVED_M;
+    moved |= fabsf(e->presence - q->presence) > GEO_PRES_MOVED;
+    moved |= fabs(e->sigma_t - q->sigma_t) > GEO_SIGMA_MOVED * q->sigma_t;
+    moved |= (e->obs_count < 2) != (q->obs_count < 2);
+    return moved;
 }
 
 /* An entry from a cluster: box, pose, colour as the latent; the registration
  * statistics (Welford) over the updates that matched it. */
-static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc_frame *f, double voxel,
-                         uint64_t upd) {
+static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc_frame *f, double voxel) {
     sooc_map_entry *e = &ge->e;
-    int moved = fabs(e->x - o->x) > GEO_MOVED_M || fabs(e->z - o->z) > GEO_MOVED_M ||
-                fabs(e->extent[0] - o->extent[0]) > GEO_MOVED_M || fabs(e->extent[1] - o->extent[1]) > GEO_MOVED_M ||
-                fabs(e->extent[2] - o->extent[2]) > GEO_MOVED_M || fabs(sooc_wrap_angle(e->yaw - o->yaw)) > 0.02;
     e->x = o->x, e->z = o->z, e->yaw = o->yaw;
     for (int i = 0; i < 3; i++) e->extent[i] = (float)o->extent[i];
     e->latent_dim = SOOC_GEOMETRIC_LATENT_DIM;
@@ -185,7 +196,6 @@ static void take_cluster(geo_entry *ge, const sooc_cluster_object *o, const sooc
     /* at least half the 1 degree search step, at most the std of a heading uniform over 90 degrees */
     e->sigma_yaw = fmin(fmax(sd, 0.5 * M_PI / 180.0), 0.5 * M_PI / sqrt(12.0));
     g->var_yaw = e->sigma_yaw * e->sigma_yaw;
-    if (moved && !ge->dirty) ge->dirty = upd;
 }
 
 /* An entry the table and the store hold leaves them with the next change sets. */
@@ -229,15 +239,15 @@ sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_updat
         if (bj != (size_t)-1) {
             ue[bj] = 1;
             us->n_registered++;
-            take_cluster(&g->ent[bj], o, f, g->cp.voxel_m, g->upd);
-            take_presence(&g->ent[bj], f, g->cp.max_depth_m, g->upd);
+            take_cluster(&g->ent[bj], o, f, g->cp.voxel_m);
+            take_presence(&g->ent[bj], f, g->cp.max_depth_m);
         } else {
             geo_entry *ge = &g->ent[g->n++];
             memset(ge, 0, sizeof *ge);
             ge->e.id = g->next_id++;
             ge->dirty = g->upd;
-            take_cluster(ge, o, f, g->cp.voxel_m, g->upd);
-            take_presence(ge, f, g->cp.max_depth_m, g->upd);
+            take_cluster(ge, o, f, g->cp.voxel_m);
+            take_presence(ge, f, g->cp.max_depth_m);
             us->n_registered++, us->n_new++;
         }
     }
@@ -261,10 +271,16 @@ sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_updat
         if (!ge->shown && ge->e.presence >= g->min_pres) {
             ge->shown = 1;
             ge->dirty = g->upd;
+            size_t kept = 0;   /* a withdrawal not yet reported is void */
+            for (size_t r = 0; r < g->n_rem; r++)
+                if (g->rem[r] != ge->e.id) g->rem[kept++] = g->rem[r];
+            g->n_rem = kept;
         } else if (ge->shown && ge->e.presence < g->min_pres - SOOC_MAPPER_PRESENCE_HYST) {
             ge->shown = 0;
             ge->dirty = 0;
             st = report_removed(g, ge->e.id);
+        } else if (ge->shown && !ge->dirty && drifted(ge)) {
+            ge->dirty = g->upd;
         }
     }
     if (st) return st;
@@ -278,6 +294,7 @@ sooc_status sooc_mdl_geo_update(sooc_mdl_geo *g, const sooc_frame *f, sooc_updat
         if (bj == (size_t)-1 || g->n_chg == SOOC_MAPPER_CHANGED_MAX) break;
         g->chg[g->n_chg++] = g->ent[bj].e.id;
         g->ent[bj].dirty = 0;
+        g->ent[bj].pub = g->ent[bj].e;
     }
     g->n_rep_rem = g->n_rem < SOOC_MAPPER_CHANGED_MAX ? g->n_rem : SOOC_MAPPER_CHANGED_MAX;
     if (g->n_rep_rem) {
@@ -313,6 +330,7 @@ sooc_status sooc_mdl_geo_load_entries(sooc_mdl_geo *g, const sooc_map_entry *e, 
         memset(&g->ent[i], 0, sizeof g->ent[i]);
         g->ent[i].e = e[i];
         g->ent[i].shown = 1;   /* it was stored, so it was shown */
+        g->ent[i].pub = e[i];
         if (e[i].id >= g->next_id) g->next_id = e[i].id + 1;
     }
     g->n = n;
