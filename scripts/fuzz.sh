@@ -3,7 +3,7 @@
 # print the counts as JSON: one line per target as it finishes, then one object
 # with all of them as the last line.
 #
-#   bash scripts/fuzz.sh [--runs N] [--targets a,b,...] [--build DIR] [--max-time S] [--out DIR]
+#   bash scripts/fuzz.sh [--runs N] [--targets a,b,...] [--build DIR] [--max-time S] [--out DIR] [--resume]
 #
 # --runs      executions per target (default 10000000)
 # --targets   a comma-separated subset (default: every target of tests/fuzz/CMakeLists.txt)
@@ -12,6 +12,11 @@
 # --max-time  stop a target after S seconds even if N executions are not reached (default: none)
 # --out       where new corpus inputs, crashes and logs go (default out/fuzz); the committed corpus
 #             in tests/fuzz/corpus is read, never written
+# --resume    count executions across runs: OUT/<target>.done holds the executions so far without a
+#             finding (each run appends a line to OUT/<target>.runs: date, commit, executions, seconds,
+#             status); a run does the executions still missing to N, from the corpus in OUT, and a
+#             finding sets the count back to 0. For the slow targets (mapstore_sql: about 500 per s)
+#             over several sessions, with --max-time per session.
 #
 # A target "ok" ran its executions without a crash, leak, timeout or out-of-memory report;
 # anything else is "crash" (its libFuzzer log and the crashing input are under --out). Exit
@@ -24,6 +29,7 @@ TARGETS=""
 BUILD="$ROOT/build-fuzz"
 MAXTIME=0
 OUT="$ROOT/out/fuzz"
+RESUME=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) RUNS="$2"; shift 2 ;;
@@ -31,7 +37,8 @@ while [ $# -gt 0 ]; do
     --build) BUILD="$2"; shift 2 ;;
     --max-time) MAXTIME="$2"; shift 2 ;;
     --out) OUT="$2"; shift 2 ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    --resume) RESUME=1; shift ;;
+    -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -68,11 +75,25 @@ if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then
   export TMPDIR=/dev/shm
 fi
 all="" bad=0 total_s=0
+commit=$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)
 for t in $TARGETS; do
   bin="$BUILD/fuzz/fuzz_$t"
   work="$OUT/corpus/$t" log="$OUT/$t.log" art="$OUT/crashes/$t/"
   mkdir -p "$work" "$art"
-  args=(-runs="$RUNS" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 -artifact_prefix="$art")
+  done_before=0 want="$RUNS"
+  if [ "$RESUME" = 1 ]; then
+    [ -f "$OUT/$t.done" ] && done_before=$(tr -cd '0-9' < "$OUT/$t.done")
+    done_before=${done_before:-0}
+    want=$((RUNS - done_before))
+    if [ "$want" -le 0 ]; then
+      line=$(printf '{"target": "%s", "runs": %s, "asked": %s, "this_run": 0, "seconds": 0, "exec_per_s": 0, "coverage": 0, "status": "ok", "log": "%s"}' \
+             "$t" "$done_before" "$RUNS" "$OUT/$t.runs")
+      echo "$line"
+      all="${all:+$all, }$line"
+      continue
+    fi
+  fi
+  args=(-runs="$want" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 -artifact_prefix="$art")
   [ "$MAXTIME" != 0 ] && args+=(-max_total_time="$MAXTIME")
   [ -f "$ROOT/tests/fuzz/dict/$t.dict" ] && args+=(-dict="$ROOT/tests/fuzz/dict/$t.dict")
   asan="${ASAN_OPTIONS:-detect_leaks=1}" lsan="${LSAN_OPTIONS:-}"
@@ -98,8 +119,14 @@ for t in $TARGETS; do
   cov=$(sed -n 's/.*cov: \([0-9]*\).*/\1/p' "$log" | tail -1)
   status=ok
   if [ $rc -ne 0 ]; then status=crash; bad=$((bad + 1)); fi
-  line=$(printf '{"target": "%s", "runs": %s, "asked": %s, "seconds": %s, "exec_per_s": %s, "coverage": %s, "status": "%s", "log": "%s"}' \
-         "$t" "$execs" "$RUNS" "$secs" "$rate" "${cov:-0}" "$status" "$log")
+  runs="$execs"
+  if [ "$RESUME" = 1 ]; then
+    if [ "$status" = ok ]; then runs=$((done_before + execs)); else runs=0; fi
+    echo "$runs" > "$OUT/$t.done.tmp" && mv "$OUT/$t.done.tmp" "$OUT/$t.done"
+    printf '%s %s %s %s %s\n' "$(date -u +%Y-%m-%dT%H:%M:%SZ)" "$commit" "$execs" "$secs" "$status" >> "$OUT/$t.runs"
+  fi
+  line=$(printf '{"target": "%s", "runs": %s, "asked": %s, "this_run": %s, "seconds": %s, "exec_per_s": %s, "coverage": %s, "status": "%s", "log": "%s"}' \
+         "$t" "$runs" "$RUNS" "$execs" "$secs" "$rate" "${cov:-0}" "$status" "$log")
   echo "$line"
   all="${all:+$all, }$line"
   total_s=$(awk -v a="$total_s" -v b="$secs" 'BEGIN { printf "%.1f", a + b }')
