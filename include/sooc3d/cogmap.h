@@ -376,6 +376,9 @@ int sooc_map_entry_planner_cov(const sooc_map_entry *e, double cov[4]);
  * and xz are in the covariance), sigma_yaw = sqrt(cov yaw yaw) (NaN:
  * symmetric). */
 void sooc_map_entry_planner_sigmas(const sooc_map_entry *e, double *sigma_t, double *sigma_yaw);
+/* The height of the entry's top above the floor (m), as `map list` and the
+ * exports print it: twice the tight box's centre height, else the extent's y. */
+double sooc_map_entry_height(const sooc_map_entry *e);
 /* The largest yaw variance published: that of an angle uniform on the
  * circle, (2 pi)^2 / 12 = pi^2 / 3 rad^2 (a yaw known not at all). */
 #define SOOC_MAP_YAW_VAR_MAX 3.289868133696453

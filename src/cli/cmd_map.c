@@ -92,7 +92,7 @@ static int print_cb(void *u, const sooc_cogmap_entry *e) {
     sooc_node_table_record(&me, &r);
     double cov[4] = {r.cov_xzyaw[0], r.cov_xzyaw[1], r.cov_xzyaw[3], r.cov_xzyaw[5]};
     double st = sqrt(cov[0]), sy = sqrt(cov[3]);
-    double h = (g.flags & SOOC_GEOM_TIGHT) ? 2.0 * g.centre[1] : (double)me.extent[1];   /* top above the floor */
+    double h = sooc_map_entry_height(&me);   /* top above the floor */
     char q[64];
     sooc_map_entry_box_quality(&g, q, sizeof q);
     float p = r.presence;

@@ -54,7 +54,7 @@ static int collect(void *u, const sooc_cogmap_entry *e) {
     sooc_map_entry_from_cogmap(e, found ? ext : NULL, me);
     if (found) me->geom = g;
     sooc_map_entry_planner_cov(me, x->cov);
-    x->h = (g.flags & SOOC_GEOM_TIGHT) ? 2.0 * g.centre[1] : (double)me->extent[1];
+    x->h = sooc_map_entry_height(me);
     x->has_geom = found;
     c->n++;
     return 0;

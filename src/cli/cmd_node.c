@@ -120,12 +120,18 @@ static void on_kf(void *user, uint64_t kf, const sooc_map_entry *chg, size_t nc,
     if (!nc && !nr) return;
     printf("keyframe %llu: %zu changed, %zu removed, %llu objects\n", (unsigned long long)kf, nc, nr,
            (unsigned long long)st->n_objects);
-    if (nc) printf("  %8s %8s %8s %7s %6s %5s %6s\n", "id", "x_m", "z_m", "yaw_deg", "pres", "obs", "sigma_m");
+    if (nc)
+        printf("  %8s %8s %8s %7s %6s %5s %7s %9s %17s %8s\n", "id", "x_m", "z_m", "yaw_deg", "pres", "obs", "sigma_m",
+               "sig_yaw_d", "box_m", "height_m");
     for (size_t i = 0; i < nc; i++) {
-        double st, sy;   /* the table's uncertainty (cogmap.h): sqrt(cov_xx) */
+        double st, sy;   /* the table's uncertainty (cogmap.h): sqrt(cov_xx), sqrt(cov_yawyaw) */
         sooc_map_entry_planner_sigmas(&chg[i], &st, &sy);
-        printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %6.3f\n", (unsigned long long)chg[i].id, chg[i].x, chg[i].z,
-               chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count, st);
+        double c[3], yaw;   /* the table's box */
+        float ext[3];
+        sooc_map_entry_box(&chg[i], c, &yaw, ext);
+        printf("  %8llu %8.3f %8.3f %7.1f %6.3f %5u %7.4f %9.2f %5.3fx%5.3fx%5.3f %8.3f\n", (unsigned long long)chg[i].id,
+               chg[i].x, chg[i].z, chg[i].yaw * 180.0 / 3.14159265358979323846, chg[i].presence, chg[i].obs_count, st,
+               sy * 180.0 / 3.14159265358979323846, ext[0], ext[1], ext[2], sooc_map_entry_height(&chg[i]));
     }
     for (size_t i = 0; i < nr; i++) printf("  %8llu removed\n", (unsigned long long)rem[i]);
     fflush(stdout);

@@ -65,6 +65,10 @@ void sooc_map_entry_planner_sigmas(const sooc_map_entry *e, double *sigma_t, dou
     *sigma_yaw = sqrt(cov[3]);
 }
 
+double sooc_map_entry_height(const sooc_map_entry *e) {
+    return (e->geom.flags & SOOC_GEOM_TIGHT) ? 2.0 * e->geom.centre[1] : (double)e->extent[1];
+}
+
 const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, size_t cap) {
     static const struct { uint32_t bit; const char *word; } w[] = {
         {SOOC_GEOM_TIGHT, "tight"}, {SOOC_GEOM_EMPTY, "empty"}, {SOOC_GEOM_CLIPPED, "clipped"},

@@ -142,7 +142,7 @@ void sooc__node_record_keyframe(sooc_node *n, int64_t t_ns) {
         const sooc_map_entry *e = &r->ent[i];
         double cov[4];
         sooc_map_entry_planner_cov(e, cov);
-        double h = (e->geom.flags & SOOC_GEOM_TIGHT) ? 2.0 * e->geom.centre[1] : (double)e->extent[1];
+        double h = sooc_map_entry_height(e);
         if (i) sooc_foxglove_printf(&m->b, ", ");
         sooc_foxglove_entity(&m->b, e, cov, h, t_ns);
     }

@@ -24,7 +24,7 @@ sooc_status sooc__node_view_publish(sooc_node *n, const sooc_frame *f) {
         const sooc_map_entry *e = &n->view_entries[i];
         double st, sy;
         sooc_map_entry_planner_sigmas(e, &st, &sy);
-        double h = (e->geom.flags & SOOC_GEOM_TIGHT) ? 2.0 * e->geom.centre[1] : (double)e->extent[1];
+        double h = sooc_map_entry_height(e);
         n->view_objects[i] = (sooc_view_object){e->id, e->x, e->z, e->yaw, {e->extent[0], h, e->extent[2]},
                                                 e->presence, st, sy, e->obs_count};
     }

@@ -157,7 +157,7 @@ int main(void) {
     char dir[] = "/tmp/sooc_tsrc_XXXXXX", cmd[4096];
     if (!mkdtemp(dir)) return 1;
     static node_run shipped, all;
-    int ok = !run_node(bin, ycb, dir, "shipped", "", &shipped);
+    int ok = !run_node(bin, ycb, dir, "shipped", "--print-table", &shipped);
     int ok_all = !run_node(bin, ycb, dir, "all", "--set model.min_presence=0", &all);
     const sooc_table_record *rec = shipped.rec;
     const sooc_table_info *info = &shipped.info;
@@ -215,6 +215,41 @@ int main(void) {
         printf("position errors: %d of %d within 1 sigma, %d within 2\n", in1, nz, in2);
         CHECK_MSG(nz == 6 && in1 >= 2 && in2 >= 5 && out4 == 0, "%d of %d within 1 sigma, %d within 2, %d beyond 4", in1,
                   nz, in2, out4);
+    }
+    /* --print-table's last row of each object gives the table's numbers: position, sigma = sqrt(cov_xx), the
+     * yaw's sigma, box and height (to the digits printed) */
+    if (ok) {
+        char path[1200];
+        snprintf(path, sizeof path, "%s/shipped.log", dir);
+        FILE *lf = fopen(path, "r");
+        char line[512];
+        int rows = 0, same = 0;
+        while (lf && fgets(line, sizeof line, lf)) {
+            unsigned long long id;
+            double x, z, yaw, pres, sg, sgy, ex, ey, ez, h;
+            unsigned obs;
+            if (sscanf(line, "%llu %lf %lf %lf %lf %u %lf %lf %lfx%lfx%lf %lf", &id, &x, &z, &yaw, &pres, &obs, &sg,
+                       &sgy, &ex, &ey, &ez, &h) != 12)
+                continue;
+            for (uint32_t i = 0; i < n; i++) {
+                if (!live(&rec[i]) || rec[i].object_id != id) continue;
+                rows++;
+                /* a later row of the same object replaces this verdict */
+                double sy = sqrt(rec[i].cov_xzyaw[5]) * 180.0 / M_PI;
+                same = fabs(x - rec[i].x) <= 6e-4 && fabs(z - rec[i].z) <= 6e-4 &&
+                       fabs(sg - sqrt(rec[i].cov_xzyaw[0])) <= 6e-5 && fabs(sgy - sy) <= 6e-3 &&
+                       fabs(ex - rec[i].extent[0]) <= 6e-4 && fabs(ey - rec[i].extent[1]) <= 6e-4 &&
+                       fabs(ez - rec[i].extent[2]) <= 6e-4 && fabs(h - 2.0 * rec[i].y) <= 6e-4 ? same | (1 << i) :
+                                                                                              same & ~(1 << i);
+            }
+        }
+        if (lf) fclose(lf);
+        int want = 0;
+        for (uint32_t i = 0; i < n && i < 31; i++) want |= live(&rec[i]) ? 1 << i : 0;
+        printf("--print-table: %d rows of the table's objects; the last of each agrees with the table: %s\n", rows,
+               same == want ? "yes" : "no");
+        CHECK_MSG(rows >= 3 && same == want, "--print-table against the table: rows %d, agree 0x%x of 0x%x (%s)", rows,
+                  same, want, path);
     }
     /* the presence gate (model.min_presence 0.5 in the shipped launch): at most 1.5 entries per object, each
      * with a presence of at least 0.5 less the hysteresis; the same map without the gate (min_presence 0)
