@@ -3,6 +3,7 @@
 #include "sooc3d/frame.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <netdb.h>
 #include <poll.h>
@@ -270,11 +271,16 @@ sooc_status sooc_pose_open_file(sooc_pose_src **out, const char *path, const soo
     size_t n = 0;
     sooc_status st = sooc_file_read_all(path, (size_t)1 << 30, &buf, &n);
     if (st) return sooc_adderr(st, "pose file %s", path);
-    /* A file holds all its poses: grow the ring to fit them. */
+    /* A file holds all its poses: the ring is as large as its lines (a caller's larger capacity stays) */
     size_t lines = 1;
     for (size_t i = 0; i < n; i++) lines += ((char *)buf)[i] == '\n';
+    if (lines > INT_MAX) {
+        sooc_free(buf);
+        return sooc_seterr(SOOC_EFORMAT, "pose file %s: more than %d lines", path, INT_MAX);
+    }
     sooc_pose_params pp;
-    if (p) pp = *p; else sooc_pose_params_default(&pp);
+    if (p) pp = *p;
+    else sooc_pose_params_default(&pp), pp.capacity = 2;
     if ((size_t)pp.capacity < lines) pp.capacity = (int)lines;
     sooc_pose_src *s;
     if ((st = src_new(&s, &pp))) { sooc_free(buf); return st; }
