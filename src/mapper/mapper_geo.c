@@ -331,6 +331,13 @@ sooc_status sooc_mdl_geo_load_entries(sooc_mdl_geo *g, const sooc_map_entry *e, 
         g->ent[i].e = e[i];
         g->ent[i].shown = 1;   /* it was stored, so it was shown */
         g->ent[i].pub = e[i];
+        /* the presence's counts taken back from what was stored: its keyframes in view about its
+         * observations, of them seen whole as many as give its presence ((whole + 1) / (in + 2)) */
+        double in = e[i].obs_count < 100000u ? (double)e[i].obs_count : 100000.0;
+        double whole = floor(e[i].presence * (in + 2.0) - 1.0 + 0.5);
+        if (!(whole >= 0)) whole = 0;
+        if (whole > in) whole = in;
+        g->ent[i].n_in = (uint32_t)in, g->ent[i].n_whole = (uint32_t)whole;
         if (e[i].id >= g->next_id) g->next_id = e[i].id + 1;
     }
     g->n = n;

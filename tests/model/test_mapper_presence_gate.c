@@ -11,6 +11,8 @@
  *  - one ball seen whole twice, then only cut by the image's edge, then whole
  *    again: shown, withdrawn (a removal of its id), shown again under the same
  *    id; without the gate it is never removed;
+ *  - a resumed entry (loaded into a new mapper) keeps its presence: one cut
+ *    view does not withdraw it;
  *  - a gate outside 0..1 is refused. */
 #include <math.h>
 #include <stdio.h>
@@ -191,6 +193,41 @@ int main(void) {
               at_end);
     one_ball(0.0, pattern, &nrem, &nre, &at_end, &id);
     CHECK_MSG(id && nrem == 0 && at_end, "no gate: removed %d, at end %d", nrem, at_end);
+
+    /* a resumed map: the ball's entry after the pattern, loaded into a new mapper, seen cut once: its
+     * presence goes on from the stored one (not from a first view: 1 / 3), so it stays shown */
+    {
+        static const synth_sphere ball = {{0.0, 0.06, 0.0}, 0.06, {0.9f, 0.6f, 0.1f}};
+        sooc_mapper *a = geo_mapper(0.5), *b = geo_mapper(0.5);
+        sooc_map_entry e[MAXE], e2[MAXE];
+        size_t n = 0, n2 = 0;
+        for (int i = 0; a && pattern[i]; i++) {
+            sooc_frame f;
+            memset(&f, 0, sizeof f);
+            view(&f, 0.0, pattern[i] == '1' ? 0.0 : 0.44, &ball, 1, i);
+            sooc_update_stats us;
+            CHECK_OK(sooc_mapper_update(a, &f, &us));
+            sooc_frame_free(&f);
+        }
+        if (a) CHECK_OK(sooc_mapper_entries(a, e, MAXE, &n));
+        CHECK(n == 1);
+        if (b && n == 1) {
+            CHECK_OK(sooc_mapper_load_entries(b, e, n));
+            sooc_frame f;
+            memset(&f, 0, sizeof f);
+            view(&f, 0.0, 0.44, &ball, 1, 100);
+            sooc_update_stats us;
+            CHECK_OK(sooc_mapper_update(b, &f, &us));
+            sooc_frame_free(&f);
+            CHECK_OK(sooc_mapper_entries(b, e2, MAXE, &n2));
+            printf("resumed: presence %.3f, after one cut view %s %.3f\n", e[0].presence, n2 ? "shown at" : "withdrawn",
+                   n2 ? e2[0].presence : NAN);
+            CHECK_MSG(n2 == 1 && e2[0].id == e[0].id && fabsf(e2[0].presence - e[0].presence) < 0.05f,
+                      "resumed entry: %zu entries after one cut view", n2);
+        }
+        sooc_mapper_destroy(a);
+        sooc_mapper_destroy(b);
+    }
 
     sooc_mapper_params p;
     sooc_mapper_params_default(&p);
