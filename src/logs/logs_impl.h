@@ -78,6 +78,12 @@ struct sooc_logfile {
 };
 
 /* ---- shared helpers (logfile.c) ---- */
+/* |a - b| in ns, saturated at INT64_MAX: a log's stamps may be anything, and their difference must not
+ * overflow */
+static inline int64_t logs_tgap(int64_t a, int64_t b) {
+    uint64_t d = a > b ? (uint64_t)a - (uint64_t)b : (uint64_t)b - (uint64_t)a;
+    return d > (uint64_t)INT64_MAX ? INT64_MAX : (int64_t)d;
+}
 static inline uint16_t logs_u16(const uint8_t *p) { return (uint16_t)(p[0] | (p[1] << 8)); }
 static inline uint32_t logs_u32(const uint8_t *p) {
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);

@@ -370,13 +370,13 @@ static void pair_streams(sooc_logseq *s, int64_t tol) {
             if (td > tc) {
                 int64_t tj;
                 sooc_logfile_entry(s->lf, s->dep.pos[j], NULL, &tj);
-                if (llabs(td - tc) > llabs(tj - tc)) break;
+                if (logs_tgap(td, tc) > logs_tgap(tj, tc)) break;
             }
             j++;
         }
         for (int64_t k = j; k < s->dep.n && k <= j + 1; k++) {
             sooc_logfile_entry(s->lf, s->dep.pos[k], NULL, &td);
-            if (llabs(td - tc) < best) { best = llabs(td - tc); bk = k; }
+            if (logs_tgap(td, tc) < best) { best = logs_tgap(td, tc); bk = k; }
         }
         if (bk >= 0 && best <= tol) {
             s->pr[s->n++] = (ls_pair){s->col.pos[i], s->dep.pos[bk], tc};
@@ -393,7 +393,7 @@ static double rate(const sooc_logseq *s, const ls_stream *t) {
     int64_t a, b;
     sooc_logfile_entry(s->lf, t->pos[0], NULL, &a);
     sooc_logfile_entry(s->lf, t->pos[t->n - 1], NULL, &b);
-    return b > a ? (double)(t->n - 1) / ((double)(b - a) * 1e-9) : 0;
+    return b > a ? (double)(t->n - 1) / (((double)b - (double)a) * 1e-9) : 0;
 }
 
 sooc_status sooc_logseq_open(sooc_logseq **out, const char *path, const sooc_logseq_params *pp) {

@@ -137,7 +137,7 @@ static sooc_status edge(const sooc_logs_tf *tf, int i, int64_t t, int64_t tol, d
     const char *pn = tf->f[f->parent].name;
     if (!f->n) return sooc_seterr(SOOC_ENOTFOUND, "tf: no transform %s -> %s", pn, f->name);
     if (f->is_static || f->n == 1) {
-        if (f->is_static || llabs(t - f->s[0].t) <= tol) {
+        if (f->is_static || logs_tgap(t, f->s[0].t) <= tol) {
             to_T(T, f->s[0].p, f->s[0].q);
             return SOOC_OK;
         }
@@ -154,14 +154,14 @@ static sooc_status edge(const sooc_logs_tf *tf, int i, int64_t t, int64_t tol, d
         }
         if (lo > 0 && lo < f->n) {
             const tf_sample *a = &f->s[lo - 1], *b = &f->s[lo];
-            double w = (double)(t - a->t) / (double)(b->t - a->t), p[3], q[4];
+            double w = ((double)t - (double)a->t) / ((double)b->t - (double)a->t), p[3], q[4];
             for (int k = 0; k < 3; k++) p[k] = a->p[k] + w * (b->p[k] - a->p[k]);
             sooc_quat_slerp(q, a->q, b->q, w);
             to_T(T, p, q);
             return SOOC_OK;
         }
         const tf_sample *s = lo == 0 ? &f->s[0] : &f->s[f->n - 1];
-        if (llabs(t - s->t) <= tol) {
+        if (logs_tgap(t, s->t) <= tol) {
             to_T(T, s->p, s->q);
             return SOOC_OK;
         }
