@@ -121,24 +121,28 @@ static size_t pan(double gate, sooc_map_entry *out, int *ok) {
     return n;
 }
 
-/* One ball: `pattern` says per update whether it is seen whole (1) or cut by the image's right edge (0).
+/* One update of a mapper on the lone ball, seen whole (the ball straight ahead) or cut (turned by 0.44
+ * rad, the image being 50 degrees wide: its centre just inside the left edge, its box beyond it). */
+static void ball_step(sooc_mapper *mp, int whole, int64_t i) {
+    static const synth_sphere ball = {{0.0, 0.06, 0.0}, 0.06, {0.9f, 0.6f, 0.1f}};
+    sooc_frame f;
+    memset(&f, 0, sizeof f);
+    view(&f, 0.0, whole ? 0.0 : 0.44, &ball, 1, i);
+    sooc_update_stats us;
+    CHECK_OK(sooc_mapper_update(mp, &f, &us));
+    sooc_frame_free(&f);
+}
+
+/* One ball: `pattern` says per update whether it is seen whole (1) or cut by the image's edge (0).
  * Returns how often its id was reported removed and shown (a change after a removal), and whether it is
  * an entry at the end. */
 static void one_ball(double gate, const char *pattern, int *n_removed, int *n_reshown, int *at_end, uint64_t *id) {
-    static const synth_sphere ball = {{0.0, 0.06, 0.0}, 0.06, {0.9f, 0.6f, 0.1f}};
     sooc_mapper *mp = geo_mapper(gate);
     *n_removed = *n_reshown = *at_end = 0;
     *id = 0;
     int gone = 0;
     for (int i = 0; mp && pattern[i]; i++) {
-        sooc_frame f;
-        memset(&f, 0, sizeof f);
-        /* whole: the ball straight ahead; cut: turned by 0.44 rad (the image is 50 degrees wide), its centre
-         * just inside the left edge and its box beyond it */
-        view(&f, 0.0, pattern[i] == '1' ? 0.0 : 0.44, &ball, 1, i);
-        sooc_update_stats us;
-        CHECK_OK(sooc_mapper_update(mp, &f, &us));
-        sooc_frame_free(&f);
+        ball_step(mp, pattern[i] == '1', i);
         sooc_map_entry chg[SOOC_MAPPER_CHANGED_MAX];
         uint64_t rem[SOOC_MAPPER_CHANGED_MAX];
         size_t nc = 0, nr = 0;
@@ -197,28 +201,15 @@ int main(void) {
     /* a resumed map: the ball's entry after the pattern, loaded into a new mapper, seen cut once: its
      * presence goes on from the stored one (not from a first view: 1 / 3), so it stays shown */
     {
-        static const synth_sphere ball = {{0.0, 0.06, 0.0}, 0.06, {0.9f, 0.6f, 0.1f}};
         sooc_mapper *a = geo_mapper(0.5), *b = geo_mapper(0.5);
         sooc_map_entry e[MAXE], e2[MAXE];
         size_t n = 0, n2 = 0;
-        for (int i = 0; a && pattern[i]; i++) {
-            sooc_frame f;
-            memset(&f, 0, sizeof f);
-            view(&f, 0.0, pattern[i] == '1' ? 0.0 : 0.44, &ball, 1, i);
-            sooc_update_stats us;
-            CHECK_OK(sooc_mapper_update(a, &f, &us));
-            sooc_frame_free(&f);
-        }
+        for (int i = 0; a && pattern[i]; i++) ball_step(a, pattern[i] == '1', i);
         if (a) CHECK_OK(sooc_mapper_entries(a, e, MAXE, &n));
         CHECK(n == 1);
         if (b && n == 1) {
             CHECK_OK(sooc_mapper_load_entries(b, e, n));
-            sooc_frame f;
-            memset(&f, 0, sizeof f);
-            view(&f, 0.0, 0.44, &ball, 1, 100);
-            sooc_update_stats us;
-            CHECK_OK(sooc_mapper_update(b, &f, &us));
-            sooc_frame_free(&f);
+            ball_step(b, 0, 100);
             CHECK_OK(sooc_mapper_entries(b, e2, MAXE, &n2));
             printf("resumed: presence %.3f, after one cut view %s %.3f\n", e[0].presence, n2 ? "shown at" : "withdrawn",
                    n2 ? e2[0].presence : NAN);
