@@ -218,6 +218,9 @@ int sooc_file_exists(const char *path);
 int sooc_dir_exists(const char *path);
 /* mkdir -p */
 sooc_status sooc_mkdirs(const char *path);
+/* The folder that holds path, into `out` (cap bytes, truncated): "." for a bare
+ * name, "/" for a name at the root; trailing slashes of path are ignored. */
+void sooc_path_parent(const char *path, char *out, size_t cap);
 /* Join path parts into `out` (cap bytes). Fails with SOOC_EINVAL if too long. */
 sooc_status sooc_path_join(char *out, size_t cap, const char *a, const char *b);
 

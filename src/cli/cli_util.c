@@ -10,22 +10,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 int sooc_cli_need_parent(const char *cmd, const char *opt, const char *path) {
     if (!path || !strcmp(path, "-")) return 0;
     char dir[4096];
-    snprintf(dir, sizeof dir, "%s", path);
-    size_t n = strlen(dir);
-    while (n > 1 && dir[n - 1] == '/') dir[--n] = 0;   /* a folder given as d/ */
-    char *slash = strrchr(dir, '/');
-    if (!slash) return 0;   /* the working folder */
-    if (slash == dir) slash[1] = 0;
-    else *slash = 0;
-    struct stat sb;
-    if (stat(dir, &sb) == 0 && S_ISDIR(sb.st_mode)) return 0;
+    sooc_path_parent(path, dir, sizeof dir);   /* "." (the working folder) exists */
+    if (sooc_dir_exists(dir)) return 0;
     fprintf(stderr, "sooc3d %s: %s %s: the folder %s %s\n", cmd, opt, path, dir,
-            stat(dir, &sb) == 0 ? "is not a folder" : "does not exist");
+            sooc_file_exists(dir) ? "is not a folder" : "does not exist");
     return 2;
 }
 

@@ -236,9 +236,12 @@ int sooc_cmd_eval(int argc, char **argv) {
                 if (n_dirs == MAX_DIRS) { fprintf(stderr, "sooc3d eval: at most %d data dirs\n", MAX_DIRS); return 2; }
                 dirs[n_dirs++] = argv[++i];
             }
-        } else if ((!strcmp(a, "--json") || !strcmp(a, "--md")) && has) {
-            *(a[2] == 'j' ? &json : &md) = argv[++i];
-            if (sooc_cli_need_parent("eval", a, argv[i])) return 2;
+        } else if (!strcmp(a, "--json") && has) {
+            json = argv[++i];
+            if (sooc_cli_need_parent("eval", a, json)) return 2;
+        } else if (!strcmp(a, "--md") && has) {
+            md = argv[++i];
+            if (sooc_cli_need_parent("eval", a, md)) return 2;
         }
         else if (!strcmp(a, "--runs") && has) INTV(1, 1000, &runs);
         else if (!strcmp(a, "--seed") && has) { if (!sooc_cli_u64_opt("eval", a, argv[++i], UINT64_MAX, &seed)) return 2; }

@@ -179,7 +179,7 @@ int sooc_cmd_map(int argc, char **argv) {
         map_usage(stderr);
         return 2;
     }
-    const char *sub = argv[1], *db = NULL, *out = NULL, *model = NULL;
+    const char *sub = argv[1], *db = NULL, *out = NULL, *out_opt = NULL, *model = NULL;
     int fmt = -1, has_box = 0, mesh_opt = 0;
     sooc_mesh_opts mo;
     sooc_mesh_opts_default(&mo);
@@ -204,6 +204,7 @@ int sooc_cmd_map(int argc, char **argv) {
                  i + 1 < argc) {
             if (fmt >= 0) { fprintf(stderr, "sooc3d map: give one of --csv, --json, --ply, --mcap\n"); return 2; }
             fmt = a[2] == 'c' ? 1 : a[2] == 'j' ? 2 : a[2] == 'p' ? 3 : 4;
+            out_opt = a;
             out = argv[++i];
         } else if (!strcmp(a, "--box") && i + 4 < argc) {
             for (int k = 0; k < 4; k++)
@@ -241,8 +242,7 @@ int sooc_cmd_map(int argc, char **argv) {
         fprintf(stderr, "sooc3d map export --mcap: writes every object (no --box, --model)\n");
         return 2;
     }
-    if (is_export && sooc_cli_need_parent("map export", fmt == 1 ? "--csv" : fmt == 2 ? "--json" : fmt == 3 ? "--ply" : "--mcap", out))
-        return 2;
+    if (is_export && sooc_cli_need_parent("map export", out_opt, out)) return 2;
     if (fmt == 4) return sooc_cli_map_export_mcap(db, out);
     if ((model || mesh_opt) && !(is_export && fmt == 3)) {
         fprintf(stderr, "sooc3d map: --model/--res/--level/--layout-cell belong to export --ply DIR (meshes)\n");

@@ -21,13 +21,20 @@ uint32_t sooc_crc32(uint32_t crc, const void *buf, size_t n) {
     return (uint32_t)c;
 }
 
+void sooc_path_parent(const char *path, char *out, size_t cap) {
+    if (!cap) return;
+    snprintf(out, cap, "%s", path);
+    size_t n = strlen(out);
+    while (n > 1 && out[n - 1] == '/') out[--n] = 0;
+    char *slash = strrchr(out, '/');
+    if (slash == out) slash[1] = 0;
+    else if (slash) *slash = 0;
+    else snprintf(out, cap, ".");
+}
+
 static void fsync_parent_dir(const char *path) {
     char dir[4096];
-    snprintf(dir, sizeof dir, "%s", path);
-    char *slash = strrchr(dir, '/');
-    if (slash == dir) slash[1] = 0;
-    else if (slash) *slash = 0;
-    else snprintf(dir, sizeof dir, ".");
+    sooc_path_parent(path, dir, sizeof dir);
     int fd = open(dir, O_RDONLY | O_DIRECTORY);
     if (fd >= 0) { fsync(fd); close(fd); }
 }
@@ -43,12 +50,9 @@ sooc_status sooc_afile_open(sooc_afile *f, const char *path) {
     if (!f->fp) {
         int e = errno;
         char dir[4096];
-        snprintf(dir, sizeof dir, "%s", path);
-        char *slash = strrchr(dir, '/');
-        if (slash == dir) slash[1] = 0;
-        else if (slash) *slash = 0;
+        sooc_path_parent(path, dir, sizeof dir);
         struct stat sb;
-        sooc_status s = e == ENOENT && slash && stat(dir, &sb) != 0
+        sooc_status s = e == ENOENT && stat(dir, &sb) != 0
                             ? sooc_seterr(SOOC_ENOTFOUND, "%s: the folder %s does not exist", path, dir)
                             : sooc_seterr(SOOC_EIO, "%s: cannot create temp file: %s", f->tmp, strerror(e));
         sooc_afile_abort(f);

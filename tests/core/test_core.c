@@ -87,6 +87,16 @@ static void test_files(void) {
     sooc_free(buf);
     CHECK(sooc_file_read_all("/nonexistent/x", 10, &buf, &n) == SOOC_ENOTFOUND);
     CHECK(strstr(sooc_errmsg(), "/nonexistent/x") != NULL);
+    /* the folder of a path */
+    char pdir[64];
+    sooc_path_parent("a/b/c.txt", pdir, sizeof pdir);
+    CHECK(!strcmp(pdir, "a/b"));
+    sooc_path_parent("c.txt", pdir, sizeof pdir);
+    CHECK(!strcmp(pdir, "."));
+    sooc_path_parent("/c.txt", pdir, sizeof pdir);
+    CHECK(!strcmp(pdir, "/"));
+    sooc_path_parent("a/b/", pdir, sizeof pdir);
+    CHECK(!strcmp(pdir, "a"));
     /* a save into a folder that does not exist names the folder */
     CHECK(sooc_afile_open(&f, "/nonexistent/dir/x.bin") == SOOC_ENOTFOUND);
     CHECK(strstr(sooc_errmsg(), "/nonexistent/dir/x.bin: the folder /nonexistent/dir does not exist") != NULL);
