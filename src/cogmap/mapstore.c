@@ -246,14 +246,10 @@ sooc_status sooc_mapstore_open(sooc_mapstore **out, const char *path, const sooc
         int flags = SQLITE_OPEN_READWRITE | (p.create ? SQLITE_OPEN_CREATE : 0);
         if (p.create) {   /* a missing folder is made (a new run's out/<name>/map.sqlite) */
             char dir[4096];
-            const char *sl = strrchr(path, '/');
-            if (sl && sl > path && (size_t)(sl - path) < sizeof dir) {
-                memcpy(dir, path, (size_t)(sl - path));
-                dir[sl - path] = 0;
-                if (!sooc_dir_exists(dir) && (st = sooc_mkdirs(dir))) {
-                    sooc_adderr(st, "%s: cannot make the map database's folder %s", path, dir);
-                    goto fail;
-                }
+            sooc_path_parent(path, dir, sizeof dir);   /* "." and "/" exist */
+            if (!sooc_dir_exists(dir) && (st = sooc_mkdirs(dir))) {
+                sooc_adderr(st, "%s: cannot make the map database's folder %s", path, dir);
+                goto fail;
             }
         }
         rc = sqlite3_open_v2(path, &s->db, flags | SQLITE_OPEN_NOMUTEX, NULL);
