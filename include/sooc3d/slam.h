@@ -319,6 +319,10 @@ typedef struct sooc_slam_params {
     int local_edges;            /* also verify a new keyframe against the recent window's
                                    keyframes (besides the previous one): local edges (0) */
     int max_candidates;         /* candidates verified per query (3)                    */
+    int loop_verify_per_frame;  /* a new keyframe's candidates are verified on the tracked
+                                   frames after it, this many per frame (1); the graph is
+                                   optimised once they all are. 0: all of them on the
+                                   keyframe's own frame                                  */
     double loop_max_dist_m;     /* loop search: only keyframes whose current pose lies
                                    within this distance of the new one's (1.0; 0 = all) */
     double loop_max_angle_deg;  /* ... and whose viewing direction is within this (60)   */
@@ -375,6 +379,11 @@ void sooc_slam_destroy(sooc_slam *s);   /* NULL-safe */
 void sooc_slam_set_initial_pose(sooc_slam *s, const double T_wc[16]);
 /* Track one frame (rgb + metric depth). Not tracking is not an error. */
 sooc_status sooc_slam_track(sooc_slam *s, const sooc_frame *f, sooc_slam_result *r);
+/* Loop candidates still waiting for verification (loop_verify_per_frame),
+ * and verifying them all now, optimising the graph if any was accepted:
+ * at the end of a sequence, before the trajectory is read. */
+int sooc_slam_pending(const sooc_slam *s);
+sooc_status sooc_slam_flush(sooc_slam *s, int *loop_closed);
 void sooc_slam_get_stats(const sooc_slam *s, sooc_slam_stats *st);
 /* The tracked frames of this run with their current poses (after every
  * optimisation so far): t = frame t_ns in seconds. out is reset first. */

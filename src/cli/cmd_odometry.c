@@ -43,6 +43,8 @@ static void usage(FILE *f) {
             "                       stored keyframes the run starts lost and relocalises into them\n"
             "  --kf-depth WxH       keyframe depth kept for verification ICP (default 160x120)\n"
             "  --loop-window N      newest keyframes left out of the loop search (default 6)\n"
+            "  --loop-per-frame N   a new keyframe's loop candidates verified per frame after it\n"
+            "                       (default 1; 0: all on the keyframe's own frame)\n"
             "  --local-edges 0|1    verify each keyframe against the recent ones too (default 0)\n"
             "  --loop-sigma M,R     loop/relocalisation edge sigma: metres, radians (default 0.01,0.01)\n"
             "  --no-relocalise      with --map or --loop-closure: never relocalise (a new run starts its own\n"
@@ -79,7 +81,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
     int delta_frames = 0, start_gt = 0;
     const char *color_K = "auto";
     long long max_frames = 0, first_frame = 0;
-    int loop_closure = 0, relocalise = 1, kf_dw = 160, kf_dh = 120, local_edges = 0, loop_window = 6;
+    int loop_closure = 0, relocalise = 1, kf_dw = 160, kf_dh = 120, local_edges = 0, loop_window = 6, loop_per_frame = 1;
     double loop_sig[2] = {0.01, 0.01};
     const char *map_path = NULL;
     for (int i = 1; i < argc; i++) {
@@ -168,6 +170,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
         else if (!strcmp(a, "--loop-closure")) loop_closure = 1;
         else if (!strcmp(a, "--no-relocalise")) relocalise = 0;
         else if (!strcmp(a, "--loop-window")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 100000, &loop_window)) return 2; }
+        else if (!strcmp(a, "--loop-per-frame")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 1000, &loop_per_frame)) return 2; }
         else if (!strcmp(a, "--local-edges")) { NEEDV(); if (!sooc_cli_int_opt(cmd, a, v, 0, 1, &local_edges)) return 2; }
         else if (!strcmp(a, "--kf-depth")) {
             NEEDV();
@@ -263,6 +266,7 @@ int sooc_cmd_odometry(int argc, char **argv) {
         sp2.depth_h = kf_dh;
         sp2.local_edges = local_edges;
         sp2.recent_window = loop_window;
+        sp2.loop_verify_per_frame = loop_per_frame;
         sp2.sigma_loop_m = loop_sig[0];
         sp2.sigma_loop_rad = loop_sig[1];
         if (map_path) {
@@ -328,6 +332,9 @@ int sooc_cmd_odometry(int argc, char **argv) {
     sooc_slam_stats ss;
     memset(&ss, 0, sizeof ss);
     if (slam) {
+        int closed = 0;
+        if ((st = sooc_slam_flush(slam, &closed))) goto fail;   /* the last keyframe's loop candidates */
+        if (closed) sooc_log(SOOC_LOG_INFO, "odometry: the last keyframe closed a loop");
         sooc_slam_get_stats(slam, &ss);
         if ((st = sooc_slam_trajectory(slam, &est))) goto fail;
         os.frames = ss.frames;

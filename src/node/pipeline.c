@@ -768,6 +768,8 @@ sooc_status sooc_node_run(sooc_node *n) {
         }
         if (map_frame(n, f, T_src_c, t_cap, &result)) break;
     }
+    /* the tracker's last optimisation (the stream's end verifies the last loop candidates) */
+    if (!result && eof && tracking) result = sooc__node_tracking_follow(n);
     /* a stream that ended while frames waited for the support plane: estimate from those */
     if (!result && eof && !n->world_ready && n->n_sup > 0) {
         int r = try_support(n, NULL, NULL, 0, 1, &result);

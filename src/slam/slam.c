@@ -21,6 +21,7 @@ void sooc_slam_params_default(sooc_slam_params *p) {
     p->loop_max_dist_m = 1.0;
     p->loop_max_angle_deg = 60;
     p->max_candidates = 3;
+    p->loop_verify_per_frame = 1;
     p->min_matches = 40;
     p->min_inliers = 30;
     p->reproj_px = 2.0;
@@ -201,6 +202,7 @@ void sooc_slam_destroy(sooc_slam *s) {
     sooc_free(s->obj);
     sooc_free(s->img);
     sooc_free(s->changes);
+    sooc_free(s->pend);
 #if SOOC_HAVE_OPENCV
     sooc_slsh_icp_destroy(s->icp);
 #endif
@@ -392,9 +394,9 @@ static int find_candidates(sooc_slam *s, const sooc_slam_node *q, int limit, int
     return nc;
 }
 
-/* loop closure for the newest node c */
-static sooc_status close_loops(sooc_slam *s, int c, int *closed) {
-    *closed = 0;
+/* loop search for the newest node c: its candidates join the queue of
+ * pairs to verify (verify_pending) */
+static sooc_status find_loops(sooc_slam *s, int c) {
     double t0 = sooc_seconds();
     int limit = c - s->p.recent_window;
     /* nodes of this run's current segment within the window are skipped;
@@ -402,38 +404,65 @@ static sooc_status close_loops(sooc_slam *s, int c, int *closed) {
     if (limit <= 0) return SOOC_OK;
     int cand[32];
     int nc = find_candidates(s, &s->nodes[c], limit, 1, cand);
-    sooc_status st = SOOC_OK;
-    int added = 0, local_added = 0;
+    int nloop = nc;
     /* local edges: the recent keyframes of this segment besides the previous one */
-    int nlocal = 0;
     for (int i = c - 2; s->p.local_edges && i >= 0 && i >= c - s->p.recent_window && nc < 32; i--)
-        if (s->nodes[i].segment == s->nodes[c].segment) {
-            cand[nc++] = i;
-            nlocal++;
-        }
+        if (s->nodes[i].segment == s->nodes[c].segment) cand[nc++] = i;
+    sooc_status st = grow_i((void **)&s->pend, &s->cap_pend, 3 * (s->n_pend + nc), sizeof(int));
     for (int k = 0; k < nc && !st; k++) {
-        if (k < nc - nlocal) s->st.loop_candidates++;
-        int ok = 0, inl = 0;
-        double T_b_c[16];
-        if ((st = sooc__slam_verify(s, &s->nodes[c], &s->nodes[cand[k]], &ok, T_b_c, &inl))) break;
-        if (!ok) {
-            if (k < nc - nlocal) s->st.loop_rejected++;
-            continue;
-        }
-        int local = k >= nc - nlocal;
-        st = add_edge(s, cand[k], c, local ? 4 : 1, T_b_c, 1.0 / s->p.sigma_loop_m, 1.0 / s->p.sigma_loop_rad);
-        if (local) local_added++;
-        else added++;
+        int *e = &s->pend[3 * s->n_pend++];
+        e[0] = c;
+        e[1] = cand[k];
+        e[2] = k >= nloop;
     }
     s->st.ms_loop += (sooc_seconds() - t0) * 1e3;
-    s->st.local_edges += local_added;
-    if (!st && (added || local_added)) {
-        s->st.loops += added;
+    return st;
+}
+
+/* verify up to budget queued pairs (budget <= 0: all); once the queue is
+ * empty, the edges they added are optimised in one go */
+static sooc_status verify_pending(sooc_slam *s, int budget, int *closed) {
+    *closed = 0;
+    double t0 = sooc_seconds();
+    sooc_status st = SOOC_OK;
+    int done = 0;
+    while (done < s->n_pend && (budget <= 0 || done < budget) && !st) {
+        const int *e = &s->pend[3 * done++];
+        int local = e[2], ok = 0, inl = 0;
+        if (!local) s->st.loop_candidates++;
+        double T_b_c[16];
+        if ((st = sooc__slam_verify(s, &s->nodes[e[0]], &s->nodes[e[1]], &ok, T_b_c, &inl))) break;
+        if (!ok) {
+            if (!local) s->st.loop_rejected++;
+            continue;
+        }
+        st = add_edge(s, e[1], e[0], local ? 4 : 1, T_b_c, 1.0 / s->p.sigma_loop_m, 1.0 / s->p.sigma_loop_rad);
+        if (!st) {
+            if (local) s->pend_local++;
+            else s->pend_loops++;
+        }
+    }
+    s->n_pend -= done;
+    memmove(s->pend, s->pend + 3 * done, sizeof(int) * 3 * (size_t)s->n_pend);
+    s->st.ms_loop += (sooc_seconds() - t0) * 1e3;
+    if (!st && !s->n_pend && (s->pend_loops || s->pend_local)) {
+        s->st.loops += s->pend_loops;
+        s->st.local_edges += s->pend_local;
+        *closed = s->pend_loops > 0;
+        s->pend_loops = s->pend_local = 0;
         st = optimise(s);
-        *closed = added > 0;
     }
     return st;
 }
+
+sooc_status sooc_slam_flush(sooc_slam *s, int *loop_closed) {
+    int closed = 0;
+    sooc_status st = s->n_pend ? verify_pending(s, 0, &closed) : SOOC_OK;
+    if (loop_closed) *loop_closed = closed;
+    return st;
+}
+
+int sooc_slam_pending(const sooc_slam *s) { return s->n_pend; }
 
 /* a new node from the odometry's current frame */
 static sooc_status new_node(sooc_slam *s, const sooc_frame *f, const double T_w[16], const double T_odo[16],
@@ -592,7 +621,12 @@ sooc_status sooc_slam_track(sooc_slam *s, const sooc_frame *f, sooc_slam_result 
         if ((st = commit_node(s, c, cur, 0, rel, 1.0 / s->p.sigma_odom_m, 1.0 / s->p.sigma_odom_rad))) goto done;
         s->cur_node = s->last_node = cur = c;
         r->new_keyframe = 1;
-        if (s->p.loop_closure && (st = close_loops(s, c, &r->loop_closed))) goto done;
+        if (s->p.loop_closure && (st = find_loops(s, c))) goto done;
+        /* the keyframe's frame pays for features and the search; its
+         * candidates are verified on the frames after it */
+        if (s->p.loop_verify_per_frame <= 0 && (st = verify_pending(s, 0, &r->loop_closed))) goto done;
+    } else if (s->n_pend && (st = verify_pending(s, s->p.loop_verify_per_frame, &r->loop_closed))) {
+        goto done;
     }
     double inv[16], rel[16];
     sooc_se3_inverse(inv, s->nodes[cur].T_odo);

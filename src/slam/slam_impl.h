@@ -64,6 +64,10 @@ struct sooc_slam {
     sooc_slam_kf_change *changes;   /* the last optimisation's, this run's keyframes */
     size_t n_changes, cap_changes;
     uint64_t graph_version;
+    int *pend;            /* loop candidates waiting for verification: 3 ints each
+                             (query node, candidate node, 1 = local edge), oldest first */
+    int n_pend, cap_pend;
+    int pend_loops, pend_local;     /* edges added since the last optimisation */
 #if SOOC_HAVE_OPENCV
     sooc_slsh_icp *icp;
 #endif

@@ -37,12 +37,39 @@ static void swap_frames(sooc_frame *a, sooc_frame *b) {
     *b = t;
 }
 
+/* under t->mu: when the graph moved, keep its changes for the mapping side */
+static void keep_changes(sooc_slam_tracker *t) {
+    uint64_t v = sooc_slam_graph_version(t->slam);
+    if (v == t->version) return;
+    size_t nc = 0;
+    sooc_slam_last_changes(t->slam, NULL, 0, &nc);
+    if (nc > t->cap_chg) {
+        sooc_free(t->chg);
+        t->chg = sooc_malloc(nc * sizeof *t->chg);
+        t->cap_chg = t->chg ? nc : 0;
+    }
+    t->n_chg = t->chg ? nc : 0;
+    if (t->chg) sooc_slam_last_changes(t->slam, t->chg, t->cap_chg, &nc);
+    t->version = v;
+}
+
 static void *tracker_main(void *arg) {
     sooc_slam_tracker *t = arg;
     while (!atomic_load(&t->stop)) {
         int64_t tm = 0;
         sooc_status st = t->pop(t->ctx, &t->work, &tm, 100);
         if (st == SOOC_ETIMEOUT) continue;
+        if (st == SOOC_EEOF) {   /* the last keyframes' loop candidates, before the end is told */
+            int closed = 0;
+            if (sooc_slam_flush(t->slam, &closed))
+                sooc_log(SOOC_LOG_WARN, "tracking: loop closure at the end of the stream: %s", sooc_errmsg());
+            sooc_slam_stats ss;
+            sooc_slam_get_stats(t->slam, &ss);
+            pthread_mutex_lock(&t->mu);
+            keep_changes(t);
+            t->st.loops = ss.loops;
+            pthread_mutex_unlock(&t->mu);
+        }
         pthread_mutex_lock(&t->mu);
         if (st == SOOC_EEOF || st) {
             if (st != SOOC_EEOF) {
@@ -61,19 +88,7 @@ static void *tracker_main(void *arg) {
         sooc_slam_stats ss;
         sooc_slam_get_stats(t->slam, &ss);
         pthread_mutex_lock(&t->mu);
-        uint64_t v = sooc_slam_graph_version(t->slam);
-        if (v != t->version) {   /* the graph moved: keep its changes for the mapping side */
-            size_t nc = 0;
-            sooc_slam_last_changes(t->slam, NULL, 0, &nc);
-            if (nc > t->cap_chg) {
-                sooc_free(t->chg);
-                t->chg = sooc_malloc(nc * sizeof *t->chg);
-                t->cap_chg = t->chg ? nc : 0;
-            }
-            t->n_chg = t->chg ? nc : 0;
-            if (t->chg) sooc_slam_last_changes(t->slam, t->chg, t->cap_chg, &nc);
-            t->version = v;
-        }
+        keep_changes(t);
         t->st.keyframes = ss.keyframes;
         t->st.loops = ss.loops;
         t->st.relocalised = ss.relocalised;

@@ -45,6 +45,7 @@ static int64_t run(sooc_slam *s, int64_t a, int64_t b, sooc_traj *gt, int64_t *l
         else (*lost)++;
         if (r.state == SOOC_SLAM_RELOCALISED && reloc < 0) reloc = i;
     }
+    CHECK_OK(sooc_slam_flush(s, NULL));   /* the last keyframe's loop candidates */
     sooc_frame_free(&f);
     return reloc;
 }

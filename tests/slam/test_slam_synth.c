@@ -62,31 +62,47 @@ static int64_t kf_near(const sooc_slam *s, int64_t frame) {
 }
 
 static void test_loop(void) {
-    double ate[2] = {0, 0};
-    for (int lc = 0; lc < 2; lc++) {
+    /* 0: odometry only; 1: loop closure, candidates verified one per frame
+     * after their keyframe (the default); 2: all on the keyframe's frame */
+    double ate[3] = {0, 0, 0};
+    int64_t loops[3] = {0, 0, 0};
+    for (int run = 0; run < 3; run++) {
+        int lc = run > 0;
         sooc_slam_params p;
         params(&p);
         p.loop_closure = lc;
+        if (run == 2) p.loop_verify_per_frame = 0;
         sooc_slam *s = NULL;
         CHECK_OK(sooc_slam_create(&s, &p, NULL));
         double T0[16];
         loop_pose(0, N, T0);
         sooc_slam_set_initial_pose(s, T0);
-        int tracked = 0;
+        int tracked = 0, deferred = 0, fast = 1;
         for (int i = 0; i < N; i++) {
             sooc_slam_result r;
+            int before = sooc_slam_pending(s);
             CHECK_OK(sooc_slam_track(s, &g_frames[i], &r));
             tracked += r.state == SOOC_SLAM_FIRST || r.state == SOOC_SLAM_TRACKED;
+            int after = sooc_slam_pending(s);
+            if (r.new_keyframe && after > before) deferred++;
+            /* a frame verifies at most one candidate (none on a keyframe's own frame) */
+            if (run == 1 && after < before - (r.new_keyframe ? 0 : 1)) fast = 0;
+            if (run == 2 && after) fast = 0;
         }
+        CHECK_MSG(fast, "run %d: more candidates verified on one frame than asked", run);
+        if (run == 1) CHECK_MSG(deferred > 0, "no keyframe's candidates were left for the frames after it");
+        CHECK_OK(sooc_slam_flush(s, NULL));
+        CHECK(sooc_slam_pending(s) == 0);
         sooc_slam_stats st;
         sooc_slam_get_stats(s, &st);
-        CHECK_MSG(tracked == N, "loop closure %d: %d of %d frames tracked", lc, tracked, N);
-        ate[lc] = traj_ate(s);
-        printf("loop closure %d: %lld keyframes, %lld loops (%lld candidates, %lld rejected), ATE %.4f m\n", lc,
-               (long long)st.keyframes, (long long)st.loops, (long long)st.loop_candidates,
-               (long long)st.loop_rejected, ate[lc]);
-        CHECK_MSG(ate[lc] < 0.01, "ATE %.4f m", ate[lc]);
-        if (lc) {
+        CHECK_MSG(tracked == N, "run %d: %d of %d frames tracked", run, tracked, N);
+        ate[run] = traj_ate(s);
+        loops[run] = st.loops;
+        printf("run %d (loop closure %d): %lld keyframes, %lld loops (%lld candidates, %lld rejected), ATE %.4f m\n",
+               run, lc, (long long)st.keyframes, (long long)st.loops, (long long)st.loop_candidates,
+               (long long)st.loop_rejected, ate[run]);
+        CHECK_MSG(ate[run] < 0.01, "ATE %.4f m", ate[run]);
+        if (run == 1) {
             CHECK_MSG(st.loops >= 1 && st.optimisations >= 1, "no loop closed (%lld)", (long long)st.loops);
             /* the last keyframe against the first: the true relative pose */
             int64_t nk = sooc_slam_keyframe_count(s), fa, fb;
@@ -113,6 +129,9 @@ static void test_loop(void) {
         sooc_slam_destroy(s);
     }
     CHECK_MSG(ate[1] <= ate[0] + 0.002, "loop closure made the trajectory worse: %.4f vs %.4f", ate[1], ate[0]);
+    /* verifying later finds the same loops */
+    CHECK_MSG(loops[1] == loops[2] && fabs(ate[1] - ate[2]) < 0.002, "deferred: %lld loops, ATE %.4f; at once: %lld, %.4f",
+              (long long)loops[1], ate[1], (long long)loops[2], ate[2]);
 }
 
 static void test_lost(void) {
