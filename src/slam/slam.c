@@ -443,7 +443,7 @@ static sooc_status verify_pending(sooc_slam *s, int budget, int *closed) {
         }
     }
     s->n_pend -= done;
-    memmove(s->pend, s->pend + 3 * done, sizeof(int) * 3 * (size_t)s->n_pend);
+    if (done && s->n_pend) memmove(s->pend, s->pend + 3 * done, sizeof(int) * 3 * (size_t)s->n_pend);
     s->st.ms_loop += (sooc_seconds() - t0) * 1e3;
     if (!st && !s->n_pend && (s->pend_loops || s->pend_local)) {
         s->st.loops += s->pend_loops;
