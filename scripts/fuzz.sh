@@ -19,8 +19,9 @@
 #             over several sessions, with --max-time per session.
 #
 # A target "ok" ran its executions without a crash, leak, timeout or out-of-memory report;
-# anything else is "crash" (its libFuzzer log and the crashing input are under --out). Exit
-# status: 0 when every target is ok. Needs clang with libFuzzer (Debian: clang, libclang-rt-14-dev).
+# "interrupted" was ended by SIGINT or SIGTERM to the fuzzer (libFuzzer says "run interrupted"
+# and exits 72): the executions it ran count, with --resume too; anything else is "crash" (its
+# libFuzzer log and the crashing input are under --out). Exit status: 0 when no target crashed. Needs clang with libFuzzer (Debian: clang, libclang-rt-14-dev).
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -38,7 +39,7 @@ while [ $# -gt 0 ]; do
     --max-time) MAXTIME="$2"; shift 2 ;;
     --out) OUT="$2"; shift 2 ;;
     --resume) RESUME=1; shift ;;
-    -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
     *) echo "fuzz.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -118,10 +119,15 @@ for t in $TARGETS; do
   rate=$(awk -v n="$execs" -v s="$secs" 'BEGIN { printf "%.0f", (s > 0 ? n / s : 0) }')
   cov=$(sed -n 's/.*cov: \([0-9]*\).*/\1/p' "$log" | tail -1)
   status=ok
-  if [ $rc -ne 0 ]; then status=crash; bad=$((bad + 1)); fi
+  if [ $rc -eq 72 ] && grep -q "libFuzzer: run interrupted" "$log"; then
+    status=interrupted
+  elif [ $rc -ne 0 ]; then
+    status=crash
+    bad=$((bad + 1))
+  fi
   runs="$execs"
   if [ "$RESUME" = 1 ]; then
-    if [ "$status" = ok ]; then runs=$((done_before + execs)); else runs=0; fi
+    if [ "$status" != crash ]; then runs=$((done_before + execs)); else runs=0; fi
     echo "$runs" > "$OUT/$t.done.tmp" && mv "$OUT/$t.done.tmp" "$OUT/$t.done"
     printf '%s %s %s %s %s\n' "$(date -u +%Y-%m-%dT%H:%M:%SZ)" "$commit" "$execs" "$secs" "$status" >> "$OUT/$t.runs"
   fi
