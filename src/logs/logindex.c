@@ -56,8 +56,11 @@ sooc_status sooc_logs_chunk_cut(const sooc_logfile *lf, uint64_t where, size_t i
 
 sooc_status sooc_logs_reserve(uint8_t **buf, size_t *cap, size_t n) {
     if (*cap >= n && *buf) return SOOC_OK;
-    size_t c = *cap ? *cap : 4096;
-    while (c < n) c = c > SIZE_MAX / 2 ? n : c * 2;
+    /* twice the old size, or n when that is more: a chunk that claims a large size gets
+     * that size, not the next power of two above it */
+    size_t c = *cap > SIZE_MAX / 2 ? n : *cap * 2;
+    if (c < n) c = n;
+    if (c < 4096) c = 4096;
     uint8_t *p = sooc_realloc(*buf, c);
     if (!p) return sooc_seterr(SOOC_ENOMEM, "out of memory (%zu bytes)", c);
     *buf = p;
@@ -223,13 +226,13 @@ sooc_status sooc_logs_chunk_data(sooc_logfile *lf, int32_t c, const uint8_t **da
     sooc_logs_slot *sl = lf->slot[0].stamp <= lf->slot[1].stamp ? &lf->slot[0] : &lf->slot[1];
     const sooc_logs_chunk *k = &lf->chunks[c];
     sl->chunk = -1;
+    if (k->comp == LOGS_COMP_NONE && k->csize != k->usize)   /* before the buffer: csize lies in the file */
+        return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: uncompressed chunk holds %llu bytes, its header says %llu",
+                           lf->path, (unsigned long long)k->pos, (unsigned long long)k->csize,
+                           (unsigned long long)k->usize);
     sooc_status st = sooc_logs_reserve(&sl->buf, &sl->cap, (size_t)k->usize + 1);
     if (st) return st;
     if (k->comp == LOGS_COMP_NONE) {
-        if (k->csize != k->usize)
-            return sooc_seterr(SOOC_EFORMAT, "%s: offset %llu: uncompressed chunk holds %llu bytes, its header says %llu",
-                               lf->path, (unsigned long long)k->pos, (unsigned long long)k->csize,
-                               (unsigned long long)k->usize);
         st = sooc_logs_pread(lf, k->data_off, sl->buf, (size_t)k->usize, "chunk");
     } else {
         st = sooc_logs_reserve(&lf->raw, &lf->rawcap, (size_t)k->csize + 1);
