@@ -408,13 +408,8 @@ static sooc_status find_loops(sooc_slam *s, int c) {
     /* local edges: the recent keyframes of this segment besides the previous one */
     for (int i = c - 2; s->p.local_edges && i >= 0 && i >= c - s->p.recent_window && nc < 32; i--)
         if (s->nodes[i].segment == s->nodes[c].segment) cand[nc++] = i;
-    sooc_status st = grow_i((void **)&s->pend, &s->cap_pend, 3 * (s->n_pend + nc), sizeof(int));
-    for (int k = 0; k < nc && !st; k++) {
-        int *e = &s->pend[3 * s->n_pend++];
-        e[0] = c;
-        e[1] = cand[k];
-        e[2] = k >= nloop;
-    }
+    sooc_status st = grow_i((void **)&s->pend, &s->cap_pend, s->n_pend + nc, sizeof *s->pend);
+    for (int k = 0; k < nc && !st; k++) s->pend[s->n_pend++] = (sooc_slam_pair){c, cand[k], k >= nloop};
     s->st.ms_loop += (sooc_seconds() - t0) * 1e3;
     return st;
 }
@@ -427,23 +422,23 @@ static sooc_status verify_pending(sooc_slam *s, int budget, int *closed) {
     sooc_status st = SOOC_OK;
     int done = 0;
     while (done < s->n_pend && (budget <= 0 || done < budget) && !st) {
-        const int *e = &s->pend[3 * done++];
-        int local = e[2], ok = 0, inl = 0;
+        const sooc_slam_pair e = s->pend[done++];
+        int local = e.local, ok = 0, inl = 0;
         if (!local) s->st.loop_candidates++;
         double T_b_c[16];
-        if ((st = sooc__slam_verify(s, &s->nodes[e[0]], &s->nodes[e[1]], &ok, T_b_c, &inl))) break;
+        if ((st = sooc__slam_verify(s, &s->nodes[e.q], &s->nodes[e.b], &ok, T_b_c, &inl))) break;
         if (!ok) {
             if (!local) s->st.loop_rejected++;
             continue;
         }
-        st = add_edge(s, e[1], e[0], local ? 4 : 1, T_b_c, 1.0 / s->p.sigma_loop_m, 1.0 / s->p.sigma_loop_rad);
+        st = add_edge(s, e.b, e.q, local ? 4 : 1, T_b_c, 1.0 / s->p.sigma_loop_m, 1.0 / s->p.sigma_loop_rad);
         if (!st) {
             if (local) s->pend_local++;
             else s->pend_loops++;
         }
     }
     s->n_pend -= done;
-    if (done && s->n_pend) memmove(s->pend, s->pend + 3 * done, sizeof(int) * 3 * (size_t)s->n_pend);
+    if (done && s->n_pend) memmove(s->pend, s->pend + done, sizeof *s->pend * (size_t)s->n_pend);
     s->st.ms_loop += (sooc_seconds() - t0) * 1e3;
     if (!st && !s->n_pend && (s->pend_loops || s->pend_local)) {
         s->st.loops += s->pend_loops;
@@ -457,7 +452,7 @@ static sooc_status verify_pending(sooc_slam *s, int budget, int *closed) {
 
 sooc_status sooc_slam_flush(sooc_slam *s, int *loop_closed) {
     int closed = 0;
-    sooc_status st = s->n_pend ? verify_pending(s, 0, &closed) : SOOC_OK;
+    sooc_status st = verify_pending(s, 0, &closed);   /* nothing to do on an empty queue */
     if (loop_closed) *loop_closed = closed;
     return st;
 }

@@ -29,6 +29,12 @@ typedef struct sooc_slam_edge {
     double T_ab[16], w_t, w_r;
 } sooc_slam_edge;
 
+/* a loop candidate waiting for verification: query node q against node b */
+typedef struct sooc_slam_pair {
+    int q, b;
+    int local;            /* a local edge (the recent window), not a loop */
+} sooc_slam_pair;
+
 typedef struct sooc_slam_frame {
     int64_t index, t_ns;
     int node;
@@ -64,8 +70,7 @@ struct sooc_slam {
     sooc_slam_kf_change *changes;   /* the last optimisation's, this run's keyframes */
     size_t n_changes, cap_changes;
     uint64_t graph_version;
-    int *pend;            /* loop candidates waiting for verification: 3 ints each
-                             (query node, candidate node, 1 = local edge), oldest first */
+    sooc_slam_pair *pend;           /* loop candidates to verify, oldest first */
     int n_pend, cap_pend;
     int pend_loops, pend_local;     /* edges added since the last optimisation */
 #if SOOC_HAVE_OPENCV

@@ -59,20 +59,17 @@ static void *tracker_main(void *arg) {
         int64_t tm = 0;
         sooc_status st = t->pop(t->ctx, &t->work, &tm, 100);
         if (st == SOOC_ETIMEOUT) continue;
-        if (st == SOOC_EEOF) {   /* the last keyframes' loop candidates, before the end is told */
-            int closed = 0;
-            if (sooc_slam_flush(t->slam, &closed))
-                sooc_log(SOOC_LOG_WARN, "tracking: loop closure at the end of the stream: %s", sooc_errmsg());
-            sooc_slam_stats ss;
-            sooc_slam_get_stats(t->slam, &ss);
-            pthread_mutex_lock(&t->mu);
-            keep_changes(t);
-            t->st.loops = ss.loops;
-            pthread_mutex_unlock(&t->mu);
-        }
+        /* the last keyframes' loop candidates, before the end is told */
+        if (st == SOOC_EEOF && sooc_slam_flush(t->slam, NULL))
+            sooc_log(SOOC_LOG_WARN, "tracking: loop closure at the end of the stream: %s", sooc_errmsg());
         pthread_mutex_lock(&t->mu);
         if (st == SOOC_EEOF || st) {
-            if (st != SOOC_EEOF) {
+            if (st == SOOC_EEOF) {
+                sooc_slam_stats ss;
+                sooc_slam_get_stats(t->slam, &ss);
+                keep_changes(t);
+                t->st.loops = ss.loops;
+            } else {
                 t->error = st;
                 snprintf(t->errmsg, sizeof t->errmsg, "%s", sooc_errmsg());
             }
