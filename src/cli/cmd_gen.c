@@ -10,7 +10,8 @@ static void usage(FILE *f) {
     fprintf(f,
             "usage: sooc3d gen --preset unity|blender|tabletop --scale s|m|l|xl --scenes N --seed S --out DIR\n"
             "                  [--width 64 --height 64 --views V --query Q --threads T --first K\n"
-            "                   --density D --clip D --noise none|kinect --no-meshes --no-sheet --stats]\n\n"
+            "                   --density D --clip D --noise none|kinect --touch P --flat P --no-meshes\n"
+            "                   --no-sheet --stats]\n\n"
             "Renders N scenes with an exact CPU ray tracer into DIR/scene_%%04d/ (TUM layout +\n"
             "calib.yaml + scene.yaml + instance/ + meshes/) and DIR/contact_sheet.png.\n\n"
             "  --preset     unity: spheres/boxes/cylinders/cones, uniform colours, Lambertian + ambient\n"
@@ -28,6 +29,10 @@ static void usage(FILE *f) {
             "  --query      held-out query views per scene (default max(2, views/5))\n"
             "  --width/--height  image size (default 64x64), 60 degree horizontal FOV\n"
             "  --density    objects per square metre (default 0.2; unity and blender only)\n"
+            "  --touch      tabletop: fraction of objects placed against another one (0-3 mm apart\n"
+            "               or slightly overlapping) instead of 2 cm apart (default 0)\n"
+            "  --flat       tabletop: fraction of flat objects: packets and books 0.8-4 cm tall,\n"
+            "               markers lying down (default 0)\n"
             "  --walls MIN,MAX  walls in every room, MIN-MAX m high (default: half the rooms,\n"
             "               0.3-0.8 m; unity and blender only; e.g. 2.2,3.0 for rooms like recordings)\n"
             "  --noise      sensor noise on depth and colour: none | kinect (axial sigma\n"
@@ -114,6 +119,8 @@ int sooc_cmd_gen(int argc, char **argv) {
         else if (!strcmp(a, "--query")) INTV(0, 10000, &p.n_query);
         else if (!strcmp(a, "--threads")) INTV(0, 256, &p.threads);
         else if (!strcmp(a, "--density")) DBLV(0.001, 4.99, &p.density);
+        else if (!strcmp(a, "--touch")) DBLV(0, 1, &p.touch);
+        else if (!strcmp(a, "--flat")) DBLV(0, 1, &p.flat);
         else if (!strcmp(a, "--walls")) {
             NEEDV();
             char tail;

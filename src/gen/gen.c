@@ -139,7 +139,11 @@ sooc_status sooc_gen_scene(sooc_scene *sc, const sooc_gen_params *p, int index) 
     if (p->wall_h[1] != 0 && !(p->wall_h[0] > 0 && p->wall_h[0] <= p->wall_h[1] && p->wall_h[1] <= 20))
         return sooc_seterr(SOOC_EINVAL, "gen: wall heights %g,%g: need 0 < min <= max <= 20 m", p->wall_h[0],
                            p->wall_h[1]);
+    if (!(p->touch >= 0 && p->touch <= 1) || !(p->flat >= 0 && p->flat <= 1))
+        return sooc_seterr(SOOC_EINVAL, "gen: touch %g and flat %g must lie in [0, 1]", p->touch, p->flat);
     if (p->preset == SOOC_GEN_TABLETOP) return sooc_gen_tabletop_scene(sc, p, index);
+    if (p->touch > 0 || p->flat > 0)
+        return sooc_seterr(SOOC_EINVAL, "gen: touching and flat objects are the tabletop preset's (--preset tabletop)");
     sooc_rng rng;
     sooc_rng_seed(&rng, p->seed, (uint64_t)index);
     sooc_rng *r = &rng;

@@ -57,15 +57,22 @@ static void tt_cam_pose(double T[16], const double c[3], double yaw, double pitc
     sooc_se3_from_rt(T, R, c);
 }
 
-/* A household object with its texture. */
-static void tt_object(sooc_rng *r, sooc_scene_object *o) {
+/* A household object with its texture: with odds `flat` a flat one (a
+ * packet or book, or a marker lying down: boxes), else a cup, bowl, box,
+ * bottle or can. With flat = 0 no draw is made for it, so the scenes of a
+ * seed stay those of the preset without flat objects. */
+static void tt_object(sooc_rng *r, sooc_scene_object *o, double flat) {
     memset(o, 0, sizeof *o);
     static const double w[5] = {0.22, 0.16, 0.22, 0.20, 0.20}; /* cup bowl box bottle can */
-    double u = sooc_rng_uniform(r), acc = 0;
     int kind = 4;
-    for (int i = 0; i < 5; i++) {
-        acc += w[i];
-        if (u < acc) { kind = i; break; }
+    if (flat > 0 && sooc_rng_uniform(r) < flat) {
+        kind = 5;
+    } else {
+        double u = sooc_rng_uniform(r), acc = 0;
+        for (int i = 0; i < 5; i++) {
+            acc += w[i];
+            if (u < acc) { kind = i; break; }
+        }
     }
     double *q = o->params;
     /* texture odds by kind: plain, stripes, checks, label */
@@ -98,6 +105,16 @@ static void tt_object(sooc_rng *r, sooc_scene_object *o) {
         o->size[0] = o->size[2] = 2 * q[0]; o->size[1] = q[1];
         tex_w[0] = 0.3; tex_w[1] = 0.1; tex_w[2] = 0.05; tex_w[3] = 0.55;
         break;
+    case 5: /* flat: half extents */
+        o->shape = SOOC_SHAPE_BOX;
+        if (sooc_rng_uniform(r) < 0.25) {   /* a marker or pen lying down */
+            q[0] = U(r, 0.05, 0.075); q[1] = q[2] = U(r, 0.006, 0.01);
+        } else {                            /* a packet, book or envelope */
+            q[0] = U(r, 0.04, 0.12); q[1] = U(r, 0.004, 0.02); q[2] = U(r, 0.03, 0.09);
+        }
+        o->size[0] = 2 * q[0]; o->size[1] = 2 * q[1]; o->size[2] = 2 * q[2];
+        tex_w[0] = 0.3; tex_w[1] = 0.1; tex_w[2] = 0.2; tex_w[3] = 0.4;
+        break;
     default: /* can: r h */
         o->shape = SOOC_SHAPE_CAN;
         q[0] = U(r, 0.026, 0.042); q[1] = U(r, 0.07, 0.16);
@@ -109,8 +126,7 @@ static void tt_object(sooc_rng *r, sooc_scene_object *o) {
     double hue = sooc_rng_uniform(r);
     if (sooc_rng_uniform(r) < 0.15) tt_hsv(hue, U(r, 0, 0.08), U(r, 0.75, 0.95), o->color);   /* white-ish */
     else tt_hsv(hue, U(r, 0.35, 0.9), U(r, 0.45, 0.95), o->color);
-    u = sooc_rng_uniform(r);
-    acc = 0;
+    double u = sooc_rng_uniform(r), acc = 0;
     o->tex = SOOC_TEX_LABEL;
     for (int i = 0; i < 4; i++) {
         acc += tex_w[i];
@@ -259,7 +275,11 @@ sooc_status sooc_gen_tabletop_scene(sooc_scene *sc, const sooc_gen_params *p, in
     sc->shininess = U(r, 25, 60);
 
     /* objects: TT_DENSITY per m^2 of support, 2-12, standing 2 cm apart
-     * inside the edge (inside the walls for bins) */
+     * inside the edge (inside the walls for bins); with odds p->touch an
+     * object (after the first) is put against a placed one instead: its
+     * footprint circle 0-3 mm from that one's or overlapping it by up to 10%
+     * of the smaller radius (boxes then touch or nearly, round shapes barely
+     * meet), 2 cm from every other */
     double area = wd[0] * wd[1];
     int target = (int)lround(TT_DENSITY * area * U(r, 0.8, 1.2));
     target = target < TT_MIN_OBJECTS ? TT_MIN_OBJECTS : target > TT_MAX_OBJECTS ? TT_MAX_OBJECTS : target;
@@ -267,14 +287,26 @@ sooc_status sooc_gen_tabletop_scene(sooc_scene *sc, const sooc_gen_params *p, in
     if (!sc->objects) return SOOC_ENOMEM;
     for (int attempt = 0; sc->n_objects < target && attempt < target * 200; attempt++) {
         sooc_scene_object o;
-        tt_object(r, &o);
+        tt_object(r, &o, p->flat);
         double fp = sooc_scene_object_footprint(&o);
         double hx = wd[0] / 2 - fp - 0.02, hz = wd[1] / 2 - fp - 0.02;
         if (hx <= 0 || hz <= 0) continue;
-        o.x = U(r, -hx, hx);
-        o.z = U(r, -hz, hz);
+        int against = -1;
+        if (p->touch > 0 && sc->n_objects > 0 && sooc_rng_uniform(r) < p->touch) {
+            against = (int)sooc_rng_below(r, (uint32_t)sc->n_objects);
+            const sooc_scene_object *q = &sc->objects[against];
+            double fq = sooc_scene_object_footprint(q), ang = U(r, -M_PI, M_PI);
+            double d = fp + fq + U(r, -0.1 * fmin(fp, fq), 0.003);
+            o.x = q->x + d * cos(ang);
+            o.z = q->z + d * sin(ang);
+            if (fabs(o.x) > hx || fabs(o.z) > hz) continue;
+        } else {
+            o.x = U(r, -hx, hx);
+            o.z = U(r, -hz, hz);
+        }
         int ok = 1;
         for (int j = 0; j < sc->n_objects && ok; j++) {
+            if (j == against) continue;
             const sooc_scene_object *q = &sc->objects[j];
             double m = fp + sooc_scene_object_footprint(q) + 0.02;
             if (hypot(o.x - q->x, o.z - q->z) < m) ok = 0;

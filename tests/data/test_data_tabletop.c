@@ -529,8 +529,80 @@ static void test_meshes(void) {
     tu_rm_rf(dir);
 }
 
+/* --touch and --flat: objects placed against one another (footprint
+ * circles within 3 mm or overlapping by at most 10% of the smaller radius)
+ * and flat boxes; the views still render exact surfaces. Other presets and
+ * values outside [0, 1] are refused. */
+static void test_touch_flat(void) {
+    sooc_gen_params p;
+    sooc_gen_params_default(&p);
+    p.preset = SOOC_GEN_TABLETOP;
+    p.scale = SOOC_GEN_M;
+    p.n_views = 4;
+    p.n_query = 2;
+    p.touch = 1;
+    int placed = 0, touching = 0, flat = 0, objects = 0;
+    double worst_gap = 1, worst = 0;
+    int64_t npix = 0, nlayout = 0;
+    sooc_frame f = {0};
+    sooc_intrinsics K;
+    sooc_gen_intrinsics(&K, p.width, p.height, p.fov_deg);
+    for (int k = 0; k < 12; k++) {
+        sooc_scene sc;
+        sooc_scene_init(&sc);
+        CHECK_OK(sooc_gen_scene(&sc, &p, k));
+        for (int i = 1; i < sc.n_objects; i++) {
+            const sooc_scene_object *A = &sc.objects[i];
+            double fa = sooc_scene_object_footprint(A), best = 1e9;
+            for (int j = 0; j < i; j++) {
+                const sooc_scene_object *B = &sc.objects[j];
+                double fb = sooc_scene_object_footprint(B);
+                double gap = hypot(A->x - B->x, A->z - B->z) - fa - fb;
+                CHECK_MSG(gap >= -0.1 * fmin(fa, fb) - 1e-9, "scene %d: objects %d and %d overlap by %.3f m", k, i, j, -gap);
+                if (gap < best) best = gap;
+            }
+            placed++;
+            touching += best <= 0.003 + 1e-9;
+            if (best < worst_gap) worst_gap = best;
+        }
+        for (int v = 0; v < 2; v++) {
+            CHECK_OK(sooc_gen_render_view(&sc, sc.view_T_wc + 16 * v, &K, &f));
+            check_view_geometry(&sc, &f, 1e-3, &npix, &nlayout, &worst);
+        }
+        sooc_scene_free(&sc);
+    }
+    printf("touch 1: %d of %d objects after the first within 3 mm of one (closest gap %.4f m); views exact to %.3g m\n",
+           touching, placed, worst_gap, worst);
+    CHECK(placed > 20 && touching >= placed / 2);
+    CHECK(worst_gap < 0);
+    p.touch = 0;
+    p.flat = 1;
+    for (int k = 0; k < 12; k++) {
+        sooc_scene sc;
+        sooc_scene_init(&sc);
+        CHECK_OK(sooc_gen_scene(&sc, &p, k));
+        for (int i = 0; i < sc.n_objects; i++) {
+            const sooc_scene_object *A = &sc.objects[i];
+            objects++;
+            flat += A->shape == SOOC_SHAPE_BOX && A->size[1] <= 0.04 + 1e-9 && fmax(A->size[0], A->size[2]) >= 0.08 - 1e-9;
+        }
+        sooc_scene_free(&sc);
+    }
+    printf("flat 1: %d of %d objects flat\n", flat, objects);
+    CHECK(objects > 20 && flat == objects);
+    sooc_scene sc;
+    sooc_scene_init(&sc);
+    p.flat = 1.5;
+    CHECK(sooc_gen_scene(&sc, &p, 0) == SOOC_EINVAL);
+    p.flat = 0.5;
+    p.preset = SOOC_GEN_UNITY;
+    CHECK(sooc_gen_scene(&sc, &p, 0) == SOOC_EINVAL);
+    sooc_frame_free(&f);
+}
+
 int main(void) {
     test_geometry();
+    test_touch_flat();
     test_textures();
     test_statistics();
     test_noise_sigma();
