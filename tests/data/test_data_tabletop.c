@@ -15,6 +15,16 @@
 /* Every valid instance pixel back-projects onto its object's surface;
  * background pixels lie on the support (y = 0 inside the top), a support
  * side, the ground or a room wall. */
+/* Tabletop generator parameters at a scale with V input and Q query views
+ * (0 and -1: the preset's defaults). */
+static void tt_params(sooc_gen_params *p, sooc_gen_scale scale, int V, int Q) {
+    sooc_gen_params_default(p);
+    p->preset = SOOC_GEN_TABLETOP;
+    p->scale = scale;
+    p->n_views = V;
+    p->n_query = Q;
+}
+
 static void check_view_geometry(const sooc_scene *sc, const sooc_frame *f, double tol, int64_t *npix,
                                 int64_t *nlayout, double *worst) {
     for (int v = 0; v < f->height; v++)
@@ -49,11 +59,7 @@ static void check_view_geometry(const sooc_scene *sc, const sooc_frame *f, doubl
 
 static void test_geometry(void) {
     sooc_gen_params p;
-    sooc_gen_params_default(&p);
-    p.preset = SOOC_GEN_TABLETOP;
-    p.scale = SOOC_GEN_M;
-    p.n_views = 10;
-    p.n_query = 2;
+    tt_params(&p, SOOC_GEN_M, 10, 2);
     p.width = 128;
     p.height = 96;
     int shapes_seen[SOOC_SHAPE_COUNT] = {0}, supports[3] = {0}, textures[4] = {0};
@@ -140,9 +146,7 @@ static void test_statistics(void) {
     double per_view[3];
     for (int s = 0; s < 3; s++) {
         sooc_gen_params p;
-        sooc_gen_params_default(&p);
-        p.preset = SOOC_GEN_TABLETOP;
-        p.scale = (sooc_gen_scale)s;
+        tt_params(&p, (sooc_gen_scale)s, 0, -1);
         double wd[2];
         CHECK_OK(sooc_gen_tabletop_size(p.scale, wd));
         sooc_intrinsics K;
@@ -322,9 +326,7 @@ static void test_noise_sigma(void) {
  * ids stay exact, and the noise is a function of (seed, scene, view). */
 static void test_noise_invalid(void) {
     sooc_gen_params p;
-    sooc_gen_params_default(&p);
-    p.preset = SOOC_GEN_TABLETOP;
-    p.scale = SOOC_GEN_M;
+    tt_params(&p, SOOC_GEN_M, 0, -1);
     p.width = 128;
     p.height = 96;
     sooc_noise_params np;
@@ -407,12 +409,8 @@ static uint32_t file_crc(const char *path) {
  * depth, depth/ the noisy one; scene.yaml round trip with the new keys. */
 static void test_run(void) {
     sooc_gen_params p;
-    sooc_gen_params_default(&p);
-    p.preset = SOOC_GEN_TABLETOP;
-    p.scale = SOOC_GEN_S;
+    tt_params(&p, SOOC_GEN_S, 5, 2);
     p.n_scenes = 2;
-    p.n_views = 5;
-    p.n_query = 2;
     p.seed = 21;
     char *dirs[2];
     uint32_t crc[2] = {0, 0};
@@ -490,9 +488,7 @@ static void test_run(void) {
 /* The PLY meshes of the tabletop shapes lie on the analytic surfaces. */
 static void test_meshes(void) {
     sooc_gen_params p;
-    sooc_gen_params_default(&p);
-    p.preset = SOOC_GEN_TABLETOP;
-    p.scale = SOOC_GEN_L;
+    tt_params(&p, SOOC_GEN_L, 0, -1);
     char *dir = tu_tmpdir("ttmesh");
     int seen[SOOC_SHAPE_COUNT] = {0};
     double worst = 0;
@@ -535,11 +531,7 @@ static void test_meshes(void) {
  * values outside [0, 1] are refused. */
 static void test_touch_flat(void) {
     sooc_gen_params p;
-    sooc_gen_params_default(&p);
-    p.preset = SOOC_GEN_TABLETOP;
-    p.scale = SOOC_GEN_M;
-    p.n_views = 4;
-    p.n_query = 2;
+    tt_params(&p, SOOC_GEN_M, 4, 2);
     p.touch = 1;
     int placed = 0, touching = 0, flat = 0, objects = 0;
     double worst_gap = 1, worst = 0;
