@@ -1,10 +1,11 @@
 /* The tabletop preset of `sooc3d gen` (docs/formats.md 5.1): household
  * objects (cups, bowls, boxes, bottles, cans, procedurally textured; flat
- * ones and objects against one another on request) on a table top or in a bin, seen by an arm-mounted camera at arm's reach
- * (0.35-1.0 m from the point it looks at, pitched 25-70 degrees down) that
- * circles the table. The support plane is the layout at y = 0, +y up, as
- * the floor of the unity preset. Scales s/m/l set the table size; the
- * camera distance range is the same at every scale. */
+ * ones and objects against one another on request) on a table top or in a
+ * bin, seen by an arm-mounted camera at arm's reach (0.35-1.0 m from the
+ * point it looks at, pitched 25-70 degrees down) that circles the table.
+ * The support plane is the layout at y = 0, +y up, as the floor of the
+ * unity preset. Scales s/m/l set the table size; the camera distance range
+ * is the same at every scale. */
 #include "sooc3d/gen.h"
 #include "gen/sensor_noise.h"
 #include "gen/gen_impl.h"
