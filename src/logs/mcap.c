@@ -18,15 +18,17 @@ typedef struct mc {
     int bad;
 } mc;
 
+/* A field of k bytes at c->i; past the end (c->i may have been moved past
+ * it by a skip the record declares) it is 0 and the cursor is bad. */
 static uint64_t mc_int(mc *c, size_t k) {
-    if (c->bad || c->n - c->i < k) { c->bad = 1; return 0; }
+    if (c->bad || c->i > c->n || c->n - c->i < k) { c->bad = 1; return 0; }
     const uint8_t *q = c->p + c->i;
     c->i += k;
     return k == 1 ? q[0] : k == 2 ? logs_u16(q) : k == 4 ? logs_u32(q) : logs_u64(q);
 }
 static const char *mc_str(mc *c, size_t *len) {   /* uint32 length-prefixed */
     size_t n = (size_t)mc_int(c, 4);
-    if (c->bad || c->n - c->i < n) { c->bad = 1; *len = 0; return ""; }
+    if (c->bad || c->i > c->n || c->n - c->i < n) { c->bad = 1; *len = 0; return ""; }
     const char *s = (const char *)c->p + c->i;
     c->i += n;
     *len = n;
