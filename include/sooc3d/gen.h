@@ -265,8 +265,8 @@ typedef struct sooc_gen_params {
     sooc_gen_noise noise; /* sensor noise (default AUTO); with noise, depth_gt/ keeps
                              the exact depth                                            */
     double touch;         /* tabletop: fraction of objects placed against another one
-                             (footprints 0-3 mm apart or slightly overlapping) instead
-                             of 2 cm apart (default 0)                                 */
+                             (footprints 0-3 mm apart or slightly overlapping; the
+                             others stand 2 cm apart; default 0)                       */
     double flat;          /* tabletop: fraction of objects that are flat: packets and
                              books 0.8-4 cm tall, markers lying down (default 0)       */
 } sooc_gen_params;

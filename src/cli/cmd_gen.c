@@ -30,7 +30,7 @@ static void usage(FILE *f) {
             "  --width/--height  image size (default 64x64), 60 degree horizontal FOV\n"
             "  --density    objects per square metre (default 0.2; unity and blender only)\n"
             "  --touch      tabletop: fraction of objects placed against another one (0-3 mm apart\n"
-            "               or slightly overlapping) instead of 2 cm apart (default 0)\n"
+            "               or slightly overlapping; the others stand 2 cm apart; default 0)\n"
             "  --flat       tabletop: fraction of flat objects: packets and books 0.8-4 cm tall,\n"
             "               markers lying down (default 0)\n"
             "  --walls MIN,MAX  walls in every room, MIN-MAX m high (default: half the rooms,\n"
