@@ -28,7 +28,7 @@ static uint64_t mc_int(mc *c, size_t k) {
 }
 static const char *mc_str(mc *c, size_t *len) {   /* uint32 length-prefixed */
     size_t n = (size_t)mc_int(c, 4);
-    if (c->bad || c->i > c->n || c->n - c->i < n) { c->bad = 1; *len = 0; return ""; }
+    if (c->bad || c->n - c->i < n) { c->bad = 1; *len = 0; return ""; }   /* mc_int left c->i <= c->n */
     const char *s = (const char *)c->p + c->i;
     c->i += n;
     *len = n;

@@ -12,9 +12,6 @@
 
 #define DEG (M_PI / 180.0)
 
-/* Every valid instance pixel back-projects onto its object's surface;
- * background pixels lie on the support (y = 0 inside the top), a support
- * side, the ground or a room wall. */
 /* Tabletop generator parameters at a scale with V input and Q query views
  * (0 and -1: the preset's defaults). */
 static void tt_params(sooc_gen_params *p, sooc_gen_scale scale, int V, int Q) {
@@ -25,6 +22,9 @@ static void tt_params(sooc_gen_params *p, sooc_gen_scale scale, int V, int Q) {
     p->n_query = Q;
 }
 
+/* Every valid instance pixel back-projects onto its object's surface;
+ * background pixels lie on the support (y = 0 inside the top), a support
+ * side, the ground or a room wall. */
 static void check_view_geometry(const sooc_scene *sc, const sooc_frame *f, double tol, int64_t *npix,
                                 int64_t *nlayout, double *worst) {
     for (int v = 0; v < f->height; v++)
