@@ -526,6 +526,33 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
                                int detail, sooc_render_out *out, sooc_view_metrics *vm,
                                sooc_iou_match *match, uint64_t *comp_ids, double *comp_xz, int *n_comp);
 
+/* The entries' observed surfaces (docs/geometric.md "The entries' observed
+ * surfaces"). cm: a segmented cluster map of the mapped frames. Labels:
+ * every object voxel of cm takes the component (1..) of the field that
+ * sooc_model_field_create makes for gt's camera (max_obj as there) whose
+ * density (times presence, inside its box) is highest at the voxel's
+ * centroid, or background when none exceeds min_sigma; then per cluster of
+ * the segmentation, claimants with less than min_share of its claimed
+ * voxels give them to its largest claimant, and with fill its unclaimed
+ * voxels go to that claimant too. *n_comp gets the field's component count.
+ * View: the same, then cm rendered into gt's camera becomes out->label (out:
+ * a render of the same view from the same map, sooc_eval_map_view; its
+ * labels' components and comp_xz are the same), and the view is scored
+ * again into vm and match (may be NULL). sp NULL: the defaults. */
+typedef struct sooc_surface_params {
+    double min_sigma;   /* the least density that claims a voxel               (0.01) */
+    double min_share;   /* a claimant's least share of a cluster's claimed voxels (0) */
+    int fill;           /* 1: a claimed cluster's unclaimed voxels to its largest  (0) */
+} sooc_surface_params;
+void sooc_surface_params_default(sooc_surface_params *p);
+sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
+                                     const sooc_frame *gt, int max_obj, const sooc_surface_params *sp,
+                                     int *n_comp);
+sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
+                                   const sooc_frame *gt, int max_obj, const sooc_surface_params *sp, double d_clip,
+                                   const double *comp_xz, sooc_render_out *out, sooc_view_metrics *vm,
+                                   sooc_iou_match *match);
+
 /* Which object a camera sees at each pixel of a stored map (`sooc3d map at`).
  * ids (K->height x K->width, row-major) gets the map entry id whose surface
  * the ray through the pixel's centre meets first, 0 where it meets none;
@@ -742,6 +769,11 @@ typedef struct sooc_eval_real_opts {
                                   (SOOC3D models only)                                  (NULL) */
     sooc_finetune_progress_fn ft_progress;  /* with finetune: called every 50 steps (NULL) */
     void *ft_user;
+    const struct sooc_cluster_params *surface;  /* non-NULL: the query views' segmentation from
+                                  the entries' observed surfaces (sooc_eval_surface_view): the
+                                  mapped frames clustered with these parameters, each object
+                                  voxel given to the densest entry (SOOC3D only)       (NULL) */
+    sooc_surface_params surface_p;   /* with surface: the voxels' claims (sooc_surface_params_default) */
     int labels_predicted;      /* 1: the labels are a network's predictions (APC masks,
                                   sooc_seq_labels_predicted): the JSON says "labels":
                                   "predicted" and its scores are agreement with them  (0) */

@@ -106,6 +106,20 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects);
 /* Objects of the last segmentation: up to cap into out, the count in *n. */
 sooc_status sooc_cluster_map_objects(const sooc_cluster_map *m, sooc_cluster_object *out, int cap, int *n);
 
+/* The object voxels of the last segmentation (those with a label), in one
+ * fixed order: *n gets their count; up to cap of their centroids (world
+ * frame, metres) go to xyz (cap x 3) and their segmentation labels to label
+ * (cap; either may be NULL). */
+sooc_status sooc_cluster_map_object_points(const sooc_cluster_map *m, float *xyz, int32_t *label, size_t cap,
+                                           size_t *n);
+
+/* Label the object voxels anew, in the order of
+ * sooc_cluster_map_object_points (n must be their count): label[i] >= 0 is
+ * what sooc_cluster_map_render writes for voxel i, -1 makes it background.
+ * The objects (sooc_cluster_map_objects) stay those of the segmentation; the
+ * next add_frame or segment drops the new labels. */
+sooc_status sooc_cluster_map_relabel(sooc_cluster_map *m, const int32_t *label, size_t n);
+
 /* Render the grid into a view (camera-to-world T_wc, intrinsics K at w x h):
  * each voxel centroid goes to its pixel with a depth test; pixels that no
  * centroid reached take the nearest in depth of their 8 neighbours. label

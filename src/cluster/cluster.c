@@ -17,6 +17,8 @@ typedef struct voxel {
     uint32_t thru;   /* frames whose depth lies behind it there: they saw through it */
     uint32_t last;   /* the last of them (1 + the count of frames added before it) */
     int32_t comp;    /* object label, -1 = background */
+    uint8_t relabelled;   /* an object voxel of the segmentation labelled anew (sooc_cluster_map_relabel) */
+    int32_t seg;          /* its segmentation label, when relabelled */
 } voxel;
 
 struct sooc_cluster_map {
@@ -477,7 +479,7 @@ sooc_status sooc_cluster_map_segment(sooc_cluster_map *m, int *n_objects) {
     size_t nf = 0;
     for (size_t i = 0; i < m->n; i++) {
         voxel *v = &m->vox[i];
-        v->comp = -1;
+        v->comp = -1, v->relabelled = 0;
         double y = v->s[1] / v->n;
         nf += y >= p->min_height_m && y <= p->max_height_m;
     }
@@ -661,6 +663,43 @@ sooc_status sooc_cluster_map_objects(const sooc_cluster_map *m, sooc_cluster_obj
     int k = m->n_obj < cap ? m->n_obj : cap;
     if (k) memcpy(out, m->obj, (size_t)k * sizeof *out);
     *n = m->n_obj;
+    return SOOC_OK;
+}
+
+sooc_status sooc_cluster_map_object_points(const sooc_cluster_map *m, float *xyz, int32_t *label, size_t cap,
+                                           size_t *n) {
+    if (!m || !n) return sooc_seterr(SOOC_EINVAL, "cluster: object points: bad arguments");
+    if (!m->segmented) return sooc_seterr(SOOC_EINVAL, "cluster: object points before segment");
+    size_t k = 0;
+    for (size_t i = 0; i < m->n; i++) {
+        if (m->vox[i].comp < 0 && !m->vox[i].relabelled) continue;
+        if (k < cap && xyz) {
+            double c[3];
+            centroid(&m->vox[i], c);
+            for (int r = 0; r < 3; r++) xyz[3 * k + r] = (float)c[r];
+        }
+        if (k < cap && label) label[k] = m->vox[i].relabelled ? m->vox[i].seg : m->vox[i].comp;
+        k++;
+    }
+    *n = k;
+    return SOOC_OK;
+}
+
+sooc_status sooc_cluster_map_relabel(sooc_cluster_map *m, const int32_t *label, size_t n) {
+    if (!m || (n && !label)) return sooc_seterr(SOOC_EINVAL, "cluster: relabel: bad arguments");
+    if (!m->segmented) return sooc_seterr(SOOC_EINVAL, "cluster: relabel before segment");
+    size_t k = 0;
+    for (size_t i = 0; i < m->n; i++) k += m->vox[i].comp >= 0 || m->vox[i].relabelled;
+    if (k != n) return sooc_seterr(SOOC_EINVAL, "cluster: relabel: %zu labels for %zu object voxels", n, k);
+    k = 0;
+    for (size_t i = 0; i < m->n; i++) {
+        voxel *v = &m->vox[i];
+        if (v->comp < 0 && !v->relabelled) continue;
+        if (!v->relabelled) v->seg = v->comp;
+        v->relabelled = 1;
+        v->comp = label[k] < 0 ? -1 : label[k];
+        k++;
+    }
     return SOOC_OK;
 }
 

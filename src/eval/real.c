@@ -270,6 +270,7 @@ void sooc_eval_real_opts_default(sooc_eval_real_opts *o) {
     o->seen_height = 0.1;
     o->persist_min = 3;
     o->own_surface = 1;
+    sooc_surface_params_default(&o->surface_p);
 }
 
 typedef struct real_ctx {
@@ -419,6 +420,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     memset(&C, 0, sizeof C);
     sooc_model *copy = NULL;
     sooc_map_entry *ent = NULL;
+    sooc_cluster_map *surf = NULL;
     sooc_render_out rout;
     memset(&rout, 0, sizeof rout);
     int global = sooc_model_is_global(m);
@@ -474,6 +476,16 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         sooc_mapper_geometry_invalidate(C.mp);
     }
 
+    /* the entries' observed surfaces: the mapped frames' clusters */
+    if (o->surface && C.mp) {
+        if ((st = sooc_cluster_map_create(&surf, o->surface))) goto done;
+        for (int i = 0; i < n_frames && !st; i++)
+            if (!sooc_eval_real_is_query(i, o->query_every)) st = sooc_cluster_map_add_frame(surf, &frames[i]);
+        int n_cl = 0;
+        if (!st) st = sooc_cluster_map_segment(surf, &n_cl);
+        if (st) goto done;
+    }
+
     /* query frames from the pass-1 map */
     for (int i = 0; i < n_frames && !st; i++) {
         if (!sooc_eval_real_is_query(i, o->query_every)) continue;
@@ -485,6 +497,12 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         double t0 = sooc_seconds();
         st = sooc_eval_map_view(ctx_model(&C), ctx_map(&C), &frames[i], NULL, 0, &o->run,
                                 0, &rout, &vm, &match, ids, xz, &nc);
+        if (!st && surf) {
+            const sooc_model_config *mc = sooc_model_get_config(ctx_model(&C));
+            double clip = o->run.d_clip > 0 ? o->run.d_clip : mc->d_clip * mc->unit_m;
+            st = sooc_eval_surface_view(ctx_model(&C), ctx_map(&C), surf, &frames[i], o->run.max_obj,
+                                        &o->surface_p, clip, xz, &rout, &vm, &match);
+        }
         res->render_s += sooc_seconds() - t0;
         if (st) break;
         vm.is_query = 1;
@@ -567,6 +585,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
 
 done:
     sooc_render_out_free(&rout);
+    sooc_cluster_map_destroy(surf);
     sooc_free(ent);
     sooc_free(C.tr);
     sooc_mapper_destroy(C.mp);
