@@ -398,6 +398,13 @@ int sooc_eval_timing_parse(const char *s);
  * map (after all input views); query views always from the final map". */
 const char *sooc_eval_timing_note(sooc_eval_timing t);
 
+typedef struct sooc_surface_params {
+    double min_sigma;   /* the least density that claims a voxel               (0.01) */
+    double min_share;   /* a claimant's least share of a cluster's claimed voxels (0) */
+    int fill;           /* 1: a claimed cluster's unclaimed voxels to its largest  (0) */
+} sooc_surface_params;
+void sooc_surface_params_default(sooc_surface_params *p);
+
 typedef struct sooc_eval_run_opts {
     uint64_t seed;             /* mapper seed (ray offsets, posterior samples)          (1) */
     int iterations;            /* L refinement updates per input view; 0 = model's L    (0) */
@@ -449,6 +456,12 @@ typedef struct sooc_eval_run_opts {
     /* SOOC3D mapper: geometric support of the entries (mapper.h
      * sooc_mapper_set_support): on with this margin in m; 0 = off     (0) */
     double geo_support_m;
+    /* SOOC3D: the views scored from the final map are segmented by the
+     * entries' observed surfaces (sooc_eval_surface_view): the mapped frames
+     * clustered with these parameters, each object voxel claimed by the
+     * densest entry; NULL = the model's own labels                    (NULL) */
+    const struct sooc_cluster_params *surface;
+    sooc_surface_params surface_p;   /* with surface: the claims       (the defaults) */
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 
@@ -539,19 +552,13 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
  * a render of the same view from the same map, sooc_eval_map_view; its
  * labels' components and comp_xz are the same), and the view is scored
  * again into vm and match (may be NULL). sp NULL: the defaults. */
-typedef struct sooc_surface_params {
-    double min_sigma;   /* the least density that claims a voxel               (0.01) */
-    double min_share;   /* a claimant's least share of a cluster's claimed voxels (0) */
-    int fill;           /* 1: a claimed cluster's unclaimed voxels to its largest  (0) */
-} sooc_surface_params;
-void sooc_surface_params_default(sooc_surface_params *p);
 sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
                                      const sooc_frame *gt, int max_obj, const sooc_surface_params *sp,
                                      int *n_comp);
 sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
-                                   const sooc_frame *gt, int max_obj, const sooc_surface_params *sp, double d_clip,
-                                   const double *comp_xz, sooc_render_out *out, sooc_view_metrics *vm,
-                                   sooc_iou_match *match);
+                                   const sooc_frame *gt, const sooc_gt_object *gt_obj, int n_gt, int max_obj,
+                                   const sooc_surface_params *sp, double d_clip, const double *comp_xz,
+                                   sooc_render_out *out, sooc_view_metrics *vm, sooc_iou_match *match);
 
 /* Which object a camera sees at each pixel of a stored map (`sooc3d map at`).
  * ids (K->height x K->width, row-major) gets the map entry id whose surface
@@ -769,11 +776,6 @@ typedef struct sooc_eval_real_opts {
                                   (SOOC3D models only)                                  (NULL) */
     sooc_finetune_progress_fn ft_progress;  /* with finetune: called every 50 steps (NULL) */
     void *ft_user;
-    const struct sooc_cluster_params *surface;  /* non-NULL: the query views' segmentation from
-                                  the entries' observed surfaces (sooc_eval_surface_view): the
-                                  mapped frames clustered with these parameters, each object
-                                  voxel given to the densest entry (SOOC3D only)       (NULL) */
-    sooc_surface_params surface_p;   /* with surface: the voxels' claims (sooc_surface_params_default) */
     int labels_predicted;      /* 1: the labels are a network's predictions (APC masks,
                                   sooc_seq_labels_predicted): the JSON says "labels":
                                   "predicted" and its scores are agreement with them  (0) */

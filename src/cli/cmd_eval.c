@@ -269,17 +269,13 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 1, &prop.cluster.dist_m)) return 2;
             ro.proposals = &prop;
         } else if (!strcmp(a, "--surface")) {
-            sooc_cluster_params_default(&surf_cp), rel.surface = &surf_cp;
-        } else if (!strcmp(a, "--surface-voxel") && has) {
-            if (!rel.surface) sooc_cluster_params_default(&surf_cp), rel.surface = &surf_cp;
-            if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-3, 0.1, &surf_cp.voxel_m)) return 2;
-            if (surf_cp.dist_m < surf_cp.voxel_m) surf_cp.dist_m = surf_cp.voxel_m;
+            sooc_cluster_params_default(&surf_cp), ro.surface = &surf_cp;
         } else if (!strcmp(a, "--surface-sigma") && has) {
-            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &rel.surface_p.min_sigma)) return 2;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &ro.surface_p.min_sigma)) return 2;
         } else if (!strcmp(a, "--surface-share") && has) {
-            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &rel.surface_p.min_share)) return 2;
+            if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &ro.surface_p.min_share)) return 2;
         } else if (!strcmp(a, "--surface-fill")) {
-            rel.surface_p.fill = 1;
+            ro.surface_p.fill = 1;
         } else if (!strcmp(a, "--geo-support") && has) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 1e-4, 1, &ro.geo_support_m)) return 2;
         } else if (!strcmp(a, "--prop-logit") && has) {

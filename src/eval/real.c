@@ -270,7 +270,6 @@ void sooc_eval_real_opts_default(sooc_eval_real_opts *o) {
     o->seen_height = 0.1;
     o->persist_min = 3;
     o->own_surface = 1;
-    sooc_surface_params_default(&o->surface_p);
 }
 
 typedef struct real_ctx {
@@ -477,8 +476,8 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     }
 
     /* the entries' observed surfaces: the mapped frames' clusters */
-    if (o->surface && C.mp) {
-        if ((st = sooc_cluster_map_create(&surf, o->surface))) goto done;
+    if (o->run.surface && C.mp) {
+        if ((st = sooc_cluster_map_create(&surf, o->run.surface))) goto done;
         for (int i = 0; i < n_frames && !st; i++)
             if (!sooc_eval_real_is_query(i, o->query_every)) st = sooc_cluster_map_add_frame(surf, &frames[i]);
         int n_cl = 0;
@@ -500,8 +499,8 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         if (!st && surf) {
             const sooc_model_config *mc = sooc_model_get_config(ctx_model(&C));
             double clip = o->run.d_clip > 0 ? o->run.d_clip : mc->d_clip * mc->unit_m;
-            st = sooc_eval_surface_view(ctx_model(&C), ctx_map(&C), surf, &frames[i], o->run.max_obj,
-                                        &o->surface_p, clip, xz, &rout, &vm, &match);
+            st = sooc_eval_surface_view(ctx_model(&C), ctx_map(&C), surf, &frames[i], NULL, 0, o->run.max_obj,
+                                        &o->run.surface_p, clip, xz, &rout, &vm, &match);
         }
         res->render_s += sooc_seconds() - t0;
         if (st) break;

@@ -41,6 +41,7 @@ void sooc_eval_run_opts_default(sooc_eval_run_opts *o) {
     o->timing = SOOC_EVAL_FINAL;
     o->n_coarse = 96;
     o->n_fine = 32;
+    sooc_surface_params_default(&o->surface_p);
 }
 
 sooc_status sooc_eval_model_copy(sooc_model *m, sooc_model **out) {
@@ -181,6 +182,7 @@ typedef struct run_ctx {
     void *user;
     sooc_render_out rout;
     sooc_eval_scene_result *res;
+    sooc_cluster_map *surf;   /* the entries' observed surfaces (o->surface), for the final map's views */
 } run_ctx;
 
 static sooc_status score_view(run_ctx *C, int i, int online, int n_mapped, sooc_metric_sums *sums) {
@@ -195,6 +197,11 @@ static sooc_status score_view(run_ctx *C, int i, int online, int n_mapped, sooc_
     double t0 = sooc_seconds();
     sooc_status st = sooc_eval_map_view(C->model, C->map, f, C->gt, C->n_gt, C->o, detail, &C->rout, &vm, &match,
                                         ids, xz, &nc);
+    if (!st && C->surf && !online) {
+        const sooc_model_config *c = sooc_model_get_config(C->model);
+        st = sooc_eval_surface_view(C->model, C->map, C->surf, f, C->gt, C->n_gt, C->o->max_obj, &C->o->surface_p,
+                                    c->d_clip * c->unit_m, xz, &C->rout, &vm, &match);
+    }
     C->res->render_s += sooc_seconds() - t0;
     if (st) return st;
     sooc_metric_sums_add_view(sums, &vm);
@@ -363,6 +370,14 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         sooc_free(inp);
         res->finetune_s = sooc_seconds() - t0;
     }
+    /* the entries' observed surfaces: the mapped input views' clusters */
+    if (!st && o->surface && mp) {
+        st = sooc_cluster_map_create(&C.surf, o->surface);
+        for (int i = 0; i < n_frames && !st; i++)
+            if (use[i] && !frames[i].is_query) st = sooc_cluster_map_add_frame(C.surf, &frames[i]);
+        int n_cl = 0;
+        if (!st) st = sooc_cluster_map_segment(C.surf, &n_cl);
+    }
     /* everything else from the final map */
     for (int i = 0; i < n_frames && !st; i++) {
         if (!use[i]) continue;
@@ -399,6 +414,7 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     if (!st && o->scene && mp) st = geometry_scene(mp, o->scene, o->finetune != NULL, res);
 done:
     sooc_render_out_free(&C.rout);
+    sooc_cluster_map_destroy(C.surf);
     sooc_free(ent);
     sooc_mapper_destroy(mp);
     sooc_global_mapper_destroy(gm);

@@ -126,9 +126,9 @@ sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc
 }
 
 sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
-                                   const sooc_frame *gt, int max_obj, const sooc_surface_params *sp, double d_clip,
-                                   const double *comp_xz, sooc_render_out *out, sooc_view_metrics *vm,
-                                   sooc_iou_match *match) {
+                                   const sooc_frame *gt, const sooc_gt_object *gt_obj, int n_gt, int max_obj,
+                                   const sooc_surface_params *sp, double d_clip, const double *comp_xz,
+                                   sooc_render_out *out, sooc_view_metrics *vm, sooc_iou_match *match) {
     if (!out || !out->label || out->width != gt->width || out->height != gt->height || !vm)
         return sooc_seterr(SOOC_EINVAL, "eval surface: no render of the view to relabel");
     int nc = 0;
@@ -141,7 +141,7 @@ sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_c
     if (!st) st = sooc_cluster_map_render(cm, gt->T_wc, &gt->K, gt->width, gt->height, lab, z, NULL);
     if (!st) {
         for (size_t k = 0; k < np; k++) out->label[k] = (int16_t)(lab[k] > 0 ? lab[k] : z[k] > 0 ? 0 : -1);
-        sooc_view_eval_in in = {gt, out, d_clip, nc, comp_xz, NULL, 0, NULL};
+        sooc_view_eval_in in = {gt, out, d_clip, nc, comp_xz, gt_obj, n_gt, NULL};
         st = sooc_metric_view(&in, vm, match);
     }
     sooc_free(lab);
