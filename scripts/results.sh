@@ -108,6 +108,7 @@ TABLES = {
                                      ("label-fusion masks", "masks"),
                                      ("APC shelf bin (agreement with predicted masks)", "scene-0000")],
                                rows=[("geometric", "geometric"), ("online", "sooc3d_tabletop"),
+                                     ("online, observed surfaces", "surfaces", "real_tabletop_surfaces.json"),
                                      ("SOOC3D+", "sooc3d_tabletop+ft")]),
     "speed_engine": dict(kind="bench",
                          rows=[("`bench_engine` conv encoder fwd + bwd vs PyTorch", "bench_engine.json",
@@ -311,14 +312,19 @@ def t_real(t, d):
 
 def t_sets(t, d):
     """One row per (labelled set, model) of one `sooc3d eval --json` file holding several sequences."""
-    cells = load(os.path.join(d, t["file"])).get("cells", [])
+    cells = {}
+    for r in t["rows"]:
+        f = r[2] if len(r) > 2 else t["file"]
+        if f not in cells:
+            cells[f] = load(os.path.join(d, f)).get("cells", [])
     out = ["| set | objects | row | mean per-object IoU | IoU per object (id) | entries per object | depth RMSE (m) |",
            "|---|---:|---|---:|---|---:|---:|"]
     for set_label, seq in t["sets"]:
-        for i, (label, name) in enumerate(t["rows"]):
-            c = next((cc for cc in cells if cc.get("model") == name and cc.get("sequence") == seq), None)
+        for i, r in enumerate(t["rows"]):
+            label, name, f = r[0], r[1], r[2] if len(r) > 2 else t["file"]
+            c = next((cc for cc in cells[f] if cc.get("model") == name and cc.get("sequence") == seq), None)
             if c is None:
-                raise SystemExit("results.sh: %s has no cell of model '%s' on '%s'" % (t["file"], name, seq))
+                raise SystemExit("results.sh: %s has no cell of model '%s' on '%s'" % (f, name, seq))
             ids, ious = c.get("obj_ids", []), c.get("obj_iou", [])
             mean = sum(ious) / len(ious) if ious else None
             per = ", ".join("%s (%d)" % (f3(v), k) for v, k in zip(ious, ids)) or "-"
