@@ -2,9 +2,8 @@
  * --surface`; docs/geometric.md "The entries' observed surfaces").
  *
  * A generated tabletop scene with touching objects (gen --touch 1, 8 input
- * and 2 query views), the
- * shipped tabletop model (skips without it), the scene runner three times
- * with the same seed:
+ * and 2 query views), the shipped tabletop model (skips without it), the
+ * scene runner four times with the same seed:
  *   - the model's own labels (the reference run);
  *   - surfaces: every pixel of a view labelled with an entry shows an object
  *     voxel of the input views' clusters (the geometric render of the same
