@@ -398,6 +398,7 @@ int sooc_eval_timing_parse(const char *s);
  * map (after all input views); query views always from the final map". */
 const char *sooc_eval_timing_note(sooc_eval_timing t);
 
+/* How entries claim the voxels of their observed surfaces (sooc_eval_surface_view below). */
 typedef struct sooc_surface_params {
     double min_sigma;   /* the least density that claims a voxel               (0.01) */
     double min_share;   /* a claimant's least share of a cluster's claimed voxels (0) */

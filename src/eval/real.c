@@ -497,10 +497,9 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         st = sooc_eval_map_view(ctx_model(&C), ctx_map(&C), &frames[i], NULL, 0, &o->run,
                                 0, &rout, &vm, &match, ids, xz, &nc);
         if (!st && surf) {
-            const sooc_model_config *mc = sooc_model_get_config(ctx_model(&C));
-            double clip = o->run.d_clip > 0 ? o->run.d_clip : mc->d_clip * mc->unit_m;
+            const sooc_model_config *mc = sooc_model_get_config(ctx_model(&C));   /* the clip as rendered */
             st = sooc_eval_surface_view(ctx_model(&C), ctx_map(&C), surf, &frames[i], NULL, 0, o->run.max_obj,
-                                        &o->run.surface_p, clip, xz, &rout, &vm, &match);
+                                        &o->run.surface_p, mc->d_clip * mc->unit_m, xz, &rout, &vm, &match);
         }
         res->render_s += sooc_seconds() - t0;
         if (st) break;
