@@ -553,6 +553,9 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
  * a render of the same view from the same map, sooc_eval_map_view; its
  * labels' components and comp_xz are the same), and the view is scored
  * again into vm and match (may be NULL). sp NULL: the defaults. */
+/* The cluster map the surfaces are drawn from: frames[i] with use[i], segmented. */
+sooc_status sooc_eval_surface_map(const struct sooc_cluster_params *cp, const sooc_frame *frames, int n,
+                                  const uint8_t *use, sooc_cluster_map **out);
 sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
                                      const sooc_frame *gt, int max_obj, const sooc_surface_params *sp,
                                      int *n_comp);

@@ -477,11 +477,11 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
 
     /* the entries' observed surfaces: the mapped frames' clusters */
     if (o->run.surface && C.mp) {
-        if ((st = sooc_cluster_map_create(&surf, o->run.surface))) goto done;
-        for (int i = 0; i < n_frames && !st; i++)
-            if (!sooc_eval_real_is_query(i, o->query_every)) st = sooc_cluster_map_add_frame(surf, &frames[i]);
-        int n_cl = 0;
-        if (!st) st = sooc_cluster_map_segment(surf, &n_cl);
+        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
+        if (!inp) st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory");
+        for (int i = 0; i < n_frames && inp; i++) inp[i] = !sooc_eval_real_is_query(i, o->query_every);
+        if (!st) st = sooc_eval_surface_map(o->run.surface, frames, n_frames, inp, &surf);
+        sooc_free(inp);
         if (st) goto done;
     }
 

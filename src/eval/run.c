@@ -372,11 +372,11 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
     }
     /* the entries' observed surfaces: the mapped input views' clusters */
     if (!st && o->surface && mp) {
-        st = sooc_cluster_map_create(&C.surf, o->surface);
-        for (int i = 0; i < n_frames && !st; i++)
-            if (use[i] && !frames[i].is_query) st = sooc_cluster_map_add_frame(C.surf, &frames[i]);
-        int n_cl = 0;
-        if (!st) st = sooc_cluster_map_segment(C.surf, &n_cl);
+        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
+        if (!inp) st = sooc_seterr(SOOC_ENOMEM, "eval: out of memory");
+        for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
+        if (!st) st = sooc_eval_surface_map(o->surface, frames, n_frames, inp, &C.surf);
+        sooc_free(inp);
     }
     /* everything else from the final map */
     for (int i = 0; i < n_frames && !st; i++) {

@@ -125,6 +125,24 @@ sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc
     return st ? sooc_adderr(st, "eval surface: frame %lld", (long long)gt->index) : SOOC_OK;
 }
 
+sooc_status sooc_eval_surface_map(const sooc_cluster_params *cp, const sooc_frame *frames, int n,
+                                  const uint8_t *use, sooc_cluster_map **out) {
+    if (!cp || !out || n < 0 || (n && (!frames || !use))) return sooc_seterr(SOOC_EINVAL, "eval surface: bad arguments");
+    *out = NULL;
+    sooc_cluster_map *cm = NULL;
+    sooc_status st = sooc_cluster_map_create(&cm, cp);
+    for (int i = 0; i < n && !st; i++)
+        if (use[i]) st = sooc_cluster_map_add_frame(cm, &frames[i]);
+    int n_cl = 0;
+    if (!st) st = sooc_cluster_map_segment(cm, &n_cl);
+    if (st) {
+        sooc_cluster_map_destroy(cm);
+        return sooc_adderr(st, "eval surface: the mapped frames' clusters");
+    }
+    *out = cm;
+    return SOOC_OK;
+}
+
 sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
                                    const sooc_frame *gt, const sooc_gt_object *gt_obj, int n_gt, int max_obj,
                                    const sooc_surface_params *sp, double d_clip, const double *comp_xz,
