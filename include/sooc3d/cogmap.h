@@ -321,6 +321,9 @@ int sooc_cogmap_payload_foreach(const sooc_cogmap *m, sooc_cogmap_payload_fn fn,
 #define SOOC_GEOM_EMPTY 0x4u      /* no density at the surface level in its box (extent 0) */
 #define SOOC_GEOM_CLIPPED 0x8u    /* the density reaches the locality box's side: extent cut there */
 #define SOOC_GEOM_FAINT 0x10u     /* below the surface level everywhere: the box at half its peak density */
+#define SOOC_GEOM_SURFACE 0x20u   /* with TIGHT: the tight box is the box of the observed surface it claims
+                                     (geometric support on; docs/geometric.md "The entries' observed
+                                     surfaces"), not of its density */
 typedef struct sooc_map_geometry {
     uint32_t flags;            /* SOOC_GEOM_* */
     float centre[3];           /* tight box centre in the object frame (m); centre[1] = height above the floor */

@@ -398,13 +398,6 @@ int sooc_eval_timing_parse(const char *s);
  * map (after all input views); query views always from the final map". */
 const char *sooc_eval_timing_note(sooc_eval_timing t);
 
-/* How entries claim the voxels of their observed surfaces (sooc_eval_surface_view below). */
-typedef struct sooc_surface_params {
-    double min_sigma;   /* the least density that claims a voxel               (0.01) */
-    double min_share;   /* a claimant's least share of a cluster's claimed voxels (0) */
-    int fill;           /* 1: a claimed cluster's unclaimed voxels to its largest  (0) */
-} sooc_surface_params;
-void sooc_surface_params_default(sooc_surface_params *p);
 
 typedef struct sooc_eval_run_opts {
     uint64_t seed;             /* mapper seed (ray offsets, posterior samples)          (1) */
@@ -463,6 +456,8 @@ typedef struct sooc_eval_run_opts {
      * densest entry; NULL = the model's own labels                    (NULL) */
     const struct sooc_cluster_params *surface;
     sooc_surface_params surface_p;   /* with surface: the claims       (the defaults) */
+    int surface_boxes;         /* SOOC3D mapper with geo_support_m: observed-surface planner
+                                  boxes (sooc_mapper_set_surface_boxes)                  (0) */
 } sooc_eval_run_opts;
 void sooc_eval_run_opts_default(sooc_eval_run_opts *o);
 
@@ -553,6 +548,23 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
  * a render of the same view from the same map, sooc_eval_map_view; its
  * labels' components and comp_xz are the same), and the view is scored
  * again into vm and match (may be NULL). sp NULL: the defaults. */
+/* How well the planner's boxes (sooc_map_entry_box, sooc_map_entry_height)
+ * fit labelled object id: its points are its labelled pixels with valid depth
+ * in frames[i] with use[i], in the world frame, 5 mm or more above the
+ * support plane; its entry is the one of e[0..ne) whose box holds most of
+ * them. cover: the fraction its box holds (0: no box holds any); height_err_m:
+ * the box's height minus the points' (their 98th percentile); area_ratio: the
+ * box's floor area over the points' floor rectangle on the entry's axes
+ * (from their 5th to their 95th percentile on each axis).
+ * NaN (entry 0) with fewer than 20 points. */
+typedef struct sooc_box_fit {
+    uint64_t entry;
+    int n_points;
+    double cover, height_err_m, area_ratio;
+} sooc_box_fit;
+sooc_status sooc_eval_box_fit(const sooc_map_entry *e, size_t ne, const sooc_frame *frames, int n,
+                              const uint8_t *use, uint16_t id, sooc_box_fit *out);
+
 /* The cluster map the surfaces are drawn from: frames[i] with use[i], segmented. */
 sooc_status sooc_eval_surface_map(const struct sooc_cluster_params *cp, const sooc_frame *frames, int n,
                                   const uint8_t *use, sooc_cluster_map **out);
@@ -794,6 +806,7 @@ typedef struct sooc_eval_real_result {
     int has_labels;                /* every query frame carried labels                   */
     sooc_metric_sums query;        /* query frames from the pass-1 map (means = sum/count) */
     sooc_obj_iou_acc obj;          /* labelled objects over the query frames             */
+    sooc_box_fit obj_box[SOOC_METRIC_MAX_GT];   /* their planner boxes, final map (obj order) */
     size_t entries_final;          /* entries after pass 1                               */
     sooc_churn churn;              /* pass 1                                             */
     size_t entries_pass2;          /* entries after pass 2 (= entries_final without it)  */

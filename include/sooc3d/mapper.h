@@ -129,6 +129,43 @@ sooc_status sooc_cluster_map_relabel(sooc_cluster_map *m, const int32_t *label, 
 sooc_status sooc_cluster_map_render(const sooc_cluster_map *m, const double T_wc[16], const sooc_intrinsics *K,
                                     int w, int h, int16_t *label, float *depth, float *rgb);
 
+/* ---- the entries' observed surfaces (docs/geometric.md) ----
+ *
+ * Every object voxel of a segmented cluster map is claimed by the component
+ * (1.., a map entry) of a field whose density (times presence, inside its
+ * box) is highest at the voxel's centroid; none above min_sigma: unclaimed.
+ * Then per cluster of the segmentation, claimants with less than min_share
+ * of its claimed voxels give them to its largest claimant, and with fill its
+ * unclaimed voxels go to that claimant too. */
+typedef struct sooc_surface_params {
+    double min_sigma;   /* the least density that claims a voxel               (0.01) */
+    double min_share;   /* a claimant's least share of a cluster's claimed voxels (0) */
+    int fill;           /* 1: a claimed cluster's unclaimed voxels to its largest  (0) */
+} sooc_surface_params;
+void sooc_surface_params_default(sooc_surface_params *p);
+
+typedef struct sooc_surface_claims {
+    size_t n;           /* the object voxels (sooc_cluster_map_object_points order) */
+    float *xyz;         /* n x 3 centroids, world frame                            */
+    int32_t *label;     /* n: the claiming component, or -1                       */
+} sooc_surface_claims;
+void sooc_surface_claims_free(sooc_surface_claims *c);   /* NULL-safe */
+
+struct sooc_field;
+/* Claim cm's object voxels for the components of f (T_fw: world -> the
+ * field's frame); cm is relabelled with the claims (sooc_cluster_map_relabel)
+ * and out gets them (free with sooc_surface_claims_free). sp NULL: defaults. */
+sooc_status sooc_surface_claim(const struct sooc_field *f, const double T_fw[16], sooc_cluster_map *cm,
+                               const sooc_surface_params *sp, sooc_surface_claims *out);
+/* The box of the voxels component comp claims, in the frame of an entry at
+ * (X, Z) with heading yaw, centred on (X, Z) as every planner box: extent
+ * along its x, height, z (twice the farthest voxel centroid on each floor
+ * axis, plus a voxel; the highest centroid plus half a voxel) and the centre
+ * (0, half the height, 0: objects stand on the plane). Returns their count
+ * (0: none, the box is not written). */
+int sooc_surface_box(const sooc_surface_claims *c, int comp, double X, double Z, double yaw, double voxel_m,
+                     float extent[3], float centre[3]);
+
 /* ==== the online mapper (mapper) ========================================= */
 
 /*
@@ -451,6 +488,14 @@ sooc_status sooc_mapper_set_proposals(sooc_mapper *mp, const sooc_proposal_param
  * removals (counted as retired in the update's stats). margin_m 0 turns it
  * off (the default). Learnt mappers only. */
 sooc_status sooc_mapper_set_support(sooc_mapper *mp, double margin_m);
+/* Observed-surface boxes (docs/geometric.md "The entries' observed
+ * surfaces"), with the geometric support on: after each update the support's
+ * object voxels are claimed by the entries in the keyframe's view
+ * (sooc_surface_claim), and each entry the update wrote that claims at least
+ * 8 voxels gets the box of its claim (sooc_surface_box) as its planner box
+ * (geometry flags TIGHT | SURFACE) in place of its density's. Off by default;
+ * on without the support it does nothing until the support is set. */
+void sooc_mapper_set_surface_boxes(sooc_mapper *mp, int on);
 void sooc_mapper_set_merge_radius(sooc_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC_LATENTS_*). */
 void sooc_mapper_set_latents(sooc_mapper *m, int latents);
@@ -596,6 +641,10 @@ void sooc_objgeom_cache_invalidate(sooc_objgeom_cache *c);
 /* Resume: take a stored entry's geometry (e->geom, e->extent) as cached for
  * its current latent. */
 sooc_status sooc_objgeom_cache_seed(sooc_objgeom_cache *c, const sooc_map_entry *e);
+/* The box of the observed surface entry id claims (sooc_surface_box): fill
+ * gives it instead of the density's box, with SOOC_GEOM_SURFACE. */
+sooc_status sooc_objgeom_cache_set_surface(sooc_objgeom_cache *c, uint64_t id, const float extent[3],
+                                           const float centre[3]);
 /* Recompute the stale boxes, at most `max` (< 0: all), new entries first,
  * then by drift. *n_done (may be NULL) = boxes computed; their ids go to
  * done_ids (may be NULL; room for max when max >= 0). Entries the map no

@@ -124,6 +124,8 @@ typedef struct sooc_node_config {
     double prop_join_m, prop_logit;            /* model.prop_join_m (0 = the clusters' 0.02), model.prop_logit
                                                   (presence logit of a placed slot; 0 = the prior's)       */
     int prop_only;                             /* model.prop_only: only placed slots make new entries       */
+    int surface_boxes;                         /* learnt, with geo_support_m: model.surface_boxes, planner
+                                                  boxes of the observed surfaces (sooc_mapper_set_surface_boxes) */
     double geo_free_ratio;                     /* geometric: model.free_ratio (1; 0 = no free-space test)   */
     char model_path[SOOC_NODE_PATH_MAX];
     int input_width, input_height;           /* 0 = ask the model */

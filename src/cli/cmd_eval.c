@@ -61,6 +61,8 @@ static void usage(FILE *f) {
             "  --surface-share F   with --surface: a claimant with less than F of a cluster's claimed\n"
             "                  voxels gives them to its largest claimant (0)\n"
             "  --surface-sigma S   with --surface: the least density that claims a voxel (0.01)\n"
+            "  --surface-boxes with --geo-support: the mapper gives its entries the boxes of the\n"
+            "                  surfaces they claim (node key model.surface_boxes)\n"
             "  --finetune      SOOC3D+: also a '<name>+ft' row per model: online inference as for the\n"
             "                  base row, then per-object NeRF finetuning by EM on the input views\n"
             "                  (sooc3d finetune), then the same views scored from the finetuned map;\n"
@@ -283,6 +285,8 @@ int sooc_cmd_eval(int argc, char **argv) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &ro.surface_p.min_sigma)) return 2;
         } else if (!strcmp(a, "--surface-share") && has) {
             if (!sooc_cli_double_opt("eval", a, argv[++i], 0, 1, &ro.surface_p.min_share)) return 2;
+        } else if (!strcmp(a, "--surface-boxes")) {
+            ro.surface_boxes = 1;
         } else if (!strcmp(a, "--surface-fill")) {
             ro.surface_p.fill = 1;
         } else if (!strcmp(a, "--geo-support") && has) {

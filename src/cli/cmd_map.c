@@ -28,7 +28,7 @@ static void map_usage(FILE *f) {
             "  list     one line per object, ordered by id: id x z (m) yaw (rad) sigma_t (m)\n"
             "           sigma_yaw (rad) presence obs_count first_seen_ns last_seen_ns, its box (x*y*z m),\n"
             "           height above the floor (m) and box quality (tight, clipped, empty, faint, symmetric,\n"
-            "           not computed). The numbers of the shm table's record (docs/shm.md): sigma_t is\n"
+            "           surface: of the observed surface, not computed). The numbers of the shm table's record (docs/shm.md): sigma_t is\n"
             "           sqrt(cov_xx) in metres, sigma_yaw sqrt(cov_yawyaw) in radians\n"
             "  query    the same for objects whose (x, z) lies in the closed box [X0,X1] x [Z0,Z1]\n"
             "           (R*Tree lookup)\n"

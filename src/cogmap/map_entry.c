@@ -72,7 +72,7 @@ double sooc_map_entry_height(const sooc_map_entry *e) {
 const char *sooc_map_entry_box_quality(const sooc_map_geometry *g, char *buf, size_t cap) {
     static const struct { uint32_t bit; const char *word; } w[] = {
         {SOOC_GEOM_TIGHT, "tight"}, {SOOC_GEOM_EMPTY, "empty"}, {SOOC_GEOM_CLIPPED, "clipped"},
-        {SOOC_GEOM_FAINT, "faint"}, {SOOC_GEOM_SYMMETRIC, "symmetric"}};
+        {SOOC_GEOM_FAINT, "faint"}, {SOOC_GEOM_SYMMETRIC, "symmetric"}, {SOOC_GEOM_SURFACE, "surface"}};
     size_t n = 0;
     if (cap) buf[0] = 0;
     for (size_t i = 0; i < sizeof w / sizeof *w; i++)

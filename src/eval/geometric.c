@@ -77,6 +77,30 @@ static sooc_status geo_view(geo_run *g, const sooc_frame *f, const sooc_gt_objec
     return sooc_metric_view(&in, vm, match);
 }
 
+/* The clusters' boxes against the labelled objects (sooc_eval_box_fit), as a learnt map's entries */
+static sooc_status geo_box_fit(const geo_run *g, const sooc_frame *frames, int n_frames, sooc_eval_real_result *res) {
+    int n = 0;
+    sooc_cluster_object *obj = sooc_calloc((size_t)g->n_obj + 1, sizeof *obj);
+    sooc_map_entry *e = sooc_calloc((size_t)g->n_obj + 1, sizeof *e);
+    uint8_t *use = sooc_malloc((size_t)n_frames);
+    sooc_status st = !obj || !e || !use ? sooc_seterr(SOOC_ENOMEM, "eval geometric: out of memory")
+                                        : sooc_cluster_map_objects(g->cm, obj, g->n_obj, &n);
+    for (int k = 0; k < n && !st; k++) {
+        e[k].id = (uint64_t)k + 1;
+        e[k].x = obj[k].x, e[k].z = obj[k].z, e[k].yaw = obj[k].yaw;
+        for (int a = 0; a < 3; a++) e[k].extent[a] = (float)obj[k].extent[a];
+        e[k].geom.flags = SOOC_GEOM_TIGHT;
+        e[k].geom.centre[1] = (float)obj[k].centre_y;
+    }
+    for (int i = 0; i < n_frames && use; i++) use[i] = 1;   /* every labelled frame: the objects' truth */
+    for (int k = 0; k < res->obj.n && !st; k++)
+        st = sooc_eval_box_fit(e, (size_t)n, frames, n_frames, use, res->obj.id[k], &res->obj_box[k]);
+    sooc_free(obj);
+    sooc_free(e);
+    sooc_free(use);
+    return st;
+}
+
 sooc_status sooc_eval_geometric_run(const sooc_frame *frames, int n_frames, const sooc_eval_real_opts *o,
                                     const sooc_cluster_params *cp, double d_clip, sooc_eval_view_fn view_cb,
                                     void *user, sooc_eval_real_result *res) {
@@ -128,6 +152,7 @@ sooc_status sooc_eval_geometric_run(const sooc_frame *frames, int n_frames, cons
             st = view_cb(user, &vi);
         }
     }
+    if (!st && res->has_labels) st = geo_box_fit(&g, frames, n_frames, res);
     geo_free(&g);
     return st;
 }

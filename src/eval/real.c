@@ -449,6 +449,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         sooc_mapper_set_latents(C.mp, o->run.latents);
         if (o->run.proposals && (st = sooc_mapper_set_proposals(C.mp, o->run.proposals))) goto done;
         if (o->run.geo_support_m > 0 && (st = sooc_mapper_set_support(C.mp, o->run.geo_support_m))) goto done;
+        sooc_mapper_set_surface_boxes(C.mp, o->run.surface_boxes);
     }
 
     /* pass 1 */
@@ -571,6 +572,17 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         res->n_never_behind = nb;
         res->never_behind_med_m = median_inplace(beh, nb);
         sooc_free(beh);
+        /* the planner's boxes against the labelled objects */
+        uint8_t *inp = res->has_labels ? sooc_malloc((size_t)n_frames) : NULL;
+        if (res->has_labels && !inp) {
+            st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory");
+            goto done;
+        }
+        for (int i = 0; i < n_frames && inp; i++) inp[i] = 1;   /* every labelled frame: the objects' truth */
+        for (int k = 0; inp && k < res->obj.n && !st; k++)
+            st = sooc_eval_box_fit(ent, ne, frames, n_frames, inp, res->obj.id[k], &res->obj_box[k]);
+        sooc_free(inp);
+        if (st) goto done;
         if (res->n_persistent) {
             res->pos_spread_m = ps / res->n_persistent;
             res->yaw_spread_deg = ys / res->n_persistent * 180.0 / M_PI;
@@ -592,6 +604,12 @@ done:
 }
 
 /* ---------------------------------------------------------------- JSON */
+
+/* element k of a JSON array: a number, or null */
+static void jb_arr_num(sooc_strbuf *b, int k, double v) {
+    if (isfinite(v)) sooc_strbuf_printf(b, "%s%.6g", k ? ", " : "", v);
+    else sooc_strbuf_printf(b, "%snull", k ? ", " : "");
+}
 
 static void jb_num(sooc_strbuf *b, const char *key, double v) {
     if (isfinite(v)) sooc_strbuf_printf(b, ", \"%s\": %.6g", key, v);
@@ -637,6 +655,12 @@ sooc_status sooc_eval_real_json(const char *model, const char *sequence, const c
             if (isfinite(v)) sooc_strbuf_printf(&b, "%s%.6g", k ? ", " : "", v);
             else sooc_strbuf_printf(&b, "%snull", k ? ", " : "");
         }
+        sooc_strbuf_printf(&b, "], \"obj_box_cover\": [");
+        for (int k = 0; k < r->obj.n; k++) jb_arr_num(&b, k, r->obj_box[k].cover);
+        sooc_strbuf_printf(&b, "], \"obj_box_height_err_m\": [");
+        for (int k = 0; k < r->obj.n; k++) jb_arr_num(&b, k, r->obj_box[k].height_err_m);
+        sooc_strbuf_printf(&b, "], \"obj_box_area_ratio\": [");
+        for (int k = 0; k < r->obj.n; k++) jb_arr_num(&b, k, r->obj_box[k].area_ratio);
         sooc_strbuf_printf(&b, "], \"obj_views\": [");
         for (int k = 0; k < r->obj.n; k++) sooc_strbuf_printf(&b, "%s%ld", k ? ", " : "", r->obj.views[k]);
         sooc_strbuf_printf(&b, "]");

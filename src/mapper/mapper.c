@@ -62,6 +62,7 @@ struct sooc_mapper {
     double supp_margin;
     sooc_cluster_object *supp_obj;
     int supp_cap;
+    int surf_boxes;   /* observed-surface boxes (sooc_mapper_set_surface_boxes) */
 };
 
 void sooc_mapper_params_default(sooc_mapper_params *p) {
@@ -687,6 +688,44 @@ static sooc_status support_prune(sooc_mapper *mp, const sooc_frame *f, uint64_t 
     return SOOC_OK;
 }
 
+/* Geometric support, after the removals: the written entries' observed
+ * surfaces. The support's object voxels are claimed by the entries in the
+ * keyframe's view (sooc_surface_claim), and each written entry that claims
+ * at least SURF_MIN_VOXELS gets the box of its claim as its planner box. */
+#define SURF_MIN_VOXELS 8
+static sooc_status support_surfaces(sooc_mapper *mp, const sooc_frame *f, const uint64_t *ids, int K) {
+    sooc_intrinsics Kc = f->K;
+    Kc.width = f->width, Kc.height = f->height;
+    sooc_model_field *fld = NULL;
+    sooc_status s = sooc_model_field_create(&fld, mp->m, mp->map, f->T_wc, &Kc, SOOC_RENDER_MAX_COMP - 1, NULL);
+    if (s) return sooc_adderr(s, "mapper: surfaces of frame %lld", (long long)f->index);
+    const sooc_field *fd = sooc_model_field_get(fld);
+    double T_fc[16], T_cw[16], T_fw[16];
+    sooc_model_field_T_fc(fld, T_fc);
+    sooc_se3_inverse(T_cw, f->T_wc);
+    sooc_se3_mul(T_fw, T_fc, T_cw);
+    sooc_surface_claims cl = {0};
+    s = sooc_surface_claim(fd, T_fw, mp->supp, NULL, &cl);
+    for (int k = 1; !s && k < fd->n_comp; k++) {
+        uint64_t id = sooc_model_field_comp_id(fld, k);
+        int written = 0;
+        for (int j = 0; j < K; j++) written |= id && ids[j] == id;
+        sooc_cogmap_entry e;
+        if (!written || sooc_cogmap_get(mp->map, id, &e) != SOOC_OK) {
+            sooc_clearerr();
+            continue;
+        }
+        float ext[3], cen[3];
+        if (sooc_surface_box(&cl, k, e.X, e.Z, e.Theta, SUPPORT_VOXEL_M, ext, cen) >= SURF_MIN_VOXELS)
+            s = sooc_objgeom_cache_set_surface(mp->geo, id, ext, cen);
+    }
+    sooc_surface_claims_free(&cl);
+    sooc_model_field_destroy(fld);
+    return s ? sooc_adderr(s, "mapper: surfaces of frame %lld", (long long)f->index) : SOOC_OK;
+}
+
+void sooc_mapper_set_surface_boxes(sooc_mapper *mp, int on) { mp->surf_boxes = on != 0; }
+
 void sooc_proposal_params_default(sooc_proposal_params *p) {
     memset(p, 0, sizeof *p);
     sooc_cluster_params_default(&p->cluster);
@@ -771,6 +810,7 @@ sooc_status sooc_mapper_update(sooc_mapper *mp, const sooc_frame *f, sooc_update
         int n_pr = 0;
         if ((s = support_prune(mp, f, ids, c->K, &n_pr))) return s;
         n_retired += n_pr;
+        if (mp->surf_boxes && (s = support_surfaces(mp, f, ids, c->K))) return s;
     }
     for (int i = 0; i < c->K; i++)   /* ids of written slots, ascending (insertion sort, K <= 32) */
         if (ids[i]) {

@@ -490,6 +490,8 @@ typedef struct og_slot {
     float what_ref[SOOC_COGMAP_DIM_MAX];   /* z^what when the box was computed */
     float drift;            /* RMS change since then */
     sooc_map_geometry g;
+    int has_surf;           /* the box of its observed surface (sooc_objgeom_cache_set_surface) */
+    float surf_extent[3], surf_centre[3];
 } og_slot;
 
 struct sooc_objgeom_cache {
@@ -609,8 +611,23 @@ sooc_status sooc_objgeom_cache_seed(sooc_objgeom_cache *c, const sooc_map_entry 
     memcpy(s->what_ref, e->what_mu, (size_t)d * sizeof(float));
     s->has_box = (e->geom.flags & (SOOC_GEOM_TIGHT | SOOC_GEOM_EMPTY)) != 0;
     memcpy(s->extent, e->extent, sizeof s->extent);
+    s->has_surf = (e->geom.flags & SOOC_GEOM_SURFACE) != 0;
+    if (s->has_surf) {
+        memcpy(s->surf_extent, e->extent, sizeof s->surf_extent);
+        memcpy(s->surf_centre, e->geom.centre, sizeof s->surf_centre);
+    }
     s->stale = !s->has_box;
     s->drift = s->has_box ? 0.0f : INFINITY;
+    return SOOC_OK;
+}
+
+sooc_status sooc_objgeom_cache_set_surface(sooc_objgeom_cache *c, uint64_t id, const float extent[3],
+                                           const float centre[3]) {
+    og_slot *s = og_insert(c, id);
+    if (!s) return sooc_seterr(SOOC_ENOMEM, "objgeom: cache out of memory (%zu entries)", c->n);
+    s->has_surf = 1;
+    memcpy(s->surf_extent, extent, sizeof s->surf_extent);
+    memcpy(s->surf_centre, centre, sizeof s->surf_centre);
     return SOOC_OK;
 }
 
@@ -660,6 +677,11 @@ void sooc_objgeom_cache_fill(const sooc_objgeom_cache *c, const sooc_cogmap_entr
         g = s->g;
         if (s->has_box) memcpy(out->extent, s->extent, sizeof out->extent);
         else g.flags = 0;
+        if (s->has_surf) {   /* the observed surface's box replaces the density's */
+            memcpy(out->extent, s->surf_extent, sizeof out->extent);
+            memcpy(g.centre, s->surf_centre, sizeof g.centre);
+            g.flags = (g.flags & SOOC_GEOM_SYMMETRIC) | SOOC_GEOM_TIGHT | SOOC_GEOM_SURFACE;
+        }
     }
     sooc_objgeom_spread(e->rho_t, e->rho_theta, &g);
     out->geom = g;

@@ -513,6 +513,7 @@ static const kspec g_keys[] = {
     KV("model", "prop_join_m", KV_NUM, prop_join_m, 0, 1),
     KV("model", "prop_logit", KV_NUM, prop_logit, -20, 20),
     KV("model", "prop_only", KV_BOOL, prop_only, 0, 0),
+    KV("model", "surface_boxes", KV_BOOL, surface_boxes, 0, 0),
     KV("model", "path", KV_STR, model_path, 0, 0),
     KV("model", "width", KV_INT, input_width, 0, 8192),
     KV("model", "height", KV_INT, input_height, 0, 8192),
@@ -789,12 +790,12 @@ size_t sooc_node_config_format(const sooc_node_config *c, char *buf, size_t cap)
             c->odom_color_ty, c->odom_color_tz, c->odom_thread ? "true" : "false",
             c->odom_loop_closure ? "true" : "false", c->odom_relocalise ? "true" : "false");
     }
-    OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, wall_m: %g, rest_m: %g, min_presence: %g, free_ratio: %g, geo_support_m: %g, proposals: %s, prop_join_m: %g, prop_logit: %g, prop_only: %s, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
+    OUT("calib: '%s'\nmodel: {kind: %s, voxel_m: %g, join_m: %g, min_height_m: %g, max_extent_m: %g, wall_m: %g, rest_m: %g, min_presence: %g, free_ratio: %g, geo_support_m: %g, proposals: %s, prop_join_m: %g, prop_logit: %g, prop_only: %s, surface_boxes: %s, path: '%s', width: %d, height: %d, iterations: %d, threads: %d, seed: %llu, "
         "depth_resample: %s, clip_m: %g, merge_m: %g, latents: %s, slots: %d, invalid_depth: %s, gate_min_rays: %g, "
         "gate_ratio: %g, gate_part: %g}\n",
         c->calib_path, c->model_kind == SOOC_MAPPER_GEOMETRIC ? "geometric" : "learnt", c->geo_voxel_m, c->geo_join_m,
         c->geo_min_height_m, c->geo_max_extent_m, c->geo_wall_m, c->geo_rest_m, c->geo_min_presence, c->geo_free_ratio, c->geo_support_m, c->proposals ? "true" : "false", c->prop_join_m, c->prop_logit,
-        c->prop_only ? "true" : "false", c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
+        c->prop_only ? "true" : "false", c->surface_boxes ? "true" : "false", c->model_path, c->input_width, c->input_height, c->iterations, c->threads,
         (unsigned long long)c->seed, c->depth_resample == SOOC_FRAMES_DEPTH_MIN ? "min" : "nearest", c->clip_m, c->merge_m,
         c->latents == SOOC_LATENTS_SAMPLE ? "sample" : "mean", c->slots,
         c->invalid_depth == 2 ? "unknown" : c->invalid_depth == 1 ? "free" : "model", c->gate_min_rays,

@@ -354,6 +354,7 @@ sooc_status sooc_node_create(sooc_node **out, const sooc_node_config *c, const s
                 sooc_adderr(st, "%s: model.geo_support_m", c->path);
                 goto fail;
             }
+            sooc_mapper_set_surface_boxes(n->mapper, c->surface_boxes);   /* docs/geometric.md */
             /* the model's identity is its checkpoint's content, not its path */
             if (sooc_file_id(c->model_path, n->model_id_str, sizeof n->model_id_str, &n->model_id)) {
                 /* a mapper that does not read model.path as a file (tests): no model check */

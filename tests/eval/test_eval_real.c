@@ -29,8 +29,8 @@ static void test_query_rule(void) {
 
 /* A w x h camera at world position c looking along +z (pitch down by
  * `pitch` rad), OpenCV axes, f = w, centre (w/2, h/2), depth d everywhere. */
-static void make_frame(sooc_frame *f, int w, int h, const double c[3], double pitch, float d) {
-    CHECK_OK(sooc_frame_alloc(f, w, h, 0));
+static void make_frame_ids(sooc_frame *f, int w, int h, const double c[3], double pitch, float d, int ids) {
+    CHECK_OK(sooc_frame_alloc(f, w, h, ids));
     double s = sin(pitch), co = cos(pitch);
     double R[9] = {-1, 0, 0, 0, -co, -s, 0, -s, co};   /* columns x_c, y_c, z_c in world */
     sooc_se3_from_rt(f->T_wc, R, c);
@@ -42,6 +42,54 @@ static void make_frame(sooc_frame *f, int w, int h, const double c[3], double pi
         f->depth[i] = d;
         f->valid[i] = d > 0;
     }
+}
+
+/* sooc_eval_box_fit: a camera 1 m above the plane looking straight down, an
+ * 8 x 8 pixel block labelled 5 at 0.9 m (0.1 m above the plane, about 0.2 m
+ * wide); the box that holds most of its points is the object's entry. */
+static void test_box_fit(void) {
+    sooc_frame f;
+    const double c[3] = {0, 1, 0};
+    make_frame_ids(&f, 32, 32, c, M_PI / 2, 1.0f, 1);
+    if (!f.instance) return;
+    memset(f.instance, 0, 32 * 32 * sizeof *f.instance);
+    for (int v = 12; v < 20; v++)
+        for (int u = 12; u < 20; u++) f.instance[v * 32 + u] = 5, f.depth[v * 32 + u] = 0.9f;
+    sooc_map_entry e[3];
+    memset(e, 0, sizeof e);
+    for (int k = 0; k < 3; k++) e[k].id = (uint64_t)k + 1, e[k].geom.flags = SOOC_GEOM_TIGHT;
+    e[0].extent[0] = e[0].extent[2] = 0.3f, e[0].extent[1] = 0.15f, e[0].geom.centre[1] = 0.075f;   /* over it */
+    e[1].x = e[1].z = 1.0, e[1].extent[0] = e[1].extent[1] = e[1].extent[2] = 0.5f;                  /* elsewhere */
+    e[1].geom.centre[1] = 0.25f;
+    e[2].x = 0.1, e[2].extent[0] = e[2].extent[2] = 0.2f, e[2].extent[1] = 0.12f;                    /* half of it */
+    e[2].geom.centre[1] = 0.06f;
+    const uint8_t use = 1;
+    sooc_box_fit b;
+    CHECK_OK(sooc_eval_box_fit(e, 3, &f, 1, &use, 5, &b));
+    double w = 0.9 * 8 / 32 * 0.9;   /* the central 90% of the points' width: 8 pixels of 0.9/32 m, 5th-95th */
+    printf("box fit: entry %llu, %d points, cover %.3f, height error %.3f m, area ratio %.2f (want %.2f)\n",
+           (unsigned long long)b.entry, b.n_points, b.cover, b.height_err_m, b.area_ratio, 0.09 / (w * w));
+    CHECK(b.entry == 1 && b.n_points == 64 && b.cover == 1.0);
+    CHECK_MSG(fabs(b.height_err_m - 0.05) < 1e-3, "height error %.4f (box 0.15, object 0.10)", b.height_err_m);
+    CHECK_MSG(fabs(b.area_ratio - 0.09 / (w * w)) < 0.25 * 0.09 / (w * w), "area ratio %.2f", b.area_ratio);
+    CHECK_OK(sooc_eval_box_fit(e + 1, 2, &f, 1, &use, 5, &b));   /* without the box over it */
+    printf("box fit without it: entry %llu, cover %.3f, height error %.3f m\n", (unsigned long long)b.entry, b.cover,
+           b.height_err_m);
+    fflush(stdout);
+    CHECK(b.entry == 3 && b.cover > 0.35 && b.cover < 0.65 && fabs(b.height_err_m - 0.02) < 1e-3);
+    CHECK_OK(sooc_eval_box_fit(e + 1, 1, &f, 1, &use, 5, &b));   /* only the one elsewhere */
+    CHECK(b.entry == 0 && b.cover == 0);
+    CHECK_OK(sooc_eval_box_fit(e, 3, &f, 1, &use, 7, &b));       /* an id with no points */
+    CHECK(b.entry == 0 && b.n_points == 0 && isnan(b.cover));
+    const uint8_t skip = 0;
+    CHECK_OK(sooc_eval_box_fit(e, 3, &f, 1, &skip, 5, &b));      /* the frame not used */
+    CHECK(b.n_points == 0 && isnan(b.cover));
+    CHECK(sooc_eval_box_fit(e, 3, NULL, 1, &use, 5, &b) == SOOC_EINVAL);
+    sooc_frame_free(&f);
+}
+
+static void make_frame(sooc_frame *f, int w, int h, const double c[3], double pitch, float d) {
+    make_frame_ids(f, w, h, c, pitch, d, 0);
 }
 
 static void test_point_seen(void) {
@@ -556,6 +604,7 @@ int main(void) {
     test_query_rule();
     test_point_seen();
     test_points_seen();
+    test_box_fit();
     test_entry_probe();
     test_spread();
     test_churn();

@@ -4,7 +4,11 @@
  * the bare floor in view (B) and on the bare floor behind the camera (C).
  * With the support on, B is removed and published as a removal, A's place has
  * a cluster and C is out of view: both stay. With it off (negative control)
- * B stays. A margin out of range is an error. */
+ * B stays. With it and the observed-surface boxes on, the entries written by
+ * the update get the boxes of the surfaces they claim (docs/geometric.md "The
+ * entries' observed surfaces"): centred on the entry, reaching the balls and
+ * no farther, as tall as a ball; none with the boxes off or the support off.
+ * A margin out of range is an error. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -52,13 +56,16 @@ static sooc_mapper *tiny_mapper(int *d) {
     return mp;
 }
 
-/* One update with the three planted entries; support on with margin > 0.
- * *removed_b: B's id among the update's removals. Returns the entries after. */
-static size_t run(double margin, sooc_map_entry *out, size_t cap, int *removed_b) {
+/* One update with the three planted entries; support on with margin > 0,
+ * observed-surface boxes with surf.
+ * *removed_b: B's id among the update's removals; *n_surface: published
+ * entries with an observed-surface box. Returns the entries after. */
+static size_t run(double margin, int surf, sooc_map_entry *out, size_t cap, int *removed_b, int *n_surface) {
     int d = 0;
     sooc_mapper *mp = tiny_mapper(&d);
     if (!mp) return 0;
     if (margin > 0) CHECK_OK(sooc_mapper_set_support(mp, margin));
+    sooc_mapper_set_surface_boxes(mp, surf);
     sooc_map_entry e[3];
     plant(&e[0], 1, g_balls[0].c[0], g_balls[0].c[2], d);   /* A: on a ball         */
     plant(&e[1], 2, 0.13, 1.55, d);                          /* B: bare floor        */
@@ -78,6 +85,40 @@ static size_t run(double margin, sooc_map_entry *out, size_t cap, int *removed_b
     CHECK_OK(sooc_mapper_changed(mp, chg, 64, &nc, rem, 64, &nr));
     *removed_b = 0;
     for (size_t i = 0; i < nr; i++) *removed_b |= rem[i] == 2;
+    /* observed-surface boxes: on the balls' seen surfaces (their union grown by 2 cm), as tall as the
+     * taller ball under them (0.12 m, or 0.10), never the model's 1.2 m locality box */
+    *n_surface = 0;
+    for (size_t i = 0; i < nc; i++) {
+        const sooc_map_entry *q = &chg[i];
+        if (!(q->geom.flags & SOOC_GEOM_SURFACE)) continue;
+        (*n_surface)++;
+        double c = cos(q->yaw), s = sin(q->yaw), lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+        for (int k = 0; k < 4; k++) {   /* the box's floor corners in the world (R_y) */
+            double a = q->geom.centre[0] + ((k & 1) ? 0.5 : -0.5) * q->extent[0];
+            double b = q->geom.centre[2] + ((k & 2) ? 0.5 : -0.5) * q->extent[2];
+            double wx = q->x + c * a + s * b, wz = q->z - s * a + c * b;
+            lo[0] = fmin(lo[0], wx), hi[0] = fmax(hi[0], wx), lo[1] = fmin(lo[1], wz), hi[1] = fmax(hi[1], wz);
+        }
+        printf("entry %llu: observed-surface box %.3f x %.3f x %.3f, floor x %.3f..%.3f z %.3f..%.3f\n",
+               (unsigned long long)q->id, q->extent[0], q->extent[1], q->extent[2], lo[0], hi[0], lo[1], hi[1]);
+        double h = q->extent[1];
+        CHECK_MSG((fabs(h - 0.12) < 0.012 || fabs(h - 0.10) < 0.012) && fabs(q->geom.centre[1] - 0.5 * h) < 1e-6,
+                  "entry %llu: height %.3f", (unsigned long long)q->id, h);
+        /* centred on the entry, it reaches its farthest claimed voxel: the balls' far side from it, and no
+         * farther than that plus a voxel (0.01 m) */
+        double far = 0;
+        for (int bb = 0; bb < 2; bb++) {
+            const synth_sphere *sp = &g_balls[bb];
+            double dx = fabs(sp->c[0] - q->x) + sp->r, dz = fabs(sp->c[2] - q->z) + sp->r;
+            far = fmax(far, fmax(dx, dz));
+        }
+        CHECK_MSG((q->geom.flags & SOOC_GEOM_TIGHT) && q->geom.centre[0] == 0 && q->geom.centre[2] == 0,
+                  "entry %llu: flags 0x%x, centre offset", (unsigned long long)q->id, q->geom.flags);
+        CHECK_MSG(0.5 * fmax(q->extent[0], q->extent[2]) <= far + 0.011, "entry %llu: half-width %.3f beyond the balls' %.3f",
+                  (unsigned long long)q->id, 0.5 * fmax(q->extent[0], q->extent[2]), far);
+        CHECK_MSG(0.5 * fmin(q->extent[0], q->extent[2]) >= 0.04, "entry %llu: box %.3f x %.3f narrower than a ball",
+                  (unsigned long long)q->id, q->extent[0], q->extent[2]);
+    }
     size_t n = 0;
     CHECK_OK(sooc_mapper_entries(mp, out, cap, &n));
     sooc_mapper_destroy(mp);
@@ -86,16 +127,20 @@ static size_t run(double margin, sooc_map_entry *out, size_t cap, int *removed_b
 
 int main(void) {
     sooc_map_entry out[64];
-    int rb = 0;
-    size_t n = run(0.05, out, 64, &rb);
+    int rb = 0, ns = 0;
+    size_t n = run(0.05, 0, out, 64, &rb, &ns);
+    CHECK_MSG(ns == 0, "support on, surface boxes off: %d observed-surface boxes", ns);
+    n = run(0.05, 1, out, 64, &rb, &ns);
     printf("support on: %zu entries, A %s, B %s (%s), C %s\n", n, has(out, n, 1) ? "kept" : "gone",
            has(out, n, 2) ? "kept" : "gone", rb ? "published as a removal" : "no removal", has(out, n, 3) ? "kept" : "gone");
     CHECK_MSG(!has(out, n, 2) && rb, "the entry on the bare floor in view stays with the support on");
     CHECK_MSG(has(out, n, 1), "the entry on a ball was removed");
     CHECK_MSG(has(out, n, 3), "the entry out of view was removed");
-    n = run(0, out, 64, &rb);
-    printf("support off: %zu entries, B %s\n", n, has(out, n, 2) ? "kept" : "gone");
+    CHECK_MSG(ns >= 1, "support on: %d entries with an observed-surface box", ns);
+    n = run(0, 1, out, 64, &rb, &ns);
+    printf("support off: %zu entries, B %s, %d observed-surface boxes\n", n, has(out, n, 2) ? "kept" : "gone", ns);
     CHECK_MSG(has(out, n, 2) && !rb, "negative control: the bare-floor entry is gone without the support too");
+    CHECK_MSG(ns == 0, "negative control: %d observed-surface boxes without the support", ns);
 
     /* bad margin */
     int d = 0;

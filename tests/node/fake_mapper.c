@@ -257,6 +257,9 @@ sooc_status sooc_mapper_set_support(sooc_mapper *m, double margin_m) {
     return SOOC_OK;
 }
 
+/* Observed-surface boxes need the support's clusters: accepted, no effect. */
+void sooc_mapper_set_surface_boxes(sooc_mapper *m, int on) { (void)m, (void)on; }
+
 /* Proposals need clusters the fake mapper does not keep: accepted, no effect. */
 void sooc_proposal_params_default(sooc_proposal_params *p) { memset(p, 0, sizeof *p); }
 sooc_status sooc_mapper_set_proposals(sooc_mapper *m, const sooc_proposal_params *p) {
