@@ -157,6 +157,15 @@ struct sooc_field;
  * and out gets them (free with sooc_surface_claims_free). sp NULL: defaults. */
 sooc_status sooc_surface_claim(const struct sooc_field *f, const double T_fw[16], sooc_cluster_map *cm,
                                const sooc_surface_params *sp, sooc_surface_claims *out);
+/* The same for the field that draws map from f's camera
+ * (sooc_model_field_create: the in-view entries, up to max_obj, <= 0 = all
+ * it can): *fld gets the field (its components name the claimants,
+ * sooc_model_field_comp_id; the caller destroys it), out the claims. */
+struct sooc_model;
+struct sooc_model_field;
+sooc_status sooc_surface_claim_frame(struct sooc_model *m, const sooc_cogmap *map, const sooc_frame *f, int max_obj,
+                                     sooc_cluster_map *cm, const sooc_surface_params *sp,
+                                     struct sooc_model_field **fld, sooc_surface_claims *out);
 /* The box of the voxels component comp claims, in the frame of an entry at
  * (X, Z) with heading yaw, centred on (X, Z) as every planner box: extent
  * along its x, height, z (twice the farthest voxel centroid on each floor

@@ -16,25 +16,14 @@ sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc
                                      const sooc_frame *gt, int max_obj, const sooc_surface_params *sp,
                                      int *n_comp) {
     if (!m || !map || !cm || !gt || !n_comp) return sooc_seterr(SOOC_EINVAL, "eval surface: bad arguments");
-    sooc_status st;
-    if (max_obj <= 0 || max_obj > SOOC_RENDER_MAX_COMP - 1) max_obj = SOOC_RENDER_MAX_COMP - 1;
-    sooc_intrinsics K = gt->K;
-    K.width = gt->width, K.height = gt->height;
     sooc_model_field *fld = NULL;
-    if ((st = sooc_model_field_create(&fld, m, map, gt->T_wc, &K, max_obj, NULL)))
-        return sooc_adderr(st, "eval surface: frame %lld", (long long)gt->index);
-    const sooc_field *f = sooc_model_field_get(fld);
-    *n_comp = f->n_comp;
-    /* world -> the field's frame: T_fc T_cw */
-    double T_fc[16], T_cw[16], T_fw[16];
-    sooc_model_field_T_fc(fld, T_fc);
-    sooc_se3_inverse(T_cw, gt->T_wc);
-    sooc_se3_mul(T_fw, T_fc, T_cw);
-    sooc_surface_claims cl = {0};
-    st = sooc_surface_claim(f, T_fw, cm, sp, &cl);
+    sooc_surface_claims cl;
+    sooc_status st = sooc_surface_claim_frame(m, map, gt, max_obj, cm, sp, &fld, &cl);
+    if (st) return sooc_adderr(st, "eval");
+    *n_comp = sooc_model_field_get(fld)->n_comp;
     sooc_surface_claims_free(&cl);
     sooc_model_field_destroy(fld);
-    return st ? sooc_adderr(st, "eval surface: frame %lld", (long long)gt->index) : SOOC_OK;
+    return SOOC_OK;
 }
 
 sooc_status sooc_eval_surface_map(const sooc_cluster_params *cp, const sooc_frame *frames, int n,

@@ -694,19 +694,12 @@ static sooc_status support_prune(sooc_mapper *mp, const sooc_frame *f, uint64_t 
  * at least SURF_MIN_VOXELS gets the box of its claim as its planner box. */
 #define SURF_MIN_VOXELS 8
 static sooc_status support_surfaces(sooc_mapper *mp, const sooc_frame *f, const uint64_t *ids, int K) {
-    sooc_intrinsics Kc = f->K;
-    Kc.width = f->width, Kc.height = f->height;
     sooc_model_field *fld = NULL;
-    sooc_status s = sooc_model_field_create(&fld, mp->m, mp->map, f->T_wc, &Kc, SOOC_RENDER_MAX_COMP - 1, NULL);
-    if (s) return sooc_adderr(s, "mapper: surfaces of frame %lld", (long long)f->index);
-    const sooc_field *fd = sooc_model_field_get(fld);
-    double T_fc[16], T_cw[16], T_fw[16];
-    sooc_model_field_T_fc(fld, T_fc);
-    sooc_se3_inverse(T_cw, f->T_wc);
-    sooc_se3_mul(T_fw, T_fc, T_cw);
-    sooc_surface_claims cl = {0};
-    s = sooc_surface_claim(fd, T_fw, mp->supp, NULL, &cl);
-    for (int k = 1; !s && k < fd->n_comp; k++) {
+    sooc_surface_claims cl;
+    sooc_status s = sooc_surface_claim_frame(mp->m, mp->map, f, 0, mp->supp, NULL, &fld, &cl);
+    if (s) return sooc_adderr(s, "mapper");
+    int nc = sooc_model_field_get(fld)->n_comp;
+    for (int k = 1; !s && k < nc; k++) {
         uint64_t id = sooc_model_field_comp_id(fld, k);
         int written = 0;
         for (int j = 0; j < K; j++) written |= id && ids[j] == id;

@@ -4,6 +4,7 @@
  * entry) whose density is highest there. The learnt map says which object a
  * point belongs to; the depth says where the object's surface is. */
 #include "sooc3d/mapper.h"
+#include "sooc3d/model.h"
 #include "sooc3d/render.h"
 
 #include <math.h>
@@ -126,6 +127,30 @@ sooc_status sooc_surface_claim(const sooc_field *f, const double T_fw[16], sooc_
     sooc_free(idx);
     if (st) sooc_surface_claims_free(out);
     return st;
+}
+
+sooc_status sooc_surface_claim_frame(sooc_model *m, const sooc_cogmap *map, const sooc_frame *f, int max_obj,
+                                     sooc_cluster_map *cm, const sooc_surface_params *sp, sooc_model_field **fld,
+                                     sooc_surface_claims *out) {
+    if (!m || !map || !f || !cm || !fld || !out) return sooc_seterr(SOOC_EINVAL, "surface: bad arguments");
+    *fld = NULL;
+    memset(out, 0, sizeof *out);
+    if (max_obj <= 0 || max_obj > SOOC_RENDER_MAX_COMP - 1) max_obj = SOOC_RENDER_MAX_COMP - 1;
+    sooc_intrinsics K = f->K;
+    K.width = f->width, K.height = f->height;
+    sooc_status st = sooc_model_field_create(fld, m, map, f->T_wc, &K, max_obj, NULL);
+    if (st) return sooc_adderr(st, "surface: frame %lld", (long long)f->index);
+    double T_fc[16], T_cw[16], T_fw[16];   /* world -> the field's frame: T_fc T_cw */
+    sooc_model_field_T_fc(*fld, T_fc);
+    sooc_se3_inverse(T_cw, f->T_wc);
+    sooc_se3_mul(T_fw, T_fc, T_cw);
+    st = sooc_surface_claim(sooc_model_field_get(*fld), T_fw, cm, sp, out);
+    if (st) {
+        sooc_model_field_destroy(*fld);
+        *fld = NULL;
+        return sooc_adderr(st, "surface: frame %lld", (long long)f->index);
+    }
+    return SOOC_OK;
 }
 
 int sooc_surface_box(const sooc_surface_claims *c, int comp, double X, double Z, double yaw, double voxel_m,
