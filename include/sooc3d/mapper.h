@@ -503,7 +503,7 @@ sooc_status sooc_mapper_set_support(sooc_mapper *mp, double margin_m);
  * (sooc_surface_claim), and each entry the update wrote that claims at least
  * 8 voxels gets the box of its claim (sooc_surface_box) as its planner box
  * (geometry flags TIGHT | SURFACE) in place of its density's. Off by default;
- * on without the support it does nothing until the support is set. */
+ * on without the support it does nothing while the support is off. */
 void sooc_mapper_set_surface_boxes(sooc_mapper *mp, int on);
 void sooc_mapper_set_merge_radius(sooc_mapper *m, double radius);
 /* Set the latents mode of a live mapper (SOOC_LATENTS_*). */
@@ -651,7 +651,7 @@ void sooc_objgeom_cache_invalidate(sooc_objgeom_cache *c);
  * its current latent. */
 sooc_status sooc_objgeom_cache_seed(sooc_objgeom_cache *c, const sooc_map_entry *e);
 /* The box of the observed surface entry id claims (sooc_surface_box): fill
- * gives it instead of the density's box, with SOOC_GEOM_SURFACE. */
+ * gives it in place of the density's box, with SOOC_GEOM_SURFACE. */
 sooc_status sooc_objgeom_cache_set_surface(sooc_objgeom_cache *c, uint64_t id, const float extent[3],
                                            const float centre[3]);
 /* Recompute the stale boxes, at most `max` (< 0: all), new entries first,
