@@ -398,7 +398,6 @@ int sooc_eval_timing_parse(const char *s);
  * map (after all input views); query views always from the final map". */
 const char *sooc_eval_timing_note(sooc_eval_timing t);
 
-
 typedef struct sooc_eval_run_opts {
     uint64_t seed;             /* mapper seed (ray offsets, posterior samples)          (1) */
     int iterations;            /* L refinement updates per input view; 0 = model's L    (0) */
@@ -535,22 +534,9 @@ sooc_status sooc_eval_map_view(sooc_model *m, const sooc_cogmap *map, const sooc
                                int detail, sooc_render_out *out, sooc_view_metrics *vm,
                                sooc_iou_match *match, uint64_t *comp_ids, double *comp_xz, int *n_comp);
 
-/* The entries' observed surfaces (docs/geometric.md "The entries' observed
- * surfaces"). cm: a segmented cluster map of the mapped frames. Labels:
- * every object voxel of cm takes the component (1..) of the field that
- * sooc_model_field_create makes for gt's camera (max_obj as there) whose
- * density (times presence, inside its box) is highest at the voxel's
- * centroid, or background when none exceeds min_sigma; then per cluster of
- * the segmentation, claimants with less than min_share of its claimed
- * voxels give them to its largest claimant, and with fill its unclaimed
- * voxels go to that claimant too. *n_comp gets the field's component count.
- * View: the same, then cm rendered into gt's camera becomes out->label (out:
- * a render of the same view from the same map, sooc_eval_map_view; its
- * labels' components and comp_xz are the same), and the view is scored
- * again into vm and match (may be NULL). sp NULL: the defaults. */
 /* How well the planner's boxes (sooc_map_entry_box, sooc_map_entry_height)
  * fit labelled object id: its points are its labelled pixels with valid depth
- * in frames[i] with use[i], in the world frame, 5 mm or more above the
+ * in frames[i] with use[i] (use NULL: every frame), in the world frame, 5 mm or more above the
  * support plane; its entry is the one of e[0..ne) whose box holds most of
  * them. cover: the fraction its box holds (0: no box holds any); height_err_m:
  * the box's height minus the points' (their 98th percentile); area_ratio: the
@@ -565,12 +551,21 @@ typedef struct sooc_box_fit {
 sooc_status sooc_eval_box_fit(const sooc_map_entry *e, size_t ne, const sooc_frame *frames, int n,
                               const uint8_t *use, uint16_t id, sooc_box_fit *out);
 
-/* The cluster map the surfaces are drawn from: frames[i] with use[i], segmented. */
-sooc_status sooc_eval_surface_map(const struct sooc_cluster_params *cp, const sooc_frame *frames, int n,
+/* The support-plane clusters of frames[i] with use[i] (use NULL: every
+ * frame) with parameters cp (NULL: the defaults), segmented: the geometric
+ * row's map and the one the entries' observed surfaces are drawn from. */
+sooc_status sooc_eval_cluster_map(const struct sooc_cluster_params *cp, const sooc_frame *frames, int n,
                                   const uint8_t *use, sooc_cluster_map **out);
-sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
-                                     const sooc_frame *gt, int max_obj, const sooc_surface_params *sp,
-                                     int *n_comp);
+/* The entries' observed surfaces (docs/geometric.md "The entries' observed
+ * surfaces") of view gt: cm (sooc_eval_cluster_map of the mapped frames) is
+ * claimed by the entries of the field that draws gt's camera from map
+ * (sooc_surface_claim_frame, max_obj as sooc_eval_map_view, sp NULL: the
+ * defaults), rendered into gt's camera, and becomes out->label: a pixel that
+ * shows a claimed voxel takes its entry's component, any other the
+ * background (out: a render of the same view from the same map,
+ * sooc_eval_map_view, whose components and comp_xz are the same). The view
+ * is then scored again (gt_obj as sooc_eval_map_view) into vm and match (may
+ * be NULL). */
 sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
                                    const sooc_frame *gt, const sooc_gt_object *gt_obj, int n_gt, int max_obj,
                                    const sooc_surface_params *sp, double d_clip, const double *comp_xz,

@@ -18,7 +18,7 @@ static int cmp_double(const void *a, const void *b) {
 
 sooc_status sooc_eval_box_fit(const sooc_map_entry *e, size_t ne, const sooc_frame *frames, int n,
                               const uint8_t *use, uint16_t id, sooc_box_fit *out) {
-    if ((ne && !e) || n < 0 || (n && (!frames || !use)) || !out) return sooc_seterr(SOOC_EINVAL, "box fit: bad arguments");
+    if ((ne && !e) || n < 0 || (n && !frames) || !out) return sooc_seterr(SOOC_EINVAL, "box fit: bad arguments");
     out->entry = 0;
     out->n_points = 0;
     out->cover = out->height_err_m = out->area_ratio = NAN;
@@ -27,7 +27,7 @@ sooc_status sooc_eval_box_fit(const sooc_map_entry *e, size_t ne, const sooc_fra
     sooc_status st = SOOC_OK;
     for (int i = 0; i < n && !st; i++) {
         const sooc_frame *f = &frames[i];
-        if (!use[i] || !f->instance || !f->has_pose) continue;
+        if ((use && !use[i]) || !f->instance || !f->has_pose) continue;
         for (int v = 0; v < f->height && !st; v++)
             for (int u = 0; u < f->width; u++) {
                 size_t k = (size_t)v * f->width + u;

@@ -31,10 +31,8 @@ static sooc_status geo_map(geo_run *g, const sooc_frame *frames, int n, const ui
                            const sooc_cluster_params *cp, double d_clip) {
     memset(g, 0, sizeof *g);
     g->d_clip = d_clip;
-    sooc_status st = sooc_cluster_map_create(&g->cm, cp);
-    for (int i = 0; i < n && !st; i++)
-        if (!use || use[i]) st = sooc_cluster_map_add_frame(g->cm, &frames[i]);
-    if (!st) st = sooc_cluster_map_segment(g->cm, &g->n_obj);
+    sooc_status st = sooc_eval_cluster_map(cp, frames, n, use, &g->cm);
+    if (!st) st = sooc_cluster_map_objects(g->cm, NULL, 0, &g->n_obj);
     if (st) return st;
     /* labels as a learnt map renders them: 0 the background (the plane and the surround), 1.. objects */
     g->nk = g->n_obj + 1 < SOOC_METRIC_MAX_PRED ? g->n_obj + 1 : SOOC_METRIC_MAX_PRED;
@@ -82,8 +80,7 @@ static sooc_status geo_box_fit(const geo_run *g, const sooc_frame *frames, int n
     int n = 0;
     sooc_cluster_object *obj = sooc_calloc((size_t)g->n_obj + 1, sizeof *obj);
     sooc_map_entry *e = sooc_calloc((size_t)g->n_obj + 1, sizeof *e);
-    uint8_t *use = sooc_malloc((size_t)n_frames);
-    sooc_status st = !obj || !e || !use ? sooc_seterr(SOOC_ENOMEM, "eval geometric: out of memory")
+    sooc_status st = !obj || !e ? sooc_seterr(SOOC_ENOMEM, "eval geometric: out of memory")
                                         : sooc_cluster_map_objects(g->cm, obj, g->n_obj, &n);
     for (int k = 0; k < n && !st; k++) {
         e[k].id = (uint64_t)k + 1;
@@ -92,12 +89,10 @@ static sooc_status geo_box_fit(const geo_run *g, const sooc_frame *frames, int n
         e[k].geom.flags = SOOC_GEOM_TIGHT;
         e[k].geom.centre[1] = (float)obj[k].centre_y;
     }
-    for (int i = 0; i < n_frames && use; i++) use[i] = 1;   /* every labelled frame: the objects' truth */
-    for (int k = 0; k < res->obj.n && !st; k++)
-        st = sooc_eval_box_fit(e, (size_t)n, frames, n_frames, use, res->obj.id[k], &res->obj_box[k]);
+    for (int k = 0; k < res->obj.n && !st; k++)   /* from every labelled frame: the objects' truth */
+        st = sooc_eval_box_fit(e, (size_t)n, frames, n_frames, NULL, res->obj.id[k], &res->obj_box[k]);
     sooc_free(obj);
     sooc_free(e);
-    sooc_free(use);
     return st;
 }
 

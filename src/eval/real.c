@@ -420,6 +420,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     sooc_model *copy = NULL;
     sooc_map_entry *ent = NULL;
     sooc_cluster_map *surf = NULL;
+    uint8_t *mapped = NULL;   /* the frames pass 1 mapped (SOOC3D+ and the surfaces use them) */
     sooc_render_out rout;
     memset(&rout, 0, sizeof rout);
     int global = sooc_model_is_global(m);
@@ -456,18 +457,21 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     if ((st = map_pass(&C, frames, n_frames, o->query_every, 1, &res->churn, res))) goto done;
     res->entries_final = sooc_cogmap_count(ctx_map(&C));
 
+    if (o->finetune || (o->run.surface && C.mp)) {
+        if (!(mapped = sooc_malloc((size_t)(n_frames ? n_frames : 1)))) {
+            st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory");
+            goto done;
+        }
+        for (int i = 0; i < n_frames; i++) mapped[i] = !sooc_eval_real_is_query(i, o->query_every);
+    }
+
     /* SOOC3D+: finetune the pass-1 map on the mapped frames (the decoders go
      * into the mapper's map as payloads; its tight boxes are stale after) */
     if (o->finetune) {
         double t0 = sooc_seconds();
-        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
-        if (!inp) st = SOOC_ENOMEM;
-        for (int i = 0; i < n_frames && inp; i++) inp[i] = !sooc_eval_real_is_query(i, o->query_every);
-        if (!st)
-            st = sooc_eval_finetune_map(ctx_model(&C), (sooc_cogmap *)ctx_map(&C), frames, n_frames, inp, o->finetune,
-                                        o->run.birth, o->run.threads, o->ft_progress, o->ft_user, &res->n_born,
-                                        &res->n_pruned);
-        sooc_free(inp);
+        st = sooc_eval_finetune_map(ctx_model(&C), (sooc_cogmap *)ctx_map(&C), frames, n_frames, mapped, o->finetune,
+                                    o->run.birth, o->run.threads, o->ft_progress, o->ft_user, &res->n_born,
+                                    &res->n_pruned);
         res->churn.created += res->n_born;
         res->churn.removed += res->n_pruned;
         res->entries_final = sooc_cogmap_count(ctx_map(&C));
@@ -477,14 +481,8 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
     }
 
     /* the entries' observed surfaces: the mapped frames' clusters */
-    if (o->run.surface && C.mp) {
-        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
-        if (!inp) st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory");
-        for (int i = 0; i < n_frames && inp; i++) inp[i] = !sooc_eval_real_is_query(i, o->query_every);
-        if (!st) st = sooc_eval_surface_map(o->run.surface, frames, n_frames, inp, &surf);
-        sooc_free(inp);
-        if (st) goto done;
-    }
+    if (o->run.surface && C.mp && (st = sooc_eval_cluster_map(o->run.surface, frames, n_frames, mapped, &surf)))
+        goto done;
 
     /* query frames from the pass-1 map */
     for (int i = 0; i < n_frames && !st; i++) {
@@ -572,16 +570,9 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
         res->n_never_behind = nb;
         res->never_behind_med_m = median_inplace(beh, nb);
         sooc_free(beh);
-        /* the planner's boxes against the labelled objects */
-        uint8_t *inp = res->has_labels ? sooc_malloc((size_t)n_frames) : NULL;
-        if (res->has_labels && !inp) {
-            st = sooc_seterr(SOOC_ENOMEM, "eval real: out of memory");
-            goto done;
-        }
-        for (int i = 0; i < n_frames && inp; i++) inp[i] = 1;   /* every labelled frame: the objects' truth */
-        for (int k = 0; inp && k < res->obj.n && !st; k++)
-            st = sooc_eval_box_fit(ent, ne, frames, n_frames, inp, res->obj.id[k], &res->obj_box[k]);
-        sooc_free(inp);
+        /* the planner's boxes against the labelled objects, from every labelled frame */
+        for (int k = 0; res->has_labels && k < res->obj.n && !st; k++)
+            st = sooc_eval_box_fit(ent, ne, frames, n_frames, NULL, res->obj.id[k], &res->obj_box[k]);
         if (st) goto done;
         if (res->n_persistent) {
             res->pos_spread_m = ps / res->n_persistent;
@@ -596,6 +587,7 @@ sooc_status sooc_eval_real_run(sooc_model *m, const sooc_frame *frames, int n_fr
 done:
     sooc_render_out_free(&rout);
     sooc_cluster_map_destroy(surf);
+    sooc_free(mapped);
     sooc_free(ent);
     sooc_free(C.tr);
     sooc_mapper_destroy(C.mp);

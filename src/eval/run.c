@@ -357,27 +357,23 @@ sooc_status sooc_eval_run_scene(sooc_model *m, const sooc_frame *frames, int n_f
         }
         if (o->timing & SOOC_EVAL_ONLINE) st = score_view(&C, i, 1, res->n_mapped, &res->input_online);
     }
+    /* the mapped input views (SOOC3D+ finetunes on them, the surfaces are drawn from them) */
+    uint8_t *inp = NULL;
+    if (!st && mp && (o->finetune || o->surface)) {
+        if (!(inp = sooc_malloc((size_t)(n_frames ? n_frames : 1)))) st = sooc_seterr(SOOC_ENOMEM, "eval: out of memory");
+        for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
+    }
     /* SOOC3D+: finetune the final map's objects and blocks on the mapped input views */
     if (!st && o->finetune && mp) {
         double t0 = sooc_seconds();
-        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
-        if (!inp) st = SOOC_ENOMEM;
-        for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
         /* the mapper owns its map; the finetuned decoders go into it as payloads */
-        if (!st)
-            st = sooc_eval_finetune_map(C.model, (sooc_cogmap *)C.map, frames, n_frames, inp, o->finetune, o->birth,
-                                        o->threads, NULL, NULL, &res->n_born, &res->n_pruned);
-        sooc_free(inp);
+        st = sooc_eval_finetune_map(C.model, (sooc_cogmap *)C.map, frames, n_frames, inp, o->finetune, o->birth,
+                                    o->threads, NULL, NULL, &res->n_born, &res->n_pruned);
         res->finetune_s = sooc_seconds() - t0;
     }
     /* the entries' observed surfaces: the mapped input views' clusters */
-    if (!st && o->surface && mp) {
-        uint8_t *inp = sooc_malloc((size_t)(n_frames ? n_frames : 1));
-        if (!inp) st = sooc_seterr(SOOC_ENOMEM, "eval: out of memory");
-        for (int i = 0; i < n_frames && inp; i++) inp[i] = use[i] && !frames[i].is_query;
-        if (!st) st = sooc_eval_surface_map(o->surface, frames, n_frames, inp, &C.surf);
-        sooc_free(inp);
-    }
+    if (!st && o->surface && mp) st = sooc_eval_cluster_map(o->surface, frames, n_frames, inp, &C.surf);
+    sooc_free(inp);
     /* everything else from the final map */
     for (int i = 0; i < n_frames && !st; i++) {
         if (!use[i]) continue;

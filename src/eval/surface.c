@@ -1,4 +1,5 @@
-/* The entries' observed surfaces (eval.h: sooc_eval_surface_view;
+/* The entries' observed surfaces (eval.h: sooc_eval_cluster_map,
+ * sooc_eval_surface_view;
  * docs/geometric.md "The entries' observed surfaces"): the mapped frames'
  * object voxels above the support plane, each given to the map entry whose
  * density is highest there, rendered into a view as the geometric baseline
@@ -12,33 +13,19 @@
 #include <math.h>
 #include <string.h>
 
-sooc_status sooc_eval_surface_labels(sooc_model *m, const sooc_cogmap *map, sooc_cluster_map *cm,
-                                     const sooc_frame *gt, int max_obj, const sooc_surface_params *sp,
-                                     int *n_comp) {
-    if (!m || !map || !cm || !gt || !n_comp) return sooc_seterr(SOOC_EINVAL, "eval surface: bad arguments");
-    sooc_model_field *fld = NULL;
-    sooc_surface_claims cl;
-    sooc_status st = sooc_surface_claim_frame(m, map, gt, max_obj, cm, sp, &fld, &cl);
-    if (st) return sooc_adderr(st, "eval");
-    *n_comp = sooc_model_field_get(fld)->n_comp;
-    sooc_surface_claims_free(&cl);
-    sooc_model_field_destroy(fld);
-    return SOOC_OK;
-}
-
-sooc_status sooc_eval_surface_map(const sooc_cluster_params *cp, const sooc_frame *frames, int n,
+sooc_status sooc_eval_cluster_map(const sooc_cluster_params *cp, const sooc_frame *frames, int n,
                                   const uint8_t *use, sooc_cluster_map **out) {
-    if (!cp || !out || n < 0 || (n && (!frames || !use))) return sooc_seterr(SOOC_EINVAL, "eval surface: bad arguments");
+    if (!out || n < 0 || (n && !frames)) return sooc_seterr(SOOC_EINVAL, "eval: clusters: bad arguments");
     *out = NULL;
     sooc_cluster_map *cm = NULL;
     sooc_status st = sooc_cluster_map_create(&cm, cp);
     for (int i = 0; i < n && !st; i++)
-        if (use[i]) st = sooc_cluster_map_add_frame(cm, &frames[i]);
+        if (!use || use[i]) st = sooc_cluster_map_add_frame(cm, &frames[i]);
     int n_cl = 0;
     if (!st) st = sooc_cluster_map_segment(cm, &n_cl);
     if (st) {
         sooc_cluster_map_destroy(cm);
-        return sooc_adderr(st, "eval surface: the mapped frames' clusters");
+        return sooc_adderr(st, "eval: the mapped frames' clusters");
     }
     *out = cm;
     return SOOC_OK;
@@ -50,9 +37,13 @@ sooc_status sooc_eval_surface_view(sooc_model *m, const sooc_cogmap *map, sooc_c
                                    sooc_render_out *out, sooc_view_metrics *vm, sooc_iou_match *match) {
     if (!out || !out->label || out->width != gt->width || out->height != gt->height || !vm)
         return sooc_seterr(SOOC_EINVAL, "eval surface: no render of the view to relabel");
-    int nc = 0;
-    sooc_status st = sooc_eval_surface_labels(m, map, cm, gt, max_obj, sp, &nc);
-    if (st) return st;
+    sooc_model_field *fld = NULL;
+    sooc_surface_claims cl;
+    sooc_status st = sooc_surface_claim_frame(m, map, gt, max_obj, cm, sp, &fld, &cl);
+    if (st) return sooc_adderr(st, "eval");
+    int nc = sooc_model_field_get(fld)->n_comp;
+    sooc_surface_claims_free(&cl);
+    sooc_model_field_destroy(fld);
     size_t np = (size_t)gt->width * gt->height;
     int16_t *lab = sooc_malloc(np * sizeof *lab);
     float *z = sooc_malloc(np * sizeof *z);

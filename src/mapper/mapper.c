@@ -703,8 +703,9 @@ static sooc_status support_surfaces(sooc_mapper *mp, const sooc_frame *f, const 
         uint64_t id = sooc_model_field_comp_id(fld, k);
         int written = 0;
         for (int j = 0; j < K; j++) written |= id && ids[j] == id;
+        if (!written) continue;
         sooc_cogmap_entry e;
-        if (!written || sooc_cogmap_get(mp->map, id, &e) != SOOC_OK) {
+        if (sooc_cogmap_get(mp->map, id, &e) != SOOC_OK) {
             sooc_clearerr();
             continue;
         }
